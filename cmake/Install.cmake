@@ -1,0 +1,22 @@
+# `cmake --install` puts the static library, the one public header of each module and a
+# package config in the prefix, so another project can `find_package(facetree)`.
+include(CMakePackageConfigHelpers)
+
+install(TARGETS facetree facetree_zstd EXPORT facetreeTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
+install(TARGETS facetree_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+foreach(module stream merge grid io)
+  install(FILES ${PROJECT_SOURCE_DIR}/${module}/${module}.h
+    DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})
+endforeach()
+install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
+
+install(EXPORT facetreeTargets NAMESPACE facetree:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/facetreeConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/facetreeConfig.cmake
+  INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/facetreeConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/facetreeConfig.cmake ${PROJECT_BINARY_DIR}/facetreeConfigVersion.cmake
+  DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)

@@ -1,0 +1,91 @@
+// Additive, exact statistics of a face cluster (Willmott 2000, sec. 5.2.3 and 5.4).
+//
+// Moments are area integrals over the cluster's surface, taken about a mesh-wide origin
+// (the caller shifts positions) so that the variance below does not cancel catastrophically.
+// For a triangle (a, b, c) of area A with s = a + b + c:
+//   integral of x      dA = A s / 3
+//   integral of x x^T  dA = A (a a^T + b b^T + c c^T + s s^T) / 12
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
+namespace facetree {
+
+// Symmetric 3x3 matrix, upper triangle: xx, xy, xz, yy, yz, zz.
+struct SymMat3 {
+  double m[6] = {0, 0, 0, 0, 0, 0};
+  double xx() const { return m[0]; }
+  double xy() const { return m[1]; }
+  double xz() const { return m[2]; }
+  double yy() const { return m[3]; }
+  double yz() const { return m[4]; }
+  double zz() const { return m[5]; }
+  // v^T M v
+  double quadratic(const glm::dvec3& v) const {
+    return m[0] * v.x * v.x + m[3] * v.y * v.y + m[5] * v.z * v.z +
+           2.0 * (m[1] * v.x * v.y + m[2] * v.x * v.z + m[4] * v.y * v.z);
+  }
+};
+
+struct ClusterStats {
+  double area = 0;
+  double perimeter = 0;
+  glm::dvec3 sumNormal{0.0};  // S = sum of a_f n_f
+  glm::dvec3 firstMoment{0.0};
+  SymMat3 secondMoment;
+
+  static ClusterStats fromTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    ClusterStats s;
+    const glm::dvec3 cross = glm::cross(b - a, c - a);
+    s.sumNormal = 0.5 * cross;
+    s.area = 0.5 * glm::length(cross);
+    s.perimeter = glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
+    const glm::dvec3 sum = a + b + c;
+    s.firstMoment = (s.area / 3.0) * sum;
+    const double w = s.area / 12.0;
+    const glm::dvec3* v[4] = {&a, &b, &c, &sum};
+    for (const glm::dvec3* p : v) {
+      s.secondMoment.m[0] += w * p->x * p->x;
+      s.secondMoment.m[1] += w * p->x * p->y;
+      s.secondMoment.m[2] += w * p->x * p->z;
+      s.secondMoment.m[3] += w * p->y * p->y;
+      s.secondMoment.m[4] += w * p->y * p->z;
+      s.secondMoment.m[5] += w * p->z * p->z;
+    }
+    return s;
+  }
+
+  // Union of two clusters that share `sharedLength` of boundary (0 for disjoint ones).
+  static ClusterStats merged(const ClusterStats& a, const ClusterStats& b, double sharedLength) {
+    ClusterStats s;
+    s.area = a.area + b.area;
+    s.perimeter = std::max(0.0, a.perimeter + b.perimeter - 2.0 * sharedLength);
+    s.sumNormal = a.sumNormal + b.sumNormal;
+    s.firstMoment = a.firstMoment + b.firstMoment;
+    for (int i = 0; i < 6; ++i) s.secondMoment.m[i] = a.secondMoment.m[i] + b.secondMoment.m[i];
+    return s;
+  }
+
+  double projectedArea() const { return glm::length(sumNormal); }
+
+  // Area-weighted covariance of the surface about its centroid (zero for zero area).
+  SymMat3 covariance() const {
+    SymMat3 c;
+    if (!(area > 0)) return c;
+    const double inv = 1.0 / area;
+    const glm::dvec3 mean = firstMoment * inv;
+    c.m[0] = secondMoment.m[0] * inv - mean.x * mean.x;
+    c.m[1] = secondMoment.m[1] * inv - mean.x * mean.y;
+    c.m[2] = secondMoment.m[2] * inv - mean.x * mean.z;
+    c.m[3] = secondMoment.m[3] * inv - mean.y * mean.y;
+    c.m[4] = secondMoment.m[4] * inv - mean.y * mean.z;
+    c.m[5] = secondMoment.m[5] * inv - mean.z * mean.z;
+    return c;
+  }
+};
+
+}  // namespace facetree

@@ -1,0 +1,98 @@
+// facetree/merge: the face cluster hierarchy of a triangle mesh. Public header of the
+// module: std and glm only.
+//
+// Greedy dual-edge merging (Garland, Willmott & Heckbert 2001) with Willmott's cost
+// (Willmott 2000, ch. 5, eq. 84), oriented boxes with exact extents (sec. 5.3) and
+// per-node face ranges over a reordered face list (sec. 5.5.3).
+//
+// Errors: buildHierarchy throws std::invalid_argument for indices out of range or a mesh too
+// large for 32-bit node ids; nothing else is thrown except std::bad_alloc.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/gtc/quaternion.hpp>
+#include <glm/vec3.hpp>
+
+namespace facetree {
+
+// An indexed triangle mesh the caller owns: `indices` holds three vertex indices per triangle.
+struct MeshView {
+  std::span<const glm::vec3> positions;
+  std::span<const uint32_t> indices;
+  size_t triangleCount() const { return indices.size() / 3; }
+};
+
+enum class Metric : uint8_t {
+  Willmott,  // (eFit + k*area) * perim^2 / projArea  (Willmott 2000, eq. 84)
+  Garland,   // w_fit*E_fit + w_dir*E_dir + w_shape*E_shape (Garland et al. 2001), scale dependent
+  Constant,  // every merge costs the same: the unbalanced worst case of Willmott's Fig. 69
+};
+
+struct BuildOptions {
+  Metric metric = Metric::Willmott;
+  double k = 1e-4;              // balance weight of eq. 80
+  double flatThreshold = 0.5;   // eq. 78: |S|/A above it takes S as the cluster normal
+  double garlandFitWeight = 1.0;
+  double garlandDirWeight = 1.0;
+  double garlandShapeWeight = 1.0;
+  bool computeBoxes = true;
+};
+
+// A child reference is a node index, or a face (its position in faceOrder) with this bit set.
+inline constexpr uint32_t kFaceChild = 0x80000000u;
+
+enum NodeFlag : uint32_t {
+  kNodeJoinsDisjointSurfaces = 1u << 0,  // children share no mesh edge (components joined)
+  kNodeFlatFrame = 1u << 1,              // box frame from S + min-area rectangle, else PCA
+};
+
+// Topology and merge statistics of one internal node.
+struct Node {
+  uint32_t child[2];
+  uint32_t first;  // faces [first, first + count) of faceOrder
+  uint32_t count;
+  uint32_t flags;
+  float cost;       // merge cost when the node was created
+  float area;
+  float perimeter;
+  glm::vec3 sumNormal;  // S = sum of area-weighted face normals; projArea = |S|
+};
+
+// Oriented box: axes are the columns of mat3_cast(orientation); every vertex of the node's
+// faces lies in center +- halfExtent along them, and each of the six faces touches a vertex.
+struct NodeBox {
+  glm::vec3 center;
+  glm::quat orientation;
+  glm::vec3 halfExtent;
+  float sideArea[6];  // projected area facing +axis0, -axis0, +axis1, -axis1, +axis2, -axis2
+};
+
+struct BuildStats {
+  uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
+  uint32_t balancedHeight = 0;  // ceil(log2 n) + 1
+  double averageDegree = 0;     // dual-edge degree of merged clusters, sampled at each merge
+  uint32_t maxDegree = 0;
+  uint64_t eigenSolves = 0;     // PCA solves for non-flat clusters
+  uint64_t normalShortcuts = 0; // clusters whose normal came from S (eq. 78)
+  uint64_t components = 0;      // edge-connected components joined at the top
+  double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
+};
+
+struct Hierarchy {
+  std::vector<Node> nodes;        // reverse creation order: nodes[0] is the root
+  std::vector<NodeBox> boxes;     // parallel to nodes (empty without computeBoxes)
+  std::vector<uint32_t> faceOrder;  // faceOrder[i] = input triangle of the i-th face in hierarchy order
+  BuildStats stats;
+};
+
+// Builds the binary face cluster hierarchy of `mesh` down to single triangles.
+Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options = {});
+
+// Computes exact oriented boxes and side areas for every node of `hierarchy` (called by
+// buildHierarchy when options.computeBoxes; exposed for hierarchies recast or read back).
+void computeBoxes(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options = {});
+
+}  // namespace facetree

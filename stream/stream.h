@@ -1,0 +1,94 @@
+// facetree/stream: streaming triangle readers (PLY ascii/binary, OBJ, STL, Draco; any of
+// them zstd-compressed). Public header of the module: std and glm only.
+//
+// A reader yields triangles in batches with memory bounded by the batch size; the face list
+// of the file is never held whole. Polygons are fan-triangulated and keep their original
+// face index. Vertex positions of indexed formats are served through VertexSource (held in
+// memory for now; a bounded cache can be put behind the same interface).
+//
+// Errors: functions of this header throw facetree::ReadError (a std::runtime_error) for
+// malformed or unreadable input; what() is one line "FILE: PLACE: REASON", where PLACE is
+// "byte N" or "line N". Nothing else is thrown except std::bad_alloc.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include <glm/vec3.hpp>
+
+namespace facetree {
+
+inline constexpr uint32_t kNoVertex = 0xFFFFFFFFu;
+
+// One triangle as the reader hands it on. `face` is the index of the face in the file
+// (before fan triangulation); `vertex` are indices into the reader's VertexSource.
+struct Triangle {
+  glm::vec3 position[3];
+  uint32_t vertex[3];
+  uint64_t face;
+};
+
+enum class MeshFormat { PlyAscii, PlyBinaryLittleEndian, PlyBinaryBigEndian, Obj, StlAscii, StlBinary, Draco };
+const char* formatName(MeshFormat format);
+
+struct MeshInfo {
+  std::string name;          // file name as given, "-" for standard input
+  MeshFormat format{};
+  bool zstdCompressed = false;
+  uint64_t declaredVertices = 0;  // from the header where the format has one, else 0
+  uint64_t declaredFaces = 0;
+};
+
+// Counts gathered while reading; final once read() returned 0.
+struct ReadStats {
+  uint64_t vertices = 0;            // vertices in the VertexSource
+  uint64_t faces = 0;               // faces in the file (polygons, strips count as one each)
+  uint64_t triangles = 0;           // triangles handed on
+  uint64_t degenerateTriangles = 0; // repeated vertex index or zero area: handed on, counted
+  uint64_t skippedTriangles = 0;    // touching a NaN/Inf vertex: not handed on
+  uint64_t nonFiniteVertices = 0;
+  uint64_t inputBytes = 0;          // bytes of the (decompressed) mesh file consumed
+  uint64_t compressedBytes = 0;     // bytes read from disk when zstd-compressed, else 0
+};
+
+// Positions of an indexed mesh, by vertex index.
+class VertexSource {
+public:
+  virtual ~VertexSource() = default;
+  virtual uint64_t size() const = 0;
+  virtual glm::vec3 position(uint64_t index) const = 0;
+};
+
+class ReadError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+class TriangleReader {
+public:
+  virtual ~TriangleReader() = default;
+  // Fills `out` from the front; returns how many triangles were written, 0 at the end.
+  virtual size_t read(std::span<Triangle> out) = 0;
+  virtual const MeshInfo& info() const = 0;
+  virtual const ReadStats& stats() const = 0;
+  // All vertices are known once the first read() returned (formats whose vertices follow
+  // the faces are read to the end first); valid for the reader's lifetime.
+  virtual const VertexSource& vertices() const = 0;
+};
+
+struct ReadOptions {
+  // Bytes of input buffered at once (decompressed and raw).
+  size_t bufferBytes = size_t{1} << 20;
+};
+
+// Opens a mesh file; the format is detected from the content, not the name
+// (".zst" framing, PLY/OBJ/STL/Draco signatures).
+std::unique_ptr<TriangleReader> openMesh(const std::filesystem::path& path, const ReadOptions& options = {});
+// Reads a mesh from standard input ("-"), format detected from the content.
+std::unique_ptr<TriangleReader> openStandardInput(const ReadOptions& options = {});
+
+}  // namespace facetree
