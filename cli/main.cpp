@@ -1,2 +1,82 @@
+// facetree: command-line entry point. Dispatches to the subcommands and turns every failure
+// into one line on stderr and an exit code per failure class.
 #include <cstdio>
-int main() { std::puts("facetree"); return 0; }
+#include <exception>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cli/args.h"
+#include "cli/commands.h"
+#include "io/io.h"
+#include "stream/stream.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: facetree COMMAND [OPTIONS]
+
+Face cluster hierarchies over very large triangle meshes (PLY, OBJ, STL, Draco; any .zst).
+
+commands:
+  stats MESH [--json]            counts, bounding box and read throughput of a mesh
+  build MESH [--json]            build the face cluster hierarchy and print its statistics
+        [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
+        [--w-fit W] [--w-dir W] [--w-shape W] [--no-boxes]
+  gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
+  gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
+
+MESH may be - for standard input; the format is detected from the content.
+
+exit codes: 0 success, 1 internal error, 2 usage, 3 bad or unreadable input,
+            4 cannot write output, 5 out of memory or over a limit
+)";
+
+int dispatch(const std::vector<std::string>& args) {
+  using namespace facetree::cli;
+  if (args.empty()) {
+    std::fputs(kUsage, stderr);
+    return kExitUsage;
+  }
+  const std::string& command = args[0];
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (command == "--help" || command == "-h" || command == "help") {
+    std::fputs(kUsage, stdout);
+    return kExitOk;
+  }
+  if (command == "--version") {
+    std::printf("facetree %s\n", FACETREE_VERSION);
+    return kExitOk;
+  }
+  if (command == "stats") return runStats(rest);
+  if (command == "build") return runBuild(rest);
+  if (command == "gen") return runGenerate(rest);
+  throw UsageError("unknown command '" + command + "'");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace facetree::cli;
+  try {
+    return dispatch(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "facetree: %s (see facetree --help)\n", e.what());
+    return kExitUsage;
+  } catch (const facetree::ReadError& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitInput;
+  } catch (const facetree::IoError& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitOutput;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitInput;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "facetree: out of memory\n");
+    return kExitResource;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "facetree: internal error: %s\n", e.what());
+    return kExitInternal;
+  }
+}

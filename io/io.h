@@ -12,6 +12,8 @@
 
 #include <glm/vec3.hpp>
 
+#include "merge/merge.h"
+
 namespace facetree {
 
 class IoError : public std::runtime_error {
@@ -36,5 +38,28 @@ private:
   struct State;
   std::unique_ptr<State> state_;
 };
+
+// Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
+// memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
+// a keyed bijection so any size can be shuffled while streaming.
+enum class SyntheticKind { Grid, Sphere, Terrain };
+struct GenerateOptions {
+  uint64_t triangles = 20000;  // approximate target; the shape rounds it
+  bool shuffleVertices = false;
+  bool shuffleFaces = false;
+  uint64_t seed = 1;
+};
+struct GeneratedCounts {
+  uint64_t vertices = 0;
+  uint64_t triangles = 0;
+};
+// Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
+// radius 1. Terrain: grid with multi-octave value-noise heights.
+GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
+                                   const std::filesystem::path& path);
+// Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;
+// points on shared edges are shared so the result stays connected.
+GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const GenerateOptions& options,
+                                    const std::filesystem::path& path);
 
 }  // namespace facetree

@@ -1,0 +1,88 @@
+// facetree build MESH: the face cluster hierarchy of a mesh, with its statistics.
+#include <cmath>
+#include <cstdio>
+
+#include "cli/args.h"
+#include "cli/commands.h"
+#include "cli/json.h"
+#include "grid/grid.h"
+#include "merge/merge.h"
+
+namespace facetree::cli {
+namespace {
+
+Metric parseMetric(const std::string& name) {
+  if (name == "willmott") return Metric::Willmott;
+  if (name == "garland") return Metric::Garland;
+  if (name == "constant") return Metric::Constant;
+  throw UsageError("unknown metric '" + name + "' (willmott, garland, constant)");
+}
+
+}  // namespace
+
+int runBuild(const std::vector<std::string>& argv) {
+  const Args args(argv, {"metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape"},
+                  {"json", "no-boxes"});
+  if (args.positional().size() != 1) throw UsageError("build takes exactly one mesh file (or - for standard input)");
+  const std::string& name = args.positional()[0];
+
+  BuildOptions options;
+  options.metric = parseMetric(args.valueOr("metric", "willmott"));
+  options.k = args.number("k", options.k);
+  options.flatThreshold = args.number("flat-threshold", options.flatThreshold);
+  options.garlandFitWeight = args.number("w-fit", options.garlandFitWeight);
+  options.garlandDirWeight = args.number("w-dir", options.garlandDirWeight);
+  options.garlandShapeWeight = args.number("w-shape", options.garlandShapeWeight);
+  options.computeBoxes = !args.flag("no-boxes");
+  if (options.k < 0) throw UsageError("--k must not be negative");
+
+  const double start = nowSeconds();
+  auto reader = name == "-" ? openStandardInput() : openMesh(name);
+  const IndexedMesh mesh = loadMesh(*reader);
+  const double readSeconds = nowSeconds() - start;
+  const Hierarchy hierarchy = buildHierarchy(mesh.view(), options);
+  const double totalSeconds = nowSeconds() - start;
+  const BuildStats& s = hierarchy.stats;
+  const uint64_t peak = peakResidentBytes();
+  const uint64_t triangles = mesh.indices.size() / 3;
+
+  if (args.flag("json")) {
+    JsonWriter json;
+    json.field("mesh", name);
+    json.field("triangles", triangles);
+    json.field("nodes", static_cast<uint64_t>(hierarchy.nodes.size()));
+    json.field("height", s.height);
+    json.field("balanced_height", s.balancedHeight);
+    json.field("height_ratio", s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0);
+    json.field("average_degree", s.averageDegree);
+    json.field("max_degree", s.maxDegree);
+    json.field("eigen_solves", s.eigenSolves);
+    json.field("normal_shortcuts", s.normalShortcuts);
+    json.field("components", s.components);
+    json.beginObject("seconds");
+    json.field("read", readSeconds);
+    json.field("init", s.secondsInit);
+    json.field("cost", s.secondsCost);
+    json.field("eigen", s.secondsEigen);
+    json.field("merge", s.secondsMerge);
+    json.field("boxes", s.secondsBoxes);
+    json.field("total", totalSeconds);
+    json.endObject();
+    json.field("peak_rss_bytes", peak);
+    std::fputs(json.finish().c_str(), stdout);
+    return kExitOk;
+  }
+  std::printf("mesh          %s: %llu triangles\n", name.c_str(), static_cast<unsigned long long>(triangles));
+  std::printf("hierarchy     %zu nodes, height %u (balanced %u, ratio %.2f), %llu components joined\n",
+              hierarchy.nodes.size(), s.height, s.balancedHeight,
+              s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0, static_cast<unsigned long long>(s.components));
+  std::printf("degree        average %.2f, max %u\n", s.averageDegree, s.maxDegree);
+  std::printf("normals       %llu PCA solves, %llu from S\n", static_cast<unsigned long long>(s.eigenSolves),
+              static_cast<unsigned long long>(s.normalShortcuts));
+  std::printf("time          read %.3f s, init %.3f s, merge %.3f s (cost %.3f, eigen %.3f), boxes %.3f s, total %.3f s\n",
+              readSeconds, s.secondsInit, s.secondsMerge, s.secondsCost, s.secondsEigen, s.secondsBoxes, totalSeconds);
+  std::printf("peak memory   %.1f MiB\n", peak / 1048576.0);
+  return kExitOk;
+}
+
+}  // namespace facetree::cli

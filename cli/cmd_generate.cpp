@@ -1,0 +1,48 @@
+// facetree gen grid|sphere|terrain|subdivide: synthetic meshes for tests and benchmarks.
+#include <cstdio>
+
+#include "cli/args.h"
+#include "cli/commands.h"
+#include "grid/grid.h"
+#include "io/io.h"
+
+namespace facetree::cli {
+
+int runGenerate(const std::vector<std::string>& argv) {
+  const Args args(argv, {"triangles", "output", "seed", "levels"}, {"shuffle-vertices", "shuffle-faces"},
+                  {{"-n", "--triangles"}, {"-o", "--output"}});
+  const auto& positional = args.positional();
+  if (positional.empty()) throw UsageError("gen needs a kind: grid, sphere, terrain or subdivide");
+  const auto output = args.value("output");
+  if (!output) throw UsageError("gen needs -o OUTPUT.ply");
+
+  GenerateOptions options;
+  options.triangles = args.count("triangles", options.triangles);
+  options.seed = args.count("seed", options.seed);
+  options.shuffleVertices = args.flag("shuffle-vertices");
+  options.shuffleFaces = args.flag("shuffle-faces");
+
+  const std::string& kind = positional[0];
+  GeneratedCounts counts;
+  if (kind == "subdivide") {
+    if (positional.size() != 2) throw UsageError("gen subdivide takes one input mesh");
+    const uint64_t levels = args.count("levels", 1);
+    if (levels > 8) throw UsageError("--levels must be at most 8");
+    auto reader = openMesh(positional[1]);
+    const IndexedMesh mesh = loadMesh(*reader);
+    counts = writeSubdividedMesh(mesh.view(), static_cast<unsigned>(levels), options, *output);
+  } else {
+    if (positional.size() != 1) throw UsageError("gen " + kind + " takes no input file");
+    SyntheticKind shape;
+    if (kind == "grid") shape = SyntheticKind::Grid;
+    else if (kind == "sphere") shape = SyntheticKind::Sphere;
+    else if (kind == "terrain") shape = SyntheticKind::Terrain;
+    else throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, subdivide)");
+    counts = writeSyntheticMesh(shape, options, *output);
+  }
+  std::fprintf(stderr, "wrote %s: %llu vertices, %llu triangles\n", output->c_str(),
+               static_cast<unsigned long long>(counts.vertices), static_cast<unsigned long long>(counts.triangles));
+  return kExitOk;
+}
+
+}  // namespace facetree::cli

@@ -1,0 +1,19 @@
+// The facetree subcommands; each returns an exit code (cli/args.h) and throws UsageError,
+// ReadError, IoError or std::invalid_argument for main() to report.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace facetree::cli {
+
+int runStats(const std::vector<std::string>& args);
+int runBuild(const std::vector<std::string>& args);
+int runGenerate(const std::vector<std::string>& args);
+
+// Peak resident set size of this process, in bytes (getrusage).
+uint64_t peakResidentBytes();
+// Seconds on a monotonic clock since an arbitrary origin.
+double nowSeconds();
+
+}  // namespace facetree::cli

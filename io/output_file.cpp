@@ -1,0 +1,73 @@
+#include "io/output_file.h"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "io/io.h"
+
+namespace facetree {
+namespace {
+constexpr size_t kBufferBytes = size_t{1} << 20;
+
+std::filesystem::path temporaryName(const std::filesystem::path& path) {
+  // Unique per process so that two runs writing the same target do not collide.
+  return std::filesystem::path(path.string() + ".tmp" + std::to_string(::getpid()));
+}
+}  // namespace
+
+void OutputFile::Closer::operator()(std::FILE* f) const {
+  if (f != stdout) std::fclose(f);
+}
+
+OutputFile::OutputFile(const std::filesystem::path& path) : path_(path) {
+  if (path == "-") {
+    toStandardOutput_ = true;
+    file_.reset(stdout);
+    return;
+  }
+  temporary_ = temporaryName(path);
+  file_.reset(std::fopen(temporary_.c_str(), "wb"));
+  if (!file_) fail("cannot create");
+  std::setvbuf(file_.get(), nullptr, _IOFBF, kBufferBytes);
+}
+
+OutputFile::~OutputFile() {
+  if (!committed_ && !toStandardOutput_) {
+    file_.reset();
+    std::error_code ignored;
+    std::filesystem::remove(temporary_, ignored);
+  }
+}
+
+void OutputFile::fail(const char* what) const {
+  const int error = errno;
+  throw IoError(path_.string() + ": " + what + ": " + (error ? std::strerror(error) : "write error"));
+}
+
+void OutputFile::write(const void* data, size_t bytes) {
+  if (bytes == 0) return;
+  if (std::fwrite(data, 1, bytes, file_.get()) != bytes) fail("cannot write");
+  written_ += bytes;
+}
+
+void OutputFile::commit() {
+  if (std::fflush(file_.get()) != 0) fail("cannot write");
+  if (toStandardOutput_) {
+    committed_ = true;
+    return;
+  }
+  if (::fsync(::fileno(file_.get())) != 0 && errno != EINVAL) fail("cannot sync");
+  std::FILE* f = file_.release();
+  if (std::fclose(f) != 0) fail("cannot close");
+  std::error_code error;
+  std::filesystem::rename(temporary_, path_, error);
+  if (error) {
+    std::filesystem::remove(temporary_, error);
+    throw IoError(path_.string() + ": cannot rename temporary file: " + error.message());
+  }
+  committed_ = true;
+}
+
+}  // namespace facetree

@@ -1,0 +1,42 @@
+// An output file that appears under its final name only when complete: data goes to a
+// temporary name beside the target and is renamed on commit(); destroyed uncommitted, the
+// temporary file is removed. Writes are buffered; every failure throws IoError naming the file.
+#pragma once
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+
+namespace facetree {
+
+class OutputFile {
+public:
+  // "-" writes to standard output (no temporary, nothing to remove).
+  explicit OutputFile(const std::filesystem::path& path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  void write(const void* data, size_t bytes);
+  void write(std::string_view text) { write(text.data(), text.size()); }
+  uint64_t bytesWritten() const { return written_; }
+  // Flushes, syncs and renames to the final name.
+  void commit();
+  const std::filesystem::path& path() const { return path_; }
+
+private:
+  [[noreturn]] void fail(const char* what) const;
+  std::filesystem::path path_;
+  std::filesystem::path temporary_;
+  struct Closer {
+    void operator()(std::FILE* f) const;
+  };
+  std::unique_ptr<std::FILE, Closer> file_;
+  bool toStandardOutput_ = false;
+  bool committed_ = false;
+  uint64_t written_ = 0;
+};
+
+}  // namespace facetree

@@ -1,0 +1,84 @@
+// The facetree executable: exit codes per failure class, messages, and the generator round trip.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "run_cli.h"
+
+namespace facetree {
+namespace {
+
+using test::runCli;
+
+std::string scratch(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("facetree_cli_" + std::to_string(::getpid()) + "_" + name)).string();
+}
+
+TEST(Cli, HelpAndVersionSucceed) {
+  auto help = runCli("--help");
+  EXPECT_EQ(help.exitCode, 0);
+  EXPECT_NE(help.out.find("usage: facetree COMMAND"), std::string::npos);
+  auto version = runCli("--version");
+  EXPECT_EQ(version.exitCode, 0);
+  EXPECT_EQ(version.out.rfind("facetree ", 0), 0u);
+}
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+  auto none = runCli("");
+  EXPECT_EQ(none.exitCode, 2);
+  auto unknown = runCli("frobnicate");
+  EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_EQ(unknown.out, "facetree: unknown command 'frobnicate' (see facetree --help)\n");
+  auto option = runCli("stats --bogus x.ply");
+  EXPECT_EQ(option.exitCode, 2);
+  EXPECT_EQ(option.out, "facetree: unknown option '--bogus' (see facetree --help)\n");
+  auto metric = runCli("build --metric nope x.ply");
+  EXPECT_EQ(metric.exitCode, 2);
+  EXPECT_EQ(metric.out, "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree --help)\n");
+  auto count = runCli("gen grid -n 12x -o x.ply");
+  EXPECT_EQ(count.exitCode, 2);
+}
+
+TEST(Cli, MissingInputExitsWithThreeAndNamesTheFile) {
+  auto missing = runCli("stats /nonexistent-facetree/mesh.ply");
+  EXPECT_EQ(missing.exitCode, 3);
+  EXPECT_EQ(missing.out.rfind("facetree: /nonexistent-facetree/mesh.ply: ", 0), 0u) << missing.out;
+  EXPECT_EQ(std::count(missing.out.begin(), missing.out.end(), '\n'), 1) << "one line: " << missing.out;
+}
+
+TEST(Cli, UnwritableOutputExitsWithFour) {
+  auto result = runCli("gen grid -n 100 -o /nonexistent-facetree/out.ply");
+  EXPECT_EQ(result.exitCode, 4);
+  EXPECT_EQ(result.out, "facetree: /nonexistent-facetree/out.ply: cannot create: No such file or directory\n");
+}
+
+TEST(Cli, GeneratedGridReadsBackWithItsCounts) {
+  const std::string path = scratch("grid.ply");
+  auto gen = runCli("gen grid -n 2k --shuffle-faces -o " + path);
+  ASSERT_EQ(gen.exitCode, 0) << gen.out;
+  EXPECT_EQ(gen.out, "wrote " + path + ": 1089 vertices, 2048 triangles\n");
+  auto stats = runCli("stats --json " + path);
+  ASSERT_EQ(stats.exitCode, 0) << stats.out;
+  EXPECT_NE(stats.out.find("\"vertices\": 1089,"), std::string::npos) << stats.out;
+  EXPECT_NE(stats.out.find("\"faces\": 2048,"), std::string::npos) << stats.out;
+  EXPECT_NE(stats.out.find("\"degenerate_triangles\": 0,"), std::string::npos) << stats.out;
+  // The same mesh through standard input.
+  auto piped = runCli("stats --json - < " + path);
+  ASSERT_EQ(piped.exitCode, 0) << piped.out;
+  EXPECT_NE(piped.out.find("\"faces\": 2048,"), std::string::npos) << piped.out;
+  std::filesystem::remove(path);
+}
+
+TEST(Cli, BuildReportsABalancedHierarchy) {
+  const std::string path = scratch("sphere.ply");
+  ASSERT_EQ(runCli("gen sphere -n 20000 -o " + path).exitCode, 0);
+  auto build = runCli("build --json " + path);
+  ASSERT_EQ(build.exitCode, 0) << build.out;
+  EXPECT_NE(build.out.find("\"triangles\": 19880,"), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("\"nodes\": 19879,"), std::string::npos) << build.out;
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace facetree

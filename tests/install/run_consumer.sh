@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Installs the built facetree into a scratch prefix and builds and runs a consumer project with it.
+set -euo pipefail
+build_dir="$1"; source_dir="$2"
+work="$(mktemp -d "${TMPDIR:-/tmp}/facetree-install.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+cmake --install "$build_dir" --prefix "$work/prefix" >/dev/null
+test -f "$work/prefix/include/facetree/facetree.h"
+test -f "$work/prefix/include/facetree/merge/merge.h"
+cmake -S "$source_dir/tests/install/consumer" -B "$work/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_PREFIX_PATH="$work/prefix" >/dev/null
+cmake --build "$work/build" >/dev/null
+"$work/build/consumer"
