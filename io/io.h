@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <stdexcept>
 #include <string>
 
@@ -61,5 +62,22 @@ GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& op
 // points on shared edges are shared so the result stays connected.
 GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const GenerateOptions& options,
                                     const std::filesystem::path& path);
+
+// Pictures and coloured exports of a clustering. `faceCluster[i]` is the cluster of triangle i
+// of `mesh`; colours are a deterministic function of the cluster id.
+struct RenderOptions {
+  int width = 1024;
+  int height = 768;
+  // Viewing direction (from the camera towards the model) and up vector; the camera frames the
+  // bounding box. Zero means the default three-quarter view.
+  glm::vec3 viewDirection{0.0f};
+  glm::vec3 up{0.0f, 0.0f, 1.0f};
+};
+// Flat-shaded software rendering to PNG (written atomically).
+void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster, const RenderOptions& options,
+                       const std::filesystem::path& path);
+// Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
+void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
+                             const std::filesystem::path& path);
 
 }  // namespace facetree
