@@ -1,0 +1,93 @@
+// buildHierarchy: validation, dual graph, greedy merge, then the output layout (nodes in
+// reverse creation order, contiguous face ranges, heights), all iterative: Garland-metric
+// trees on flat CAD are thousands of levels deep and a chain may be millions.
+//
+// A mesh of one triangle has no internal node: nodes is empty and faceOrder = {0}.
+#include <algorithm>
+#include <bit>
+#include <chrono>
+
+#include "merge/dual_graph.h"
+#include "merge/face_geometry.h"
+#include "merge/merge.h"
+#include "merge/merge_engine.h"
+
+namespace facetree {
+
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// ceil(log2 n) + 1: the height of a balanced binary tree over n faces, faces included.
+uint32_t balancedHeight(uint32_t n) {
+  return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
+}
+
+// Turns creation-ordered nodes into the output order and lays out the face ranges: the root
+// covers [0, n), each node hands [first, first + count(left)) to its left child and the rest
+// to its right child. Parents precede children in the output, so one forward pass suffices.
+// Returns the height (nodes on the longest root-to-face path, the face included).
+uint32_t layOut(std::vector<Node>& nodes, std::vector<uint32_t>& faceOrder, uint32_t faceCount) {
+  faceOrder.assign(faceCount, 0);
+  if (nodes.empty()) return 1;
+  const uint32_t last = static_cast<uint32_t>(nodes.size()) - 1;
+  std::reverse(nodes.begin(), nodes.end());
+  std::vector<uint32_t> depth(nodes.size(), 0);
+  depth[0] = 1;
+  nodes[0].first = 0;
+  uint32_t height = 1;
+  for (uint32_t i = 0; i <= last; ++i) {
+    Node& node = nodes[i];
+    uint32_t first = node.first;
+    for (uint32_t& child : node.child) {
+      if (child & kFaceChild) {
+        faceOrder[first] = child & ~kFaceChild;
+        child = kFaceChild | first;
+        ++first;
+        height = std::max(height, depth[i] + 1);
+      } else {
+        child = last - child;  // creation index -> output index
+        nodes[child].first = first;
+        depth[child] = depth[i] + 1;
+        first += nodes[child].count;
+      }
+    }
+  }
+  return height;
+}
+
+}  // namespace
+
+Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
+  auto start = std::chrono::steady_clock::now();
+  const FaceGeometry geometry(mesh);
+  DualGraph graph = buildDualGraph(geometry);
+  Hierarchy hierarchy;
+  BuildStats& stats = hierarchy.stats;
+  stats.secondsInit = secondsSince(start);
+
+  MergeResult merged = runMerge(geometry, std::move(graph), options);
+  start = std::chrono::steady_clock::now();
+  hierarchy.nodes = std::move(merged.nodes);
+  stats.height = layOut(hierarchy.nodes, hierarchy.faceOrder, geometry.faceCount());
+  stats.balancedHeight = balancedHeight(geometry.faceCount());
+  stats.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
+  stats.maxDegree = merged.maxDegree;
+  stats.eigenSolves = merged.counters.eigenSolves;
+  stats.normalShortcuts = merged.counters.normalShortcuts;
+  stats.components = merged.components;
+  stats.secondsCost = merged.secondsCost;
+  stats.secondsEigen = merged.counters.eigenSeconds;
+  stats.secondsMerge = merged.secondsMerge + secondsSince(start);
+
+  if (options.computeBoxes) {
+    start = std::chrono::steady_clock::now();
+    computeBoxes(mesh, hierarchy, options);
+    stats.secondsBoxes = secondsSince(start);
+  }
+  return hierarchy;
+}
+
+}  // namespace facetree

@@ -1,0 +1,107 @@
+// Dual graph construction: edge counts, shared lengths, the rules for repeated indices,
+// non-manifold edges and folded duplicates.
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "merge/dual_graph.h"
+#include "test_meshes.h"
+
+namespace facetree::test {
+namespace {
+
+struct Edge {
+  uint32_t a, b;
+  float length;
+};
+
+std::vector<Edge> edges(const DualGraph& g) {
+  std::vector<Edge> out;
+  for (uint32_t e = 0; e < g.edgeCount(); ++e) out.push_back({g.end[2 * e], g.end[2 * e + 1], g.shared[e]});
+  return out;
+}
+
+TEST(DualGraph, GridEdgeCountAndLengths) {
+  const uint32_t m = 7;
+  const TestMesh mesh = grid(m, 2.0f);
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  // Interior mesh edges of an m x m grid with diagonals: 3m^2 + 2m edges, 4m on the border.
+  EXPECT_EQ(g.edgeCount(), 3 * m * m - 2 * m);
+  for (const Edge& e : edges(g)) {
+    EXPECT_LT(e.a, e.b);
+    EXPECT_TRUE(std::abs(e.length - 2.0f) < 1e-5f || std::abs(e.length - 2.0f * std::sqrt(2.0f)) < 1e-5f);
+  }
+}
+
+TEST(DualGraph, AdjacencyListsHoldEveryHalfEdgeOnce) {
+  const TestMesh mesh = icosphere(2);
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  EXPECT_EQ(g.edgeCount(), mesh.faceCount() * 3 / 2);
+  std::vector<int> seen(g.end.size(), 0);
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    uint32_t degree = 0;
+    for (uint32_t h = g.head[f]; h != DualGraph::kNone; h = g.next[h]) {
+      EXPECT_EQ(g.end[h], f);
+      ++seen[h];
+      ++degree;
+    }
+    EXPECT_EQ(degree, 3u);
+  }
+  for (int s : seen) EXPECT_EQ(s, 1);
+}
+
+TEST(DualGraph, NonManifoldEdgeJoinsEveryPair) {
+  TestMesh mesh;
+  mesh.positions = {{0, 0, 0}, {3, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  mesh.add(0, 1, 2);
+  mesh.add(1, 0, 3);
+  mesh.add(0, 1, 4);
+  mesh.add(1, 0, 5);
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  ASSERT_EQ(g.edgeCount(), 6u);
+  std::set<std::pair<uint32_t, uint32_t>> pairs;
+  for (const Edge& e : edges(g)) {
+    pairs.insert({e.a, e.b});
+    EXPECT_FLOAT_EQ(e.length, 3.0f);
+  }
+  EXPECT_EQ(pairs.size(), 6u);
+}
+
+TEST(DualGraph, ManyFacesOnOneEdgeAreChained) {
+  TestMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}};
+  for (uint32_t i = 0; i < 40; ++i) {
+    mesh.positions.emplace_back(0.5f, std::cos(float(i)), std::sin(float(i)));
+    mesh.add(0, 1, 2 + i);
+  }
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  EXPECT_EQ(g.edgeCount(), 39u);
+  for (const Edge& e : edges(g)) EXPECT_EQ(e.b, e.a + 1);
+}
+
+TEST(DualGraph, FoldedDuplicateGetsOneEdgeWithSummedLength) {
+  TestMesh mesh;
+  mesh.positions = {{0, 0, 0}, {3, 0, 0}, {0, 4, 0}};
+  mesh.add(0, 1, 2);
+  mesh.add(0, 2, 1);
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  ASSERT_EQ(g.edgeCount(), 1u);
+  EXPECT_FLOAT_EQ(g.shared[0], 12.0f);
+}
+
+TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
+  TestMesh mesh;
+  mesh.positions = {{0, 0, 0}, {2, 0, 0}, {0, 1, 0}};
+  mesh.add(0, 1, 2);
+  mesh.add(1, 0, 0);  // edges (1,0), (0,0) skipped, (0,1) repeated: counted once
+  mesh.add(2, 2, 2);  // no edge at all
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  ASSERT_EQ(g.edgeCount(), 1u);
+  EXPECT_EQ(g.end[0], 0u);
+  EXPECT_EQ(g.end[1], 1u);
+  EXPECT_FLOAT_EQ(g.shared[0], 2.0f);
+  EXPECT_EQ(g.head[2], DualGraph::kNone);
+}
+
+}  // namespace
+}  // namespace facetree::test
