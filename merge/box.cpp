@@ -1,0 +1,539 @@
+// Exact oriented bounding boxes and side areas of face clusters (Willmott 2000, sec. 5.3).
+//
+// Frames (orientation only) are chosen bottom-up: each cluster carries its exact surface
+// moments (additive) and a small set of candidate hull points (the hull vertices of its own
+// frame plane, at most kFrameHullCap) to its parent, which chooses its frame from them
+// (frame.h: S + minimum-area rectangle for flat clusters, PCA otherwise). Carrying the
+// children's hull points is O(1) per node and its memory is O(height * cap) on a depth-first
+// stack; it approximates the hull only where a child's plane differs from the parent's, which
+// costs tightness of orientation, never containment.
+//
+// Extents and side areas are exact and never derived from the children's boxes (sec. 5.3.1):
+// every node projects every vertex of its face range on its axes as reconstructed from the
+// stored float quaternion, O(n h) in all. The faces are first packed in hierarchy order
+// (structure of arrays), so each node's scan is one contiguous sweep, and a parent's range is
+// the union of the ranges its children have just swept (depth-first: cache hot).
+//
+// Threads: the tree is cut into disjoint subtrees processed in parallel, then the few nodes
+// above them, whose scans are split into fixed blocks. Side areas are always summed per fixed
+// block (positions aligned to kSideBlock) and then block by block, and every node's frame
+// depends only on its subtree in a fixed child order, so the output is bit-identical for any
+// thread count.
+#include "merge/box.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+#include "merge/frame.h"
+
+namespace facetree {
+namespace {
+
+// Side areas are summed within aligned blocks of this many face positions, then block sums
+// in order: the canonical order that makes parallel scans bit-identical to serial ones.
+constexpr uint32_t kSideBlock = 1u << 12;
+// The tree is cut into about this many subtrees for the workers (fixed: independent of the
+// thread count) ...
+constexpr size_t kTargetSubtrees = 64;
+// ... but subtrees smaller than this are not cut further.
+constexpr uint32_t kMinSubtreeFaces = 1u << 13;
+// Below this many faces everything runs on the calling thread.
+constexpr size_t kMinParallelFaces = 1u << 15;
+constexpr unsigned kMaxThreads = 8;
+// A child cut off from a truncated hierarchy contributes the vertices of at most this many of
+// its faces (evenly strided) as hull candidates; its moments stay exact.
+constexpr uint32_t kGapSampleFaces = 256;
+
+// Faces in hierarchy order, structure of arrays: vertex k of face i is (x[k][i], y[k][i],
+// z[k][i]); (nx, ny, nz)[i] = a_f n_f, half the cross product.
+struct PackedFaces {
+  std::vector<float> x[3], y[3], z[3];
+  std::vector<float> nx, ny, nz;
+  glm::dvec3 origin{0.0};  // moments are taken about this point (the mesh's box center)
+
+  glm::vec3 vertex(int k, uint32_t i) const { return {x[k][i], y[k][i], z[k][i]}; }
+};
+
+// Area integrals of a cluster's surface about PackedFaces::origin (cluster_stats.h formulas).
+struct Moments {
+  double area = 0;
+  glm::dvec3 first{0.0};
+  double second[6] = {0, 0, 0, 0, 0, 0};
+  glm::dvec3 sumNormal{0.0};
+
+  void addTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    const glm::dvec3 half = 0.5 * glm::cross(b - a, c - a);
+    const double A = glm::length(half);
+    sumNormal += half;
+    area += A;
+    const glm::dvec3 s = a + b + c;
+    first += (A / 3.0) * s;
+    const double w = A / 12.0;
+    for (const glm::dvec3* p : {&a, &b, &c, &s}) {
+      second[0] += w * p->x * p->x;
+      second[1] += w * p->x * p->y;
+      second[2] += w * p->x * p->z;
+      second[3] += w * p->y * p->y;
+      second[4] += w * p->y * p->z;
+      second[5] += w * p->z * p->z;
+    }
+  }
+  void add(const Moments& o) {
+    area += o.area;
+    first += o.first;
+    for (int i = 0; i < 6; ++i) second[i] += o.second[i];
+    sumNormal += o.sumNormal;
+  }
+  SymMat3 covariance() const {
+    ClusterStats s;
+    s.area = area;
+    s.firstMoment = first;
+    for (int i = 0; i < 6; ++i) s.secondMoment.m[i] = second[i];
+    return s.covariance();
+  }
+};
+
+// Exact projections of a face range on three axes.
+struct Extent {
+  double lo[3] = {INFINITY, INFINITY, INFINITY};
+  double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  double side[6] = {0, 0, 0, 0, 0, 0};  // +a0, -a0, +a1, -a1, +a2, -a2
+
+  void merge(const Extent& o) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], o.lo[k]);
+      hi[k] = std::max(hi[k], o.hi[k]);
+    }
+    for (int k = 0; k < 6; ++k) side[k] += o.side[k];
+  }
+};
+
+uint32_t blockEnd(uint32_t i, uint32_t end) {
+  return std::min<uint64_t>(end, (uint64_t(i) / kSideBlock + 1) * kSideBlock);
+}
+
+// Projections of positions [begin, end) (within one side block) on `axis`.
+Extent scanBlock(const PackedFaces& f, const glm::dvec3 axis[3], uint32_t begin, uint32_t end) {
+  Extent e;
+  const double a0x = axis[0].x, a0y = axis[0].y, a0z = axis[0].z;
+  const double a1x = axis[1].x, a1y = axis[1].y, a1z = axis[1].z;
+  const double a2x = axis[2].x, a2y = axis[2].y, a2z = axis[2].z;
+  double lo0 = e.lo[0], lo1 = e.lo[1], lo2 = e.lo[2];
+  double hi0 = e.hi[0], hi1 = e.hi[1], hi2 = e.hi[2];
+  for (int k = 0; k < 3; ++k) {
+    const float* xs = f.x[k].data();
+    const float* ys = f.y[k].data();
+    const float* zs = f.z[k].data();
+    for (uint32_t i = begin; i < end; ++i) {
+      const double x = xs[i], y = ys[i], z = zs[i];
+      const double p0 = a0x * x + a0y * y + a0z * z;
+      const double p1 = a1x * x + a1y * y + a1z * z;
+      const double p2 = a2x * x + a2y * y + a2z * z;
+      lo0 = std::min(lo0, p0), hi0 = std::max(hi0, p0);
+      lo1 = std::min(lo1, p1), hi1 = std::max(hi1, p1);
+      lo2 = std::min(lo2, p2), hi2 = std::max(hi2, p2);
+    }
+  }
+  e.lo[0] = lo0, e.lo[1] = lo1, e.lo[2] = lo2;
+  e.hi[0] = hi0, e.hi[1] = hi1, e.hi[2] = hi2;
+  double s[6] = {0, 0, 0, 0, 0, 0};
+  const float* nxs = f.nx.data();
+  const float* nys = f.ny.data();
+  const float* nzs = f.nz.data();
+  for (uint32_t i = begin; i < end; ++i) {
+    const double x = nxs[i], y = nys[i], z = nzs[i];
+    const double d0 = a0x * x + a0y * y + a0z * z;
+    const double d1 = a1x * x + a1y * y + a1z * z;
+    const double d2 = a2x * x + a2y * y + a2z * z;
+    s[0] += std::max(d0, 0.0), s[1] += std::max(-d0, 0.0);
+    s[2] += std::max(d1, 0.0), s[3] += std::max(-d1, 0.0);
+    s[4] += std::max(d2, 0.0), s[5] += std::max(-d2, 0.0);
+  }
+  for (int k = 0; k < 6; ++k) e.side[k] = s[k];
+  return e;
+}
+
+Extent scanRange(const PackedFaces& f, const glm::dvec3 axis[3], uint32_t begin, uint32_t end) {
+  Extent total;
+  for (uint32_t i = begin; i < end;) {
+    const uint32_t stop = blockEnd(i, end);
+    total.merge(scanBlock(f, axis, i, stop));
+    i = stop;
+  }
+  return total;
+}
+
+// Float quaternion of a right-handed orthonormal frame, and the axes it reconstructs (the ones
+// the extents are measured along, so that containment holds for the stored representation).
+glm::quat frameQuaternion(const ClusterFrame& frame) {
+  const glm::dmat3 m(frame.axis[0], frame.axis[1], frame.axis[2]);
+  const glm::quat q(glm::normalize(glm::quat_cast(m)));
+  return q.w < 0 ? -q : q;  // canonical sign
+}
+
+void storedAxes(const glm::quat& q, glm::dvec3 axis[3]) {
+  const glm::mat3 m = glm::mat3_cast(q);
+  for (int k = 0; k < 3; ++k) axis[k] = glm::dvec3(m[k]);
+}
+
+float roundUp(double v) {
+  float f = float(v);
+  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// Center and half extents from exact projections; the half extents are measured from the
+// float center as stored, rounded up, so the stored box contains every vertex.
+void finishBox(const Extent& e, NodeBox& box) {
+  glm::dvec3 axis[3];
+  storedAxes(box.orientation, axis);
+  // The float axes are orthonormal only to ~1e-7, and the projections are absolute (large far
+  // from the origin): solve dot(center, axis_k) = mid_k instead of summing mid_k axis_k.
+  const glm::dmat3 a(axis[0], axis[1], axis[2]);
+  const glm::dvec3 mid = 0.5 * glm::dvec3(e.lo[0] + e.hi[0], e.lo[1] + e.hi[1], e.lo[2] + e.hi[2]);
+  box.center = glm::vec3(glm::inverse(glm::transpose(a)) * mid);
+  const glm::dvec3 c(box.center);
+  for (int k = 0; k < 3; ++k) {
+    const double ck = glm::dot(c, axis[k]);
+    box.halfExtent[k] = roundUp(std::max({e.hi[k] - ck, ck - e.lo[k], 0.0}));
+  }
+  for (int k = 0; k < 6; ++k) box.sideArea[k] = float(e.side[k]);
+}
+
+// What a finished child hands its parent: moments and candidate hull points
+// (arena[pointsBegin, next carry's pointsBegin or arena end)).
+struct Carry {
+  Moments moments;
+  size_t pointsBegin;
+};
+
+// A finished subtree root: its carry with its points copied out.
+struct SubtreeResult {
+  Moments moments;
+  std::vector<glm::vec3> points;
+};
+
+enum class TaskKind : uint8_t { kVisit, kFinish, kFace, kRange, kSubtree };
+struct Task {
+  TaskKind kind;
+  uint32_t a;  // node index, face position, range begin, or subtree id
+  uint32_t b;  // kFinish: child carries on the stack; kRange: range end
+};
+
+struct Context {
+  const PackedFaces& faces;
+  Hierarchy& hierarchy;
+  const BuildOptions& options;
+  std::vector<uint32_t> subtreeOf;  // node -> subtree id + 1 for precomputed subtree roots (top pass)
+  std::vector<SubtreeResult> subtrees;
+};
+
+// Depth-first, children before parents, one per thread at a time.
+class Worker {
+ public:
+  explicit Worker(Context& ctx) : ctx_(ctx) {}
+
+  // Frames of every node below and including `root`. With `scan`, also the exact boxes (else
+  // only the orientation is stored and `visited` lists the nodes). Subtree roots found in
+  // ctx.subtreeOf (when `usePrecomputed`) are taken from ctx.subtrees.
+  SubtreeResult run(uint32_t root, bool scan, bool usePrecomputed, std::vector<uint32_t>* visited) {
+    tasks_.clear();
+    carries_.clear();
+    arena_.clear();
+    tasks_.push_back({TaskKind::kVisit, root, 0});
+    while (!tasks_.empty()) {
+      const Task t = tasks_.back();
+      tasks_.pop_back();
+      switch (t.kind) {
+        case TaskKind::kVisit:
+          visit(t.a, usePrecomputed);
+          break;
+        case TaskKind::kFinish:
+          finish(t.a, t.b, scan, visited);
+          break;
+        case TaskKind::kFace:
+          pushFace(t.a);
+          break;
+        case TaskKind::kRange:
+          pushRange(t.a, t.b);
+          break;
+        case TaskKind::kSubtree:
+          pushSubtree(t.a);
+          break;
+      }
+    }
+    SubtreeResult out;
+    out.moments = carries_.back().moments;
+    out.points.assign(arena_.begin() + ptrdiff_t(carries_.back().pointsBegin), arena_.end());
+    return out;
+  }
+
+ private:
+  void visit(uint32_t node, bool usePrecomputed) {
+    const Node& n = ctx_.hierarchy.nodes[node];
+    const uint32_t count = uint32_t(ctx_.hierarchy.nodes.size());
+    Task child[3];
+    uint32_t k = 0;
+    auto rangeOf = [&](uint32_t c, uint32_t& b, uint32_t& e) {
+      if (c & kFaceChild) {
+        b = c & ~kFaceChild, e = b + 1;
+      } else {
+        b = ctx_.hierarchy.nodes[c].first, e = b + ctx_.hierarchy.nodes[c].count;
+      }
+    };
+    const bool cut[2] = {!(n.child[0] & kFaceChild) && n.child[0] >= count,
+                         !(n.child[1] & kFaceChild) && n.child[1] >= count};
+    const uint32_t end = n.first + n.count;
+    for (int i = 0; i < 2; ++i) {
+      const uint32_t c = n.child[i];
+      if (c & kFaceChild) {
+        child[k++] = {TaskKind::kFace, c & ~kFaceChild, 0};
+      } else if (!cut[i]) {
+        if (usePrecomputed && ctx_.subtreeOf[c] != 0)
+          child[k++] = {TaskKind::kSubtree, ctx_.subtreeOf[c] - 1, 0};
+        else
+          child[k++] = {TaskKind::kVisit, c, 0};
+      } else if (!cut[1 - i]) {
+        // Cut off by truncation: the faces of the node that its sibling does not cover.
+        uint32_t sb, se;
+        rangeOf(n.child[1 - i], sb, se);
+        if (sb > n.first) child[k++] = {TaskKind::kRange, n.first, sb};
+        if (se < end) child[k++] = {TaskKind::kRange, se, end};
+      } else if (i == 0) {
+        child[k++] = {TaskKind::kRange, n.first, end};  // both cut off: one range for both
+      }
+    }
+    tasks_.push_back({TaskKind::kFinish, node, k});
+    for (uint32_t i = k; i-- > 0;) tasks_.push_back(child[i]);
+  }
+
+  void pushFace(uint32_t pos) {
+    Carry c{{}, arena_.size()};
+    const PackedFaces& f = ctx_.faces;
+    const glm::vec3 v[3] = {f.vertex(0, pos), f.vertex(1, pos), f.vertex(2, pos)};
+    c.moments.addTriangle(glm::dvec3(v[0]) - f.origin, glm::dvec3(v[1]) - f.origin,
+                          glm::dvec3(v[2]) - f.origin);
+    arena_.insert(arena_.end(), v, v + 3);
+    carries_.push_back(c);
+  }
+
+  void pushRange(uint32_t begin, uint32_t end) {
+    Carry c{{}, arena_.size()};
+    const PackedFaces& f = ctx_.faces;
+    const uint32_t stride = std::max<uint32_t>(1, (end - begin + kGapSampleFaces - 1) / kGapSampleFaces);
+    for (uint32_t i = begin; i < end; ++i) {
+      const glm::vec3 v[3] = {f.vertex(0, i), f.vertex(1, i), f.vertex(2, i)};
+      c.moments.addTriangle(glm::dvec3(v[0]) - f.origin, glm::dvec3(v[1]) - f.origin,
+                            glm::dvec3(v[2]) - f.origin);
+      if ((i - begin) % stride == 0) arena_.insert(arena_.end(), v, v + 3);
+    }
+    carries_.push_back(c);
+  }
+
+  void pushSubtree(uint32_t id) {
+    const SubtreeResult& r = ctx_.subtrees[id];
+    carries_.push_back({r.moments, arena_.size()});
+    arena_.insert(arena_.end(), r.points.begin(), r.points.end());
+  }
+
+  void finish(uint32_t node, uint32_t k, bool scan, std::vector<uint32_t>* visited) {
+    Node& n = ctx_.hierarchy.nodes[node];
+    const size_t base = carries_.size() - k;
+    const size_t begin = k > 0 ? carries_[base].pointsBegin : arena_.size();
+    Moments m;
+    for (size_t i = base; i < carries_.size(); ++i) m.add(carries_[i].moments);
+    FrameInput in;
+    in.area = n.area;
+    in.sumNormal = glm::dvec3(n.sumNormal);
+    in.covariance = m.covariance();
+    in.flatThreshold = ctx_.options.flatThreshold;
+    ClusterFrame frame;
+    const size_t kept =
+        frames_.build(in, std::span<glm::vec3>(arena_.data() + begin, arena_.size() - begin), frame);
+    arena_.resize(begin + kept);
+    n.flags = (n.flags & ~uint32_t(kNodeFlatFrame)) | (frame.flat ? uint32_t(kNodeFlatFrame) : 0u);
+    NodeBox& box = ctx_.hierarchy.boxes[node];
+    box.orientation = frameQuaternion(frame);
+    if (scan) {
+      glm::dvec3 axis[3];
+      storedAxes(box.orientation, axis);
+      finishBox(scanRange(ctx_.faces, axis, n.first, n.first + n.count), box);
+    } else if (visited) {
+      visited->push_back(node);
+    }
+    carries_.resize(base);
+    carries_.push_back({m, begin});
+  }
+
+  Context& ctx_;
+  FrameBuilder frames_;
+  std::vector<Task> tasks_;
+  std::vector<Carry> carries_;
+  std::vector<glm::vec3> arena_;
+};
+
+void validate(const MeshView& mesh, const Hierarchy& h) {
+  const size_t faces = h.faceOrder.size();
+  const size_t tris = mesh.triangleCount();
+  for (uint32_t t : h.faceOrder)
+    if (t >= tris) throw std::invalid_argument("computeBoxes: faceOrder entry out of range");
+  for (uint32_t v : mesh.indices)
+    if (v >= mesh.positions.size()) throw std::invalid_argument("computeBoxes: vertex index out of range");
+  for (size_t i = 0; i < h.nodes.size(); ++i) {
+    const Node& n = h.nodes[i];
+    if (n.count == 0 || uint64_t(n.first) + n.count > faces)
+      throw std::invalid_argument("computeBoxes: node face range out of range");
+    for (uint32_t c : n.child) {
+      if (c & kFaceChild) {
+        if ((c & ~kFaceChild) < n.first || (c & ~kFaceChild) >= n.first + n.count)
+          throw std::invalid_argument("computeBoxes: face child outside its parent's range");
+      } else if (c <= i) {
+        throw std::invalid_argument("computeBoxes: child node index not after its parent");
+      } else if (c < h.nodes.size() &&
+                 (h.nodes[c].first < n.first ||
+                  uint64_t(h.nodes[c].first) + h.nodes[c].count > uint64_t(n.first) + n.count)) {
+        throw std::invalid_argument("computeBoxes: child range outside its parent's range");
+      }
+    }
+  }
+}
+
+template <class F>
+void parallelFor(unsigned threads, F&& body) {
+  if (threads <= 1) {
+    body(0u);
+    return;
+  }
+  std::vector<std::jthread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back([&body, t] { body(t); });
+  body(0u);
+}
+
+PackedFaces pack(const MeshView& mesh, const std::vector<uint32_t>& order, unsigned threads) {
+  PackedFaces f;
+  const size_t n = order.size();
+  for (int k = 0; k < 3; ++k) f.x[k].resize(n), f.y[k].resize(n), f.z[k].resize(n);
+  f.nx.resize(n), f.ny.resize(n), f.nz.resize(n);
+  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  for (const glm::vec3& p : mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  if (!mesh.positions.empty()) f.origin = 0.5 * (glm::dvec3(lo) + glm::dvec3(hi));
+  parallelFor(threads, [&](unsigned t) {
+    const size_t b = n * t / threads, e = n * (t + 1) / threads;
+    for (size_t i = b; i < e; ++i) {
+      const uint32_t* tri = &mesh.indices[3 * size_t(order[i])];
+      glm::dvec3 v[3];
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3& p = mesh.positions[tri[k]];
+        f.x[k][i] = p.x, f.y[k][i] = p.y, f.z[k][i] = p.z;
+        v[k] = glm::dvec3(p);
+      }
+      const glm::dvec3 half = 0.5 * glm::cross(v[1] - v[0], v[2] - v[0]);
+      f.nx[i] = float(half.x), f.ny[i] = float(half.y), f.nz[i] = float(half.z);
+    }
+  });
+  return f;
+}
+
+}  // namespace
+
+void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options,
+                             unsigned threads) {
+  std::vector<Node>& nodes = hierarchy.nodes;
+  hierarchy.boxes.assign(nodes.size(), NodeBox{});
+  if (nodes.empty()) return;
+  validate(mesh, hierarchy);
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = std::min(threads, kMaxThreads);
+  if (hierarchy.faceOrder.size() < kMinParallelFaces) threads = 1;
+
+  const PackedFaces faces = pack(mesh, hierarchy.faceOrder, threads);
+  Context ctx{faces, hierarchy, options, {}, {}};
+
+  // Roots of nodes unreachable from nodes[0] (none in a well-formed hierarchy) are handled as
+  // further trees; children have larger indices than parents, so a forward pass finds the roots.
+  std::vector<uint32_t> roots;
+  {
+    std::vector<bool> reached(nodes.size(), false);
+    for (uint32_t i = 0; i < nodes.size(); ++i) {
+      if (!reached[i]) roots.push_back(i);
+      for (uint32_t c : nodes[i].child)
+        if (!(c & kFaceChild) && c < nodes.size()) reached[c] = true;
+    }
+  }
+
+  for (uint32_t root : roots) {
+    // Cut the tree into subtrees: split the largest until there are enough or all are small.
+    std::vector<uint32_t> cut{root};
+    while (cut.size() < kTargetSubtrees) {
+      const auto largest = std::max_element(
+          cut.begin(), cut.end(), [&](uint32_t a, uint32_t b) { return nodes[a].count < nodes[b].count; });
+      if (nodes[*largest].count < kMinSubtreeFaces) break;
+      const uint32_t split = *largest;
+      cut.erase(largest);
+      for (uint32_t c : nodes[split].child)
+        if (!(c & kFaceChild) && c < nodes.size()) cut.push_back(c);
+    }
+    if (cut.size() == 1 && cut[0] == root) {
+      Worker(ctx).run(root, true, false, nullptr);
+      continue;
+    }
+    // Subtrees in parallel, largest first.
+    std::sort(cut.begin(), cut.end(), [&](uint32_t a, uint32_t b) {
+      return nodes[a].count != nodes[b].count ? nodes[a].count > nodes[b].count : a < b;
+    });
+    ctx.subtrees.assign(cut.size(), {});
+    ctx.subtreeOf.assign(nodes.size(), 0);
+    for (size_t i = 0; i < cut.size(); ++i) ctx.subtreeOf[cut[i]] = uint32_t(i + 1);
+    std::atomic<size_t> nextSubtree{0};
+    parallelFor(threads, [&](unsigned) {
+      Worker worker(ctx);
+      for (size_t i; (i = nextSubtree.fetch_add(1)) < cut.size();)
+        ctx.subtrees[i] = worker.run(cut[i], true, false, nullptr);
+    });
+    // The nodes above the cut: frames serially, then their scans by blocks in parallel.
+    std::vector<uint32_t> top;
+    Worker(ctx).run(root, false, true, &top);
+    struct Item {
+      uint32_t node, begin, end;
+    };
+    std::vector<Item> items;
+    std::vector<size_t> firstItem;
+    for (uint32_t node : top) {
+      firstItem.push_back(items.size());
+      const Node& n = nodes[node];
+      for (uint32_t i = n.first; i < n.first + n.count; i = blockEnd(i, n.first + n.count))
+        items.push_back({node, i, blockEnd(i, n.first + n.count)});
+    }
+    firstItem.push_back(items.size());
+    std::vector<Extent> partial(items.size());
+    std::atomic<size_t> nextItem{0};
+    parallelFor(threads, [&](unsigned) {
+      for (size_t i; (i = nextItem.fetch_add(1)) < items.size();) {
+        glm::dvec3 axis[3];
+        storedAxes(hierarchy.boxes[items[i].node].orientation, axis);
+        partial[i] = scanBlock(faces, axis, items[i].begin, items[i].end);
+      }
+    });
+    for (size_t t = 0; t < top.size(); ++t) {
+      Extent total;
+      for (size_t i = firstItem[t]; i < firstItem[t + 1]; ++i) total.merge(partial[i]);
+      finishBox(total, hierarchy.boxes[top[t]]);
+    }
+  }
+}
+
+void computeBoxes(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options) {
+  computeBoxesWithThreads(mesh, hierarchy, options, 0);
+}
+
+}  // namespace facetree

@@ -1,0 +1,107 @@
+// Andrew's monotone chain (Andrew 1979) and rotating calipers for the minimum-area enclosing
+// rectangle (Toussaint 1983; Freeman & Shapira 1975 for the hull-edge property), as used by
+// Willmott 2000, sec. 5.3.2 for the in-plane axes of flat clusters.
+#include "merge/hull.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+namespace facetree {
+namespace {
+
+// > 0 when o -> a -> b turns counter-clockwise.
+double turn(const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
+
+}  // namespace
+
+void convexHull(std::span<HullPoint> points, std::vector<HullPoint>& hull) {
+  hull.clear();
+  std::sort(points.begin(), points.end(), [](const HullPoint& a, const HullPoint& b) {
+    return a.p.x < b.p.x || (a.p.x == b.p.x && a.p.y < b.p.y);
+  });
+  const auto last = std::unique(points.begin(), points.end(),
+                                [](const HullPoint& a, const HullPoint& b) { return a.p == b.p; });
+  const size_t n = size_t(last - points.begin());
+  if (n <= 2) {
+    hull.assign(points.begin(), last);
+    return;
+  }
+  hull.resize(2 * n);
+  size_t k = 0;
+  for (size_t i = 0; i < n; ++i) {  // lower chain
+    while (k >= 2 && turn(hull[k - 2].p, hull[k - 1].p, points[i].p) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = n - 1, t = k + 1; i-- > 0;) {  // upper chain
+    while (k >= t && turn(hull[k - 2].p, hull[k - 1].p, points[i].p) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k - 1);  // the last point repeats the first
+}
+
+Rect2 minAreaRect(std::span<const HullPoint> hull) {
+  Rect2 best;
+  const size_t m = hull.size();
+  if (m == 0) return best;
+  if (m == 1) {
+    best.minU = best.maxU = hull[0].p.x;
+    best.minV = best.maxV = hull[0].p.y;
+    return best;
+  }
+  if (m == 2) {
+    const glm::dvec2 d = hull[1].p - hull[0].p;
+    const double len = glm::length(d);
+    if (len > 0) best.axis = d / len;
+    const glm::dvec2 perp{-best.axis.y, best.axis.x};
+    const double u0 = glm::dot(hull[0].p, best.axis), u1 = glm::dot(hull[1].p, best.axis);
+    best.minU = std::min(u0, u1);
+    best.maxU = std::max(u0, u1);
+    best.minV = best.maxV = glm::dot(hull[0].p, perp);
+    return best;
+  }
+  auto next = [m](size_t i) { return i + 1 == m ? 0 : i + 1; };
+  double bestArea = INFINITY;
+  size_t r = 0, t = 0, l = 0;  // calipers: max along the edge, max across it, min along it
+  bool started = false;
+  for (size_t i = 0; i < m; ++i) {
+    const glm::dvec2 d = hull[next(i)].p - hull[i].p;
+    const double len = glm::length(d);
+    if (!(len > 0)) continue;
+    const glm::dvec2 e = d / len;
+    const glm::dvec2 nrm{-e.y, e.x};  // the hull lies on this side of a counter-clockwise edge
+    auto along = [&](size_t j) { return glm::dot(hull[j].p, e); };
+    auto across = [&](size_t j) { return glm::dot(hull[j].p, nrm); };
+    if (!started) {
+      started = true;
+      for (size_t j = 1; j < m; ++j) {
+        if (along(j) > along(r)) r = j;
+        if (across(j) > across(t)) t = j;
+        if (along(j) < along(l)) l = j;
+      }
+    } else {
+      // The extreme points move counter-clockwise with the edge; values strictly improve, so
+      // each loop ends, and over all edges each caliper goes round once.
+      while (along(next(r)) > along(r)) r = next(r);
+      while (across(next(t)) > across(t)) t = next(t);
+      while (along(next(l)) < along(l)) l = next(l);
+    }
+    Rect2 rect;
+    rect.axis = e;
+    rect.minU = along(l);
+    rect.maxU = along(r);
+    rect.minV = across(i);
+    rect.maxV = across(t);
+    const double area = rect.area();
+    if (area < bestArea) {
+      bestArea = area;
+      best = rect;
+    }
+  }
+  return best;
+}
+
+}  // namespace facetree
