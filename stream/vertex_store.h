@@ -1,0 +1,112 @@
+// Internal: in-memory vertex positions, the triangle post-processing shared by all formats
+// (positions, non-finite and degenerate accounting), and position welding for STL.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "stream/stream.h"
+
+namespace facetree::stream_detail {
+
+// Largest vertex count an indexed mesh may have: Triangle::vertex is 32-bit and kNoVertex
+// is reserved.
+inline constexpr uint64_t kMaxVertices = uint64_t{kNoVertex};
+// Never reserve more than this many elements from a count that the input size cannot back.
+inline constexpr uint64_t kMaxUntrustedReserve = uint64_t{1} << 20;
+// Longest accepted text line (OBJ, ASCII STL/PLY, PLY header).
+inline constexpr size_t kMaxLineBytes = size_t{1} << 20;
+
+// Vertex positions held in memory (the VertexSource of every reader for now).
+class VertexStore final : public VertexSource {
+ public:
+  uint64_t size() const override { return positions_.size(); }
+  glm::vec3 position(uint64_t index) const override { return positions_[index]; }
+
+  void reserve(uint64_t count) { positions_.reserve(count); }
+  void add(const glm::vec3& position) { positions_.push_back(position); }
+  const glm::vec3* data() const { return positions_.data(); }
+
+ private:
+  std::vector<glm::vec3> positions_;
+};
+
+bool isFinite(const glm::vec3& position);
+
+// Base of all readers: read() asks produce() for triangles carrying vertex indices and face
+// ids only, then fills in positions, drops triangles touching a non-finite vertex and counts.
+class ReaderBase : public TriangleReader {
+ public:
+  size_t read(std::span<Triangle> out) final;
+  const MeshInfo& info() const final { return info_; }
+  const ReadStats& stats() const final { return stats_; }
+  const VertexSource& vertices() const final { return vertices_; }
+
+ protected:
+  // Writes up to `capacity` triangles (vertex indices and face ids; positions are filled in
+  // later); returns 0 only at the end of the mesh. May throw ReadError.
+  virtual size_t produce(Triangle* out, size_t capacity) = 0;
+  // Called once after produce() returned 0 (e.g. to reject a mesh without faces).
+  virtual void finishReading() {}
+  // Bytes of mesh data consumed so far, and bytes read from disk when compressed.
+  virtual uint64_t inputOffset() const = 0;
+  virtual uint64_t compressedOffset() const { return 0; }
+
+  void addVertex(const glm::vec3& position) {
+    if (!isFinite(position)) {
+      ++stats_.nonFiniteVertices;
+      sawNonFinite_ = true;
+    }
+    vertices_.add(position);
+  }
+
+  MeshInfo info_;
+  ReadStats stats_;
+  VertexStore vertices_;
+
+ private:
+  size_t completeTriangles(Triangle* triangles, size_t count);
+
+  bool sawNonFinite_ = false;
+  bool ended_ = false;
+};
+
+// Welds bit-identical positions (with -0.0 equal to 0.0) into one vertex index: STL has no
+// indices, and every reader hands on indexed triangles. Open addressing over the store.
+class PositionWelder {
+ public:
+  // Returns the index of `position`, adding it through `add` when new.
+  template <typename AddVertex>
+  uint32_t indexOf(const glm::vec3& position, const VertexStore& store, AddVertex&& add);
+
+ private:
+  void grow(const VertexStore& store);
+
+  std::vector<uint32_t> slots_;  // vertex index per slot, kNoVertex when empty
+  uint64_t used_ = 0;
+};
+
+uint64_t hashPosition(const glm::vec3& position);
+bool samePosition(const glm::vec3& a, const glm::vec3& b);
+
+template <typename AddVertex>
+uint32_t PositionWelder::indexOf(const glm::vec3& position, const VertexStore& store, AddVertex&& add) {
+  if ((used_ + 1) * 2 > slots_.size()) grow(store);
+  const size_t mask = slots_.size() - 1;
+  size_t slot = hashPosition(position) & mask;
+  const glm::vec3* positions = store.data();
+  while (slots_[slot] != kNoVertex) {
+    if (samePosition(positions[slots_[slot]], position)) return slots_[slot];
+    slot = (slot + 1) & mask;
+  }
+  const auto index = static_cast<uint32_t>(store.size());
+  add(position);
+  slots_[slot] = index;
+  ++used_;
+  return index;
+}
+
+}  // namespace facetree::stream_detail

@@ -1,0 +1,113 @@
+// STL readers: ascii, binary, detection of binary files whose header starts with "solid",
+// welding of identical positions.
+#include <gtest/gtest.h>
+
+#include "stream/readers.h"
+#include "stream/stream.h"
+#include "test_util.h"
+
+namespace facetree {
+namespace {
+
+using test::expectedTriangles;
+using test::pyramid;
+using test::readAll;
+using test::TempDir;
+
+// STL has no faces larger than triangles: the expected face id is the triangle index.
+void expectPyramid(TriangleReader& reader) {
+  const auto triangles = readAll(reader);
+  const auto expected = expectedTriangles(pyramid());
+  ASSERT_EQ(triangles.size(), expected.size());
+  for (size_t i = 0; i < triangles.size(); ++i) {
+    EXPECT_EQ(triangles[i].face, i);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(triangles[i].position[c], expected[i].position[c]);
+      // Welding gives back one index per distinct position: same position <=> same index.
+      for (size_t j = 0; j < triangles.size(); ++j)
+        for (int d = 0; d < 3; ++d)
+          EXPECT_EQ(triangles[i].vertex[c] == triangles[j].vertex[d],
+                    triangles[i].position[c] == triangles[j].position[d]);
+    }
+  }
+  EXPECT_EQ(reader.stats().vertices, 5u);
+  EXPECT_EQ(reader.stats().faces, 6u);
+}
+
+TEST(Stl, Ascii) {
+  TempDir dir;
+  auto reader = openMesh(dir.write("p.stl", test::writeAsciiStl(pyramid())));
+  EXPECT_EQ(reader->info().format, MeshFormat::StlAscii);
+  expectPyramid(*reader);
+}
+
+TEST(Stl, Binary) {
+  TempDir dir;
+  auto reader = openMesh(dir.write("p.stl", test::writeBinaryStl(pyramid())));
+  EXPECT_EQ(reader->info().format, MeshFormat::StlBinary);
+  EXPECT_EQ(reader->info().declaredFaces, 6u);
+  expectPyramid(*reader);
+}
+
+TEST(Stl, BinaryWithSolidHeaderIsDetectedAsBinary) {
+  TempDir dir;
+  const std::string bytes = test::writeBinaryStl(pyramid(), "solid pyramid exported by a careless tool");
+  auto reader = openMesh(dir.write("p.stl", bytes));
+  EXPECT_EQ(reader->info().format, MeshFormat::StlBinary);
+  expectPyramid(*reader);
+  // Without a size (pipe, zstd) the content decides.
+  auto compressed = openMesh(dir.write("p.stl.zst", test::zstdCompress(bytes)));
+  EXPECT_EQ(compressed->info().format, MeshFormat::StlBinary);
+  expectPyramid(*compressed);
+}
+
+TEST(Stl, MinusZeroWeldsWithZero) {
+  test::SimpleMesh mesh{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {-0.0f, 0, -0.0f}, {0, 0, 1}},
+                        {{0, 1, 2}, {3, 2, 4}}};
+  TempDir dir;
+  auto reader = openMesh(dir.write("z.stl", test::writeBinaryStl(mesh)));
+  const auto triangles = readAll(*reader);
+  ASSERT_EQ(triangles.size(), 2u);
+  EXPECT_EQ(triangles[1].vertex[0], triangles[0].vertex[0]);
+  EXPECT_EQ(triangles[1].vertex[1], triangles[0].vertex[2]);
+  EXPECT_EQ(reader->stats().vertices, 4u);
+}
+
+TEST(Stl, AsciiKeywordsAreCaseInsensitiveAndSeveralSolidsAreRead) {
+  const std::string stl =
+      "solid a\nFACET NORMAL 0 0 1\nOUTER LOOP\nVERTEX 0 0 0\nVERTEX 1 0 0\nVERTEX 0 1 0\nENDLOOP\nENDFACET\n"
+      "endsolid a\nsolid b\nfacet normal 0 0 1 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 1 0 endloop "
+      "endfacet\n"
+      "endsolid b\n";
+  TempDir dir;
+  auto reader = openMesh(dir.write("two.stl", stl));
+  const auto triangles = readAll(*reader);
+  ASSERT_EQ(triangles.size(), 2u);
+  EXPECT_EQ(triangles[1].vertex[0], 0u);
+  EXPECT_EQ(triangles[1].vertex[1], 2u);
+  EXPECT_EQ(triangles[1].vertex[2], 3u);
+}
+
+TEST(Stl, ManyTrianglesWeldLikeAnIndexedMesh) {
+  // A 100x100 grid: every interior position is shared by up to six triangles.
+  test::SimpleMesh grid;
+  constexpr int kSide = 100;
+  for (int y = 0; y <= kSide; ++y)
+    for (int x = 0; x <= kSide; ++x) grid.vertices.emplace_back(x * 0.01f, y * 0.01f, float((x * y) % 7));
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) {
+      const int64_t v = y * (kSide + 1) + x;
+      grid.faces.push_back({v, v + 1, v + kSide + 2});
+      grid.faces.push_back({v, v + kSide + 2, v + kSide + 1});
+    }
+  TempDir dir;
+  auto reader = openMesh(dir.write("grid.stl", test::writeBinaryStl(grid)));
+  const auto triangles = readAll(*reader, 1000);
+  EXPECT_EQ(triangles.size(), grid.faces.size());
+  EXPECT_EQ(reader->stats().vertices, grid.vertices.size());
+  for (const Triangle& t : triangles)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(reader->vertices().position(t.vertex[c]), t.position[c]);
+}
+
+}  // namespace
+}  // namespace facetree
