@@ -9,6 +9,7 @@
 
 #include "cli/args.h"
 #include "cli/commands.h"
+#include "cli/fch_commands.h"
 #include "io/io.h"
 #include "stream/stream.h"
 
@@ -25,6 +26,10 @@ commands:
         [--w-fit W] [--w-dir W] [--w-shape W] [--no-boxes]
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
+  truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
+                                 keep the first nodes of a cluster file (geometry counts in B)
+  info FILE.fch [--json]         counts, height, branching histogram, bytes per section
+  verify FILE.fch [MESH] [--json]  check every invariant (exit 3 names the first violation)
 
 MESH may be - for standard input; the format is detected from the content.
 
@@ -51,6 +56,9 @@ int dispatch(const std::vector<std::string>& args) {
   if (command == "stats") return runStats(rest);
   if (command == "build") return runBuild(rest);
   if (command == "gen") return runGenerate(rest);
+  if (command == "truncate") return runTruncate(rest);
+  if (command == "info") return runInfo(rest);
+  if (command == "verify") return runVerify(rest);
   throw UsageError("unknown command '" + command + "'");
 }
 

@@ -1,0 +1,206 @@
+// facetree truncate / info / verify: the cluster file commands (docs/FORMAT.md).
+#include <cstdio>
+
+#include "cli/args.h"
+#include "cli/commands.h"
+#include "cli/fch_commands.h"
+#include "cli/json.h"
+#include "grid/grid.h"
+#include "io/cluster_file.h"
+#include "stream/stream.h"
+
+namespace facetree::cli {
+namespace {
+
+const char* metricName(Metric metric) {
+  switch (metric) {
+    case Metric::Willmott:
+      return "willmott";
+    case Metric::Garland:
+      return "garland";
+    case Metric::Constant:
+      return "constant";
+  }
+  return "unknown";
+}
+
+int invalid(const std::string& message) {
+  std::fprintf(stderr, "facetree: %s\n", message.c_str());
+  return kExitInput;
+}
+
+template <class F>
+int guarded(F&& body) {
+  try {
+    return body();
+  } catch (const ClusterFileError& e) {
+    return invalid(e.what());
+  }
+}
+
+}  // namespace
+
+int runTruncate(const std::vector<std::string>& argv) {
+  const Args args(argv, {"output", "nodes", "max-bytes"}, {"json"}, {{"-o", "--output"}});
+  if (args.positional().size() != 1) throw UsageError("truncate takes exactly one cluster file");
+  const auto output = args.value("output");
+  if (!output) throw UsageError("truncate needs -o OUT.fch");
+  if (args.value("nodes").has_value() == args.value("max-bytes").has_value())
+    throw UsageError("truncate needs exactly one of --nodes N and --max-bytes B");
+  const std::string& input = args.positional()[0];
+  return guarded([&] {
+    TruncateResult result;
+    try {
+      if (args.value("nodes")) {
+        const uint64_t nodes = args.count("nodes", 0);
+        if (nodes == 0) throw UsageError("--nodes must be at least 1");
+        result = truncateClusterFile(input, *output, nodes);
+      } else {
+        result = truncateClusterFileToBytes(input, *output, args.count("max-bytes", 0, true));
+      }
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    if (args.flag("json")) {
+      JsonWriter json;
+      json.field("input", input);
+      json.field("output", *output);
+      json.field("nodes", result.nodes);
+      json.field("bytes", result.bytes);
+      std::fputs(json.finish().c_str(), stdout);
+    } else {
+      std::printf("%s: kept %llu nodes, %llu bytes\n", output->c_str(),
+                  static_cast<unsigned long long>(result.nodes),
+                  static_cast<unsigned long long>(result.bytes));
+    }
+    return int{kExitOk};
+  });
+}
+
+int runInfo(const std::vector<std::string>& argv) {
+  const Args args(argv, {}, {"json"});
+  if (args.positional().size() != 1) throw UsageError("info takes exactly one cluster file");
+  const std::string& name = args.positional()[0];
+  return guarded([&] {
+    const FchLayout layout = readClusterFileLayout(name);
+    ClusterFile file = readClusterFile(name, /*geometry=*/false);
+    // branchingStats needs the triangle count only from the indices' size.
+    file.indices.resize(3 * layout.header.triangleCount);
+    const BranchingStats s = branchingStats(file);
+    const FileHeader& h = layout.header;
+    struct SectionBytes {
+      uint64_t frames = 0, compressed = 0, raw = 0;
+    } sections[4];
+    for (const FchFrame& f : layout.frames) {
+      SectionBytes& b = sections[static_cast<uint32_t>(f.section) - 1];
+      ++b.frames, b.compressed += f.compressedBytes, b.raw += f.rawBytes;
+    }
+    const uint64_t overhead = layout.headerBytes + 40ull * layout.frames.size();
+    const double perNode = h.nodeCount ? double(sections[0].compressed) / h.nodeCount : 0.0;
+    static constexpr FchSection kSections[4] = {FchSection::Nodes, FchSection::Vertices,
+                                                FchSection::Triangles, FchSection::OriginalFaces};
+    if (args.flag("json")) {
+      JsonWriter json;
+      json.field("file", name);
+      json.field("version", h.version);
+      json.field("bytes", layout.fileBytes);
+      json.field("nodes", h.nodeCount);
+      json.field("original_nodes", h.originalNodeCount);
+      json.field("truncated", h.nodeCount < h.originalNodeCount);
+      json.field("triangles", h.triangleCount);
+      json.field("vertices", h.vertexCount);
+      json.field("branching", h.branching);
+      json.field("eq85_nodes", s.eq85Nodes);
+      json.field("height", s.height);
+      json.field("balanced_height", s.balancedHeight);
+      json.field("height_ratio", s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0);
+      std::vector<double> histogram(s.childHistogram.begin(), s.childHistogram.end());
+      json.field("children_histogram", histogram);
+      json.beginObject("options");
+      json.field("metric", metricName(h.metric));
+      json.field("k", h.k);
+      json.field("flat_threshold", h.flatThreshold);
+      json.field("garland_weights",
+                 std::vector<double>{h.garlandWeights[0], h.garlandWeights[1], h.garlandWeights[2]});
+      json.field("memory_cap_bytes", h.memoryCapBytes);
+      json.endObject();
+      json.field("bbox_min", std::vector<double>{h.boundsMin.x, h.boundsMin.y, h.boundsMin.z});
+      json.field("bbox_max", std::vector<double>{h.boundsMax.x, h.boundsMax.y, h.boundsMax.z});
+      json.beginObject("sections");
+      json.field("header_and_index_bytes", overhead);
+      for (int i = 0; i < 4; ++i) {
+        json.beginObject(sectionName(kSections[i]));
+        json.field("frames", sections[i].frames);
+        json.field("compressed_bytes", sections[i].compressed);
+        json.field("raw_bytes", sections[i].raw);
+        json.endObject();
+      }
+      json.endObject();
+      json.field("node_bytes_per_node", perNode);
+      std::fputs(json.finish().c_str(), stdout);
+      return int{kExitOk};
+    }
+    std::printf("file          %s (version %u, %llu bytes)\n", name.c_str(), h.version,
+                static_cast<unsigned long long>(layout.fileBytes));
+    std::printf("nodes         %llu", static_cast<unsigned long long>(h.nodeCount));
+    if (h.nodeCount < h.originalNodeCount)
+      std::printf(" (truncated from %llu)", static_cast<unsigned long long>(h.originalNodeCount));
+    std::printf(", eq. 85 gives %.0f for b = %u\n", s.eq85Nodes, h.branching);
+    std::printf("geometry      %llu triangles, %llu vertices\n",
+                static_cast<unsigned long long>(h.triangleCount),
+                static_cast<unsigned long long>(h.vertexCount));
+    std::printf("height        %u (balanced %u, ratio %.2f)\n", s.height, s.balancedHeight,
+                s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0);
+    std::printf("children      ");
+    for (unsigned c = 0; c <= kMaxBranching; ++c)
+      if (s.childHistogram[c])
+        std::printf(" %u:%llu", c, static_cast<unsigned long long>(s.childHistogram[c]));
+    std::printf("\n");
+    std::printf("options       metric %s, k %g, flat threshold %g, memory cap %llu\n", metricName(h.metric),
+                h.k, h.flatThreshold, static_cast<unsigned long long>(h.memoryCapBytes));
+    std::printf("bounding box  [%g %g %g] - [%g %g %g]\n", h.boundsMin.x, h.boundsMin.y, h.boundsMin.z,
+                h.boundsMax.x, h.boundsMax.y, h.boundsMax.z);
+    std::printf("header+index  %llu bytes\n", static_cast<unsigned long long>(overhead));
+    for (int i = 0; i < 4; ++i)
+      std::printf("%-13s %llu bytes in %llu frames (%llu raw)\n", sectionName(kSections[i]),
+                  static_cast<unsigned long long>(sections[i].compressed),
+                  static_cast<unsigned long long>(sections[i].frames),
+                  static_cast<unsigned long long>(sections[i].raw));
+    std::printf("per node      %.1f bytes compressed\n", perNode);
+    return int{kExitOk};
+  });
+}
+
+int runVerify(const std::vector<std::string>& argv) {
+  const Args args(argv, {}, {"json"});
+  if (args.positional().empty() || args.positional().size() > 2)
+    throw UsageError("verify takes a cluster file and optionally the mesh it was built from");
+  const std::string& name = args.positional()[0];
+  return guarded([&] {
+    const ClusterFile file = readClusterFile(name);
+    VerifyResult result = verifyClusterFile(file);
+    if (result.ok && args.positional().size() == 2) {
+      auto reader = openMesh(args.positional()[1]);
+      const IndexedMesh mesh = loadMesh(*reader);
+      result = verifyAgainstMesh(file, mesh.view(), mesh.originalFace);
+    }
+    if (args.flag("json")) {
+      JsonWriter json;
+      json.field("file", name);
+      json.field("ok", result.ok);
+      json.field("message", result.message);
+      json.field("nodes", static_cast<uint64_t>(file.nodes.size()));
+      json.field("triangles", static_cast<uint64_t>(file.originalFace.size()));
+      std::fputs(json.finish().c_str(), stdout);
+      if (!result.ok) return int{kExitInput};
+    }
+    if (!result.ok) return invalid(name + ": invalid: " + result.message);
+    if (!args.flag("json"))
+      std::printf("%s: ok: %zu nodes, %zu triangles%s\n", name.c_str(), file.nodes.size(),
+                  file.originalFace.size(),
+                  args.positional().size() == 2 ? ", geometry matches the mesh" : "");
+    return int{kExitOk};
+  });
+}
+
+}  // namespace facetree::cli

@@ -1,0 +1,166 @@
+// Branching-factor recast (Willmott 2000, sec. 5.5.1) and the cluster file of a hierarchy.
+#include "io/branching.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "io/mesh_out.h"
+
+namespace facetree {
+namespace {
+constexpr uint32_t kUnassigned = 0xFFFFFFFFu;
+}  // namespace
+
+RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching) {
+  if (branching < 2 || branching > kMaxBranching)
+    throw std::invalid_argument("branching factor must be 2 ... 8");
+  const std::vector<Node>& nodes = hierarchy.nodes;
+  const size_t n = nodes.size();
+  const uint64_t faces = hierarchy.faceOrder.size();
+  for (size_t i = 0; i < n; ++i)
+    for (const uint32_t ref : nodes[i].child) {
+      if (ref & kFaceChild ? (ref & ~kFaceChild) >= faces : ref >= n || ref <= i)
+        throw std::invalid_argument("hierarchy: node " + std::to_string(i) + " has a bad child reference");
+    }
+  auto rangeStart = [&](uint32_t ref) { return ref & kFaceChild ? ref & ~kFaceChild : nodes[ref].first; };
+
+  std::vector<uint8_t> kept(n, 0), join(n, 0);
+  std::vector<std::array<uint32_t, kMaxBranching>> frontierOf(n);
+  std::vector<uint8_t> sizeOf(n, 0);
+  if (n > 0) kept[0] = 1;
+  // Parents precede children, so one ascending pass grows every kept node's frontier before
+  // its frontier nodes are visited.
+  for (size_t i = 0; i < n; ++i) {
+    if (!kept[i]) continue;
+    std::array<uint32_t, kMaxBranching> frontier{nodes[i].child[0], nodes[i].child[1]};
+    unsigned size = 2;
+    uint8_t joined = nodes[i].flags & kNodeJoinsDisjointSurfaces ? 1 : 0;
+    while (size < branching) {
+      int best = -1;
+      for (unsigned f = 0; f < size; ++f) {
+        const uint32_t ref = frontier[f];
+        if (ref & kFaceChild) continue;
+        if (best < 0 || nodes[ref].area > nodes[frontier[best]].area ||
+            (nodes[ref].area == nodes[frontier[best]].area && ref < frontier[best]))
+          best = static_cast<int>(f);
+      }
+      if (best < 0) break;
+      const Node& expanded = nodes[frontier[best]];
+      if (expanded.flags & kNodeJoinsDisjointSurfaces) joined = 1;
+      frontier[best] = expanded.child[0];
+      frontier[size++] = expanded.child[1];
+    }
+    std::sort(frontier.begin(), frontier.begin() + size,
+              [&](uint32_t a, uint32_t b) { return rangeStart(a) < rangeStart(b); });
+    for (unsigned f = 0; f < size; ++f)
+      if (!(frontier[f] & kFaceChild)) kept[frontier[f]] = 1;
+    frontierOf[i] = frontier;
+    sizeOf[i] = static_cast<uint8_t>(size);
+    join[i] = joined;
+  }
+
+  RecastTree tree;
+  std::vector<uint32_t> newIndex(n, kUnassigned);
+  for (size_t i = 0; i < n; ++i)
+    if (kept[i])
+      newIndex[i] = static_cast<uint32_t>(tree.binaryNode.size()),
+      tree.binaryNode.push_back(static_cast<uint32_t>(i));
+  const size_t m = tree.binaryNode.size();
+  tree.child.resize(m);
+  tree.childCount.resize(m);
+  tree.joinFlag.resize(m);
+  for (size_t j = 0; j < m; ++j) {
+    const uint32_t i = tree.binaryNode[j];
+    tree.childCount[j] = sizeOf[i];
+    tree.joinFlag[j] = join[i];
+    for (unsigned f = 0; f < sizeOf[i]; ++f) {
+      const uint32_t ref = frontierOf[i][f];
+      tree.child[j][f] = ref & kFaceChild ? ref : newIndex[ref];
+    }
+  }
+  return tree;
+}
+
+ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> originalFace,
+                            const Hierarchy& hierarchy, const FileOptions& options, BranchingStats* stats) {
+  const size_t triangles = mesh.triangleCount();
+  if (hierarchy.faceOrder.size() != triangles)
+    throw std::invalid_argument("makeClusterFile: the hierarchy's face order does not match the mesh");
+  if (!originalFace.empty() && originalFace.size() != triangles)
+    throw std::invalid_argument("makeClusterFile: one original face id per triangle expected");
+  if (hierarchy.boxes.size() != hierarchy.nodes.size())
+    throw std::invalid_argument("makeClusterFile: the hierarchy has no boxes (BuildOptions::computeBoxes)");
+  const RecastTree tree = recastHierarchy(hierarchy, options.branching);
+
+  ClusterFile file;
+  FileHeader& h = file.header;
+  h.branching = options.branching;
+  h.metric = options.build.metric;
+  h.k = options.build.k;
+  h.flatThreshold = options.build.flatThreshold;
+  h.garlandWeights[0] = options.build.garlandFitWeight;
+  h.garlandWeights[1] = options.build.garlandDirWeight;
+  h.garlandWeights[2] = options.build.garlandShapeWeight;
+  h.memoryCapBytes = options.memoryCapBytes;
+
+  file.nodes.resize(tree.binaryNode.size());
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    const Node& b = hierarchy.nodes[tree.binaryNode[j]];
+    FchNode& node = file.nodes[j];
+    node.first = b.first;
+    node.count = b.count;
+    node.childCount = tree.childCount[j];
+    std::copy_n(tree.child[j].begin(), node.childCount, node.child);
+    node.flags = static_cast<uint8_t>((b.flags & kNodeFlatFrame ? kFchFlatFrame : 0) |
+                                      (tree.joinFlag[j] ? kFchJoinsDisjointSurfaces : 0));
+    node.cost = b.cost;
+    node.area = b.area;
+    node.perimeter = b.perimeter;
+    node.sumNormal = b.sumNormal;
+    node.box = hierarchy.boxes[tree.binaryNode[j]];  // same face range: the exact box of the b-ary node
+  }
+  ReorderedGeometry geometry = reorderGeometry(mesh, hierarchy.faceOrder);
+  file.vertices = std::move(geometry.vertices);
+  file.indices = std::move(geometry.indices);
+  file.originalFace.resize(triangles);
+  for (size_t i = 0; i < triangles; ++i) {
+    const uint32_t t = hierarchy.faceOrder[i];
+    file.originalFace[i] = originalFace.empty() ? t : originalFace[t];
+  }
+  h.nodeCount = h.originalNodeCount = file.nodes.size();
+  h.triangleCount = triangles;
+  h.vertexCount = file.vertices.size();
+  if (stats) *stats = branchingStats(file);
+  return file;
+}
+
+BranchingStats branchingStats(const ClusterFile& file) {
+  BranchingStats s;
+  s.branching = file.header.branching;
+  s.triangles = file.indices.size() / 3;
+  s.internalNodes = file.nodes.size();
+  s.eq85Nodes = s.triangles > 0 ? double(s.triangles - 1) / double(s.branching - 1) : 0.0;
+  // Depth in nodes of every node (root 1); a face below node j is at depth[j] + 1.
+  std::vector<uint32_t> depth(file.nodes.size(), 1);
+  s.height = s.triangles > 0 ? 1 : 0;
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    const FchNode& node = file.nodes[j];
+    ++s.childHistogram[std::min<unsigned>(node.childCount, kMaxBranching)];
+    uint32_t kept = 0;
+    for (unsigned c = 0; c < node.childCount; ++c) {
+      const uint32_t ref = node.child[c];
+      if (!(ref & kFaceChild) && ref < file.nodes.size()) {
+        depth[ref] = depth[j] + 1;
+        kept += file.nodes[ref].count;
+      }
+    }
+    if (kept < node.count) s.height = std::max(s.height, depth[j] + 1);  // faces directly below
+  }
+  uint32_t balanced = 1;
+  for (double reach = 1; reach < double(s.triangles); reach *= s.branching) ++balanced;  // eq. 86
+  s.balancedHeight = s.triangles > 0 ? balanced : 0;
+  return s;
+}
+
+}  // namespace facetree

@@ -1,0 +1,199 @@
+// facetree/io: the cluster file (.fch) — a face cluster hierarchy with its reordered geometry —
+// branching-factor recast (Willmott 2000, sec. 5.5.1), truncation (sec. 5.5.3), verification,
+// cluster cuts for pictures and the reordered mesh as PLY or Draco. Public header: std, glm
+// and merge/merge.h only. The byte layout is documented in docs/FORMAT.md.
+//
+// Errors: functions reading a cluster file throw ClusterFileError ("FILE: REASON") for a file
+// that is unreadable, corrupt or of an unsupported version; writers throw IoError naming the
+// file; std::invalid_argument for inconsistent arguments; nothing else except std::bad_alloc.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "merge/merge.h"
+
+namespace facetree {
+
+inline constexpr uint32_t kFchVersion = 1;
+inline constexpr unsigned kMaxBranching = 8;
+
+// Node flags as stored (bits 0, 1 = merge.h NodeFlag) and derived on read (bit 2).
+enum FchNodeFlag : uint8_t {
+  kFchJoinsDisjointSurfaces = 1u << 0,
+  kFchFlatFrame = 1u << 1,
+  kFchTruncated = 1u << 2,  // some child was cut off by truncation: set by the reader, never stored
+};
+
+// Header fields other than the layout (counts of what the file holds and the options used).
+struct FileHeader {
+  uint32_t version = kFchVersion;
+  uint64_t nodeCount = 0;
+  uint64_t originalNodeCount = 0;  // before truncation
+  uint64_t triangleCount = 0;
+  uint64_t vertexCount = 0;
+  uint32_t branching = 2;
+  Metric metric = Metric::Willmott;
+  double k = 0;
+  double flatThreshold = 0;
+  double garlandWeights[3] = {1, 1, 1};  // fit, dir, shape
+  uint64_t memoryCapBytes = 0;           // 0 = not given
+  glm::vec3 boundsMin{0.0f};
+  glm::vec3 boundsMax{0.0f};
+};
+
+// One node. A child reference is a node index (>= nodes.size() means cut off by truncation) or
+// kFaceChild | face position; children are in face-range order and partition [first, first+count).
+struct FchNode {
+  uint32_t first = 0;
+  uint32_t count = 0;
+  uint8_t childCount = 0;
+  uint8_t flags = 0;
+  uint32_t child[kMaxBranching] = {};
+  float cost = 0;
+  float area = 0;
+  float perimeter = 0;
+  glm::vec3 sumNormal{0.0f};
+  NodeBox box{};
+};
+
+struct ClusterFile {
+  FileHeader header;
+  std::vector<FchNode> nodes;          // root first; every child after its parent
+  std::vector<glm::vec3> vertices;     // numbered by first use along `indices`
+  std::vector<uint32_t> indices;       // 3 per triangle, triangles in hierarchy order
+  std::vector<uint64_t> originalFace;  // per triangle: face index in the input mesh file
+  MeshView mesh() const { return {vertices, indices}; }
+  bool isCutOff(uint32_t childRef) const { return !(childRef & kFaceChild) && childRef >= nodes.size(); }
+};
+
+struct FileOptions {
+  uint32_t branching = 2;       // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
+  BuildOptions build;           // recorded in the header
+  uint64_t memoryCapBytes = 0;  // recorded in the header
+};
+
+// Recast statistics (sec. 5.5.1).
+struct BranchingStats {
+  uint32_t branching = 2;
+  uint64_t triangles = 0;
+  uint64_t internalNodes = 0;
+  double eq85Nodes = 0;                                      // (n - 1) / (b - 1), the full-b-ary count
+  std::array<uint64_t, kMaxBranching + 1> childHistogram{};  // nodes by number of children
+  uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
+  uint32_t balancedHeight = 0;  // eq. 86: ceil(log n / log b) + 1
+};
+
+// The cluster file of a binary hierarchy of `mesh` recast to options.branching. `originalFace`
+// maps each triangle of `mesh` (buildHierarchy's input order) to its face in the mesh file;
+// empty means the identity. Boxes are copied from the binary nodes (a b-ary node is a binary
+// node with the same face range); the hierarchy must have them (BuildOptions::computeBoxes).
+// Throws std::invalid_argument for an inconsistent hierarchy.
+ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> originalFace,
+                            const Hierarchy& hierarchy, const FileOptions& options,
+                            BranchingStats* stats = nullptr);
+// Statistics of the tree in `file` (children histogram, height, eq. 85/86).
+BranchingStats branchingStats(const ClusterFile& file);
+
+struct WriteOptions {
+  uint32_t nodesPerFrame = 4096;      // truncation recompresses at most this many nodes
+  uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
+  int zstdLevel = 9;
+};
+// Writes atomically (temporary name + rename). Same input, same bytes.
+void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,
+                      const WriteOptions& options = {});
+
+// Thrown for an unreadable, corrupt or unsupported cluster file: what() is "FILE: REASON".
+// (Not an IoError, which io/io.h defines for write failures: the CLI maps this one to exit 3.)
+class ClusterFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads and checks (checksums, sizes, index ranges) a whole file; `geometry` false skips the
+// vertex, triangle and id frames (their checksums are not checked then).
+ClusterFile readClusterFile(const std::filesystem::path& path, bool geometry = true);
+
+enum class FchSection : uint32_t { Nodes = 1, Vertices = 2, Triangles = 3, OriginalFaces = 4 };
+const char* sectionName(FchSection section);
+struct FchFrame {
+  FchSection section{};
+  uint32_t count = 0;
+  uint64_t first = 0;
+  uint64_t offset = 0;
+  uint32_t compressedBytes = 0;
+  uint32_t rawBytes = 0;
+  uint64_t checksum = 0;
+};
+struct FchLayout {
+  FileHeader header;
+  uint64_t fileBytes = 0;
+  uint32_t headerBytes = 0;
+  uint32_t nodesPerFrame = 0;
+  uint32_t geometryPerFrame = 0;
+  uint32_t originalIdBytes = 0;
+  int zstdLevel = 0;
+  std::vector<FchFrame> frames;
+};
+// Header and frame index only (validated; frame contents are not read).
+FchLayout readClusterFileLayout(const std::filesystem::path& path);
+
+// Keeps the first `nodes` nodes (1 <= nodes; more than the file has keeps all): whole node frames
+// and the geometry are copied, only the last partial node frame is recompressed.
+struct TruncateResult {
+  uint64_t nodes = 0;
+  uint64_t bytes = 0;
+};
+TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
+                                   uint64_t nodes);
+// The largest prefix whose whole output file (geometry included) fits in `maxBytes`; throws
+// std::invalid_argument when not even one node fits.
+TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const std::filesystem::path& out,
+                                          uint64_t maxBytes);
+// The same in memory: keeps the first `nodes` nodes and marks kFchTruncated.
+void truncateInMemory(ClusterFile& file, uint64_t nodes);
+
+// Checks every invariant of docs/FORMAT.md "Semantics" (ranges, parents, boxes, areas, side
+// areas); `message` names the first violation: "node N: CHECK: detail".
+struct VerifyResult {
+  bool ok = true;
+  std::string message;
+  uint64_t nodesChecked = 0;
+};
+struct VerifyOptions {
+  bool boxes = true;       // containment + tightness
+  bool statistics = true;  // area, S, side areas
+};
+VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& options = {});
+// The geometry against the mesh it was built from: same triangles (by corner positions, corner
+// order kept) under the same original face ids. `meshOriginalFace` empty means the identity.
+VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
+                               std::span<const uint64_t> meshOriginalFace);
+
+// Cuts for pictures: one cluster id per triangle of file.indices (hierarchy order), the cluster of
+// a face being the deepest kept node containing it, ids numbered 0, 1, ... along the face order.
+// clusterCut keeps the first `clusters` nodes in file order; clusterDepthCut the nodes at depth
+// <= depth (root = 0). With no nodes, every face is its own cluster.
+std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters);
+std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth);
+
+// The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
+// PLY (".ply") or Draco (".drc", sequential connectivity so face order and point ids are kept).
+struct MeshOutOptions {
+  int dracoPositionBits = 0;  // 0 = lossless float positions; else quantization bits (1 ... 30)
+  int dracoSpeed = 5;         // encoder speed 0 (best) ... 10 (fastest)
+};
+void writeReorderedMesh(const MeshView& mesh, const Hierarchy& hierarchy, const std::filesystem::path& path,
+                        const MeshOutOptions& options = {});
+void writeReorderedMesh(const ClusterFile& file, const std::filesystem::path& path,
+                        const MeshOutOptions& options = {});
+
+}  // namespace facetree

@@ -1,0 +1,517 @@
+// The cluster file's byte layout: header, frame index, column payloads, zstd frames
+// (docs/FORMAT.md). Shared by fch_writer.cpp, fch_reader.cpp and fch_truncate.cpp.
+#include "io/fch_format.h"
+
+#include <zstd.h>
+
+#include <bit>
+#include <cstring>
+
+#include "io/io.h"
+#include "io/output_file.h"
+
+namespace facetree::fch {
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "the cluster file code assumes a little-endian host");
+
+template <class T>
+void put(std::string& out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out.append(bytes, sizeof(T));
+}
+template <class T>
+T get(const uint8_t* p) {
+  T value;
+  std::memcpy(&value, p, sizeof(T));
+  return value;
+}
+
+// A column of n elements of `width` bytes, stored as byte planes (docs/FORMAT.md).
+template <class Value>
+void putColumn(std::string& out, size_t n, Value value, unsigned width = 4) {
+  const size_t base = out.size();
+  out.resize(base + width * n);
+  char* planes = out.data() + base;
+  for (size_t i = 0; i < n; ++i) {
+    const uint64_t v = value(i);
+    for (unsigned b = 0; b < width; ++b) planes[b * n + i] = static_cast<char>(v >> (8 * b));
+  }
+}
+uint32_t bits(float f) {
+  return std::bit_cast<uint32_t>(f);
+}
+
+// Reads columns back from a payload whose total size has been checked.
+class Columns {
+ public:
+  explicit Columns(const std::string& raw) : data_(reinterpret_cast<const uint8_t*>(raw.data())) {}
+  // Starts the next column of n elements of `width` bytes.
+  void next(size_t n, unsigned width = 4) {
+    pos_ += n_ * width_;
+    n_ = n;
+    width_ = width;
+  }
+  uint64_t at(size_t i) const {
+    uint64_t v = 0;
+    for (unsigned b = 0; b < width_; ++b) v |= uint64_t{data_[pos_ + b * n_ + i]} << (8 * b);
+    return v;
+  }
+  float f(size_t i) const { return std::bit_cast<float>(static_cast<uint32_t>(at(i))); }
+  const uint8_t* bytes() const { return data_ + pos_; }
+
+ private:
+  const uint8_t* data_;
+  size_t pos_ = 0, n_ = 0;
+  unsigned width_ = 0;
+};
+
+uint64_t zigzag(int64_t d) {
+  return (static_cast<uint64_t>(d) << 1) ^ static_cast<uint64_t>(d >> 63);
+}
+int64_t unzigzag(uint64_t z) {
+  return static_cast<int64_t>(z >> 1) ^ -static_cast<int64_t>(z & 1);
+}
+uint32_t zigzag32(int32_t d) {
+  return (static_cast<uint32_t>(d) << 1) ^ static_cast<uint32_t>(d >> 31);
+}
+int32_t unzigzag32(uint32_t z) {
+  return static_cast<int32_t>(z >> 1) ^ -static_cast<int32_t>(z & 1);
+}
+
+constexpr const char* kSectionWords[] = {"", "node", "vertex", "triangle", "original-id"};
+constexpr const char* kElementWords[] = {"", "nodes", "vertices", "triangles", "ids"};
+
+std::string encodeHeader(const FchLayout& layout, uint64_t indexChecksum, uint32_t frameCount) {
+  const FileHeader& h = layout.header;
+  std::string out(reinterpret_cast<const char*>(kMagic), sizeof kMagic);
+  put<uint32_t>(out, kFchVersion);
+  put<uint32_t>(out, kHeaderBytes);
+  put<uint64_t>(out, layout.fileBytes);
+  put<uint64_t>(out, h.nodeCount);
+  put<uint64_t>(out, h.originalNodeCount);
+  put<uint64_t>(out, h.triangleCount);
+  put<uint64_t>(out, h.vertexCount);
+  put<uint32_t>(out, frameCount);
+  put<uint32_t>(out, layout.nodesPerFrame);
+  put<uint32_t>(out, layout.geometryPerFrame);
+  put<uint8_t>(out, static_cast<uint8_t>(h.branching));
+  put<uint8_t>(out, static_cast<uint8_t>(h.metric));
+  put<uint8_t>(out, static_cast<uint8_t>(layout.originalIdBytes));
+  put<uint8_t>(out, 0);
+  put<double>(out, h.k);
+  put<double>(out, h.flatThreshold);
+  put<uint64_t>(out, h.memoryCapBytes);
+  for (int a = 0; a < 3; ++a) put<float>(out, h.boundsMin[a]);
+  for (int a = 0; a < 3; ++a) put<float>(out, h.boundsMax[a]);
+  put<uint64_t>(out, indexChecksum);
+  put<int32_t>(out, layout.zstdLevel);
+  put<uint32_t>(out, 0);
+  for (double w : h.garlandWeights) put<double>(out, w);
+  out.resize(kHeaderChecksumOffset, '\0');
+  put<uint64_t>(out, xxh64(out.data(), out.size()));
+  return out;
+}
+
+}  // namespace
+
+std::string encodeNodes(std::span<const FchNode> nodes, uint64_t firstIndex) {
+  const size_t n = nodes.size();
+  std::string out;
+  size_t children = 0;
+  for (const FchNode& node : nodes) children += node.childCount;
+  out.reserve(kNodeFixedBytes * n + 4 * children);
+  putColumn(
+      out, n, [&](size_t i) { return nodes[i].childCount; }, 1);
+  putColumn(
+      out, n, [&](size_t i) { return nodes[i].flags & kStoredFlagMask; }, 1);
+  putColumn(out, n, [&](size_t i) { return nodes[i].first; });
+  putColumn(out, n, [&](size_t i) { return nodes[i].count; });
+  putColumn(out, n, [&](size_t i) { return bits(nodes[i].cost); });
+  putColumn(out, n, [&](size_t i) { return bits(nodes[i].area); });
+  putColumn(out, n, [&](size_t i) { return bits(nodes[i].perimeter); });
+  for (int a = 0; a < 3; ++a) putColumn(out, n, [&](size_t i) { return bits(nodes[i].sumNormal[a]); });
+  for (int a = 0; a < 3; ++a) putColumn(out, n, [&](size_t i) { return bits(nodes[i].box.center[a]); });
+  for (int a = 0; a < 4; ++a) putColumn(out, n, [&](size_t i) { return bits(nodes[i].box.orientation[a]); });
+  for (int a = 0; a < 3; ++a) putColumn(out, n, [&](size_t i) { return bits(nodes[i].box.halfExtent[a]); });
+  for (int a = 0; a < 6; ++a) putColumn(out, n, [&](size_t i) { return bits(nodes[i].box.sideArea[a]); });
+  // Child references relative to the node (node children) or to its first face (face children):
+  // small numbers that compress well, and unchanged by truncation.
+  std::vector<uint32_t> refs;
+  refs.reserve(children);
+  for (size_t i = 0; i < n; ++i)
+    for (unsigned c = 0; c < nodes[i].childCount; ++c) {
+      const uint32_t ref = nodes[i].child[c];
+      refs.push_back(ref & kFaceChild ? kFaceChild | ((ref & ~kFaceChild) - nodes[i].first)
+                                      : static_cast<uint32_t>(ref - (firstIndex + i)));
+    }
+  putColumn(out, refs.size(), [&](size_t i) { return refs[i]; });
+  return out;
+}
+
+std::string encodeVertices(std::span<const glm::vec3> vertices) {
+  std::string out;
+  out.reserve(12 * vertices.size());
+  for (int a = 0; a < 3; ++a) putColumn(out, vertices.size(), [&](size_t i) { return bits(vertices[i][a]); });
+  return out;
+}
+
+std::string encodeTriangles(std::span<const uint32_t> indices) {
+  std::string out;
+  putColumn(out, indices.size(), [&](size_t i) {
+    const uint32_t previous = i ? indices[i - 1] : 0;
+    return zigzag32(static_cast<int32_t>(indices[i] - previous));
+  });
+  return out;
+}
+
+std::string encodeIds(std::span<const uint64_t> ids, uint32_t width) {
+  std::string out;
+  putColumn(
+      out, ids.size(),
+      [&](size_t i) {
+        const uint64_t previous = i ? ids[i - 1] : 0;
+        return width == 4 ? uint64_t{zigzag32(static_cast<int32_t>(static_cast<uint32_t>(ids[i] - previous)))}
+                          : zigzag(static_cast<int64_t>(ids[i] - previous));
+      },
+      width);
+  return out;
+}
+
+FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level) {
+  FrameData frame;
+  frame.entry.section = section;
+  frame.entry.first = first;
+  frame.entry.count = count;
+  frame.entry.rawBytes = static_cast<uint32_t>(raw.size());
+  frame.compressed.resize(ZSTD_compressBound(raw.size()));
+  const size_t got =
+      ZSTD_compress(frame.compressed.data(), frame.compressed.size(), raw.data(), raw.size(), level);
+  if (ZSTD_isError(got))
+    throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(got));
+  frame.compressed.resize(got);
+  frame.entry.compressedBytes = static_cast<uint32_t>(got);
+  frame.entry.checksum = xxh64(frame.compressed.data(), got);
+  return frame;
+}
+
+uint64_t assembledBytes(const std::vector<FrameData>& frames) {
+  uint64_t bytes = kHeaderBytes + uint64_t{kIndexEntryBytes} * frames.size();
+  for (const FrameData& f : frames) bytes += f.compressed.size();
+  return bytes;
+}
+
+uint64_t writeFrames(const std::filesystem::path& path, FchLayout layout,
+                     const std::vector<FrameData>& frames) {
+  std::string index;
+  index.reserve(kIndexEntryBytes * frames.size());
+  uint64_t offset = kHeaderBytes + uint64_t{kIndexEntryBytes} * frames.size();
+  for (const FrameData& f : frames) {
+    put<uint32_t>(index, static_cast<uint32_t>(f.entry.section));
+    put<uint32_t>(index, f.entry.count);
+    put<uint64_t>(index, f.entry.first);
+    put<uint64_t>(index, offset);
+    put<uint32_t>(index, static_cast<uint32_t>(f.compressed.size()));
+    put<uint32_t>(index, f.entry.rawBytes);
+    put<uint64_t>(index, f.entry.checksum);
+    offset += f.compressed.size();
+  }
+  layout.fileBytes = offset;
+  OutputFile out(path);
+  out.write(encodeHeader(layout, xxh64(index.data(), index.size()), static_cast<uint32_t>(frames.size())));
+  out.write(index);
+  for (const FrameData& f : frames) out.write(f.compressed);
+  out.commit();
+  return offset;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading
+
+void SourceFile::Closer::operator()(std::FILE* f) const {
+  std::fclose(f);
+}
+
+SourceFile::SourceFile(const std::filesystem::path& path) : name_(path.string()) {
+  file_.reset(std::fopen(path.c_str(), "rb"));
+  if (!file_) fail(std::string("cannot open: ") + std::strerror(errno));
+  std::error_code error;
+  size_ = std::filesystem::file_size(path, error);
+  if (error) fail("cannot read size: " + error.message());
+  readLayout();
+}
+
+SourceFile::~SourceFile() = default;
+
+void SourceFile::fail(const std::string& reason) const {
+  throw ClusterFileError(name_ + ": " + reason);
+}
+
+std::string SourceFile::readAt(uint64_t offset, uint64_t bytes) const {
+  if (offset + bytes > size_) fail("truncated at byte " + std::to_string(size_));
+  std::string out(bytes, '\0');
+  if (::fseeko(file_.get(), static_cast<off_t>(offset), SEEK_SET) != 0 ||
+      std::fread(out.data(), 1, bytes, file_.get()) != bytes)
+    fail("read error at byte " + std::to_string(offset) + ": " + std::strerror(errno));
+  return out;
+}
+
+void SourceFile::readLayout() {
+  const std::string head = readAt(0, std::min<uint64_t>(size_, kHeaderBytes));
+  const auto* p = reinterpret_cast<const uint8_t*>(head.data());
+  const size_t magicBytes = std::min<size_t>(head.size(), sizeof kMagic);
+  if (std::memcmp(p, kMagic, magicBytes) != 0 || head.empty())
+    fail("not a facetree cluster file (bad magic)");
+  if (head.size() < 12) fail("truncated at byte " + std::to_string(size_));
+  const uint32_t version = get<uint32_t>(p + 8);
+  if (version != kFchVersion) fail("unsupported version " + std::to_string(version));
+  if (head.size() < kHeaderBytes) fail("truncated at byte " + std::to_string(size_));
+  if (get<uint32_t>(p + 12) != kHeaderBytes) fail("bad header size " + std::to_string(get<uint32_t>(p + 12)));
+  if (get<uint64_t>(p + kHeaderChecksumOffset) != xxh64(p, kHeaderChecksumOffset))
+    fail("header checksum mismatch");
+
+  FchLayout& l = layout_;
+  FileHeader& h = l.header;
+  h.version = version;
+  l.headerBytes = kHeaderBytes;
+  l.fileBytes = get<uint64_t>(p + 16);
+  h.nodeCount = get<uint64_t>(p + 24);
+  h.originalNodeCount = get<uint64_t>(p + 32);
+  h.triangleCount = get<uint64_t>(p + 40);
+  h.vertexCount = get<uint64_t>(p + 48);
+  const uint32_t frameCount = get<uint32_t>(p + 56);
+  l.nodesPerFrame = get<uint32_t>(p + 60);
+  l.geometryPerFrame = get<uint32_t>(p + 64);
+  h.branching = p[68];
+  const uint8_t metric = p[69];
+  l.originalIdBytes = p[70];
+  h.k = get<double>(p + 72);
+  h.flatThreshold = get<double>(p + 80);
+  h.memoryCapBytes = get<uint64_t>(p + 88);
+  for (int a = 0; a < 3; ++a)
+    h.boundsMin[a] = get<float>(p + 96 + 4 * a), h.boundsMax[a] = get<float>(p + 108 + 4 * a);
+  const uint64_t indexChecksum = get<uint64_t>(p + 120);
+  l.zstdLevel = get<int32_t>(p + 128);
+  for (int w = 0; w < 3; ++w) h.garlandWeights[w] = get<double>(p + 136 + 8 * w);
+
+  if (l.nodesPerFrame < 1 || l.nodesPerFrame > kMaxNodesPerFrame)
+    fail("bad nodes per frame " + std::to_string(l.nodesPerFrame));
+  if (l.geometryPerFrame < 1 || l.geometryPerFrame > kMaxGeometryPerFrame)
+    fail("bad geometry per frame " + std::to_string(l.geometryPerFrame));
+  if (h.branching < 2 || h.branching > kMaxBranching)
+    fail("bad branching factor " + std::to_string(h.branching));
+  if (metric > static_cast<uint8_t>(Metric::Constant)) fail("unknown metric " + std::to_string(metric));
+  h.metric = static_cast<Metric>(metric);
+  if (l.originalIdBytes != 4 && l.originalIdBytes != 8)
+    fail("bad original id width " + std::to_string(l.originalIdBytes));
+  if (h.triangleCount > kMaxTriangles) fail("too many triangles " + std::to_string(h.triangleCount));
+  if (h.nodeCount > h.originalNodeCount || h.originalNodeCount > std::max<uint64_t>(h.triangleCount, 1) - 1)
+    fail("bad node counts " + std::to_string(h.nodeCount) + " of " + std::to_string(h.originalNodeCount) +
+         " for " + std::to_string(h.triangleCount) + " triangles");
+  if ((h.triangleCount >= 2) != (h.nodeCount >= 1))
+    fail("no root node for " + std::to_string(h.triangleCount) + " triangles");
+  if (h.vertexCount > 3 * h.triangleCount) fail("bad vertex count " + std::to_string(h.vertexCount));
+  if (size_ < l.fileBytes)
+    fail("truncated at byte " + std::to_string(size_) + " (header declares " + std::to_string(l.fileBytes) +
+         " bytes)");
+  if (size_ > l.fileBytes)
+    fail(std::to_string(size_ - l.fileBytes) + " unexpected bytes after byte " + std::to_string(l.fileBytes));
+  const uint64_t indexBytes = uint64_t{kIndexEntryBytes} * frameCount;
+  if (kHeaderBytes + indexBytes > size_) fail("frame index beyond the end of the file");
+
+  const std::string index = readAt(kHeaderBytes, indexBytes);
+  if (xxh64(index.data(), index.size()) != indexChecksum) fail("frame index checksum mismatch");
+  const auto* q = reinterpret_cast<const uint8_t*>(index.data());
+  const uint64_t sectionCount[5] = {0, h.nodeCount, h.vertexCount, h.triangleCount, h.triangleCount};
+  uint64_t offset = kHeaderBytes + indexBytes;
+  uint32_t section = 1;
+  uint64_t covered = 0;  // elements of `section` covered so far
+  l.frames.resize(frameCount);
+  for (uint32_t i = 0; i < frameCount; ++i, q += kIndexEntryBytes) {
+    FchFrame& f = l.frames[i];
+    const uint32_t s = get<uint32_t>(q);
+    f.count = get<uint32_t>(q + 4);
+    f.first = get<uint64_t>(q + 8);
+    f.offset = get<uint64_t>(q + 16);
+    f.compressedBytes = get<uint32_t>(q + 24);
+    f.rawBytes = get<uint32_t>(q + 28);
+    f.checksum = get<uint64_t>(q + 32);
+    const std::string entry = "frame index entry " + std::to_string(i) + ": ";
+    if (s < section || s > 4) fail(entry + "bad section " + std::to_string(s));
+    for (; section < s; ++section, covered = 0)
+      if (covered != sectionCount[section])
+        fail(entry + std::string(kSectionWords[section]) + " frames are missing");
+    f.section = static_cast<FchSection>(s);
+    const uint32_t perFrame = s == 1 ? l.nodesPerFrame : l.geometryPerFrame;
+    if (f.first != covered) fail(entry + "does not start where the previous frame ended");
+    if (f.count == 0 || f.count > perFrame || f.count > sectionCount[s] - covered)
+      fail(entry + "bad element count " + std::to_string(f.count));
+    if (f.count < perFrame && f.first + f.count != sectionCount[s])
+      fail(entry + "short frame before the last");
+    covered += f.count;
+    uint64_t minRaw = 0, maxRaw = 0;
+    switch (s) {
+      case 1:
+        minRaw = uint64_t{kNodeFixedBytes} * f.count, maxRaw = minRaw + 4ull * h.branching * f.count;
+        break;
+      case 2:
+        minRaw = maxRaw = 12ull * f.count;
+        break;
+      case 3:
+        minRaw = maxRaw = 12ull * f.count;
+        break;
+      default:
+        minRaw = maxRaw = uint64_t{l.originalIdBytes} * f.count;
+        break;
+    }
+    if (f.rawBytes < minRaw || f.rawBytes > maxRaw)
+      fail(entry + "bad decompressed size " + std::to_string(f.rawBytes));
+    if (f.offset != offset) fail(entry + "frame does not follow the previous one");
+    offset += f.compressedBytes;
+    if (offset > l.fileBytes) fail(entry + "frame beyond the end of the file");
+  }
+  for (; section <= 4; ++section, covered = 0)
+    if (covered != sectionCount[section]) fail(std::string(kSectionWords[section]) + " frames are missing");
+  if (offset != l.fileBytes)
+    fail("frames end at byte " + std::to_string(offset) + ", file at " + std::to_string(l.fileBytes));
+}
+
+std::string SourceFile::where(size_t i) const {
+  const FchFrame& f = layout_.frames[i];
+  const auto s = static_cast<uint32_t>(f.section);
+  size_t ordinal = 0;
+  for (size_t j = 0; j < i; ++j) ordinal += layout_.frames[j].section == f.section;
+  return std::string(kSectionWords[s]) + " frame " + std::to_string(ordinal) + " (" + kElementWords[s] + " " +
+         std::to_string(f.first) + "-" + std::to_string(f.first + f.count - 1) + ")";
+}
+
+std::string SourceFile::compressedFrame(size_t i) const {
+  const FchFrame& f = layout_.frames[i];
+  std::string bytes = readAt(f.offset, f.compressedBytes);
+  if (xxh64(bytes.data(), bytes.size()) != f.checksum) fail(where(i) + ": checksum mismatch");
+  return bytes;
+}
+
+std::string SourceFile::rawFrame(size_t i) const {
+  const FchFrame& f = layout_.frames[i];
+  const std::string compressed = compressedFrame(i);
+  if (ZSTD_getFrameContentSize(compressed.data(), compressed.size()) != f.rawBytes)
+    fail(where(i) + ": zstd frame size disagrees with the index");
+  std::string raw(f.rawBytes, '\0');
+  const size_t got = ZSTD_decompress(raw.data(), raw.size(), compressed.data(), compressed.size());
+  if (ZSTD_isError(got)) fail(where(i) + ": corrupt zstd data (" + ZSTD_getErrorName(got) + ")");
+  if (got != f.rawBytes) fail(where(i) + ": decompressed size disagrees with the index");
+  return raw;
+}
+
+void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const {
+  const FchFrame& f = layout_.frames[i];
+  const FileHeader& h = layout_.header;
+  const size_t n = f.count;
+  Columns col(raw);
+  col.next(n, 1);
+  uint64_t children = 0;
+  for (size_t j = 0; j < n; ++j) {
+    const uint64_t c = col.at(j);
+    if (c > h.branching)
+      fail(where(i) + ": node " + std::to_string(f.first + j) + ": " + std::to_string(c) + " children");
+    children += c;
+  }
+  if (raw.size() != kNodeFixedBytes * n + 4 * children)
+    fail(where(i) + ": payload size disagrees with the child counts");
+  const size_t base = out.size();
+  out.resize(base + n);
+  FchNode* nodes = out.data() + base;
+  for (size_t j = 0; j < n; ++j) nodes[j].childCount = static_cast<uint8_t>(col.at(j));
+  col.next(n, 1);
+  for (size_t j = 0; j < n; ++j) {
+    nodes[j].flags = static_cast<uint8_t>(col.at(j));
+    if (nodes[j].flags & ~kStoredFlagMask)
+      fail(where(i) + ": node " + std::to_string(f.first + j) + ": unknown flags");
+  }
+  col.next(n);
+  for (size_t j = 0; j < n; ++j) nodes[j].first = static_cast<uint32_t>(col.at(j));
+  col.next(n);
+  for (size_t j = 0; j < n; ++j) {
+    nodes[j].count = static_cast<uint32_t>(col.at(j));
+    if (uint64_t{nodes[j].first} + nodes[j].count > h.triangleCount)
+      fail(where(i) + ": node " + std::to_string(f.first + j) + ": face range beyond the triangles");
+  }
+  auto floats = [&](auto&& assign) {
+    col.next(n);
+    for (size_t j = 0; j < n; ++j) assign(nodes[j], col.f(j));
+  };
+  floats([](FchNode& d, float v) { d.cost = v; });
+  floats([](FchNode& d, float v) { d.area = v; });
+  floats([](FchNode& d, float v) { d.perimeter = v; });
+  for (int a = 0; a < 3; ++a) floats([a](FchNode& d, float v) { d.sumNormal[a] = v; });
+  for (int a = 0; a < 3; ++a) floats([a](FchNode& d, float v) { d.box.center[a] = v; });
+  for (int a = 0; a < 4; ++a) floats([a](FchNode& d, float v) { d.box.orientation[a] = v; });
+  for (int a = 0; a < 3; ++a) floats([a](FchNode& d, float v) { d.box.halfExtent[a] = v; });
+  for (int a = 0; a < 6; ++a) floats([a](FchNode& d, float v) { d.box.sideArea[a] = v; });
+  col.next(children);
+  size_t r = 0;
+  for (size_t j = 0; j < n; ++j) {
+    const uint64_t self = f.first + j;
+    for (unsigned c = 0; c < nodes[j].childCount; ++c, ++r) {
+      const uint32_t ref = static_cast<uint32_t>(col.at(r));
+      uint64_t target;
+      if (ref & kFaceChild) {
+        target = uint64_t{nodes[j].first} + (ref & ~kFaceChild);
+        if (target >= h.triangleCount)
+          fail(where(i) + ": node " + std::to_string(self) + ": face child beyond the triangles");
+        nodes[j].child[c] = kFaceChild | static_cast<uint32_t>(target);
+      } else {
+        target = self + ref;
+        if (ref == 0 || target >= kFaceChild)
+          fail(where(i) + ": node " + std::to_string(self) + ": bad child reference");
+        nodes[j].child[c] = static_cast<uint32_t>(target);
+        if (target >= h.nodeCount) nodes[j].flags |= kFchTruncated;
+      }
+    }
+  }
+}
+
+void SourceFile::decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const {
+  const size_t n = layout_.frames[i].count, base = out.size();
+  out.resize(base + n);
+  Columns col(raw);
+  for (int a = 0; a < 3; ++a) {
+    col.next(n);
+    for (size_t j = 0; j < n; ++j) out[base + j][a] = col.f(j);
+  }
+}
+
+void SourceFile::decodeTriangles(size_t i, const std::string& raw, std::vector<uint32_t>& out) const {
+  const size_t n = 3 * size_t{layout_.frames[i].count}, base = out.size();
+  out.resize(base + n);
+  Columns col(raw);
+  col.next(n);
+  uint32_t previous = 0;
+  for (size_t j = 0; j < n; ++j) {
+    previous += static_cast<uint32_t>(unzigzag32(static_cast<uint32_t>(col.at(j))));
+    if (previous >= layout_.header.vertexCount)
+      fail(where(i) + ": vertex index " + std::to_string(previous) + " beyond the vertices");
+    out[base + j] = previous;
+  }
+}
+
+void SourceFile::decodeIds(size_t i, const std::string& raw, std::vector<uint64_t>& out) const {
+  const size_t n = layout_.frames[i].count, base = out.size();
+  out.resize(base + n);
+  Columns col(raw);
+  col.next(n, layout_.originalIdBytes);
+  uint64_t previous = 0;
+  for (size_t j = 0; j < n; ++j) {
+    if (layout_.originalIdBytes == 4)
+      previous = static_cast<uint32_t>(previous +
+                                       static_cast<uint32_t>(unzigzag32(static_cast<uint32_t>(col.at(j)))));
+    else
+      previous += static_cast<uint64_t>(unzigzag(col.at(j)));
+    out[base + j] = previous;
+  }
+}
+
+}  // namespace facetree::fch

@@ -1,0 +1,90 @@
+// Internal to io/: the byte layout of the cluster file (docs/FORMAT.md), shared by the writer,
+// the reader and truncation. Nothing here is public API.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "io/cluster_file.h"
+
+namespace facetree::fch {
+
+inline constexpr uint8_t kMagic[8] = {0x89, 'F', 'C', 'H', '\r', '\n', 0x1A, '\n'};
+inline constexpr uint32_t kHeaderBytes = 192;
+inline constexpr uint32_t kHeaderChecksumOffset = 184;
+inline constexpr uint32_t kIndexEntryBytes = 40;
+inline constexpr uint32_t kMaxNodesPerFrame = 65536;
+inline constexpr uint32_t kMaxGeometryPerFrame = 1u << 20;
+// childCount u8 + flags u8 + first u32 + count u32 + 22 f32 (cost, area, perimeter, S, box).
+inline constexpr uint32_t kNodeFixedBytes = 2 + 4 + 4 + 22 * 4;
+inline constexpr uint8_t kStoredFlagMask = kFchJoinsDisjointSurfaces | kFchFlatFrame;
+// Face positions share 32 bits with kFaceChild, so a file holds fewer than 2^31 triangles.
+inline constexpr uint64_t kMaxTriangles = kFaceChild - 1;
+
+// XXH64 (Collet), seed 0 unless given: the checksum of headers, index and frames.
+uint64_t xxh64(const void* data, size_t bytes, uint64_t seed = 0);
+
+// One frame as assembled for writing: its index entry (offset filled in by writeFrames) and
+// its compressed bytes.
+struct FrameData {
+  FchFrame entry;
+  std::string compressed;
+};
+
+// Payload encoders (docs/FORMAT.md "Frame payloads").
+std::string encodeNodes(std::span<const FchNode> nodes, uint64_t firstIndex);
+std::string encodeVertices(std::span<const glm::vec3> vertices);
+std::string encodeTriangles(std::span<const uint32_t> indices);
+std::string encodeIds(std::span<const uint64_t> ids, uint32_t width);
+
+// Compresses a payload into a frame entry of `section` covering [first, first + count).
+FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level);
+
+// Writes header + index + frames through OutputFile (atomic); `layout` supplies the header
+// fields, the frame offsets and sizes are computed here. Returns the file size.
+uint64_t writeFrames(const std::filesystem::path& path, FchLayout layout,
+                     const std::vector<FrameData>& frames);
+// The size writeFrames would produce.
+uint64_t assembledBytes(const std::vector<FrameData>& frames);
+
+// A cluster file open for reading: validated header and index, frames read on demand.
+class SourceFile {
+ public:
+  explicit SourceFile(const std::filesystem::path& path);
+  ~SourceFile();
+  SourceFile(const SourceFile&) = delete;
+  SourceFile& operator=(const SourceFile&) = delete;
+
+  const FchLayout& layout() const { return layout_; }
+  const std::string& name() const { return name_; }
+  // The compressed bytes of frame `i`, checksum checked.
+  std::string compressedFrame(size_t i) const;
+  // The decompressed payload of frame `i`, checksum and size checked.
+  std::string rawFrame(size_t i) const;
+  // Decodes node frame `i` (payload `raw`) and appends its nodes to `out`.
+  void decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
+  void decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const;
+  void decodeTriangles(size_t i, const std::string& raw, std::vector<uint32_t>& out) const;
+  void decodeIds(size_t i, const std::string& raw, std::vector<uint64_t>& out) const;
+  // "FILE: node frame 3 (nodes 12288-16383)"
+  std::string where(size_t i) const;
+  [[noreturn]] void fail(const std::string& reason) const;
+
+ private:
+  std::string readAt(uint64_t offset, uint64_t bytes) const;
+  void readLayout();
+  std::string name_;
+  struct Closer {
+    void operator()(std::FILE* f) const;
+  };
+  std::unique_ptr<std::FILE, Closer> file_;
+  uint64_t size_ = 0;
+  FchLayout layout_;
+};
+
+}  // namespace facetree::fch

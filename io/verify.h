@@ -1,0 +1,18 @@
+// Internal to io/: the face owners of a cut of a cluster file, shared by verify and the cuts.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "io/cluster_file.h"
+
+namespace facetree {
+
+inline constexpr uint32_t kNoOwner = 0xFFFFFFFFu;
+
+// For every face position, the deepest node with kept[node] != 0 containing it (kNoOwner if none).
+// The kept set must contain the root and the parent of every kept node (true for prefixes and
+// depth cuts). O(faces + nodes·b): each face is assigned once, by the node that owns it directly.
+std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector<uint8_t>& kept);
+
+}  // namespace facetree
