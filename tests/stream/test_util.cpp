@@ -12,8 +12,12 @@
 
 namespace facetree::test {
 
-TempDir::TempDir() {
-  std::string pattern = (std::filesystem::path(::testing::TempDir()) / "facetree_stream_XXXXXX").string();
+TempDir::TempDir() : TempDir(std::filesystem::path(::testing::TempDir())) {}
+
+TempDir::TempDir(const std::filesystem::path& base) {
+  const std::filesystem::path root =
+      std::filesystem::is_directory(base) ? base : std::filesystem::path(::testing::TempDir());
+  std::string pattern = (root / "facetree_stream_XXXXXX").string();
   if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
   path_ = pattern;
 }

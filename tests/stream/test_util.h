@@ -17,6 +17,8 @@ namespace facetree::test {
 class TempDir {
  public:
   TempDir();
+  // Under `base` (e.g. /dev/shm for many small files), falling back to the gtest temp dir.
+  explicit TempDir(const std::filesystem::path& base);
   ~TempDir();
   TempDir(const TempDir&) = delete;
   TempDir& operator=(const TempDir&) = delete;
