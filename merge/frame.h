@@ -17,7 +17,7 @@
 namespace facetree {
 
 // Candidate hull points carried from a cluster to its parent (orientation only, never extents).
-inline constexpr size_t kFrameHullCap = 64;
+inline constexpr size_t kFrameHullCap = 32;
 
 struct ClusterFrame {
   glm::dvec3 axis[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};  // right-handed orthonormal

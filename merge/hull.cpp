@@ -64,16 +64,19 @@ Rect2 minAreaRect(std::span<const HullPoint> hull) {
     return best;
   }
   auto next = [m](size_t i) { return i + 1 == m ? 0 : i + 1; };
+  // Unnormalized edge vectors d: the rectangle on edge i has area
+  // (max - min of p.d) * (max of p.perp(d) - q_i.perp(d)) / |d|^2; one division per edge and
+  // a single normalization for the winner.
   double bestArea = INFINITY;
+  size_t bestEdge = m, bestR = 0, bestT = 0, bestL = 0;
   size_t r = 0, t = 0, l = 0;  // calipers: max along the edge, max across it, min along it
   bool started = false;
   for (size_t i = 0; i < m; ++i) {
     const glm::dvec2 d = hull[next(i)].p - hull[i].p;
-    const double len = glm::length(d);
-    if (!(len > 0)) continue;
-    const glm::dvec2 e = d / len;
-    const glm::dvec2 nrm{-e.y, e.x};  // the hull lies on this side of a counter-clockwise edge
-    auto along = [&](size_t j) { return glm::dot(hull[j].p, e); };
+    const double len2 = glm::dot(d, d);
+    if (!(len2 > 0)) continue;
+    const glm::dvec2 nrm{-d.y, d.x};  // the hull lies on this side of a counter-clockwise edge
+    auto along = [&](size_t j) { return glm::dot(hull[j].p, d); };
     auto across = [&](size_t j) { return glm::dot(hull[j].p, nrm); };
     if (!started) {
       started = true;
@@ -89,18 +92,20 @@ Rect2 minAreaRect(std::span<const HullPoint> hull) {
       while (across(next(t)) > across(t)) t = next(t);
       while (along(next(l)) < along(l)) l = next(l);
     }
-    Rect2 rect;
-    rect.axis = e;
-    rect.minU = along(l);
-    rect.maxU = along(r);
-    rect.minV = across(i);
-    rect.maxV = across(t);
-    const double area = rect.area();
+    const double area = (along(r) - along(l)) * (across(t) - across(i)) / len2;
     if (area < bestArea) {
       bestArea = area;
-      best = rect;
+      bestEdge = i, bestR = r, bestT = t, bestL = l;
     }
   }
+  if (bestEdge == m) return best;
+  const glm::dvec2 e = glm::normalize(hull[next(bestEdge)].p - hull[bestEdge].p);
+  const glm::dvec2 nrm{-e.y, e.x};
+  best.axis = e;
+  best.minU = glm::dot(hull[bestL].p, e);
+  best.maxU = glm::dot(hull[bestR].p, e);
+  best.minV = glm::dot(hull[bestEdge].p, nrm);
+  best.maxV = glm::dot(hull[bestT].p, nrm);
   return best;
 }
 

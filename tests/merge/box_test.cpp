@@ -2,7 +2,9 @@
 // hierarchies built here by a median split (independent of the merge engine).
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -241,7 +243,7 @@ TEST(Box, RotatedSquareGridRootIsTheSquare) {
     checkBoxes(m, h, {});
     const NodeBox& root = h.boxes[0];
     EXPECT_TRUE(h.nodes[0].flags & kNodeFlatFrame);
-    EXPECT_LT(root.halfExtent.z, 1e-6);
+    EXPECT_LT(root.halfExtent.z, 1e-5);  // flat up to float rounding of the box size
     EXPECT_NEAR(4.0 * root.halfExtent.x * root.halfExtent.y, 4.0, 4e-5) << inPlane;  // not 8 at 45 degrees
   }
 }
@@ -254,7 +256,7 @@ TEST(Box, RotatedRectangleGridRoot) {
     checkBoxes(m, h, {});
     EXPECT_NEAR(h.boxes[0].halfExtent.x, 2.0, 1e-5);  // axis 0 along the long side
     EXPECT_NEAR(h.boxes[0].halfExtent.y, 0.5, 1e-5);
-    EXPECT_LT(h.boxes[0].halfExtent.z, 1e-6);
+    EXPECT_LT(h.boxes[0].halfExtent.z, 1e-5);
   }
 }
 
@@ -280,8 +282,8 @@ TEST(Box, AxisAlignedCubeIsotropicGivesWorldAxes) {
   const NodeBox& root = h.boxes[0];
   EXPECT_FALSE(h.nodes[0].flags & kNodeFlatFrame);
   for (int k = 0; k < 3; ++k) {
-    EXPECT_NEAR(root.halfExtent[k], 1.0, 1e-6);
-    EXPECT_NEAR(root.center[k], 0.0, 1e-6);
+    EXPECT_NEAR(root.halfExtent[k], 1.0, 1e-5);
+    EXPECT_NEAR(root.center[k], 0.0, 1e-5);
   }
   const glm::mat3 r = glm::mat3_cast(root.orientation);
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(std::abs(r[k][k]), 1.0, 1e-6);
@@ -423,10 +425,13 @@ TEST(Box, TimingOneMillionTriangles) {
     for (const Node& n : h.nodes) visits += n.count;
     for (unsigned threads : {1u, 2u}) {
       const auto t0 = std::chrono::steady_clock::now();
+      const std::clock_t c0 = std::clock();
       computeBoxesWithThreads(m.view(), h, {}, threads);
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::printf("[ timing ] %zu triangles, %zu nodes, %.1f face visits/face: %u thread(s) %.3f s\n",
-                  m.triangles(), h.nodes.size(), double(visits) / double(m.triangles()), threads, s);
+      const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+      std::printf(
+          "[ timing ] %zu triangles, %zu nodes, %.1f face visits/face: %u thread(s) %.3f s wall %.3f s cpu\n",
+          m.triangles(), h.nodes.size(), double(visits) / double(m.triangles()), threads, s, cpu);
     }
     checkBoxes(m, h, {}, 4999);
   }
