@@ -73,15 +73,17 @@ double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostC
   const double area = s.area;
   if (!(area > 0)) return 0;
   const double projArea = s.projectedArea();
-  const SymMat3 c = s.covariance();
-  glm::dvec3 n;
+  double eFit;
   if (projArea > flatThreshold * area) {
+    // n^T C n = n^T M2 n / A - (n . mu)^2 without forming C (the common, hot case).
     ++counters.normalShortcuts;
-    n = s.sumNormal / projArea;
+    const glm::dvec3 n = s.sumNormal / projArea;
+    const double mean = glm::dot(n, s.firstMoment) / area;
+    eFit = std::max(0.0, s.secondMoment.quadratic(n) / area - mean * mean);
   } else {
-    n = solveNormal(c, counters);
+    const SymMat3 c = s.covariance();
+    eFit = varianceAlong(c, solveNormal(c, counters));
   }
-  const double eFit = varianceAlong(c, n);
   const double clampedProj = std::max(projArea, kMinProjectedAreaFraction * area);
   return (eFit + k * area) * (s.perimeter * s.perimeter) / clampedProj;
 }

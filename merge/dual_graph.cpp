@@ -7,6 +7,7 @@
 #include "merge/dual_graph.h"
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include <glm/geometric.hpp>
@@ -53,13 +54,13 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
 
   DualGraph graph;
   // A closed manifold mesh has exactly 3n/2 dual edges; reserve that (growth covers the rest).
-  graph.shared.reserve(size_t{n} * 3 / 2 + 16);
-  graph.end.reserve(graph.shared.capacity() * 2);
+  graph.edges.reserve(size_t{n} * 3 / 2 + 16);
 
-  std::vector<Candidate> candidates;  // dual edges of the current face, before merging duplicates
-  std::vector<uint32_t> sharing;      // faces on the current mesh edge
+  // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
+  std::array<Candidate, 3 * kMaxFacesJoinedPairwise> candidates;
+  std::array<uint32_t, kMaxFacesJoinedPairwise> sharing;  // faces on the current mesh edge
   for (uint32_t f = 0; f < n; ++f) {
-    candidates.clear();
+    size_t candidateCount = 0;
     const uint32_t v[3] = {geometry.vertex(f, 0), geometry.vertex(f, 1), geometry.vertex(f, 2)};
     for (int i = 0; i < 3; ++i) {
       const uint32_t a = v[i], b = v[(i + 1) % 3];
@@ -76,50 +77,55 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       const uint32_t other = degA <= degB ? b : a;
       const uint32_t* first = incident.data() + offset[degA <= degB ? a : b];
       const uint32_t* last = first + std::min(degA, degB);
-      sharing.clear();
+      size_t sharingCount = 0;               // faces other than f on the edge
+      uint32_t nextFace = DualGraph::kNone;  // the first of them after f (for the chain)
       for (const uint32_t* g = first; g != last; ++g) {
         if (*g == f) continue;
         const uint32_t* w = mesh.indices.data() + size_t{3} * *g;
-        if (w[0] == other || w[1] == other || w[2] == other) sharing.push_back(*g);
+        if (w[0] != other && w[1] != other && w[2] != other) continue;
+        if (sharingCount < sharing.size()) sharing[sharingCount] = *g;
+        ++sharingCount;
+        if (*g > f && nextFace == DualGraph::kNone) nextFace = *g;  // lists are ascending
       }
-      if (sharing.empty()) continue;
+      if (sharingCount == 0) continue;
       const float length = static_cast<float>(glm::length(geometry.position(a) - geometry.position(b)));
-      if (sharing.size() + 1 > kMaxFacesJoinedPairwise) {
-        // Chain: join f only to the next face on the edge (lists are ascending).
-        const auto nextFace = std::upper_bound(sharing.begin(), sharing.end(), f);
-        if (nextFace != sharing.end()) candidates.push_back({*nextFace, length});
+      if (sharingCount + 1 > kMaxFacesJoinedPairwise) {
+        // Chain: join f only to the next face on the edge.
+        if (nextFace != DualGraph::kNone) candidates[candidateCount++] = {nextFace, length};
         continue;
       }
-      for (uint32_t g : sharing) {
-        if (g > f) candidates.push_back({g, length});
+      for (size_t k = 0; k < sharingCount; ++k) {
+        if (sharing[k] > f) candidates[candidateCount++] = {sharing[k], length};
       }
     }
-    if (candidates.empty()) continue;
-    std::sort(candidates.begin(), candidates.end(),
-              [](const Candidate& x, const Candidate& y) { return x.face < y.face; });
-    for (size_t i = 0; i < candidates.size();) {
+    // Insertion sort by face (a handful of entries), then one dual edge per distinct face.
+    for (size_t i = 1; i < candidateCount; ++i) {
+      const Candidate c = candidates[i];
+      size_t j = i;
+      for (; j > 0 && candidates[j - 1].face > c.face; --j) candidates[j] = candidates[j - 1];
+      candidates[j] = c;
+    }
+    for (size_t i = 0; i < candidateCount;) {
       const uint32_t g = candidates[i].face;
       float length = 0;
-      for (; i < candidates.size() && candidates[i].face == g; ++i) length += candidates[i].length;
-      graph.end.push_back(f);
-      graph.end.push_back(g);
-      graph.shared.push_back(length);
+      for (; i < candidateCount && candidates[i].face == g; ++i) length += candidates[i].length;
+      graph.edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, length, 0.0f});
     }
   }
-  if (graph.shared.size() >= size_t{0x7FFFFFFF}) {
+  if (graph.edges.size() >= size_t{0x7FFFFFFF}) {
     throw std::invalid_argument("mesh has more than 2^31-1 dual edges");
   }
   offset = {};
   incident = {};
 
   // Adjacency lists; pushing to the front leaves each list in descending edge order.
-  const uint32_t halves = static_cast<uint32_t>(graph.end.size());
   graph.head.assign(n, DualGraph::kNone);
-  graph.next.resize(halves);
-  for (uint32_t h = 0; h < halves; ++h) {
-    const uint32_t c = graph.end[h];
-    graph.next[h] = graph.head[c];
-    graph.head[c] = h;
+  for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
+    DualEdge& edge = graph.edges[e];
+    for (uint32_t s = 0; s < 2; ++s) {
+      edge.next[s] = graph.head[edge.end[s]];
+      graph.head[edge.end[s]] = 2 * e + s;
+    }
   }
   return graph;
 }

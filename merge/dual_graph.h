@@ -2,10 +2,12 @@
 // pair of faces that share a mesh edge, matched by vertex index. Each dual edge carries the
 // length of boundary the two faces share.
 //
-// Layout, chosen for the merge engine: flat arrays with 32-bit ids. Dual edge e has two
-// half-edges 2e and 2e+1; half h belongs to the adjacency list of cluster end[h], whose other
-// endpoint is end[h ^ 1]; next[h] links the list (intrusive singly-linked, kNone-terminated).
-// The merge relabels `end` and relinks `next` in place, so nothing is allocated per merge.
+// Layout, chosen for the merge engine: one 24-byte record per dual edge with 32-bit ids, so
+// that everything the merge touches of an edge is one cache line. Dual edge e has two sides;
+// side s belongs to the adjacency list of cluster end[s], whose other endpoint is end[s ^ 1];
+// next[s] links the list (intrusive singly-linked lists of half-edge ids h = 2e + s,
+// kNone-terminated). The merge relabels `end` and relinks `next` in place, so nothing is
+// allocated per merge.
 #pragma once
 
 #include <cstdint>
@@ -16,18 +18,25 @@
 
 namespace facetree {
 
+struct DualEdge {
+  uint32_t end[2];   // the clusters it joins (kNone in end[0] once the edge is dead)
+  uint32_t next[2];  // next half-edge in the list of end[s]
+  float shared;      // shared boundary length (float suffices: relative error 1e-7 per edge)
+  float key;         // current merge cost as a heap key (merge engine)
+};
+
 struct DualGraph {
   static constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-  std::vector<uint32_t> end;   // 2 per edge: cluster owning half-edge h
-  std::vector<uint32_t> next;  // 2 per edge: next half-edge in the list of end[h]
-  std::vector<float> shared;   // 1 per edge: shared boundary length (float suffices: see cost.h)
+  std::vector<DualEdge> edges;
   std::vector<uint32_t> head;  // 1 per face/cluster: first half-edge of its list, or kNone
 
-  uint32_t edgeCount() const { return static_cast<uint32_t>(shared.size()); }
+  uint32_t edgeCount() const { return static_cast<uint32_t>(edges.size()); }
+  uint32_t end(uint32_t half) const { return edges[half >> 1].end[half & 1]; }
+  uint32_t other(uint32_t half) const { return edges[half >> 1].end[(half & 1) ^ 1]; }
+  uint32_t next(uint32_t half) const { return edges[half >> 1].next[half & 1]; }
   size_t memoryBytes() const {
-    return (end.capacity() + next.capacity() + head.capacity()) * sizeof(uint32_t) +
-           shared.capacity() * sizeof(float);
+    return edges.capacity() * sizeof(DualEdge) + head.capacity() * sizeof(uint32_t);
   }
 };
 

@@ -1,134 +1,144 @@
-// Indexed d-ary min-heap of dual edges keyed by merge cost (Garland's greedy merge needs
-// pop-min plus increase/decrease-key and removal of arbitrary edges).
+// Min-heap of dual edges keyed by merge cost, without a position index (lazy updates).
 //
-// Entries carry their float key inline so sifting touches one array; a position array indexed
-// by edge id finds an edge in O(1) and doubles as the edge's "alive" flag. Ties are broken by
-// edge id, so the pop order is a pure function of (keys, ids): deterministic on every platform.
-// Keys must not be NaN (callers sanitise them, see cost.h).
+// Why lazy: re-costing after a merge mostly raises keys (clusters grow). An indexed heap
+// moves entries and rewrites their positions on every re-cost — random writes into a table
+// as large as the edge count, which dominated the merge (measured: ~40% of its time in cache
+// misses). Here the engine keeps each edge's current key in the edge, and the heap only has to
+// hold, for every live edge, some entry whose key is a lower bound of it:
+//   - a key that rises is just written to the edge (the old, lower entry stays a lower bound);
+//   - a key that falls pushes a new entry;
+//   - a dead edge leaves its entries behind;
+//   - at the top, an entry whose key differs from its edge's is re-keyed in place (sift down
+//     from the root, whose levels are hot in cache) or dropped if the edge is dead.
+// Ties break by edge id, so the pop order is a pure function of (keys, ids). Keys must not be
+// NaN (cost.h sanitises them). When pushes would outgrow the reserved capacity, the engine
+// rebuilds the heap from its live edges (compaction, O(edges), amortised O(1) per push).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
-#include <limits>
+#include <cstring>
 #include <vector>
 
 namespace facetree {
 
-class IndexedHeap {
+class EdgeHeap {
  public:
-  static constexpr uint32_t kAbsent = std::numeric_limits<uint32_t>::max();
-
-  // Ids are in [0, idCount); none is in the heap yet.
-  explicit IndexedHeap(uint32_t idCount) : pos_(idCount, kAbsent) {}
-
-  // Inserts every id in [0, keys.size()) at once, O(n) (Floyd's heapify).
-  void assign(const std::vector<float>& keys) {
-    entries_.resize(keys.size());
-    for (uint32_t i = 0; i < keys.size(); ++i) entries_[i] = {keys[i], i};
-    const size_t n = entries_.size();
-    if (n > 1) {
-      for (size_t i = (n - 2) / kArity + 1; i-- > 0;) siftDown(i);
-    }
-    for (uint32_t i = 0; i < n; ++i) pos_[entries_[i].id] = i;
-  }
-
-  bool empty() const { return entries_.empty(); }
-  size_t size() const { return entries_.size(); }
-  bool contains(uint32_t id) const { return pos_[id] != kAbsent; }
-  uint32_t topId() const { return entries_.front().id; }
-  float topKey() const { return entries_.front().key; }
-
-  void pop() { removeAt(0); }
-
-  void remove(uint32_t id) {
-    if (pos_[id] != kAbsent) removeAt(pos_[id]);
-  }
-
-  // Sets the key of an id already in the heap.
-  void update(uint32_t id, float key) {
-    const size_t i = pos_[id];
-    const Entry old = entries_[i];
-    entries_[i].key = key;
-    if (less(entries_[i], old)) {
-      siftUp(i);
-    } else {
-      siftDown(i);
-    }
-  }
-
-  void clear() {
-    entries_.clear();
-    entries_.shrink_to_fit();
-    pos_.clear();
-    pos_.shrink_to_fit();
-  }
-
-  size_t memoryBytes() const {
-    return entries_.capacity() * sizeof(Entry) + pos_.capacity() * sizeof(uint32_t);
-  }
-
- private:
-  // 4 children share a cache line of 8-byte entries; measured faster than 2 or 8 here.
-  static constexpr size_t kArity = 4;
-
   struct Entry {
     float key;
     uint32_t id;
   };
 
-  static bool less(const Entry& a, const Entry& b) {
-    return a.key < b.key || (a.key == b.key && a.id < b.id);
-  }
-
-  void removeAt(size_t i) {
-    pos_[entries_[i].id] = kAbsent;
-    const Entry last = entries_.back();
-    entries_.pop_back();
-    if (i == entries_.size()) return;
-    const Entry removed = entries_[i];
-    entries_[i] = last;
-    pos_[last.id] = static_cast<uint32_t>(i);
-    if (less(last, removed)) {
-      siftUp(i);
-    } else {
-      siftDown(i);
+  // Bulk (re)construction without a second buffer: clear(), append() every entry, heapify().
+  void clear() { entries_.clear(); }
+  void append(Entry e) { entries_.push_back(pack(e)); }
+  void heapify() {
+    const size_t n = entries_.size();
+    if (n > 1) {
+      for (size_t i = (n - 2) / kArity + 1; i-- > 0;) siftDown(i, entries_[i]);
     }
   }
 
-  void siftUp(size_t i) {
-    const Entry e = entries_[i];
+  void reserve(size_t capacity) { entries_.reserve(capacity); }
+  bool empty() const { return entries_.empty(); }
+  size_t size() const { return entries_.size(); }
+  size_t capacity() const { return entries_.capacity(); }
+  Entry top() const { return unpack(entries_.front()); }
+
+  void push(Entry e) {
+    entries_.push_back(pack(e));
+    siftUp(entries_.size() - 1, entries_.back());
+  }
+
+  void pop() {
+    const uint64_t last = entries_.back();
+    entries_.pop_back();
+    if (!entries_.empty()) holeDown(last);
+  }
+
+  // Gives the top entry a new key (usually larger: it sinks).
+  void replaceTop(Entry e) { holeDown(pack(e)); }
+
+  void release() {
+    entries_.clear();
+    entries_.shrink_to_fit();
+  }
+
+  size_t memoryBytes() const { return entries_.capacity() * sizeof(uint64_t); }
+
+ private:
+  // 4 children of 8 bytes share half a cache line.
+  static constexpr size_t kArity = 4;
+
+  // (key, id) as one integer whose unsigned order is (key, then id): the float's bits made
+  // monotone (negative keys flipped) in the high half. One compare per pair, no branches on ties.
+  static uint64_t pack(Entry e) {
+    uint32_t bits;
+    std::memcpy(&bits, &e.key, sizeof bits);
+    bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+    return (uint64_t{bits} << 32) | e.id;
+  }
+  static Entry unpack(uint64_t v) {
+    uint32_t bits = static_cast<uint32_t>(v >> 32);
+    bits = (bits & 0x80000000u) ? (bits & 0x7FFFFFFFu) : ~bits;
+    Entry e;
+    std::memcpy(&e.key, &bits, sizeof bits);
+    e.id = static_cast<uint32_t>(v);
+    return e;
+  }
+
+  size_t minChild(size_t first, size_t n) const {
+    size_t best = first;
+    if (first + kArity <= n) {
+      const uint64_t* c = entries_.data() + first;
+      const size_t b01 = c[1] < c[0] ? 1 : 0, b23 = c[3] < c[2] ? 3 : 2;
+      best = first + (c[b23] < c[b01] ? b23 : b01);
+    } else {
+      for (size_t c = first + 1; c < n; ++c) best = entries_[c] < entries_[best] ? c : best;
+    }
+    return best;
+  }
+
+  void siftUp(size_t i, uint64_t e) {
     while (i > 0) {
       const size_t parent = (i - 1) / kArity;
-      if (!less(e, entries_[parent])) break;
+      if (!(e < entries_[parent])) break;
       entries_[i] = entries_[parent];
-      pos_[entries_[i].id] = static_cast<uint32_t>(i);
       i = parent;
     }
     entries_[i] = e;
-    pos_[e.id] = static_cast<uint32_t>(i);
   }
 
-  void siftDown(size_t i) {
+  void siftDown(size_t i, uint64_t e) {
     const size_t n = entries_.size();
-    const Entry e = entries_[i];
     for (;;) {
       const size_t first = i * kArity + 1;
       if (first >= n) break;
-      size_t best = first;
-      const size_t last = first + kArity < n ? first + kArity : n;
-      for (size_t c = first + 1; c < last; ++c) {
-        if (less(entries_[c], entries_[best])) best = c;
-      }
-      if (!less(entries_[best], e)) break;
+      const size_t best = minChild(first, n);
+      if (!(entries_[best] < e)) break;
       entries_[i] = entries_[best];
-      pos_[entries_[i].id] = static_cast<uint32_t>(i);
       i = best;
     }
     entries_[i] = e;
-    pos_[e.id] = static_cast<uint32_t>(i);
   }
 
-  std::vector<Entry> entries_;
-  std::vector<uint32_t> pos_;
+  // Floyd's trick for the root: move the hole down along the smallest children to a leaf,
+  // then sift `e` up from there. Entries that replace the root are mostly large (keys grow),
+  // so this saves the comparison with `e` on every level.
+  void holeDown(uint64_t e) {
+    const size_t n = entries_.size();
+    size_t i = 0;
+    for (;;) {
+      const size_t first = i * kArity + 1;
+      if (first >= n) break;
+      const size_t best = minChild(first, n);
+      entries_[i] = entries_[best];
+      i = best;
+    }
+    siftUp(i, e);
+  }
+
+  std::vector<uint64_t> entries_;
 };
 
 }  // namespace facetree

@@ -1,15 +1,17 @@
 // The merge engine, templated on the cost policy so that the default metric carries no extra
 // per-cluster statistics (Garland's quadrics live only in GarlandCost's slots).
 //
-// Memory (per dual edge: end 8 B, next 8 B, shared 4 B, heap entry 8 B, heap position 4 B;
-// per face: head, stamp, slot id 12 B; per live internal cluster one slot of ClusterStats,
-// reused when a cluster dies). Leaf clusters have no slot: their stats come from the triangle.
+// Memory (per dual edge: its 24-byte record and ~9 bytes of heap entry; per face: list head,
+// slot id and stamp, 12 B; per live internal cluster one slot of ClusterStats, reused when a
+// cluster dies). Leaf clusters have no slot: their stats come from the triangle.
 // Cluster ids are face ids: a merged cluster keeps the id of its first child, so per-cluster
 // arrays have n entries and no id is ever recycled while it is referenced.
 #include "merge/merge_engine.h"
 
 #include <algorithm>
 #include <chrono>
+#include <queue>
+#include <tuple>
 
 #include "merge/heap.h"
 
@@ -45,41 +47,44 @@ class MergeEngine {
       : geometry_(geometry),
         graph_(std::move(graph)),
         policy_(options, geometry),
-        heap_(graph_.edgeCount()),
         keyScale_(policy_.keyScale()) {}
 
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
     auto start = std::chrono::steady_clock::now();
-    stamp_.assign(n, kNone);
-    slotOf_.assign(n, kLeafSlot);
+    clusters_.assign(n, ClusterRecord{kLeafSlot, kNone});
     result_.nodes.reserve(n - 1);  // touched as nodes are created
-    slots_.reserve(n / 2 + 1);     // at most n/2 clusters of 2+ faces live at once; touched lazily
-    {
-      std::vector<float> keys(graph_.edgeCount());
-      for (uint32_t e = 0; e < keys.size(); ++e) {
-        const uint32_t a = graph_.end[2 * e], b = graph_.end[2 * e + 1];
-        const Cluster ca = cluster(a), cb = cluster(b);
-        keys[e] = key(ca, cb, graph_.shared[e]);
-      }
-      heap_.assign(keys);
+    // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
+    // into it stay valid); pages are touched only as slots are first used.
+    slots_.reserve(n / 2 + 1);
+    heap_.reserve(graph_.edgeCount() + graph_.edgeCount() / kHeapSlackDivisor + kHeapSlackMin);
+    for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
+      DualEdge& edge = graph_.edges[e];
+      edge.key = key(cluster(edge.end[0], scratch_[0]), cluster(edge.end[1], scratch_[1]), edge.shared);
+      heap_.append({edge.key, e});
     }
+    heap_.heapify();
     result_.secondsCost = secondsSince(start);
     start = std::chrono::steady_clock::now();
-    const size_t baseBytes = graph_.memoryBytes() + heap_.memoryBytes() +
-                             (stamp_.capacity() + slotOf_.capacity()) * sizeof(uint32_t);
+    const size_t baseBytes =
+        graph_.memoryBytes() + heap_.memoryBytes() + clusters_.capacity() * sizeof(ClusterRecord);
 
     while (!heap_.empty()) {
-      const uint32_t e = heap_.topId();
-      const float k = heap_.topKey();
-      heap_.pop();
-      merge(graph_.end[2 * e], graph_.end[2 * e + 1], e, k);
-      ++result_.edgeMerges;
+      const EdgeHeap::Entry top = heap_.top();
+      const DualEdge& edge = graph_.edges[top.id];
+      if (edge.end[0] == kNone) {
+        heap_.pop();  // dead edge
+      } else if (top.key != edge.key) {
+        heap_.replaceTop({edge.key, top.id});  // stale lower bound: re-key in place
+      } else {
+        heap_.pop();
+        merge(edge.end[0], edge.end[1], top.id, top.key);
+        ++result_.edgeMerges;
+      }
     }
     result_.peakStructureBytes = baseBytes + peakSlots_ * sizeof(Slot);
     graph_ = DualGraph{};
-    heap_.clear();
-    stamp_ = {};
+    heap_.release();
 
     joinComponents();
     result_.secondsMerge = secondsSince(start);
@@ -88,27 +93,38 @@ class MergeEngine {
   }
 
  private:
-  struct Slot {
-    ClusterStats stats;
-    uint32_t node;  // creation index of the cluster's node
-    [[no_unique_address]] Extra extra;
-  };
+  // The heap's capacity beyond the edge count, for entries pushed by falling keys before a
+  // compaction is needed: edges / divisor + min.
+  static constexpr size_t kHeapSlackDivisor = 8;
+  static constexpr size_t kHeapSlackMin = 1024;
+
   struct Cluster {
     ClusterStats stats;
     [[no_unique_address]] Extra extra;
   };
+  struct Slot {
+    Cluster cluster;
+    uint32_t node;  // creation index of the cluster's node
+  };
+  // Per cluster id (= face id of its first face), read together for every neighbour.
+  struct ClusterRecord {
+    uint32_t slot;   // its stats slot, kLeafSlot or kDeadSlot
+    uint32_t stamp;  // the edge joining it to the cluster being merged, if set in this merge
+  };
 
-  Cluster cluster(uint32_t c) const {
-    const uint32_t s = slotOf_[c];
-    if (s == kLeafSlot) return {geometry_.leafStats(c), policy_.leafExtra(c)};
-    return {slots_[s].stats, slots_[s].extra};
+  // The stats of cluster c: its slot, or for a single face `scratch` filled from the triangle.
+  const Cluster& cluster(uint32_t c, Cluster& scratch) const {
+    const uint32_t s = clusters_[c].slot;
+    if (s != kLeafSlot) return slots_[s].cluster;
+    scratch = {geometry_.leafStats(c), policy_.leafExtra(c)};
+    return scratch;
   }
   uint32_t childRef(uint32_t c) const {
-    const uint32_t s = slotOf_[c];
+    const uint32_t s = clusters_[c].slot;
     return s == kLeafSlot ? (kFaceChild | c) : slots_[s].node;
   }
   uint32_t faceCount(uint32_t c) const {
-    const uint32_t s = slotOf_[c];
+    const uint32_t s = clusters_[c].slot;
     return s == kLeafSlot ? 1 : result_.nodes[slots_[s].node].count;
   }
 
@@ -117,18 +133,36 @@ class MergeEngine {
     return toKey(policy_(m, a.stats, b.stats, a.extra, b.extra) * keyScale_);
   }
 
-  bool connects(uint32_t e, uint32_t a, uint32_t x) const {
-    const uint32_t u = graph_.end[2 * e], v = graph_.end[2 * e + 1];
-    return (u == a && v == x) || (u == x && v == a);
+  // Sets an edge's key; a falling key needs a new heap entry (see heap.h).
+  void setKey(uint32_t e, float k) {
+    DualEdge& edge = graph_.edges[e];
+    if (k < edge.key) {
+      if (heap_.size() == heap_.capacity()) compactHeap();
+      heap_.push({k, e});
+    }
+    edge.key = k;
   }
 
+  // One entry per live edge, with its current key.
+  void compactHeap() {
+    heap_.clear();
+    for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
+      if (graph_.edges[e].end[0] != kNone) heap_.append({graph_.edges[e].key, e});
+    }
+    heap_.heapify();
+  }
+
+  static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
+
   // Merges cluster b into cluster a (a keeps its id) along dual edge e, or joins two
-  // components when e == kNone. `cost` is the merge's (unscaled) cost for the node.
+  // components when e == kNone. `heapKey` is the merge's key (the cost times keyScale).
   void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
-    const Cluster ca = cluster(a), cb = cluster(b);
+    // (References stay valid: slots_ never reallocates, see run().)
+    const Cluster& ca = cluster(a, scratch_[0]);
+    const Cluster& cb = cluster(b, scratch_[1]);
     const bool joining = e == kNone;
-    Cluster c{ClusterStats::merged(ca.stats, cb.stats, joining ? 0.0 : graph_.shared[e]),
-              Policy::merge(ca.extra, cb.extra)};
+    const Cluster c{ClusterStats::merged(ca.stats, cb.stats, joining ? 0.0 : graph_.edges[e].shared),
+                    Policy::merge(ca.extra, cb.extra)};
 
     const uint32_t index = static_cast<uint32_t>(result_.nodes.size());
     Node node{};
@@ -144,8 +178,8 @@ class MergeEngine {
     result_.nodes.push_back(node);
 
     // The merged cluster reuses a's slot, else b's; a freed slot goes to the free list.
-    uint32_t sa = slotOf_[a];
-    const uint32_t sb = slotOf_[b];
+    uint32_t sa = clusters_[a].slot;
+    const uint32_t sb = clusters_[b].slot;
     if (sa == kLeafSlot) {
       if (sb != kLeafSlot) {
         sa = sb;
@@ -159,36 +193,42 @@ class MergeEngine {
     } else if (sb != kLeafSlot) {
       freeSlots_.push_back(sb);
     }
-    slots_[sa] = {c.stats, index, c.extra};
-    slotOf_[a] = sa;
-    slotOf_[b] = kDeadSlot;
+    slots_[sa] = {c, index};
+    clusters_[a].slot = sa;
+    clusters_[b].slot = kDeadSlot;
     peakSlots_ = std::max(peakSlots_, slots_.size() - freeSlots_.size());
     if (joining) return;
+    kill(graph_.edges[e]);
 
     // Concatenate the two adjacency lists into a's, relabelling b's half-edges, dropping dead
     // edges and the edges between a and b, and folding parallel edges to the same neighbour
-    // into one (stamp[x] = a live edge already joining a and x in this pass).
+    // into one: stamp = a live edge already joining a and that neighbour. A stale stamp from an
+    // earlier merge cannot pass the test, as no two live edges join the same two clusters.
     uint32_t head = kNone, degree = 0;
     for (const uint32_t list : {a, b}) {
       uint32_t next;
       for (uint32_t h = graph_.head[list]; h != kNone; h = next) {
-        next = graph_.next[h];
-        const uint32_t f = h >> 1;
-        if (!heap_.contains(f)) continue;
-        const uint32_t x = graph_.end[h ^ 1];
+        DualEdge& edge = graph_.edges[h >> 1];
+        const uint32_t side = h & 1;
+        next = edge.next[side];
+        if (edge.end[0] == kNone) continue;
+        const uint32_t x = edge.end[side ^ 1];
         if (x == a || x == b) {
-          heap_.remove(f);
+          kill(edge);
           continue;
         }
-        graph_.end[h] = a;
-        const uint32_t s = stamp_[x];
-        if (s != f && s != kNone && heap_.contains(s) && connects(s, a, x)) {
-          graph_.shared[s] += graph_.shared[f];
-          heap_.remove(f);
-          continue;
+        edge.end[side] = a;
+        const uint32_t s = clusters_[x].stamp;
+        if (s != (h >> 1) && s != kNone) {
+          DualEdge& kept = graph_.edges[s];
+          if ((kept.end[0] == a && kept.end[1] == x) || (kept.end[0] == x && kept.end[1] == a)) {
+            kept.shared += edge.shared;
+            kill(edge);
+            continue;
+          }
         }
-        stamp_[x] = f;
-        graph_.next[h] = head;
+        clusters_[x].stamp = h >> 1;
+        edge.next[side] = head;
         head = h;
         ++degree;
       }
@@ -198,22 +238,25 @@ class MergeEngine {
     result_.degreeSum += degree;
     result_.maxDegree = std::max(result_.maxDegree, degree);
 
-    for (uint32_t h = head; h != kNone; h = graph_.next[h]) {
-      const uint32_t f = h >> 1;
-      heap_.update(f, key(c, cluster(graph_.end[h ^ 1]), graph_.shared[f]));
+    for (uint32_t h = head; h != kNone; h = graph_.next(h)) {
+      const DualEdge& edge = graph_.edges[h >> 1];
+      setKey(h >> 1, key(c, cluster(edge.end[(h & 1) ^ 1], scratch_[0]), edge.shared));
     }
   }
 
-  // Disconnected input: the roots are sorted by the Morton code of their centroid and merged
-  // with their neighbour in that order, level by level, so the top of the tree is balanced
-  // and joins nearby components first. Deterministic: ties in the code break by cluster id.
+  // Disconnected input (scans have hundreds of components): the roots are ranked by the Morton
+  // code of their centroid (ties by cluster id), then joined Huffman-style: repeatedly the two
+  // roots with the fewest faces (ties by rank, the joined root keeping the smaller rank). A
+  // large component then sits directly under the root instead of log2(components) levels
+  // down (pairing in Morton order put dragon_vrip's main body 8 levels deep), and small nearby
+  // pieces are joined with each other first. Deterministic: every key is unique.
   void joinComponents() {
     const uint32_t n = geometry_.faceCount();
     std::vector<std::pair<uint64_t, uint32_t>> roots;
     const glm::dvec3 extent = geometry_.halfExtent();
     for (uint32_t c = 0; c < n; ++c) {
-      if (slotOf_[c] == kDeadSlot) continue;
-      const ClusterStats s = cluster(c).stats;
+      if (clusters_[c].slot == kDeadSlot) continue;
+      const ClusterStats& s = cluster(c, scratch_[0]).stats;
       glm::dvec3 p = s.area > 0
                          ? s.firstMoment / s.area
                          : (geometry_.corner(c, 0) + geometry_.corner(c, 1) + geometry_.corner(c, 2)) / 3.0;
@@ -227,27 +270,34 @@ class MergeEngine {
     }
     result_.components = roots.size();
     std::sort(roots.begin(), roots.end());
-    std::vector<uint32_t> level(roots.size());
-    for (size_t i = 0; i < roots.size(); ++i) level[i] = roots[i].second;
+    // (face count, Morton rank, cluster id), smallest first.
+    using Root = std::tuple<uint32_t, uint32_t, uint32_t>;
+    std::priority_queue<Root, std::vector<Root>, std::greater<Root>> queue;
+    for (uint32_t rank = 0; rank < roots.size(); ++rank) {
+      const uint32_t c = roots[rank].second;
+      queue.emplace(faceCount(c), rank, c);
+    }
     roots = {};
-    while (level.size() > 1) {
-      size_t out = 0;
-      for (size_t i = 0; i < level.size(); i += 2) {
-        if (i + 1 < level.size()) merge(level[i], level[i + 1], kNone, 0);
-        level[out++] = level[i];
-      }
-      level.resize(out);
+    while (queue.size() > 1) {
+      const auto [countA, rankA, a] = queue.top();
+      queue.pop();
+      const auto [countB, rankB, b] = queue.top();
+      queue.pop();
+      // The lower-ranked root becomes the left child and keeps its id.
+      const bool aFirst = rankA < rankB;
+      merge(aFirst ? a : b, aFirst ? b : a, kNone, 0);
+      queue.emplace(countA + countB, std::min(rankA, rankB), aFirst ? a : b);
     }
   }
 
   const FaceGeometry& geometry_;
   DualGraph graph_;
   Policy policy_;
-  IndexedHeap heap_;
+  EdgeHeap heap_;
   double keyScale_;
-  std::vector<uint32_t> stamp_;   // per cluster: last edge seen to it in the current merge
-  std::vector<uint32_t> slotOf_;  // per cluster: its stats slot, kLeafSlot or kDeadSlot
+  std::vector<ClusterRecord> clusters_;
   std::vector<Slot> slots_;
+  Cluster scratch_[2];  // leaf stats computed on the fly
   std::vector<uint32_t> freeSlots_;
   size_t peakSlots_ = 0;
   MergeResult result_;

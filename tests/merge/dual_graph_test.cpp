@@ -17,7 +17,8 @@ struct Edge {
 
 std::vector<Edge> edges(const DualGraph& g) {
   std::vector<Edge> out;
-  for (uint32_t e = 0; e < g.edgeCount(); ++e) out.push_back({g.end[2 * e], g.end[2 * e + 1], g.shared[e]});
+  for (uint32_t e = 0; e < g.edgeCount(); ++e)
+    out.push_back({g.edges[e].end[0], g.edges[e].end[1], g.edges[e].shared});
   return out;
 }
 
@@ -37,11 +38,11 @@ TEST(DualGraph, AdjacencyListsHoldEveryHalfEdgeOnce) {
   const TestMesh mesh = icosphere(2);
   const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   EXPECT_EQ(g.edgeCount(), mesh.faceCount() * 3 / 2);
-  std::vector<int> seen(g.end.size(), 0);
+  std::vector<int> seen(2 * g.edgeCount(), 0);
   for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
     uint32_t degree = 0;
-    for (uint32_t h = g.head[f]; h != DualGraph::kNone; h = g.next[h]) {
-      EXPECT_EQ(g.end[h], f);
+    for (uint32_t h = g.head[f]; h != DualGraph::kNone; h = g.next(h)) {
+      EXPECT_EQ(g.end(h), f);
       ++seen[h];
       ++degree;
     }
@@ -86,7 +87,7 @@ TEST(DualGraph, FoldedDuplicateGetsOneEdgeWithSummedLength) {
   mesh.add(0, 2, 1);
   const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   ASSERT_EQ(g.edgeCount(), 1u);
-  EXPECT_FLOAT_EQ(g.shared[0], 12.0f);
+  EXPECT_FLOAT_EQ(g.edges[0].shared, 12.0f);
 }
 
 TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
@@ -97,9 +98,9 @@ TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
   mesh.add(2, 2, 2);  // no edge at all
   const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   ASSERT_EQ(g.edgeCount(), 1u);
-  EXPECT_EQ(g.end[0], 0u);
-  EXPECT_EQ(g.end[1], 1u);
-  EXPECT_FLOAT_EQ(g.shared[0], 2.0f);
+  EXPECT_EQ(g.edges[0].end[0], 0u);
+  EXPECT_EQ(g.edges[0].end[1], 1u);
+  EXPECT_FLOAT_EQ(g.edges[0].shared, 2.0f);
   EXPECT_EQ(g.head[2], DualGraph::kNone);
 }
 

@@ -1,4 +1,4 @@
-// IndexedHeap against an ordered set, with ties, updates and removals.
+// EdgeHeap against an ordered multiset, with ties, pushes, pops and re-keyed tops.
 #include <random>
 #include <set>
 
@@ -9,46 +9,52 @@
 namespace facetree {
 namespace {
 
-TEST(IndexedHeap, MatchesOrderedSetUnderRandomOperations) {
+using Entry = EdgeHeap::Entry;
+
+TEST(EdgeHeap, MatchesOrderedSetUnderRandomOperations) {
   const uint32_t n = 5000;
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> small(0, 50);  // many equal keys: ties by id
-  std::vector<float> keys(n);
-  for (float& k : keys) k = float(small(rng));
-  IndexedHeap heap(n);
-  heap.assign(keys);
-  std::set<std::pair<float, uint32_t>> reference;
-  for (uint32_t i = 0; i < n; ++i) reference.insert({keys[i], i});
-  std::uniform_int_distribution<uint32_t> pick(0, n - 1);
+  std::vector<Entry> entries;
+  std::multiset<std::pair<float, uint32_t>> reference;
+  for (uint32_t i = 0; i < n; ++i) {
+    entries.push_back({float(small(rng)), i});
+    reference.insert({entries.back().key, i});
+  }
+  EdgeHeap heap;
+  for (const Entry& e : entries) heap.append(e);
+  heap.heapify();
+  uint32_t nextId = n;
   while (!reference.empty()) {
-    const uint32_t id = pick(rng);
     const int op = small(rng) % 4;
-    if (op == 0 && heap.contains(id)) {
-      reference.erase({keys[id], id});
-      heap.remove(id);
-    } else if (op == 1 && heap.contains(id)) {
-      reference.erase({keys[id], id});
-      keys[id] = float(small(rng)) - 10.0f;
-      reference.insert({keys[id], id});
-      heap.update(id, keys[id]);
+    ASSERT_EQ(heap.top().key, reference.begin()->first);
+    ASSERT_EQ(heap.top().id, reference.begin()->second);
+    if (op == 0) {
+      const Entry e{float(small(rng)), nextId++ % 97};
+      heap.push(e);
+      reference.insert({e.key, e.id});
+    } else if (op == 1) {
+      const Entry e{heap.top().key + float(small(rng)), heap.top().id};
+      reference.erase(reference.begin());
+      reference.insert({e.key, e.id});
+      heap.replaceTop(e);
     } else {
-      ASSERT_FALSE(heap.empty());
-      ASSERT_EQ(heap.topId(), reference.begin()->second);
-      ASSERT_EQ(heap.topKey(), reference.begin()->first);
       reference.erase(reference.begin());
       heap.pop();
     }
     ASSERT_EQ(heap.size(), reference.size());
   }
   EXPECT_TRUE(heap.empty());
-  for (uint32_t i = 0; i < n; ++i) EXPECT_FALSE(heap.contains(i));
 }
 
-TEST(IndexedHeap, EqualKeysPopInIdOrder) {
-  IndexedHeap heap(100);
-  heap.assign(std::vector<float>(100, 1.0f));
+TEST(EdgeHeap, EqualKeysPopInIdOrder) {
+  std::vector<Entry> entries;
+  for (uint32_t i = 100; i-- > 0;) entries.push_back({1.0f, i});
+  EdgeHeap heap;
+  for (const Entry& e : entries) heap.append(e);
+  heap.heapify();
   for (uint32_t i = 0; i < 100; ++i) {
-    EXPECT_EQ(heap.topId(), i);
+    EXPECT_EQ(heap.top().id, i);
     heap.pop();
   }
 }

@@ -1,0 +1,128 @@
+// buildHierarchy timing and memory, by hand (not a ctest test):
+//   merge_bench grid M [metric]          flat grid of 2 M^2 triangles (bumpy with "bumpy")
+//   merge_bench FILE.ply[.zst] [metric]  binary little-endian PLY (float xyz, uchar/int list),
+//                                        decompressed through `zstd -dc`
+// Prints seconds, height/balanced, degrees, eigen counts and the peak RSS growth of the build.
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "merge/merge.h"
+#include "test_meshes.h"
+
+namespace {
+
+using facetree::test::TestMesh;
+
+long currentRssKb() {
+  FILE* f = std::fopen("/proc/self/statm", "r");
+  long pages = 0, resident = 0;
+  if (f) {
+    if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
+    std::fclose(f);
+  }
+  return resident * 4;
+}
+
+double cpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec +
+         1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+long peakRssKb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
+}
+
+TestMesh readPly(const std::string& path) {
+  const std::string command = (path.ends_with(".zst") ? "zstd -dc '" : "cat '") + path + "'";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) throw std::runtime_error("cannot run " + command);
+  std::string header;
+  char line[512];
+  size_t vertices = 0, faces = 0;
+  while (std::fgets(line, sizeof line, pipe)) {
+    header = line;
+    std::sscanf(line, "element vertex %zu", &vertices);
+    std::sscanf(line, "element face %zu", &faces);
+    if (header.starts_with("end_header")) break;
+  }
+  TestMesh mesh;
+  mesh.positions.resize(vertices);
+  if (std::fread(mesh.positions.data(), 12, vertices, pipe) != vertices)
+    throw std::runtime_error("short read");
+  mesh.indices.reserve(faces * 3);
+  for (size_t f = 0; f < faces; ++f) {
+    unsigned char n = 0;
+    int32_t idx[256];
+    if (std::fread(&n, 1, 1, pipe) != 1 || std::fread(idx, 4, n, pipe) != n)
+      throw std::runtime_error("short read");
+    for (int j = 1; j + 1 < n; ++j) mesh.add(idx[0], idx[j], idx[j + 1]);
+  }
+  pclose(pipe);
+  return mesh;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace facetree;
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: merge_bench grid M [bumpy] [metric] | merge_bench FILE [metric]\n");
+    return 2;
+  }
+  std::string name = argv[1];
+  TestMesh mesh;
+  int next = 2;
+  if (name == "grid") {
+    const uint32_t m = static_cast<uint32_t>(std::stoul(argv[2]));
+    mesh = test::grid(m, 1.0f / float(m));
+    next = 3;
+    name = "grid " + std::to_string(m);
+    if (argc > next && std::string(argv[next]) == "bumpy") {
+      for (glm::vec3& p : mesh.positions) p.z = 0.02f * std::sin(40 * p.x) * std::cos(33 * p.y);
+      name += " bumpy";
+      ++next;
+    }
+  } else {
+    mesh = readPly(name);
+  }
+  BuildOptions options;
+  options.computeBoxes = false;
+  if (argc > next) {
+    const std::string metric = argv[next];
+    options.metric = metric == "garland"    ? Metric::Garland
+                     : metric == "constant" ? Metric::Constant
+                                            : Metric::Willmott;
+  }
+  const long before = currentRssKb();
+  const auto start = std::chrono::steady_clock::now();
+  const double cpuStart = cpuSeconds();
+  const Hierarchy h = buildHierarchy(mesh.view(), options);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double cpu = cpuSeconds() - cpuStart;
+  const long peak = peakRssKb();
+  const BuildStats& s = h.stats;
+  const double n = double(mesh.faceCount());
+  std::printf("%s: %u triangles, %.3f s wall, %.3f s cpu (init %.3f, cost %.3f, merge %.3f, eigen ~%.3f)\n",
+              name.c_str(), mesh.faceCount(), seconds, cpu, s.secondsInit, s.secondsCost, s.secondsMerge,
+              s.secondsEigen);
+  std::printf(
+      "  height %u / balanced %u = %.2f, degree avg %.2f max %u, eigen %llu, shortcuts %llu, components "
+      "%llu\n",
+      s.height, s.balancedHeight, double(s.height) / s.balancedHeight, s.averageDegree, s.maxDegree,
+      static_cast<unsigned long long>(s.eigenSolves), static_cast<unsigned long long>(s.normalShortcuts),
+      static_cast<unsigned long long>(s.components));
+  std::printf("  peak RSS growth %.1f MB = %.1f B/face (output nodes+faceOrder %.1f B/face)\n",
+              (peak - before) / 1024.0, (peak - before) * 1024.0 / n, (sizeof(Node) * (n - 1) + 4 * n) / n);
+  return 0;
+}
