@@ -76,7 +76,9 @@ public:
   virtual const MeshInfo& info() const = 0;
   virtual const ReadStats& stats() const = 0;
   // All vertices are known once the first read() returned (formats whose vertices follow
-  // the faces are read to the end first); valid for the reader's lifetime.
+  // the faces are read to the end first); valid for the reader's lifetime. Exception: OBJ,
+  // which may interleave vertices and faces, holds the vertices read so far (every index
+  // handed on is valid) and is complete once read() returned 0.
   virtual const VertexSource& vertices() const = 0;
 };
 

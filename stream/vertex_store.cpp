@@ -34,15 +34,22 @@ bool isFinite(const glm::vec3& p) {
 }
 
 size_t ReaderBase::read(std::span<Triangle> out) {
+  if (!error_.empty()) throw ReadError(error_);
   size_t count = 0;
-  while (count < out.size() && !ended_) {
-    const size_t produced = produce(out.data() + count, out.size() - count);
-    if (produced == 0) {
-      ended_ = true;
-      finishReading();
-      break;
+  try {
+    while (count < out.size() && !ended_) {
+      const size_t produced = produce(out.data() + count, out.size() - count);
+      if (produced == 0) {
+        ended_ = true;
+        finishReading();
+        break;
+      }
+      count += completeTriangles(out.data() + count, produced);
     }
-    count += completeTriangles(out.data() + count, produced);
+  } catch (const ReadError& error) {
+    // The parsers stop mid-record: their state is not resumable, so the reader stays failed.
+    error_ = error.what();
+    throw;
   }
   stats_.vertices = vertices_.size();
   stats_.inputBytes = inputOffset();

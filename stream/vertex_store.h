@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -72,6 +73,7 @@ class ReaderBase : public TriangleReader {
 
   bool sawNonFinite_ = false;
   bool ended_ = false;
+  std::string error_;  // a ReadError thrown once is thrown again by every later read()
 };
 
 // Welds bit-identical positions (with -0.0 equal to 0.0) into one vertex index: STL has no

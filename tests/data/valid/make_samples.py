@@ -70,3 +70,7 @@ binary = b"solid pyramid (binary, despite the header)".ljust(80, b" ") + struct.
 for t in TRIANGLES:
     binary += struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *VERTICES[i]) for i in t) + b"\0\0"
 write("pyramid_binary_solid_header.stl", binary)
+
+# pyramid.drc is not written here (no Python Draco encoder): it was made once with draco's
+# C++ encoder, MESH_SEQUENTIAL_ENCODING, no quantization, from the six fan triangles above
+# (see encodeDraco in tests/stream/draco_test.cpp).
