@@ -12,7 +12,7 @@ namespace {
 constexpr uint32_t kUnassigned = 0xFFFFFFFFu;
 }  // namespace
 
-RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching) {
+RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching, RecastRule rule) {
   if (branching < 2 || branching > kMaxBranching)
     throw std::invalid_argument("branching factor must be 2 ... 8");
   const std::vector<Node>& nodes = hierarchy.nodes;
@@ -28,6 +28,27 @@ RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching) {
   std::vector<uint8_t> kept(n, 0), join(n, 0);
   std::vector<std::array<uint32_t, kMaxBranching>> frontierOf(n);
   std::vector<uint8_t> sizeOf(n, 0);
+  if (rule == RecastRule::FewestNodes) {
+    // Bottom up (children follow parents): group[v] = binary nodes in v's open group.
+    std::vector<uint32_t> group(n, 0);
+    for (size_t v = n; v-- > 0;) {
+      uint32_t total = 1;
+      for (const uint32_t ref : nodes[v].child)
+        if (!(ref & kFaceChild)) total += group[ref];
+      while (total > branching - 1) {
+        int heaviest = -1;
+        for (int c = 0; c < 2; ++c) {
+          const uint32_t ref = nodes[v].child[c];
+          if (!(ref & kFaceChild) && !kept[ref] &&
+              (heaviest < 0 || group[ref] > group[nodes[v].child[heaviest]]))
+            heaviest = c;
+        }
+        kept[nodes[v].child[heaviest]] = 1;
+        total -= group[nodes[v].child[heaviest]];
+      }
+      group[v] = total;
+    }
+  }
   if (n > 0) kept[0] = 1;
   // Parents precede children, so one ascending pass grows every kept node's frontier before
   // its frontier nodes are visited.
@@ -41,6 +62,10 @@ RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching) {
       for (unsigned f = 0; f < size; ++f) {
         const uint32_t ref = frontier[f];
         if (ref & kFaceChild) continue;
+        if (rule == RecastRule::FewestNodes) {
+          if (!kept[ref]) best = static_cast<int>(f);  // open group: expand it all
+          continue;
+        }
         if (best < 0 || nodes[ref].area > nodes[frontier[best]].area ||
             (nodes[ref].area == nodes[frontier[best]].area && ref < frontier[best]))
           best = static_cast<int>(f);
@@ -91,7 +116,7 @@ ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> orig
     throw std::invalid_argument("makeClusterFile: one original face id per triangle expected");
   if (hierarchy.boxes.size() != hierarchy.nodes.size())
     throw std::invalid_argument("makeClusterFile: the hierarchy has no boxes (BuildOptions::computeBoxes)");
-  const RecastTree tree = recastHierarchy(hierarchy, options.branching);
+  const RecastTree tree = recastHierarchy(hierarchy, options.branching, options.rule);
 
   ClusterFile file;
   FileHeader& h = file.header;

@@ -25,6 +25,11 @@ struct RecastTree {
 // only faces remain. Expanding the largest region first keeps the children of a b-ary node
 // similar in size, which is what a balanced b-ary tree asks for. Throws std::invalid_argument
 // for references out of range or children stored before their parent.
-RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching);
+// RecastRule::FewestNodes instead partitions the binary internal nodes into the fewest
+// connected groups of at most b - 1 (a group of c binary nodes has c + 1 leaves): Kundu and
+// Misra's bottom-up greedy, optimal for this partition problem, cuts off the heaviest child
+// group while a node's group is too large.
+RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching,
+                           RecastRule rule = RecastRule::LargestArea);
 
 }  // namespace facetree

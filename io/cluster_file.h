@@ -74,8 +74,19 @@ struct ClusterFile {
   bool isCutOff(uint32_t childRef) const { return !(childRef & kFaceChild) && childRef >= nodes.size(); }
 };
 
+// How the binary hierarchy is grouped into b-ary nodes (sec. 5.5.1). Either way every b-ary node
+// is a binary node and its children are the leaves of a binary subtree rooted there.
+enum class RecastRule : uint8_t {
+  // Top down: expand the frontier node of largest area until b children (balanced groups).
+  LargestArea,
+  // Bottom up (Kundu & Misra 1977): the fewest b-ary nodes any grouping can reach; groups near
+  // the leaves are full, the root's may be small.
+  FewestNodes,
+};
+
 struct FileOptions {
-  uint32_t branching = 2;       // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
+  uint32_t branching = 2;  // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
+  RecastRule rule = RecastRule::LargestArea;
   BuildOptions build;           // recorded in the header
   uint64_t memoryCapBytes = 0;  // recorded in the header
 };
