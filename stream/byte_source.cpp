@@ -48,6 +48,16 @@ size_t FdSource::read(char* dst, size_t size) {
   }
 }
 
+uint64_t FdSource::skip(uint64_t size) {
+  // Only regular files opened by path seek; descriptors handed in (stdin) are read through.
+  if (!size_ || offset_ >= *size_) return 0;
+  const uint64_t target = offset_ + std::min(size, *size_ - offset_);
+  if (::lseek(fd_, static_cast<off_t>(target), SEEK_SET) != static_cast<off_t>(target)) return 0;
+  const uint64_t skipped = target - offset_;
+  offset_ = target;
+  return skipped;
+}
+
 InputBuffer::InputBuffer(std::unique_ptr<ByteSource> source, size_t capacity)
     : source_(std::move(source)),
       buffer_(std::make_unique_for_overwrite<char[]>(std::max<size_t>(capacity, 1))),
@@ -86,7 +96,15 @@ size_t InputBuffer::fill(size_t count) {
 }
 
 uint64_t InputBuffer::skip(uint64_t count) {
-  uint64_t skipped = 0;
+  uint64_t skipped = std::min<uint64_t>(available(), count);
+  consume(static_cast<size_t>(skipped));
+  if (count - skipped > capacity_ && !sourceEnded_) {
+    // Large skips (unused elements of huge files) seek instead of reading when possible.
+    const uint64_t jumped = source_->skip(count - skipped);
+    bufferOffset_ += end_ + jumped;
+    begin_ = end_ = 0;
+    skipped += jumped;
+  }
   while (skipped < count) {
     if (available() == 0 && fill(1) == 0) break;
     const size_t step = static_cast<size_t>(std::min<uint64_t>(available(), count - skipped));

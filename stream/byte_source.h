@@ -21,6 +21,9 @@ class ByteSource {
   virtual std::optional<uint64_t> size() const = 0;
   // Bytes taken from the underlying file when this source decompresses, else 0.
   virtual uint64_t compressedBytesRead() const { return 0; }
+  // Skips up to `size` bytes without reading them if the source can (seekable files);
+  // returns how many were skipped, 0 when the caller has to read through instead.
+  virtual uint64_t skip(uint64_t /*size*/) { return 0; }
 };
 
 // Reads a file descriptor with read(2). Owns (closes) it unless it is standard input.
@@ -36,6 +39,7 @@ class FdSource final : public ByteSource {
 
   size_t read(char* dst, size_t size) override;
   std::optional<uint64_t> size() const override { return size_; }
+  uint64_t skip(uint64_t size) override;
 
  private:
   int fd_;
