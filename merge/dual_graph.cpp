@@ -81,8 +81,10 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       uint32_t nextFace = DualGraph::kNone;  // the first of them after f (for the chain)
       for (const uint32_t* g = first; g != last; ++g) {
         if (*g == f) continue;
-        const uint32_t* w = mesh.indices.data() + size_t{3} * *g;
-        if (w[0] != other && w[1] != other && w[2] != other) continue;
+        if (geometry.vertex(*g, 0) != other && geometry.vertex(*g, 1) != other &&
+            geometry.vertex(*g, 2) != other) {
+          continue;
+        }
         if (sharingCount < sharing.size()) sharing[sharingCount] = *g;
         ++sharingCount;
         if (*g > f && nextFace == DualGraph::kNone) nextFace = *g;  // lists are ascending

@@ -52,16 +52,25 @@ class MergeEngine {
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
     auto start = std::chrono::steady_clock::now();
-    clusters_.assign(n, ClusterRecord{kLeafSlot, kNone});
+    clusters_.assign(n, ClusterRecord{kLeafSlot, kNone, 0.0f, kNoEdge});
     result_.nodes.reserve(n - 1);  // touched as nodes are created
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
-    heap_.reserve(graph_.edgeCount() + graph_.edgeCount() / kHeapSlackDivisor + kHeapSlackMin);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
       edge.key = key(cluster(edge.end[0], scratch_[0]), cluster(edge.end[1], scratch_[1]), edge.shared);
-      heap_.append({edge.key, e});
+      for (const uint32_t c : edge.end) {
+        ClusterRecord& r = clusters_[c];
+        if (r.minEdge == kNoEdge || edge.key < r.minKey) {  // edges ascend: ties keep the first
+          r.minKey = edge.key;
+          r.minEdge = e;
+        }
+      }
+    }
+    heap_.reserve(size_t{n} + n / kHeapSlackDivisor + kHeapSlackMin);
+    for (uint32_t c = 0; c < n; ++c) {
+      if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
     }
     heap_.heapify();
     result_.secondsCost = secondsSince(start);
@@ -69,16 +78,24 @@ class MergeEngine {
     const size_t baseBytes =
         graph_.memoryBytes() + heap_.memoryBytes() + clusters_.capacity() * sizeof(ClusterRecord);
 
+    // Each live cluster with edges has a heap entry whose key is a lower bound of its cheapest
+    // edge; the top entry is valid when it equals the cluster's exact minimum.
     while (!heap_.empty()) {
       const EdgeHeap::Entry top = heap_.top();
-      const DualEdge& edge = graph_.edges[top.id];
-      if (edge.end[0] == kNone) {
-        heap_.pop();  // dead edge
-      } else if (top.key != edge.key) {
-        heap_.replaceTop({edge.key, top.id});  // stale lower bound: re-key in place
+      ClusterRecord& r = clusters_[top.id];
+      if (r.slot == kDeadSlot) {
+        heap_.pop();
+        continue;
+      }
+      if (r.minEdge & kDirty) rescan(top.id);
+      if (r.minEdge == kNoEdge) {
+        heap_.pop();  // no edges left: a component's root
+      } else if (top.key != r.minKey) {
+        heap_.replaceTop({r.minKey, top.id});  // stale lower bound: re-key in place
       } else {
         heap_.pop();
-        merge(edge.end[0], edge.end[1], top.id, top.key);
+        const DualEdge& edge = graph_.edges[r.minEdge];
+        merge(edge.end[0], edge.end[1], r.minEdge, top.key);
         ++result_.edgeMerges;
       }
     }
@@ -93,10 +110,13 @@ class MergeEngine {
   }
 
  private:
-  // The heap's capacity beyond the edge count, for entries pushed by falling keys before a
-  // compaction is needed: edges / divisor + min.
+  // The heap's capacity beyond the face count, for entries pushed by falling keys before a
+  // compaction is needed: faces / divisor + min.
   static constexpr size_t kHeapSlackDivisor = 8;
   static constexpr size_t kHeapSlackMin = 1024;
+  // ClusterRecord::minEdge: no edge, and the flag "minKey is only a lower bound".
+  static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
+  static constexpr uint32_t kDirty = 0x80000000u;
 
   struct Cluster {
     ClusterStats stats;
@@ -108,8 +128,10 @@ class MergeEngine {
   };
   // Per cluster id (= face id of its first face), read together for every neighbour.
   struct ClusterRecord {
-    uint32_t slot;   // its stats slot, kLeafSlot or kDeadSlot
-    uint32_t stamp;  // the edge joining it to the cluster being merged, if set in this merge
+    uint32_t slot;     // its stats slot, kLeafSlot or kDeadSlot
+    uint32_t stamp;    // the edge joining it to the cluster being merged, if set in this merge
+    float minKey;      // its cheapest edge's key (a lower bound while kDirty is set)
+    uint32_t minEdge;  // its cheapest edge (ties: lowest id), kNoEdge, | kDirty when unknown
   };
 
   // The stats of cluster c: its slot, or for a single face `scratch` filled from the triangle.
@@ -121,7 +143,7 @@ class MergeEngine {
   }
   uint32_t childRef(uint32_t c) const {
     const uint32_t s = clusters_[c].slot;
-    return s == kLeafSlot ? (kFaceChild | c) : slots_[s].node;
+    return s == kLeafSlot ? (kFaceChild | geometry_.inputFace(c)) : slots_[s].node;
   }
   uint32_t faceCount(uint32_t c) const {
     const uint32_t s = clusters_[c].slot;
@@ -133,23 +155,40 @@ class MergeEngine {
     return toKey(policy_(m, a.stats, b.stats, a.extra, b.extra) * keyScale_);
   }
 
-  // Sets an edge's key; a falling key needs a new heap entry (see heap.h).
-  void setKey(uint32_t e, float k) {
-    DualEdge& edge = graph_.edges[e];
-    if (k < edge.key) {
-      if (heap_.size() == heap_.capacity()) compactHeap();
-      heap_.push({k, e});
-    }
-    edge.key = k;
+  void pushEntry(float k, uint32_t c) {
+    if (heap_.size() == heap_.capacity()) compactHeap();
+    heap_.push({k, c});
   }
 
-  // One entry per live edge, with its current key.
+  // One entry per live cluster with edges.
   void compactHeap() {
     heap_.clear();
-    for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
-      if (graph_.edges[e].end[0] != kNone) heap_.append({graph_.edges[e].key, e});
+    for (uint32_t c = 0; c < clusters_.size(); ++c) {
+      const ClusterRecord& r = clusters_[c];
+      if (r.slot != kDeadSlot && r.minEdge != kNoEdge) heap_.append({r.minKey, c});
     }
     heap_.heapify();
+  }
+
+  // Exact cheapest edge of c from its list, unlinking dead half-edges on the way.
+  void rescan(uint32_t c) {
+    ClusterRecord& r = clusters_[c];
+    r.minEdge = kNoEdge;
+    uint32_t* link = &graph_.head[c];
+    while (*link != kNone) {
+      const uint32_t h = *link;
+      DualEdge& edge = graph_.edges[h >> 1];
+      if (edge.end[0] == kNone) {
+        *link = edge.next[h & 1];
+        continue;
+      }
+      const uint32_t f = h >> 1;
+      if (r.minEdge == kNoEdge || edge.key < r.minKey || (edge.key == r.minKey && f < r.minEdge)) {
+        r.minKey = edge.key;
+        r.minEdge = f;
+      }
+      link = &edge.next[h & 1];
+    }
   }
 
   static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
@@ -218,16 +257,18 @@ class MergeEngine {
           continue;
         }
         edge.end[side] = a;
-        const uint32_t s = clusters_[x].stamp;
+        ClusterRecord& rx = clusters_[x];
+        const uint32_t s = rx.stamp;
         if (s != (h >> 1) && s != kNone) {
           DualEdge& kept = graph_.edges[s];
           if ((kept.end[0] == a && kept.end[1] == x) || (kept.end[0] == x && kept.end[1] == a)) {
             kept.shared += edge.shared;
             kill(edge);
+            if (rx.minEdge == (h >> 1)) rx.minEdge |= kDirty;  // its cheapest edge is gone
             continue;
           }
         }
-        clusters_[x].stamp = h >> 1;
+        rx.stamp = h >> 1;
         edge.next[side] = head;
         head = h;
         ++degree;
@@ -238,10 +279,32 @@ class MergeEngine {
     result_.degreeSum += degree;
     result_.maxDegree = std::max(result_.maxDegree, degree);
 
+    // Re-cost a's edges; keep a's exact minimum and each neighbour's (lower bound of its) minimum.
+    ClusterRecord& ra = clusters_[a];
+    ra.minEdge = kNoEdge;
     for (uint32_t h = head; h != kNone; h = graph_.next(h)) {
-      const DualEdge& edge = graph_.edges[h >> 1];
-      setKey(h >> 1, key(c, cluster(edge.end[(h & 1) ^ 1], scratch_[0]), edge.shared));
+      const uint32_t f = h >> 1;
+      DualEdge& edge = graph_.edges[f];
+      const uint32_t x = edge.end[(h & 1) ^ 1];
+      const float k = key(c, cluster(x, scratch_[0]), edge.shared);
+      edge.key = k;
+      if (ra.minEdge == kNoEdge || k < ra.minKey || (k == ra.minKey && f < ra.minEdge)) {
+        ra.minKey = k;
+        ra.minEdge = f;
+      }
+      ClusterRecord& rx = clusters_[x];
+      const uint32_t known = rx.minEdge & ~kDirty;
+      if (known == kNoEdge || k < rx.minKey) {
+        rx.minKey = k;  // f is its cheapest edge now (below every other edge's lower bound)
+        rx.minEdge = f;
+        pushEntry(k, x);
+      } else if (k == rx.minKey && !(rx.minEdge & kDirty) && f <= known) {
+        rx.minEdge = f;  // same key, lower id: the entry (k, x) already in the heap stays valid
+      } else if (known == f) {
+        rx.minEdge |= kDirty;  // its cheapest edge got dearer: find the new one when it surfaces
+      }
     }
+    if (ra.minEdge != kNoEdge) pushEntry(ra.minKey, a);
   }
 
   // Disconnected input (scans have hundreds of components): the roots are ranked by the Morton

@@ -25,7 +25,7 @@ std::vector<Edge> edges(const DualGraph& g) {
 TEST(DualGraph, GridEdgeCountAndLengths) {
   const uint32_t m = 7;
   const TestMesh mesh = grid(m, 2.0f);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   // Interior mesh edges of an m x m grid with diagonals: 3m^2 + 2m edges, 4m on the border.
   EXPECT_EQ(g.edgeCount(), 3 * m * m - 2 * m);
   for (const Edge& e : edges(g)) {
@@ -36,7 +36,7 @@ TEST(DualGraph, GridEdgeCountAndLengths) {
 
 TEST(DualGraph, AdjacencyListsHoldEveryHalfEdgeOnce) {
   const TestMesh mesh = icosphere(2);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   EXPECT_EQ(g.edgeCount(), mesh.faceCount() * 3 / 2);
   std::vector<int> seen(2 * g.edgeCount(), 0);
   for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
@@ -58,7 +58,7 @@ TEST(DualGraph, NonManifoldEdgeJoinsEveryPair) {
   mesh.add(1, 0, 3);
   mesh.add(0, 1, 4);
   mesh.add(1, 0, 5);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   ASSERT_EQ(g.edgeCount(), 6u);
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   for (const Edge& e : edges(g)) {
@@ -75,7 +75,7 @@ TEST(DualGraph, ManyFacesOnOneEdgeAreChained) {
     mesh.positions.emplace_back(0.5f, std::cos(float(i)), std::sin(float(i)));
     mesh.add(0, 1, 2 + i);
   }
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   EXPECT_EQ(g.edgeCount(), 39u);
   for (const Edge& e : edges(g)) EXPECT_EQ(e.b, e.a + 1);
 }
@@ -85,7 +85,7 @@ TEST(DualGraph, FoldedDuplicateGetsOneEdgeWithSummedLength) {
   mesh.positions = {{0, 0, 0}, {3, 0, 0}, {0, 4, 0}};
   mesh.add(0, 1, 2);
   mesh.add(0, 2, 1);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   ASSERT_EQ(g.edgeCount(), 1u);
   EXPECT_FLOAT_EQ(g.edges[0].shared, 12.0f);
 }
@@ -96,7 +96,7 @@ TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
   mesh.add(0, 1, 2);
   mesh.add(1, 0, 0);  // edges (1,0), (0,0) skipped, (0,1) repeated: counted once
   mesh.add(2, 2, 2);  // no edge at all
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
   ASSERT_EQ(g.edgeCount(), 1u);
   EXPECT_EQ(g.edges[0].end[0], 0u);
   EXPECT_EQ(g.edges[0].end[1], 1u);

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -124,5 +125,24 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(s.components));
   std::printf("  peak RSS growth %.1f MB = %.1f B/face (output nodes+faceOrder %.1f B/face)\n",
               (peak - before) / 1024.0, (peak - before) * 1024.0 / n, (sizeof(Node) * (n - 1) + 4 * n) / n);
+  if (std::getenv("MERGE_BENCH_PATH")) {
+    // The deepest root-to-face path, bottom up: where does the height come from?
+    std::vector<uint32_t> parent(h.nodes.size(), ~0u), depth(h.nodes.size(), 1);
+    uint32_t deepest = 0;
+    for (uint32_t i = 0; i < h.nodes.size(); ++i) {
+      for (uint32_t c : h.nodes[i].child) {
+        if (c & kFaceChild) continue;
+        parent[c] = i;
+        depth[c] = depth[i] + 1;
+        if (depth[c] > depth[deepest]) deepest = c;
+      }
+    }
+    for (uint32_t i = deepest; i != ~0u; i = parent[i]) {
+      const Node& node = h.nodes[i];
+      std::printf("  depth %3u count %8u area %10.4g perim %10.4g |S|/A %.3f cost %.4g flags %u\n", depth[i],
+                  node.count, node.area, node.perimeter, glm::length(node.sumNormal) / node.area, node.cost,
+                  node.flags);
+    }
+  }
   return 0;
 }
