@@ -336,6 +336,26 @@ class PlyReader final : public ReaderBase {
     if (input_->skip(bytes) < bytes) failTruncated(element);
   }
 
+  // Skips one binary list property (count, then items). A negative count is an error; a
+  // count whose byte size overflows cannot be backed by any input, so it is a truncation.
+  void skipBinaryList(const PlyProperty& property, const PlyElement& element) {
+    const size_t countBytes = scalarSize(property.countType);
+    const int64_t length = loadInteger(property.countType, need(countBytes, element), swap_);
+    const uint64_t start = input_->offset();
+    input_->consume(countBytes);
+    if (length < 0) failNegativeListLength(property, element, length, Place::byte(start));
+    uint64_t bytes = 0;
+    if (__builtin_mul_overflow(static_cast<uint64_t>(length), scalarSize(property.type), &bytes))
+      failTruncated(element);
+    skipBinaryBytes(bytes, element);
+  }
+
+  [[noreturn]] void failNegativeListLength(const PlyProperty& property, const PlyElement& element,
+                                           int64_t length, Place place) const {
+    fail(place, recordName(element, record_) + ": negative list length " + std::to_string(length) +
+                    " for property " + quoteToken(property.name));
+  }
+
   // Skips one record property by property (records with list properties).
   void skipBinaryRecord(const PlyElement& element) {
     for (const PlyProperty& property : element.properties) {
@@ -343,18 +363,7 @@ class PlyReader final : public ReaderBase {
         skipBinaryBytes(scalarSize(property.type), element);
         continue;
       }
-      const size_t countBytes = scalarSize(property.countType);
-      const int64_t length = loadInteger(property.countType, need(countBytes, element), swap_);
-      const uint64_t start = input_->offset();
-      input_->consume(countBytes);
-      if (length < 0)
-        fail(Place::byte(start), recordName(element, record_) + ": negative list length " +
-                                     std::to_string(length) + " for property " + quoteToken(property.name));
-      // length < 2^63 and item size <= 8: the product fits in 64 bits... except near 2^63.
-      uint64_t bytes = 0;
-      if (__builtin_mul_overflow(static_cast<uint64_t>(length), scalarSize(property.type), &bytes))
-        failTruncated(element);
-      skipBinaryBytes(bytes, element);
+      skipBinaryList(property, element);
     }
   }
 
@@ -411,10 +420,7 @@ class PlyReader final : public ReaderBase {
           position[axis] = asciiReal(tokens, element, property.type);
         } else if (property.isList) {
           const int64_t length = asciiInteger(tokens, element);
-          if (length < 0)
-            fail(Place::line(line_), recordName(element, record_) + ": negative list length " +
-                                         std::to_string(length) + " for property " +
-                                         quoteToken(property.name));
+          if (length < 0) failNegativeListLength(property, element, length, Place::line(line_));
           for (int64_t k = 0; k < length; ++k) needToken(tokens, element);
         } else {
           needToken(tokens, element);
@@ -470,18 +476,7 @@ class PlyReader final : public ReaderBase {
       for (size_t i = 0; i < element.properties.size(); ++i) {
         const PlyProperty& property = element.properties[i];
         if (property.isList) {
-          const size_t countBytes = scalarSize(property.countType);
-          const int64_t length = loadInteger(property.countType, need(countBytes, element), swap_);
-          const uint64_t start = input_->offset();
-          input_->consume(countBytes);
-          if (length < 0)
-            fail(Place::byte(start), recordName(element, record_) + ": negative list length " +
-                                         std::to_string(length) + " for property " +
-                                         quoteToken(property.name));
-          uint64_t bytes = 0;
-          if (__builtin_mul_overflow(static_cast<uint64_t>(length), scalarSize(property.type), &bytes))
-            failTruncated(element);
-          skipBinaryBytes(bytes, element);
+          skipBinaryList(property, element);
           continue;
         }
         const size_t size = scalarSize(property.type);
@@ -581,18 +576,7 @@ class PlyReader final : public ReaderBase {
         if (!property.isList) {
           skipBinaryBytes(scalarSize(property.type), element);
         } else {
-          // Reuse the record skipper on a one-property view would need a copy; inline it.
-          const size_t countBytes = scalarSize(property.countType);
-          const int64_t length = loadInteger(property.countType, need(countBytes, element), swap_);
-          input_->consume(countBytes);
-          if (length < 0)
-            fail(Place::byte(start), recordName(element, record_) + ": negative list length " +
-                                         std::to_string(length) + " for property " +
-                                         quoteToken(property.name));
-          uint64_t bytes = 0;
-          if (__builtin_mul_overflow(static_cast<uint64_t>(length), scalarSize(property.type), &bytes))
-            failTruncated(element);
-          skipBinaryBytes(bytes, element);
+          skipBinaryList(property, element);
         }
         continue;
       }
@@ -629,9 +613,7 @@ class PlyReader final : public ReaderBase {
       }
       const int64_t length = asciiInteger(tokens, element);
       if (static_cast<int>(i) != element.indexList) {
-        if (length < 0)
-          fail(Place::line(line_), recordName(element, record_) + ": negative list length " +
-                                       std::to_string(length) + " for property " + quoteToken(property.name));
+        if (length < 0) failNegativeListLength(property, element, length, Place::line(line_));
         for (int64_t k = 0; k < length; ++k) needToken(tokens, element);
         continue;
       }

@@ -109,6 +109,10 @@ write("ply_face_zero_vertices.ply", header("ascii", 4, 2) + LONG_QUAD + "3 0 1 2
 write("ply_negative_list_count.ply",
       f"ply\nformat {LE} 1.0\nelement vertex 4\n{XYZ}element face 1\nproperty list char int vertex_indices\n"
       "end_header\n".encode() + binary_vertices(QUAD) + struct.pack("<b", -1) + b"\0" * 12)
+write("ply_negative_extra_list_length.ply",
+      f"ply\nformat {LE} 1.0\nelement vertex 4\n{XYZ}element face 1\nproperty list uchar int vertex_indices\n"
+      "property list char float uv\nend_header\n".encode() + binary_vertices(QUAD) + binary_face([0, 1, 2])
+      + struct.pack("<b", -3) + b"\0" * 12)
 write("ply_index_out_of_range.ply", header(LE, 4, 2).encode() + binary_vertices(QUAD) + binary_face([0, 1, 2])
       + binary_face([0, 2, 4]))
 write("ply_negative_index.ply", header("ascii", 4, 1) + ASCII_QUAD + "3 0 -1 2\n")
