@@ -1,0 +1,75 @@
+// facetree truncate / info / verify as a user runs them.
+#include <gtest/gtest.h>
+
+#include "../cli/run_cli.h"
+#include "fch_test_util.h"
+
+namespace facetree {
+namespace {
+
+using namespace facetree::test;
+
+struct FchCli : ::testing::Test {
+  Cleanup cleanup;
+  std::filesystem::path fch = cleanup.add(scratch("cli.fch"));
+  std::filesystem::path out = cleanup.add(scratch("cli_out.fch"));
+  std::filesystem::path bad = cleanup.add(scratch("cli_bad.fch"));
+  void SetUp() override {
+    const TestMesh mesh = gridMesh(30, 20);
+    FileOptions options;
+    options.branching = 4;
+    WriteOptions write;
+    write.nodesPerFrame = 64;
+    writeClusterFile(fch, makeClusterFile(mesh.view(), {}, medianSplitHierarchy(mesh.view()), options),
+                     write);
+  }
+};
+
+TEST_F(FchCli, InfoReportsCountsAndSections) {
+  const CliResult text = runCli("info " + fch.string());
+  EXPECT_EQ(text.exitCode, 0) << text.out;
+  EXPECT_NE(text.out.find("1200 triangles"), std::string::npos) << text.out;
+  const CliResult json = runCli("info " + fch.string() + " --json");
+  EXPECT_EQ(json.exitCode, 0) << json.out;
+  EXPECT_NE(json.out.find("\"branching\": 4"), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"children_histogram\""), std::string::npos) << json.out;
+}
+
+TEST_F(FchCli, VerifyAcceptsGoodAndRejectsCorruptFiles) {
+  const CliResult good = runCli("verify " + fch.string());
+  EXPECT_EQ(good.exitCode, 0) << good.out;
+  std::string bytes = slurp(fch);
+  bytes[bytes.size() - 5] ^= 0x40;
+  spit(bad, bytes);
+  const CliResult corrupt = runCli("verify " + bad.string());
+  EXPECT_EQ(corrupt.exitCode, 3) << corrupt.out;
+  EXPECT_NE(corrupt.out.find("checksum mismatch"), std::string::npos) << corrupt.out;
+  // A semantically broken file (a box shrunk) with valid checksums: names the node and check.
+  ClusterFile file = readClusterFile(fch);
+  file.nodes[5].box.halfExtent.x *= 0.5f;
+  writeClusterFile(bad, file);
+  const CliResult invalid = runCli("verify " + bad.string());
+  EXPECT_EQ(invalid.exitCode, 3) << invalid.out;
+  EXPECT_NE(invalid.out.find("node 5: box containment"), std::string::npos) << invalid.out;
+}
+
+TEST_F(FchCli, TruncateByNodesAndBytes) {
+  CliResult r = runCli("truncate " + fch.string() + " -o " + out.string() + " --nodes 100");
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_EQ(readClusterFile(out).nodes.size(), 100u);
+  EXPECT_EQ(runCli("verify " + out.string()).exitCode, 0);
+  const uint64_t budget = std::filesystem::file_size(fch) - 2000;
+  r = runCli("truncate " + fch.string() + " -o " + out.string() + " --max-bytes " + std::to_string(budget));
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_LE(std::filesystem::file_size(out), budget);
+  EXPECT_EQ(runCli("verify " + out.string()).exitCode, 0);
+  EXPECT_EQ(runCli("truncate " + fch.string() + " -o " + out.string()).exitCode, 2);
+  EXPECT_EQ(runCli("truncate " + fch.string() + " -o " + out.string() + " --max-bytes 10").exitCode, 2);
+  spit(bad, "nonsense");
+  r = runCli("truncate " + bad.string() + " -o " + out.string() + " --nodes 3");
+  EXPECT_EQ(r.exitCode, 3) << r.out;
+  EXPECT_NE(r.out.find("not a facetree cluster file (bad magic)"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace facetree
