@@ -46,7 +46,7 @@ constexpr Case kCases[] = {
     {"ply_invalid_element_count.ply", "line 3: invalid element count '-4'"},
     {"ply_missing_end_header.ply", "line 9: unexpected end of file in header (missing end_header)"},
     {"ply_missing_format.ply", "line 8: missing format line"},
-    {"ply_negative_extra_list_length.ply", "byte 245: face 0: negative list length -3 for property 'uv'"},
+    {"ply_negative_extra_list_length.ply", "byte 258: face 0: negative list length -3 for property 'uv'"},
     {"ply_negative_index.ply", "line 14: face 0: negative vertex index -1"},
     {"ply_negative_list_count.ply", "byte 216: face 0 has negative vertex count -1"},
     {"ply_no_face_element.ply", "line 7: no face element"},
