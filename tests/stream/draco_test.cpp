@@ -33,7 +33,7 @@ std::string encodeDraco(const test::SimpleMesh& mesh) {
   return std::string(buffer.data(), buffer.size());
 }
 
-TEST(Draco, SequentialEncodedMeshReadsBackExactly) {
+TEST(StreamDraco, SequentialEncodedMeshReadsBackExactly) {
   const std::string bytes = encodeDraco(test::pyramid());
   test::TempDir dir;
   for (const auto& path : {dir.write("p.drc", bytes), dir.write("p.drc.zst", test::zstdCompress(bytes))}) {
@@ -54,7 +54,7 @@ TEST(Draco, SequentialEncodedMeshReadsBackExactly) {
   }
 }
 
-TEST(Draco, CorruptStreamIsOneClearError) {
+TEST(StreamDraco, CorruptStreamIsOneClearError) {
   std::string bytes = encodeDraco(test::pyramid());
   bytes.resize(bytes.size() / 2);
   test::TempDir dir;

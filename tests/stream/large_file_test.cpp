@@ -13,7 +13,7 @@ namespace {
 
 constexpr uint64_t kBlobBytes = (uint64_t{1} << 32) + 12345;  // past every 32-bit offset
 
-TEST(LargeFile, OffsetsAndCountsBeyond4GiB) {
+TEST(StreamLargeFile, OffsetsAndCountsBeyond4GiB) {
   test::TempDir dir;
   const std::filesystem::path path = dir.path() / "large.ply";
   const std::string header =

@@ -86,9 +86,9 @@ std::filesystem::path corpus() {
   return std::filesystem::path(FACETREE_TEST_DATA) / "malformed";
 }
 
-class Malformed : public ::testing::TestWithParam<Case> {};
+class StreamMalformed : public ::testing::TestWithParam<Case> {};
 
-TEST_P(Malformed, GivesExactlyOneClearError) {
+TEST_P(StreamMalformed, GivesExactlyOneClearError) {
   const std::filesystem::path path = corpus() / GetParam().file;
   ASSERT_TRUE(std::filesystem::exists(path)) << path;
   // The error may come from openMesh (header) or from read (data): read everything.
@@ -106,14 +106,14 @@ TEST_P(Malformed, GivesExactlyOneClearError) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Corpus, Malformed, ::testing::ValuesIn(kCases), [](const auto& info) {
+INSTANTIATE_TEST_SUITE_P(StreamCorpus, StreamMalformed, ::testing::ValuesIn(kCases), [](const auto& info) {
   std::string name = info.param.file;
   for (char& c : name)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   return name;
 });
 
-TEST(MalformedCorpus, EveryFileHasAnExpectedMessage) {
+TEST(StreamMalformedCorpus, EveryFileHasAnExpectedMessage) {
   std::set<std::string> listed;
   for (const Case& c : kCases) listed.insert(c.file);
   size_t files = 0;
@@ -126,7 +126,7 @@ TEST(MalformedCorpus, EveryFileHasAnExpectedMessage) {
   EXPECT_EQ(files, listed.size());
 }
 
-TEST(MalformedCorpus, BadInputIsNeverFatalWithEveryBufferSize) {
+TEST(StreamMalformedCorpus, BadInputIsNeverFatalWithEveryBufferSize) {
   // Tiny buffers move every record across refills; the message must not change.
   for (const Case& c : kCases) {
     const std::filesystem::path path = corpus() / c.file;

@@ -13,7 +13,7 @@ using test::readAll;
 using test::sameTriangles;
 using test::TempDir;
 
-TEST(Obj, ReadsThePyramidWithTheSameTrianglesAsPly) {
+TEST(StreamObj, ReadsThePyramidWithTheSameTrianglesAsPly) {
   TempDir dir;
   auto reader = openMesh(dir.write("p.obj", test::writeObj(pyramid())));
   EXPECT_EQ(reader->info().format, MeshFormat::Obj);
@@ -24,7 +24,7 @@ TEST(Obj, ReadsThePyramidWithTheSameTrianglesAsPly) {
   EXPECT_EQ(reader->info().declaredVertices, 0u);
 }
 
-TEST(Obj, AllVertexReferenceFormsNegativeIndicesAndNgons) {
+TEST(StreamObj, AllVertexReferenceFormsNegativeIndicesAndNgons) {
   const std::string obj =
       "v 0 0 0\nv 1 0 0\nv 1 1 0 1.0\nv 0 1 0 0.5 0.5 0.5\n"
       "vt 0 0\nvn 0 0 1\n"
@@ -53,7 +53,7 @@ TEST(Obj, AllVertexReferenceFormsNegativeIndicesAndNgons) {
   EXPECT_EQ(reader->stats().faces, 6u);
 }
 
-TEST(Obj, BackslashJoinsLinesAndCrlfIsAccepted) {
+TEST(StreamObj, BackslashJoinsLinesAndCrlfIsAccepted) {
   const std::string obj = "v 0 0 0\r\nv 1 0 0\r\nv 0 \\\r\n 1 0\r\nf 1 2 \\\n 3\n";
   TempDir dir;
   const auto t = test::readFile(dir.write("c.obj", obj));
@@ -62,7 +62,7 @@ TEST(Obj, BackslashJoinsLinesAndCrlfIsAccepted) {
   EXPECT_EQ(t[0].vertex[2], 2u);
 }
 
-TEST(Obj, DegenerateAndNonFiniteAreCounted) {
+TEST(StreamObj, DegenerateAndNonFiniteAreCounted) {
   const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n";
   TempDir dir;
   auto reader = openMesh(dir.write("n.obj", obj));

@@ -12,7 +12,7 @@ namespace {
 
 using test::TempDir;
 
-TEST(Open, MissingFileAndDirectoryAreReadErrors) {
+TEST(StreamOpen, MissingFileAndDirectoryAreReadErrors) {
   TempDir dir;
   const std::string missing = (dir.path() / "nope.ply").string();
   EXPECT_EQ(test::errorOf([&] { openMesh(missing); }),
@@ -20,7 +20,7 @@ TEST(Open, MissingFileAndDirectoryAreReadErrors) {
   EXPECT_EQ(test::errorOf([&] { openMesh(dir.path()); }), dir.path().string() + ": byte 0: is a directory");
 }
 
-TEST(Open, DetectionUsesTheContentNotTheName) {
+TEST(StreamOpen, DetectionUsesTheContentNotTheName) {
   TempDir dir;
   const std::vector<std::pair<std::string, MeshFormat>> cases = {
       {test::writeObj(test::pyramid()), MeshFormat::Obj},
@@ -41,7 +41,7 @@ TEST(Open, DetectionUsesTheContentNotTheName) {
 
 // Random byte flips, insertions and cuts of valid files: every outcome is a mesh or one
 // ReadError; nothing else may escape (and sanitizer builds check memory safety).
-TEST(Robustness, CorruptedFilesGiveTrianglesOrOneReadError) {
+TEST(StreamRobustness, CorruptedFilesGiveTrianglesOrOneReadError) {
   const std::vector<std::string> seeds = {
       test::writePly(test::pyramid(), {.encoding = "ascii", .extraProperties = true, .extraElement = true}),
       test::writePly(test::pyramid(), {.encoding = "binary_little_endian", .extraProperties = true}),

@@ -35,7 +35,7 @@ std::vector<Triangle> readPly(const PlyOptions& options, MeshFormat expectedForm
   return triangles;
 }
 
-TEST(Ply, AsciiAndBothBinaryEndiannessesGiveTheSameTriangles) {
+TEST(StreamPly, AsciiAndBothBinaryEndiannessesGiveTheSameTriangles) {
   const auto expected = expectedTriangles(pyramid());
   const auto ascii = readPly({.encoding = "ascii"}, MeshFormat::PlyAscii);
   const auto little = readPly({.encoding = "binary_little_endian"}, MeshFormat::PlyBinaryLittleEndian);
@@ -45,7 +45,7 @@ TEST(Ply, AsciiAndBothBinaryEndiannessesGiveTheSameTriangles) {
   EXPECT_TRUE(sameTriangles(big, expected)) << test::describe(big);
 }
 
-TEST(Ply, QuadIsFanTriangulatedAndKeepsItsFaceIndex) {
+TEST(StreamPly, QuadIsFanTriangulatedAndKeepsItsFaceIndex) {
   const auto triangles = readPly({.encoding = "binary_little_endian"}, MeshFormat::PlyBinaryLittleEndian);
   ASSERT_EQ(triangles.size(), 6u);
   EXPECT_EQ(triangles[0].face, 0u);
@@ -58,9 +58,9 @@ TEST(Ply, QuadIsFanTriangulatedAndKeepsItsFaceIndex) {
   EXPECT_EQ(triangles[5].face, 4u);
 }
 
-class PlyCoordinateType : public ::testing::TestWithParam<std::string> {};
+class StreamPlyCoordinateType : public ::testing::TestWithParam<std::string> {};
 
-TEST_P(PlyCoordinateType, EveryScalarTypeIsConvertedToFloat) {
+TEST_P(StreamPlyCoordinateType, EveryScalarTypeIsConvertedToFloat) {
   // Integer coordinate types: use a mesh with integral (and for unsigned, non-negative) values.
   test::SimpleMesh mesh = pyramid();
   for (glm::vec3& p : mesh.vertices)
@@ -73,12 +73,12 @@ TEST_P(PlyCoordinateType, EveryScalarTypeIsConvertedToFloat) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(AllTypes, PlyCoordinateType,
+INSTANTIATE_TEST_SUITE_P(StreamTypes, StreamPlyCoordinateType,
                          ::testing::Values("char", "uchar", "short", "ushort", "int", "uint", "float",
                                            "double", "int8", "uint8", "int16", "uint16", "int32", "uint32",
                                            "float32", "float64"));
 
-TEST(Ply, ListCountAndIndexOfAnyIntegerType) {
+TEST(StreamPly, ListCountAndIndexOfAnyIntegerType) {
   const auto expected = expectedTriangles(pyramid());
   for (const std::string encoding : {"ascii", "binary_little_endian", "binary_big_endian"})
     for (const std::string count : {"uchar", "char", "ushort", "int", "uint32"})
@@ -90,7 +90,7 @@ TEST(Ply, ListCountAndIndexOfAnyIntegerType) {
       }
 }
 
-TEST(Ply, ExtraPropertiesElementsCommentsCrlfAndVertexIndexAreHandled) {
+TEST(StreamPly, ExtraPropertiesElementsCommentsCrlfAndVertexIndexAreHandled) {
   const auto expected = expectedTriangles(pyramid());
   for (const std::string encoding : {"ascii", "binary_little_endian", "binary_big_endian"}) {
     const PlyOptions options{.encoding = encoding,
@@ -105,7 +105,7 @@ TEST(Ply, ExtraPropertiesElementsCommentsCrlfAndVertexIndexAreHandled) {
   }
 }
 
-TEST(Ply, FacesBeforeVerticesAreBuffered) {
+TEST(StreamPly, FacesBeforeVerticesAreBuffered) {
   const auto expected = expectedTriangles(pyramid());
   for (const std::string encoding : {"ascii", "binary_little_endian"}) {
     TempDir dir;
@@ -123,7 +123,7 @@ TEST(Ply, FacesBeforeVerticesAreBuffered) {
   }
 }
 
-TEST(Ply, BatchSizeDoesNotChangeTheResult) {
+TEST(StreamPly, BatchSizeDoesNotChangeTheResult) {
   TempDir dir;
   const auto path = dir.write("t.ply", writePly(pyramid(), {.encoding = "binary_little_endian"}));
   const auto expected = expectedTriangles(pyramid());
@@ -134,7 +134,7 @@ TEST(Ply, BatchSizeDoesNotChangeTheResult) {
   EXPECT_TRUE(sameTriangles(readAll(*reader), expected));
 }
 
-TEST(Ply, TristripsWithRestartAlternateWindingAndCountAsOneFaceEach) {
+TEST(StreamPly, TristripsWithRestartAlternateWindingAndCountAsOneFaceEach) {
   // Strip 0: 0 1 2 3 -1 4 0 1; strip 1: 2 3 4 (one triangle). Plus one ordinary face element.
   const std::string ply =
       "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
@@ -156,7 +156,7 @@ TEST(Ply, TristripsWithRestartAlternateWindingAndCountAsOneFaceEach) {
   EXPECT_EQ(reader->stats().faces, 2u);
 }
 
-TEST(Ply, TristripsInBinaryAfterFaces) {
+TEST(StreamPly, TristripsInBinaryAfterFaces) {
   std::string ply =
       "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
       "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
@@ -179,7 +179,7 @@ TEST(Ply, TristripsInBinaryAfterFaces) {
   EXPECT_EQ(reader->stats().faces, 2u);
 }
 
-TEST(Ply, NonFiniteVerticesSkipTrianglesAndDegeneratesAreCounted) {
+TEST(StreamPly, NonFiniteVerticesSkipTrianglesAndDegeneratesAreCounted) {
   const std::string ply =
       "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
       "element face 5\nproperty list uchar int vertex_indices\nend_header\n"
@@ -202,7 +202,7 @@ TEST(Ply, NonFiniteVerticesSkipTrianglesAndDegeneratesAreCounted) {
   EXPECT_TRUE(std::isnan(reader->vertices().position(3).x));
 }
 
-TEST(Ply, StatsCountBytes) {
+TEST(StreamPly, StatsCountBytes) {
   TempDir dir;
   const std::string bytes = writePly(pyramid(), {.encoding = "binary_big_endian"});
   auto reader = openMesh(dir.write("t.ply", bytes));
@@ -214,7 +214,7 @@ TEST(Ply, StatsCountBytes) {
 }
 
 // The committed samples under tests/data/valid all describe the same pyramid.
-TEST(ValidSamples, EveryCommittedSampleReadsThePyramid) {
+TEST(StreamValidSamples, EveryCommittedSampleReadsThePyramid) {
   const std::filesystem::path folder = std::filesystem::path(FACETREE_TEST_DATA) / "valid";
   ASSERT_TRUE(std::filesystem::is_directory(folder));
   const auto expected = expectedTriangles(pyramid());
@@ -238,7 +238,7 @@ TEST(ValidSamples, EveryCommittedSampleReadsThePyramid) {
   EXPECT_GE(files, 9);
 }
 
-TEST(FormatName, NamesEveryFormat) {
+TEST(StreamFormatName, NamesEveryFormat) {
   EXPECT_STREQ(formatName(MeshFormat::PlyBinaryBigEndian), "PLY binary big endian");
   EXPECT_STREQ(formatName(MeshFormat::Draco), "Draco");
   EXPECT_STREQ(formatName(MeshFormat::StlBinary), "STL binary");

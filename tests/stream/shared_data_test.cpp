@@ -40,7 +40,7 @@ const std::map<std::string, Counts>& readmeCounts() {
 
 constexpr size_t kBatch = 1 << 16;
 
-TEST(SharedData, EveryMeshHasTheCountsOfTheReadme) {
+TEST(StreamSharedData, EveryMeshHasTheCountsOfTheReadme) {
   const std::filesystem::path folder = FACETREE_SHARED_DATA;
   if (!std::filesystem::is_directory(folder)) GTEST_SKIP() << "no shared data at " << folder;
   std::vector<Triangle> batch(kBatch);
@@ -82,7 +82,7 @@ TEST(SharedData, EveryMeshHasTheCountsOfTheReadme) {
 
 // The README's zero-area column counts faces whose area is exactly zero; ours counts
 // triangles with a repeated index or exactly collinear corners (all meshes are triangles).
-TEST(SharedData, DegenerateCountsOfDragonMatchTheReadme) {
+TEST(StreamSharedData, DegenerateCountsOfDragonMatchTheReadme) {
   const std::filesystem::path path = std::filesystem::path(FACETREE_SHARED_DATA) / "dragon_vrip.ply.zst";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "no " << path;
   auto reader = openMesh(path);

@@ -42,7 +42,7 @@ std::vector<Triangle> readThroughPipe(const std::string& bytes, MeshFormat* form
   return triangles;
 }
 
-TEST(Stdin, EveryFormatReadsThroughAPipe) {
+TEST(StreamStdin, EveryFormatReadsThroughAPipe) {
   test::TempDir dir;
   const std::vector<std::pair<std::string, MeshFormat>> inputs = {
       {test::writePly(test::pyramid(), {.encoding = "binary_little_endian"}),
@@ -63,7 +63,7 @@ TEST(Stdin, EveryFormatReadsThroughAPipe) {
   }
 }
 
-TEST(Stdin, ErrorsNameTheInputDash) {
+TEST(StreamStdin, ErrorsNameTheInputDash) {
   EXPECT_EQ(test::errorOf([] { readThroughPipe(""); }), "-: byte 0: empty file");
   EXPECT_EQ(test::errorOf([] { readThroughPipe("hello world\n"); }), "-: byte 0: unknown mesh format");
   // Without a size, a count larger than the data is found when the data ends.
@@ -81,7 +81,7 @@ TEST(Stdin, ErrorsNameTheInputDash) {
             "-: byte " + std::to_string(small.size() + 30) + ": unexpected end of data in vertex 2 of 1000");
 }
 
-TEST(Stdin, OpenStandardInputReadsDescriptorZero) {
+TEST(StreamStdin, OpenStandardInputReadsDescriptorZero) {
   test::TempDir dir;
   const auto path = dir.write("p.ply", test::writePly(test::pyramid(), {.encoding = "binary_big_endian"}));
   const int saved = ::dup(STDIN_FILENO);

@@ -34,14 +34,14 @@ void expectPyramid(TriangleReader& reader) {
   EXPECT_EQ(reader.stats().faces, 6u);
 }
 
-TEST(Stl, Ascii) {
+TEST(StreamStl, Ascii) {
   TempDir dir;
   auto reader = openMesh(dir.write("p.stl", test::writeAsciiStl(pyramid())));
   EXPECT_EQ(reader->info().format, MeshFormat::StlAscii);
   expectPyramid(*reader);
 }
 
-TEST(Stl, Binary) {
+TEST(StreamStl, Binary) {
   TempDir dir;
   auto reader = openMesh(dir.write("p.stl", test::writeBinaryStl(pyramid())));
   EXPECT_EQ(reader->info().format, MeshFormat::StlBinary);
@@ -49,7 +49,7 @@ TEST(Stl, Binary) {
   expectPyramid(*reader);
 }
 
-TEST(Stl, BinaryWithSolidHeaderIsDetectedAsBinary) {
+TEST(StreamStl, BinaryWithSolidHeaderIsDetectedAsBinary) {
   TempDir dir;
   const std::string bytes = test::writeBinaryStl(pyramid(), "solid pyramid exported by a careless tool");
   auto reader = openMesh(dir.write("p.stl", bytes));
@@ -61,7 +61,7 @@ TEST(Stl, BinaryWithSolidHeaderIsDetectedAsBinary) {
   expectPyramid(*compressed);
 }
 
-TEST(Stl, MinusZeroWeldsWithZero) {
+TEST(StreamStl, MinusZeroWeldsWithZero) {
   test::SimpleMesh mesh{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {-0.0f, 0, -0.0f}, {0, 0, 1}},
                         {{0, 1, 2}, {3, 2, 4}}};
   TempDir dir;
@@ -73,7 +73,7 @@ TEST(Stl, MinusZeroWeldsWithZero) {
   EXPECT_EQ(reader->stats().vertices, 4u);
 }
 
-TEST(Stl, AsciiKeywordsAreCaseInsensitiveAndSeveralSolidsAreRead) {
+TEST(StreamStl, AsciiKeywordsAreCaseInsensitiveAndSeveralSolidsAreRead) {
   const std::string stl =
       "solid a\nFACET NORMAL 0 0 1\nOUTER LOOP\nVERTEX 0 0 0\nVERTEX 1 0 0\nVERTEX 0 1 0\nENDLOOP\nENDFACET\n"
       "endsolid a\nsolid b\nfacet normal 0 0 1 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 1 0 endloop "
@@ -88,7 +88,7 @@ TEST(Stl, AsciiKeywordsAreCaseInsensitiveAndSeveralSolidsAreRead) {
   EXPECT_EQ(triangles[1].vertex[2], 3u);
 }
 
-TEST(Stl, ManyTrianglesWeldLikeAnIndexedMesh) {
+TEST(StreamStl, ManyTrianglesWeldLikeAnIndexedMesh) {
   // A 100x100 grid: every interior position is shared by up to six triangles.
   test::SimpleMesh grid;
   constexpr int kSide = 100;

@@ -13,7 +13,7 @@ using test::readFile;
 using test::sameTriangles;
 using test::TempDir;
 
-TEST(Zstd, CompressedFilesReadLikeThePlainOnes) {
+TEST(StreamZstd, CompressedFilesReadLikeThePlainOnes) {
   TempDir dir;
   const std::vector<std::pair<std::string, std::string>> files = {
       {"a.ply", test::writePly(pyramid(), {.encoding = "ascii"})},
@@ -35,7 +35,7 @@ TEST(Zstd, CompressedFilesReadLikeThePlainOnes) {
   }
 }
 
-TEST(Zstd, ConcatenatedAndSkippableFramesAreOneStream) {
+TEST(StreamZstd, ConcatenatedAndSkippableFramesAreOneStream) {
   const std::string ply = test::writePly(pyramid(), {.encoding = "binary_little_endian"});
   const size_t half = ply.size() / 2;
   // A skippable frame: magic 0x184D2A5?, 4-byte length, payload.
@@ -46,7 +46,7 @@ TEST(Zstd, ConcatenatedAndSkippableFramesAreOneStream) {
   EXPECT_TRUE(sameTriangles(readFile(dir.write("m.zst", bytes)), readFile(dir.write("m.ply", ply))));
 }
 
-TEST(Zstd, TruncatedStreamAndTrailingGarbageAreErrors) {
+TEST(StreamZstd, TruncatedStreamAndTrailingGarbageAreErrors) {
   const std::string ply = test::writePly(pyramid(), {.encoding = "ascii"});
   const std::string compressed = test::zstdCompress(ply);
   TempDir dir;
@@ -61,7 +61,7 @@ TEST(Zstd, TruncatedStreamAndTrailingGarbageAreErrors) {
                 ")");
 }
 
-TEST(Zstd, TruncationInALaterBlockNamesTheDecompressedOffset) {
+TEST(StreamZstd, TruncationInALaterBlockNamesTheDecompressedOffset) {
   // ~1 MB of ascii PLY spans several 128 KiB zstd blocks; cut the compressed data in the
   // middle: the blocks before the cut are decoded and handed to the parser first.
   test::SimpleMesh mesh;
