@@ -25,25 +25,46 @@ uint32_t balancedHeight(uint32_t n) {
   return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
 }
 
-// Turns creation-ordered nodes into the output order and lays out the face ranges: the root
-// covers [0, n), each node hands [first, first + count(left)) to its left child and the rest
-// to its right child. Parents precede children in the output, so one forward pass suffices.
+// Output nodes from the creation-ordered records: reversed (the root first), child records
+// renumbered, leaf children turned from internal face ids into positions of faceOrder, and
+// the face ranges laid out: the root covers [0, n), each node hands [first, first +
+// count(left)) to its left child and the rest to its right child. Parents precede children
+// in the output, so one forward pass suffices (no recursion: trees may be millions deep).
 // Returns the height (nodes on the longest root-to-face path, the face included).
-uint32_t layOut(std::vector<Node>& nodes, std::vector<uint32_t>& faceOrder, uint32_t faceCount) {
-  faceOrder.assign(faceCount, 0);
-  if (nodes.empty()) return 1;
-  const uint32_t last = static_cast<uint32_t>(nodes.size()) - 1;
-  std::reverse(nodes.begin(), nodes.end());
+uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const FaceGeometry& geometry) {
+  std::vector<Node>& nodes = hierarchy.nodes;
+  std::vector<uint32_t>& faceOrder = hierarchy.faceOrder;
+  faceOrder.assign(geometry.faceCount(), 0);
+  if (records.empty()) {
+    faceOrder[0] = 0;
+    return 1;
+  }
+  const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
+  nodes.resize(records.size());
+  for (uint32_t i = 0; i <= last; ++i) {
+    const MergeRecord& r = records[i];
+    Node& node = nodes[last - i];
+    node.child[0] = r.child[0];
+    node.child[1] = r.child[1];
+    node.first = 0;
+    node.count = r.faceCount();
+    node.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
+    node.cost = r.cost;
+    node.area = r.area;
+    node.perimeter = r.perimeter;
+    node.sumNormal = glm::vec3(r.sumNormal[0], r.sumNormal[1], r.sumNormal[2]);
+  }
+  records = {};
+
   std::vector<uint32_t> depth(nodes.size(), 0);
   depth[0] = 1;
-  nodes[0].first = 0;
   uint32_t height = 1;
   for (uint32_t i = 0; i <= last; ++i) {
     Node& node = nodes[i];
     uint32_t first = node.first;
     for (uint32_t& child : node.child) {
       if (child & kFaceChild) {
-        faceOrder[first] = child & ~kFaceChild;
+        faceOrder[first] = geometry.inputFace(child & ~kFaceChild);
         child = kFaceChild | first;
         ++first;
         height = std::max(height, depth[i] + 1);
@@ -61,29 +82,31 @@ uint32_t layOut(std::vector<Node>& nodes, std::vector<uint32_t>& faceOrder, uint
 }  // namespace
 
 Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
-  auto start = std::chrono::steady_clock::now();
-  const FaceGeometry geometry(mesh);
-  DualGraph graph = buildDualGraph(geometry);
   Hierarchy hierarchy;
   BuildStats& stats = hierarchy.stats;
-  stats.secondsInit = secondsSince(start);
+  {
+    // Everything of the merge is released at the end of this scope, before the boxes.
+    auto start = std::chrono::steady_clock::now();
+    const FaceGeometry geometry(mesh);
+    DualGraph graph = buildDualGraph(geometry);
+    stats.secondsInit = secondsSince(start);
 
-  MergeResult merged = runMerge(geometry, std::move(graph), options);
-  start = std::chrono::steady_clock::now();
-  hierarchy.nodes = std::move(merged.nodes);
-  stats.height = layOut(hierarchy.nodes, hierarchy.faceOrder, geometry.faceCount());
-  stats.balancedHeight = balancedHeight(geometry.faceCount());
-  stats.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
-  stats.maxDegree = merged.maxDegree;
-  stats.eigenSolves = merged.counters.eigenSolves;
-  stats.normalShortcuts = merged.counters.normalShortcuts;
-  stats.components = merged.components;
-  stats.secondsCost = merged.secondsCost;
-  stats.secondsEigen = merged.counters.eigenSeconds;
-  stats.secondsMerge = merged.secondsMerge + secondsSince(start);
+    MergeResult merged = runMerge(geometry, std::move(graph), options);
+    start = std::chrono::steady_clock::now();
+    stats.height = layOut(std::move(merged.records), hierarchy, geometry);
+    stats.balancedHeight = balancedHeight(geometry.faceCount());
+    stats.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
+    stats.maxDegree = merged.maxDegree;
+    stats.eigenSolves = merged.counters.eigenSolves;
+    stats.normalShortcuts = merged.counters.normalShortcuts;
+    stats.components = merged.components;
+    stats.secondsCost = merged.secondsCost;
+    stats.secondsEigen = merged.counters.eigenSeconds;
+    stats.secondsMerge = merged.secondsMerge + secondsSince(start);
+  }
 
   if (options.computeBoxes) {
-    start = std::chrono::steady_clock::now();
+    const auto start = std::chrono::steady_clock::now();
     computeBoxes(mesh, hierarchy, options);
     stats.secondsBoxes = secondsSince(start);
   }

@@ -8,6 +8,8 @@
 #include <string>
 #include <utility>
 
+#include <glm/geometric.hpp>
+
 namespace facetree {
 
 namespace {
@@ -53,6 +55,24 @@ FaceGeometry::FaceGeometry(const MeshView& mesh, bool spatialOrder) : mesh_(mesh
     if (d2 > 0 && std::isfinite(d2)) diagonalSquared_ = d2;
   }
   if (spatialOrder && faceCount_ > kMinFacesToReorder) sortSpatially();
+}
+
+double FaceGeometry::sharedLength(uint32_t f, uint32_t g) const {
+  const uint32_t v[3] = {vertex(f, 0), vertex(f, 1), vertex(f, 2)};
+  const uint32_t w[3] = {vertex(g, 0), vertex(g, 1), vertex(g, 2)};
+  const auto inG = [&](uint32_t x) { return x == w[0] || x == w[1] || x == w[2]; };
+  double length = 0;
+  for (int i = 0; i < 3; ++i) {
+    const uint32_t a = v[i], b = v[(i + 1) % 3];
+    if (a == b || !inG(a) || !inG(b)) continue;
+    bool repeated = false;  // the same edge earlier in f (only with a repeated index)
+    for (int j = 0; j < i; ++j) {
+      const uint32_t c = v[j], d = v[(j + 1) % 3];
+      repeated |= (c == a && d == b) || (c == b && d == a);
+    }
+    if (!repeated) length += glm::length(position(a) - position(b));
+  }
+  return length;
 }
 
 // Morton order of the face centroids, kMortonBitsPerAxis per axis, by a stable LSD radix sort

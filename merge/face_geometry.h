@@ -41,6 +41,10 @@ class FaceGeometry {
     return ClusterStats::fromTriangle(corner(face, 0), corner(face, 1), corner(face, 2));
   }
 
+  // Total length of the distinct mesh edges two faces share (by vertex index, (v, v) skipped):
+  // the dual graph's shared length, recomputed.
+  double sharedLength(uint32_t f, uint32_t g) const;
+
   // Bounding box of the referenced finite vertices, relative to origin() (so centred on 0).
   const glm::dvec3& origin() const { return origin_; }
   const glm::dvec3& halfExtent() const { return halfExtent_; }

@@ -20,8 +20,10 @@ namespace facetree {
 namespace {
 
 constexpr uint32_t kNone = DualGraph::kNone;
-constexpr uint32_t kLeafSlot = 0xFFFFFFFFu;  // slotOf: the cluster is still a single face
-constexpr uint32_t kDeadSlot = 0xFFFFFFFEu;  // slotOf: the cluster was merged into another
+// ClusterRecord::slot: a stats slot index, or one of these states.
+constexpr uint32_t kLeafSlot = 0xFFFFFFFFu;  // a single face: stats from the triangle
+constexpr uint32_t kDeadSlot = 0xFFFFFFFEu;  // merged into another cluster
+constexpr uint32_t kPairBit = 0x80000000u;   // | node index: two faces, stats from the triangles
 constexpr int kMortonBits = 21;              // per axis, for the component joins
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
@@ -53,7 +55,7 @@ class MergeEngine {
     const uint32_t n = geometry_.faceCount();
     auto start = std::chrono::steady_clock::now();
     clusters_.assign(n, ClusterRecord{kLeafSlot, kNone, 0.0f, kNoEdge});
-    result_.nodes.reserve(n - 1);  // touched as nodes are created
+    result_.records.reserve(n - 1);  // touched as merges happen
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
@@ -128,26 +130,40 @@ class MergeEngine {
   };
   // Per cluster id (= face id of its first face), read together for every neighbour.
   struct ClusterRecord {
-    uint32_t slot;     // its stats slot, kLeafSlot or kDeadSlot
+    uint32_t slot;     // its stats slot, kLeafSlot, kDeadSlot or kPairBit | node
     uint32_t stamp;    // the edge joining it to the cluster being merged, if set in this merge
     float minKey;      // its cheapest edge's key (a lower bound while kDirty is set)
     uint32_t minEdge;  // its cheapest edge (ties: lowest id), kNoEdge, | kDirty when unknown
   };
 
-  // The stats of cluster c: its slot, or for a single face `scratch` filled from the triangle.
+  // The stats of cluster c: its slot, or for one or two faces `scratch` filled from the
+  // triangles. Clusters of two faces get no slot: at the peak most live clusters are pairs,
+  // and recomputing one costs two triangles and a shared-edge lookup.
   const Cluster& cluster(uint32_t c, Cluster& scratch) const {
     const uint32_t s = clusters_[c].slot;
-    if (s != kLeafSlot) return slots_[s].cluster;
-    scratch = {geometry_.leafStats(c), policy_.leafExtra(c)};
-    return scratch;
+    if (s == kLeafSlot) {
+      scratch = {geometry_.leafStats(c), policy_.leafExtra(c)};
+      return scratch;
+    }
+    if (s & kPairBit) {
+      const uint32_t other = result_.records[s & ~kPairBit].child[1] & ~kFaceChild;
+      scratch = {ClusterStats::merged(geometry_.leafStats(c), geometry_.leafStats(other),
+                                      geometry_.sharedLength(c, other)),
+                 Policy::merge(policy_.leafExtra(c), policy_.leafExtra(other))};
+      return scratch;
+    }
+    return slots_[s].cluster;
   }
+  // Leaf children are internal face ids here; buildHierarchy maps them to input faces.
   uint32_t childRef(uint32_t c) const {
     const uint32_t s = clusters_[c].slot;
-    return s == kLeafSlot ? (kFaceChild | geometry_.inputFace(c)) : slots_[s].node;
+    if (s == kLeafSlot) return kFaceChild | c;
+    return (s & kPairBit) ? (s & ~kPairBit) : slots_[s].node;
   }
   uint32_t faceCount(uint32_t c) const {
     const uint32_t s = clusters_[c].slot;
-    return s == kLeafSlot ? 1 : result_.nodes[slots_[s].node].count;
+    if (s == kLeafSlot) return 1;
+    return (s & kPairBit) ? 2 : result_.records[slots_[s].node].faceCount();
   }
 
   float key(const Cluster& a, const Cluster& b, double shared) {
@@ -203,37 +219,41 @@ class MergeEngine {
     const Cluster c{ClusterStats::merged(ca.stats, cb.stats, joining ? 0.0 : graph_.edges[e].shared),
                     Policy::merge(ca.extra, cb.extra)};
 
-    const uint32_t index = static_cast<uint32_t>(result_.nodes.size());
-    Node node{};
+    const uint32_t index = static_cast<uint32_t>(result_.records.size());
+    MergeRecord node;
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
-    node.count = faceCount(a) + faceCount(b);
-    node.flags = joining ? kNodeJoinsDisjointSurfaces : 0u;
+    node.count = (faceCount(a) + faceCount(b)) | (joining ? MergeRecord::kJoinBit : 0u);
     node.cost = joining ? toKey(policy_(c.stats, ca.stats, cb.stats, ca.extra, cb.extra))
                         : toKey(static_cast<double>(heapKey) / keyScale_);
     node.area = static_cast<float>(c.stats.area);
     node.perimeter = static_cast<float>(c.stats.perimeter);
-    node.sumNormal = glm::vec3(c.stats.sumNormal);
-    result_.nodes.push_back(node);
+    for (int i = 0; i < 3; ++i) node.sumNormal[i] = static_cast<float>(c.stats.sumNormal[i]);
+    result_.records.push_back(node);
 
-    // The merged cluster reuses a's slot, else b's; a freed slot goes to the free list.
-    uint32_t sa = clusters_[a].slot;
-    const uint32_t sb = clusters_[b].slot;
-    if (sa == kLeafSlot) {
-      if (sb != kLeafSlot) {
-        sa = sb;
+    // Two faces make a pair (no slot). Otherwise the merged cluster reuses a's slot, else b's,
+    // else a free one; a slot left over goes to the free list.
+    const uint32_t sa = clusters_[a].slot, sb = clusters_[b].slot;
+    const bool slotA = !(sa & kPairBit), slotB = !(sb & kPairBit);  // leaf and dead have the bit
+    if (sa == kLeafSlot && sb == kLeafSlot) {
+      clusters_[a].slot = kPairBit | index;
+    } else {
+      uint32_t slot;
+      if (slotA) {
+        slot = sa;
+        if (slotB) freeSlots_.push_back(sb);
+      } else if (slotB) {
+        slot = sb;
       } else if (!freeSlots_.empty()) {
-        sa = freeSlots_.back();
+        slot = freeSlots_.back();
         freeSlots_.pop_back();
       } else {
-        sa = static_cast<uint32_t>(slots_.size());
+        slot = static_cast<uint32_t>(slots_.size());
         slots_.emplace_back();
       }
-    } else if (sb != kLeafSlot) {
-      freeSlots_.push_back(sb);
+      slots_[slot] = {c, index};
+      clusters_[a].slot = slot;
     }
-    slots_[sa] = {c, index};
-    clusters_[a].slot = sa;
     clusters_[b].slot = kDeadSlot;
     peakSlots_ = std::max(peakSlots_, slots_.size() - freeSlots_.size());
     if (joining) return;
