@@ -1,11 +1,13 @@
 // facetree build MESH: the face cluster hierarchy of a mesh, with its statistics.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/json.h"
 #include "grid/grid.h"
+#include "io/io.h"
 #include "merge/merge.h"
 
 namespace facetree::cli {
@@ -18,11 +20,19 @@ Metric parseMetric(const std::string& name) {
   throw UsageError("unknown metric '" + name + "' (willmott, garland, constant)");
 }
 
+RecastRule parseRecastRule(const std::string& name) {
+  if (name == "largest-area") return RecastRule::LargestArea;
+  if (name == "fewest-nodes") return RecastRule::FewestNodes;
+  throw UsageError("unknown recast rule '" + name + "' (largest-area, fewest-nodes)");
+}
+
 }  // namespace
 
 int runBuild(const std::vector<std::string>& argv) {
-  const Args args(argv, {"metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape"},
-                  {"json", "no-boxes"});
+  const Args args(argv,
+                  {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching", "recast",
+                   "mesh-out", "draco-bits"},
+                  {"json", "no-boxes"}, {{"-o", "--output"}});
   if (args.positional().size() != 1) throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
 
@@ -35,12 +45,32 @@ int runBuild(const std::vector<std::string>& argv) {
   options.garlandShapeWeight = args.number("w-shape", options.garlandShapeWeight);
   options.computeBoxes = !args.flag("no-boxes");
   if (options.k < 0) throw UsageError("--k must not be negative");
+  FileOptions fileOptions;
+  fileOptions.branching = static_cast<uint32_t>(args.count("branching", 2));
+  if (fileOptions.branching != 2 && fileOptions.branching != 4 && fileOptions.branching != 8)
+    throw UsageError("--branching must be 2, 4 or 8");
+  fileOptions.rule = parseRecastRule(args.valueOr("recast", "largest-area"));
+  fileOptions.build = options;
+  MeshOutOptions meshOutOptions;
+  meshOutOptions.dracoPositionBits = static_cast<int>(args.count("draco-bits", 0));
+  if (meshOutOptions.dracoPositionBits > 30) throw UsageError("--draco-bits must be 0 (lossless) to 30");
+  const auto output = args.value("output");
+  const auto meshOut = args.value("mesh-out");
+  if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
 
   const double start = nowSeconds();
   auto reader = name == "-" ? openStandardInput() : openMesh(name);
   const IndexedMesh mesh = loadMesh(*reader);
   const double readSeconds = nowSeconds() - start;
   const Hierarchy hierarchy = buildHierarchy(mesh.view(), options);
+  const double buildSeconds = nowSeconds() - start;
+  uint64_t fileBytes = 0;
+  if (output) {
+    const ClusterFile file = makeClusterFile(mesh.view(), mesh.originalFace, hierarchy, fileOptions);
+    writeClusterFile(*output, file);
+    fileBytes = *output == "-" ? 0 : std::filesystem::file_size(*output);
+  }
+  if (meshOut) writeReorderedMesh(mesh.view(), hierarchy, *meshOut, meshOutOptions);
   const double totalSeconds = nowSeconds() - start;
   const BuildStats& s = hierarchy.stats;
   const uint64_t peak = peakResidentBytes();
@@ -66,9 +96,12 @@ int runBuild(const std::vector<std::string>& argv) {
     json.field("eigen", s.secondsEigen);
     json.field("merge", s.secondsMerge);
     json.field("boxes", s.secondsBoxes);
+    json.field("build", buildSeconds);
+    json.field("write", totalSeconds - buildSeconds);
     json.field("total", totalSeconds);
     json.endObject();
     json.field("peak_rss_bytes", peak);
+    if (output) json.field("file_bytes", fileBytes);
     std::fputs(json.finish().c_str(), stdout);
     return kExitOk;
   }
@@ -81,6 +114,10 @@ int runBuild(const std::vector<std::string>& argv) {
               static_cast<unsigned long long>(s.normalShortcuts));
   std::printf("time          read %.3f s, init %.3f s, merge %.3f s (cost %.3f, eigen %.3f), boxes %.3f s, total %.3f s\n",
               readSeconds, s.secondsInit, s.secondsMerge, s.secondsCost, s.secondsEigen, s.secondsBoxes, totalSeconds);
+  if (output)
+    std::printf("output        %s: %.2f MB (%.1f bytes per node), branching %u, write %.3f s\n", output->c_str(),
+                fileBytes / 1e6, hierarchy.nodes.empty() ? 0.0 : double(fileBytes) / hierarchy.nodes.size(),
+                fileOptions.branching, totalSeconds - buildSeconds);
   std::printf("peak memory   %.1f MiB\n", peak / 1048576.0);
   return kExitOk;
 }

@@ -48,7 +48,9 @@ public:
     open();
   }
   void endObject() {
-    out_ += "\n" + std::string(2 * (depth_ - 1), ' ') + "}";
+    out_ += '\n';
+    out_.append(2 * (depth_ - 1), ' ');
+    out_ += '}';
     --depth_;
     first_ = false;
   }
@@ -65,7 +67,7 @@ private:
   }
   void separator() {
     out_ += first_ ? "\n" : ",\n";
-    out_ += std::string(2 * depth_, ' ');
+    out_.append(2 * depth_, ' ');
     first_ = false;
   }
   static std::string quote(const std::string& text) {

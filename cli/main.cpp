@@ -21,7 +21,9 @@ Face cluster hierarchies over very large triangle meshes (PLY, OBJ, STL, Draco; 
 
 commands:
   stats MESH [--json]            counts, bounding box and read throughput of a mesh
-  build MESH [--json]            build the face cluster hierarchy and print its statistics
+  build MESH [-o OUT.fch] [--json] build the face cluster hierarchy, print its statistics
+        [--branching 2|4|8] [--recast largest-area|fewest-nodes]
+        [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
         [--w-fit W] [--w-dir W] [--w-shape W] [--no-boxes]
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
@@ -72,6 +74,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "facetree: %s (see facetree --help)\n", e.what());
     return kExitUsage;
   } catch (const facetree::ReadError& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitInput;
+  } catch (const facetree::ClusterFileError& e) {
     std::fprintf(stderr, "facetree: %s\n", e.what());
     return kExitInput;
   } catch (const facetree::IoError& e) {

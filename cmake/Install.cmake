@@ -10,6 +10,7 @@ foreach(module stream merge grid io)
   install(FILES ${PROJECT_SOURCE_DIR}/${module}/${module}.h
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})
 endforeach()
+install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
 install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
 
 install(EXPORT facetreeTargets NAMESPACE facetree:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)

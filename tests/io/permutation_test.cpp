@@ -20,7 +20,9 @@ TEST(StreamPermutation, IsABijectionWithItsInverse) {
       ASSERT_EQ(permutation.inverse(y), x);
       fixedPoints += (y == x);
     }
-    if (n >= 1000) EXPECT_LT(fixedPoints, n / 50) << "a shuffle should move almost everything";
+    if (n >= 1000) {
+      EXPECT_LT(fixedPoints, n / 50) << "a shuffle should move almost everything";
+    }
   }
 }
 
