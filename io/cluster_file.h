@@ -191,8 +191,11 @@ VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
 
 // Cuts for pictures: one cluster id per triangle of file.indices (hierarchy order), the cluster of
 // a face being the deepest kept node containing it, ids numbered 0, 1, ... along the face order.
-// clusterCut keeps the first `clusters` nodes in file order; clusterDepthCut the nodes at depth
-// <= depth (root = 0). With no nodes, every face is its own cluster.
+// Cluster id per face (hierarchy order) for a cut through the tree: the clusters are the
+// children of the kept nodes that are not kept themselves, each a contiguous run numbered
+// 0, 1, ... along the face order. clusterCut keeps the shortest prefix of nodes in file order
+// giving at least `clusters` clusters (all of them if there are fewer); clusterDepthCut keeps the
+// nodes above `depth` (depth 0: the root alone is the one cluster).
 std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters);
 std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth);
 

@@ -1,6 +1,4 @@
-// Cuts of a cluster file for pictures: every face's cluster is the deepest kept node containing
-// it; a kept node owns the faces of its face children, of its cut-off children and of children
-// outside the cut.
+// Cuts of a cluster file for pictures and exports, and the owner map verify uses.
 #include <algorithm>
 
 #include "io/verify.h"
@@ -32,18 +30,45 @@ std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector
 
 namespace {
 
-// Owners numbered 0, 1, ... along the face order; faces without an owner are their own cluster.
-std::vector<uint32_t> numbered(const std::vector<uint32_t>& owner, size_t nodes) {
-  std::vector<uint32_t> cluster(owner.size());
-  std::vector<uint32_t> id(nodes, kNoOwner);
-  uint32_t next = 0;
-  for (size_t p = 0; p < owner.size(); ++p) {
-    if (owner[p] == kNoOwner) {
-      cluster[p] = next++;
-      continue;
+// The clusters of a cut are the frontier of the kept nodes (a prefix of the file, or the nodes
+// above a depth): every child of a kept node that is not kept itself, a face or a subtree. Each
+// is one contiguous run of the face order; they are numbered 0, 1, ... along it. Children cut
+// off by truncation have no record: the gaps they leave between known children are one cluster
+// each (exact for binary files, where a gap is one child).
+std::vector<uint32_t> frontierClusters(const ClusterFile& file, const std::vector<uint8_t>& kept) {
+  const size_t faces = file.indices.size() / 3;
+  if (file.nodes.empty() || !kept[0]) return std::vector<uint32_t>(faces, 0);
+  std::vector<uint32_t> start(faces, 0);  // 1 where a cluster begins
+  auto mark = [&](uint64_t begin) {
+    if (begin < faces) start[begin] = 1;
+  };
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    if (!kept[j]) continue;
+    const FchNode& node = file.nodes[j];
+    uint64_t cursor = node.first;
+    for (unsigned c = 0; c < node.childCount; ++c) {
+      const uint32_t ref = node.child[c];
+      if (ref & kFaceChild) {
+        const uint64_t position = ref & ~kFaceChild;
+        if (position > cursor) mark(cursor);  // a gap left by cut-off children
+        mark(position);
+        cursor = position + 1;
+      } else if (ref < file.nodes.size()) {
+        const FchNode& child = file.nodes[ref];
+        if (child.first > cursor) mark(cursor);
+        mark(child.first);
+        cursor = uint64_t{child.first} + child.count;
+      }
     }
-    if (id[owner[p]] == kNoOwner) id[owner[p]] = next++;
-    cluster[p] = id[owner[p]];
+    if (cursor < uint64_t{node.first} + node.count) mark(cursor);
+    // The end of a node is the start of whatever follows it.
+    mark(uint64_t{node.first} + node.count);
+  }
+  std::vector<uint32_t> cluster(faces);
+  uint32_t next = 0;
+  for (size_t p = 0; p < faces; ++p) {
+    if (p > 0 && start[p]) ++next;
+    cluster[p] = next;
   }
   return cluster;
 }
@@ -51,9 +76,15 @@ std::vector<uint32_t> numbered(const std::vector<uint32_t>& owner, size_t nodes)
 }  // namespace
 
 std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters) {
+  // The shortest prefix whose frontier has at least `clusters` members: keeping a node with c
+  // children replaces one frontier member by c.
   std::vector<uint8_t> kept(file.nodes.size(), 0);
-  std::fill_n(kept.begin(), std::min<uint64_t>(clusters, kept.size()), 1);
-  return numbered(deepestKeptNode(file, kept), file.nodes.size());
+  uint64_t frontier = 1;
+  for (size_t j = 0; j < file.nodes.size() && frontier < clusters; ++j) {
+    kept[j] = 1;
+    frontier += file.nodes[j].childCount - 1;
+  }
+  return frontierClusters(file, kept);
 }
 
 std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth) {
@@ -61,15 +92,15 @@ std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth) {
   std::vector<uint32_t> nodeDepth(n, 0);
   std::vector<uint8_t> kept(n, 0);
   for (size_t j = 0; j < n; ++j) {  // parents precede children
-    if (j == 0) kept[0] = 1;
-    if (!kept[j] || nodeDepth[j] >= depth) continue;
+    if (nodeDepth[j] >= depth || (j > 0 && nodeDepth[j] == 0)) continue;  // too deep, or not reached
+    kept[j] = 1;
     const FchNode& node = file.nodes[j];
     for (unsigned c = 0; c < node.childCount; ++c) {
       const uint32_t ref = node.child[c];
-      if (!(ref & kFaceChild) && ref < n) kept[ref] = 1, nodeDepth[ref] = nodeDepth[j] + 1;
+      if (!(ref & kFaceChild) && ref < n) nodeDepth[ref] = nodeDepth[j] + 1;
     }
   }
-  return numbered(deepestKeptNode(file, kept), file.nodes.size());
+  return frontierClusters(file, kept);
 }
 
 }  // namespace facetree
