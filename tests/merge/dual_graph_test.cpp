@@ -106,3 +106,54 @@ TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
 
 }  // namespace
 }  // namespace facetree::test
+
+namespace facetree::test {
+namespace {
+
+TEST(FaceGeometry, LeafStatsMatchClusterStats) {
+  TestMesh mesh = icosphere(1);
+  for (glm::vec3& p : mesh.positions) p = p * 3.0f + glm::vec3(10, -4, 7);
+  const FaceGeometry geometry(mesh.view(), false);
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    const ClusterStats fast = geometry.leafStats(f);
+    const ClusterStats ref =
+        ClusterStats::fromTriangle(geometry.corner(f, 0), geometry.corner(f, 1), geometry.corner(f, 2));
+    EXPECT_NEAR(fast.area, ref.area, 1e-12);
+    EXPECT_NEAR(fast.perimeter, ref.perimeter, 1e-12);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(fast.sumNormal[i], ref.sumNormal[i], 1e-12);
+      EXPECT_NEAR(fast.firstMoment[i], ref.firstMoment[i], 1e-12);
+    }
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(fast.secondMoment.m[i], ref.secondMoment.m[i], 1e-12);
+  }
+}
+
+TEST(FaceGeometry, SharedLengthMatchesTheDualGraph) {
+  TestMesh mesh;
+  mesh.positions = {{0, 0, 0}, {3, 0, 0}, {0, 4, 0}, {3, 4, 0}};
+  mesh.add(0, 1, 2);
+  mesh.add(1, 3, 2);  // shares (1, 2), length 5
+  mesh.add(0, 2, 1);  // folded duplicate of face 0: shares all three edges
+  mesh.add(1, 2, 2);  // repeated index: edge (1, 2) once
+  const FaceGeometry geometry(mesh.view(), false);
+  EXPECT_DOUBLE_EQ(geometry.sharedLength(0, 1), 5.0);
+  EXPECT_DOUBLE_EQ(geometry.sharedLength(0, 2), 12.0);
+  EXPECT_DOUBLE_EQ(geometry.sharedLength(3, 0), 5.0);
+  EXPECT_DOUBLE_EQ(geometry.sharedLength(1, 3), 5.0);
+}
+
+TEST(FaceGeometry, SpatialOrderIsAPermutation) {
+  const TestMesh mesh = grid(64);  // 8192 faces: above the reordering threshold
+  const FaceGeometry geometry(mesh.view());
+  std::vector<uint32_t> seen(mesh.faceCount(), 0);
+  uint32_t moved = 0;
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    ++seen[geometry.inputFace(f)];
+    moved += geometry.inputFace(f) != f;
+  }
+  for (uint32_t s : seen) EXPECT_EQ(s, 1u);
+  EXPECT_GT(moved, mesh.faceCount() / 2);  // actually reordered
+}
+
+}  // namespace
+}  // namespace facetree::test
