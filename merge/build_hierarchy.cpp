@@ -26,7 +26,7 @@ uint32_t balancedHeight(uint32_t n) {
 }
 
 // Output nodes from the creation-ordered records: reversed (the root first), child records
-// renumbered, leaf children turned from internal face ids into positions of faceOrder, and
+// renumbered, leaf children turned from face ids into positions of faceOrder, and
 // the face ranges laid out: the root covers [0, n), each node hands [first, first +
 // count(left)) to its left child and the rest to its right child. Parents precede children
 // in the output, so one forward pass suffices (no recursion: trees may be millions deep).
@@ -64,7 +64,7 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     uint32_t first = node.first;
     for (uint32_t& child : node.child) {
       if (child & kFaceChild) {
-        faceOrder[first] = geometry.inputFace(child & ~kFaceChild);
+        faceOrder[first] = child & ~kFaceChild;
         child = kFaceChild | first;
         ++first;
         height = std::max(height, depth[i] + 1);

@@ -1,12 +1,10 @@
 // Input validation and the mesh-wide origin of the merge.
 #include "merge/face_geometry.h"
 
-#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
-#include <utility>
 
 #include <glm/geometric.hpp>
 
@@ -16,14 +14,10 @@ namespace {
 
 // Node ids and face positions share 31 bits with the kFaceChild flag (merge.h).
 constexpr size_t kMaxTriangles = size_t{0x7FFFFFFF};
-// Spatial renumbering: 10 bits per axis (a 1024^3 grid; 3 radix passes of 10 bits) is plenty
-// for cache locality; below this many faces everything is in cache anyway.
-constexpr int kMortonBitsPerAxis = 10;
-constexpr uint32_t kMinFacesToReorder = 4096;
 
 }  // namespace
 
-FaceGeometry::FaceGeometry(const MeshView& mesh, bool spatialOrder) : mesh_(mesh) {
+FaceGeometry::FaceGeometry(const MeshView& mesh) : mesh_(mesh) {
   const size_t n = mesh.triangleCount();
   if (n == 0) throw std::invalid_argument("mesh has no triangles");
   if (n > kMaxTriangles) {
@@ -54,11 +48,10 @@ FaceGeometry::FaceGeometry(const MeshView& mesh, bool spatialOrder) : mesh_(mesh
         4.0 * (halfExtent_.x * halfExtent_.x + halfExtent_.y * halfExtent_.y + halfExtent_.z * halfExtent_.z);
     if (d2 > 0 && std::isfinite(d2)) diagonalSquared_ = d2;
   }
-  if (spatialOrder && faceCount_ > kMinFacesToReorder) sortSpatially();
 }
 
 ClusterStats FaceGeometry::leafStats(uint32_t face) const {
-  const size_t base = size_t{3} * inputFace(face);
+  const size_t base = size_t{3} * face;
   const glm::vec3& pa = mesh_.positions[mesh_.indices[base]];
   const glm::vec3& pb = mesh_.positions[mesh_.indices[base + 1]];
   const glm::vec3& pc = mesh_.positions[mesh_.indices[base + 2]];
@@ -103,45 +96,6 @@ double FaceGeometry::sharedLength(uint32_t f, uint32_t g) const {
     if (!repeated) length += glm::length(position(a) - position(b));
   }
   return length;
-}
-
-// Morton order of the face centroids, kMortonBitsPerAxis per axis, by a stable LSD radix sort
-// of (code << 32 | face) on the code's bits: ties keep input order.
-void FaceGeometry::sortSpatially() {
-  const uint32_t n = faceCount_;
-  std::vector<uint64_t> keys(n), buffer(n);
-  const glm::dvec3 scale(halfExtent_.x > 0 ? 0.5 / halfExtent_.x : 0.0,
-                         halfExtent_.y > 0 ? 0.5 / halfExtent_.y : 0.0,
-                         halfExtent_.z > 0 ? 0.5 / halfExtent_.z : 0.0);
-  constexpr double kCells = double(1u << kMortonBitsPerAxis);
-  for (uint32_t f = 0; f < n; ++f) {
-    const glm::dvec3 c = (corner(f, 0) + corner(f, 1) + corner(f, 2)) / 3.0;
-    uint64_t code = 0;
-    for (int axis = 0; axis < 3; ++axis) {
-      double t = (c[axis] * scale[axis] + 0.5) * kCells;
-      t = std::isfinite(t) ? std::clamp(t, 0.0, kCells - 1) : 0.0;
-      uint64_t x = static_cast<uint64_t>(t);
-      x = (x | x << 16) & 0x030000FFull;
-      x = (x | x << 8) & 0x0300F00Full;
-      x = (x | x << 4) & 0x030C30C3ull;
-      x = (x | x << 2) & 0x09249249ull;
-      code |= x << axis;
-    }
-    keys[f] = code << 32 | f;
-  }
-  constexpr int kDigitBits = 10;
-  std::vector<uint32_t> count(size_t{1} << kDigitBits);
-  for (int shift = 32; shift < 32 + 3 * kMortonBitsPerAxis; shift += kDigitBits) {
-    std::fill(count.begin(), count.end(), 0);
-    for (uint64_t k : keys) ++count[(k >> shift) & (count.size() - 1)];
-    uint32_t sum = 0;
-    for (uint32_t& c : count) sum += std::exchange(c, sum);
-    for (uint64_t k : keys) buffer[count[(k >> shift) & (count.size() - 1)]++] = k;
-    keys.swap(buffer);
-  }
-  buffer = {};
-  order_.resize(n);
-  for (uint32_t i = 0; i < n; ++i) order_[i] = static_cast<uint32_t>(keys[i]);
 }
 
 }  // namespace facetree

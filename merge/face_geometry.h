@@ -5,7 +5,6 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
 
 #include <glm/vec3.hpp>
 
@@ -19,19 +18,11 @@ class FaceGeometry {
   // Throws std::invalid_argument for an empty mesh, more than 2^31-1 triangles, or a vertex
   // index out of range (messages in face_geometry.cpp). Trailing indices that do not make a
   // whole triangle are ignored, as MeshView::triangleCount does.
-  //
-  // With `spatialOrder`, faces are renumbered along a Morton curve of their centroids (ties
-  // in input order): the merge pops clusters in cost order, which is random in memory, so
-  // neighbours that share cache lines and pages (edges, cluster records) matter. Face ids of
-  // this class are these internal ids; inputFace() maps them back.
-  explicit FaceGeometry(const MeshView& mesh, bool spatialOrder = true);
+  explicit FaceGeometry(const MeshView& mesh);
 
   uint32_t faceCount() const { return faceCount_; }
   const MeshView& mesh() const { return mesh_; }
-  uint32_t inputFace(uint32_t face) const { return order_.empty() ? face : order_[face]; }
-  uint32_t vertex(uint32_t face, int corner) const {
-    return mesh_.indices[size_t{3} * inputFace(face) + corner];
-  }
+  uint32_t vertex(uint32_t face, int corner) const { return mesh_.indices[size_t{3} * face + corner]; }
 
   // Position of a vertex relative to origin().
   glm::dvec3 position(uint32_t vertex) const { return glm::dvec3(mesh_.positions[vertex]) - origin_; }
@@ -53,14 +44,11 @@ class FaceGeometry {
   double diagonalSquared() const { return diagonalSquared_; }
 
  private:
-  void sortSpatially();
-
   MeshView mesh_;
   uint32_t faceCount_ = 0;
   glm::dvec3 origin_{0.0};
   glm::dvec3 halfExtent_{0.0};
   double diagonalSquared_ = 1.0;
-  std::vector<uint32_t> order_;  // internal face -> input face (empty: identity)
 };
 
 }  // namespace facetree

@@ -95,10 +95,24 @@ class MergeEngine {
       } else if (top.key != r.minKey) {
         heap_.replaceTop({r.minKey, top.id});  // stale lower bound: re-key in place
       } else {
-        heap_.pop();
-        const DualEdge& edge = graph_.edges[r.minEdge];
-        merge(edge.end[0], edge.end[1], r.minEdge, top.key);
+        const uint32_t e = r.minEdge;
+        const uint32_t a = graph_.edges[e].end[0];
+        merge(a, graph_.edges[e].end[1], e, top.key);
         ++result_.edgeMerges;
+        // The survivor's entry replaces the popped one in place (one sift instead of a pop and
+        // a push) unless an entry pushed during the merge went above it; then the old entry
+        // stays behind as a harmless stale or dead one.
+        const ClusterRecord& ra = clusters_[a];
+        const EdgeHeap::Entry now = heap_.top();
+        if (now.key == top.key && now.id == top.id) {
+          if (ra.minEdge != kNoEdge) {
+            heap_.replaceTop({ra.minKey, a});
+          } else {
+            heap_.pop();
+          }
+        } else if (ra.minEdge != kNoEdge) {
+          pushEntry(ra.minKey, a);
+        }
       }
     }
     result_.peakStructureBytes = baseBytes + peakSlots_ * sizeof(Slot);
@@ -154,7 +168,6 @@ class MergeEngine {
     }
     return slots_[s].cluster;
   }
-  // Leaf children are internal face ids here; buildHierarchy maps them to input faces.
   uint32_t childRef(uint32_t c) const {
     const uint32_t s = clusters_[c].slot;
     if (s == kLeafSlot) return kFaceChild | c;
@@ -324,7 +337,7 @@ class MergeEngine {
         rx.minEdge |= kDirty;  // its cheapest edge got dearer: find the new one when it surfaces
       }
     }
-    if (ra.minEdge != kNoEdge) pushEntry(ra.minKey, a);
+    // (The caller gives a its heap entry.)
   }
 
   // Disconnected input (scans have hundreds of components): the roots are ranked by the Morton

@@ -15,8 +15,8 @@ namespace facetree {
 
 // One merge as the engine records it: a Node without its face range, 36 bytes instead of 44
 // (the merge's memory peak is at its end, when every record exists and the dual graph is
-// still alive). A child is kFaceChild | face (the FaceGeometry's internal id), or the creation
-// index of an earlier record.
+// still alive). A child is kFaceChild | input face, or the creation index of an earlier
+// record.
 struct MergeRecord {
   static constexpr uint32_t kJoinBit = 0x80000000u;  // in `count`: kNodeJoinsDisjointSurfaces
 

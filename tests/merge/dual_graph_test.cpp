@@ -25,7 +25,7 @@ std::vector<Edge> edges(const DualGraph& g) {
 TEST(DualGraph, GridEdgeCountAndLengths) {
   const uint32_t m = 7;
   const TestMesh mesh = grid(m, 2.0f);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   // Interior mesh edges of an m x m grid with diagonals: 3m^2 + 2m edges, 4m on the border.
   EXPECT_EQ(g.edgeCount(), 3 * m * m - 2 * m);
   for (const Edge& e : edges(g)) {
@@ -36,7 +36,7 @@ TEST(DualGraph, GridEdgeCountAndLengths) {
 
 TEST(DualGraph, AdjacencyListsHoldEveryHalfEdgeOnce) {
   const TestMesh mesh = icosphere(2);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   EXPECT_EQ(g.edgeCount(), mesh.faceCount() * 3 / 2);
   std::vector<int> seen(2 * g.edgeCount(), 0);
   for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
@@ -58,7 +58,7 @@ TEST(DualGraph, NonManifoldEdgeJoinsEveryPair) {
   mesh.add(1, 0, 3);
   mesh.add(0, 1, 4);
   mesh.add(1, 0, 5);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   ASSERT_EQ(g.edgeCount(), 6u);
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   for (const Edge& e : edges(g)) {
@@ -75,7 +75,7 @@ TEST(DualGraph, ManyFacesOnOneEdgeAreChained) {
     mesh.positions.emplace_back(0.5f, std::cos(float(i)), std::sin(float(i)));
     mesh.add(0, 1, 2 + i);
   }
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   EXPECT_EQ(g.edgeCount(), 39u);
   for (const Edge& e : edges(g)) EXPECT_EQ(e.b, e.a + 1);
 }
@@ -85,7 +85,7 @@ TEST(DualGraph, FoldedDuplicateGetsOneEdgeWithSummedLength) {
   mesh.positions = {{0, 0, 0}, {3, 0, 0}, {0, 4, 0}};
   mesh.add(0, 1, 2);
   mesh.add(0, 2, 1);
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   ASSERT_EQ(g.edgeCount(), 1u);
   EXPECT_FLOAT_EQ(g.edges[0].shared, 12.0f);
 }
@@ -96,7 +96,7 @@ TEST(DualGraph, RepeatedIndicesSkipDegenerateEdges) {
   mesh.add(0, 1, 2);
   mesh.add(1, 0, 0);  // edges (1,0), (0,0) skipped, (0,1) repeated: counted once
   mesh.add(2, 2, 2);  // no edge at all
-  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view(), false));
+  const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   ASSERT_EQ(g.edgeCount(), 1u);
   EXPECT_EQ(g.edges[0].end[0], 0u);
   EXPECT_EQ(g.edges[0].end[1], 1u);
@@ -113,7 +113,7 @@ namespace {
 TEST(FaceGeometry, LeafStatsMatchClusterStats) {
   TestMesh mesh = icosphere(1);
   for (glm::vec3& p : mesh.positions) p = p * 3.0f + glm::vec3(10, -4, 7);
-  const FaceGeometry geometry(mesh.view(), false);
+  const FaceGeometry geometry(mesh.view());
   for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
     const ClusterStats fast = geometry.leafStats(f);
     const ClusterStats ref =
@@ -135,24 +135,11 @@ TEST(FaceGeometry, SharedLengthMatchesTheDualGraph) {
   mesh.add(1, 3, 2);  // shares (1, 2), length 5
   mesh.add(0, 2, 1);  // folded duplicate of face 0: shares all three edges
   mesh.add(1, 2, 2);  // repeated index: edge (1, 2) once
-  const FaceGeometry geometry(mesh.view(), false);
+  const FaceGeometry geometry(mesh.view());
   EXPECT_DOUBLE_EQ(geometry.sharedLength(0, 1), 5.0);
   EXPECT_DOUBLE_EQ(geometry.sharedLength(0, 2), 12.0);
   EXPECT_DOUBLE_EQ(geometry.sharedLength(3, 0), 5.0);
   EXPECT_DOUBLE_EQ(geometry.sharedLength(1, 3), 5.0);
-}
-
-TEST(FaceGeometry, SpatialOrderIsAPermutation) {
-  const TestMesh mesh = grid(64);  // 8192 faces: above the reordering threshold
-  const FaceGeometry geometry(mesh.view());
-  std::vector<uint32_t> seen(mesh.faceCount(), 0);
-  uint32_t moved = 0;
-  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
-    ++seen[geometry.inputFace(f)];
-    moved += geometry.inputFace(f) != f;
-  }
-  for (uint32_t s : seen) EXPECT_EQ(s, 1u);
-  EXPECT_GT(moved, mesh.faceCount() / 2);  // actually reordered
 }
 
 }  // namespace
