@@ -133,6 +133,7 @@ class MergeEngine {
   // ClusterRecord::minEdge: no edge, and the flag "minKey is only a lower bound".
   static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
   static constexpr uint32_t kDirty = 0x80000000u;
+  static constexpr size_t kCacheLine = 64;
 
   struct Cluster {
     ClusterStats stats;
@@ -222,6 +223,19 @@ class MergeEngine {
 
   static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
 
+  // The merge is bound by memory latency (clusters popped in cost order are scattered): while
+  // the adjacency lists are relinked, start loading what the re-costing of each neighbour
+  // will read (its slot, or its triangle's indices).
+  void prefetchStats(uint32_t x, uint32_t slot) const {
+    if (slot == kLeafSlot || (slot & kPairBit)) {
+      __builtin_prefetch(geometry_.mesh().indices.data() + size_t{3} * x);
+      if (slot != kLeafSlot) __builtin_prefetch(&result_.records[slot & ~kPairBit]);
+    } else {
+      const char* p = reinterpret_cast<const char*>(&slots_[slot]);
+      for (size_t offset = 0; offset < sizeof(Slot); offset += kCacheLine) __builtin_prefetch(p + offset);
+    }
+  }
+
   // Merges cluster b into cluster a (a keeps its id) along dual edge e, or joins two
   // components when e == kNone. `heapKey` is the merge's key (the cost times keyScale).
   void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
@@ -291,6 +305,7 @@ class MergeEngine {
         }
         edge.end[side] = a;
         ClusterRecord& rx = clusters_[x];
+        prefetchStats(x, rx.slot);
         const uint32_t s = rx.stamp;
         if (s != (h >> 1) && s != kNone) {
           DualEdge& kept = graph_.edges[s];
