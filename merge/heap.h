@@ -1,18 +1,15 @@
-// Min-heap of dual edges keyed by merge cost, without a position index (lazy updates).
+// Min-heap of (float key, 32-bit id) entries without a position index, for lazy use.
 //
-// Why lazy: re-costing after a merge mostly raises keys (clusters grow). An indexed heap
-// moves entries and rewrites their positions on every re-cost — random writes into a table
-// as large as the edge count, which dominated the merge (measured: ~40% of its time in cache
-// misses). Here the engine keeps each edge's current key in the edge, and the heap only has to
-// hold, for every live edge, some entry whose key is a lower bound of it:
-//   - a key that rises is just written to the edge (the old, lower entry stays a lower bound);
-//   - a key that falls pushes a new entry;
-//   - a dead edge leaves its entries behind;
-//   - at the top, an entry whose key differs from its edge's is re-keyed in place (sift down
-//     from the root, whose levels are hot in cache) or dropped if the edge is dead.
-// Ties break by edge id, so the pop order is a pure function of (keys, ids). Keys must not be
-// NaN (cost.h sanitises them). When pushes would outgrow the reserved capacity, the engine
-// rebuilds the heap from its live edges (compaction, O(edges), amortised O(1) per push).
+// Why no position index: re-costing after a merge mostly raises keys (clusters grow). An
+// indexed heap moves entries and rewrites their positions on every re-cost: random writes
+// into a table as large as the edge count. The merge engine instead keeps exact keys in its
+// own records and the heap only has to hold a lower bound for each live item: a rising key
+// changes nothing here, a falling key pushes a new entry, a dead item leaves its entries
+// behind, and an entry found stale at the top is re-keyed in place (replaceTop, a sift down
+// from the root, whose levels are hot in cache) or popped. The engine compacts the heap when
+// pushes would outgrow the reserved capacity.
+// An entry packs (key, id) into one integer whose order is (key, then id): ties break by id,
+// so the pop order is a pure function of the operations. Keys must not be NaN (cost.h).
 #pragma once
 
 #include <algorithm>

@@ -1,11 +1,19 @@
 // The merge engine, templated on the cost policy so that the default metric carries no extra
 // per-cluster statistics (Garland's quadrics live only in GarlandCost's slots).
 //
-// Memory (per dual edge: its 24-byte record and ~9 bytes of heap entry; per face: list head,
-// slot id and stamp, 12 B; per live internal cluster one slot of ClusterStats, reused when a
-// cluster dies). Leaf clusters have no slot: their stats come from the triangle.
-// Cluster ids are face ids: a merged cluster keeps the id of its first child, so per-cluster
-// arrays have n entries and no id is ever recycled while it is referenced.
+// Design (numbers: dragon_vrip, 871k faces, 1.5 dual edges per face):
+//  - Cluster ids are face ids: a merged cluster keeps the id of its first child, so
+//    per-cluster arrays have n entries and no id is recycled while referenced.
+//  - Adjacency: intrusive singly-linked lists through 24-byte dual edge records (dual_graph.h);
+//    a merge relinks the two lists in O(d), folds parallel edges with a per-cluster stamp and
+//    drops dead half-edges lazily. Nothing is allocated per merge.
+//  - Heap: one entry per cluster keyed by a lower bound of its cheapest edge (heap.h); a
+//    neighbour whose cheapest edge got dearer is only flagged, and rescanned if it surfaces.
+//    Global order: (key, cluster id), and each cluster's cheapest edge by (key, edge id).
+//  - Stats: single faces and pairs have none stored (recomputed from the triangles); larger
+//    clusters own a ClusterStats slot, recycled through a free list when they die.
+// Memory per face: edges 36 B, cluster records 16 B, list heads 4 B, heap ~9 B, slots ~22 B at
+// the peak (0.18 n live clusters of 3+ faces), merge records 36 B (the output in the making).
 #include "merge/merge_engine.h"
 
 #include <algorithm>
