@@ -296,8 +296,8 @@ class MergeEngine {
 
     // Concatenate the two adjacency lists into a's, relabelling b's half-edges, dropping dead
     // edges and the edges between a and b, and folding parallel edges to the same neighbour
-    // into one: stamp = a live edge already joining a and that neighbour. A stale stamp from an
-    // earlier merge cannot pass the test, as no two live edges join the same two clusters.
+    // into one: stamp = the live edge already kept between a and that neighbour in this pass
+    // (stamps are cleared again while re-costing, so a set stamp is never stale).
     uint32_t head = kNone, degree = 0;
     for (const uint32_t list : {a, b}) {
       uint32_t next;
@@ -315,14 +315,12 @@ class MergeEngine {
         ClusterRecord& rx = clusters_[x];
         prefetchStats(x, rx.slot);
         const uint32_t s = rx.stamp;
-        if (s != (h >> 1) && s != kNone) {
-          DualEdge& kept = graph_.edges[s];
-          if ((kept.end[0] == a && kept.end[1] == x) || (kept.end[0] == x && kept.end[1] == a)) {
-            kept.shared += edge.shared;
-            kill(edge);
-            if (rx.minEdge == (h >> 1)) rx.minEdge |= kDirty;  // its cheapest edge is gone
-            continue;
-          }
+        if (s != kNone) {
+          // A live edge from a to x was kept earlier in this pass: fold this one into it.
+          graph_.edges[s].shared += edge.shared;
+          kill(edge);
+          if (rx.minEdge == (h >> 1)) rx.minEdge |= kDirty;  // its cheapest edge is gone
+          continue;
         }
         rx.stamp = h >> 1;
         edge.next[side] = head;
@@ -349,6 +347,7 @@ class MergeEngine {
         ra.minEdge = f;
       }
       ClusterRecord& rx = clusters_[x];
+      rx.stamp = kNone;  // stamps live for one merge only
       const uint32_t known = rx.minEdge & ~kDirty;
       if (known == kNoEdge || k < rx.minKey) {
         rx.minKey = k;  // f is its cheapest edge now (below every other edge's lower bound)
