@@ -71,7 +71,7 @@ glm::dvec3 solveNormal(const SymMat3& m, CostCounters& counters) {
 // Willmott 2000, eq. 84 with the normal of eq. 78.
 double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostCounters& counters) {
   const double area = s.area;
-  if (!(area > 0)) return 0;
+  if (!(area > 0)) return k * s.perimeter * s.perimeter;  // the flat limit, see cost.h
   const double projArea = s.projectedArea();
   double eFit;
   if (projArea > flatThreshold * area) {

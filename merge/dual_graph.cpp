@@ -25,6 +25,17 @@ struct Candidate {
   float length;
 };
 
+// How many of the face's three sides lie on the mesh edge (a, b): 1, or 2 for a face with a
+// repeated index such as (a, a, b).
+uint32_t uses(const FaceGeometry& geometry, uint32_t face, uint32_t a, uint32_t b) {
+  uint32_t count = 0;
+  for (int i = 0; i < 3; ++i) {
+    const uint32_t c = geometry.vertex(face, i), d = geometry.vertex(face, (i + 1) % 3);
+    count += (c == a && d == b) || (c == b && d == a);
+  }
+  return count;
+}
+
 }  // namespace
 
 DualGraph buildDualGraph(const FaceGeometry& geometry) {
@@ -59,6 +70,7 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
   // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
   std::array<Candidate, 3 * kMaxFacesJoinedPairwise> candidates;
   std::array<uint32_t, kMaxFacesJoinedPairwise> sharing;  // faces on the current mesh edge
+  std::array<uint32_t, kMaxFacesJoinedPairwise> sharingUses;
   for (uint32_t f = 0; f < n; ++f) {
     size_t candidateCount = 0;
     const uint32_t v[3] = {geometry.vertex(f, 0), geometry.vertex(f, 1), geometry.vertex(f, 2)};
@@ -77,27 +89,40 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       const uint32_t other = degA <= degB ? b : a;
       const uint32_t* first = incident.data() + offset[degA <= degB ? a : b];
       const uint32_t* last = first + std::min(degA, degB);
-      size_t sharingCount = 0;               // faces other than f on the edge
-      uint32_t nextFace = DualGraph::kNone;  // the first of them after f (for the chain)
+      size_t sharingCount = 0;                       // faces other than f on the edge
+      uint32_t nextFace = DualGraph::kNone;          // the first of them after f (for the chain)
+      uint32_t totalUses = uses(geometry, f, a, b);  // U: sides of all faces on the edge
       for (const uint32_t* g = first; g != last; ++g) {
         if (*g == f) continue;
         if (geometry.vertex(*g, 0) != other && geometry.vertex(*g, 1) != other &&
             geometry.vertex(*g, 2) != other) {
           continue;
         }
-        if (sharingCount < sharing.size()) sharing[sharingCount] = *g;
+        const uint32_t u = uses(geometry, *g, a, b);
+        totalUses += u;
+        if (sharingCount < sharing.size()) {
+          sharing[sharingCount] = *g;
+          sharingUses[sharingCount] = u;
+        }
         ++sharingCount;
         if (*g > f && nextFace == DualGraph::kNone) nextFace = *g;  // lists are ascending
       }
       if (sharingCount == 0) continue;
-      const float length = static_cast<float>(glm::length(geometry.position(a) - geometry.position(b)));
+      const double length = glm::length(geometry.position(a) - geometry.position(b));
+      const uint32_t usesF = uses(geometry, f, a, b);
       if (sharingCount + 1 > kMaxFacesJoinedPairwise) {
-        // Chain: join f only to the next face on the edge.
-        if (nextFace != DualGraph::kNone) candidates[candidateCount++] = {nextFace, length};
+        // Chain: join f only to the next face on the edge; the K - 1 links share U |e| / 2.
+        if (nextFace != DualGraph::kNone) {
+          candidates[candidateCount++] = {nextFace, float(length * totalUses / (2.0 * sharingCount))};
+        }
         continue;
       }
       for (size_t k = 0; k < sharingCount; ++k) {
-        if (sharing[k] > f) candidates[candidateCount++] = {sharing[k], length};
+        if (sharing[k] <= f) continue;
+        // s_fg = |e| u_f u_g / (U - 1): |e| on a manifold edge; on a non-manifold one, merging
+        // all its faces removes exactly the U |e| their perimeters count, never more.
+        const double shared = length * usesF * sharingUses[k] / (totalUses - 1);
+        candidates[candidateCount++] = {sharing[k], float(shared)};
       }
     }
     // Insertion sort by face (a handful of entries), then one dual edge per distinct face.

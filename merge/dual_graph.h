@@ -43,7 +43,13 @@ struct DualGraph {
 // Edge rules: edges (v, v) of faces with a repeated index are skipped; a mesh edge used by
 // k >= 3 faces (non-manifold) joins every pair of them, unless k > kMaxFacesJoinedPairwise
 // where it joins them as a chain in face order (keeps the graph linear in size); two faces
-// sharing two or three mesh edges get one dual edge carrying the summed length. Edges are
+// sharing two or three mesh edges get one dual edge carrying the summed length.
+// Shared length on a mesh edge e used by faces with U sides in all (U = 2 when manifold; a face
+// with a repeated index can lie on e with two sides): s_fg = |e| u_f u_g / (U - 1), so that
+// perim(A u B) = perim(A) + perim(B) - 2 s never goes below zero and merging every face of e
+// removes the U |e| their perimeters counted (|e| / (k - 1) per pair for k plain faces; the
+// chain links share U |e| / 2). A uniform |e| per pair collapsed the perimeters of fg_hawaii's
+// clusters (874k non-manifold edges) to 0, and with them the costs. Edges are
 // numbered by (lower face, higher face), so the graph is a pure function of the input.
 DualGraph buildDualGraph(const FaceGeometry& geometry);
 

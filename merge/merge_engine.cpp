@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <queue>
 #include <tuple>
 
@@ -231,6 +232,15 @@ class MergeEngine {
 
   static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
 
+  // Whether a pair's stats can be recomputed from its triangles: FaceGeometry::sharedLength
+  // gives the shared length of manifold edges; non-manifold and degenerate ones carry an
+  // adjusted length (dual_graph.h), and such pairs get a slot instead.
+  bool pairRecomputable(uint32_t f, uint32_t g, float shared) const {
+    constexpr double kFloatTolerance = 1e-6;  // the dual graph stores lengths as float
+    const double exact = geometry_.sharedLength(f, g);
+    return std::abs(exact - shared) <= kFloatTolerance * exact;
+  }
+
   // The merge is bound by memory latency (clusters popped in cost order are scattered): while
   // the adjacency lists are relinked, start loading what the re-costing of each neighbour
   // will read (its slot, or its triangle's indices).
@@ -270,7 +280,7 @@ class MergeEngine {
     // else a free one; a slot left over goes to the free list.
     const uint32_t sa = clusters_[a].slot, sb = clusters_[b].slot;
     const bool slotA = !(sa & kPairBit), slotB = !(sb & kPairBit);  // leaf and dead have the bit
-    if (sa == kLeafSlot && sb == kLeafSlot) {
+    if (sa == kLeafSlot && sb == kLeafSlot && !joining && pairRecomputable(a, b, graph_.edges[e].shared)) {
       clusters_[a].slot = kPairBit | index;
     } else {
       uint32_t slot;

@@ -45,13 +45,16 @@ TEST(WillmottCost, FoldedClusterUsesPcaAndClampsProjectedArea) {
   EXPECT_NEAR(cost, (eFit + 1e-4 * 2) * 64.0 / (kMinProjectedAreaFraction * 2), 1e-6 * cost);
 }
 
-TEST(WillmottCost, DegenerateClustersCostZero) {
+TEST(WillmottCost, DegenerateClustersCostTheFlatLimit) {
   CostCounters counters;
   const glm::dvec3 a(0, 0, 0), b(1, 0, 0), c(2, 0, 0);
   const ClusterStats s = ClusterStats::fromTriangle(a, b, c);
   EXPECT_EQ(s.area, 0.0);
-  EXPECT_EQ(willmottCost(s, 1e-4, 0.5, counters), 0.0);
+  EXPECT_DOUBLE_EQ(willmottCost(s, 1e-4, 0.5, counters), 1e-4 * 16.0);  // k perim^2
   EXPECT_EQ(willmottCost(ClusterStats{}, 1e-4, 0.5, counters), 0.0);
+  // Continuous: a sliver of tiny area costs about the same.
+  const ClusterStats t = ClusterStats::fromTriangle(a, b, glm::dvec3(2, 1e-9, 0));
+  EXPECT_NEAR(willmottCost(t, 1e-4, 0.5, counters), 1e-4 * 16.0, 1e-9);
 }
 
 TEST(WillmottCost, KeysAreNeverNaN) {

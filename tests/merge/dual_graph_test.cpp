@@ -63,7 +63,7 @@ TEST(DualGraph, NonManifoldEdgeJoinsEveryPair) {
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   for (const Edge& e : edges(g)) {
     pairs.insert({e.a, e.b});
-    EXPECT_FLOAT_EQ(e.length, 3.0f);
+    EXPECT_FLOAT_EQ(e.length, 1.0f);  // |e| / (k - 1): merging all four removes 4 |e|
   }
   EXPECT_EQ(pairs.size(), 6u);
 }

@@ -202,9 +202,10 @@ TEST(BuildHierarchy, AllDegenerateMesh) {
   for (uint32_t i = 0; i + 2 < 10; ++i) mesh.add(i, i + 1, i + 2);
   const Hierarchy h = buildChecked(mesh);
   for (const Node& node : h.nodes) {
-    EXPECT_EQ(node.cost, 0.0f);
+    EXPECT_GT(node.cost, 0.0f);  // k perim^2: zero-area groups are balanced by perimeter too
     EXPECT_EQ(node.area, 0.0f);
   }
+  EXPECT_LE(h.stats.height, 2 * h.stats.balancedHeight);
 }
 
 TEST(BuildHierarchy, NonManifoldFanIsOneComponent) {
@@ -217,6 +218,8 @@ TEST(BuildHierarchy, NonManifoldFanIsOneComponent) {
   EXPECT_EQ(h.stats.components, 1u);
   EXPECT_EQ(h.nodes.size(), 2u);
   for (const Node& node : h.nodes) EXPECT_EQ(node.flags, 0u);
+  // The shared edge is interior once all three faces are merged: no more, no less.
+  EXPECT_NEAR(h.nodes[0].perimeter, 3.0 + 3.0 * std::sqrt(2.0), 1e-5);
 }
 
 TEST(BuildHierarchy, FoldedDuplicateFaces) {
