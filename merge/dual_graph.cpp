@@ -89,16 +89,17 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       const uint32_t other = degA <= degB ? b : a;
       const uint32_t* first = incident.data() + offset[degA <= degB ? a : b];
       const uint32_t* last = first + std::min(degA, degB);
-      size_t sharingCount = 0;                       // faces other than f on the edge
-      uint32_t nextFace = DualGraph::kNone;          // the first of them after f (for the chain)
-      uint32_t totalUses = uses(geometry, f, a, b);  // U: sides of all faces on the edge
+      size_t sharingCount = 0;               // faces other than f on the edge
+      uint32_t nextFace = DualGraph::kNone;  // the first of them after f (for the chain)
+      const bool fDegenerate = v[0] == v[1] || v[1] == v[2] || v[0] == v[2];
+      const uint32_t usesF = fDegenerate ? uses(geometry, f, a, b) : 1;
+      uint32_t totalUses = usesF;  // U: sides of all faces on the edge
       for (const uint32_t* g = first; g != last; ++g) {
         if (*g == f) continue;
-        if (geometry.vertex(*g, 0) != other && geometry.vertex(*g, 1) != other &&
-            geometry.vertex(*g, 2) != other) {
-          continue;
-        }
-        const uint32_t u = uses(geometry, *g, a, b);
+        const uint32_t w0 = geometry.vertex(*g, 0), w1 = geometry.vertex(*g, 1), w2 = geometry.vertex(*g, 2);
+        if (w0 != other && w1 != other && w2 != other) continue;
+        // Three distinct corners: exactly one side on (a, b).
+        const uint32_t u = (w0 == w1 || w1 == w2 || w0 == w2) ? uses(geometry, *g, a, b) : 1;
         totalUses += u;
         if (sharingCount < sharing.size()) {
           sharing[sharingCount] = *g;
@@ -109,7 +110,6 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       }
       if (sharingCount == 0) continue;
       const double length = glm::length(geometry.position(a) - geometry.position(b));
-      const uint32_t usesF = uses(geometry, f, a, b);
       if (sharingCount + 1 > kMaxFacesJoinedPairwise) {
         // Chain: join f only to the next face on the edge; the K - 1 links share U |e| / 2.
         if (nextFace != DualGraph::kNone) {

@@ -68,9 +68,15 @@ class MergeEngine {
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
+    // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
+    uint32_t first = kNone;
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
-      edge.key = key(cluster(edge.end[0], scratch_[0]), cluster(edge.end[1], scratch_[1]), edge.shared);
+      if (edge.end[0] != first) {
+        first = edge.end[0];
+        cluster(first, scratch_[0]);
+      }
+      edge.key = key(scratch_[0], cluster(edge.end[1], scratch_[1]), edge.shared);
       for (const uint32_t c : edge.end) {
         ClusterRecord& r = clusters_[c];
         if (r.minEdge == kNoEdge || edge.key < r.minKey) {  // edges ascend: ties keep the first
