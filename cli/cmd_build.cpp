@@ -31,7 +31,7 @@ RecastRule parseRecastRule(const std::string& name) {
 int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching", "recast",
-                   "mesh-out", "draco-bits"},
+                   "mesh-out", "draco-bits", "balance-slack"},
                   {"json", "no-boxes"}, {{"-o", "--output"}});
   if (args.positional().size() != 1) throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
@@ -43,7 +43,9 @@ int runBuild(const std::vector<std::string>& argv) {
   options.garlandFitWeight = args.number("w-fit", options.garlandFitWeight);
   options.garlandDirWeight = args.number("w-dir", options.garlandDirWeight);
   options.garlandShapeWeight = args.number("w-shape", options.garlandShapeWeight);
+  options.balanceSlack = args.number("balance-slack", options.balanceSlack);
   options.computeBoxes = !args.flag("no-boxes");
+  if (!(options.balanceSlack >= 0)) throw UsageError("--balance-slack must be 0 (off) or positive");
   if (options.k < 0) throw UsageError("--k must not be negative");
   FileOptions fileOptions;
   fileOptions.branching = static_cast<uint32_t>(args.count("branching", 2));

@@ -2,6 +2,7 @@
 // ReadError, IoError or std::invalid_argument for main() to report.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,8 @@ namespace facetree::cli {
 int runStats(const std::vector<std::string>& args);
 int runBuild(const std::vector<std::string>& args);
 int runGenerate(const std::vector<std::string>& args);
+int runRender(const std::vector<std::string>& args);
+int runExport(const std::vector<std::string>& args);
 
 // Peak resident set size of this process, in bytes (getrusage).
 uint64_t peakResidentBytes();

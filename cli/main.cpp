@@ -25,13 +25,18 @@ commands:
         [--branching 2|4|8] [--recast largest-area|fewest-nodes]
         [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
-        [--w-fit W] [--w-dir W] [--w-shape W] [--no-boxes]
+        [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
                                  keep the first nodes of a cluster file (geometry counts in B)
   info FILE.fch [--json]         counts, height, branching histogram, bytes per section
   verify FILE.fch [MESH] [--json]  check every invariant (exit 3 names the first violation)
+
+  render FILE.fch (--cut N | --depth D) -o OUT.png [--width W] [--height H] [--view X,Y,Z] [--up X,Y,Z]
+                                 flat-shaded picture of the clusters of a cut (default --cut 64)
+  export FILE.fch (--cut N | --depth D) -o OUT.ply
+                                 the mesh with a colour per cluster of the cut (MeshLab)
 
 MESH may be - for standard input; the format is detected from the content.
 
@@ -61,6 +66,8 @@ int dispatch(const std::vector<std::string>& args) {
   if (command == "truncate") return runTruncate(rest);
   if (command == "info") return runInfo(rest);
   if (command == "verify") return runVerify(rest);
+  if (command == "render") return runRender(rest);
+  if (command == "export") return runExport(rest);
   throw UsageError("unknown command '" + command + "'");
 }
 

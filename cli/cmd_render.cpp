@@ -1,0 +1,79 @@
+// facetree render / export: a cut through a cluster file as a picture or a coloured mesh.
+#include <cstdio>
+#include <sstream>
+
+#include "cli/args.h"
+#include "cli/commands.h"
+#include "io/io.h"
+
+namespace facetree::cli {
+namespace {
+
+constexpr uint64_t kDefaultCut = 64;
+
+struct CutRequest {
+  std::string file;
+  std::vector<uint32_t> faceCluster;
+  uint32_t clusters = 0;
+  ClusterFile clusterFile;
+};
+
+CutRequest readCut(const Args& args, const char* command) {
+  if (args.positional().size() != 1) throw UsageError(std::string(command) + " takes exactly one cluster file");
+  if (args.value("cut") && args.value("depth")) throw UsageError("give --cut or --depth, not both");
+  CutRequest request;
+  request.file = args.positional()[0];
+  request.clusterFile = readClusterFile(request.file);
+  if (const auto depth = args.value("depth")) {
+    request.faceCluster = clusterDepthCut(request.clusterFile, static_cast<uint32_t>(args.count("depth", 0)));
+  } else {
+    const uint64_t cut = args.count("cut", kDefaultCut);
+    if (cut == 0) throw UsageError("--cut must be at least 1");
+    request.faceCluster = clusterCut(request.clusterFile, cut);
+  }
+  request.clusters = request.faceCluster.empty() ? 0 : request.faceCluster.back() + 1;
+  return request;
+}
+
+glm::vec3 parseVector(const std::string& text, const std::string& option) {
+  glm::vec3 v;
+  char comma1 = 0, comma2 = 0;
+  std::istringstream in(text);
+  if (!(in >> v.x >> comma1 >> v.y >> comma2 >> v.z) || comma1 != ',' || comma2 != ',' || !in.eof())
+    throw UsageError("--" + option + " needs X,Y,Z, got '" + text + "'");
+  return v;
+}
+
+}  // namespace
+
+int runRender(const std::vector<std::string>& argv) {
+  const Args args(argv, {"output", "cut", "depth", "width", "height", "view", "up"}, {},
+                  {{"-o", "--output"}});
+  const auto output = args.value("output");
+  if (!output) throw UsageError("render needs -o OUT.png");
+  RenderOptions options;
+  options.width = static_cast<int>(args.count("width", static_cast<uint64_t>(options.width)));
+  options.height = static_cast<int>(args.count("height", static_cast<uint64_t>(options.height)));
+  if (options.width < 16 || options.height < 16 || options.width > 16384 || options.height > 16384)
+    throw UsageError("--width and --height must be 16 to 16384");
+  if (const auto view = args.value("view")) options.viewDirection = parseVector(*view, "view");
+  if (const auto up = args.value("up")) options.up = parseVector(*up, "up");
+  const double start = nowSeconds();
+  const CutRequest cut = readCut(args, "render");
+  renderClustersPng(cut.clusterFile.mesh(), cut.faceCluster, options, *output);
+  std::fprintf(stderr, "rendered %u clusters of %s to %s (%dx%d) in %.2f s\n", cut.clusters, cut.file.c_str(),
+               output->c_str(), options.width, options.height, nowSeconds() - start);
+  return kExitOk;
+}
+
+int runExport(const std::vector<std::string>& argv) {
+  const Args args(argv, {"output", "cut", "depth"}, {}, {{"-o", "--output"}});
+  const auto output = args.value("output");
+  if (!output) throw UsageError("export needs -o OUT.ply");
+  const CutRequest cut = readCut(args, "export");
+  writeClusterColouredPly(cut.clusterFile.mesh(), cut.faceCluster, *output);
+  std::fprintf(stderr, "exported %u clusters of %s to %s\n", cut.clusters, cut.file.c_str(), output->c_str());
+  return kExitOk;
+}
+
+}  // namespace facetree::cli

@@ -1,0 +1,37 @@
+// Orthographic camera framing a mesh. Internal to facetree/io.
+//
+// Orthographic rather than perspective: there is no near plane to clip against and no eye
+// position to choose, so terrains thousands of times wider than tall, CAD parts and meshes far
+// from the origin all frame the same way, and parallel edges stay parallel, which suits
+// judging cluster shapes.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+namespace facetree {
+
+// Orthonormal camera frame: `forward` points from the camera towards the model, `up` is the
+// screen's up direction, `right` = forward x up.
+struct ViewBasis {
+  glm::vec3 right;
+  glm::vec3 up;
+  glm::vec3 forward;
+};
+
+// Zero or non-finite `viewDirection` means the default three-quarter view looking down.
+// `up` falls back to +z, and then to +y, when it is zero or (nearly) parallel to the view.
+ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up);
+
+// Positions in sample space for an image of width x height samples: x to the right and y down
+// in samples (sample centres at +0.5), z the distance along `forward` in the same units, so the
+// map from world space is a similarity (a reflection, as y flips). The referenced finite
+// positions fill the image but for a margin, centred; non-finite positions stay non-finite.
+std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
+                                     const ViewBasis& basis, int width, int height);
+
+}  // namespace facetree
