@@ -68,16 +68,27 @@ uint64_t Args::count(const std::string& name, uint64_t fallback, bool binary) co
   uint64_t scale = 1;
   if (stop + 1 == end) {
     switch (*stop) {
-      case 'k': case 'K': scale = binary ? uint64_t{1} << 10 : 1000; break;
-      case 'm': case 'M': scale = binary ? uint64_t{1} << 20 : 1000000; break;
-      case 'g': case 'G': scale = binary ? uint64_t{1} << 30 : 1000000000; break;
-      default: scale = 0;
+      case 'k':
+      case 'K':
+        scale = binary ? uint64_t{1} << 10 : 1000;
+        break;
+      case 'm':
+      case 'M':
+        scale = binary ? uint64_t{1} << 20 : 1000000;
+        break;
+      case 'g':
+      case 'G':
+        scale = binary ? uint64_t{1} << 30 : 1000000000;
+        break;
+      default:
+        scale = 0;
     }
   } else if (stop != end) {
     scale = 0;
   }
   if (error != std::errc() || scale == 0 || result > UINT64_MAX / scale)
-    throw UsageError("option --" + name + " needs a whole number (suffix k, M or G allowed), got '" + *text + "'");
+    throw UsageError("option --" + name + " needs a whole number (suffix k, M or G allowed), got '" + *text +
+                     "'");
   return result * scale;
 }
 

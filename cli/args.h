@@ -23,15 +23,15 @@ enum ExitCode : int {
 };
 
 class UsageError : public std::runtime_error {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
 class Args {
-public:
+ public:
   // `valued` options take the next argument; `flags` take none. Short aliases map to long names.
-  Args(const std::vector<std::string>& argv, const std::set<std::string>& valued, const std::set<std::string>& flags,
-       const std::map<std::string, std::string>& aliases = {});
+  Args(const std::vector<std::string>& argv, const std::set<std::string>& valued,
+       const std::set<std::string>& flags, const std::map<std::string, std::string>& aliases = {});
   const std::vector<std::string>& positional() const { return positional_; }
   bool flag(const std::string& name) const { return flags_.count(name) > 0; }
   std::optional<std::string> value(const std::string& name) const;
@@ -41,7 +41,7 @@ public:
   // of 1000 otherwise (counts).
   uint64_t count(const std::string& name, uint64_t fallback, bool binary = false) const;
 
-private:
+ private:
   std::vector<std::string> positional_;
   std::set<std::string> flags_;
   std::map<std::string, std::string> values_;

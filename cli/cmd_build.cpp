@@ -30,10 +30,11 @@ RecastRule parseRecastRule(const std::string& name) {
 
 int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
-                  {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching", "recast",
-                   "mesh-out", "draco-bits", "balance-slack"},
+                  {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
+                   "recast", "mesh-out", "draco-bits", "balance-slack"},
                   {"json", "no-boxes"}, {{"-o", "--output"}});
-  if (args.positional().size() != 1) throw UsageError("build takes exactly one mesh file (or - for standard input)");
+  if (args.positional().size() != 1)
+    throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
 
   BuildOptions options;
@@ -110,15 +111,20 @@ int runBuild(const std::vector<std::string>& argv) {
   std::printf("mesh          %s: %llu triangles\n", name.c_str(), static_cast<unsigned long long>(triangles));
   std::printf("hierarchy     %zu nodes, height %u (balanced %u, ratio %.2f), %llu components joined\n",
               hierarchy.nodes.size(), s.height, s.balancedHeight,
-              s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0, static_cast<unsigned long long>(s.components));
+              s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0,
+              static_cast<unsigned long long>(s.components));
   std::printf("degree        average %.2f, max %u\n", s.averageDegree, s.maxDegree);
   std::printf("normals       %llu PCA solves, %llu from S\n", static_cast<unsigned long long>(s.eigenSolves),
               static_cast<unsigned long long>(s.normalShortcuts));
-  std::printf("time          read %.3f s, init %.3f s, merge %.3f s (cost %.3f, eigen %.3f), boxes %.3f s, total %.3f s\n",
-              readSeconds, s.secondsInit, s.secondsMerge, s.secondsCost, s.secondsEigen, s.secondsBoxes, totalSeconds);
+  std::printf(
+      "time          read %.3f s, init %.3f s, merge %.3f s (cost %.3f, eigen %.3f), boxes %.3f s, total "
+      "%.3f s\n",
+      readSeconds, s.secondsInit, s.secondsMerge, s.secondsCost, s.secondsEigen, s.secondsBoxes,
+      totalSeconds);
   if (output)
-    std::printf("output        %s: %.2f MB (%.1f bytes per node), branching %u, write %.3f s\n", output->c_str(),
-                fileBytes / 1e6, hierarchy.nodes.empty() ? 0.0 : double(fileBytes) / hierarchy.nodes.size(),
+    std::printf("output        %s: %.2f MB (%.1f bytes per node), branching %u, write %.3f s\n",
+                output->c_str(), fileBytes / 1e6,
+                hierarchy.nodes.empty() ? 0.0 : double(fileBytes) / hierarchy.nodes.size(),
                 fileOptions.branching, totalSeconds - buildSeconds);
   std::printf("peak memory   %.1f MiB\n", peak / 1048576.0);
   return kExitOk;

@@ -34,14 +34,19 @@ int runGenerate(const std::vector<std::string>& argv) {
   } else {
     if (positional.size() != 1) throw UsageError("gen " + kind + " takes no input file");
     SyntheticKind shape;
-    if (kind == "grid") shape = SyntheticKind::Grid;
-    else if (kind == "sphere") shape = SyntheticKind::Sphere;
-    else if (kind == "terrain") shape = SyntheticKind::Terrain;
-    else throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, subdivide)");
+    if (kind == "grid")
+      shape = SyntheticKind::Grid;
+    else if (kind == "sphere")
+      shape = SyntheticKind::Sphere;
+    else if (kind == "terrain")
+      shape = SyntheticKind::Terrain;
+    else
+      throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, subdivide)");
     counts = writeSyntheticMesh(shape, options, *output);
   }
   std::fprintf(stderr, "wrote %s: %llu vertices, %llu triangles\n", output->c_str(),
-               static_cast<unsigned long long>(counts.vertices), static_cast<unsigned long long>(counts.triangles));
+               static_cast<unsigned long long>(counts.vertices),
+               static_cast<unsigned long long>(counts.triangles));
   return kExitOk;
 }
 

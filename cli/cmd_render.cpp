@@ -19,7 +19,8 @@ struct CutRequest {
 };
 
 CutRequest readCut(const Args& args, const char* command) {
-  if (args.positional().size() != 1) throw UsageError(std::string(command) + " takes exactly one cluster file");
+  if (args.positional().size() != 1)
+    throw UsageError(std::string(command) + " takes exactly one cluster file");
   if (args.value("cut") && args.value("depth")) throw UsageError("give --cut or --depth, not both");
   CutRequest request;
   request.file = args.positional()[0];

@@ -17,7 +17,8 @@ constexpr double kMega = 1e6;
 
 int runStats(const std::vector<std::string>& argv) {
   const Args args(argv, {}, {"json"});
-  if (args.positional().size() != 1) throw UsageError("stats takes exactly one mesh file (or - for standard input)");
+  if (args.positional().size() != 1)
+    throw UsageError("stats takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
 
   const double start = nowSeconds();
@@ -59,14 +60,16 @@ int runStats(const std::vector<std::string>& argv) {
     return kExitOk;
   }
   std::printf("mesh          %s\n", name.c_str());
-  std::printf("format        %s%s\n", formatName(info.format), info.zstdCompressed ? ", zstd-compressed" : "");
+  std::printf("format        %s%s\n", formatName(info.format),
+              info.zstdCompressed ? ", zstd-compressed" : "");
   std::printf("vertices      %llu\n", static_cast<unsigned long long>(s.vertices));
   std::printf("faces         %llu\n", static_cast<unsigned long long>(s.faces));
   std::printf("triangles     %llu\n", static_cast<unsigned long long>(s.triangles));
   std::printf("degenerate    %llu triangles (repeated index or zero area)\n",
               static_cast<unsigned long long>(s.degenerateTriangles));
   std::printf("skipped       %llu triangles touching %llu non-finite vertices\n",
-              static_cast<unsigned long long>(s.skippedTriangles), static_cast<unsigned long long>(s.nonFiniteVertices));
+              static_cast<unsigned long long>(s.skippedTriangles),
+              static_cast<unsigned long long>(s.nonFiniteVertices));
   std::printf("bounding box  [%g %g %g] - [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
   std::printf("read          %.3f s, %.1f MB at %.1f MB/s, %.2f M faces/s\n", seconds, megabytes, mbPerSecond,
               facesPerSecond / kMega);

@@ -10,7 +10,7 @@
 namespace facetree::cli {
 
 class JsonWriter {
-public:
+ public:
   JsonWriter() { open(); }
   void key(const std::string& name) {
     separator();
@@ -59,7 +59,7 @@ public:
     return out_ + "\n";
   }
 
-private:
+ private:
   void open() {
     out_ += "{";
     ++depth_;

@@ -15,8 +15,8 @@
 namespace facetree {
 namespace {
 
-constexpr double kGridSize = 1000.0;       // side of the generated grids, in model units
-constexpr double kTerrainRelief = 60.0;    // peak-to-valley height scale of the terrain
+constexpr double kGridSize = 1000.0;     // side of the generated grids, in model units
+constexpr double kTerrainRelief = 60.0;  // peak-to-valley height scale of the terrain
 constexpr int kTerrainOctaves = 6;
 constexpr uint32_t kMaxIndex = 0x7FFFFFFFu;  // PLY int indices
 
@@ -26,7 +26,7 @@ struct Tri {
 
 // A mesh whose vertices and triangles are computed from their index.
 class IndexedShape {
-public:
+ public:
   virtual ~IndexedShape() = default;
   virtual uint64_t vertexCount() const = 0;
   virtual uint64_t triangleCount() const = 0;
@@ -41,7 +41,7 @@ uint64_t hash64(uint64_t z) {
 }
 
 class GridShape : public IndexedShape {
-public:
+ public:
   GridShape(uint64_t triangles, uint64_t seed, bool terrain) : seed_(seed), terrain_(terrain) {
     side_ = std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(std::sqrt(triangles / 2.0))));
   }
@@ -58,11 +58,12 @@ public:
     return (j % 2 == 0) ? Tri{{a, b, d}} : Tri{{a, d, c}};
   }
 
-private:
+ private:
   // Multi-octave value noise: smooth, deterministic, any resolution.
   double lattice(int64_t x, int64_t y, int octave) const {
-    const uint64_t h = hash64(seed_ ^ hash64(static_cast<uint64_t>(x) * 0x100000001B3ull + static_cast<uint64_t>(y) +
-                                             (static_cast<uint64_t>(octave) << 56)));
+    const uint64_t h =
+        hash64(seed_ ^ hash64(static_cast<uint64_t>(x) * 0x100000001B3ull + static_cast<uint64_t>(y) +
+                              (static_cast<uint64_t>(octave) << 56)));
     return static_cast<double>(h >> 11) * 0x1.0p-53;
   }
   double height(double u, double v) const {
@@ -86,7 +87,7 @@ private:
 
 // UV sphere: poles plus (rings-1) rings of 2*rings vertices.
 class SphereShape : public IndexedShape {
-public:
+ public:
   explicit SphereShape(uint64_t triangles) {
     rings_ = std::max<uint64_t>(2, static_cast<uint64_t>(std::llround(std::sqrt(triangles / 4.0))));
     segments_ = 2 * rings_;
@@ -102,7 +103,9 @@ public:
   }
   Tri triangle(uint64_t j) const override {
     const uint64_t south = vertexCount() - 1;
-    auto ringVertex = [&](uint64_t ring, uint64_t segment) { return 1 + (ring - 1) * segments_ + segment % segments_; };
+    auto ringVertex = [&](uint64_t ring, uint64_t segment) {
+      return 1 + (ring - 1) * segments_ + segment % segments_;
+    };
     if (j < segments_) return Tri{{0, ringVertex(1, j), ringVertex(1, j + 1)}};
     j -= segments_;
     const uint64_t bands = rings_ - 2;
@@ -116,7 +119,7 @@ public:
     return Tri{{south, ringVertex(rings_ - 1, j + 1), ringVertex(rings_ - 1, j)}};
   }
 
-private:
+ private:
   uint64_t rings_, segments_;
 };
 
@@ -124,18 +127,20 @@ private:
 // lattice (i, j), i + j <= s. Lattice points on input edges are numbered per edge (canonical
 // direction from the lower vertex index) so neighbouring triangles share them.
 class SubdividedShape : public IndexedShape {
-public:
+ public:
   SubdividedShape(const MeshView& mesh, unsigned levels) : mesh_(mesh), s_(uint64_t{1} << levels) {
     const size_t n = mesh.triangleCount();
     std::vector<uint64_t> keys(3 * n);
     for (size_t f = 0; f < n; ++f)
-      for (int k = 0; k < 3; ++k) keys[3 * f + k] = edgeKey(mesh.indices[3 * f + k], mesh.indices[3 * f + (k + 1) % 3]);
+      for (int k = 0; k < 3; ++k)
+        keys[3 * f + k] = edgeKey(mesh.indices[3 * f + k], mesh.indices[3 * f + (k + 1) % 3]);
     edges_ = keys;
     std::sort(edges_.begin(), edges_.end());
     edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
     faceEdges_.resize(3 * n);
     for (size_t i = 0; i < keys.size(); ++i)
-      faceEdges_[i] = static_cast<uint64_t>(std::lower_bound(edges_.begin(), edges_.end(), keys[i]) - edges_.begin());
+      faceEdges_[i] =
+          static_cast<uint64_t>(std::lower_bound(edges_.begin(), edges_.end(), keys[i]) - edges_.begin());
     interiorPerFace_ = (s_ - 1) * (s_ - 2) / 2;
   }
   uint64_t vertexCount() const override {
@@ -174,7 +179,7 @@ public:
     }
   }
 
-private:
+ private:
   static uint64_t edgeKey(uint32_t a, uint32_t b) {
     return a < b ? (uint64_t{a} << 32 | b) : (uint64_t{b} << 32 | a);
   }
@@ -194,7 +199,7 @@ private:
     if (i == 0 && j == 0) return a;
     if (i == s_) return b;
     if (j == s_) return c;
-    if (j == 0) return edgePointId(f, 0, a, i);      // edge a-b
+    if (j == 0) return edgePointId(f, 0, a, i);       // edge a-b
     if (i + j == s_) return edgePointId(f, 1, b, j);  // edge b-c
     if (i == 0) return edgePointId(f, 2, c, s_ - j);  // edge c-a
     uint64_t k = 0;
@@ -208,9 +213,11 @@ private:
   uint64_t interiorPerFace_;
 };
 
-GeneratedCounts writeShape(const IndexedShape& shape, const GenerateOptions& options, const std::filesystem::path& path) {
+GeneratedCounts writeShape(const IndexedShape& shape, const GenerateOptions& options,
+                           const std::filesystem::path& path) {
   const uint64_t vertices = shape.vertexCount(), triangles = shape.triangleCount();
-  if (vertices > kMaxIndex) throw std::invalid_argument("generated mesh would have more than 2^31-1 vertices");
+  if (vertices > kMaxIndex)
+    throw std::invalid_argument("generated mesh would have more than 2^31-1 vertices");
   const StreamPermutation vertexOrder(vertices, options.seed), faceOrder(triangles, options.seed ^ 0xFACE);
   PlyWriter writer(path, vertices, triangles);
   for (uint64_t i = 0; i < vertices; ++i)
@@ -246,7 +253,8 @@ GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const
                                     const std::filesystem::path& path) {
   if (levels > 8) throw std::invalid_argument("subdivision levels must be at most 8");
   for (uint32_t index : mesh.indices)
-    if (index >= mesh.positions.size()) throw std::invalid_argument("subdivision input has an index out of range");
+    if (index >= mesh.positions.size())
+      throw std::invalid_argument("subdivision input has an index out of range");
   return writeShape(SubdividedShape(mesh, levels), options, path);
 }
 

@@ -19,7 +19,7 @@
 namespace facetree {
 
 class IoError : public std::runtime_error {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
@@ -27,7 +27,7 @@ public:
 // are given up front so nothing is held in memory. Writes to a temporary name beside the
 // target and renames on finish(); a writer destroyed before finish() removes its file.
 class PlyWriter {
-public:
+ public:
   PlyWriter(const std::filesystem::path& path, uint64_t vertexCount, uint64_t triangleCount);
   ~PlyWriter();
   PlyWriter(const PlyWriter&) = delete;
@@ -36,7 +36,7 @@ public:
   void addTriangle(uint32_t a, uint32_t b, uint32_t c);
   void finish();
 
-private:
+ private:
   struct State;
   std::unique_ptr<State> state_;
 };
@@ -75,8 +75,8 @@ struct RenderOptions {
   glm::vec3 up{0.0f, 0.0f, 1.0f};
 };
 // Flat-shaded software rendering to PNG (written atomically).
-void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster, const RenderOptions& options,
-                       const std::filesystem::path& path);
+void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
+                       const RenderOptions& options, const std::filesystem::path& path);
 // Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                              const std::filesystem::path& path);

@@ -12,7 +12,7 @@
 namespace facetree {
 
 class OutputFile {
-public:
+ public:
   // "-" writes to standard output (no temporary, nothing to remove).
   explicit OutputFile(const std::filesystem::path& path);
   ~OutputFile();
@@ -26,7 +26,7 @@ public:
   void commit();
   const std::filesystem::path& path() const { return path_; }
 
-private:
+ private:
   [[noreturn]] void fail(const char* what) const;
   std::filesystem::path path_;
   std::filesystem::path temporary_;

@@ -9,7 +9,7 @@
 namespace facetree {
 
 class StreamPermutation {
-public:
+ public:
   StreamPermutation(uint64_t n, uint64_t seed) : n_(n) {
     while ((uint64_t{1} << (2 * halfBits_)) < n_) ++halfBits_;
     mask_ = (uint64_t{1} << halfBits_) - 1;
@@ -28,7 +28,7 @@ public:
     return y;
   }
 
-private:
+ private:
   static constexpr int kRounds = 4;
   static uint64_t mix(uint64_t z) {  // splitmix64 finaliser
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;

@@ -8,7 +8,8 @@
 
 namespace facetree {
 namespace {
-static_assert(std::endian::native == std::endian::little, "facetree writes little-endian PLY on little-endian hosts");
+static_assert(std::endian::native == std::endian::little,
+              "facetree writes little-endian PLY on little-endian hosts");
 constexpr size_t kRecordBatch = 4096;
 }  // namespace
 
@@ -28,10 +29,10 @@ PlyWriter::PlyWriter(const std::filesystem::path& path, uint64_t vertexCount, ui
     : state_(std::make_unique<State>(path)) {
   state_->vertexCount = vertexCount;
   state_->triangleCount = triangleCount;
-  const std::string header = "ply\nformat binary_little_endian 1.0\ncomment facetree\nelement vertex " +
-                             std::to_string(vertexCount) +
-                             "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-                             std::to_string(triangleCount) + "\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\ncomment facetree\nelement vertex " +
+      std::to_string(vertexCount) + "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+      std::to_string(triangleCount) + "\nproperty list uchar int vertex_indices\nend_header\n";
   state_->out.write(header);
   state_->buffer.reserve(kRecordBatch * 13);
 }
@@ -52,7 +53,8 @@ void PlyWriter::addVertex(const glm::vec3& position) {
 
 void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
   if (state_->verticesWritten != state_->vertexCount || state_->trianglesWritten == state_->triangleCount)
-    throw IoError(state_->out.path().string() + ": triangle written before all vertices or beyond the declared count");
+    throw IoError(state_->out.path().string() +
+                  ": triangle written before all vertices or beyond the declared count");
   char record[13];
   record[0] = 3;
   const int32_t index[3] = {static_cast<int32_t>(a), static_cast<int32_t>(b), static_cast<int32_t>(c)};
@@ -64,9 +66,10 @@ void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
 
 void PlyWriter::finish() {
   if (state_->verticesWritten != state_->vertexCount || state_->trianglesWritten != state_->triangleCount)
-    throw IoError(state_->out.path().string() + ": wrote " + std::to_string(state_->verticesWritten) + " of " +
-                  std::to_string(state_->vertexCount) + " vertices and " + std::to_string(state_->trianglesWritten) +
-                  " of " + std::to_string(state_->triangleCount) + " triangles");
+    throw IoError(state_->out.path().string() + ": wrote " + std::to_string(state_->verticesWritten) +
+                  " of " + std::to_string(state_->vertexCount) + " vertices and " +
+                  std::to_string(state_->trianglesWritten) + " of " + std::to_string(state_->triangleCount) +
+                  " triangles");
   state_->flush();
   state_->out.commit();
 }

@@ -68,23 +68,27 @@ glm::dvec3 solveNormal(const SymMat3& m, CostCounters& counters) {
   return n / len;
 }
 
-// Willmott 2000, eq. 84 with the normal of eq. 78.
-double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostCounters& counters) {
+double willmottFitError(const ClusterStats& s, double flatThreshold, CostCounters& counters) {
   const double area = s.area;
-  if (!(area > 0)) return k * s.perimeter * s.perimeter;  // the flat limit, see cost.h
+  if (!(area > 0)) return 0;
   const double projArea = s.projectedArea();
-  double eFit;
   if (projArea > flatThreshold * area) {
     // n^T C n = n^T M2 n / A - (n . mu)^2 without forming C (the common, hot case).
     ++counters.normalShortcuts;
     const glm::dvec3 n = s.sumNormal / projArea;
     const double mean = glm::dot(n, s.firstMoment) / area;
-    eFit = std::max(0.0, s.secondMoment.quadratic(n) / area - mean * mean);
-  } else {
-    const SymMat3 c = s.covariance();
-    eFit = varianceAlong(c, solveNormal(c, counters));
+    return std::max(0.0, s.secondMoment.quadratic(n) / area - mean * mean);
   }
-  const double clampedProj = std::max(projArea, kMinProjectedAreaFraction * area);
+  const SymMat3 c = s.covariance();
+  return varianceAlong(c, solveNormal(c, counters));
+}
+
+// Willmott 2000, eq. 84 with the normal of eq. 78.
+double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostCounters& counters) {
+  const double area = s.area;
+  if (!(area > 0)) return k * s.perimeter * s.perimeter;  // the flat limit, see cost.h
+  const double eFit = willmottFitError(s, flatThreshold, counters);
+  const double clampedProj = std::max(s.projectedArea(), kMinProjectedAreaFraction * area);
   return (eFit + k * area) * (s.perimeter * s.perimeter) / clampedProj;
 }
 

@@ -48,10 +48,13 @@ inline float toKey(double cost) {
 // penalty area/projArea of eq. 81 by 1/kMinProjectedAreaFraction for closed surfaces.
 inline constexpr double kMinProjectedAreaFraction = 1e-3;
 double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostCounters& counters);
+// eFit of eq. 84 alone: the variance of the cluster along its normal (as willmottCost uses it).
+double willmottFitError(const ClusterStats& s, double flatThreshold, CostCounters& counters);
 
 class WillmottCost {
  public:
   struct Extra {};
+  static constexpr bool kBalanceGuard = true;  // the engine's height guard applies (merge.h)
 
   WillmottCost(const BuildOptions& options, const FaceGeometry& geometry)
       : k_(options.k), flatThreshold_(options.flatThreshold), keyScale_(1.0 / geometry.diagonalSquared()) {}
@@ -101,6 +104,7 @@ double garlandCost(const ClusterStats& m, const ClusterStats& a, const ClusterSt
 class GarlandCost {
  public:
   using Extra = GarlandStats;
+  static constexpr bool kBalanceGuard = false;  // faithful to its definition
 
   GarlandCost(const BuildOptions& options, const FaceGeometry& geometry)
       : options_(options), geometry_(geometry) {}
@@ -128,6 +132,7 @@ class GarlandCost {
 class ConstantCost {
  public:
   struct Extra {};
+  static constexpr bool kBalanceGuard = false;  // the unbalanced worst case, by design
 
   ConstantCost(const BuildOptions&, const FaceGeometry&) {}
   Extra leafExtra(uint32_t) const { return {}; }

@@ -64,6 +64,20 @@ Rect2 minAreaRect(std::span<const HullPoint> hull) {
     return best;
   }
   auto next = [m](size_t i) { return i + 1 == m ? 0 : i + 1; };
+  // Coordinates as plain arrays (most hulls are small: on the stack), and each caliper's
+  // current value cached, so that each candidate's dot product is evaluated once. The
+  // arithmetic is the same expression for expression as glm::dot, so the result does not
+  // depend on this layout.
+  constexpr size_t kStack = 128;
+  double xStack[kStack], yStack[kStack];
+  std::vector<double> heap;
+  double* xs = xStack;
+  double* ys = yStack;
+  if (m > kStack) {
+    heap.resize(2 * m);
+    xs = heap.data(), ys = heap.data() + m;
+  }
+  for (size_t j = 0; j < m; ++j) xs[j] = hull[j].p.x, ys[j] = hull[j].p.y;
   // Unnormalized edge vectors d: the rectangle on edge i has area
   // (max - min of p.d) * (max of p.perp(d) - q_i.perp(d)) / |d|^2; one division per edge and
   // a single normalization for the winner.
@@ -72,27 +86,32 @@ Rect2 minAreaRect(std::span<const HullPoint> hull) {
   size_t r = 0, t = 0, l = 0;  // calipers: max along the edge, max across it, min along it
   bool started = false;
   for (size_t i = 0; i < m; ++i) {
-    const glm::dvec2 d = hull[next(i)].p - hull[i].p;
-    const double len2 = glm::dot(d, d);
+    const size_t i1 = next(i);
+    const double dx = xs[i1] - xs[i], dy = ys[i1] - ys[i];
+    const double len2 = dx * dx + dy * dy;
     if (!(len2 > 0)) continue;
-    const glm::dvec2 nrm{-d.y, d.x};  // the hull lies on this side of a counter-clockwise edge
-    auto along = [&](size_t j) { return glm::dot(hull[j].p, d); };
-    auto across = [&](size_t j) { return glm::dot(hull[j].p, nrm); };
+    // along = p.d; across = p.(-dy, dx): the hull lies on this side of a counter-clockwise edge
+    auto along = [&](size_t j) { return xs[j] * dx + ys[j] * dy; };
+    auto across = [&](size_t j) { return xs[j] * -dy + ys[j] * dx; };
+    double ar, at, al;
     if (!started) {
       started = true;
+      ar = al = along(0), at = across(0);
       for (size_t j = 1; j < m; ++j) {
-        if (along(j) > along(r)) r = j;
-        if (across(j) > across(t)) t = j;
-        if (along(j) < along(l)) l = j;
+        const double u = along(j), v = across(j);
+        if (u > ar) r = j, ar = u;
+        if (v > at) t = j, at = v;
+        if (u < al) l = j, al = u;
       }
     } else {
       // The extreme points move counter-clockwise with the edge; values strictly improve, so
       // each loop ends, and over all edges each caliper goes round once.
-      while (along(next(r)) > along(r)) r = next(r);
-      while (across(next(t)) > across(t)) t = next(t);
-      while (along(next(l)) < along(l)) l = next(l);
+      ar = along(r), at = across(t), al = along(l);
+      for (double v; (v = along(next(r))) > ar;) r = next(r), ar = v;
+      for (double v; (v = across(next(t))) > at;) t = next(t), at = v;
+      for (double v; (v = along(next(l))) < al;) l = next(l), al = v;
     }
-    const double area = (along(r) - along(l)) * (across(t) - across(i)) / len2;
+    const double area = (ar - al) * (at - across(i)) / len2;
     if (area < bestArea) {
       bestArea = area;
       bestEdge = i, bestR = r, bestT = t, bestL = l;

@@ -38,6 +38,10 @@ struct BuildOptions {
   double garlandFitWeight = 1.0;
   double garlandDirWeight = 1.0;
   double garlandShapeWeight = 1.0;
+  // Balance guard (Willmott metric only): a merge whose subtree height h' exceeds
+  // balanceSlack * (ceil(log2 n') + 1) for its n' faces gets its cost multiplied by
+  // kBalancePenaltyBase^(excess) (merge_engine.cpp). 0 disables it (pure eq. 84).
+  double balanceSlack = 1.5;
   bool computeBoxes = true;
 };
 
@@ -55,7 +59,7 @@ struct Node {
   uint32_t first;  // faces [first, first + count) of faceOrder
   uint32_t count;
   uint32_t flags;
-  float cost;       // merge cost when the node was created
+  float cost;       // merge cost when the node was created (with the balance guard's penalty)
   float area;
   float perimeter;
   glm::vec3 sumNormal;  // S = sum of area-weighted face normals; projArea = |S|

@@ -17,8 +17,10 @@
 #include "merge/merge_engine.h"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <queue>
 #include <tuple>
 
@@ -34,6 +36,22 @@ constexpr uint32_t kLeafSlot = 0xFFFFFFFFu;  // a single face: stats from the tr
 constexpr uint32_t kDeadSlot = 0xFFFFFFFEu;  // merged into another cluster
 constexpr uint32_t kPairBit = 0x80000000u;   // | node index: two faces, stats from the triangles
 constexpr int kMortonBits = 21;              // per axis, for the component joins
+// Balance guard (BuildOptions::balanceSlack): a merge of height h' over n' faces with
+// h' > H = slack * (ceil(log2 n') + 1) costs eq. 84 times kBalancePenaltyBase^(h' - H).
+// Graded meshes (openfoam_buildings: triangle sizes grow geometrically away from the
+// buildings) otherwise grow one compact cluster by absorbing its ever larger neighbours one at
+// a time, since perim^2/projArea favours the compact growing cluster: heights 6x balanced.
+// Base 4: one level over the allowance must outweigh the spread of eq. 84 between a chain
+// step and the best balanced alternative; measured over the 18 shared meshes (see the report
+// in the commit log). Keys stay finite: toKey clamps to the float range.
+constexpr double kBalancePenaltyBase = 4.0;
+// Past this many levels over the allowance an edge is not merged at all (its key is +inf,
+// which toKey never produces): the penalty cannot help where a cluster's last neighbours are
+// slivers adjacent to it only (matterport_cedar_creek: a cluster of 8.7k faces absorbed 28
+// slivers one at a time, forced). Such clusters stay roots and are joined by joinComponents,
+// balanced by face count, like disconnected pieces.
+constexpr double kBalanceBlockExcess = 3.0;
+constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -58,7 +76,9 @@ class MergeEngine {
       : geometry_(geometry),
         graph_(std::move(graph)),
         policy_(options, geometry),
-        keyScale_(policy_.keyScale()) {}
+        keyScale_(policy_.keyScale()),
+        guard_(Policy::kBalanceGuard && options.balanceSlack > 0),
+        balanceSlack_(options.balanceSlack) {}
 
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
@@ -68,6 +88,7 @@ class MergeEngine {
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
+    if (guard_) shape_.assign(n, Shape{1, 1});
     // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
     uint32_t first = kNone;
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
@@ -76,7 +97,7 @@ class MergeEngine {
         first = edge.end[0];
         cluster(first, scratch_[0]);
       }
-      edge.key = key(scratch_[0], cluster(edge.end[1], scratch_[1]), edge.shared);
+      edge.key = key(scratch_[0], cluster(edge.end[1], scratch_[1]), edge.shared, first, edge.end[1]);
       for (const uint32_t c : edge.end) {
         ClusterRecord& r = clusters_[c];
         if (r.minEdge == kNoEdge || edge.key < r.minKey) {  // edges ascend: ties keep the first
@@ -99,6 +120,7 @@ class MergeEngine {
     // edge; the top entry is valid when it equals the cluster's exact minimum.
     while (!heap_.empty()) {
       const EdgeHeap::Entry top = heap_.top();
+      if (top.key == kBlockedKey) break;  // every edge left is blocked (lower bounds: all inf)
       ClusterRecord& r = clusters_[top.id];
       if (r.slot == kDeadSlot) {
         heap_.pop();
@@ -150,6 +172,11 @@ class MergeEngine {
   static constexpr uint32_t kDirty = 0x80000000u;
   static constexpr size_t kCacheLine = 64;
 
+  // Face count and subtree height (faces: 1) of a cluster, for the balance guard.
+  struct Shape {
+    uint32_t count;
+    uint32_t height;
+  };
   struct Cluster {
     ClusterStats stats;
     [[no_unique_address]] Extra extra;
@@ -195,9 +222,27 @@ class MergeEngine {
     return (s & kPairBit) ? 2 : result_.records[slots_[s].node].faceCount();
   }
 
-  float key(const Cluster& a, const Cluster& b, double shared) {
+  // The heap key of merging clusters ia and ib (stats a and b) along `shared` boundary.
+  float key(const Cluster& a, const Cluster& b, double shared, uint32_t ia, uint32_t ib) {
     const ClusterStats m = ClusterStats::merged(a.stats, b.stats, shared);
-    return toKey(policy_(m, a.stats, b.stats, a.extra, b.extra) * keyScale_);
+    double cost = policy_(m, a.stats, b.stats, a.extra, b.extra) * keyScale_;
+    if (guard_) {
+      const double excess = balanceExcess(ia, ib);
+      if (excess > kBalanceBlockExcess) return kBlockedKey;
+      if (excess > 0) cost *= std::pow(kBalancePenaltyBase, excess);
+    }
+    return toKey(cost);
+  }
+
+  // Levels by which merging ia and ib would exceed the height allowance (kBalancePenaltyBase).
+  // Depends only on the two clusters, so only the merged cluster's edges change their penalty
+  // after a merge (the lazy heap's invariant).
+  double balanceExcess(uint32_t ia, uint32_t ib) const {
+    const Shape& x = shape_[ia];
+    const Shape& y = shape_[ib];
+    const uint32_t n = x.count + y.count;
+    const double allowance = balanceSlack_ * (std::bit_width(n - 1) + 1);  // ceil(log2 n) + 1
+    return std::max(x.height, y.height) + 1 - allowance;
   }
 
   void pushEntry(float k, uint32_t c) {
@@ -306,6 +351,9 @@ class MergeEngine {
       clusters_[a].slot = slot;
     }
     clusters_[b].slot = kDeadSlot;
+    if (guard_) {
+      shape_[a] = {shape_[a].count + shape_[b].count, std::max(shape_[a].height, shape_[b].height) + 1};
+    }
     peakSlots_ = std::max(peakSlots_, slots_.size() - freeSlots_.size());
     if (joining) return;
     kill(graph_.edges[e]);
@@ -356,7 +404,7 @@ class MergeEngine {
       const uint32_t f = h >> 1;
       DualEdge& edge = graph_.edges[f];
       const uint32_t x = edge.end[(h & 1) ^ 1];
-      const float k = key(c, cluster(x, scratch_[0]), edge.shared);
+      const float k = key(c, cluster(x, scratch_[0]), edge.shared, a, x);
       edge.key = k;
       if (ra.minEdge == kNoEdge || k < ra.minKey || (k == ra.minKey && f < ra.minEdge)) {
         ra.minKey = k;
@@ -429,6 +477,9 @@ class MergeEngine {
   Policy policy_;
   EdgeHeap heap_;
   double keyScale_;
+  bool guard_;
+  double balanceSlack_;
+  std::vector<Shape> shape_;  // per cluster id, only with the guard
   std::vector<ClusterRecord> clusters_;
   std::vector<Slot> slots_;
   Cluster scratch_[2];  // leaf stats computed on the fly

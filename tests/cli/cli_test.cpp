@@ -12,7 +12,9 @@ namespace {
 using test::runCli;
 
 std::string scratch(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("facetree_cli_" + std::to_string(::getpid()) + "_" + name)).string();
+  return (std::filesystem::temp_directory_path() /
+          ("facetree_cli_" + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 
 TEST(Cli, HelpAndVersionSucceed) {
@@ -35,7 +37,8 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(option.out, "facetree: unknown option '--bogus' (see facetree --help)\n");
   auto metric = runCli("build --metric nope x.ply");
   EXPECT_EQ(metric.exitCode, 2);
-  EXPECT_EQ(metric.out, "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree --help)\n");
+  EXPECT_EQ(metric.out,
+            "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree --help)\n");
   auto count = runCli("gen grid -n 12x -o x.ply");
   EXPECT_EQ(count.exitCode, 2);
 }
@@ -50,7 +53,8 @@ TEST(Cli, MissingInputExitsWithThreeAndNamesTheFile) {
 TEST(Cli, UnwritableOutputExitsWithFour) {
   auto result = runCli("gen grid -n 100 -o /nonexistent-facetree/out.ply");
   EXPECT_EQ(result.exitCode, 4);
-  EXPECT_EQ(result.out, "facetree: /nonexistent-facetree/out.ply: cannot create: No such file or directory\n");
+  EXPECT_EQ(result.out,
+            "facetree: /nonexistent-facetree/out.ply: cannot create: No such file or directory\n");
 }
 
 TEST(Cli, GeneratedGridReadsBackWithItsCounts) {

@@ -3,6 +3,10 @@
 //   merge_bench FILE.ply[.zst] [metric]  binary little-endian PLY (float xyz, uchar/int list),
 //                                        decompressed through `zstd -dc`
 // Prints seconds, height/balanced, degrees, eigen counts and the peak RSS growth of the build.
+// Environment: MERGE_BENCH_SLACK=A sets BuildOptions::balanceSlack; MERGE_BENCH_CUTS=K1,K2,...
+// prints the summed eFit (the variance along the normal that eq. 84 uses) over the clusters of
+// the cut of K clusters (the frontier below nodes[0..K-1)); MERGE_BENCH_PATH prints the
+// deepest path.
 #include <sys/resource.h>
 
 #include <chrono>
@@ -14,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "merge/cost.h"
+#include "merge/face_geometry.h"
 #include "merge/merge.h"
 #include "test_meshes.h"
 
@@ -105,6 +111,7 @@ int main(int argc, char** argv) {
                      : metric == "constant" ? Metric::Constant
                                             : Metric::Willmott;
   }
+  if (const char* slack = std::getenv("MERGE_BENCH_SLACK")) options.balanceSlack = std::atof(slack);
   const long before = currentRssKb();
   const auto start = std::chrono::steady_clock::now();
   const double cpuStart = cpuSeconds();
@@ -125,6 +132,34 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(s.components));
   std::printf("  peak RSS growth %.1f MB = %.1f B/face (output nodes+faceOrder %.1f B/face)\n",
               (peak - before) / 1024.0, (peak - before) * 1024.0 / n, (sizeof(Node) * (n - 1) + 4 * n) / n);
+  if (const char* cuts = std::getenv("MERGE_BENCH_CUTS")) {
+    const FaceGeometry geometry(mesh.view());
+    CostCounters counters;
+    for (const char* p = cuts; *p;) {
+      char* end;
+      const size_t k = std::strtoul(p, &end, 10);
+      p = *end ? end + 1 : end;
+      if (k < 2 || k > h.nodes.size() + 1) continue;
+      // Clusters of the cut: children of nodes[0, k-1) that are faces or nodes >= k-1.
+      double sum = 0;
+      size_t clusters = 0;
+      for (uint32_t i = 0; i + 1 < k; ++i) {
+        for (const uint32_t c : h.nodes[i].child) {
+          if (!(c & kFaceChild) && c + 1 < k) continue;
+          const uint32_t first = (c & kFaceChild) ? (c & ~kFaceChild) : h.nodes[c].first;
+          const uint32_t count = (c & kFaceChild) ? 1 : h.nodes[c].count;
+          ClusterStats stats;
+          for (uint32_t j = first; j < first + count; ++j) {
+            stats = ClusterStats::merged(stats, geometry.leafStats(h.faceOrder[j]), 0.0);
+          }
+          sum += willmottFitError(stats, options.flatThreshold, counters);
+          ++clusters;
+        }
+      }
+      std::printf("  cut %zu clusters: sum eFit %.6g (relative to diagonal^2: %.6g)\n", clusters, sum,
+                  sum / geometry.diagonalSquared());
+    }
+  }
   if (std::getenv("MERGE_BENCH_PATH")) {
     // The deepest root-to-face path, bottom up: where does the height come from?
     std::vector<uint32_t> parent(h.nodes.size(), ~0u), depth(h.nodes.size(), 1);

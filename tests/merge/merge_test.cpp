@@ -1,6 +1,7 @@
 // buildHierarchy end to end on generated meshes: structure, connectivity, additive stats,
 // balance per metric, determinism, components, degenerate and non-manifold input, errors.
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include <gtest/gtest.h>
@@ -237,6 +238,78 @@ TEST(BuildHierarchy, LongChainNeedsNoRecursion) {
   EXPECT_EQ(h.nodes.size(), n - 1);
   EXPECT_EQ(h.nodes[0].count, n);
   EXPECT_EQ(h.nodes.back().count, 2u);
+}
+
+}  // namespace
+}  // namespace facetree::test
+
+namespace facetree::test {
+namespace {
+
+// A flat disc of `rings` rings of `sectors` quads (two triangles each) around a fan, whose
+// radii grow by `growth` per ring: triangle sizes grade geometrically outward, like the
+// meshes around openfoam_buildings' buildings. Eq. 84 alone grows the central cluster by
+// absorbing one ever larger neighbour at a time (perim^2/projArea favours the compact one).
+TestMesh gradedDisc(uint32_t rings, uint32_t sectors, float growth) {
+  TestMesh mesh;
+  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);
+  constexpr float kTwoPi = 6.2831853f;
+  float radius = 1.0f;
+  for (uint32_t r = 0; r < rings; ++r, radius *= growth) {
+    // Alternate rings are rotated by half a sector so the triangles stay well shaped.
+    const float offset = (r % 2) * 0.5f;
+    for (uint32_t s = 0; s < sectors; ++s) {
+      const float angle = kTwoPi * (float(s) + offset) / float(sectors);
+      mesh.positions.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 0.0f);
+    }
+  }
+  const auto vertex = [&](uint32_t r, uint32_t s) { return 1 + r * sectors + s % sectors; };
+  for (uint32_t s = 0; s < sectors; ++s) mesh.add(0, vertex(0, s), vertex(0, s + 1));
+  for (uint32_t r = 0; r + 1 < rings; ++r) {
+    for (uint32_t s = 0; s < sectors; ++s) {
+      mesh.add(vertex(r, s), vertex(r + 1, s), vertex(r, s + 1));
+      mesh.add(vertex(r, s + 1), vertex(r + 1, s), vertex(r + 1, s + 1));
+    }
+  }
+  return mesh;
+}
+
+BuildOptions withSlack(double slack) {
+  BuildOptions options = noBoxes();
+  options.balanceSlack = slack;
+  return options;
+}
+
+TEST(BalanceGuard, KeepsGradedDiscWithinTwiceBalanced) {
+  const TestMesh mesh = gradedDisc(120, 24, 1.06f);
+  const Hierarchy off = buildHierarchy(mesh.view(), withSlack(0));
+  const Hierarchy on = buildHierarchy(mesh.view(), noBoxes());
+  std::printf("graded disc: %u faces, height %u without the guard, %u with, balanced %u\n", mesh.faceCount(),
+              off.stats.height, on.stats.height, on.stats.balancedHeight);
+  EXPECT_GT(off.stats.height, 2 * off.stats.balancedHeight);
+  EXPECT_LE(on.stats.height, 2 * on.stats.balancedHeight);
+}
+
+TEST(BalanceGuard, LeavesUniformGridAlone) {
+  const TestMesh mesh = grid(64);
+  const Hierarchy off = buildHierarchy(mesh.view(), withSlack(0));
+  const Hierarchy on = buildHierarchy(mesh.view(), noBoxes());
+  std::printf("grid: height %u without the guard, %u with, balanced %u\n", off.stats.height, on.stats.height,
+              on.stats.balancedHeight);
+  EXPECT_EQ(on.faceOrder, off.faceOrder);
+  EXPECT_EQ(on.stats.height, off.stats.height);
+}
+
+TEST(BalanceGuard, OnlyTheWillmottMetricIsGuarded) {
+  const TestMesh mesh = grid(32);
+  for (const Metric metric : {Metric::Garland, Metric::Constant}) {
+    BuildOptions options = noBoxes(metric);
+    const Hierarchy on = buildHierarchy(mesh.view(), options);
+    options.balanceSlack = 0;
+    const Hierarchy off = buildHierarchy(mesh.view(), options);
+    EXPECT_EQ(on.faceOrder, off.faceOrder);
+    EXPECT_EQ(on.stats.height, off.stats.height);
+  }
 }
 
 }  // namespace
