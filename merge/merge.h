@@ -33,8 +33,8 @@ enum class Metric : uint8_t {
 
 struct BuildOptions {
   Metric metric = Metric::Willmott;
-  double k = 1e-4;              // balance weight of eq. 80
-  double flatThreshold = 0.5;   // eq. 78: |S|/A above it takes S as the cluster normal
+  double k = 1e-4;             // balance weight of eq. 80
+  double flatThreshold = 0.5;  // eq. 78: |S|/A above it takes S as the cluster normal
   double garlandFitWeight = 1.0;
   double garlandDirWeight = 1.0;
   double garlandShapeWeight = 1.0;
@@ -59,7 +59,7 @@ struct Node {
   uint32_t first;  // faces [first, first + count) of faceOrder
   uint32_t count;
   uint32_t flags;
-  float cost;       // merge cost when the node was created (with the balance guard's penalty)
+  float cost;  // merge cost when the node was created (with the balance guard's penalty)
   float area;
   float perimeter;
   glm::vec3 sumNormal;  // S = sum of area-weighted face normals; projArea = |S|
@@ -79,15 +79,15 @@ struct BuildStats {
   uint32_t balancedHeight = 0;  // ceil(log2 n) + 1
   double averageDegree = 0;     // dual-edge degree of merged clusters, sampled at each merge
   uint32_t maxDegree = 0;
-  uint64_t eigenSolves = 0;     // PCA solves for non-flat clusters
-  uint64_t normalShortcuts = 0; // clusters whose normal came from S (eq. 78)
-  uint64_t components = 0;      // edge-connected components joined at the top
+  uint64_t eigenSolves = 0;      // PCA solves for non-flat clusters
+  uint64_t normalShortcuts = 0;  // clusters whose normal came from S (eq. 78)
+  uint64_t components = 0;       // roots joined at the top: components, and pieces the balance guard blocked
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
 };
 
 struct Hierarchy {
-  std::vector<Node> nodes;        // reverse creation order: nodes[0] is the root
-  std::vector<NodeBox> boxes;     // parallel to nodes (empty without computeBoxes)
+  std::vector<Node> nodes;          // reverse creation order: nodes[0] is the root
+  std::vector<NodeBox> boxes;       // parallel to nodes (empty without computeBoxes)
   std::vector<uint32_t> faceOrder;  // faceOrder[i] = input triangle of the i-th face in hierarchy order
   BuildStats stats;
 };
