@@ -32,7 +32,7 @@ int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
                    "recast", "mesh-out", "draco-bits", "balance-slack"},
-                  {"json", "no-boxes"}, {{"-o", "--output"}});
+                  {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
@@ -63,7 +63,9 @@ int runBuild(const std::vector<std::string>& argv) {
 
   const double start = nowSeconds();
   auto reader = name == "-" ? openStandardInput() : openMesh(name);
-  const IndexedMesh mesh = loadMesh(*reader);
+  LoadOptions loadOptions;
+  loadOptions.weldPositions = args.flag("weld");
+  const IndexedMesh mesh = loadMesh(*reader, loadOptions);
   const double readSeconds = nowSeconds() - start;
   const Hierarchy hierarchy = buildHierarchy(mesh.view(), options);
   const double buildSeconds = nowSeconds() - start;
@@ -83,6 +85,7 @@ int runBuild(const std::vector<std::string>& argv) {
     JsonWriter json;
     json.field("mesh", name);
     json.field("triangles", triangles);
+    json.field("welded_vertices", mesh.weldedVertices);
     json.field("nodes", static_cast<uint64_t>(hierarchy.nodes.size()));
     json.field("height", s.height);
     json.field("balanced_height", s.balancedHeight);
@@ -108,7 +111,10 @@ int runBuild(const std::vector<std::string>& argv) {
     std::fputs(json.finish().c_str(), stdout);
     return kExitOk;
   }
-  std::printf("mesh          %s: %llu triangles\n", name.c_str(), static_cast<unsigned long long>(triangles));
+  std::printf("mesh          %s: %llu triangles", name.c_str(), static_cast<unsigned long long>(triangles));
+  if (loadOptions.weldPositions)
+    std::printf(", %llu vertices welded", static_cast<unsigned long long>(mesh.weldedVertices));
+  std::printf("\n");
   std::printf("hierarchy     %zu nodes, height %u (balanced %u, ratio %.2f), %llu components joined\n",
               hierarchy.nodes.size(), s.height, s.balancedHeight,
               s.balancedHeight ? double(s.height) / s.balancedHeight : 0.0,

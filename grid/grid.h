@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -24,10 +25,22 @@ struct IndexedMesh {
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
   std::vector<uint64_t> originalFace;
+  uint64_t weldedVertices = 0;  // vertices replaced by an earlier one at the same position
   MeshView view() const { return {positions, indices}; }
 };
 
+struct LoadOptions {
+  // Scans often repeat vertices along cracks and patch borders (dragon_vrip: 151 index
+  // components, 1 after welding). Welding makes faces meeting at bit-identical positions
+  // (-0 equal to +0) neighbours, so the merge sees one surface instead of loose patches.
+  bool weldPositions = false;
+};
+
 // Reads every triangle of `reader` into memory.
-IndexedMesh loadMesh(TriangleReader& reader);
+IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options = {});
+
+// Points every index at the lowest-numbered vertex with the same position; returns how many
+// vertices were replaced. Positions are left in place (unreferenced duplicates stay).
+uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices);
 
 }  // namespace facetree

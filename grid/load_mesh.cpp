@@ -9,7 +9,7 @@ namespace {
 constexpr size_t kBatchTriangles = 4096;
 }
 
-IndexedMesh loadMesh(TriangleReader& reader) {
+IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options) {
   IndexedMesh mesh;
   std::vector<Triangle> batch(kBatchTriangles);
   if (reader.info().declaredFaces > 0) {
@@ -30,6 +30,7 @@ IndexedMesh loadMesh(TriangleReader& reader) {
     throw std::invalid_argument(reader.info().name + ": more than 2^32 vertices do not fit in memory mode");
   mesh.positions.resize(vertices.size());
   for (uint64_t i = 0; i < vertices.size(); ++i) mesh.positions[i] = vertices.position(i);
+  if (options.weldPositions) mesh.weldedVertices = weldPositions(mesh.positions, mesh.indices);
   mesh.info = reader.info();
   mesh.stats = reader.stats();
   return mesh;
