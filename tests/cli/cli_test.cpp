@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "run_cli.h"
 
@@ -82,6 +84,26 @@ TEST(Cli, BuildReportsABalancedHierarchy) {
   EXPECT_NE(build.out.find("\"triangles\": 19880,"), std::string::npos) << build.out;
   EXPECT_NE(build.out.find("\"nodes\": 19879,"), std::string::npos) << build.out;
   std::filesystem::remove(path);
+}
+
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(Cli, BuildIsByteIdenticalAcrossRuns) {
+  const std::string mesh = scratch("terrain.ply"), a = scratch("a.fch"), b = scratch("b.fch");
+  ASSERT_EQ(runCli("gen terrain -n 30000 --shuffle-faces --shuffle-vertices -o " + mesh).exitCode, 0);
+  for (const char* options : {"", " --branching 4 --weld", " --metric garland --branching 8"}) {
+    ASSERT_EQ(runCli("build " + mesh + " -o " + a + options).exitCode, 0) << options;
+    ASSERT_EQ(runCli("build " + mesh + " -o " + b + options).exitCode, 0) << options;
+    const std::string first = fileBytes(a);
+    EXPECT_GT(first.size(), 1000u);
+    EXPECT_TRUE(first == fileBytes(b)) << "runs differ with options '" << options << "'";
+    auto verify = runCli("verify " + a + " " + mesh);
+    EXPECT_EQ(verify.exitCode, 0) << verify.out;
+  }
+  for (const auto& path : {mesh, a, b}) std::filesystem::remove(path);
 }
 
 }  // namespace
