@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -237,7 +238,11 @@ ScanFrame scanFrame(const PackedFaces& f, const glm::quat& q, uint32_t first) {
 
 float roundUp(double v) {
   float f = float(v);
-  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  // v >= 0 here (a half extent), so the next float up is the next bit pattern (nextafterf is
+  // a library call).
+  if (double(f) < v)
+    f = f >= 0 ? std::bit_cast<float>(std::bit_cast<uint32_t>(f) + 1)
+               : std::nextafter(f, std::numeric_limits<float>::infinity());
   return f;
 }
 

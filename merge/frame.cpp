@@ -57,7 +57,11 @@ size_t FrameBuilder::keepHull(std::span<glm::vec3> points) {
   const size_t m = hull_.size();
   const size_t keep = std::min(m, kFrameHullCap);
   kept_.resize(keep);
-  for (size_t j = 0; j < keep; ++j) kept_[j] = points[hull_[j * m / keep].id];
+  if (keep == m) {  // the common case: no subsampling, no division per point
+    for (size_t j = 0; j < keep; ++j) kept_[j] = points[hull_[j].id];
+  } else {
+    for (size_t j = 0; j < keep; ++j) kept_[j] = points[hull_[j * m / keep].id];
+  }
   std::copy(kept_.begin(), kept_.end(), points.begin());
   return keep;
 }

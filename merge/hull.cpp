@@ -19,26 +19,40 @@ double turn(const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
 }  // namespace
 
 void convexHull(std::span<HullPoint> points, std::vector<HullPoint>& hull) {
-  hull.clear();
-  std::sort(points.begin(), points.end(), [](const HullPoint& a, const HullPoint& b) {
+  auto less = [](const HullPoint& a, const HullPoint& b) {
     return a.p.x < b.p.x || (a.p.x == b.p.x && a.p.y < b.p.y);
-  });
-  const auto last = std::unique(points.begin(), points.end(),
-                                [](const HullPoint& a, const HullPoint& b) { return a.p == b.p; });
-  const size_t n = size_t(last - points.begin());
+  };
+  // Nearly all calls have a handful of points (a cluster of two triangles has six): a plain
+  // insertion sort skips std::sort's dispatch, and the chains are built in a buffer that only
+  // grows (resizing from empty would zero it on every call).
+  const size_t count = points.size();
+  if (count <= 32) {
+    for (size_t i = 1; i < count; ++i) {
+      const HullPoint v = points[i];
+      size_t j = i;
+      for (; j > 0 && less(v, points[j - 1]); --j) points[j] = points[j - 1];
+      points[j] = v;
+    }
+  } else {
+    std::sort(points.begin(), points.end(), less);
+  }
+  size_t n = count > 0 ? 1 : 0;  // std::unique: keep the first of equal points
+  for (size_t i = 1; i < count; ++i)
+    if (points[i].p != points[n - 1].p) points[n++] = points[i];
   if (n <= 2) {
-    hull.assign(points.begin(), last);
+    hull.assign(points.begin(), points.begin() + ptrdiff_t(n));
     return;
   }
-  hull.resize(2 * n);
+  if (hull.size() < 2 * n) hull.resize(2 * n);
+  HullPoint* h = hull.data();
   size_t k = 0;
   for (size_t i = 0; i < n; ++i) {  // lower chain
-    while (k >= 2 && turn(hull[k - 2].p, hull[k - 1].p, points[i].p) <= 0) --k;
-    hull[k++] = points[i];
+    while (k >= 2 && turn(h[k - 2].p, h[k - 1].p, points[i].p) <= 0) --k;
+    h[k++] = points[i];
   }
   for (size_t i = n - 1, t = k + 1; i-- > 0;) {  // upper chain
-    while (k >= t && turn(hull[k - 2].p, hull[k - 1].p, points[i].p) <= 0) --k;
-    hull[k++] = points[i];
+    while (k >= t && turn(h[k - 2].p, h[k - 1].p, points[i].p) <= 0) --k;
+    h[k++] = points[i];
   }
   hull.resize(k - 1);  // the last point repeats the first
 }
