@@ -94,6 +94,20 @@ TEST(Hull, SquareWithDuplicatesAndEdgePoints) {
   EXPECT_NEAR(minAreaRect(h).area(), 1.0, 1e-12);
 }
 
+// Repeated grid points, below and above convexHull's insertion-sort limit (32): duplicates and
+// collinear edge points are dropped on both paths.
+TEST(Hull, RepeatedGridBothSortPaths) {
+  for (int copies : {2, 5}) {
+    std::vector<glm::dvec2> pts;
+    for (int c = 0; c < copies; ++c)
+      for (int i = 0; i < 9; ++i) pts.push_back({double(i % 3), double(i / 3)});
+    const std::vector<HullPoint> h = hullOf(pts);
+    ASSERT_EQ(h.size(), 4u) << copies;
+    expectConvexHullOf(h, pts);
+    EXPECT_NEAR(minAreaRect(h).area(), 4.0, 1e-12);
+  }
+}
+
 TEST(Hull, RotatedSquareGivesRotatedRectangle) {
   // The 45-degree square must give itself (area 2), not its axis-aligned box (area 4).
   const std::vector<glm::dvec2> pts = {{1, 0}, {0, 1}, {-1, 0}, {0, -1}, {0, 0}, {0.2, 0.3}};
