@@ -1,6 +1,7 @@
 // Input validation and the mesh-wide origin of the merge.
 #include "merge/face_geometry.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -14,6 +15,17 @@ namespace {
 
 // Node ids and face positions share 31 bits with the kFaceChild flag (merge.h).
 constexpr size_t kMaxTriangles = size_t{0x7FFFFFFF};
+constexpr int kMortonBits = 21;  // per axis: 63 bits in all
+
+uint64_t spreadBits(uint64_t x) {
+  x &= 0x1FFFFF;
+  x = (x | x << 32) & 0x1F00000000FFFFull;
+  x = (x | x << 16) & 0x1F0000FF0000FFull;
+  x = (x | x << 8) & 0x100F00F00F00F00Full;
+  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
 
 }  // namespace
 
@@ -96,6 +108,17 @@ double FaceGeometry::sharedLength(uint32_t f, uint32_t g) const {
     if (!repeated) length += glm::length(position(a) - position(b));
   }
   return length;
+}
+
+uint64_t FaceGeometry::mortonCode(const glm::dvec3& p) const {
+  uint64_t code = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double extent = halfExtent_[axis];
+    double t = extent > 0 ? (p[axis] + extent) / (2 * extent) : 0.5;
+    t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.5;
+    code |= spreadBits(static_cast<uint64_t>(t * ((1u << kMortonBits) - 1))) << axis;
+  }
+  return code;
 }
 
 }  // namespace facetree

@@ -43,6 +43,10 @@ class FaceGeometry {
   // Squared diagonal of the bounding box, > 0 (1 for a mesh collapsed to a point).
   double diagonalSquared() const { return diagonalSquared_; }
 
+  // 63-bit Morton code of a point relative to origin() within the bounding box (21 bits per
+  // axis; outside or non-finite coordinates are clamped / centred).
+  uint64_t mortonCode(const glm::dvec3& p) const;
+
  private:
   MeshView mesh_;
   uint32_t faceCount_ = 0;

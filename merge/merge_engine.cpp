@@ -12,8 +12,21 @@
 //    Global order: (key, cluster id), and each cluster's cheapest edge by (key, edge id).
 //  - Stats: single faces and pairs have none stored (recomputed from the triangles); larger
 //    clusters own a ClusterStats slot, recycled through a free list when they die.
-// Memory per face: edges 36 B, cluster records 16 B, list heads 4 B, heap ~9 B, slots ~22 B at
-// the peak (0.18 n live clusters of 3+ faces), merge records 36 B (the output in the making).
+//  - Balance guard (Willmott only, BuildOptions::balanceSlack): merges that would make a
+//    subtree taller than slack * balanced pay a steep factor, and are blocked past
+//    kBalanceBlockExcess levels (those pieces are joined with the components).
+// Memory per face: edges 36 B, cluster records 24 B (with face count, pair partner or height),
+// list heads 4 B, heap ~9 B, slots ~22 B at the peak (0.18 n live clusters of 3+ faces), merge
+// records 36 B (the output in the making).
+// Profile (callgrind, turbine_blade_200k): ~6.5k instructions per face at ~0.5 IPC; leafStats
+// (recomputed ~14 times per face) 25%, the loop's heap sifts and rescans 20%, relinking and
+// re-costing 20%, the dual graph 12%, eq. 84 10%. Renumbering faces in Morton order (and
+// vertices by first use) cut simulated cache misses 20% but saved only 0-10% of time on
+// scans, cost 10-25% on already coherent grids and 16 B/face: not kept. The real cause is the
+// pop order: a flat 871k grid, whose ties pop in id order, merges in 0.8 s, the same grid made
+// bumpy (random key order, same layout) in 2.9 s: ~35 dependent DRAM misses per merge.
+// Prefetching the records, edges and stats of the heap's next candidates (levels 1-2) did
+// not help measurably either (the chain of a merge is deeper than two levels).
 #include "merge/merge_engine.h"
 
 #include <algorithm>
@@ -35,7 +48,6 @@ constexpr uint32_t kNone = DualGraph::kNone;
 constexpr uint32_t kLeafSlot = 0xFFFFFFFFu;  // a single face: stats from the triangle
 constexpr uint32_t kDeadSlot = 0xFFFFFFFEu;  // merged into another cluster
 constexpr uint32_t kPairBit = 0x80000000u;   // | node index: two faces, stats from the triangles
-constexpr int kMortonBits = 21;              // per axis, for the component joins
 // Balance guard (BuildOptions::balanceSlack): a merge of height h' over n' faces with
 // h' > H = slack * (ceil(log2 n') + 1) costs eq. 84 times kBalancePenaltyBase^(h' - H).
 // Graded meshes (openfoam_buildings: triangle sizes grow geometrically away from the
@@ -57,16 +69,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-uint64_t spreadBits(uint64_t x) {
-  x &= 0x1FFFFF;
-  x = (x | x << 32) & 0x1F00000000FFFFull;
-  x = (x | x << 16) & 0x1F0000FF0000FFull;
-  x = (x | x << 8) & 0x100F00F00F00F00Full;
-  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
-  x = (x | x << 2) & 0x1249249249249249ull;
-  return x;
-}
-
 template <class Policy>
 class MergeEngine {
  public:
@@ -83,12 +85,11 @@ class MergeEngine {
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
     auto start = std::chrono::steady_clock::now();
-    clusters_.assign(n, ClusterRecord{kLeafSlot, kNone, 0.0f, kNoEdge});
+    clusters_.assign(n, ClusterRecord{kLeafSlot, kNone, 0.0f, kNoEdge, 1, 1});
     result_.records.reserve(n - 1);  // touched as merges happen
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
-    if (guard_) shape_.assign(n, Shape{1, 1});
     // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
     uint32_t first = kNone;
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
@@ -172,11 +173,6 @@ class MergeEngine {
   static constexpr uint32_t kDirty = 0x80000000u;
   static constexpr size_t kCacheLine = 64;
 
-  // Face count and subtree height (faces: 1) of a cluster, for the balance guard.
-  struct Shape {
-    uint32_t count;
-    uint32_t height;
-  };
   struct Cluster {
     ClusterStats stats;
     [[no_unique_address]] Extra extra;
@@ -191,7 +187,14 @@ class MergeEngine {
     uint32_t stamp;    // the edge joining it to the cluster being merged, if set in this merge
     float minKey;      // its cheapest edge's key (a lower bound while kDirty is set)
     uint32_t minEdge;  // its cheapest edge (ties: lowest id), kNoEdge, | kDirty when unknown
+    // Face count, and for a pair its second face, else its subtree height (faces: 1): read for
+    // every neighbour while re-costing, so kept here rather than behind the slot or the
+    // merge record (each a cache miss).
+    uint32_t count;
+    uint32_t aux;
   };
+  static bool isPair(uint32_t slot) { return (slot & kPairBit) && slot < kDeadSlot; }
+  uint32_t height(const ClusterRecord& r) const { return isPair(r.slot) ? 2 : r.aux; }
 
   // The stats of cluster c: its slot, or for one or two faces `scratch` filled from the
   // triangles. Clusters of two faces get no slot: at the peak most live clusters are pairs,
@@ -203,7 +206,7 @@ class MergeEngine {
       return scratch;
     }
     if (s & kPairBit) {
-      const uint32_t other = result_.records[s & ~kPairBit].child[1] & ~kFaceChild;
+      const uint32_t other = clusters_[c].aux;
       scratch = {ClusterStats::merged(geometry_.leafStats(c), geometry_.leafStats(other),
                                       geometry_.sharedLength(c, other)),
                  Policy::merge(policy_.leafExtra(c), policy_.leafExtra(other))};
@@ -216,11 +219,7 @@ class MergeEngine {
     if (s == kLeafSlot) return kFaceChild | c;
     return (s & kPairBit) ? (s & ~kPairBit) : slots_[s].node;
   }
-  uint32_t faceCount(uint32_t c) const {
-    const uint32_t s = clusters_[c].slot;
-    if (s == kLeafSlot) return 1;
-    return (s & kPairBit) ? 2 : result_.records[slots_[s].node].faceCount();
-  }
+  uint32_t faceCount(uint32_t c) const { return clusters_[c].count; }
 
   // The heap key of merging clusters ia and ib (stats a and b) along `shared` boundary.
   float key(const Cluster& a, const Cluster& b, double shared, uint32_t ia, uint32_t ib) {
@@ -238,11 +237,11 @@ class MergeEngine {
   // Depends only on the two clusters, so only the merged cluster's edges change their penalty
   // after a merge (the lazy heap's invariant).
   double balanceExcess(uint32_t ia, uint32_t ib) const {
-    const Shape& x = shape_[ia];
-    const Shape& y = shape_[ib];
+    const ClusterRecord& x = clusters_[ia];
+    const ClusterRecord& y = clusters_[ib];
     const uint32_t n = x.count + y.count;
     const double allowance = balanceSlack_ * (std::bit_width(n - 1) + 1);  // ceil(log2 n) + 1
-    return std::max(x.height, y.height) + 1 - allowance;
+    return std::max(height(x), height(y)) + 1 - allowance;
   }
 
   void pushEntry(float k, uint32_t c) {
@@ -295,10 +294,11 @@ class MergeEngine {
   // The merge is bound by memory latency (clusters popped in cost order are scattered): while
   // the adjacency lists are relinked, start loading what the re-costing of each neighbour
   // will read (its slot, or its triangle's indices).
-  void prefetchStats(uint32_t x, uint32_t slot) const {
+  void prefetchStats(uint32_t x, const ClusterRecord& r) const {
+    const uint32_t slot = r.slot;
     if (slot == kLeafSlot || (slot & kPairBit)) {
       __builtin_prefetch(geometry_.mesh().indices.data() + size_t{3} * x);
-      if (slot != kLeafSlot) __builtin_prefetch(&result_.records[slot & ~kPairBit]);
+      if (slot != kLeafSlot) __builtin_prefetch(geometry_.mesh().indices.data() + size_t{3} * r.aux);
     } else {
       const char* p = reinterpret_cast<const char*>(&slots_[slot]);
       for (size_t offset = 0; offset < sizeof(Slot); offset += kCacheLine) __builtin_prefetch(p + offset);
@@ -330,9 +330,12 @@ class MergeEngine {
     // Two faces make a pair (no slot). Otherwise the merged cluster reuses a's slot, else b's,
     // else a free one; a slot left over goes to the free list.
     const uint32_t sa = clusters_[a].slot, sb = clusters_[b].slot;
+    const uint32_t mergedHeight = std::max(height(clusters_[a]), height(clusters_[b])) + 1;
+    clusters_[a].count += clusters_[b].count;
     const bool slotA = !(sa & kPairBit), slotB = !(sb & kPairBit);  // leaf and dead have the bit
     if (sa == kLeafSlot && sb == kLeafSlot && !joining && pairRecomputable(a, b, graph_.edges[e].shared)) {
       clusters_[a].slot = kPairBit | index;
+      clusters_[a].aux = b;
     } else {
       uint32_t slot;
       if (slotA) {
@@ -349,11 +352,9 @@ class MergeEngine {
       }
       slots_[slot] = {c, index};
       clusters_[a].slot = slot;
+      clusters_[a].aux = mergedHeight;
     }
     clusters_[b].slot = kDeadSlot;
-    if (guard_) {
-      shape_[a] = {shape_[a].count + shape_[b].count, std::max(shape_[a].height, shape_[b].height) + 1};
-    }
     peakSlots_ = std::max(peakSlots_, slots_.size() - freeSlots_.size());
     if (joining) return;
     kill(graph_.edges[e]);
@@ -377,7 +378,7 @@ class MergeEngine {
         }
         edge.end[side] = a;
         ClusterRecord& rx = clusters_[x];
-        prefetchStats(x, rx.slot);
+        prefetchStats(x, rx);
         const uint32_t s = rx.stamp;
         if (s != kNone) {
           // A live edge from a to x was kept earlier in this pass: fold this one into it.
@@ -435,20 +436,13 @@ class MergeEngine {
   void joinComponents() {
     const uint32_t n = geometry_.faceCount();
     std::vector<std::pair<uint64_t, uint32_t>> roots;
-    const glm::dvec3 extent = geometry_.halfExtent();
     for (uint32_t c = 0; c < n; ++c) {
       if (clusters_[c].slot == kDeadSlot) continue;
       const ClusterStats& s = cluster(c, scratch_[0]).stats;
       glm::dvec3 p = s.area > 0
                          ? s.firstMoment / s.area
                          : (geometry_.corner(c, 0) + geometry_.corner(c, 1) + geometry_.corner(c, 2)) / 3.0;
-      uint64_t code = 0;
-      for (int axis = 0; axis < 3; ++axis) {
-        double t = extent[axis] > 0 ? (p[axis] + extent[axis]) / (2 * extent[axis]) : 0.5;
-        t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.5;
-        code |= spreadBits(static_cast<uint64_t>(t * ((1u << kMortonBits) - 1))) << axis;
-      }
-      roots.emplace_back(code, c);
+      roots.emplace_back(geometry_.mortonCode(p), c);
     }
     result_.components = roots.size();
     std::sort(roots.begin(), roots.end());
@@ -479,7 +473,6 @@ class MergeEngine {
   double keyScale_;
   bool guard_;
   double balanceSlack_;
-  std::vector<Shape> shape_;  // per cluster id, only with the guard
   std::vector<ClusterRecord> clusters_;
   std::vector<Slot> slots_;
   Cluster scratch_[2];  // leaf stats computed on the fly
