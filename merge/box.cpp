@@ -131,7 +131,7 @@ uint32_t blockEnd(uint32_t i, uint32_t end) {
   return std::min<uint64_t>(end, (uint64_t(i) / kSideBlock + 1) * kSideBlock);
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && defined(__linux__)
+#if defined(__x86_64__) && defined(__GNUC__) && defined(__GLIBC__)  // ifunc: glibc only
 #define SCAN_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define SCAN_CLONES
