@@ -106,5 +106,25 @@ TEST(Cli, BuildIsByteIdenticalAcrossRuns) {
   for (const auto& path : {mesh, a, b}) std::filesystem::remove(path);
 }
 
+TEST(Cli, RenderAndExportACut) {
+  const std::string mesh = scratch("sphere_r.ply"), fch = scratch("sphere_r.fch"), png = scratch("cut.png"),
+                    ply = scratch("cut.ply");
+  ASSERT_EQ(runCli("gen sphere -n 5000 -o " + mesh).exitCode, 0);
+  ASSERT_EQ(runCli("build " + mesh + " -o " + fch).exitCode, 0);
+  auto render = runCli("render " + fch + " --cut 16 --width 320 --height 240 -o " + png);
+  ASSERT_EQ(render.exitCode, 0) << render.out;
+  EXPECT_EQ(render.out.rfind("rendered 16 clusters of " + fch + " to " + png + " (320x240)", 0), 0u)
+      << render.out;
+  EXPECT_EQ(fileBytes(png).substr(1, 3), "PNG");
+  auto depth = runCli("export " + fch + " --depth 3 -o " + ply);
+  ASSERT_EQ(depth.exitCode, 0) << depth.out;
+  EXPECT_EQ(depth.out, "exported 8 clusters of " + fch + " to " + ply + "\n");
+  const std::string header = fileBytes(ply).substr(0, 400);
+  EXPECT_NE(header.find("property uchar red"), std::string::npos) << header;
+  EXPECT_EQ(runCli("render " + fch + " --cut 4 --depth 2 -o " + png).exitCode, 2);
+  EXPECT_EQ(runCli("render " + mesh + " --cut 4 -o " + png).exitCode, 3) << "a mesh is not a cluster file";
+  for (const auto& path : {mesh, fch, png, ply}) std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace facetree
