@@ -12,6 +12,7 @@
 #include <bit>
 #include <cstring>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "stream/ply_header.h"
@@ -47,45 +48,39 @@ T loadScalar(const char* bytes, bool swap) {
   }
 }
 
-double loadReal(PlyScalar type, const char* bytes, bool swap) {
+// A scalar of any PLY type as Result. Integer results never come from float properties (the
+// header parser allows integer types only for list counts and indices): those read as 0.
+template <class Result>
+Result loadAs(PlyScalar type, const char* bytes, bool swap) {
   switch (type) {
     case PlyScalar::Int8:
-      return loadScalar<int8_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<int8_t>(bytes, swap));
     case PlyScalar::UInt8:
-      return loadScalar<uint8_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<uint8_t>(bytes, swap));
     case PlyScalar::Int16:
-      return loadScalar<int16_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<int16_t>(bytes, swap));
     case PlyScalar::UInt16:
-      return loadScalar<uint16_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<uint16_t>(bytes, swap));
     case PlyScalar::Int32:
-      return loadScalar<int32_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<int32_t>(bytes, swap));
     case PlyScalar::UInt32:
-      return loadScalar<uint32_t>(bytes, swap);
+      return static_cast<Result>(loadScalar<uint32_t>(bytes, swap));
     case PlyScalar::Float32:
-      return loadScalar<float>(bytes, swap);
+      if constexpr (std::is_floating_point_v<Result>) return loadScalar<float>(bytes, swap);
+      return 0;
     case PlyScalar::Float64:
-      return loadScalar<double>(bytes, swap);
+      if constexpr (std::is_floating_point_v<Result>) return loadScalar<double>(bytes, swap);
+      return 0;
   }
   return 0;
 }
 
+double loadReal(PlyScalar type, const char* bytes, bool swap) {
+  return loadAs<double>(type, bytes, swap);
+}
+
 int64_t loadInteger(PlyScalar type, const char* bytes, bool swap) {
-  switch (type) {
-    case PlyScalar::Int8:
-      return loadScalar<int8_t>(bytes, swap);
-    case PlyScalar::UInt8:
-      return loadScalar<uint8_t>(bytes, swap);
-    case PlyScalar::Int16:
-      return loadScalar<int16_t>(bytes, swap);
-    case PlyScalar::UInt16:
-      return loadScalar<uint16_t>(bytes, swap);
-    case PlyScalar::Int32:
-      return loadScalar<int32_t>(bytes, swap);
-    case PlyScalar::UInt32:
-      return loadScalar<uint32_t>(bytes, swap);
-    default:
-      return 0;  // the header parser allows integer types only here
-  }
+  return loadAs<int64_t>(type, bytes, swap);
 }
 
 struct BufferedTriangle {
