@@ -12,10 +12,12 @@ namespace {
 constexpr glm::vec3 kDefaultViewDirection{-1.0f, -1.3f, -0.8f};
 constexpr glm::vec3 kDefaultUp{0.0f, 0.0f, 1.0f};
 constexpr glm::vec3 kFallbackUp{0.0f, 1.0f, 0.0f};
-constexpr float kParallelSine = 1e-3f;  // |forward x up| below it: up is parallel to the view
+constexpr float kParallelSine = 1e-3f;    // |forward x up| below it: up is parallel to the view
 constexpr float kMarginFraction = 0.05f;  // of the image size on each side
 
-bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool isFinite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 bool usableUp(const glm::vec3& forward, const glm::vec3& up) {
   const float length = glm::length(up);
@@ -52,7 +54,8 @@ std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::
   }
 
   // Extent of the referenced vertices on the screen plane.
-  glm::vec2 lowView(std::numeric_limits<float>::infinity()), highView(-std::numeric_limits<float>::infinity());
+  glm::vec2 lowView(std::numeric_limits<float>::infinity()),
+      highView(-std::numeric_limits<float>::infinity());
   for (uint32_t index : indices) {
     const glm::vec3& v = view[index];
     if (!isFinite(v)) continue;

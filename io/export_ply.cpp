@@ -13,7 +13,8 @@
 
 namespace facetree {
 namespace {
-static_assert(std::endian::native == std::endian::little, "facetree writes little-endian PLY on little-endian hosts");
+static_assert(std::endian::native == std::endian::little,
+              "facetree writes little-endian PLY on little-endian hosts");
 constexpr size_t kVertexBytes = 12;  // float x, y, z
 constexpr size_t kFaceBytes = 16;    // uchar 3, int a, b, c, uchar red, green, blue
 constexpr size_t kRecordBatch = 1 << 16;
@@ -30,7 +31,8 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
   OutputFile out(path);
   out.write("ply\nformat binary_little_endian 1.0\ncomment facetree clusters\nelement vertex " +
             std::to_string(mesh.positions.size()) +
-            "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(triangles) +
+            "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+            std::to_string(triangles) +
             "\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\n"
             "property uchar blue\nend_header\n");
 
@@ -39,7 +41,8 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
   for (size_t first = 0; first < mesh.positions.size(); first += kRecordBatch) {
     const size_t count = std::min(kRecordBatch, mesh.positions.size() - first);
     batch.resize(count * kVertexBytes);
-    for (size_t i = 0; i < count; ++i) std::memcpy(&batch[i * kVertexBytes], &mesh.positions[first + i], kVertexBytes);
+    for (size_t i = 0; i < count; ++i)
+      std::memcpy(&batch[i * kVertexBytes], &mesh.positions[first + i], kVertexBytes);
     out.write(batch.data(), batch.size());
   }
   for (size_t first = 0; first < triangles; first += kRecordBatch) {
@@ -49,7 +52,8 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
       const size_t t = first + i;
       unsigned char* record = &batch[i * kFaceBytes];
       record[0] = 3;
-      const int32_t index[3] = {static_cast<int32_t>(mesh.indices[3 * t]), static_cast<int32_t>(mesh.indices[3 * t + 1]),
+      const int32_t index[3] = {static_cast<int32_t>(mesh.indices[3 * t]),
+                                static_cast<int32_t>(mesh.indices[3 * t + 1]),
                                 static_cast<int32_t>(mesh.indices[3 * t + 2])};
       std::memcpy(record + 1, index, sizeof index);
       const glm::u8vec3 colour = clusterColour(faceCluster[t]);

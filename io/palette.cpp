@@ -31,12 +31,18 @@ glm::vec3 hsvToRgb(float hue, float saturation, float value) {
   const float q = value * (1.0f - saturation * f);
   const float t = value * (1.0f - saturation * (1.0f - f));
   switch (sector) {
-    case 0: return {value, t, p};
-    case 1: return {q, value, p};
-    case 2: return {p, value, t};
-    case 3: return {p, q, value};
-    case 4: return {t, p, value};
-    default: return {value, p, q};
+    case 0:
+      return {value, t, p};
+    case 1:
+      return {q, value, p};
+    case 2:
+      return {p, value, t};
+    case 3:
+      return {p, q, value};
+    case 4:
+      return {t, p, value};
+    default:
+      return {value, p, q};
   }
 }
 }  // namespace
@@ -57,7 +63,8 @@ void checkClusterMesh(const MeshView& mesh, std::span<const uint32_t> faceCluste
                                 " is not a multiple of 3");
   if (faceCluster.size() != mesh.triangleCount())
     throw std::invalid_argument(prefix + "faceCluster has " + std::to_string(faceCluster.size()) +
-                                " entries but the mesh has " + std::to_string(mesh.triangleCount()) + " triangles");
+                                " entries but the mesh has " + std::to_string(mesh.triangleCount()) +
+                                " triangles");
   const size_t vertexCount = mesh.positions.size();
   for (size_t i = 0; i < mesh.indices.size(); ++i) {
     if (mesh.indices[i] >= vertexCount)

@@ -31,7 +31,9 @@ int64_t edge(const FixedPoint& a, const FixedPoint& b, const FixedPoint& p) {
 
 // Top-left rule: of two triangles sharing an edge, which traverse it in opposite directions,
 // exactly one owns the samples on it.
-bool ownsEdge(const FixedPoint& a, const FixedPoint& b) { return b.y > a.y || (b.y == a.y && b.x < a.x); }
+bool ownsEdge(const FixedPoint& a, const FixedPoint& b) {
+  return b.y > a.y || (b.y == a.y && b.x < a.x);
+}
 }  // namespace
 
 SampleBuffer::SampleBuffer(int width, int height)
@@ -54,7 +56,9 @@ void SampleBuffer::drawTriangle(const glm::vec3& a, const glm::vec3& b, const gl
   }
 
   // Samples whose centres can lie inside, clamped to the buffer.
-  const auto firstSample = [](int64_t low) { return (low - kHalfSample + (1 << kSubpixelBits) - 1) >> kSubpixelBits; };
+  const auto firstSample = [](int64_t low) {
+    return (low - kHalfSample + (1 << kSubpixelBits) - 1) >> kSubpixelBits;
+  };
   const auto lastSample = [](int64_t high) { return (high - kHalfSample) >> kSubpixelBits; };
   const int64_t minX = std::max<int64_t>(firstSample(std::min({p0.x, p1.x, p2.x})), 0);
   const int64_t maxX = std::min<int64_t>(lastSample(std::max({p0.x, p1.x, p2.x})), width_ - 1);

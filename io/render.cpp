@@ -26,11 +26,11 @@
 
 namespace facetree {
 namespace {
-constexpr int kSupersample = 2;          // samples per pixel along each axis, box filtered
-constexpr int kMaxImageSide = 16384;     // pixels
-constexpr int kChannels = 3;             // RGB
-constexpr float kAmbient = 0.30f;        // shade = ambient + diffuse * |cos(normal, light)|
-constexpr float kDiffuse = 0.70f;
+constexpr int kSupersample = 2;       // samples per pixel along each axis, box filtered
+constexpr int kMaxImageSide = 16384;  // pixels
+constexpr int kChannels = 3;          // RGB
+constexpr float kAmbient = 0.40f;     // shade = ambient + diffuse * |cos(normal, light)|
+constexpr float kDiffuse = 0.60f;
 // Towards the light in view space (right, up, towards the camera): a headlight raised a little
 // and moved left so faces at different angles get different shades.
 constexpr glm::vec3 kLightInView{-0.35f, 0.5f, 1.0f};
@@ -38,12 +38,16 @@ constexpr glm::vec3 kBackground{248.0f, 248.0f, 248.0f};
 constexpr glm::vec3 kEdgeColour{25.0f, 25.0f, 30.0f};
 constexpr float kEdgeStrength = 0.8f;  // of a sample on a cluster boundary or the silhouette
 
-bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool isFinite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 void checkOptions(const RenderOptions& options) {
-  if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
+  if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide ||
+      options.height > kMaxImageSide)
     throw std::invalid_argument("renderClustersPng: image size " + std::to_string(options.width) + "x" +
-                                std::to_string(options.height) + " is outside 1.." + std::to_string(kMaxImageSide));
+                                std::to_string(options.height) + " is outside 1.." +
+                                std::to_string(kMaxImageSide));
 }
 
 void rasterize(const MeshView& mesh, std::span<const uint32_t> faceCluster, std::span<const glm::vec3> points,
@@ -70,7 +74,8 @@ void rasterize(const MeshView& mesh, std::span<const uint32_t> faceCluster, std:
 std::vector<unsigned char> resolve(const SampleBuffer& buffer, int width, int height) {
   const int sampleWidth = buffer.width(), sampleHeight = buffer.height();
   const auto differs = [&](size_t i, size_t j) {
-    return buffer.covered(i) != buffer.covered(j) || (buffer.covered(i) && buffer.cluster(i) != buffer.cluster(j));
+    return buffer.covered(i) != buffer.covered(j) ||
+           (buffer.covered(i) && buffer.cluster(i) != buffer.cluster(j));
   };
   uint32_t cachedCluster = 0;
   glm::vec3 cachedColour = glm::vec3(clusterColour(0));
@@ -96,9 +101,11 @@ std::vector<unsigned char> resolve(const SampleBuffer& buffer, int width, int he
     for (int x = 0; x < width; ++x) {
       glm::vec3 sum(0.0f);
       for (int sy = 0; sy < kSupersample; ++sy)
-        for (int sx = 0; sx < kSupersample; ++sx) sum += sampleColour(x * kSupersample + sx, y * kSupersample + sy);
+        for (int sx = 0; sx < kSupersample; ++sx)
+          sum += sampleColour(x * kSupersample + sx, y * kSupersample + sy);
       const glm::vec3 pixel = glm::clamp(glm::round(sum * kWeight), 0.0f, 255.0f);
-      unsigned char* out = &pixels[(static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)) * kChannels];
+      unsigned char* out =
+          &pixels[(static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)) * kChannels];
       out[0] = static_cast<unsigned char>(pixel.r);
       out[1] = static_cast<unsigned char>(pixel.g);
       out[2] = static_cast<unsigned char>(pixel.b);
@@ -112,8 +119,8 @@ std::vector<unsigned char> encodePng(const std::vector<unsigned char>& pixels, i
   std::vector<unsigned char> png;
   const auto append = [](void* context, void* data, int size) {
     auto* bytes = static_cast<unsigned char*>(data);
-    static_cast<std::vector<unsigned char>*>(context)->insert(static_cast<std::vector<unsigned char>*>(context)->end(),
-                                                              bytes, bytes + size);
+    static_cast<std::vector<unsigned char>*>(context)->insert(
+        static_cast<std::vector<unsigned char>*>(context)->end(), bytes, bytes + size);
   };
   if (stbi_write_png_to_func(append, &png, width, height, kChannels, pixels.data(), width * kChannels) == 0)
     throw IoError(path.string() + ": cannot encode PNG");
@@ -121,13 +128,14 @@ std::vector<unsigned char> encodePng(const std::vector<unsigned char>& pixels, i
 }
 }  // namespace
 
-void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster, const RenderOptions& options,
-                       const std::filesystem::path& path) {
+void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
+                       const RenderOptions& options, const std::filesystem::path& path) {
   checkOptions(options);
   checkClusterMesh(mesh, faceCluster, "renderClustersPng");
   const int sampleWidth = options.width * kSupersample, sampleHeight = options.height * kSupersample;
   const ViewBasis basis = makeViewBasis(options.viewDirection, options.up);
-  const std::vector<glm::vec3> points = toSampleSpace(mesh.positions, mesh.indices, basis, sampleWidth, sampleHeight);
+  const std::vector<glm::vec3> points =
+      toSampleSpace(mesh.positions, mesh.indices, basis, sampleWidth, sampleHeight);
   SampleBuffer buffer(sampleWidth, sampleHeight);
   rasterize(mesh, faceCluster, points, buffer);
   const std::vector<unsigned char> png =

@@ -110,8 +110,10 @@ TestMesh sphere(int rings, int segments) {
   for (int r = 0; r <= rings; ++r) {
     const float theta = std::numbers::pi_v<float> * static_cast<float>(r) / static_cast<float>(rings);
     for (int s = 0; s < segments; ++s) {
-      const float phi = 2.0f * std::numbers::pi_v<float> * static_cast<float>(s) / static_cast<float>(segments);
-      mesh.positions.emplace_back(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      const float phi =
+          2.0f * std::numbers::pi_v<float> * static_cast<float>(s) / static_cast<float>(segments);
+      mesh.positions.emplace_back(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                                  std::cos(theta));
     }
   }
   const auto vertex = [&](int r, int s) { return static_cast<uint32_t>(r * segments + s % segments); };
@@ -129,9 +131,10 @@ TestMesh sphere(int rings, int segments) {
 }
 
 class Scratch {
-public:
+ public:
   explicit Scratch(const std::string& name)
-      : dir_(std::filesystem::temp_directory_path() / ("facetree_render_" + name + std::to_string(::getpid()))) {
+      : dir_(std::filesystem::temp_directory_path() /
+             ("facetree_render_" + name + std::to_string(::getpid()))) {
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }
@@ -139,7 +142,7 @@ public:
   std::filesystem::path operator/(const std::string& name) const { return dir_ / name; }
   const std::filesystem::path& dir() const { return dir_; }
 
-private:
+ private:
   std::filesystem::path dir_;
 };
 
@@ -225,7 +228,8 @@ TEST(Camera, DefaultViewLooksDownAndFallsBackFromParallelUp) {
   EXPECT_LT(basis.forward.z, -0.3f) << "the default view looks down at the model";
   EXPECT_GT(basis.up.z, 0.5f);
   const ViewBasis top = makeViewBasis(glm::vec3(0, 0, -2), glm::vec3(0, 0, 1));
-  EXPECT_NEAR(glm::length(top.up - glm::vec3(0, 1, 0)), 0.0f, 1e-6f) << "up parallel to the view falls back to +y";
+  EXPECT_NEAR(glm::length(top.up - glm::vec3(0, 1, 0)), 0.0f, 1e-6f)
+      << "up parallel to the view falls back to +y";
   for (const ViewBasis& b : {basis, top}) {
     EXPECT_NEAR(glm::length(b.right), 1.0f, 1e-5f);
     EXPECT_NEAR(glm::length(b.up), 1.0f, 1e-5f);
