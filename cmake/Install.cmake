@@ -2,6 +2,11 @@
 # package config in the prefix, so another project can `find_package(facetree)`.
 include(CMakePackageConfigHelpers)
 
+# A sanitized library needs the sanitizer runtime in whatever links it, installed consumers too.
+if(FACETREE_SANITIZE)
+  target_link_options(facetree INTERFACE -fsanitize=address,undefined)
+endif()
+
 install(TARGETS facetree facetree_zstd EXPORT facetreeTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
