@@ -30,6 +30,9 @@ class DracoReader final : public ReaderBase {
     mesh_ = std::move(decoded).value();
     const draco::PointAttribute* positions = mesh_->GetNamedAttribute(draco::GeometryAttribute::POSITION);
     if (positions == nullptr) fail("draco mesh has no position attribute");
+    // ConvertValue reads a DT_BOOL attribute as C++ bool: any byte but 0 and 1 is undefined.
+    if (positions->data_type() < draco::DT_INT8 || positions->data_type() > draco::DT_FLOAT64)
+      fail("draco position attribute has unsupported data type " + std::to_string(positions->data_type()));
     if (positions->num_components() != kPositionComponents)
       fail("draco position attribute has " + std::to_string(positions->num_components()) + " components");
     info_.declaredVertices = mesh_->num_points();
@@ -49,7 +52,14 @@ class DracoReader final : public ReaderBase {
     size_t count = 0;
     for (; count < capacity && next_ < mesh_->num_faces(); ++count, ++next_) {
       const draco::Mesh::Face& face = mesh_->face(draco::FaceIndex(next_));
-      for (int corner = 0; corner < 3; ++corner) out[count].vertex[corner] = face[corner].value();
+      for (int corner = 0; corner < 3; ++corner) {
+        // Draco's sequential decoder does not check stored (uncompressed) indices.
+        const uint32_t index = face[corner].value();
+        if (index >= mesh_->num_points())
+          fail("face " + std::to_string(next_) + ": vertex index " + std::to_string(index) +
+               " out of range (" + std::to_string(mesh_->num_points()) + " vertices)");
+        out[count].vertex[corner] = index;
+      }
       out[count].face = next_;
     }
     stats_.faces += count;

@@ -63,5 +63,33 @@ TEST(StreamDraco, CorruptStreamIsOneClearError) {
   EXPECT_EQ(message.rfind(path.string() + ": byte 0: draco decoding failed: ", 0), 0u) << message;
 }
 
+// Found by fuzz_draco: draco's sequential decoder accepts stored face indices beyond the
+// point count; the reader must reject them instead of reading past its vertex array.
+TEST(StreamDraco, FaceIndexOutOfRangeIsAnError) {
+  std::string bytes = encodeDraco(test::pyramid());
+  // Header (11 bytes), then 6 faces, 5 points, indices stored as bytes (method 1), 3 per face.
+  ASSERT_GT(bytes.size(), 21u);
+  ASSERT_EQ(bytes.substr(11, 3), std::string("\x06\x05\x01", 3));
+  bytes[11 + 3 + 2 * 3 + 1] = 59;  // face 2, corner 1
+  test::TempDir dir;
+  const auto path = dir.write("bad_index.drc", bytes);
+  EXPECT_EQ(test::errorOf([&] { test::readFile(path); }),
+            path.string() + ": byte 0: face 2: vertex index 59 out of range (5 vertices)");
+}
+
+// Found by fuzz_draco: a position attribute declared bool is rejected (draco would read its
+// bytes as C++ bool, undefined for values other than 0 and 1).
+TEST(StreamDraco, BoolPositionAttributeIsAnError) {
+  std::string bytes = encodeDraco(test::pyramid());
+  // After the 18 face indices: 1 attribute decoder, 1 attribute, type POSITION, data type FLOAT32 (9).
+  ASSERT_GT(bytes.size(), 35u);
+  ASSERT_EQ(bytes.substr(32, 4), std::string("\x01\x01\x00\x09", 4));
+  bytes[35] = draco::DT_BOOL;
+  test::TempDir dir;
+  const auto path = dir.write("bool.drc", bytes);
+  EXPECT_EQ(test::errorOf([&] { test::readFile(path); }),
+            path.string() + ": byte 0: draco position attribute has unsupported data type 11");
+}
+
 }  // namespace
 }  // namespace facetree

@@ -1,0 +1,53 @@
+// fuzz_zstd: a zstd stream around any mesh format, opened as openMesh does (stream.cpp
+// openInput) except that the decompressed stream is cut after kMaxDecompressedBytes, so that
+// a decompression bomb reads as a truncated mesh instead of timing out.
+#include <cstddef>
+#include <cstdint>
+
+#include "fuzz_stream.h"
+#include "stream/format_detect.h"
+#include "stream/readers.h"
+
+using namespace facetree;
+using namespace facetree::stream_detail;
+
+namespace {
+
+std::unique_ptr<TriangleReader> openZstd(const uint8_t* data, size_t size, size_t bufferBytes) {
+  auto raw = fuzz::memoryInput(data, size, true, bufferBytes);
+  if (detectFormat(*raw, raw->size()) != DetectedFormat::Zstd) return nullptr;
+  auto decompressed = std::make_unique<fuzz::CappedSource>(makeZstdSource(std::move(raw), "fuzz"),
+                                                           fuzz::kMaxDecompressedBytes);
+  auto input = std::make_unique<InputBuffer>(std::move(decompressed), bufferBytes);
+  MeshInfo info;
+  info.name = "fuzz";
+  info.zstdCompressed = true;
+  switch (detectFormat(*input, std::nullopt)) {
+    case DetectedFormat::Empty:
+    case DetectedFormat::Unknown:
+    case DetectedFormat::Zstd:  // openInput rejects all three with a ReadError
+      throw ReadError("fuzz: byte 0: no mesh format inside zstd");
+    case DetectedFormat::Ply:
+      return makePlyReader(std::move(input), std::move(info));
+    case DetectedFormat::Draco:
+      return makeDracoReader(std::move(input), std::move(info));
+    case DetectedFormat::Obj:
+      return makeObjReader(std::move(input), std::move(info));
+    case DetectedFormat::StlAscii:
+      info.format = MeshFormat::StlAscii;
+      return makeStlReader(std::move(input), std::move(info));
+    case DetectedFormat::StlBinary:
+      info.format = MeshFormat::StlBinary;
+      return makeStlReader(std::move(input), std::move(info));
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  // zstd error offsets depend on how much output was asked for: compare outcomes, not messages.
+  fuzz::drainTwice([&](size_t bufferBytes) { return openZstd(data, size, bufferBytes); },
+                   /*exactErrors=*/false);
+  return 0;
+}
