@@ -6,6 +6,7 @@
 #include <string>
 
 #include "stream/byte_source.h"
+#include "stream/format_detect.h"
 #include "stream/stream.h"
 
 namespace facetree::stream_detail {
@@ -16,6 +17,10 @@ std::unique_ptr<TriangleReader> makePlyReader(std::unique_ptr<InputBuffer> input
 std::unique_ptr<TriangleReader> makeObjReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
 std::unique_ptr<TriangleReader> makeStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
 std::unique_ptr<TriangleReader> makeDracoReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
+
+// The reader for an already detected mesh format; nullptr for Empty, Unknown and Zstd.
+std::unique_ptr<TriangleReader> makeReader(DetectedFormat format, std::unique_ptr<InputBuffer> input,
+                                           MeshInfo info);
 
 // Detects the format of `input` (unwrapping zstd) and opens the matching reader.
 std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, const std::string& name,

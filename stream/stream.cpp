@@ -46,12 +46,18 @@ std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, co
     if (format == DetectedFormat::Zstd)
       throwReadError(name, Place::byte(0), "zstd inside zstd is not supported");
   }
+  if (format == DetectedFormat::Empty) throwReadError(name, Place::byte(0), "empty file");
+  if (auto reader = makeReader(format, std::move(input), std::move(info))) return reader;
+  throwReadError(name, Place::byte(0), "unknown mesh format");
+}
+
+std::unique_ptr<TriangleReader> makeReader(DetectedFormat format, std::unique_ptr<InputBuffer> input,
+                                           MeshInfo info) {
   switch (format) {
     case DetectedFormat::Empty:
-      throwReadError(name, Place::byte(0), "empty file");
     case DetectedFormat::Unknown:
     case DetectedFormat::Zstd:
-      throwReadError(name, Place::byte(0), "unknown mesh format");
+      return nullptr;
     case DetectedFormat::Ply:
       return makePlyReader(std::move(input), std::move(info));
     case DetectedFormat::Draco:
@@ -65,7 +71,7 @@ std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, co
       info.format = MeshFormat::StlBinary;
       return makeStlReader(std::move(input), std::move(info));
   }
-  throwReadError(name, Place::byte(0), "unknown mesh format");
+  return nullptr;
 }
 
 std::unique_ptr<TriangleReader> openFileDescriptor(int fd, const std::string& name,

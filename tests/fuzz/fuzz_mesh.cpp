@@ -36,22 +36,7 @@ bool wanted(DetectedFormat format) {
 std::unique_ptr<TriangleReader> openDetected(std::unique_ptr<InputBuffer> input, DetectedFormat format) {
   MeshInfo info;
   info.name = "fuzz";
-  switch (format) {
-    case DetectedFormat::Ply:
-      return makePlyReader(std::move(input), std::move(info));
-    case DetectedFormat::Obj:
-      return makeObjReader(std::move(input), std::move(info));
-    case DetectedFormat::Draco:
-      return makeDracoReader(std::move(input), std::move(info));
-    case DetectedFormat::StlAscii:
-      info.format = MeshFormat::StlAscii;
-      return makeStlReader(std::move(input), std::move(info));
-    case DetectedFormat::StlBinary:
-      info.format = MeshFormat::StlBinary;
-      return makeStlReader(std::move(input), std::move(info));
-    default:
-      return nullptr;
-  }
+  return makeReader(format, std::move(input), std::move(info));
 }
 
 }  // namespace

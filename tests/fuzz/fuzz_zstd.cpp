@@ -22,25 +22,10 @@ std::unique_ptr<TriangleReader> openZstd(const uint8_t* data, size_t size, size_
   MeshInfo info;
   info.name = "fuzz";
   info.zstdCompressed = true;
-  switch (detectFormat(*input, std::nullopt)) {
-    case DetectedFormat::Empty:
-    case DetectedFormat::Unknown:
-    case DetectedFormat::Zstd:  // openInput rejects all three with a ReadError
-      throw ReadError("fuzz: byte 0: no mesh format inside zstd");
-    case DetectedFormat::Ply:
-      return makePlyReader(std::move(input), std::move(info));
-    case DetectedFormat::Draco:
-      return makeDracoReader(std::move(input), std::move(info));
-    case DetectedFormat::Obj:
-      return makeObjReader(std::move(input), std::move(info));
-    case DetectedFormat::StlAscii:
-      info.format = MeshFormat::StlAscii;
-      return makeStlReader(std::move(input), std::move(info));
-    case DetectedFormat::StlBinary:
-      info.format = MeshFormat::StlBinary;
-      return makeStlReader(std::move(input), std::move(info));
-  }
-  return nullptr;
+  const DetectedFormat format = detectFormat(*input, std::nullopt);
+  if (auto reader = makeReader(format, std::move(input), std::move(info))) return reader;
+  // openInput rejects Empty, Unknown and zstd-in-zstd with a ReadError too.
+  throw ReadError("fuzz: byte 0: no mesh format inside zstd");
 }
 
 }  // namespace
