@@ -73,6 +73,11 @@ DetectedFormat detectFormat(InputBuffer& input, std::optional<uint64_t> size) {
   if (window.size() >= kZstdMagic.size() &&
       std::memcmp(window.data(), kZstdMagic.data(), kZstdMagic.size()) == 0)
     return DetectedFormat::Zstd;
+  // A skippable frame first (pzstd writes one before its frames): magic 0x184D2A50-5F, LE.
+  if (window.size() >= 4 && (static_cast<unsigned char>(window[0]) & 0xF0) == 0x50 &&
+      static_cast<unsigned char>(window[1]) == 0x2A && static_cast<unsigned char>(window[2]) == 0x4D &&
+      static_cast<unsigned char>(window[3]) == 0x18)
+    return DetectedFormat::Zstd;
   if (startsWith(window, "ply\n") || startsWith(window, "ply\r\n")) return DetectedFormat::Ply;
   if (startsWith(window, kDracoMagic)) return DetectedFormat::Draco;
   const bool text = looksLikeText(window);

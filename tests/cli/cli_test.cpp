@@ -83,6 +83,10 @@ TEST(Cli, BuildReportsABalancedHierarchy) {
   ASSERT_EQ(build.exitCode, 0) << build.out;
   EXPECT_NE(build.out.find("\"triangles\": 19880,"), std::string::npos) << build.out;
   EXPECT_NE(build.out.find("\"nodes\": 19879,"), std::string::npos) << build.out;
+  // height <= 2x balanced (ceil(log2 19880) + 1 = 16)
+  const size_t at = build.out.find("\"height_ratio\": ");
+  ASSERT_NE(at, std::string::npos) << build.out;
+  EXPECT_LE(std::stod(build.out.substr(at + 16)), 2.0) << build.out;
   std::filesystem::remove(path);
 }
 

@@ -46,6 +46,15 @@ TEST(StreamZstd, ConcatenatedAndSkippableFramesAreOneStream) {
   EXPECT_TRUE(sameTriangles(readFile(dir.write("m.zst", bytes)), readFile(dir.write("m.ply", ply))));
 }
 
+TEST(StreamZstd, StreamStartingWithASkippableFrameIsZstd) {
+  // pzstd puts a skippable frame before its compressed frames.
+  const std::string ply = test::writePly(pyramid(), {.encoding = "binary_little_endian"});
+  const std::string skippable("\x5F\x2A\x4D\x18\x04\x00\x00\x00\x10\x00\x00\x00", 12);
+  TempDir dir;
+  EXPECT_TRUE(sameTriangles(readFile(dir.write("p.zst", skippable + test::zstdCompress(ply))),
+                            readFile(dir.write("p.ply", ply))));
+}
+
 TEST(StreamZstd, TruncatedStreamAndTrailingGarbageAreErrors) {
   const std::string ply = test::writePly(pyramid(), {.encoding = "ascii"});
   const std::string compressed = test::zstdCompress(ply);
