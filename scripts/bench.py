@@ -7,6 +7,8 @@ Sections:
   build  file to hierarchy with boxes per shared mesh: time per phase, peak RSS, height/balanced,
          dual-edge degree; ratio to the read time of the same mesh
   files  cluster file size per mesh for branching 2, 4 and 8, verified
+  flat   flat regular grids (Willmott 2000, Figs 69-71): time and maximum dual-edge degree for
+         the default metric against the constant-cost and Garland metrics, and the log-log slope
 
 Writes OUT/bench.json and prints a table per section.
 """
@@ -105,13 +107,51 @@ def bench_files(args, meshes, tmp):
     return rows
 
 
+def loglog_slope(points):
+    """Least-squares slope of log(y) against log(x)."""
+    import math
+    xs = [math.log(x) for x, _ in points]
+    ys = [math.log(max(y, 1e-9)) for _, y in points]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    var = sum((x - mx) ** 2 for x in xs)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / var if var > 0 else float("nan")
+
+
+def bench_flat(args, tmp):
+    sizes = [10_000, 40_000, 160_000] if args.quick else [10_000, 40_000, 160_000, 640_000, 1_000_000, 4_000_000]
+    # The constant metric is O(n^1.5 log n) (Fig. 69): keep it to the sizes that finish quickly.
+    constant_limit = 160_000 if args.quick else 640_000
+    rows = []
+    for metric in ("willmott", "constant", "garland"):
+        points = []
+        for size in sizes:
+            if metric == "constant" and size > constant_limit:
+                continue
+            mesh = tmp / f"grid_{size}.ply"
+            if not mesh.exists():
+                subprocess.run([args.facetree, "gen", "grid", "-n", str(size), "-o", mesh], check=True,
+                               stderr=subprocess.DEVNULL)
+            runs = repeat_runs(args.repeat, lambda: run_json(
+                [args.facetree, "build", "--json", "--no-boxes", "--metric", metric, mesh]))
+            seconds = statistics.median(r["seconds"]["total"] for r in runs)
+            row = {"metric": metric, "triangles": runs[0]["triangles"], "seconds": seconds,
+                   "max_degree": runs[0]["max_degree"], "average_degree": runs[0]["average_degree"],
+                   "height": runs[0]["height"], "balanced_height": runs[0]["balanced_height"]}
+            rows.append(row)
+            points.append((row["triangles"], seconds))
+            print(f"flat  {metric:9s} {row['triangles']:9d} tris  {seconds:8.3f} s  max degree {row['max_degree']:6d}  "
+                  f"height {row['height']}/{row['balanced_height']}", flush=True)
+        print(f"flat  {metric:9s} log-log slope of time {loglog_slope(points):.2f}", flush=True)
+    return rows
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--facetree", required=True)
     parser.add_argument("--out", required=True)
     parser.add_argument("--quick", action="store_true", help="a few meshes, 3 runs each")
     parser.add_argument("--repeat", type=int, default=0, help="runs per case (default 3 quick, 5 full)")
-    parser.add_argument("--only", choices=["read", "build", "files"], action="append")
+    parser.add_argument("--only", choices=["read", "build", "files", "flat"], action="append")
     args = parser.parse_args()
     args.repeat = args.repeat or (3 if args.quick else 5)
     out = pathlib.Path(args.out)
@@ -120,7 +160,7 @@ def main():
     if not all_meshes:
         sys.exit(f"bench: no meshes in {SHARED}")
     meshes = [m for m in QUICK_MESHES if m in all_meshes] if args.quick else all_meshes
-    sections = args.only or ["read", "build", "files"]
+    sections = args.only or ["read", "build", "files", "flat"]
     report = {
         "date": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": platform.node(), "cpus": os.cpu_count(),
         "load_average": os.getloadavg(), "quick": args.quick, "repeat": args.repeat,
@@ -131,6 +171,10 @@ def main():
         report["build"] = bench_build(args, meshes)
     if "files" in sections:
         report["files"] = bench_files(args, meshes, out)
+    if "flat" in sections:
+        report["flat"] = bench_flat(args, out)
+        for mesh in out.glob("grid_*.ply"):
+            mesh.unlink()
     (out / "bench.json").write_text(json.dumps(report, indent=1))
     print(f"bench: wrote {out / 'bench.json'}")
 
