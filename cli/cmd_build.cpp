@@ -62,10 +62,13 @@ int runBuild(const std::vector<std::string>& argv) {
   if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
 
   const double start = nowSeconds();
+  // The reader (its vertex store, buffers and zstd context) is released once the mesh is in
+  // memory: the merge's peak comes after it.
   auto reader = name == "-" ? openStandardInput() : openMesh(name);
   LoadOptions loadOptions;
   loadOptions.weldPositions = args.flag("weld");
   const IndexedMesh mesh = loadMesh(*reader, loadOptions);
+  reader.reset();
   const double readSeconds = nowSeconds() - start;
   const Hierarchy hierarchy = buildHierarchy(mesh.view(), options);
   const double buildSeconds = nowSeconds() - start;
