@@ -24,6 +24,20 @@ struct SymMat3 {
   double yy() const { return m[3]; }
   double yz() const { return m[4]; }
   double zz() const { return m[5]; }
+  // M += w v v^T
+  void addOuter(const glm::dvec3& v, double w) {
+    m[0] += w * v.x * v.x;
+    m[1] += w * v.x * v.y;
+    m[2] += w * v.x * v.z;
+    m[3] += w * v.y * v.y;
+    m[4] += w * v.y * v.z;
+    m[5] += w * v.z * v.z;
+  }
+  friend SymMat3 operator+(const SymMat3& a, const SymMat3& b) {
+    SymMat3 s;
+    for (int i = 0; i < 6; ++i) s.m[i] = a.m[i] + b.m[i];
+    return s;
+  }
   // v^T M v
   double quadratic(const glm::dvec3& v) const {
     return m[0] * v.x * v.x + m[3] * v.y * v.y + m[5] * v.z * v.z +
@@ -48,14 +62,7 @@ struct ClusterStats {
     s.firstMoment = (s.area / 3.0) * sum;
     const double w = s.area / 12.0;
     const glm::dvec3* v[4] = {&a, &b, &c, &sum};
-    for (const glm::dvec3* p : v) {
-      s.secondMoment.m[0] += w * p->x * p->x;
-      s.secondMoment.m[1] += w * p->x * p->y;
-      s.secondMoment.m[2] += w * p->x * p->z;
-      s.secondMoment.m[3] += w * p->y * p->y;
-      s.secondMoment.m[4] += w * p->y * p->z;
-      s.secondMoment.m[5] += w * p->z * p->z;
-    }
+    for (const glm::dvec3* p : v) s.secondMoment.addOuter(*p, w);
     return s;
   }
 
@@ -66,7 +73,7 @@ struct ClusterStats {
     s.perimeter = std::max(0.0, a.perimeter + b.perimeter - 2.0 * sharedLength);
     s.sumNormal = a.sumNormal + b.sumNormal;
     s.firstMoment = a.firstMoment + b.firstMoment;
-    for (int i = 0; i < 6; ++i) s.secondMoment.m[i] = a.secondMoment.m[i] + b.secondMoment.m[i];
+    s.secondMoment = a.secondMoment + b.secondMoment;
     return s;
   }
 

@@ -16,21 +16,6 @@ namespace {
 // a 3x3 Jacobi solve ~200 ns).
 constexpr uint64_t kEigenTimingStride = 32;
 
-void addOuter(SymMat3& m, const glm::dvec3& v, double w) {
-  m.m[0] += w * v.x * v.x;
-  m.m[1] += w * v.x * v.y;
-  m.m[2] += w * v.x * v.z;
-  m.m[3] += w * v.y * v.y;
-  m.m[4] += w * v.y * v.z;
-  m.m[5] += w * v.z * v.z;
-}
-
-SymMat3 sum(const SymMat3& a, const SymMat3& b) {
-  SymMat3 s;
-  for (int i = 0; i < 6; ++i) s.m[i] = a.m[i] + b.m[i];
-  return s;
-}
-
 double trace(const SymMat3& m) {
   return m.m[0] + m.m[3] + m.m[5];
 }
@@ -95,7 +80,7 @@ double willmottCost(const ClusterStats& s, double k, double flatThreshold, CostC
 GarlandStats GarlandStats::fromTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
   GarlandStats g;
   for (const glm::dvec3* p : {&a, &b, &c}) {
-    addOuter(g.cornerSecond, *p, 1.0);
+    g.cornerSecond.addOuter(*p, 1.0);
     g.cornerFirst += *p;
   }
   g.cornerCount = 3;
@@ -107,7 +92,7 @@ GarlandStats GarlandStats::fromTriangle(const glm::dvec3& a, const glm::dvec3& b
     const double w = std::sqrt(0.5 * twiceArea);
     g.dirWeight = w;
     g.dirFirst = w * n;
-    addOuter(g.dirSecond, n, w);
+    g.dirSecond.addOuter(n, w);
     g.normalSum = n;
   }
   return g;
@@ -115,12 +100,12 @@ GarlandStats GarlandStats::fromTriangle(const glm::dvec3& a, const glm::dvec3& b
 
 GarlandStats GarlandStats::merged(const GarlandStats& x, const GarlandStats& y) {
   GarlandStats g;
-  g.cornerSecond = sum(x.cornerSecond, y.cornerSecond);
+  g.cornerSecond = x.cornerSecond + y.cornerSecond;
   g.cornerFirst = x.cornerFirst + y.cornerFirst;
   g.cornerCount = x.cornerCount + y.cornerCount;
   g.dirWeight = x.dirWeight + y.dirWeight;
   g.dirFirst = x.dirFirst + y.dirFirst;
-  g.dirSecond = sum(x.dirSecond, y.dirSecond);
+  g.dirSecond = x.dirSecond + y.dirSecond;
   g.normalSum = x.normalSum + y.normalSum;
   return g;
 }

@@ -72,15 +72,6 @@ void sortAndOrient(Eigen3& e) {
   e.vector[2] = glm::cross(e.vector[0], e.vector[1]);
 }
 
-// Any unit vector orthogonal to unit w, deterministic (Duff et al. 2017 branchless basis).
-void orthonormalBasis(const glm::dvec3& w, glm::dvec3& u, glm::dvec3& v) {
-  const double sign = std::copysign(1.0, w.z);
-  const double a = -1.0 / (sign + w.z);
-  const double b = w.x * w.y * a;
-  u = {1.0 + sign * w.x * w.x * a, sign * b, -sign * w.x};
-  v = {b, sign + w.y * w.y * a, -w.y};
-}
-
 // Unit eigenvector of symmetric `a` for a simple eigenvalue `lambda`: the largest cross
 // product of two rows of a - lambda I (Eberly 2014). `fallback` if a - lambda I has rank < 2.
 glm::dvec3 eigenvectorFromRows(const double a[3][3], double lambda, const glm::dvec3& fallback) {
@@ -103,7 +94,7 @@ glm::dvec3 eigenvectorFromRows(const double a[3][3], double lambda, const glm::d
 // 2x2 problem on the plane of w. Robust for a repeated lambda (then any vector of the plane).
 glm::dvec3 eigenvectorInComplement(const double a[3][3], const glm::dvec3& w, double lambda) {
   glm::dvec3 u, v;
-  orthonormalBasis(w, u, v);
+  planeBasis(w, u, v);
   auto mul = [&](const glm::dvec3& x) {
     return glm::dvec3{a[0][0] * x.x + a[0][1] * x.y + a[0][2] * x.z,
                       a[0][1] * x.x + a[1][1] * x.y + a[1][2] * x.z,
@@ -195,6 +186,14 @@ bool analyticValues(const double a[3][3], double value[3], double& halfDet) {
 }
 
 }  // namespace
+
+void planeBasis(const glm::dvec3& w, glm::dvec3& u, glm::dvec3& v) {
+  const double sign = std::copysign(1.0, w.z);
+  const double a = -1.0 / (sign + w.z);
+  const double b = w.x * w.y * a;
+  u = {1.0 + sign * w.x * w.x * a, sign * b, -sign * w.x};
+  v = {b, sign + w.y * w.y * a, -w.y};
+}
 
 Eigen3 eigenJacobi(const SymMat3& m) {
   if (!allFinite(m)) return worldAxes(0, 0, 0);

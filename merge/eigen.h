@@ -38,4 +38,8 @@ glm::dvec3 smallestEigenvector(const SymMat3& m);
 glm::dvec3 smallestEigenvectorJacobi(const SymMat3& m);
 glm::dvec3 smallestEigenvectorAnalytic(const SymMat3& m);
 
+// A deterministic orthonormal basis (u, v) of the plane orthogonal to unit n, right-handed:
+// cross(u, v) = n (Duff et al. 2017, branchless).
+void planeBasis(const glm::dvec3& n, glm::dvec3& u, glm::dvec3& v);
+
 }  // namespace facetree

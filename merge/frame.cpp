@@ -25,14 +25,6 @@ bool isFlatCluster(double area, const glm::dvec3& sumNormal, double threshold) {
   return projArea > 0 && projArea / area > threshold;
 }
 
-void planeBasis(const glm::dvec3& n, glm::dvec3& u, glm::dvec3& v) {
-  const double sign = std::copysign(1.0, n.z);
-  const double a = -1.0 / (sign + n.z);
-  const double b = n.x * n.y * a;
-  u = {1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x};
-  v = {b, sign + n.y * n.y * a, -n.y};
-}
-
 void FrameBuilder::projectedHull(std::span<const glm::vec3> points, const glm::dvec3& u,
                                  const glm::dvec3& v) {
   projected_.resize(points.size());

@@ -55,8 +55,4 @@ class FrameBuilder {
   std::vector<glm::vec3> kept_;
 };
 
-// A deterministic orthonormal basis (u, v) of the plane orthogonal to unit n, right-handed:
-// cross(u, v) = n (Duff et al. 2017).
-void planeBasis(const glm::dvec3& n, glm::dvec3& u, glm::dvec3& v);
-
 }  // namespace facetree

@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 
 #include "merge/eigen.h"
+#include "random_spectra.h"
 
 namespace facetree {
 namespace {
@@ -15,25 +16,6 @@ namespace {
 constexpr size_t kMatrices = 4096;
 
 enum Spectrum { kGeneric, kFlat, kIsotropic, kTwoEqual, kMixed };
-
-SymMat3 withSpectrum(std::mt19937_64& rng, const double l[3]) {
-  std::normal_distribution<double> g;
-  const glm::dvec3 a = glm::normalize(glm::dvec3{g(rng), g(rng), g(rng)});
-  const glm::dvec3 b = glm::normalize(glm::cross(a, glm::dvec3{g(rng), g(rng), g(rng)}));
-  const glm::dvec3 c = glm::cross(a, b);
-  const glm::dvec3 axes[3] = {a, b, c};
-  SymMat3 m;
-  for (int k = 0; k < 3; ++k) {
-    const glm::dvec3& v = axes[k];
-    m.m[0] += l[k] * v.x * v.x;
-    m.m[1] += l[k] * v.x * v.y;
-    m.m[2] += l[k] * v.x * v.z;
-    m.m[3] += l[k] * v.y * v.y;
-    m.m[4] += l[k] * v.y * v.z;
-    m.m[5] += l[k] * v.z * v.z;
-  }
-  return m;
-}
 
 std::vector<SymMat3> makeMatrices(Spectrum kind) {
   std::mt19937_64 rng(2024 + kind);
@@ -56,7 +38,7 @@ std::vector<SymMat3> makeMatrices(Spectrum kind) {
         l[0] = u(rng), l[1] = l[2] = 1.0;
         break;
     }
-    out.push_back(withSpectrum(rng, l));
+    out.push_back(test::withSpectrum(rng, l[0], l[1], l[2]));
   }
   return out;
 }

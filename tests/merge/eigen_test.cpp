@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "merge/eigen.h"
+#include "random_spectra.h"
 
 namespace facetree {
 namespace {
@@ -25,28 +26,6 @@ double normMax(const SymMat3& m) {
   return s;
 }
 
-// R diag(l) R^T for a random rotation R.
-SymMat3 withSpectrum(std::mt19937_64& rng, double l0, double l1, double l2) {
-  std::normal_distribution<double> g;
-  glm::dvec3 a{g(rng), g(rng), g(rng)};
-  a = glm::normalize(a);
-  glm::dvec3 b = glm::normalize(glm::cross(a, glm::dvec3{g(rng), g(rng), g(rng)}));
-  glm::dvec3 c = glm::cross(a, b);
-  const glm::dvec3 axes[3] = {a, b, c};
-  const double l[3] = {l0, l1, l2};
-  SymMat3 m;
-  for (int k = 0; k < 3; ++k) {
-    const glm::dvec3& v = axes[k];
-    m.m[0] += l[k] * v.x * v.x;
-    m.m[1] += l[k] * v.x * v.y;
-    m.m[2] += l[k] * v.x * v.z;
-    m.m[3] += l[k] * v.y * v.y;
-    m.m[4] += l[k] * v.y * v.z;
-    m.m[5] += l[k] * v.z * v.z;
-  }
-  return m;
-}
-
 // A family of covariance-like test matrices, including the degenerate cases of clusters.
 std::vector<SymMat3> testMatrices() {
   std::mt19937_64 rng(12345);
@@ -56,25 +35,25 @@ std::vector<SymMat3> testMatrices() {
     const double s = std::pow(10.0, 12.0 * u(rng) - 6.0);  // any scale
     switch (i % 7) {
       case 0:
-        out.push_back(withSpectrum(rng, s * u(rng), s * u(rng), s * u(rng)));
+        out.push_back(test::withSpectrum(rng, s * u(rng), s * u(rng), s * u(rng)));
         break;
       case 1:
-        out.push_back(withSpectrum(rng, s * 1e-12 * u(rng), s * u(rng), s * u(rng)));
+        out.push_back(test::withSpectrum(rng, s * 1e-12 * u(rng), s * u(rng), s * u(rng)));
         break;  // flat
       case 2:
-        out.push_back(withSpectrum(rng, 0.0, s * u(rng), s));
+        out.push_back(test::withSpectrum(rng, 0.0, s * u(rng), s));
         break;  // exactly flat
       case 3:
-        out.push_back(withSpectrum(rng, s, s, s));
+        out.push_back(test::withSpectrum(rng, s, s, s));
         break;  // isotropic
       case 4:
-        out.push_back(withSpectrum(rng, s * 0.2, s, s));
+        out.push_back(test::withSpectrum(rng, s * 0.2, s, s));
         break;  // two equal (top)
       case 5:
-        out.push_back(withSpectrum(rng, s * 0.2, s * 0.2, s));
+        out.push_back(test::withSpectrum(rng, s * 0.2, s * 0.2, s));
         break;  // two equal (bottom)
       case 6:
-        out.push_back(withSpectrum(rng, 0.0, 0.0, s));
+        out.push_back(test::withSpectrum(rng, 0.0, 0.0, s));
         break;  // a line
     }
   }
@@ -129,7 +108,7 @@ TEST(Eigen, FlatClusterNormal) {
   // Points on the plane z = 0 (rotated): the smallest eigenvector is the plane normal.
   std::mt19937_64 rng(7);
   for (int i = 0; i < 200; ++i) {
-    const SymMat3 m = withSpectrum(rng, 0.0, 1.0 + i, 3.0 + i);
+    const SymMat3 m = test::withSpectrum(rng, 0.0, 1.0 + i, 3.0 + i);
     const glm::dvec3 ref = eigenJacobi(m).vector[0];
     EXPECT_NEAR(std::abs(glm::dot(smallestEigenvector(m), ref)), 1.0, 1e-12);
   }
