@@ -16,15 +16,10 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "../merge/test_meshes.h"
 #include "io/cluster_file.h"
 
 namespace facetree::test {
-
-struct TestMesh {
-  std::vector<glm::vec3> positions;
-  std::vector<uint32_t> indices;
-  MeshView view() const { return {positions, indices}; }
-};
 
 // A w x h grid of squares, two triangles each, on a gently curved sheet.
 inline TestMesh gridMesh(int w, int h, float bend = 0.1f) {

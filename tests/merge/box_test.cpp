@@ -18,17 +18,12 @@
 #include "merge/eigen.h"
 #include "merge/frame.h"
 #include "merge/hull.h"
+#include "test_meshes.h"
 
 namespace facetree {
 namespace {
 
-struct TestMesh {
-  std::vector<glm::vec3> positions;
-  std::vector<uint32_t> indices;
-  MeshView view() const { return {positions, indices}; }
-  size_t triangles() const { return indices.size() / 3; }
-  void tri(uint32_t a, uint32_t b, uint32_t c) { indices.insert(indices.end(), {a, b, c}); }
-};
+using test::TestMesh;
 
 glm::dvec3 at(const TestMesh& m, uint32_t face, int k) {
   return glm::dvec3(m.positions[m.indices[3 * face + k]]);
@@ -41,7 +36,7 @@ glm::dvec3 halfCross(const TestMesh& m, uint32_t face) {
 // nodes[0] the root, children after parents, contiguous ranges, area and S by brute force.
 Hierarchy medianSplit(const TestMesh& m) {
   Hierarchy h;
-  const uint32_t n = uint32_t(m.triangles());
+  const uint32_t n = uint32_t(m.faceCount());
   h.faceOrder.resize(n);
   for (uint32_t i = 0; i < n; ++i) h.faceOrder[i] = i;
   if (n < 2) return h;
@@ -169,8 +164,8 @@ TestMesh grid(int nx, int ny, double sx, double sy, double inPlane, const glm::d
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
       const uint32_t v = uint32_t(j * (nx + 1) + i);
-      m.tri(v, v + 1, v + uint32_t(nx) + 2);
-      m.tri(v, v + uint32_t(nx) + 2, v + uint32_t(nx) + 1);
+      m.add(v, v + 1, v + uint32_t(nx) + 2);
+      m.add(v, v + uint32_t(nx) + 2, v + uint32_t(nx) + 1);
     }
   return m;
 }
@@ -187,8 +182,8 @@ TestMesh sphere(int rings, int segments, double radius = 1.0) {
   for (int j = 0; j < rings; ++j)
     for (int i = 0; i < segments; ++i) {
       const uint32_t v = uint32_t(j * (segments + 1) + i), w = v + uint32_t(segments) + 1;
-      m.tri(v, w, w + 1);
-      m.tri(v, w + 1, v + 1);
+      m.add(v, w, w + 1);
+      m.add(v, w + 1, v + 1);
     }
   return m;
 }
@@ -211,9 +206,9 @@ TestMesh cube(int k) {
         for (int i = 0; i < k; ++i) {
           const uint32_t v = base + uint32_t(j * (k + 1) + i);
           if (sign > 0) {
-            m.tri(v, v + 1, v + uint32_t(k) + 2), m.tri(v, v + uint32_t(k) + 2, v + uint32_t(k) + 1);
+            m.add(v, v + 1, v + uint32_t(k) + 2), m.add(v, v + uint32_t(k) + 2, v + uint32_t(k) + 1);
           } else {
-            m.tri(v, v + uint32_t(k) + 2, v + 1), m.tri(v, v + uint32_t(k) + 1, v + uint32_t(k) + 2);
+            m.add(v, v + uint32_t(k) + 2, v + 1), m.add(v, v + uint32_t(k) + 1, v + uint32_t(k) + 2);
           }
         }
     }
@@ -225,7 +220,7 @@ TestMesh soup(size_t n, uint64_t seed) {
   std::uniform_real_distribution<float> u(-1, 1);
   TestMesh m;
   for (size_t i = 0; i < 3 * n; ++i) m.positions.push_back({u(rng), u(rng), u(rng)});
-  for (uint32_t i = 0; i < 3 * n; i += 3) m.tri(i, i + 1, i + 2);
+  for (uint32_t i = 0; i < 3 * n; i += 3) m.add(i, i + 1, i + 2);
   return m;
 }
 
@@ -306,32 +301,32 @@ TEST(Box, FlatThresholdOption) {
 TEST(Box, DegenerateFacesGiveNoNaN) {
   TestMesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}, {5, 5, 5}};
-  m.tri(0, 1, 2);  // collinear
-  m.tri(4, 4, 4);  // a point
-  m.tri(0, 0, 1);  // repeated vertex
-  m.tri(3, 3, 3);
-  m.tri(1, 2, 1);
+  m.add(0, 1, 2);  // collinear
+  m.add(4, 4, 4);  // a point
+  m.add(0, 0, 1);  // repeated vertex
+  m.add(3, 3, 3);
+  m.add(1, 2, 1);
   Hierarchy h = boxed(m);
   ASSERT_FALSE(h.nodes.empty());
   EXPECT_EQ(h.nodes[0].area, 0.0f);
   checkBoxes(m, h, {});
   // Mixed with real faces.
   m.positions.push_back({0, 0, 1});
-  m.tri(0, 1, 5);
-  m.tri(3, 5, 0);
+  m.add(0, 1, 5);
+  m.add(3, 5, 0);
   checkBoxes(m, boxed(m), {});
 }
 
 TEST(Box, SingleAndTwoTriangles) {
   TestMesh one;
   one.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-  one.tri(0, 1, 2);
+  one.add(0, 1, 2);
   Hierarchy h = boxed(one);
   EXPECT_TRUE(h.nodes.empty());
   EXPECT_TRUE(h.boxes.empty());
   TestMesh two = one;
   two.positions.push_back({1, 1, 0.5f});
-  two.tri(1, 3, 2);
+  two.add(1, 3, 2);
   h = boxed(two);
   ASSERT_EQ(h.nodes.size(), 1u);
   checkBoxes(two, h, {});
@@ -430,8 +425,8 @@ TEST(Box, TimingOneMillionTriangles) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
       std::printf(
-          "[ timing ] %zu triangles, %zu nodes, %.1f face visits/face: %u thread(s) %.3f s wall %.3f s cpu\n",
-          m.triangles(), h.nodes.size(), double(visits) / double(m.triangles()), threads, s, cpu);
+          "[ timing ] %u triangles, %zu nodes, %.1f face visits/face: %u thread(s) %.3f s wall %.3f s cpu\n",
+          m.faceCount(), h.nodes.size(), double(visits) / double(m.faceCount()), threads, s, cpu);
     }
     checkBoxes(m, h, {}, 4999);
   }
