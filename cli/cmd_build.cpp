@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "cli/args.h"
+#include "cli/build_job.h"
 #include "cli/commands.h"
 #include "cli/json.h"
 #include "grid/grid.h"
@@ -31,7 +32,8 @@ RecastRule parseRecastRule(const std::string& name) {
 int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
-                   "recast", "mesh-out", "draco-bits", "balance-slack"},
+                   "recast", "mesh-out", "draco-bits", "balance-slack", "memory", "tmp", "max-tmp", "threads",
+                   "cell-faces"},
                   {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
@@ -60,6 +62,17 @@ int runBuild(const std::vector<std::string>& argv) {
   const auto output = args.value("output");
   const auto meshOut = args.value("mesh-out");
   if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
+  const bool jobOptions = args.value("memory") || args.value("tmp") || args.value("max-tmp") ||
+                          args.value("threads") || args.value("cell-faces");
+  if (jobOptions && (!output || meshOut))
+    throw UsageError("--memory, --tmp, --max-tmp, --threads and --cell-faces need -o and no --mesh-out");
+  if (jobOptions) {
+    ClusterJob job;
+    job.build = options;
+    job.file = fileOptions;
+    job.load.weldPositions = args.flag("weld");
+    return runBuildJob(args, name, *output, job);
+  }
 
   const double start = nowSeconds();
   // The reader (its vertex store, buffers and zstd context) is released once the mesh is in

@@ -10,6 +10,7 @@
 #include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/fch_commands.h"
+#include "grid/grid.h"
 #include "io/io.h"
 #include "stream/stream.h"
 
@@ -26,6 +27,10 @@ commands:
         [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
+        [--memory SIZE] [--tmp DIR] [--max-tmp SIZE] [--threads N]
+                                 with -o: the whole job under a memory cap (e.g. 256M): in core
+                                 when it fits, else out of core with temporary files under --tmp;
+                                 OUT.fch may be - (standard output)
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
@@ -89,6 +94,12 @@ int main(int argc, char** argv) {
   } catch (const facetree::IoError& e) {
     std::fprintf(stderr, "facetree: %s\n", e.what());
     return kExitOutput;
+  } catch (const facetree::MemoryCapError& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitResource;
+  } catch (const facetree::TemporaryFileError& e) {
+    std::fprintf(stderr, "facetree: %s\n", e.what());
+    return kExitResource;
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "facetree: %s\n", e.what());
     return kExitInput;

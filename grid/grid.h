@@ -6,11 +6,16 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
+#include <functional>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
 
+#include "io/cluster_file.h"
 #include "merge/merge.h"
 #include "stream/stream.h"
 
@@ -42,5 +47,76 @@ IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options = {});
 // Points every index at the lowest-numbered vertex with the same position; returns how many
 // vertices were replaced. Positions are left in place (unreferenced duplicates stay).
 uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices);
+
+// ---------------------------------------------------------------------------------------------
+// The whole job: a mesh file (or standard input) to a cluster file (or standard output) under a
+// memory cap. When the face-level build fits the cap it runs in-core (loadMesh, buildHierarchy);
+// otherwise out of core (grid/out_of_core.cpp): faces are binned into spatial cells spilled to
+// temporary files, each cell's edge-connected components get their own hierarchy down to single
+// faces, and the greedy merge continues above them on their dual graph (exact adjacency across
+// cells). See DESIGN.md "Out of core".
+
+struct JobProgress {
+  const char* phase = "";  // "read", "bin", "cells", "merge", "write"
+  uint64_t done = 0;
+  uint64_t total = 0;  // 0 = unknown
+};
+
+struct ClusterJob {
+  std::filesystem::path input;   // "-" = standard input (format detected from the content)
+  std::filesystem::path output;  // "-" = standard output
+  BuildOptions build;
+  FileOptions file;  // branching, recast rule (file.build and memoryCapBytes are filled in)
+  LoadOptions load;  // weldPositions: in-core builds only (rejected out of core)
+  uint64_t memoryCap = 0;        // bytes; 0 = half the physical memory
+  std::filesystem::path tmpDir;  // parent of the run's temporary directory; empty = system default
+  uint64_t maxTemporaryBytes = 0;  // 0 = no limit
+  unsigned threads = 2;
+  // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
+  uint64_t forceCellFaces = 0;
+  // Called between steps; returning false cancels the job (JobCancelled is thrown after the
+  // temporary files and the partial output are removed).
+  std::function<bool(const JobProgress&)> progress;
+};
+
+struct JobReport {
+  bool outOfCore = false;
+  MeshInfo info;
+  ReadStats stats;
+  uint64_t triangles = 0;
+  uint64_t nodes = 0;
+  uint64_t cells = 0;
+  uint64_t leaves = 0;  // leaf clusters the upper merge started from (out of core)
+  uint64_t cellFaceLimit = 0;
+  uint32_t height = 0;
+  uint32_t balancedHeight = 0;
+  uint64_t components = 0;
+  uint64_t fileBytes = 0;
+  uint64_t temporaryBytesPeak = 0;
+  uint64_t memoryCap = 0;
+  double secondsRead = 0, secondsBin = 0, secondsCells = 0, secondsMerge = 0, secondsWrite = 0, seconds = 0;
+  BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
+};
+
+class JobCancelled : public std::runtime_error {
+ public:
+  JobCancelled() : std::runtime_error("cancelled") {}
+};
+
+// Temporary files: cannot be created or written (disk full), or over ClusterJob::maxTemporaryBytes.
+class TemporaryFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Thrown when the cap cannot hold even the smallest working set; what() says how much is needed.
+class MemoryCapError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Runs the job. Throws ReadError (input), IoError (output), MemoryCapError, TemporaryFileError,
+// JobCancelled, std::invalid_argument (options); nothing is left behind on any of them.
+JobReport runClusterJob(const ClusterJob& job);
 
 }  // namespace facetree

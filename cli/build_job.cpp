@@ -1,0 +1,119 @@
+#include "cli/build_job.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+
+#include "cli/commands.h"
+#include "cli/json.h"
+
+namespace facetree::cli {
+namespace {
+
+// A one-line progress display on stderr, redrawn at most 5 times a second.
+class ProgressLine {
+ public:
+  explicit ProgressLine(bool enabled) : enabled_(enabled), start_(nowSeconds()) {}
+  ~ProgressLine() { clear(); }
+  bool update(const JobProgress& p) {
+    if (!enabled_) return true;
+    const double now = nowSeconds();
+    if (now - last_ < 0.2 && p.phase == phase_) return true;
+    if (p.phase != phase_) phaseStart_ = now;
+    last_ = now;
+    phase_ = p.phase;
+    const double elapsed = now - phaseStart_;
+    if (p.total > 0) {
+      const double fraction = double(p.done) / double(p.total);
+      const double rate = elapsed > 0 ? double(p.done) / elapsed : 0;
+      const double eta = fraction > 0 ? elapsed * (1 - fraction) / fraction : 0;
+      std::fprintf(stderr, "\r%-6s %5.1f%%  %8.2f M/s  ETA %5.0f s  (%.0f s total)   ", p.phase, 100 * fraction,
+                   rate / 1e6, eta, now - start_);
+    } else {
+      std::fprintf(stderr, "\r%-6s %10.1f MB  (%.0f s total)                  ", p.phase, double(p.done) / 1e6,
+                   now - start_);
+    }
+    std::fflush(stderr);
+    drawn_ = true;
+    return true;
+  }
+  void clear() {
+    if (drawn_) std::fprintf(stderr, "\r%70s\r", "");
+    drawn_ = false;
+  }
+
+ private:
+  bool enabled_;
+  double start_, last_ = 0, phaseStart_ = 0;
+  const char* phase_ = "";
+  bool drawn_ = false;
+};
+
+}  // namespace
+
+int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job) {
+  job.input = input;
+  job.output = output;
+  job.memoryCap = args.count("memory", 0, true);
+  if (const auto tmp = args.value("tmp")) job.tmpDir = *tmp;
+  job.maxTemporaryBytes = args.count("max-tmp", 0, true);
+  job.threads = static_cast<unsigned>(args.count("threads", 2));
+  if (job.threads < 1 || job.threads > 64) throw UsageError("--threads must be 1 to 64");
+  job.forceCellFaces = args.count("cell-faces", 0);
+  if (job.memoryCap != 0 && job.memoryCap < (uint64_t{16} << 20))
+    throw UsageError("--memory must be at least 16M");
+  ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
+  job.progress = [&progress](const JobProgress& p) { return progress.update(p); };
+
+  const JobReport r = runClusterJob(job);
+  progress.clear();
+  const uint64_t peak = peakResidentBytes();
+  const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;
+  // Reports go to stderr when the cluster file goes to standard output.
+  std::FILE* out = output == "-" ? stderr : stdout;
+  if (args.flag("json")) {
+    JsonWriter json;
+    json.field("mesh", input);
+    json.field("out_of_core", r.outOfCore);
+    json.field("triangles", r.triangles);
+    json.field("nodes", r.nodes);
+    json.field("height", r.height);
+    json.field("balanced_height", r.balancedHeight);
+    json.field("height_ratio", ratio);
+    json.field("components", r.components);
+    json.field("cells", r.cells);
+    json.field("leaves", r.leaves);
+    json.field("cell_face_limit", r.cellFaceLimit);
+    json.beginObject("seconds");
+    json.field("read", r.secondsRead);
+    json.field("bin", r.secondsBin);
+    json.field("cells", r.secondsCells);
+    json.field("merge", r.secondsMerge);
+    json.field("write", r.secondsWrite);
+    json.field("total", r.seconds);
+    json.endObject();
+    json.field("memory_cap_bytes", r.memoryCap);
+    json.field("peak_rss_bytes", peak);
+    json.field("temporary_bytes_peak", r.temporaryBytesPeak);
+    json.field("file_bytes", r.fileBytes);
+    std::fputs(json.finish().c_str(), out);
+    return kExitOk;
+  }
+  std::fprintf(out, "mesh          %s: %llu triangles\n", input.c_str(), static_cast<unsigned long long>(r.triangles));
+  std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",
+               r.memoryCap / 1048576.0);
+  if (r.outOfCore)
+    std::fprintf(out, "cells         %llu (at most %llu faces each), %llu leaf clusters, %llu components\n",
+                 static_cast<unsigned long long>(r.cells), static_cast<unsigned long long>(r.cellFaceLimit),
+                 static_cast<unsigned long long>(r.leaves), static_cast<unsigned long long>(r.components));
+  std::fprintf(out, "hierarchy     %llu nodes, height %u (balanced %u, ratio %.2f)\n",
+               static_cast<unsigned long long>(r.nodes), r.height, r.balancedHeight, ratio);
+  std::fprintf(out, "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",
+               r.secondsRead, r.secondsBin, r.secondsCells, r.secondsMerge, r.secondsWrite, r.seconds);
+  std::fprintf(out, "output        %s: %.2f MB\n", output.c_str(), r.fileBytes / 1e6);
+  std::fprintf(out, "peak memory   %.1f MiB, temporary files %.1f MiB at most\n", peak / 1048576.0,
+               r.temporaryBytesPeak / 1048576.0);
+  return kExitOk;
+}
+
+}  // namespace facetree::cli

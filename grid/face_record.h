@@ -1,0 +1,36 @@
+// Records the out-of-core build spills (grid/out_of_core.cpp). Plain bytes, host order: they
+// never leave the run's temporary directory.
+#pragma once
+
+#include <cstdint>
+#include <type_traits>
+
+#include <glm/vec3.hpp>
+
+namespace facetree {
+
+// One triangle as the reader handed it on: corner positions, vertex ids of the input (edge
+// matching), face index of the file.
+struct FaceRecord {
+  float position[9];
+  uint32_t vertex[3];
+  uint64_t face;
+
+  glm::vec3 corner(int i) const { return {position[3 * i], position[3 * i + 1], position[3 * i + 2]}; }
+};
+static_assert(sizeof(FaceRecord) == 56 && std::is_trivially_copyable_v<FaceRecord>);
+
+// A face edge whose owner cell (the cell of its lower-id endpoint's position) is not the face's
+// own cell: sent to the owner, which alone sees every face on the edge (out_of_core.cpp).
+struct GhostEdge {
+  uint32_t low, high;  // vertex ids, low < high
+  uint32_t cell;       // the face's cell
+  uint32_t face;       // the face's index within its cell
+  uint32_t sides;      // how many of the face's sides lie on the edge (1, or 2)
+  float length;
+
+  uint64_t key() const { return (uint64_t{low} << 32) | high; }
+};
+static_assert(sizeof(GhostEdge) == 24 && std::is_trivially_copyable_v<GhostEdge>);
+
+}  // namespace facetree

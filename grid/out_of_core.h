@@ -1,0 +1,123 @@
+// Internal to grid/: the out-of-core build (out_of_core.cpp and the files it is split into).
+//
+// Passes (DESIGN.md "Out of core"):
+//  1. read: triangles -> arrival spill (FaceRecord), bounding box;
+//  2. bin: centroid histogram -> CellGrid; distribution of the arrival spill into per-cell
+//     face spills, and of the edges whose owner cell is another cell into that cell's ghost spill;
+//  3. cells (2 threads): each cell in memory -> edge-connected components -> one in-core
+//     hierarchy per component (a leaf cluster), spilled as nodes and geometry; the cell also
+//     matches the ghosts of the edges it owns with its own faces: cross-cell dual edges;
+//  4. merge: mergeClusters above the leaf clusters, frames of the upper nodes;
+//  5. write: geometry in leaf order (exact boxes and side areas of the upper nodes accumulated
+//     on the way), then the nodes: upper nodes first, then each leaf's subtree.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "grid/cell_grid.h"
+#include "grid/face_record.h"
+#include "grid/grid.h"
+#include "grid/bucket_spill.h"
+#include "grid/spill_file.h"
+#include "grid/temp_space.h"
+
+namespace facetree {
+
+// Triangles already read into memory when the job found the cap too small for in-core (the
+// reader continues from where they stop).
+struct PendingTriangles {
+  std::vector<uint32_t> indices;  // 3 per triangle, into reader.vertices()
+  std::vector<uint64_t> originalFace;
+};
+
+// One leaf cluster of the upper merge: an edge-connected component of a cell (or the cell's
+// remaining small components together) with its spilled subtree and geometry.
+struct LeafCluster {
+  uint32_t cell = 0;
+  uint64_t faceCount = 0;
+  uint64_t nodeCount = 0;
+  uint64_t vertexCount = 0;
+  uint32_t height = 1;
+  std::vector<SpillBlock> nodeBlocks;      // FchNode arrays, leaf-local references
+  std::vector<SpillBlock> geometryBlocks;  // GeometryBlock layout (out_of_core_cells.cpp)
+  SurfaceStats stats;
+  std::array<glm::vec3, 8> corners{};  // of the root box: points for the upper frames
+};
+
+// A cross-cell dual edge as the owner cell finds it: each end is a local leaf (kLeafRef) or a
+// face of another cell (index within that cell), resolved after every cell is done.
+struct CrossPair {
+  static constexpr uint32_t kLeafRef = 0x80000000u;
+  uint32_t cell[2];
+  uint32_t ref[2];
+  double shared;
+};
+
+// The state of one out-of-core run; the passes are its member functions, in
+// out_of_core.cpp (read, bin), out_of_core_cells.cpp (cells) and out_of_core_write.cpp (merge, write).
+class OutOfCoreBuild {
+ public:
+  OutOfCoreBuild(const ClusterJob& job, uint64_t memoryCap, JobReport& report);
+  ~OutOfCoreBuild();
+  void run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending);
+
+ private:
+  void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
+  void readAll(TriangleReader& reader, PendingTriangles&& pending);
+  void appendArrival(const FaceRecord& record);
+  void binAndDistribute();
+  void buildCells();
+  void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  void resolveCrossEdges();
+  void mergeAbove();
+  void write();
+
+  const ClusterJob& job_;
+  uint64_t memoryCap_;
+  JobReport& report_;
+  TempSpace temp_;
+  SpillCodec codec_;
+  // read
+  std::unique_ptr<BucketSpill> arrival_;
+  glm::vec3 min_{0.0f}, max_{0.0f};
+  uint64_t triangles_ = 0;
+  uint64_t maxFace_ = 0;
+  glm::dvec3 origin_{0.0};
+  double diagonalSquared_ = 1.0;
+  // bin
+  std::unique_ptr<CellGrid> grid_;
+  uint64_t cellFaceLimit_ = 0;
+  std::unique_ptr<BucketSpill> cellFaces_;
+  std::unique_ptr<BucketSpill> ghosts_;
+  // cells
+  std::unique_ptr<SpillFile> nodeSpill_;
+  std::unique_ptr<SpillFile> geometrySpill_;
+  struct CellResult {
+    std::vector<LeafCluster> leaves;
+    std::vector<std::pair<uint32_t, uint32_t>> border;  // (face in cell, local leaf), by face
+    std::vector<CrossPair> pairs;
+    uint64_t components = 0;
+  };
+  std::vector<CellResult> cells_;
+  // merge
+  std::vector<LeafCluster> leaves_;  // global leaf ids: cells in order, their leaves in order
+  std::vector<ClusterEdge> edges_;
+  ClusterMergeResult upper_;
+};
+
+// Runs the out-of-core build from `reader` (released after the read pass), `pending` holding the
+// triangles the job had already read into memory; fills `report`.
+void runOutOfCore(const ClusterJob& job, std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending,
+                  uint64_t memoryCap, JobReport& report);
+
+// Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
+inline constexpr uint64_t kBaseBytes = uint64_t{24} << 20;     // process, libraries, reader, codecs
+inline constexpr uint64_t kCellBytesPerFace = 640;              // one cell's build, at its peak
+inline constexpr uint64_t kMinCellFaces = 4096;                 // below this a cap is refused
+
+}  // namespace facetree

@@ -1,0 +1,384 @@
+// The out-of-core build, cells pass: each cell's faces in memory, split into edge-connected
+// components, one in-core hierarchy per component (a leaf cluster of the upper merge), spilled;
+// and the cross-cell dual edges of the edges the cell owns (out_of_core.h).
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+#include "grid/out_of_core.h"
+
+namespace facetree {
+namespace {
+
+// A cell with more components than this keeps the largest as leaf clusters and builds the rest
+// as one more leaf (its components joined by the engine, flagged): scans carry thousands of
+// specks, and every leaf costs the upper merge and the writer a little.
+constexpr uint32_t kMaxLeavesPerCell = 256;
+constexpr size_t kNodesPerBlock = 4096;
+constexpr size_t kTrianglesPerBlock = 65536;
+// Non-manifold edges with more faces than this are joined as a chain (as dual_graph.cpp).
+constexpr size_t kMaxFacesJoinedPairwise = 16;
+
+// Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids.
+class VertexMap {
+ public:
+  explicit VertexMap(size_t expected) {
+    size_t size = 16;
+    while (size < 2 * expected) size *= 2;
+    slots_.assign(size, kEmpty);
+    mask_ = size - 1;
+  }
+  // The local id of `vertex`, inserting `next` if it is new (then `inserted` is set).
+  uint32_t find(uint32_t vertex, uint32_t next, bool& inserted) {
+    size_t i = (uint64_t{vertex} * 0x9E3779B97F4A7C15ull) >> 20 & mask_;
+    for (;; i = (i + 1) & mask_) {
+      const uint64_t slot = slots_[i];
+      if (slot == kEmpty) {
+        slots_[i] = (uint64_t{vertex} << 32) | next;
+        inserted = true;
+        return next;
+      }
+      if (static_cast<uint32_t>(slot >> 32) == vertex) {
+        inserted = false;
+        return static_cast<uint32_t>(slot);
+      }
+    }
+  }
+
+ private:
+  static constexpr uint64_t kEmpty = ~uint64_t{0};
+  std::vector<uint64_t> slots_;
+  size_t mask_ = 0;
+};
+
+struct Incidence {
+  uint64_t key;
+  uint32_t cell;
+  uint32_t ref;
+  uint32_t sides;
+  float length;
+  bool operator<(const Incidence& o) const {
+    if (key != o.key) return key < o.key;
+    if (cell != o.cell) return cell < o.cell;
+    return ref < o.ref;
+  }
+};
+
+struct GeometryBlockHeader {
+  uint32_t triangles;
+  uint32_t newVertices;
+};
+
+template <class T>
+void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
+  const size_t at = out.size();
+  out.resize(at + count * sizeof(T));
+  if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
+}
+
+// Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.
+template <class F>
+void forEachEdge(const FaceRecord& r, F&& f) {
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t a = r.vertex[k], b = r.vertex[(k + 1) % 3];
+    if (a == b) continue;
+    const uint32_t low = std::min(a, b), high = std::max(a, b);
+    bool seen = false;
+    uint32_t sides = 0;
+    for (int j = 0; j < 3; ++j) {
+      const uint32_t c = r.vertex[j], d = r.vertex[(j + 1) % 3];
+      if (c != d && std::min(c, d) == low && std::max(c, d) == high) {
+        ++sides;
+        seen |= j < k;
+      }
+    }
+    if (seen) continue;
+    const int lowCorner = a == low ? k : (k + 1) % 3;
+    const int highCorner = lowCorner == k ? (k + 1) % 3 : k;
+    f(low, high, sides, lowCorner, highCorner);
+  }
+}
+
+}  // namespace
+
+void OutOfCoreBuild::buildCells() {
+  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
+  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry");
+  const uint32_t cells = grid_->cellCount();
+  cells_.assign(cells, {});
+  std::atomic<uint32_t> next{0};
+  std::atomic<uint64_t> facesDone{0};
+  std::atomic<bool> stop{false};
+  std::exception_ptr failure;
+  std::mutex failureMutex;
+  const auto worker = [&](bool reportProgress) {
+    SpillCodec codec;
+    std::vector<FaceRecord> records;
+    try {
+      for (uint32_t cell; !stop && (cell = next++) < cells;) {
+        buildCell(cell, codec, records);
+        facesDone += records.size();
+        // Progress (and cancellation) from the calling thread only: the callback need not be
+        // thread-safe. The other worker notices `stop`.
+        if (reportProgress) checkCancel("cells", facesDone, triangles_);
+      }
+    } catch (...) {
+      std::lock_guard lock(failureMutex);
+      if (!failure) failure = std::current_exception();
+      stop = true;
+    }
+  };
+  const unsigned threads = std::clamp(job_.threads, 1u, std::max(1u, cells));
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
+  worker(true);
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+  cellFaces_.reset();
+  ghosts_.reset();
+}
+
+void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
+  CellResult& result = cells_[cell];
+  records.clear();
+  records.reserve(cellFaces_->records(cell));
+  cellFaces_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+    const size_t at = records.size();
+    records.resize(at + bytes.size() / sizeof(FaceRecord));
+    std::memcpy(records.data() + at, bytes.data(), bytes.size());
+  });
+  const auto faces = static_cast<uint32_t>(records.size());
+
+  std::vector<uint32_t> leafOf(faces, 0);
+  if (faces > 0) {
+    // The cell as an indexed mesh (vertex ids of the input made local).
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> indices(size_t{3} * faces);
+    {
+      VertexMap map(faces);
+      for (uint32_t f = 0; f < faces; ++f) {
+        for (int k = 0; k < 3; ++k) {
+          bool inserted = false;
+          const uint32_t id = map.find(records[f].vertex[k], static_cast<uint32_t>(positions.size()), inserted);
+          if (inserted) positions.push_back(records[f].corner(k));
+          indices[size_t{3} * f + k] = id;
+        }
+      }
+    }
+    const MeshView cellMesh{positions, indices};
+    std::vector<uint32_t> label;
+    const uint32_t components = faceComponents(cellMesh, label);
+    result.components = components;
+
+    // Groups: every component its own leaf, or the largest kMaxLeavesPerCell - 1 and the rest.
+    std::vector<uint32_t> groupOf(components);
+    uint32_t groups = components;
+    if (components > kMaxLeavesPerCell) {
+      std::vector<uint32_t> size(components, 0);
+      for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
+      std::vector<uint32_t> order(components);
+      for (uint32_t c = 0; c < components; ++c) order[c] = c;
+      std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
+      std::vector<bool> kept(components, false);
+      for (uint32_t i = 0; i + 1 < kMaxLeavesPerCell; ++i) kept[order[i]] = true;
+      groups = 0;
+      for (uint32_t c = 0; c < components; ++c)
+        if (kept[c]) groupOf[c] = groups++;
+      for (uint32_t c = 0; c < components; ++c)
+        if (!kept[c]) groupOf[c] = groups;
+      ++groups;
+    } else {
+      for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
+    }
+    std::vector<uint32_t> start(groups + 1, 0);
+    for (uint32_t f = 0; f < faces; ++f) ++start[groupOf[label[f]] + 1];
+    for (uint32_t g = 0; g < groups; ++g) start[g + 1] += start[g];
+    std::vector<uint32_t> groupFaces(faces);
+    {
+      std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+      for (uint32_t f = 0; f < faces; ++f) {
+        const uint32_t g = groupOf[label[f]];
+        leafOf[f] = g;
+        groupFaces[fill[g]++] = f;
+      }
+    }
+    label = {};
+
+    std::vector<uint32_t> subId(positions.size(), kNoVertex);
+    std::vector<glm::vec3> subPositions;
+    std::vector<uint32_t> subIndices;
+    std::vector<uint64_t> subFaces;
+    std::vector<std::byte> block;
+    result.leaves.resize(groups);
+    for (uint32_t g = 0; g < groups; ++g) {
+      const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
+      subPositions.clear();
+      subIndices.clear();
+      subFaces.clear();
+      for (const uint32_t f : members) {
+        for (int k = 0; k < 3; ++k) {
+          uint32_t& id = subId[indices[size_t{3} * f + k]];
+          if (id == kNoVertex) {
+            id = static_cast<uint32_t>(subPositions.size());
+            subPositions.push_back(positions[indices[size_t{3} * f + k]]);
+          }
+          subIndices.push_back(id);
+        }
+        subFaces.push_back(records[f].face);
+      }
+      for (const uint32_t f : members)
+        for (int k = 0; k < 3; ++k) subId[indices[size_t{3} * f + k]] = kNoVertex;
+
+      const MeshView subMesh{subPositions, subIndices};
+      LeafCluster& leaf = result.leaves[g];
+      leaf.cell = cell;
+      leaf.faceCount = members.size();
+      leaf.stats = surfaceStats(subMesh, origin_);
+      ClusterFile file;
+      {
+        const Hierarchy hierarchy = buildHierarchy(subMesh, job_.build);
+        leaf.height = hierarchy.stats.height;
+        file = makeClusterFile(subMesh, subFaces, hierarchy, job_.file);
+      }
+      leaf.stats.height = leaf.height;
+      leaf.nodeCount = file.nodes.size();
+      leaf.vertexCount = file.vertices.size();
+      if (!file.nodes.empty()) {
+        const NodeBox& box = file.nodes[0].box;
+        const glm::mat3 axes = glm::mat3_cast(box.orientation);
+        for (int c = 0; c < 8; ++c) {
+          glm::vec3 p = box.center;
+          for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
+          leaf.corners[c] = p;
+        }
+      } else {
+        for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
+      }
+      for (size_t first = 0; first < file.nodes.size(); first += kNodesPerBlock) {
+        const size_t n = std::min(kNodesPerBlock, file.nodes.size() - first);
+        block.clear();
+        appendBytes(block, file.nodes.data() + first, n);
+        leaf.nodeBlocks.push_back(nodeSpill_->append(block, codec));
+      }
+      const size_t triangles = file.originalFace.size();
+      uint32_t verticesSeen = 0;
+      for (size_t first = 0; first < triangles; first += kTrianglesPerBlock) {
+        const size_t n = std::min(kTrianglesPerBlock, triangles - first);
+        uint32_t end = verticesSeen;
+        for (size_t i = 3 * first; i < 3 * (first + n); ++i) end = std::max(end, file.indices[i] + 1);
+        const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
+        block.clear();
+        appendBytes(block, &header, 1);
+        appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
+        appendBytes(block, file.indices.data() + 3 * first, 3 * n);
+        appendBytes(block, file.originalFace.data() + first, n);
+        leaf.geometryBlocks.push_back(geometrySpill_->append(block, codec));
+        verticesSeen = end;
+      }
+    }
+  }
+
+  // Cross-cell dual edges: the ghosts of the edges this cell owns against its own faces.
+  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
+  {
+    size_t at = 0;
+    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
+      at += bytes.size();
+    });
+  }
+  std::vector<uint64_t> ghostKeys(ghosts.size());
+  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
+  std::sort(ghostKeys.begin(), ghostKeys.end());
+  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
+
+  std::vector<Incidence> incidences;
+  incidences.reserve(ghosts.size() * 2);
+  for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
+  ghosts = {};
+  for (uint32_t f = 0; f < faces; ++f) {
+    const FaceRecord& r = records[f];
+    bool border = false;
+    forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
+      const glm::vec3 pLow = r.corner(lowCorner);
+      if (grid_->ownerCell(grid_->bin(pLow)) != cell) {
+        border = true;
+        return;
+      }
+      const uint64_t key = (uint64_t{low} << 32) | high;
+      if (ghostKeys.empty() || !std::binary_search(ghostKeys.begin(), ghostKeys.end(), key)) return;
+      const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
+      incidences.push_back({key, cell, leafOf[f] | CrossPair::kLeafRef, sides, static_cast<float>(length)});
+    });
+    if (border) result.border.emplace_back(f, leafOf[f]);
+  }
+  std::sort(incidences.begin(), incidences.end());
+  for (size_t i = 0; i < incidences.size();) {
+    size_t j = i;
+    uint32_t totalSides = 0;
+    bool mixed = false;
+    for (; j < incidences.size() && incidences[j].key == incidences[i].key; ++j) {
+      totalSides += incidences[j].sides;
+      mixed |= incidences[j].cell != incidences[i].cell;
+    }
+    const size_t k = j - i;
+    if (mixed && totalSides >= 2) {
+      const double length = incidences[i].length;
+      if (k <= kMaxFacesJoinedPairwise) {
+        for (size_t a = i; a < j; ++a)
+          for (size_t b = a + 1; b < j; ++b) {
+            if (incidences[a].cell == incidences[b].cell) continue;
+            const double shared = length * incidences[a].sides * incidences[b].sides / (totalSides - 1);
+            result.pairs.push_back({{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
+          }
+      } else {
+        const double shared = length * totalSides / (2.0 * double(k - 1));
+        for (size_t a = i; a + 1 < j; ++a) {
+          if (incidences[a].cell == incidences[a + 1].cell) continue;
+          result.pairs.push_back(
+              {{incidences[a].cell, incidences[a + 1].cell}, {incidences[a].ref, incidences[a + 1].ref}, shared});
+        }
+      }
+    }
+    i = j;
+  }
+}
+
+void OutOfCoreBuild::resolveCrossEdges() {
+  const auto cells = static_cast<uint32_t>(cells_.size());
+  std::vector<uint32_t> leafBase(cells + 1, 0);
+  for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
+  const auto resolve = [&](uint32_t cell, uint32_t ref) -> uint32_t {
+    if (ref & CrossPair::kLeafRef) return leafBase[cell] + (ref & ~CrossPair::kLeafRef);
+    const auto& border = cells_[cell].border;
+    const auto it = std::lower_bound(border.begin(), border.end(), std::pair<uint32_t, uint32_t>{ref, 0});
+    if (it == border.end() || it->first != ref)
+      throw std::logic_error("out-of-core build: a cross-cell edge names a face that sent no ghost");
+    return leafBase[cell] + it->second;
+  };
+  for (uint32_t c = 0; c < cells; ++c) {
+    for (const CrossPair& p : cells_[c].pairs) {
+      uint32_t a = resolve(p.cell[0], p.ref[0]), b = resolve(p.cell[1], p.ref[1]);
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      edges_.push_back({a, b, p.shared});
+    }
+  }
+  std::sort(edges_.begin(), edges_.end(), [](const ClusterEdge& x, const ClusterEdge& y) {
+    if (x.a != y.a) return x.a < y.a;
+    if (x.b != y.b) return x.b < y.b;
+    return x.shared < y.shared;
+  });
+  leaves_.reserve(leafBase[cells]);
+  for (CellResult& cell : cells_) {
+    report_.components += cell.components;
+    for (LeafCluster& leaf : cell.leaves) leaves_.push_back(std::move(leaf));
+  }
+  cells_ = {};
+  report_.leaves = leaves_.size();
+}
+
+}  // namespace facetree

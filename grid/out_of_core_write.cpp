@@ -1,0 +1,227 @@
+// The out-of-core build, last passes: the greedy merge above the leaf clusters, then the cluster
+// file: geometry in leaf order (accumulating the upper nodes' exact boxes and side areas), then
+// the nodes, upper nodes first and each leaf's subtree after them (out_of_core.h).
+#include <algorithm>
+#include <cstring>
+
+#include "grid/out_of_core.h"
+#include "io/io.h"
+
+namespace facetree {
+namespace {
+
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+
+struct GeometryBlockHeader {
+  uint32_t triangles;
+  uint32_t newVertices;
+};
+
+uint32_t balancedHeight(uint64_t n) {
+  uint32_t h = 1;
+  for (uint64_t span = 1; span < n; span *= 2) ++h;
+  return h;
+}
+
+}  // namespace
+
+void OutOfCoreBuild::mergeAbove() {
+  std::vector<SurfaceStats> stats(leaves_.size());
+  for (size_t i = 0; i < leaves_.size(); ++i) stats[i] = leaves_[i].stats;
+  checkCancel("merge", 0, leaves_.size());
+  upper_ = mergeClusters(stats, edges_, diagonalSquared_, job_.build);
+  edges_ = {};
+  report_.components = std::max<uint64_t>(report_.components, upper_.components);
+}
+
+void OutOfCoreBuild::write() {
+  const auto leafCount = static_cast<uint32_t>(leaves_.size());
+  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
+  const auto& upper = upper_.nodes;
+
+  // Leaf order: depth first from the root, children in order (so every upper node's leaves are
+  // consecutive and its faces one range).
+  std::vector<uint32_t> leavesUnder(upperCount, 0);
+  for (uint32_t i = 0; i < upperCount; ++i)
+    for (const uint32_t c : upper[i].child) leavesUnder[i] += (c & kLeafChild) ? 1 : leavesUnder[c];
+  std::vector<uint32_t> leafOrder;
+  leafOrder.reserve(leafCount);
+  std::vector<uint32_t> firstLeaf(upperCount, 0), nodeParent(upperCount, kNone), leafParent(leafCount, kNone);
+  std::vector<uint64_t> firstFace(upperCount, 0);
+  std::vector<uint32_t> depth(upperCount, 1);  // upper nodes on the path from the root, itself included
+  if (upperCount == 0) {
+    leafOrder.push_back(0);
+  } else {
+    std::vector<uint32_t> stack{upperCount - 1};
+    uint64_t face = 0;
+    while (!stack.empty()) {
+      const uint32_t ref = stack.back();
+      stack.pop_back();
+      if (ref & kLeafChild) {
+        leafOrder.push_back(ref & ~kLeafChild);
+        face += leaves_[ref & ~kLeafChild].faceCount;
+        continue;
+      }
+      firstLeaf[ref] = static_cast<uint32_t>(leafOrder.size());
+      firstFace[ref] = face;
+      for (int k = 1; k >= 0; --k) {
+        const uint32_t c = upper[ref].child[k];
+        if (c & kLeafChild) {
+          leafParent[c & ~kLeafChild] = ref;
+        } else {
+          nodeParent[c] = ref;
+          depth[c] = depth[ref] + 1;
+        }
+        stack.push_back(c);
+      }
+    }
+  }
+  std::vector<uint64_t> faceBase(leafCount), nodeBase(leafCount);
+  uint64_t faces = 0, nodes = upperCount, vertices = 0;
+  uint32_t height = 1;
+  for (const uint32_t leaf : leafOrder) {
+    faceBase[leaf] = faces;
+    nodeBase[leaf] = nodes;
+    faces += leaves_[leaf].faceCount;
+    nodes += leaves_[leaf].nodeCount;
+    vertices += leaves_[leaf].vertexCount;
+    const uint32_t above = leafParent[leaf] == kNone ? 0 : depth[leafParent[leaf]];
+    height = std::max(height, above + leaves_[leaf].height);
+  }
+  report_.nodes = nodes;
+  report_.height = height;
+  report_.balancedHeight = balancedHeight(faces);
+
+  // Frames of the upper nodes from their statistics and their leaves' box corners.
+  std::vector<glm::vec3> corners(size_t{8} * leafCount);
+  for (uint32_t i = 0; i < leafCount; ++i)
+    std::copy(leaves_[leafOrder[i]].corners.begin(), leaves_[leafOrder[i]].corners.end(), corners.begin() + 8 * i);
+  std::vector<BoxAccumulator> boxes;
+  std::vector<uint8_t> flat(upperCount, 0);
+  boxes.reserve(upperCount);
+  for (uint32_t i = 0; i < upperCount; ++i) {
+    bool isFlat = false;
+    const std::span<const glm::vec3> points(corners.data() + size_t{8} * firstLeaf[i], size_t{8} * leavesUnder[i]);
+    boxes.emplace_back(clusterOrientation(upper[i].stats, points, job_.build.flatThreshold, isFlat));
+    flat[i] = isFlat;
+  }
+  corners = {};
+
+  StreamFileInfo info;
+  FileHeader& h = info.header;
+  h.nodeCount = h.originalNodeCount = nodes;
+  h.triangleCount = faces;
+  h.vertexCount = vertices;
+  h.branching = job_.file.branching;
+  h.metric = job_.build.metric;
+  h.k = job_.build.k;
+  h.flatThreshold = job_.build.flatThreshold;
+  h.garlandWeights[0] = job_.build.garlandFitWeight;
+  h.garlandWeights[1] = job_.build.garlandDirWeight;
+  h.garlandWeights[2] = job_.build.garlandShapeWeight;
+  h.memoryCapBytes = memoryCap_;
+  info.maxOriginalFace = maxFace_;
+  ClusterFileWriter writer(job_.output, info, WriteOptions{}, temp_.path());
+  writer.setTemporaryBytesHook([this](int64_t delta) {
+    if (delta > 0) temp_.reserve(static_cast<uint64_t>(delta));
+    else temp_.release(static_cast<uint64_t>(-delta));
+  });
+
+  // Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
+  std::vector<std::byte> raw;
+  std::vector<glm::vec3> leafVertices, triangleCorners;
+  std::vector<uint32_t> indices, ancestors;
+  std::vector<uint64_t> ids;
+  uint64_t vertexBase = 0, done = 0;
+  for (const uint32_t leafId : leafOrder) {
+    const LeafCluster& leaf = leaves_[leafId];
+    ancestors.clear();
+    for (uint32_t a = leafParent[leafId]; a != kNone; a = nodeParent[a]) ancestors.push_back(a);
+    leafVertices.clear();
+    for (const SpillBlock& block : leaf.geometryBlocks) {
+      geometrySpill_->read(block, raw, codec_);
+      GeometryBlockHeader header;
+      std::memcpy(&header, raw.data(), sizeof header);
+      const std::byte* at = raw.data() + sizeof header;
+      const size_t firstNew = leafVertices.size();
+      leafVertices.resize(firstNew + header.newVertices);
+      std::memcpy(leafVertices.data() + firstNew, at, header.newVertices * sizeof(glm::vec3));
+      at += header.newVertices * sizeof(glm::vec3);
+      indices.resize(size_t{3} * header.triangles);
+      std::memcpy(indices.data(), at, indices.size() * sizeof(uint32_t));
+      at += indices.size() * sizeof(uint32_t);
+      ids.resize(header.triangles);
+      std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
+      writer.addVertices(std::span(leafVertices).subspan(firstNew));
+      if (!ancestors.empty()) {
+        triangleCorners.resize(indices.size());
+        for (size_t i = 0; i < indices.size(); ++i) triangleCorners[i] = leafVertices[indices[i]];
+        for (const uint32_t a : ancestors) boxes[a].addTriangles(triangleCorners);
+      }
+      for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
+      writer.addTriangles(indices, ids);
+      done += header.triangles;
+    }
+    vertexBase += leaf.vertexCount;
+    checkCancel("write", done, 2 * faces);
+  }
+  geometrySpill_.reset();
+
+  // Nodes: the upper ones (reverse creation order, root first), then each leaf's subtree.
+  std::vector<FchNode> out;
+  out.reserve(std::min<size_t>(upperCount, 4096));
+  const auto childRef = [&](uint32_t c) -> uint32_t {
+    if (!(c & kLeafChild)) return upperCount - 1 - c;
+    const uint32_t leaf = c & ~kLeafChild;
+    return leaves_[leaf].nodeCount ? static_cast<uint32_t>(nodeBase[leaf])
+                                   : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
+  };
+  for (uint32_t j = 0; j < upperCount; ++j) {
+    const uint32_t i = upperCount - 1 - j;
+    const ClusterMergeNode& u = upper[i];
+    FchNode n;
+    n.first = static_cast<uint32_t>(firstFace[i]);
+    n.count = static_cast<uint32_t>(u.stats.faceCount);
+    n.childCount = 2;
+    n.child[0] = childRef(u.child[0]);
+    n.child[1] = childRef(u.child[1]);
+    n.flags = static_cast<uint8_t>(((u.flags & kNodeJoinsDisjointSurfaces) ? kFchJoinsDisjointSurfaces : 0) |
+                                   (flat[i] ? kFchFlatFrame : 0));
+    n.cost = u.cost;
+    n.area = static_cast<float>(u.stats.area);
+    n.perimeter = static_cast<float>(u.stats.perimeter);
+    n.sumNormal = glm::vec3(u.stats.sumNormal);
+    n.box = boxes[i].box();
+    out.push_back(n);
+    if (out.size() == 4096) {
+      writer.addNodes(out);
+      out.clear();
+    }
+  }
+  writer.addNodes(out);
+  boxes = {};
+  std::vector<FchNode> leafNodes;
+  for (const uint32_t leafId : leafOrder) {
+    const LeafCluster& leaf = leaves_[leafId];
+    const auto nodeOffset = static_cast<uint32_t>(nodeBase[leafId]);
+    const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
+    for (const SpillBlock& block : leaf.nodeBlocks) {
+      nodeSpill_->read(block, raw, codec_);
+      leafNodes.resize(raw.size() / sizeof(FchNode));
+      std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
+      for (FchNode& n : leafNodes) {
+        n.first += faceOffset;
+        for (uint32_t c = 0; c < n.childCount; ++c)
+          n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
+                                                 : n.child[c] + nodeOffset;
+      }
+      writer.addNodes(leafNodes);
+    }
+    done += leaf.faceCount;
+    checkCancel("write", done, 2 * faces);
+  }
+  nodeSpill_.reset();
+  report_.fileBytes = writer.finish();
+}
+
+}  // namespace facetree
