@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 #include "grid/grid.h"
@@ -43,7 +44,15 @@ JobReport runClusterJob(const ClusterJob& job) {
     if (job.progress && !job.progress(JobProgress{phase, done, total})) throw JobCancelled();
   };
 
-  std::unique_ptr<TriangleReader> reader = job.input == "-" ? openStandardInput() : openMesh(job.input);
+  // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
+  // of the cap (the reader would hold them all).
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes);
+  VertexPositions positions(temp, cap / 4);
+  ReadOptions readOptions;
+  readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };
+  std::unique_ptr<TriangleReader> reader =
+      job.input == "-" ? openStandardInput(readOptions) : openMesh(job.input, readOptions);
+  const bool deferred = reader->positionsDeferred();
   PendingTriangles pending;
   bool outOfCore = job.forceCellFaces > 0;
   if (!outOfCore) {
@@ -56,7 +65,7 @@ JobReport runClusterJob(const ClusterJob& job) {
       }
       const uint64_t estimate = kBaseBytes + kInCoreBytesPerTriangle * pending.originalFace.size() +
                                 kInCoreBytesPerVertex * reader->vertices().size();
-      if (estimate > cap) {
+      if (estimate > cap || (deferred && !positions.inMemory())) {
         outOfCore = true;
         break;
       }
@@ -64,24 +73,43 @@ JobReport runClusterJob(const ClusterJob& job) {
     }
   }
   if (outOfCore) {
-    runOutOfCore(effective, std::move(reader), std::move(pending), cap, report);
+    runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending), cap,
+                 report);
     report.seconds = secondsSince(start);
     return report;
   }
 
   // In core: the whole mesh in memory.
   IndexedMesh mesh;
-  mesh.indices = std::move(pending.indices);
-  mesh.originalFace = std::move(pending.originalFace);
-  {
+  mesh.info = reader->info();
+  mesh.stats = reader->stats();
+  if (deferred) {
+    mesh.positions.assign(positions.memory().begin(), positions.memory().end());
+    positions.release();
+    // The reader left non-finite vertices to us: drop the triangles touching them.
+    size_t kept = 0;
+    const size_t n = pending.originalFace.size();
+    for (size_t t = 0; t < n; ++t) {
+      bool finite = true;
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3& p = mesh.positions[pending.indices[3 * t + k]];
+        finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+      }
+      if (!finite) continue;
+      for (int k = 0; k < 3; ++k) pending.indices[3 * kept + k] = pending.indices[3 * t + k];
+      pending.originalFace[kept++] = pending.originalFace[t];
+    }
+    mesh.stats.skippedTriangles += n - kept;
+    mesh.stats.triangles -= n - kept;
+    pending.indices.resize(3 * kept);
+    pending.originalFace.resize(kept);
+  } else {
     const VertexSource& vertices = reader->vertices();
-    if (vertices.size() > std::numeric_limits<uint32_t>::max())
-      throw std::invalid_argument(reader->info().name + ": more than 2^32 vertices do not fit in memory mode");
     mesh.positions.resize(vertices.size());
     for (uint64_t i = 0; i < vertices.size(); ++i) mesh.positions[i] = vertices.position(i);
   }
-  mesh.info = reader->info();
-  mesh.stats = reader->stats();
+  mesh.indices = std::move(pending.indices);
+  mesh.originalFace = std::move(pending.originalFace);
   reader.reset();
   if (job.load.weldPositions) mesh.weldedVertices = weldPositions(mesh.positions, mesh.indices);
   report.info = mesh.info;

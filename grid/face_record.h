@@ -33,4 +33,12 @@ struct GhostEdge {
 };
 static_assert(sizeof(GhostEdge) == 24 && std::is_trivially_copyable_v<GhostEdge>);
 
+// A triangle whose positions are still on disk (VertexPositions spilled).
+struct TriangleRef {
+  uint32_t vertex[3];
+  uint32_t unused;
+  uint64_t face;
+};
+static_assert(sizeof(TriangleRef) == 24 && std::is_trivially_copyable_v<TriangleRef>);
+
 }  // namespace facetree

@@ -1,6 +1,8 @@
 // The out-of-core build: driver, read pass and binning (see out_of_core.h for the passes).
 #include "grid/out_of_core.h"
 
+#include "grid/external_sort.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,8 +21,9 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
-OutOfCoreBuild::OutOfCoreBuild(const ClusterJob& job, uint64_t memoryCap, JobReport& report)
-    : job_(job), memoryCap_(memoryCap), report_(report), temp_(job.tmpDir, job.maxTemporaryBytes) {}
+OutOfCoreBuild::OutOfCoreBuild(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
+                               uint64_t memoryCap, JobReport& report)
+    : job_(job), memoryCap_(memoryCap), report_(report), temp_(temp), positions_(positions) {}
 
 OutOfCoreBuild::~OutOfCoreBuild() = default;
 
@@ -39,22 +42,35 @@ void OutOfCoreBuild::appendArrival(const FaceRecord& r) {
   arrival_->append(0, &r);
 }
 
+bool OutOfCoreBuild::appendResolved(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3]) {
+  FaceRecord r{};
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(corner[k].x) || !std::isfinite(corner[k].y) || !std::isfinite(corner[k].z)) {
+      ++skipped_;
+      return false;
+    }
+    r.vertex[k] = vertex[k];
+    std::memcpy(&r.position[3 * k], &corner[k], sizeof(glm::vec3));
+  }
+  r.face = face;
+  appendArrival(r);
+  return true;
+}
+
 void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending) {
   min_ = glm::vec3(std::numeric_limits<float>::infinity());
   max_ = -min_;
   arrival_ = std::make_unique<BucketSpill>(temp_, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes);
+  const bool deferred = reader.positionsDeferred();
+  // Triangles the job read in memory: their positions are in memory too.
   {
-    const VertexSource& vertices = reader.vertices();
     const size_t n = pending.originalFace.size();
     for (size_t t = 0; t < n; ++t) {
-      FaceRecord r{};
-      for (int k = 0; k < 3; ++k) {
-        r.vertex[k] = pending.indices[3 * t + k];
-        const glm::vec3 p = vertices.position(r.vertex[k]);
-        std::memcpy(&r.position[3 * k], &p, sizeof p);
-      }
-      r.face = pending.originalFace[t];
-      appendArrival(r);
+      const uint32_t* v = &pending.indices[3 * t];
+      glm::vec3 corner[3];
+      for (int k = 0; k < 3; ++k)
+        corner[k] = deferred ? positions_->memory()[v[k]] : reader.vertices().position(v[k]);
+      appendResolved(v, pending.originalFace[t], corner);
     }
     pending = {};
   }
@@ -62,23 +78,123 @@ void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending)
   for (size_t got; (got = reader.read(batch)) > 0;) {
     for (size_t i = 0; i < got; ++i) {
       const Triangle& t = batch[i];
-      FaceRecord r{};
-      for (int k = 0; k < 3; ++k) {
-        r.vertex[k] = t.vertex[k];
-        std::memcpy(&r.position[3 * k], &t.position[k], sizeof(glm::vec3));
+      if (!deferred) {
+        appendResolved(t.vertex, t.face, t.position);
+      } else if (positions_->inMemory()) {
+        const glm::vec3 corner[3] = {positions_->memory()[t.vertex[0]], positions_->memory()[t.vertex[1]],
+                                     positions_->memory()[t.vertex[2]]};
+        appendResolved(t.vertex, t.face, corner);
+      } else {
+        if (!refs_) refs_ = std::make_unique<BucketSpill>(temp_, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
+        const TriangleRef ref{{t.vertex[0], t.vertex[1], t.vertex[2]}, 0, t.face};
+        refs_->append(0, &ref);
       }
-      r.face = t.face;
-      appendArrival(r);
     }
     checkCancel("read", reader.stats().inputBytes, 0);
   }
-  arrival_->flushAll();
+  if (positions_) positions_->finish();
   report_.info = reader.info();
   report_.stats = reader.stats();
+}
+
+void OutOfCoreBuild::resolveSpilledPositions() {
+  if (refs_) {
+    refs_->flushAll();
+    const uint64_t total = refs_->records(0);
+    // Coherent orders: an LRU block cache. If a window of triangles misses too often, the rest
+    // goes through the sort join instead (a shuffled file would read a block per corner).
+    constexpr uint64_t kWindow = 1024, kMaxWindowMisses = kWindow / 8;
+    struct CornerRef {
+      uint32_t vertex, corner;
+      uint64_t seq;
+    };
+    struct ByVertex {
+      bool operator()(const CornerRef& a, const CornerRef& b) const {
+        return a.vertex != b.vertex ? a.vertex < b.vertex : a.seq != b.seq ? a.seq < b.seq : a.corner < b.corner;
+      }
+    };
+    struct CornerPos {
+      uint64_t seq;
+      uint32_t corner;
+      glm::vec3 position;
+    };
+    struct BySeq {
+      bool operator()(const CornerPos& a, const CornerPos& b) const {
+        return a.seq != b.seq ? a.seq < b.seq : a.corner < b.corner;
+      }
+    };
+    const uint64_t sortBudget = std::max<uint64_t>(memoryCap_ / 6, uint64_t{4} << 20);
+    std::unique_ptr<ExternalSorter<CornerRef, ByVertex>> byVertex;
+    uint64_t joinFrom = total;
+    {
+      BlockCache cache(*positions_, memoryCap_ / 4);
+      uint64_t seq = 0, windowMisses = 0;
+      std::vector<TriangleRef> refs;
+      refs_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+        refs.resize(bytes.size() / sizeof(TriangleRef));
+        std::memcpy(refs.data(), bytes.data(), bytes.size());
+        for (const TriangleRef& r : refs) {
+          if (!byVertex) {
+            const glm::vec3 corner[3] = {cache(r.vertex[0]), cache(r.vertex[1]), cache(r.vertex[2])};
+            appendResolved(r.vertex, r.face, corner);
+            if ((seq + 1) % kWindow == 0) {
+              if (cache.misses() - windowMisses > kMaxWindowMisses) {
+                byVertex = std::make_unique<ExternalSorter<CornerRef, ByVertex>>(temp_, "join-vertex", sortBudget);
+                joinFrom = seq + 1;
+              }
+              windowMisses = cache.misses();
+            }
+          } else {
+            for (uint32_t k = 0; k < 3; ++k) byVertex->push(CornerRef{r.vertex[k], k, seq});
+          }
+          ++seq;
+        }
+        checkCancel("read", seq, total);
+      });
+    }
+    if (byVertex) {
+      byVertex->finish();
+      ExternalSorter<CornerPos, BySeq> bySeq(temp_, "join-face", sortBudget);
+      {
+        std::vector<CornerRef> batch(4096);
+        std::vector<glm::vec3> block;
+        size_t current = ~size_t{0};
+        for (size_t got; (got = byVertex->read(batch)) > 0;) {
+          for (size_t i = 0; i < got; ++i) {
+            const size_t b = batch[i].vertex / VertexPositions::kBlockVertices;
+            if (b != current) positions_->readBlock(current = b, block, codec_);
+            bySeq.push(CornerPos{batch[i].seq, batch[i].corner, block[batch[i].vertex % VertexPositions::kBlockVertices]});
+          }
+        }
+        byVertex.reset();
+      }
+      bySeq.finish();
+      std::vector<CornerPos> corners(3);
+      uint64_t seq = 0;
+      std::vector<TriangleRef> refs;
+      refs_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+        refs.resize(bytes.size() / sizeof(TriangleRef));
+        std::memcpy(refs.data(), bytes.data(), bytes.size());
+        for (const TriangleRef& r : refs) {
+          if (seq++ < joinFrom) continue;
+          for (int k = 0; k < 3; ++k)
+            if (bySeq.read(std::span(corners).subspan(k, 1)) != 1 || corners[k].seq != seq - 1 ||
+                corners[k].corner != uint32_t(k))
+              throw std::logic_error("out-of-core build: the position join lost a corner");
+          const glm::vec3 p[3] = {corners[0].position, corners[1].position, corners[2].position};
+          appendResolved(r.vertex, r.face, p);
+        }
+      });
+    }
+    refs_.reset();
+  }
+  arrival_->flushAll();
+  report_.stats.skippedTriangles += skipped_;
+  report_.stats.triangles -= std::min(report_.stats.triangles, skipped_);
   report_.triangles = triangles_;
-  if (triangles_ == 0) throw ReadError(reader.info().name + ": no triangles to cluster");
+  if (triangles_ == 0) throw ReadError(report_.info.name + ": no triangles to cluster");
   if (triangles_ > kFaceChild - 1)
-    throw std::invalid_argument(reader.info().name + ": more than 2^31-1 triangles do not fit a cluster file");
+    throw std::invalid_argument(report_.info.name + ": more than 2^31-1 triangles do not fit a cluster file");
   const glm::dvec3 lo(min_), hi(max_);
   origin_ = 0.5 * (lo + hi);
   diagonalSquared_ = glm::dot(hi - lo, hi - lo);
@@ -169,6 +285,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   auto start = std::chrono::steady_clock::now();
   readAll(*reader, std::move(pending));
   reader.reset();
+  resolveSpilledPositions();
   report_.secondsRead = secondsSince(start);
 
   start = std::chrono::steady_clock::now();
@@ -190,14 +307,15 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   report_.temporaryBytesPeak = temp_.peakBytes();
 }
 
-void runOutOfCore(const ClusterJob& job, std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending,
-                  uint64_t memoryCap, JobReport& report) {
+void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
+                  std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
+                  JobReport& report) {
   if (job.load.weldPositions)
     throw std::invalid_argument("--weld is not supported by out-of-core builds yet (raise --memory)");
   if (job.build.metric == Metric::Garland)
     throw std::invalid_argument("--metric garland needs an in-core build (raise --memory)");
   report.outOfCore = true;
-  OutOfCoreBuild build(job, memoryCap, report);
+  OutOfCoreBuild build(job, temp, positions, memoryCap, report);
   build.run(std::move(reader), std::move(pending));
 }
 

@@ -23,6 +23,7 @@
 #include "grid/face_record.h"
 #include "grid/grid.h"
 #include "grid/bucket_spill.h"
+#include "grid/vertex_positions.h"
 #include "grid/spill_file.h"
 #include "grid/temp_space.h"
 
@@ -62,7 +63,10 @@ struct CrossPair {
 // out_of_core.cpp (read, bin), out_of_core_cells.cpp (cells) and out_of_core_write.cpp (merge, write).
 class OutOfCoreBuild {
  public:
-  OutOfCoreBuild(const ClusterJob& job, uint64_t memoryCap, JobReport& report);
+  // `positions`: the reader's deferred vertex positions (ReadOptions::vertexSink), or null when
+  // the reader fills in positions itself.
+  OutOfCoreBuild(const ClusterJob& job, TempSpace& temp, VertexPositions* positions, uint64_t memoryCap,
+                 JobReport& report);
   ~OutOfCoreBuild();
   void run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending);
 
@@ -70,6 +74,9 @@ class OutOfCoreBuild {
   void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
   void readAll(TriangleReader& reader, PendingTriangles&& pending);
   void appendArrival(const FaceRecord& record);
+  // FaceRecord from vertex ids, face id and corner positions; false (counted) if non-finite.
+  bool appendResolved(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3]);
+  void resolveSpilledPositions();
   void binAndDistribute();
   void buildCells();
   void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
@@ -80,8 +87,11 @@ class OutOfCoreBuild {
   const ClusterJob& job_;
   uint64_t memoryCap_;
   JobReport& report_;
-  TempSpace temp_;
+  TempSpace& temp_;
+  VertexPositions* positions_;
   SpillCodec codec_;
+  std::unique_ptr<BucketSpill> refs_;  // triangles waiting for spilled positions (TriangleRef)
+  uint64_t skipped_ = 0;               // triangles dropped for a non-finite vertex
   // read
   std::unique_ptr<BucketSpill> arrival_;
   glm::vec3 min_{0.0f}, max_{0.0f};
@@ -112,8 +122,9 @@ class OutOfCoreBuild {
 
 // Runs the out-of-core build from `reader` (released after the read pass), `pending` holding the
 // triangles the job had already read into memory; fills `report`.
-void runOutOfCore(const ClusterJob& job, std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending,
-                  uint64_t memoryCap, JobReport& report);
+void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
+                  std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
+                  JobReport& report);
 
 // Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
 inline constexpr uint64_t kBaseBytes = uint64_t{24} << 20;     // process, libraries, reader, codecs

@@ -8,6 +8,7 @@
 #include "stream/format_detect.h"
 #include "stream/read_error.h"
 #include "stream/readers.h"
+#include "stream/vertex_store.h"
 
 namespace facetree {
 
@@ -47,7 +48,13 @@ std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, co
       throwReadError(name, Place::byte(0), "zstd inside zstd is not supported");
   }
   if (format == DetectedFormat::Empty) throwReadError(name, Place::byte(0), "empty file");
-  if (auto reader = makeReader(format, std::move(input), std::move(info))) return reader;
+  if (auto reader = makeReader(format, std::move(input), std::move(info))) {
+    const MeshFormat f = reader->info().format;
+    const bool indexed = f == MeshFormat::PlyAscii || f == MeshFormat::PlyBinaryLittleEndian ||
+                         f == MeshFormat::PlyBinaryBigEndian || f == MeshFormat::Obj;
+    if (options.vertexSink && indexed) static_cast<ReaderBase&>(*reader).deferPositions(options.vertexSink);
+    return reader;
+  }
   throwReadError(name, Place::byte(0), "unknown mesh format");
 }
 

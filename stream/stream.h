@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -80,11 +81,22 @@ public:
   // which may interleave vertices and faces, holds the vertices read so far (every index
   // handed on is valid) and is complete once read() returned 0.
   virtual const VertexSource& vertices() const = 0;
+  // True when ReadOptions::vertexSink took the positions (see there).
+  virtual bool positionsDeferred() const { return false; }
 };
 
 struct ReadOptions {
   // Bytes of input buffered at once (decompressed and raw).
   size_t bufferBytes = size_t{1} << 20;
+  // Bounded memory for PLY and OBJ (out-of-core builds): the reader does not keep vertex
+  // positions but hands them to this sink in index order, in batches, every batch before any
+  // triangle using its vertices is returned. Triangles then carry vertex indices and face ids
+  // only (positions zero; positionsDeferred() is true): the caller resolves positions, drops
+  // triangles touching non-finite vertices (ReadStats::nonFiniteVertices still counts those
+  // vertices) and finds zero-area triangles (only repeated indices count as degenerate here).
+  // vertices() then has the right size() but no positions. STL (positions per triangle, welded
+  // in memory) and Draco (decoded whole) ignore the sink.
+  std::function<void(std::span<const glm::vec3>)> vertexSink;
 };
 
 // Opens a mesh file; the format is detected from the content, not the name

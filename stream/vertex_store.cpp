@@ -51,6 +51,7 @@ size_t ReaderBase::read(std::span<Triangle> out) {
     error_ = error.what();
     throw;
   }
+  vertices_.flush();  // positions of every vertex a returned triangle uses reach the sink first
   stats_.vertices = vertices_.size();
   stats_.inputBytes = inputOffset();
   stats_.compressedBytes = compressedOffset();
@@ -58,6 +59,16 @@ size_t ReaderBase::read(std::span<Triangle> out) {
 }
 
 size_t ReaderBase::completeTriangles(Triangle* triangles, size_t count) {
+  if (vertices_.deferred()) {
+    for (size_t i = 0; i < count; ++i) {
+      Triangle& t = triangles[i];
+      t.position[0] = t.position[1] = t.position[2] = glm::vec3(0.0f);
+      if (t.vertex[0] == t.vertex[1] || t.vertex[1] == t.vertex[2] || t.vertex[0] == t.vertex[2])
+        ++stats_.degenerateTriangles;
+    }
+    stats_.triangles += count;
+    return count;
+  }
   const glm::vec3* positions = vertices_.data();
   size_t kept = 0;
   for (size_t i = 0; i < count; ++i) {

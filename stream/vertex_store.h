@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -21,18 +22,47 @@ inline constexpr uint64_t kMaxUntrustedReserve = uint64_t{1} << 20;
 // Longest accepted text line (OBJ, ASCII STL/PLY, PLY header).
 inline constexpr size_t kMaxLineBytes = size_t{1} << 20;
 
-// Vertex positions held in memory (the VertexSource of every reader for now).
+// Vertex positions held in memory, or (ReadOptions::vertexSink) handed on in batches and not
+// kept: then position() and data() must not be used.
 class VertexStore final : public VertexSource {
  public:
-  uint64_t size() const override { return positions_.size(); }
+  using Sink = std::function<void(std::span<const glm::vec3>)>;
+  static constexpr size_t kSinkBatch = 16384;
+
+  uint64_t size() const override { return count_; }
   glm::vec3 position(uint64_t index) const override { return positions_[index]; }
 
-  void reserve(uint64_t count) { positions_.reserve(count); }
-  void add(const glm::vec3& position) { positions_.push_back(position); }
+  void reserve(uint64_t count) {
+    if (!sink_) positions_.reserve(count);
+  }
+  void add(const glm::vec3& position) {
+    ++count_;
+    if (!sink_) {
+      positions_.push_back(position);
+      return;
+    }
+    positions_.push_back(position);
+    if (positions_.size() == kSinkBatch) flush();
+  }
   const glm::vec3* data() const { return positions_.data(); }
+  // Defers positions to `sink` (before the first add()).
+  void setSink(Sink sink) {
+    sink_ = std::move(sink);
+    positions_.reserve(kSinkBatch);
+  }
+  bool deferred() const { return static_cast<bool>(sink_); }
+  // Hands the buffered batch to the sink.
+  void flush() {
+    if (sink_ && !positions_.empty()) {
+      sink_(positions_);
+      positions_.clear();
+    }
+  }
 
  private:
-  std::vector<glm::vec3> positions_;
+  std::vector<glm::vec3> positions_;  // all of them, or the batch not yet handed on
+  uint64_t count_ = 0;
+  Sink sink_;
 };
 
 bool isFinite(const glm::vec3& position);
@@ -45,6 +75,9 @@ class ReaderBase : public TriangleReader {
   const MeshInfo& info() const final { return info_; }
   const ReadStats& stats() const final { return stats_; }
   const VertexSource& vertices() const final { return vertices_; }
+  bool positionsDeferred() const final { return vertices_.deferred(); }
+  // ReadOptions::vertexSink, for readers whose vertices go through addVertex (PLY, OBJ).
+  void deferPositions(VertexStore::Sink sink) { vertices_.setSink(std::move(sink)); }
 
  protected:
   // Writes up to `capacity` triangles (vertex indices and face ids; positions are filled in
