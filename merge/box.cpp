@@ -37,6 +37,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include "merge/box_extent.h"
 #include "merge/frame.h"
 
 namespace facetree {
@@ -106,26 +107,7 @@ struct Moments {
   }
 };
 
-// Projections of a face range on three axes, relative to the node's reference vertex.
-struct Extent {
-  double lo[3] = {INFINITY, INFINITY, INFINITY};
-  double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  double side[6] = {0, 0, 0, 0, 0, 0};  // +a0, -a0, +a1, -a1, +a2, -a2
-
-  void merge(const Extent& o) {
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::min(lo[k], o.lo[k]);
-      hi[k] = std::max(hi[k], o.hi[k]);
-    }
-    for (int k = 0; k < 6; ++k) side[k] += o.side[k];
-  }
-};
-
-// The scan's frame: stored float axes and the reference vertex positions are taken relative to.
-struct ScanFrame {
-  glm::vec3 axis[3];
-  glm::vec3 origin;
-};
+using Extent = BoxExtent;
 
 uint32_t blockEnd(uint32_t i, uint32_t end) {
   return std::min<uint64_t>(end, (uint64_t(i) / kSideBlock + 1) * kSideBlock);
@@ -223,54 +205,9 @@ Extent scanRange(const PackedFaces& f, const ScanFrame& frame, uint32_t begin, u
   return total;
 }
 
-// Float quaternion of a right-handed orthonormal frame, and the axes it reconstructs (the ones
-// the extents are measured along, so that containment holds for the stored representation).
-glm::quat frameQuaternion(const ClusterFrame& frame) {
-  const glm::dmat3 m(frame.axis[0], frame.axis[1], frame.axis[2]);
-  const glm::quat q(glm::normalize(glm::quat_cast(m)));
-  return q.w < 0 ? -q : q;  // canonical sign
-}
-
 ScanFrame scanFrame(const PackedFaces& f, const glm::quat& q, uint32_t first) {
   const glm::mat3 m = glm::mat3_cast(q);
   return {{m[0], m[1], m[2]}, f.vertex(0, first)};
-}
-
-float roundUp(double v) {
-  float f = float(v);
-  // v >= 0 here (a half extent), so the next float up is the next bit pattern (nextafterf is
-  // a library call).
-  if (double(f) < v)
-    f = f >= 0 ? std::bit_cast<float>(std::bit_cast<uint32_t>(f) + 1)
-               : std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
-}
-
-// Bound on the float error of a projection (p - o) . a, relative to |p - o|: the subtraction,
-// three products and two sums, each within 2^-24 relative, over |p - o|_1 <= sqrt(3) |p - o|.
-constexpr double kProjectionError = 4.0 * 0x1p-24 * 1.7320508075688772 * 1.01;
-
-// Center and half extents from the projections; the half extents are measured from the float
-// center as stored, padded by the float error bound and rounded up, so the stored box contains
-// every vertex.
-void finishBox(const Extent& e, const ScanFrame& frame, NodeBox& box) {
-  glm::dvec3 axis[3];
-  for (int k = 0; k < 3; ++k) axis[k] = glm::dvec3(frame.axis[k]);
-  const glm::dvec3 o(frame.origin);
-  double r2 = 0;  // |p - o| <= sqrt(sum of max(lo^2, hi^2)) for (near-)orthonormal axes
-  for (int k = 0; k < 3; ++k) r2 += std::max(e.lo[k] * e.lo[k], e.hi[k] * e.hi[k]);
-  const double pad = kProjectionError * std::sqrt(r2) * 1.01;
-  // The float axes are orthonormal only to ~1e-7: solve dot(center - o, axis_k) = mid_k instead
-  // of summing mid_k axis_k.
-  const glm::dmat3 a(axis[0], axis[1], axis[2]);
-  const glm::dvec3 mid = 0.5 * glm::dvec3(e.lo[0] + e.hi[0], e.lo[1] + e.hi[1], e.lo[2] + e.hi[2]);
-  box.center = glm::vec3(o + glm::inverse(glm::transpose(a)) * mid);
-  const glm::dvec3 c = glm::dvec3(box.center) - o;
-  for (int k = 0; k < 3; ++k) {
-    const double ck = glm::dot(c, axis[k]);
-    box.halfExtent[k] = roundUp(std::max({e.hi[k] - ck, ck - e.lo[k], 0.0}) + pad);
-  }
-  for (int k = 0; k < 6; ++k) box.sideArea[k] = float(e.side[k]);
 }
 
 // What a finished child hands its parent: moments and candidate hull points
@@ -532,7 +469,43 @@ PackedFaces pack(const MeshView& mesh, const std::vector<uint32_t>& order, unsig
   return f;
 }
 
+float roundUp(double v) {
+  float f = float(v);
+  // v >= 0 here (a half extent), so the next float up is the next bit pattern (nextafterf is
+  // a library call).
+  if (double(f) < v)
+    f = f >= 0 ? std::bit_cast<float>(std::bit_cast<uint32_t>(f) + 1)
+               : std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
 }  // namespace
+
+glm::quat frameQuaternion(const ClusterFrame& frame) {
+  const glm::dmat3 m(frame.axis[0], frame.axis[1], frame.axis[2]);
+  const glm::quat q(glm::normalize(glm::quat_cast(m)));
+  return q.w < 0 ? -q : q;  // canonical sign
+}
+
+void finishBox(const BoxExtent& e, const ScanFrame& frame, NodeBox& box, double minPad) {
+  glm::dvec3 axis[3];
+  for (int k = 0; k < 3; ++k) axis[k] = glm::dvec3(frame.axis[k]);
+  const glm::dvec3 o(frame.origin);
+  double r2 = 0;  // |p - o| <= sqrt(sum of max(lo^2, hi^2)) for (near-)orthonormal axes
+  for (int k = 0; k < 3; ++k) r2 += std::max(e.lo[k] * e.lo[k], e.hi[k] * e.hi[k]);
+  const double pad = std::max(kProjectionError * std::sqrt(r2) * 1.01, minPad);
+  // The float axes are orthonormal only to ~1e-7: solve dot(center - o, axis_k) = mid_k instead
+  // of summing mid_k axis_k.
+  const glm::dmat3 a(axis[0], axis[1], axis[2]);
+  const glm::dvec3 mid = 0.5 * glm::dvec3(e.lo[0] + e.hi[0], e.lo[1] + e.hi[1], e.lo[2] + e.hi[2]);
+  box.center = glm::vec3(o + glm::inverse(glm::transpose(a)) * mid);
+  const glm::dvec3 c = glm::dvec3(box.center) - o;
+  for (int k = 0; k < 3; ++k) {
+    const double ck = glm::dot(c, axis[k]);
+    box.halfExtent[k] = roundUp(std::max({e.hi[k] - ck, ck - e.lo[k], 0.0}) + pad);
+  }
+  for (int k = 0; k < 6; ++k) box.sideArea[k] = float(e.side[k]);
+}
 
 void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options,
                              unsigned threads) {

@@ -66,6 +66,36 @@ struct ClusterStats {
     return s;
   }
 
+  // fromTriangle for float corners taken about `origin`, written out in scalars with the exact
+  // arithmetic of FaceGeometry::leafStats (tests/merge/merge_api_test.cpp checks they agree bit
+  // for bit), so that stats summed from it match the engine's.
+  static ClusterStats fromShiftedTriangle(const glm::vec3& pa, const glm::vec3& pb, const glm::vec3& pc,
+                                          const glm::dvec3& origin) {
+    const double ax = pa.x - origin.x, ay = pa.y - origin.y, az = pa.z - origin.z;
+    const double bx = pb.x - origin.x, by = pb.y - origin.y, bz = pb.z - origin.z;
+    const double cx = pc.x - origin.x, cy = pc.y - origin.y, cz = pc.z - origin.z;
+    const double ux = bx - ax, uy = by - ay, uz = bz - az;  // b - a
+    const double vx = cx - ax, vy = cy - ay, vz = cz - az;  // c - a
+    const double wx = cx - bx, wy = cy - by, wz = cz - bz;  // c - b
+    const double nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+    ClusterStats s;
+    s.sumNormal = glm::dvec3(0.5 * nx, 0.5 * ny, 0.5 * nz);
+    s.area = 0.5 * std::sqrt(nx * nx + ny * ny + nz * nz);
+    s.perimeter = std::sqrt(ux * ux + uy * uy + uz * uz) + std::sqrt(vx * vx + vy * vy + vz * vz) +
+                  std::sqrt(wx * wx + wy * wy + wz * wz);
+    const double sx = ax + bx + cx, sy = ay + by + cy, sz = az + bz + cz;
+    const double third = s.area / 3.0, w = s.area / 12.0;
+    s.firstMoment = glm::dvec3(third * sx, third * sy, third * sz);
+    double* m = s.secondMoment.m;
+    m[0] = w * (ax * ax + bx * bx + cx * cx + sx * sx);
+    m[1] = w * (ax * ay + bx * by + cx * cy + sx * sy);
+    m[2] = w * (ax * az + bx * bz + cx * cz + sx * sz);
+    m[3] = w * (ay * ay + by * by + cy * cy + sy * sy);
+    m[4] = w * (ay * az + by * bz + cy * cz + sy * sz);
+    m[5] = w * (az * az + bz * bz + cz * cz + sz * sz);
+    return s;
+  }
+
   // Union of two clusters that share `sharedLength` of boundary (0 for disjoint ones).
   static ClusterStats merged(const ClusterStats& a, const ClusterStats& b, double sharedLength) {
     ClusterStats s;

@@ -6,7 +6,9 @@
 // per-node face ranges over a reordered face list (sec. 5.5.3).
 //
 // Errors: buildHierarchy throws std::invalid_argument for indices out of range or a mesh too
-// large for 32-bit node ids; nothing else is thrown except std::bad_alloc.
+// large for 32-bit node ids; the functions for building above separate pieces (below
+// computeBoxes) throw std::invalid_argument for invalid input as documented there; nothing else
+// is thrown except std::bad_alloc.
 #pragma once
 
 #include <cstdint>
@@ -98,5 +100,101 @@ Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options = {})
 // Computes exact oriented boxes and side areas for every node of `hierarchy` (called by
 // buildHierarchy when options.computeBoxes; exposed for hierarchies recast or read back).
 void computeBoxes(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options = {});
+
+// --- Building above separately built pieces (out-of-core) ----------------------------------
+//
+// The grid splits a mesh into pieces, builds each piece's hierarchy with buildHierarchy and
+// then continues the greedy merge above the pieces' roots ("leaf clusters") on their dual
+// graph: surfaceStats gives a piece's statistics, faceComponents splits a piece into its
+// edge-connected components, mergeClusters merges the leaf clusters as the engine would, and
+// clusterOrientation / BoxAccumulator give the boxes of the nodes above them.
+
+// Additive statistics of a set of faces (the merge's cluster statistics, Willmott 2000 sec. 5.2.3), moments
+// about a caller-chosen origin (use one origin for all pieces that will be merged together, e.g. the centre
+// of the model's bounding box, so the variance does not cancel).
+struct SurfaceStats {
+  double area = 0;
+  double perimeter = 0;         // boundary length, as the engine counts it (dual-edge shared lengths removed)
+  glm::dvec3 sumNormal{0.0};    // S
+  glm::dvec3 firstMoment{0.0};  // integral of x dA
+  double secondMoment[6] = {};  // integral of x x^T dA: xx xy xz yy yz zz
+  uint64_t faceCount = 0;
+  uint32_t height = 1;  // nodes on the longest root-to-face path, the face included
+};
+
+// Statistics of all triangles of `mesh` about `origin` (perimeter = sum of triangle perimeters minus twice
+// the shared lengths of the dual graph, exactly as the engine's root would have it), height 1. An empty mesh
+// gives zero statistics; throws std::invalid_argument as buildHierarchy does for invalid indices.
+SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin);
+
+// Edge-connected components under the dual graph's edge rules (dual_graph.h): label[f] for each triangle,
+// components numbered 0, 1, ... in order of their lowest triangle. Returns the number of components.
+// Throws std::invalid_argument as buildHierarchy does for invalid indices.
+uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label);
+
+// A dual edge between two leaf clusters (a != b): shared boundary length. Parallel edges are summed.
+struct ClusterEdge {
+  uint32_t a = 0, b = 0;
+  double shared = 0;
+};
+
+inline constexpr uint32_t kLeafChild = 0x80000000u;  // child reference to a leaf cluster index
+
+struct ClusterMergeNode {
+  uint32_t child[2];   // kLeafChild | leaf index, or the creation index of an earlier node
+  uint32_t flags;      // NodeFlag (kNodeJoinsDisjointSurfaces for component joins)
+  float cost;          // as Node::cost (with the guard's penalty)
+  SurfaceStats stats;  // of the merged cluster; height and faceCount include the leaves' subtrees
+};
+
+struct ClusterMergeResult {
+  std::vector<ClusterMergeNode> nodes;  // creation order; the last one is the root (leaves.size()-1 nodes)
+  uint64_t components = 0;              // roots left when the edges ran out (then joined)
+  double averageDegree = 0;             // dual-edge degree of merged clusters, sampled at each edge merge
+  uint32_t maxDegree = 0;
+  uint64_t eigenSolves = 0, normalShortcuts = 0;
+};
+
+// The greedy dual-edge merge over given leaf clusters (their stats, heights and face counts from their own
+// hierarchies): eq. 84 with options.k / flatThreshold, the balance guard with options.balanceSlack using the
+// leaves' heights and face counts, Huffman component joins by face count as the engine does, deterministic
+// ties (cost, then ids). `diagonalSquared` is the squared bounding-box diagonal of the whole model (the key
+// scale the engine uses). Metric::Constant supported; Metric::Garland throws
+// std::invalid_argument("mergeClusters: the Garland metric needs face-level statistics"). Cost O((L + E) log
+// L); memory O(L + E). With one leaf per face (the faces' surfaceStats about the engine's origin, the dual
+// graph's edges with their exact shared lengths) the nodes are buildHierarchy's, in creation order. Throws
+// std::invalid_argument for an edge with an endpoint out of range or equal ends, and for 2^31 leaves or more.
+ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                                 double diagonalSquared, const BuildOptions& options = {});
+
+// Box frame of a cluster from its statistics (PCA of the covariance, or S plus the minimum-area rectangle for
+// flat clusters, sec. 5.3.2, as computeBoxes chooses them) and `points`, a sample containing its extreme
+// points (e.g. the 8 corners of its children's boxes: orientation only, never extents). Returns the
+// orientation (columns of mat3_cast = axes, as NodeBox) and sets `flat`.
+glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
+                             double flatThreshold, bool& flat);
+
+// Exact box extents and side areas in a given orientation, accumulated triangle by triangle (so a caller can
+// stream the faces of a huge cluster, or merge accumulators of disjoint face sets). box() gives the same
+// NodeBox computeBoxes would give for that orientation and those triangles (every vertex inside, each face
+// touching a vertex, side areas = sum a_f max(0, +-n_f . axis)), with the arithmetic of box.cpp.
+class BoxAccumulator {
+ public:
+  explicit BoxAccumulator(const glm::quat& orientation);
+  void addTriangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+  void addTriangles(std::span<const glm::vec3> corners);  // 3 per triangle; the hot path
+  void merge(const BoxAccumulator& other);                // same orientation (else std::invalid_argument)
+  bool empty() const { return !hasOrigin_; }
+  NodeBox box() const;
+
+ private:
+  glm::quat orientation_;
+  glm::vec3 axis_[3];       // mat3_cast(orientation_): the axes the extents are measured along
+  glm::vec3 origin_{0.0f};  // the first vertex added: projections are relative to it (box.cpp)
+  bool hasOrigin_ = false;
+  double lo_[3], hi_[3];    // projections of the vertices, relative to origin_
+  double side_[6] = {};     // +a0, -a0, +a1, -a1, +a2, -a2
+  double mergedError_ = 0;  // float error bound of projections merged from other origins
+};
 
 }  // namespace facetree

@@ -1,0 +1,435 @@
+// mergeClusters: the greedy dual-edge merge (Garland, Willmott & Heckbert 2001; Willmott 2000,
+// ch. 5, eq. 84) continued above separately built pieces, the "leaf clusters" of the
+// out-of-core build: each leaf brings its statistics, subtree height and face count, and the
+// leaves' dual graph its shared boundary lengths.
+//
+// The loop is the merge engine's (merge_engine.cpp), step for step, so that a merge over
+// single faces reproduces buildHierarchy's tree exactly (tests/merge/merge_api_test.cpp):
+//  - Order: the live cluster with the lowest (cheapest edge's key, cluster id) merges along
+//    that edge (its cheapest by (key, edge id)); the edge's end[0] survives and keeps its id.
+//    Keys are float costs times 1 / diagonalSquared; the balance guard (balance_guard.h)
+//    multiplies them by kBalancePenaltyBase^excess, or blocks the edge.
+//  - Edges are numbered by (lower leaf, higher leaf) as the dual graph numbers them, kept in
+//    the same intrusive adjacency lists (dual_graph.h) with the same relinking and folding of
+//    parallel edges, so that the surviving edge ids, and with them the ties, are the same.
+//  - Shared lengths are float on the edges (keys and merged stats use them), as in the
+//    engine; a merge of two leaves uses the caller's double length, as the engine recomputes
+//    a pair of faces from its triangles.
+//  - The lazy heap (heap.h) holds a lower bound of each cluster's cheapest key; see
+//    merge_engine.cpp for why. Unlike the engine, every cluster keeps its stats in place
+//    (leaf clusters are few and large: no pair recomputation, no slot recycling).
+//  - Roots left when the edges run out (or are blocked) are joined Huffman-style by face
+//    count, ties by the Morton rank of their centroids, flagged kNodeJoinsDisjointSurfaces.
+//    The engine ranks within the model's bounding box; here, having only the leaves'
+//    statistics, within the box of the roots' centroids (zero-area roots sit at the origin):
+//    the same joins, except possibly among roots of equal face count.
+// Memory: 112 B of stats and 32 B of record per leaf, 32 B per distinct edge (24 in the graph,
+// 8 for the double length), the heap ~9 B per leaf, and the output nodes (~144 B each).
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+#include "merge/balance_guard.h"
+#include "merge/cost.h"
+#include "merge/dual_graph.h"
+#include "merge/heap.h"
+#include "merge/merge.h"
+#include "merge/surface_stats.h"
+
+namespace facetree {
+
+namespace {
+
+constexpr uint32_t kNone = DualGraph::kNone;
+constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
+// Leaf and half-edge ids share 32 bits with a flag (kLeafChild, 2e + side).
+constexpr size_t kMaxLeaves = size_t{0x7FFFFFFF};
+constexpr size_t kMaxEdges = size_t{0x7FFFFFFF};
+constexpr int kMortonBits = 21;  // per axis, as FaceGeometry::mortonCode
+
+uint64_t spreadBits(uint64_t x) {
+  x &= 0x1FFFFF;
+  x = (x | x << 32) & 0x1F00000000FFFFull;
+  x = (x | x << 16) & 0x1F0000FF0000FFull;
+  x = (x | x << 8) & 0x100F00F00F00F00Full;
+  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
+
+// 63-bit Morton code of p within [lo, hi] (degenerate or non-finite coordinates centred).
+uint64_t mortonCode(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
+  uint64_t code = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double extent = hi[axis] - lo[axis];
+    double t = extent > 0 ? (p[axis] - lo[axis]) / extent : 0.5;
+    t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.5;
+    code |= spreadBits(static_cast<uint64_t>(t * ((1u << kMortonBits) - 1))) << axis;
+  }
+  return code;
+}
+
+// Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
+// summed (in double; `exact` keeps the sums, the graph their float values).
+DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input, std::vector<double>& exact) {
+  struct Canonical {
+    uint32_t a, b;
+    double shared;
+  };
+  std::vector<Canonical> sorted;
+  sorted.reserve(input.size());
+  for (size_t i = 0; i < input.size(); ++i) {
+    const ClusterEdge& e = input[i];
+    if (e.a >= leafCount || e.b >= leafCount || e.a == e.b) {
+      throw std::invalid_argument("mergeClusters: edge " + std::to_string(i) + " (" + std::to_string(e.a) +
+                                  ", " + std::to_string(e.b) +
+                                  ") is out of range or joins a leaf to itself (" +
+                                  std::to_string(leafCount) + " leaves)");
+    }
+    sorted.push_back({std::min(e.a, e.b), std::max(e.a, e.b), e.shared});
+  }
+  std::sort(sorted.begin(), sorted.end(),
+            [](const Canonical& x, const Canonical& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
+  DualGraph graph;
+  exact.clear();
+  for (size_t i = 0; i < sorted.size();) {
+    const uint32_t a = sorted[i].a, b = sorted[i].b;
+    double shared = 0;
+    for (; i < sorted.size() && sorted[i].a == a && sorted[i].b == b; ++i) shared += sorted[i].shared;
+    graph.edges.push_back({{a, b}, {kNone, kNone}, static_cast<float>(shared), 0.0f});
+    exact.push_back(shared);
+  }
+  if (graph.edges.size() > kMaxEdges) throw std::invalid_argument("mergeClusters: more than 2^31-1 edges");
+  sorted = {};
+  // Adjacency lists as buildDualGraph links them: pushed to the front, in edge order.
+  graph.head.assign(leafCount, kNone);
+  for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
+    DualEdge& edge = graph.edges[e];
+    for (uint32_t s = 0; s < 2; ++s) {
+      edge.next[s] = graph.head[edge.end[s]];
+      graph.head[edge.end[s]] = 2 * e + s;
+    }
+  }
+  return graph;
+}
+
+class ClusterMerger {
+ public:
+  ClusterMerger(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                double diagonalSquared, const BuildOptions& options)
+      : leaves_(leaves),
+        constant_(options.metric == Metric::Constant),
+        k_(options.k),
+        flatThreshold_(options.flatThreshold),
+        keyScale_(constant_ ? 1.0 : 1.0 / diagonalSquared),
+        guard_(!constant_ && options.balanceSlack > 0),
+        balanceSlack_(options.balanceSlack) {
+    graph_ = buildLeafGraph(static_cast<uint32_t>(leaves.size()), edges, exactShared_);
+  }
+
+  ClusterMergeResult run() {
+    const uint32_t n = static_cast<uint32_t>(leaves_.size());
+    stats_.resize(n);
+    clusters_.resize(n);
+    for (uint32_t c = 0; c < n; ++c) {
+      stats_[c] = toClusterStats(leaves_[c]);
+      clusters_[c] = {kLeaf, kNone, 0.0f, kNoEdge, leaves_[c].height, leaves_[c].faceCount};
+    }
+    result_.nodes.reserve(n > 0 ? n - 1 : 0);
+    for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
+      DualEdge& edge = graph_.edges[e];
+      edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1]);
+      for (const uint32_t c : edge.end) {
+        Record& r = clusters_[c];
+        if (r.minEdge == kNoEdge || edge.key < r.minKey) {  // edges ascend: ties keep the first
+          r.minKey = edge.key;
+          r.minEdge = e;
+        }
+      }
+    }
+    heap_.reserve(size_t{n} + n / kHeapSlackDivisor + kHeapSlackMin);
+    for (uint32_t c = 0; c < n; ++c) {
+      if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
+    }
+    heap_.heapify();
+
+    // The engine's loop (merge_engine.cpp, MergeEngine::run), entry for entry.
+    while (!heap_.empty()) {
+      const EdgeHeap::Entry top = heap_.top();
+      if (top.key == kBlockedKey) break;
+      Record& r = clusters_[top.id];
+      if (r.node == kDead) {
+        heap_.pop();
+        continue;
+      }
+      if (r.minEdge & kDirty) rescan(top.id);
+      if (r.minEdge == kNoEdge) {
+        heap_.pop();
+      } else if (top.key != r.minKey) {
+        heap_.replaceTop({r.minKey, top.id});
+      } else {
+        const uint32_t e = r.minEdge;
+        const uint32_t a = graph_.edges[e].end[0];
+        merge(a, graph_.edges[e].end[1], e, top.key);
+        ++edgeMerges_;
+        const Record& ra = clusters_[a];
+        const EdgeHeap::Entry now = heap_.top();
+        if (now.key == top.key && now.id == top.id) {
+          if (ra.minEdge != kNoEdge) {
+            heap_.replaceTop({ra.minKey, a});
+          } else {
+            heap_.pop();
+          }
+        } else if (ra.minEdge != kNoEdge) {
+          pushEntry(ra.minKey, a);
+        }
+      }
+    }
+    graph_ = DualGraph{};
+    exactShared_ = {};
+    heap_.release();
+
+    joinComponents();
+    result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
+    result_.eigenSolves = counters_.eigenSolves;
+    result_.normalShortcuts = counters_.normalShortcuts;
+    return std::move(result_);
+  }
+
+ private:
+  static constexpr size_t kHeapSlackDivisor = 8;
+  static constexpr size_t kHeapSlackMin = 1024;
+  static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
+  static constexpr uint32_t kDirty = 0x80000000u;
+  // Record::node: the creation index of the cluster's node, or one of these.
+  static constexpr uint32_t kLeaf = 0xFFFFFFFFu;
+  static constexpr uint32_t kDead = 0xFFFFFFFEu;
+
+  struct Record {
+    uint32_t node;     // its node, kLeaf or kDead
+    uint32_t stamp;    // the edge joining it to the cluster being merged, if set in this merge
+    float minKey;      // its cheapest edge's key (a lower bound while kDirty is set)
+    uint32_t minEdge;  // its cheapest edge (ties: lowest id), kNoEdge, | kDirty when unknown
+    uint32_t height;
+    uint64_t faceCount;
+  };
+
+  double cost(const ClusterStats& m) {
+    return constant_ ? 1.0 : willmottCost(m, k_, flatThreshold_, counters_);
+  }
+
+  float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib) {
+    double c = cost(ClusterStats::merged(a, b, shared)) * keyScale_;
+    if (guard_) {
+      const Record& x = clusters_[ia];
+      const Record& y = clusters_[ib];
+      const double excess = balanceExcess(x.height, y.height, x.faceCount + y.faceCount, balanceSlack_);
+      if (excess > kBalanceBlockExcess) return kBlockedKey;
+      if (excess > 0) c *= std::pow(kBalancePenaltyBase, excess);
+    }
+    return toKey(c);
+  }
+
+  uint32_t childRef(uint32_t c) const {
+    const uint32_t node = clusters_[c].node;
+    return node == kLeaf ? (kLeafChild | c) : node;
+  }
+
+  void pushEntry(float k, uint32_t c) {
+    if (heap_.size() == heap_.capacity()) compactHeap();
+    heap_.push({k, c});
+  }
+
+  void compactHeap() {
+    heap_.clear();
+    for (uint32_t c = 0; c < clusters_.size(); ++c) {
+      const Record& r = clusters_[c];
+      if (r.node != kDead && r.minEdge != kNoEdge) heap_.append({r.minKey, c});
+    }
+    heap_.heapify();
+  }
+
+  void rescan(uint32_t c) {
+    Record& r = clusters_[c];
+    r.minEdge = kNoEdge;
+    uint32_t* link = &graph_.head[c];
+    while (*link != kNone) {
+      const uint32_t h = *link;
+      DualEdge& edge = graph_.edges[h >> 1];
+      if (edge.end[0] == kNone) {
+        *link = edge.next[h & 1];
+        continue;
+      }
+      const uint32_t f = h >> 1;
+      if (r.minEdge == kNoEdge || edge.key < r.minKey || (edge.key == r.minKey && f < r.minEdge)) {
+        r.minKey = edge.key;
+        r.minEdge = f;
+      }
+      link = &edge.next[h & 1];
+    }
+  }
+
+  static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
+
+  // Merges cluster b into cluster a along dual edge e, or joins two roots when e == kNone.
+  void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
+    const bool joining = e == kNone;
+    Record& ra = clusters_[a];
+    Record& rb = clusters_[b];
+    // The merged cluster along the edge's float length, as the engine re-costs it; two leaves
+    // keep the union along the caller's double length (the engine recomputes a pair of faces
+    // from its triangles and their exact shared length whenever it reads it again).
+    const ClusterStats merged =
+        ClusterStats::merged(stats_[a], stats_[b], joining ? 0.0 : graph_.edges[e].shared);
+    const ClusterStats& kept = !joining && ra.node == kLeaf && rb.node == kLeaf
+                                   ? ClusterStats::merged(stats_[a], stats_[b], exactShared_[e])
+                                   : merged;
+
+    ClusterMergeNode node;
+    node.child[0] = childRef(a);
+    node.child[1] = childRef(b);
+    node.flags = joining ? kNodeJoinsDisjointSurfaces : 0u;
+    node.cost = joining ? toKey(cost(merged)) : toKey(static_cast<double>(heapKey) / keyScale_);
+    ra.height = std::max(ra.height, rb.height) + 1;
+    ra.faceCount += rb.faceCount;
+    node.stats = toSurfaceStats(kept, ra.faceCount, ra.height);
+    ra.node = static_cast<uint32_t>(result_.nodes.size());
+    rb.node = kDead;
+    result_.nodes.push_back(node);
+    stats_[a] = kept;
+    if (joining) return;
+    kill(graph_.edges[e]);
+
+    // Concatenate the two adjacency lists into a's (merge_engine.cpp, MergeEngine::merge).
+    uint32_t head = kNone, degree = 0;
+    for (const uint32_t list : {a, b}) {
+      uint32_t next;
+      for (uint32_t h = graph_.head[list]; h != kNone; h = next) {
+        DualEdge& edge = graph_.edges[h >> 1];
+        const uint32_t side = h & 1;
+        next = edge.next[side];
+        if (edge.end[0] == kNone) continue;
+        const uint32_t x = edge.end[side ^ 1];
+        if (x == a || x == b) {
+          kill(edge);
+          continue;
+        }
+        edge.end[side] = a;
+        Record& rx = clusters_[x];
+        const uint32_t s = rx.stamp;
+        if (s != kNone) {
+          graph_.edges[s].shared += edge.shared;
+          kill(edge);
+          if (rx.minEdge == (h >> 1)) rx.minEdge |= kDirty;
+          continue;
+        }
+        rx.stamp = h >> 1;
+        edge.next[side] = head;
+        head = h;
+        ++degree;
+      }
+    }
+    graph_.head[a] = head;
+    graph_.head[b] = kNone;
+    degreeSum_ += degree;
+    result_.maxDegree = std::max(result_.maxDegree, degree);
+
+    // Re-cost a's edges; keep a's exact minimum and each neighbour's (lower bound of its) minimum.
+    ra.minEdge = kNoEdge;
+    for (uint32_t h = head; h != kNone; h = graph_.next(h)) {
+      const uint32_t f = h >> 1;
+      DualEdge& edge = graph_.edges[f];
+      const uint32_t x = edge.end[(h & 1) ^ 1];
+      const float k = key(merged, stats_[x], edge.shared, a, x);
+      edge.key = k;
+      if (ra.minEdge == kNoEdge || k < ra.minKey || (k == ra.minKey && f < ra.minEdge)) {
+        ra.minKey = k;
+        ra.minEdge = f;
+      }
+      Record& rx = clusters_[x];
+      rx.stamp = kNone;
+      const uint32_t known = rx.minEdge & ~kDirty;
+      if (known == kNoEdge || k < rx.minKey) {
+        rx.minKey = k;
+        rx.minEdge = f;
+        pushEntry(k, x);
+      } else if (k == rx.minKey && !(rx.minEdge & kDirty) && f <= known) {
+        rx.minEdge = f;
+      } else if (known == f) {
+        rx.minEdge |= kDirty;
+      }
+    }
+  }
+
+  // Huffman joins of the remaining roots (merge_engine.cpp, MergeEngine::joinComponents).
+  void joinComponents() {
+    const uint32_t n = static_cast<uint32_t>(clusters_.size());
+    std::vector<std::pair<glm::dvec3, uint32_t>> centroids;
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+    for (uint32_t c = 0; c < n; ++c) {
+      if (clusters_[c].node == kDead) continue;
+      const ClusterStats& s = stats_[c];
+      glm::dvec3 p = s.area > 0 ? s.firstMoment / s.area : glm::dvec3(0.0);
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) p = glm::dvec3(0.0);
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+      centroids.emplace_back(p, c);
+    }
+    result_.components = centroids.size();
+    std::vector<std::pair<uint64_t, uint32_t>> roots;
+    roots.reserve(centroids.size());
+    for (const auto& [p, c] : centroids) roots.emplace_back(mortonCode(p, lo, hi), c);
+    centroids = {};
+    std::sort(roots.begin(), roots.end());
+    using Root = std::tuple<uint64_t, uint32_t, uint32_t>;  // (face count, Morton rank, cluster id)
+    std::priority_queue<Root, std::vector<Root>, std::greater<Root>> queue;
+    for (uint32_t rank = 0; rank < roots.size(); ++rank) {
+      const uint32_t c = roots[rank].second;
+      queue.emplace(clusters_[c].faceCount, rank, c);
+    }
+    roots = {};
+    while (queue.size() > 1) {
+      const auto [countA, rankA, a] = queue.top();
+      queue.pop();
+      const auto [countB, rankB, b] = queue.top();
+      queue.pop();
+      const bool aFirst = rankA < rankB;
+      merge(aFirst ? a : b, aFirst ? b : a, kNone, 0);
+      queue.emplace(countA + countB, std::min(rankA, rankB), aFirst ? a : b);
+    }
+  }
+
+  std::span<const SurfaceStats> leaves_;
+  bool constant_;
+  double k_, flatThreshold_, keyScale_;
+  bool guard_;
+  double balanceSlack_;
+  DualGraph graph_;
+  std::vector<double> exactShared_;  // per edge: the caller's summed length
+  std::vector<ClusterStats> stats_;
+  std::vector<Record> clusters_;
+  EdgeHeap heap_;
+  CostCounters counters_;
+  uint64_t edgeMerges_ = 0;
+  double degreeSum_ = 0;
+  ClusterMergeResult result_;
+};
+
+}  // namespace
+
+ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                                 double diagonalSquared, const BuildOptions& options) {
+  if (options.metric == Metric::Garland) {
+    throw std::invalid_argument("mergeClusters: the Garland metric needs face-level statistics");
+  }
+  if (leaves.size() > kMaxLeaves) throw std::invalid_argument("mergeClusters: more than 2^31-1 leaves");
+  if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
+  return ClusterMerger(leaves, edges, diagonalSquared, options).run();
+}
+
+}  // namespace facetree

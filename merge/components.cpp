@@ -1,0 +1,42 @@
+// faceComponents: the edge-connected components of a mesh under the dual graph's edge rules
+// (dual_graph.h: faces sharing a mesh edge by vertex index, (v, v) edges skipped, non-manifold
+// edges joining all their faces), i.e. the pieces the engine can only join with
+// kNodeJoinsDisjointSurfaces. A depth-first flood fill over the dual graph's adjacency lists
+// from each unlabelled triangle in increasing order numbers them by their lowest triangle.
+// O(n + E) time; memory: the dual graph and a stack of at most n face ids.
+#include "merge/dual_graph.h"
+#include "merge/face_geometry.h"
+
+namespace facetree {
+
+uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label) {
+  label.clear();
+  if (mesh.triangleCount() == 0) return 0;
+  const FaceGeometry geometry(mesh);  // validates the indices
+  const DualGraph graph = buildDualGraph(geometry);
+  const uint32_t n = geometry.faceCount();
+  constexpr uint32_t kUnlabelled = DualGraph::kNone;
+  label.assign(n, kUnlabelled);
+  std::vector<uint32_t> stack;
+  uint32_t components = 0;
+  for (uint32_t seed = 0; seed < n; ++seed) {
+    if (label[seed] != kUnlabelled) continue;
+    label[seed] = components;
+    stack.push_back(seed);
+    while (!stack.empty()) {
+      const uint32_t f = stack.back();
+      stack.pop_back();
+      for (uint32_t h = graph.head[f]; h != DualGraph::kNone; h = graph.next(h)) {
+        const uint32_t g = graph.other(h);
+        if (label[g] == kUnlabelled) {
+          label[g] = components;
+          stack.push_back(g);
+        }
+      }
+    }
+    ++components;
+  }
+  return components;
+}
+
+}  // namespace facetree
