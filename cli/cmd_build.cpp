@@ -87,9 +87,8 @@ int runBuild(const std::vector<std::string>& argv) {
   const double buildSeconds = nowSeconds() - start;
   uint64_t fileBytes = 0;
   if (output) {
-    const ClusterFile file = makeClusterFile(mesh.view(), mesh.originalFace, hierarchy, fileOptions);
-    writeClusterFile(*output, file);
-    fileBytes = *output == "-" ? 0 : std::filesystem::file_size(*output);
+    // Streamed into the writer: no ClusterFile, only frame-sized batches beside the hierarchy.
+    fileBytes = writeClusterFile(*output, mesh.view(), mesh.originalFace, hierarchy, fileOptions);
   }
   if (meshOut) writeReorderedMesh(mesh.view(), hierarchy, *meshOut, meshOutOptions);
   const double totalSeconds = nowSeconds() - start;

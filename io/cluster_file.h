@@ -11,6 +11,8 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -118,9 +120,68 @@ struct WriteOptions {
   uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
   int zstdLevel = 9;
 };
-// Writes atomically (temporary name + rename). Same input, same bytes.
+// Writes atomically (temporary name + rename). Same input, same bytes. A ClusterFileWriter fed
+// the whole file: the bytes of any other writer given the same elements.
 void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,
                       const WriteOptions& options = {});
+
+// Writes a cluster file piece by piece (docs/FORMAT.md): the header's counts are declared up front, then
+// nodes (file order), vertices (file order) and triangles with their original face ids (hierarchy order) are
+// appended, the three streams in any interleaving. Node frames go straight to their place in the output (the
+// index size is known from the counts); vertex, triangle and id frames are spilled, already compressed, to
+// temporary files in `tmpDir` (default: the output's directory) and appended by finish(). Output "-" is
+// standard output (then node frames are spilled too and everything is streamed by finish(); bytes go out only
+// in finish()). The output is written to a temporary name and renamed by finish(); a writer destroyed without
+// finish() removes its temporary files and leaves no output. Memory: one frame of each section plus the zstd
+// context. Throws IoError (io/io.h) naming the file for write failures (disk full...), std::invalid_argument
+// for counts or references that do not match the declaration (checked as they come and in finish()).
+//
+// Details: spill files are unlinked as soon as they are created (nothing is left behind even on
+// SIGKILL; their space is freed when the writer goes); with output "-" and no tmpDir they go to
+// std::filesystem::temp_directory_path(). The same elements give the same bytes however they are
+// batched. After any exception the writer can only be destroyed (other calls: std::logic_error).
+// Memory bound: writerMemoryBound(options).
+struct StreamFileInfo {
+  FileHeader header;  // nodeCount, triangleCount, vertexCount, branching, metric, k, ... (bounds: ignored,
+                      // computed from the vertices); originalNodeCount = nodeCount
+  uint64_t maxOriginalFace = 0;  // largest original face id to come: decides 4- or 8-byte ids
+};
+class ClusterFileWriter {
+ public:
+  ClusterFileWriter(const std::filesystem::path& out, const StreamFileInfo& info,
+                    const WriteOptions& options = {}, const std::filesystem::path& tmpDir = {});
+  ~ClusterFileWriter();
+  ClusterFileWriter(const ClusterFileWriter&) = delete;
+  ClusterFileWriter& operator=(const ClusterFileWriter&) = delete;
+  void addNodes(
+      std::span<const FchNode> nodes);  // children: absolute file indices, or kFaceChild | face position
+  void addVertices(std::span<const glm::vec3> vertices);
+  void addTriangles(std::span<const uint32_t> indices,
+                    std::span<const uint64_t> originalFace);  // 3 indices each
+  uint64_t finish();                    // returns the file size; all counts must have arrived
+  uint64_t temporaryBytesPeak() const;  // bytes of spilled frames at their largest
+  // Called with +bytes / -bytes whenever spilled bytes grow or shrink (so the caller can enforce --max-tmp);
+  // may throw, which aborts the write cleanly. +bytes comes before the frame is spilled; -bytes when a
+  // spill file is released (in finish(), or by the destructor of an unfinished writer, which ignores
+  // exceptions then): the hook must outlive the writer.
+  void setTemporaryBytesHook(std::function<void(int64_t)> hook);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+// Upper bound of the bytes a ClusterFileWriter holds (buffers of one frame per section, their
+// payloads and compressed forms, the zstd context, the output buffer), whatever the counts; the
+// frame index adds 40 bytes per frame.
+uint64_t writerMemoryBound(const WriteOptions& options = {});
+
+// makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
+// nodes are produced in batches, vertices numbered by first use on the fly (one index per input
+// vertex is held). For b = 2 the recast is the identity and no tree is built. Same bytes as
+// writeClusterFile(path, makeClusterFile(...), writeOptions). Returns the file size.
+uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mesh,
+                          std::span<const uint64_t> originalFace, const Hierarchy& hierarchy,
+                          const FileOptions& options, const WriteOptions& writeOptions = {});
 
 // Thrown for an unreadable, corrupt or unsupported cluster file: what() is "FILE: REASON".
 // (Not an IoError, which io/io.h defines for write failures: the CLI maps this one to exit 3.)

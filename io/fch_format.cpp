@@ -2,10 +2,13 @@
 // (docs/FORMAT.md). Shared by fch_writer.cpp, fch_reader.cpp and fch_truncate.cpp.
 #include "io/fch_format.h"
 
+#define ZSTD_STATIC_LINKING_ONLY  // ZSTD_estimateCCtxSize_usingCParams, for the memory bound
 #include <zstd.h>
 
 #include <bit>
 #include <cstring>
+#include <new>
+#include <stdexcept>
 
 #include "io/io.h"
 #include "io/output_file.h"
@@ -182,19 +185,45 @@ std::string encodeIds(std::span<const uint64_t> ids, uint32_t width) {
 
 FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level) {
   FrameData frame;
-  frame.entry.section = section;
-  frame.entry.first = first;
-  frame.entry.count = count;
-  frame.entry.rawBytes = static_cast<uint32_t>(raw.size());
-  frame.compressed.resize(ZSTD_compressBound(raw.size()));
+  frame.entry = FrameCompressor(level).compress(section, first, count, raw, frame.compressed);
+  return frame;
+}
+
+struct FrameCompressor::Context {
+  ZSTD_CCtx* cctx = ZSTD_createCCtx();
+  ~Context() { ZSTD_freeCCtx(cctx); }
+};
+
+FrameCompressor::FrameCompressor(int level) : context_(std::make_unique<Context>()), level_(level) {
+  if (!context_->cctx) throw std::bad_alloc();
+}
+
+FrameCompressor::~FrameCompressor() = default;
+
+FchFrame FrameCompressor::compress(FchSection section, uint64_t first, uint32_t count, std::string_view raw,
+                                   std::string& out) {
+  FchFrame entry;
+  entry.section = section;
+  entry.first = first;
+  entry.count = count;
+  entry.rawBytes = static_cast<uint32_t>(raw.size());
+  out.resize(ZSTD_compressBound(raw.size()));
   const size_t got =
-      ZSTD_compress(frame.compressed.data(), frame.compressed.size(), raw.data(), raw.size(), level);
+      ZSTD_compressCCtx(context_->cctx, out.data(), out.size(), raw.data(), raw.size(), level_);
   if (ZSTD_isError(got))
     throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(got));
-  frame.compressed.resize(got);
-  frame.entry.compressedBytes = static_cast<uint32_t>(got);
-  frame.entry.checksum = xxh64(frame.compressed.data(), got);
-  return frame;
+  out.resize(got);
+  entry.compressedBytes = static_cast<uint32_t>(got);
+  entry.checksum = xxh64(out.data(), got);
+  return entry;
+}
+
+uint64_t compressedBound(uint64_t rawBytes) {
+  return ZSTD_compressBound(static_cast<size_t>(rawBytes));
+}
+
+uint64_t compressorMemoryBound(int level, uint64_t rawBytes) {
+  return ZSTD_estimateCCtxSize_usingCParams(ZSTD_getCParams(level, rawBytes, 0));
 }
 
 uint64_t assembledBytes(const std::vector<FrameData>& frames) {
@@ -203,25 +232,37 @@ uint64_t assembledBytes(const std::vector<FrameData>& frames) {
   return bytes;
 }
 
+std::string encodeHeaderAndIndex(const FchLayout& layout) {
+  std::string index;
+  index.reserve(kIndexEntryBytes * layout.frames.size());
+  for (const FchFrame& f : layout.frames) {
+    put<uint32_t>(index, static_cast<uint32_t>(f.section));
+    put<uint32_t>(index, f.count);
+    put<uint64_t>(index, f.first);
+    put<uint64_t>(index, f.offset);
+    put<uint32_t>(index, f.compressedBytes);
+    put<uint32_t>(index, f.rawBytes);
+    put<uint64_t>(index, f.checksum);
+  }
+  return encodeHeader(layout, xxh64(index.data(), index.size()),
+                      static_cast<uint32_t>(layout.frames.size())) +
+         index;
+}
+
 uint64_t writeFrames(const std::filesystem::path& path, FchLayout layout,
                      const std::vector<FrameData>& frames) {
-  std::string index;
-  index.reserve(kIndexEntryBytes * frames.size());
   uint64_t offset = kHeaderBytes + uint64_t{kIndexEntryBytes} * frames.size();
+  layout.frames.clear();
+  layout.frames.reserve(frames.size());
   for (const FrameData& f : frames) {
-    put<uint32_t>(index, static_cast<uint32_t>(f.entry.section));
-    put<uint32_t>(index, f.entry.count);
-    put<uint64_t>(index, f.entry.first);
-    put<uint64_t>(index, offset);
-    put<uint32_t>(index, static_cast<uint32_t>(f.compressed.size()));
-    put<uint32_t>(index, f.entry.rawBytes);
-    put<uint64_t>(index, f.entry.checksum);
+    FchFrame& entry = layout.frames.emplace_back(f.entry);
+    entry.offset = offset;
+    entry.compressedBytes = static_cast<uint32_t>(f.compressed.size());
     offset += f.compressed.size();
   }
   layout.fileBytes = offset;
   OutputFile out(path);
-  out.write(encodeHeader(layout, xxh64(index.data(), index.size()), static_cast<uint32_t>(frames.size())));
-  out.write(index);
+  out.write(encodeHeaderAndIndex(layout));
   for (const FrameData& f : frames) out.write(f.compressed);
   out.commit();
   return offset;

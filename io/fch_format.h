@@ -8,6 +8,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "io/cluster_file.h"
@@ -44,6 +45,34 @@ std::string encodeIds(std::span<const uint64_t> ids, uint32_t width);
 
 // Compresses a payload into a frame entry of `section` covering [first, first + count).
 FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level);
+
+// The same with one zstd context kept across frames (ZSTD_compressCCtx gives the bytes
+// ZSTD_compress gives), compressing into a caller-owned buffer whose capacity is reused: the
+// streaming writer's per-frame cost is the payload and this buffer, never a fresh context.
+class FrameCompressor {
+ public:
+  explicit FrameCompressor(int level);
+  ~FrameCompressor();
+  FrameCompressor(const FrameCompressor&) = delete;
+  FrameCompressor& operator=(const FrameCompressor&) = delete;
+  // Compresses `raw` into `out` and returns the frame's index entry (offset left 0).
+  FchFrame compress(FchSection section, uint64_t first, uint32_t count, std::string_view raw,
+                    std::string& out);
+
+ private:
+  struct Context;
+  std::unique_ptr<Context> context_;
+  int level_;
+};
+
+// ZSTD_compressBound: the largest compressed frame of `rawBytes`.
+uint64_t compressedBound(uint64_t rawBytes);
+// Bytes a FrameCompressor at `level` holds for payloads of up to `rawBytes` (zstd's estimate).
+uint64_t compressorMemoryBound(int level, uint64_t rawBytes);
+
+// The header followed by the frame index of `layout`, whose frames carry their offsets and
+// whose fileBytes is the final size.
+std::string encodeHeaderAndIndex(const FchLayout& layout);
 
 // Writes header + index + frames through OutputFile (atomic); `layout` supplies the header
 // fields, the frame offsets and sizes are computed here. Returns the file size.

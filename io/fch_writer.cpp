@@ -1,81 +1,488 @@
-// writeClusterFile: a ClusterFile to the .fch layout of docs/FORMAT.md.
-#include <glm/common.hpp>
+// ClusterFileWriter: the .fch layout of docs/FORMAT.md written piece by piece, holding one frame
+// per section; writeClusterFile feeds it a whole ClusterFile (one code path, same bytes).
+//
+// Layout while writing (file output): [header + index placeholder][node frames ...] in the
+// output's temporary file, vertex / triangle / id frames in three spill files. finish() appends
+// the spills in section order and overwrites the placeholder, whose size is known from the
+// declared counts (every frame but a section's last is full). Standard output cannot seek, so
+// there the node frames are spilled too and everything goes out in finish().
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
+#include <glm/common.hpp>
+
 #include "io/fch_format.h"
+#include "io/io.h"
+#include "io/output_file.h"
 
 namespace facetree {
+namespace {
 
-void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,
-                      const WriteOptions& options) {
-  using namespace fch;
-  if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
-    throw std::invalid_argument("writeClusterFile: nodesPerFrame out of range");
-  if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
-    throw std::invalid_argument("writeClusterFile: geometryPerFrame out of range");
-  const uint64_t triangles = file.indices.size() / 3;
-  if (file.indices.size() % 3 != 0 || triangles > kMaxTriangles)
-    throw std::invalid_argument("writeClusterFile: bad triangle index count");
-  if (file.originalFace.size() != triangles)
-    throw std::invalid_argument("writeClusterFile: one original face id per triangle expected");
-  if (file.header.branching < 2 || file.header.branching > kMaxBranching)
-    throw std::invalid_argument("writeClusterFile: branching factor out of range");
-  for (const FchNode& node : file.nodes)
-    if (node.childCount > file.header.branching)
-      throw std::invalid_argument("writeClusterFile: a node has more children than the branching factor");
-  for (const uint32_t v : file.indices)
-    if (v >= file.vertices.size()) throw std::invalid_argument("writeClusterFile: vertex index out of range");
+using fch::kMaxGeometryPerFrame;
+using fch::kMaxNodesPerFrame;
 
+constexpr size_t kCopyBufferBytes = size_t{1} << 20;    // spill -> output copies
+constexpr size_t kOutputBufferBytes = size_t{1} << 20;  // OutputFile's stdio buffer
+constexpr size_t kSections = 4;
+
+size_t slot(FchSection section) {
+  return static_cast<size_t>(section) - 1;
+}
+uint64_t framesFor(uint64_t elements, uint32_t perFrame) {
+  return (elements + perFrame - 1) / perFrame;
+}
+std::string str(uint64_t v) {
+  return std::to_string(v);
+}
+
+// A temporary file of compressed frames, unlinked as soon as it exists: the descriptor keeps it
+// alive, and the kernel frees it when the writer goes, however the process ends.
+class SpillFile {
+ public:
+  SpillFile(const std::filesystem::path& dir, const std::string& owner) : owner_(owner), dir_(dir) {
+    std::string name = (dir / ".facetree-spill-XXXXXX").string();
+    fd_ = ::mkstemp(name.data());
+    if (fd_ < 0) fail("cannot create a temporary file");
+    ::unlink(name.c_str());
+  }
+  ~SpillFile() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+
+  void append(std::string_view bytes) {
+    for (size_t done = 0; done < bytes.size();) {
+      const ssize_t got = ::write(fd_, bytes.data() + done, bytes.size() - done);
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) fail("cannot write a temporary file");
+      done += static_cast<size_t>(got);
+    }
+    bytes_ += bytes.size();
+  }
+  void copyTo(OutputFile& out, std::vector<char>& buffer) const {
+    for (uint64_t offset = 0; offset < bytes_;) {
+      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes_ - offset));
+      const ssize_t got = ::pread(fd_, buffer.data(), want, static_cast<off_t>(offset));
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) fail("cannot read back a temporary file");
+      out.write(buffer.data(), static_cast<size_t>(got));
+      offset += static_cast<uint64_t>(got);
+    }
+  }
+  uint64_t bytes() const { return bytes_; }
+
+ private:
+  [[noreturn]] void fail(const char* what) const {
+    const int error = errno;
+    throw IoError(owner_ + ": " + what + " in " + dir_.string() + ": " +
+                  (error ? std::strerror(error) : "short write"));
+  }
+  std::string owner_;
+  std::filesystem::path dir_;
+  int fd_ = -1;
+  uint64_t bytes_ = 0;
+};
+
+}  // namespace
+
+struct ClusterFileWriter::State {
+  // One section's progress: elements arrived, frames written (offsets relative to the section's
+  // start until finish()), compressed bytes, and the spill holding them (none for file-output nodes).
+  struct Section {
+    uint64_t declared = 0;
+    uint64_t arrived = 0;
+    uint64_t bytes = 0;
+    std::vector<FchFrame> frames;
+    std::optional<SpillFile> spill;
+  };
+
+  std::string name;  // the output as named in messages
+  std::filesystem::path spillDir;
   FchLayout layout;
+  uint64_t maxOriginalFace = 0;
+  uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
+  uint64_t frontBytes = 0;  // header + index
+  fch::FrameCompressor compressor;
+  std::optional<OutputFile> output;  // file output: from the start; standard output: in finish()
+  bool toStandardOutput = false;
+  Section sections[kSections];
+  std::vector<FchNode> nodes;
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> indices;
+  std::vector<uint64_t> ids;
+  std::string compressed;  // reused for every frame
+  uint64_t spilled = 0, spilledPeak = 0;
+  std::function<void(int64_t)> hook;
+  bool finished = false, failed = false;
+
+  State(const std::filesystem::path& out, const StreamFileInfo& info, const WriteOptions& options,
+        const std::filesystem::path& tmpDir);
+  Section& section(FchSection s) { return sections[slot(s)]; }
+  uint32_t perFrame(FchSection s) const {
+    return s == FchSection::Nodes ? layout.nodesPerFrame : layout.geometryPerFrame;
+  }
+  [[noreturn]] void reject(const std::string& what) const {
+    throw std::invalid_argument("ClusterFileWriter " + name + ": " + what);
+  }
+  void checkNode(const FchNode& node, uint64_t index) const;
+  void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string_view raw);
+  void nodeFrame(std::span<const FchNode> batch);
+  void vertexFrame(std::span<const glm::vec3> batch);
+  void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
+  void release(Section& s);
+  // Every entry point: refuses a writer that failed or finished, and marks it failed if the call
+  // throws (its buffers and files are then in no defined state).
+  template <class Body>
+  auto guarded(const char* call, Body&& body) {
+    if (failed || finished)
+      throw std::logic_error(std::string("ClusterFileWriter::") + call + ": the writer has " +
+                             (failed ? "failed" : "finished"));
+    try {
+      return body();
+    } catch (...) {
+      failed = true;
+      throw;
+    }
+  }
+};
+
+ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFileInfo& info,
+                                const WriteOptions& options, const std::filesystem::path& tmpDir)
+    : name(out.string()), compressor(options.zstdLevel) {
+  if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
+    reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
+  if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
+    reject("geometryPerFrame " + str(options.geometryPerFrame) + " out of range 1 ... " +
+           str(kMaxGeometryPerFrame));
   FileHeader& h = layout.header;
-  h = file.header;
+  h = info.header;
   h.version = kFchVersion;
-  h.nodeCount = file.nodes.size();
-  h.originalNodeCount = std::max<uint64_t>(file.header.originalNodeCount, h.nodeCount);
-  h.triangleCount = triangles;
-  h.vertexCount = file.vertices.size();
-  if (h.originalNodeCount > std::max<uint64_t>(triangles, 1) - 1 || (triangles >= 2) != (h.nodeCount >= 1))
-    throw std::invalid_argument("writeClusterFile: node count does not fit the triangle count");
-  h.boundsMin = glm::vec3(std::numeric_limits<float>::infinity());
-  h.boundsMax = -h.boundsMin;
-  for (const glm::vec3& p : file.vertices)
-    h.boundsMin = glm::min(h.boundsMin, p), h.boundsMax = glm::max(h.boundsMax, p);
-  if (file.vertices.empty()) h.boundsMin = h.boundsMax = glm::vec3(0.0f);
+  h.originalNodeCount = std::max(h.originalNodeCount, h.nodeCount);
+  if (h.branching < 2 || h.branching > kMaxBranching)
+    reject("branching factor " + str(h.branching) + " out of range 2 ... 8");
+  if (h.triangleCount > fch::kMaxTriangles) reject("too many triangles: " + str(h.triangleCount));
+  if (h.originalNodeCount > std::max<uint64_t>(h.triangleCount, 1) - 1 ||
+      (h.triangleCount >= 2) != (h.nodeCount >= 1))
+    reject(str(h.nodeCount) + " nodes (of " + str(h.originalNodeCount) + ") do not fit " +
+           str(h.triangleCount) + " triangles (a root for 2 or more, at most one fewer than the triangles)");
+  if (h.vertexCount > 3 * h.triangleCount)
+    reject(str(h.vertexCount) + " vertices for " + str(h.triangleCount) +
+           " triangles (at most 3 per triangle)");
+  nodeLimit = h.originalNodeCount;
+  maxOriginalFace = info.maxOriginalFace;
   layout.nodesPerFrame = options.nodesPerFrame;
   layout.geometryPerFrame = options.geometryPerFrame;
   layout.zstdLevel = options.zstdLevel;
-  layout.originalIdBytes = 4;
-  for (const uint64_t id : file.originalFace)
-    if (id > std::numeric_limits<uint32_t>::max()) layout.originalIdBytes = 8;
+  layout.originalIdBytes = maxOriginalFace > std::numeric_limits<uint32_t>::max() ? 8 : 4;
+  h.boundsMin = glm::vec3(std::numeric_limits<float>::infinity());
+  h.boundsMax = -h.boundsMin;
 
-  std::vector<FrameData> frames;
-  const int level = options.zstdLevel;
-  for (uint64_t first = 0; first < file.nodes.size(); first += options.nodesPerFrame) {
-    const auto n =
-        static_cast<uint32_t>(std::min<uint64_t>(options.nodesPerFrame, file.nodes.size() - first));
-    frames.push_back(makeFrame(FchSection::Nodes, first, n,
-                               encodeNodes(std::span(file.nodes).subspan(first, n), first), level));
+  section(FchSection::Nodes).declared = h.nodeCount;
+  section(FchSection::Vertices).declared = h.vertexCount;
+  section(FchSection::Triangles).declared = h.triangleCount;
+  section(FchSection::OriginalFaces).declared = h.triangleCount;
+  uint64_t frames = 0;
+  for (const FchSection s :
+       {FchSection::Nodes, FchSection::Vertices, FchSection::Triangles, FchSection::OriginalFaces}) {
+    section(s).frames.reserve(framesFor(section(s).declared, perFrame(s)));
+    frames += framesFor(section(s).declared, perFrame(s));
   }
-  const uint32_t g = options.geometryPerFrame;
-  for (uint64_t first = 0; first < file.vertices.size(); first += g) {
-    const auto n = static_cast<uint32_t>(std::min<uint64_t>(g, file.vertices.size() - first));
-    frames.push_back(makeFrame(FchSection::Vertices, first, n,
-                               encodeVertices(std::span(file.vertices).subspan(first, n)), level));
+  if (frames > std::numeric_limits<uint32_t>::max()) reject("too many frames: " + str(frames));
+  frontBytes = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
+
+  toStandardOutput = out == "-";
+  spillDir = !tmpDir.empty()         ? tmpDir
+             : toStandardOutput      ? std::filesystem::temp_directory_path()
+             : out.has_parent_path() ? out.parent_path()
+                                     : std::filesystem::path(".");
+  if (!toStandardOutput) {
+    // Header and index are known last: a placeholder of their exact size, overwritten by finish().
+    output.emplace(out);
+    const std::string zeros(static_cast<size_t>(std::min<uint64_t>(frontBytes, kCopyBufferBytes)), '\0');
+    for (uint64_t done = 0; done < frontBytes; done += zeros.size())
+      output->write(zeros.data(), static_cast<size_t>(std::min<uint64_t>(zeros.size(), frontBytes - done)));
   }
-  for (uint64_t first = 0; first < triangles; first += g) {
-    const auto n = static_cast<uint32_t>(std::min<uint64_t>(g, triangles - first));
-    frames.push_back(makeFrame(FchSection::Triangles, first, n,
-                               encodeTriangles(std::span(file.indices).subspan(3 * first, 3 * size_t{n})),
-                               level));
+}
+
+void ClusterFileWriter::State::checkNode(const FchNode& node, uint64_t index) const {
+  const uint64_t end = uint64_t{node.first} + node.count;
+  if (node.childCount > layout.header.branching)
+    reject("node " + str(index) + ": " + str(node.childCount) + " children, branching factor " +
+           str(layout.header.branching));
+  if (end > layout.header.triangleCount)
+    reject("node " + str(index) + ": faces " + str(node.first) + " ... " + str(end) +
+           " beyond the declared " + str(layout.header.triangleCount) + " triangles");
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t ref = node.child[c];
+    if (ref & kFaceChild) {
+      const uint32_t position = ref & ~kFaceChild;
+      if (position < node.first || position >= end)
+        reject("node " + str(index) + ": face child " + str(position) + " outside its faces " +
+               str(node.first) + " ... " + str(end));
+    } else if (ref <= index || ref >= nodeLimit) {
+      reject("node " + str(index) + ": child " + str(ref) + " not after it among the declared " +
+             str(nodeLimit) + " nodes");
+    }
   }
-  for (uint64_t first = 0; first < triangles; first += g) {
-    const auto n = static_cast<uint32_t>(std::min<uint64_t>(g, triangles - first));
-    frames.push_back(
-        makeFrame(FchSection::OriginalFaces, first, n,
-                  encodeIds(std::span(file.originalFace).subspan(first, n), layout.originalIdBytes), level));
+}
+
+void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t count,
+                                          std::string_view raw) {
+  Section& sec = section(s);
+  FchFrame frame = compressor.compress(s, first, count, raw, compressed);
+  frame.offset = sec.bytes;
+  if (s == FchSection::Nodes && !toStandardOutput) {
+    output->write(compressed);
+  } else {
+    if (hook) hook(static_cast<int64_t>(compressed.size()));
+    spilled += compressed.size();  // counted once the hook agreed, released whatever happens next
+    spilledPeak = std::max(spilledPeak, spilled);
+    if (!sec.spill) sec.spill.emplace(spillDir, name);
+    sec.spill->append(compressed);
   }
-  writeFrames(path, layout, frames);
+  sec.bytes += compressed.size();
+  sec.frames.push_back(frame);
+}
+
+void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
+  const uint64_t first = section(FchSection::Nodes).arrived - batch.size();
+  writeFrame(FchSection::Nodes, first, static_cast<uint32_t>(batch.size()), fch::encodeNodes(batch, first));
+}
+void ClusterFileWriter::State::vertexFrame(std::span<const glm::vec3> batch) {
+  const uint64_t first = section(FchSection::Vertices).arrived - batch.size();
+  writeFrame(FchSection::Vertices, first, static_cast<uint32_t>(batch.size()), fch::encodeVertices(batch));
+}
+void ClusterFileWriter::State::triangleFrames(std::span<const uint32_t> corners,
+                                              std::span<const uint64_t> faces) {
+  const uint64_t first = section(FchSection::Triangles).arrived - faces.size();
+  const auto n = static_cast<uint32_t>(faces.size());
+  writeFrame(FchSection::Triangles, first, n, fch::encodeTriangles(corners));
+  writeFrame(FchSection::OriginalFaces, first, n, fch::encodeIds(faces, layout.originalIdBytes));
+}
+
+void ClusterFileWriter::State::release(Section& s) {
+  if (!s.spill) return;
+  const uint64_t bytes = s.spill->bytes();
+  s.spill.reset();
+  spilled -= bytes;
+  if (hook) hook(-static_cast<int64_t>(bytes));
+}
+
+namespace {
+
+// Feeds `items` to a section frame by frame: a full frame (or the section's last) straight from
+// the caller's span when nothing is buffered, else through `buffer`. `emit` sees each frame's
+// elements after `arrived` counts them.
+template <class T, class Emit>
+void appendFrames(std::span<const T> items, std::vector<T>& buffer, uint64_t& arrived, uint64_t declared,
+                  uint32_t perFrame, Emit&& emit) {
+  while (!items.empty()) {
+    // Elements that complete the current frame: full, or the section's end.
+    const uint64_t frameEnd = std::min<uint64_t>(declared, (arrived - buffer.size()) + perFrame);
+    const size_t need = static_cast<size_t>(frameEnd - arrived);
+    const size_t take = std::min(need, items.size());
+    if (buffer.empty() && take == need) {
+      arrived += take;
+      emit(items.first(take));
+    } else {
+      buffer.insert(buffer.end(), items.begin(), items.begin() + static_cast<ptrdiff_t>(take));
+      arrived += take;
+      if (take == need) {
+        emit(std::span<const T>(buffer));
+        buffer.clear();
+      }
+    }
+    items = items.subspan(take);
+  }
+}
+
+}  // namespace
+
+ClusterFileWriter::ClusterFileWriter(const std::filesystem::path& out, const StreamFileInfo& info,
+                                     const WriteOptions& options, const std::filesystem::path& tmpDir)
+    : state_(std::make_unique<State>(out, info, options, tmpDir)) {}
+
+ClusterFileWriter::~ClusterFileWriter() {
+  if (!state_ || state_->finished || !state_->hook || state_->spilled == 0) return;
+  try {
+    state_->hook(-static_cast<int64_t>(state_->spilled));
+  } catch (...) {  // a destructor reports, it does not throw
+  }
+}
+
+void ClusterFileWriter::addNodes(std::span<const FchNode> nodes) {
+  State& s = *state_;
+  s.guarded("addNodes", [&] {
+    State::Section& sec = s.section(FchSection::Nodes);
+    if (nodes.size() > sec.declared - sec.arrived)
+      s.reject("nodes " + str(sec.arrived) + " ... " + str(sec.arrived + nodes.size() - 1) +
+               " beyond the declared " + str(sec.declared));
+    for (size_t i = 0; i < nodes.size(); ++i) s.checkNode(nodes[i], sec.arrived + i);
+    if (s.nodes.capacity() == 0) s.nodes.reserve(std::min<uint64_t>(s.layout.nodesPerFrame, sec.declared));
+    appendFrames(nodes, s.nodes, sec.arrived, sec.declared, s.layout.nodesPerFrame,
+                 [&](std::span<const FchNode> batch) { s.nodeFrame(batch); });
+  });
+}
+
+void ClusterFileWriter::addVertices(std::span<const glm::vec3> vertices) {
+  State& s = *state_;
+  s.guarded("addVertices", [&] {
+    State::Section& sec = s.section(FchSection::Vertices);
+    if (vertices.size() > sec.declared - sec.arrived)
+      s.reject("vertices " + str(sec.arrived) + " ... " + str(sec.arrived + vertices.size() - 1) +
+               " beyond the declared " + str(sec.declared));
+    FileHeader& h = s.layout.header;
+    for (const glm::vec3& p : vertices)
+      h.boundsMin = glm::min(h.boundsMin, p), h.boundsMax = glm::max(h.boundsMax, p);
+    if (s.vertices.capacity() == 0)
+      s.vertices.reserve(std::min<uint64_t>(s.layout.geometryPerFrame, sec.declared));
+    appendFrames(vertices, s.vertices, sec.arrived, sec.declared, s.layout.geometryPerFrame,
+                 [&](std::span<const glm::vec3> batch) { s.vertexFrame(batch); });
+  });
+}
+
+void ClusterFileWriter::addTriangles(std::span<const uint32_t> indices,
+                                     std::span<const uint64_t> originalFace) {
+  State& s = *state_;
+  s.guarded("addTriangles", [&] {
+    State::Section& sec = s.section(FchSection::Triangles);
+    if (indices.size() != 3 * originalFace.size())
+      s.reject(str(indices.size()) + " vertex indices for " + str(originalFace.size()) +
+               " original face ids (3 per triangle)");
+    if (originalFace.size() > sec.declared - sec.arrived)
+      s.reject("triangles " + str(sec.arrived) + " ... " + str(sec.arrived + originalFace.size() - 1) +
+               " beyond the declared " + str(sec.declared));
+    const uint64_t vertexCount = s.layout.header.vertexCount;
+    for (size_t i = 0; i < indices.size(); ++i)
+      if (indices[i] >= vertexCount)
+        s.reject("triangle " + str(sec.arrived + i / 3) + ": vertex index " + str(indices[i]) +
+                 " beyond the declared " + str(vertexCount) + " vertices");
+    for (size_t i = 0; i < originalFace.size(); ++i)
+      if (originalFace[i] > s.maxOriginalFace)
+        s.reject("triangle " + str(sec.arrived + i) + ": original face id " + str(originalFace[i]) +
+                 " above the declared maximum " + str(s.maxOriginalFace));
+    const uint32_t g = s.layout.geometryPerFrame;
+    if (s.ids.capacity() == 0) {
+      s.ids.reserve(std::min<uint64_t>(g, sec.declared));
+      s.indices.reserve(3 * s.ids.capacity());
+    }
+    // Triangles and ids share their framing: walk both by triangles, through one buffer pair.
+    uint64_t arrived = sec.arrived;
+    while (!originalFace.empty()) {
+      const uint64_t frameEnd = std::min<uint64_t>(sec.declared, (arrived - s.ids.size()) + g);
+      const size_t need = static_cast<size_t>(frameEnd - arrived);
+      const size_t take = std::min(need, originalFace.size());
+      arrived += take;
+      sec.arrived = s.section(FchSection::OriginalFaces).arrived = arrived;
+      if (s.ids.empty() && take == need) {
+        s.triangleFrames(indices.first(3 * take), originalFace.first(take));
+      } else {
+        s.ids.insert(s.ids.end(), originalFace.begin(), originalFace.begin() + static_cast<ptrdiff_t>(take));
+        s.indices.insert(s.indices.end(), indices.begin(),
+                         indices.begin() + static_cast<ptrdiff_t>(3 * take));
+        if (take == need) {
+          s.triangleFrames(s.indices, s.ids);
+          s.ids.clear();
+          s.indices.clear();
+        }
+      }
+      originalFace = originalFace.subspan(take);
+      indices = indices.subspan(3 * take);
+    }
+  });
+}
+
+uint64_t ClusterFileWriter::finish() {
+  State& s = *state_;
+  return s.guarded("finish", [&] {
+    std::string missing;
+    for (const FchSection section : {FchSection::Nodes, FchSection::Vertices, FchSection::Triangles}) {
+      const State::Section& sec = s.section(section);
+      if (sec.arrived != sec.declared)
+        missing += std::string(missing.empty() ? "" : ", ") + str(sec.arrived) + " of " + str(sec.declared) +
+                   " " + sectionName(section);
+    }
+    if (!missing.empty()) s.reject("finish: only " + missing + " arrived");
+
+    FchLayout& layout = s.layout;
+    FileHeader& h = layout.header;
+    if (h.vertexCount == 0) h.boundsMin = h.boundsMax = glm::vec3(0.0f);
+    uint64_t offset = s.frontBytes;
+    layout.frames.clear();
+    for (State::Section& sec : s.sections) {
+      for (FchFrame& f : sec.frames) layout.frames.push_back(f), layout.frames.back().offset += offset;
+      offset += sec.bytes;
+    }
+    layout.fileBytes = offset;
+    const std::string front = fch::encodeHeaderAndIndex(layout);
+    std::vector<char> buffer(kCopyBufferBytes);
+    if (s.toStandardOutput) {
+      s.output.emplace("-");
+      s.output->write(front);
+    }
+    for (State::Section& sec : s.sections) {
+      if (sec.spill) sec.spill->copyTo(*s.output, buffer);
+      s.release(sec);
+    }
+    if (!s.toStandardOutput) s.output->writeAt(0, front);
+    if (s.output->bytesWritten() != layout.fileBytes)
+      throw std::logic_error("ClusterFileWriter: wrote " + str(s.output->bytesWritten()) +
+                             " bytes, expected " + str(layout.fileBytes));
+    s.output->commit();
+    s.finished = true;
+    return layout.fileBytes;
+  });
+}
+
+uint64_t ClusterFileWriter::temporaryBytesPeak() const {
+  return state_->spilledPeak;
+}
+
+void ClusterFileWriter::setTemporaryBytesHook(std::function<void(int64_t)> hook) {
+  state_->hook = std::move(hook);
+}
+
+uint64_t writerMemoryBound(const WriteOptions& options) {
+  const uint64_t n = options.nodesPerFrame, g = options.geometryPerFrame;
+  const uint64_t nodeRaw = (fch::kNodeFixedBytes + 4 * kMaxBranching) * n;
+  // Per section: the element buffer, the payload and the compressed frame (zstd's bound).
+  const uint64_t nodes =
+      sizeof(FchNode) * n + 4 * kMaxBranching * n + nodeRaw + fch::compressedBound(nodeRaw);
+  const uint64_t vertices = sizeof(glm::vec3) * g + 12 * g + fch::compressedBound(12 * g);
+  const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
+  const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
+  const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
+  return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
+         kCopyBufferBytes + kOutputBufferBytes + 64 * 1024;  // + the header, index entry vectors, names
+}
+
+void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,
+                      const WriteOptions& options) {
+  const uint64_t triangles = file.indices.size() / 3;
+  if (file.indices.size() % 3 != 0)
+    throw std::invalid_argument("writeClusterFile: " + str(file.indices.size()) +
+                                " vertex indices do not make whole triangles");
+  if (file.originalFace.size() != triangles)
+    throw std::invalid_argument("writeClusterFile: one original face id per triangle expected");
+  StreamFileInfo info;
+  info.header = file.header;
+  info.header.nodeCount = file.nodes.size();
+  info.header.triangleCount = triangles;
+  info.header.vertexCount = file.vertices.size();
+  for (const uint64_t id : file.originalFace) info.maxOriginalFace = std::max(info.maxOriginalFace, id);
+  ClusterFileWriter writer(path, info, options);
+  writer.addNodes(file.nodes);
+  writer.addVertices(file.vertices);
+  writer.addTriangles(file.indices, file.originalFace);
+  writer.finish();
 }
 
 }  // namespace facetree

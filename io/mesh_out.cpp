@@ -13,7 +13,6 @@
 namespace facetree {
 namespace {
 
-constexpr uint32_t kUnassigned = 0xFFFFFFFFu;
 constexpr int kMaxPositionBits = 30;
 
 bool hasExtension(const std::filesystem::path& path, const char* extension) {
@@ -74,23 +73,30 @@ void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> in
 
 }  // namespace
 
-ReorderedGeometry reorderGeometry(const MeshView& mesh, std::span<const uint32_t> faceOrder) {
-  ReorderedGeometry out;
-  std::vector<uint32_t> remap(mesh.positions.size(), kUnassigned);
-  out.indices.reserve(3 * faceOrder.size());
+FirstUseNumbering numberByFirstUse(const MeshView& mesh, std::span<const uint32_t> faceOrder) {
+  FirstUseNumbering out;
+  out.remap.assign(mesh.positions.size(), kUnusedVertex);
   const size_t triangles = mesh.triangleCount();
   for (const uint32_t t : faceOrder) {
     if (t >= triangles) throw std::invalid_argument("face order refers to a triangle beyond the mesh");
     for (int k = 0; k < 3; ++k) {
       const uint32_t v = mesh.indices[3 * size_t{t} + k];
       if (v >= mesh.positions.size()) throw std::invalid_argument("vertex index beyond the mesh");
-      if (remap[v] == kUnassigned) {
-        remap[v] = static_cast<uint32_t>(out.vertices.size());
-        out.vertices.push_back(mesh.positions[v]);
-      }
-      out.indices.push_back(remap[v]);
+      if (out.remap[v] == kUnusedVertex) out.remap[v] = out.vertexCount++;
     }
   }
+  return out;
+}
+
+ReorderedGeometry reorderGeometry(const MeshView& mesh, std::span<const uint32_t> faceOrder) {
+  const FirstUseNumbering numbering = numberByFirstUse(mesh, faceOrder);
+  ReorderedGeometry out;
+  out.vertices.resize(numbering.vertexCount);
+  for (size_t v = 0; v < mesh.positions.size(); ++v)
+    if (numbering.remap[v] != kUnusedVertex) out.vertices[numbering.remap[v]] = mesh.positions[v];
+  out.indices.reserve(3 * faceOrder.size());
+  for (const uint32_t t : faceOrder)
+    for (int k = 0; k < 3; ++k) out.indices.push_back(numbering.remap[mesh.indices[3 * size_t{t} + k]]);
   return out;
 }
 

@@ -8,6 +8,16 @@
 
 namespace facetree {
 
+// First-use numbering of the vertices along `faceOrder`: remap[v] is the new index of input
+// vertex v, kUnusedVertex if no face of the order uses it. Throws std::invalid_argument for
+// faces or vertex indices out of range.
+inline constexpr uint32_t kUnusedVertex = 0xFFFFFFFFu;
+struct FirstUseNumbering {
+  std::vector<uint32_t> remap;
+  uint32_t vertexCount = 0;
+};
+FirstUseNumbering numberByFirstUse(const MeshView& mesh, std::span<const uint32_t> faceOrder);
+
 // Triangles in `faceOrder`, vertices renumbered by first use (unused vertices dropped), corner
 // order kept. Throws std::invalid_argument for indices out of range.
 struct ReorderedGeometry {

@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <stdexcept>
 
 #include "io/io.h"
 
@@ -50,6 +51,16 @@ void OutputFile::write(const void* data, size_t bytes) {
   if (bytes == 0) return;
   if (std::fwrite(data, 1, bytes, file_.get()) != bytes) fail("cannot write");
   written_ += bytes;
+}
+
+void OutputFile::writeAt(uint64_t offset, std::string_view bytes) {
+  if (toStandardOutput_) throw std::logic_error("OutputFile::writeAt: standard output cannot seek");
+  if (offset + bytes.size() > written_)
+    throw std::logic_error("OutputFile::writeAt: beyond the bytes written");
+  if (std::fflush(file_.get()) != 0 || ::fseeko(file_.get(), static_cast<off_t>(offset), SEEK_SET) != 0 ||
+      std::fwrite(bytes.data(), 1, bytes.size(), file_.get()) != bytes.size() ||
+      std::fflush(file_.get()) != 0 || ::fseeko(file_.get(), 0, SEEK_END) != 0)
+    fail("cannot write");
 }
 
 void OutputFile::commit() {

@@ -8,6 +8,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 
 namespace facetree {
 
@@ -21,7 +22,11 @@ class OutputFile {
 
   void write(const void* data, size_t bytes);
   void write(std::string_view text) { write(text.data(), text.size()); }
+  // Overwrites bytes already written (a header whose contents are known last); the next write
+  // appends at the end again. Not for standard output (std::logic_error).
+  void writeAt(uint64_t offset, std::string_view bytes);
   uint64_t bytesWritten() const { return written_; }
+  bool toStandardOutput() const { return toStandardOutput_; }
   // Flushes, syncs and renames to the final name.
   void commit();
   const std::filesystem::path& path() const { return path_; }
