@@ -138,7 +138,10 @@ class ExternalSorter {
       const size_t n = std::min(out.size(), buffer_.size() - readPosition_);
       std::copy_n(buffer_.begin() + readPosition_, n, out.begin());
       readPosition_ += n;
-      if (readPosition_ == buffer_.size()) std::vector<Record>().swap(buffer_);
+      if (readPosition_ == buffer_.size()) {  // done: free the budget now
+        std::vector<Record>().swap(buffer_);
+        readPosition_ = 0;
+      }
       return n;
     }
     size_t n = 0;
