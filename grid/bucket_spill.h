@@ -1,0 +1,78 @@
+// Many append-only streams of fixed-size records sharing one SpillFile: the per-cell face spills, ghost
+// edge records per cell, per-leaf node and face spills of the out-of-core build. Internal to grid/.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "grid/spill_file.h"
+
+namespace facetree {
+
+class BucketSpill {
+ public:
+  // `bufferBytes` is the in-memory buffer of each bucket, rounded down to whole records (at least one); a
+  // full buffer becomes one block of the SpillFile. Memory is memoryBound(): buckets * bufferBytes (touched
+  // only as buckets fill) plus one compressed block of scratch in the writer's codec.
+  BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes, size_t bufferBytes,
+              int level = 1);
+
+  static uint64_t memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes);
+
+  void append(size_t bucket, const void* record) {
+    std::byte* buffer = buffer_.get() + bucket * bufferBytes_;
+    std::memcpy(buffer + fill_[bucket], record, recordBytes_);
+    fill_[bucket] += recordBytes_;
+    ++records_[bucket];
+    if (fill_[bucket] == bufferBytes_) flush(bucket);
+  }
+  void appendMany(size_t bucket, const void* records, size_t n);  // n records
+  void flush(size_t bucket);                                      // its buffer becomes a block
+  void flushAll();
+
+  uint64_t records(size_t bucket) const { return records_[bucket]; }
+  size_t recordBytes() const { return recordBytes_; }
+
+  // Reads every record of `bucket` (blocks in order, then what is still buffered), appending to `out`.
+  void readBucket(size_t bucket, std::vector<std::byte>& out, SpillCodec& codec) const;
+  // Streams a bucket block by block: calls f(std::span<const std::byte>) per block (whole records), the
+  // buffered tail last. Holds one decompressed block.
+  template <class F>
+  void forEachBlock(size_t bucket, SpillCodec& codec, F&& f) const {
+    std::vector<std::byte> raw;
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
+      file_.read(blocks_[b].block, raw, codec);
+      f(std::span<const std::byte>(raw));
+    }
+    if (fill_[bucket] > 0)
+      f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+  }
+
+  size_t buckets() const { return fill_.size(); }
+  uint64_t bytesOnDisk() const { return file_.bytes(); }
+
+ private:
+  static constexpr uint32_t kNoBlock = UINT32_MAX;
+  // The blocks of all buckets in one array, each bucket's chained in append order.
+  struct ChainedBlock {
+    SpillBlock block;
+    uint32_t next = kNoBlock;
+  };
+
+  SpillFile file_;
+  SpillCodec writer_;
+  size_t recordBytes_;
+  size_t bufferBytes_;
+  std::unique_ptr<std::byte[]> buffer_;  // bucket b at [b * bufferBytes_, (b + 1) * bufferBytes_)
+  std::vector<size_t> fill_;             // bytes buffered per bucket
+  std::vector<uint64_t> records_;
+  std::vector<uint32_t> head_, tail_;
+  std::vector<ChainedBlock> blocks_;
+};
+
+}  // namespace facetree

@@ -1,0 +1,141 @@
+// Compressed block files for the out-of-core spills (see spill_file.h). Each block is one zstd frame with
+// its content size and checksum, so a block damaged on disk is an error, never garbage records.
+#include "grid/spill_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+#include <zstd.h>
+
+#include <cerrno>
+#include <stdexcept>
+#include <string>
+
+namespace facetree {
+
+void SpillCodec::CCtxDeleter::operator()(ZSTD_CCtx_s* context) const {
+  ZSTD_freeCCtx(context);
+}
+void SpillCodec::DCtxDeleter::operator()(ZSTD_DCtx_s* context) const {
+  ZSTD_freeDCtx(context);
+}
+
+SpillCodec::SpillCodec(int level) : compressor_(ZSTD_createCCtx()), decompressor_(ZSTD_createDCtx()) {
+  if (!compressor_ || !decompressor_) throw std::bad_alloc();
+  ZSTD_CCtx_setParameter(compressor_.get(), ZSTD_c_compressionLevel, level);
+  // 4 bytes per block; catches a temp file changed under us where the frame would still decode.
+  ZSTD_CCtx_setParameter(compressor_.get(), ZSTD_c_checksumFlag, 1);
+}
+
+SpillCodec::~SpillCodec() = default;
+SpillCodec::SpillCodec(SpillCodec&&) noexcept = default;
+SpillCodec& SpillCodec::operator=(SpillCodec&&) noexcept = default;
+
+std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw) {
+  scratch_.resize(ZSTD_compressBound(raw.size()));
+  const size_t got =
+      ZSTD_compress2(compressor_.get(), scratch_.data(), scratch_.size(), raw.data(), raw.size());
+  // Only a bad parameter or allocation failure can fail with a large enough destination.
+  if (ZSTD_isError(got))
+    throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(got));
+  return {scratch_.data(), got};
+}
+
+std::span<std::byte> SpillCodec::compressedScratch(size_t bytes) {
+  if (scratch_.size() < bytes) scratch_.resize(bytes);
+  return {scratch_.data(), bytes};
+}
+
+bool SpillCodec::decompress(std::span<const std::byte> compressed, std::span<std::byte> raw,
+                            const char*& reason) {
+  if (ZSTD_getFrameContentSize(compressed.data(), compressed.size()) != raw.size()) {
+    reason = "frame size disagrees with the block";
+    return false;
+  }
+  const size_t got =
+      ZSTD_decompressDCtx(decompressor_.get(), raw.data(), raw.size(), compressed.data(), compressed.size());
+  if (ZSTD_isError(got)) {
+    reason = ZSTD_getErrorName(got);
+    return false;
+  }
+  if (got != raw.size()) {
+    reason = "decompressed size disagrees with the block";
+    return false;
+  }
+  return true;
+}
+
+SpillFile::SpillFile(TempSpace& space, std::string_view stem) : space_(space), path_(space.newFile(stem)) {
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd_ < 0) throwTempSpaceError(path_, "cannot create", errno);
+  // Anonymous from here on: the kernel frees the blocks when the descriptor closes, on any exit.
+  if (::unlink(path_.c_str()) != 0) {
+    const int error = errno;
+    ::close(fd_);
+    throwTempSpaceError(path_, "cannot unlink", error);
+  }
+}
+
+SpillFile::~SpillFile() {
+  ::close(fd_);
+  space_.release(bytes());
+}
+
+SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
+  if (raw.size() > kMaxSpillBlockBytes) throw std::invalid_argument("spill block larger than 256 MiB");
+  // Compress outside the lock: each thread has its own codec.
+  const std::span<const std::byte> compressed = codec.compress(raw);
+  std::lock_guard lock(writeMutex_);
+  const uint64_t offset = bytes_.load(std::memory_order_relaxed);
+  space_.reserve(compressed.size());
+  size_t done = 0;
+  while (done < compressed.size()) {
+    const ssize_t got =
+        ::pwrite(fd_, compressed.data() + done, compressed.size() - done, static_cast<off_t>(offset + done));
+    if (got > 0) {
+      done += static_cast<size_t>(got);
+      continue;
+    }
+    if (got < 0 && errno == EINTR) continue;
+    // ENOSPC, EDQUOT, EFBIG (RLIMIT_FSIZE with SIGXFSZ ignored), EIO...; a zero-byte write counts as full.
+    const int error = got < 0 ? errno : ENOSPC;
+    space_.release(compressed.size());
+    // Drop the partial block so the file stays exactly its blocks (best effort: it is deleted anyway).
+    [[maybe_unused]] const int ignored = ::ftruncate(fd_, static_cast<off_t>(offset));
+    throwTempSpaceError(path_, "write failed", error);
+  }
+  bytes_.store(offset + compressed.size(), std::memory_order_release);
+  return {offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
+}
+
+void SpillFile::read(const SpillBlock& block, std::vector<std::byte>& raw, SpillCodec& codec) const {
+  raw.resize(block.rawBytes);
+  read(block, std::span<std::byte>(raw), codec);
+}
+
+void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCodec& codec) const {
+  if (raw.size() != block.rawBytes)
+    throw std::invalid_argument("SpillFile::read: buffer size is not the block's");
+  if (block.offset + block.compressedBytes > bytes()) corrupt(block, "block lies past the end of the file");
+  const std::span<std::byte> compressed = codec.compressedScratch(block.compressedBytes);
+  size_t done = 0;
+  while (done < compressed.size()) {
+    const ssize_t got = ::pread(fd_, compressed.data() + done, compressed.size() - done,
+                                static_cast<off_t>(block.offset + done));
+    if (got > 0) {
+      done += static_cast<size_t>(got);
+    } else if (got == 0) {
+      corrupt(block, "unexpected end of file");
+    } else if (errno != EINTR) {
+      throwTempSpaceError(path_, "read failed", errno);
+    }
+  }
+  const char* reason = nullptr;
+  if (!codec.decompress(compressed, raw, reason)) corrupt(block, reason);
+}
+
+void SpillFile::corrupt(const SpillBlock& block, std::string_view reason) const {
+  throw TempSpaceError(path_.string() + ": corrupt block at byte " + std::to_string(block.offset) + ": " +
+                       std::string(reason));
+}
+
+}  // namespace facetree

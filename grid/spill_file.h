@@ -1,0 +1,97 @@
+// Append-only temporary files of independently zstd-compressed blocks, the storage under every spill of
+// the out-of-core build (face cells, ghost edges, sort runs). Internal to grid/.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "grid/temp_space.h"
+
+struct ZSTD_CCtx_s;
+struct ZSTD_DCtx_s;
+
+namespace facetree {
+
+// Largest raw block: keeps rawBytes and the compressed bound in 32 bits.
+inline constexpr size_t kMaxSpillBlockBytes = size_t{256} << 20;
+
+// Per-thread zstd state for spills (a CCtx and a DCtx, created once, reused): pass one per thread.
+// Holds one compressed block of scratch, so its memory is the zstd contexts (a few hundred KiB at
+// level 1 for 64 KiB blocks) plus ZSTD_compressBound of the largest block it has seen.
+class SpillCodec {
+ public:
+  explicit SpillCodec(int level = 1);
+  ~SpillCodec();
+  SpillCodec(SpillCodec&&) noexcept;
+  SpillCodec& operator=(SpillCodec&&) noexcept;
+
+  // One zstd frame with content size and checksum; the view lives until the next call on this codec.
+  std::span<const std::byte> compress(std::span<const std::byte> raw);
+  // Scratch for a compressed block of `bytes`, as read() fills it.
+  std::span<std::byte> compressedScratch(size_t bytes);
+  // Decompresses `compressed` into exactly raw.size() bytes; false (with `reason`) if it is not a whole
+  // valid frame of that size.
+  bool decompress(std::span<const std::byte> compressed, std::span<std::byte> raw, const char*& reason);
+
+ private:
+  struct CCtxDeleter {
+    void operator()(ZSTD_CCtx_s* context) const;
+  };
+  struct DCtxDeleter {
+    void operator()(ZSTD_DCtx_s* context) const;
+  };
+  std::unique_ptr<ZSTD_CCtx_s, CCtxDeleter> compressor_;
+  std::unique_ptr<ZSTD_DCtx_s, DCtxDeleter> decompressor_;
+  std::vector<std::byte> scratch_;
+};
+
+// Where a block lives in its SpillFile: the handle append() returns and read() takes.
+struct SpillBlock {
+  uint64_t offset = 0;
+  uint32_t compressedBytes = 0;
+  uint32_t rawBytes = 0;
+};
+
+// An append-only temporary file of independently zstd-compressed blocks, read back by handle in any order.
+// append() and read() may be called from several threads at once (append serialises the write with a mutex,
+// read uses pread). The file is deleted and its bytes released from the TempSpace by the destructor.
+//
+// The name is unlinked right after the file is created, so the data goes away with the descriptor even
+// when the process is killed; path() is the name it had, for messages.
+class SpillFile {
+ public:
+  SpillFile(TempSpace& space, std::string_view stem);
+  ~SpillFile();
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+
+  // raw.size() <= kMaxSpillBlockBytes. Throws TempSpaceError "PATH: write failed: <strerror>" when the
+  // disk refuses the bytes (or past --max-tmp); the file then holds exactly the blocks appended before.
+  SpillBlock append(std::span<const std::byte> raw, SpillCodec& codec);
+  // Resizes `raw` to block.rawBytes and fills it.
+  void read(const SpillBlock& block, std::vector<std::byte>& raw, SpillCodec& codec) const;
+  // Fills `raw`, whose size must be block.rawBytes (decompresses in place, e.g. into a larger array).
+  void read(const SpillBlock& block, std::span<std::byte> raw, SpillCodec& codec) const;
+
+  // On disk (compressed), as accounted in the TempSpace.
+  uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  [[noreturn]] void corrupt(const SpillBlock& block, std::string_view reason) const;
+
+  TempSpace& space_;
+  std::filesystem::path path_;
+  int fd_ = -1;
+  mutable std::mutex writeMutex_;
+  std::atomic<uint64_t> bytes_{0};  // written under writeMutex_, read by read() without it
+};
+
+}  // namespace facetree

@@ -1,0 +1,67 @@
+// The run's temporary directory and its byte accounting (see temp_space.h).
+#include "grid/temp_space.h"
+
+#include <stdlib.h>  // mkdtemp
+
+#include <cerrno>
+#include <cstring>
+#include <system_error>
+
+namespace facetree {
+
+void throwTempSpaceError(const std::filesystem::path& path, std::string_view reason, int error) {
+  std::string message = path.string();
+  message += ": ";
+  message += reason;
+  message += ": ";
+  message += std::strerror(error);
+  throw TempSpaceError(message);
+}
+
+TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes) : maxBytes_(maxBytes) {
+  std::filesystem::path base = parent;
+  if (base.empty()) {
+    std::error_code ec;
+    base = std::filesystem::temp_directory_path(ec);
+    // temp_directory_path fails when $TMPDIR is not a directory; name what it rejected.
+    if (ec)
+      throwTempSpaceError(base.empty() ? "$TMPDIR" : base, "cannot create temporary directory", ec.value());
+  }
+  std::string pattern = (base / "facetree-XXXXXX").string();
+  if (!mkdtemp(pattern.data())) throwTempSpaceError(base, "cannot create temporary directory", errno);
+  path_ = pattern;
+}
+
+TempSpace::~TempSpace() {
+  std::error_code ignored;  // a destructor cannot report; the files were the run's scratch only
+  std::filesystem::remove_all(path_, ignored);
+}
+
+std::filesystem::path TempSpace::newFile(std::string_view stem) {
+  const uint64_t n = nextFile_.fetch_add(1, std::memory_order_relaxed);
+  std::string name(stem);
+  name += '-';
+  name += std::to_string(n);
+  name += ".spill";
+  return path_ / name;
+}
+
+void TempSpace::reserve(uint64_t bytes) {
+  uint64_t current = current_.load(std::memory_order_relaxed);
+  uint64_t next;
+  do {
+    next = current + bytes;
+    if (maxBytes_ != 0 && (next > maxBytes_ || next < current))
+      throw TempSpaceError(path_.string() + ": temporary files would exceed --max-tmp " +
+                           std::to_string(maxBytes_) + " bytes");
+  } while (!current_.compare_exchange_weak(current, next, std::memory_order_relaxed));
+  uint64_t peak = peak_.load(std::memory_order_relaxed);
+  while (peak < next && !peak_.compare_exchange_weak(peak, next, std::memory_order_relaxed)) {
+  }
+}
+
+void TempSpace::release(uint64_t bytes) {
+  current_.fetch_sub(bytes, std::memory_order_relaxed);
+}
+
+}  // namespace facetree

@@ -1,0 +1,56 @@
+// The temporary directory of one out-of-core run, and the accounting of the bytes its files hold
+// against --max-tmp (DESIGN.md, invariant 5: temporary files are bounded and removed). Internal to grid/.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace facetree {
+
+// Thrown for temporary-file failures; what() is one line "PATH: reason", e.g.
+// "/tmp/facetree-k2F9/faces-3.spill: write failed: No space left on device" or
+// "/tmp/facetree-k2F9: temporary files would exceed --max-tmp 1000000 bytes".
+class TempSpaceError : public std::runtime_error {
+  using runtime_error::runtime_error;
+};
+
+// "PATH: reason: strerror(error)" as a TempSpaceError.
+[[noreturn]] void throwTempSpaceError(const std::filesystem::path& path, std::string_view reason, int error);
+
+// The temporary directory of one run: created (mkdtemp) as `parent`/facetree-XXXXXX, parent defaulting to
+// std::filesystem::temp_directory_path(); the destructor removes it with everything inside. Accounts the
+// bytes its files hold (current and peak) and enforces maxBytes (0 = no limit). Thread-safe accounting.
+class TempSpace {
+ public:
+  // Throws TempSpaceError "PARENT: cannot create temporary directory: <strerror>".
+  explicit TempSpace(const std::filesystem::path& parent = {}, uint64_t maxBytes = 0);
+  ~TempSpace();
+  TempSpace(const TempSpace&) = delete;
+  TempSpace& operator=(const TempSpace&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  uint64_t maxBytes() const { return maxBytes_; }
+
+  // A unique path inside the directory, `stem`-N.spill; the file is not created. Thread-safe.
+  std::filesystem::path newFile(std::string_view stem);
+
+  // Accounts `bytes` before they are written; throws TempSpaceError past maxBytes (and accounts nothing).
+  void reserve(uint64_t bytes);
+  void release(uint64_t bytes);
+
+  uint64_t currentBytes() const { return current_.load(std::memory_order_relaxed); }
+  uint64_t peakBytes() const { return peak_.load(std::memory_order_relaxed); }
+
+ private:
+  std::filesystem::path path_;
+  uint64_t maxBytes_;
+  std::atomic<uint64_t> current_{0};
+  std::atomic<uint64_t> peak_{0};
+  std::atomic<uint64_t> nextFile_{0};
+};
+
+}  // namespace facetree

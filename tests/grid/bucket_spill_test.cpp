@@ -1,0 +1,148 @@
+// BucketSpill: interleaved appends to many buckets come back per bucket in append order, whether
+// flushed to blocks or still buffered, read whole or block by block, from one thread or two.
+#include <cstring>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "grid/bucket_spill.h"
+#include "spill_test_util.h"
+
+namespace facetree {
+namespace {
+
+// 12 bytes, an odd size that does not divide the buffer.
+struct Record {
+  uint32_t bucket;
+  uint32_t sequence;  // per bucket, in append order
+  uint32_t payload;
+  bool operator==(const Record&) const = default;
+};
+
+std::vector<Record> asRecords(const std::vector<std::byte>& bytes) {
+  std::vector<Record> records(bytes.size() / sizeof(Record));
+  if (!bytes.empty()) std::memcpy(records.data(), bytes.data(), records.size() * sizeof(Record));
+  return records;
+}
+
+// Fills `spill` with random interleaved append / appendMany calls; returns the records of each bucket.
+std::vector<std::vector<Record>> fill(BucketSpill& spill, size_t appends, uint64_t seed) {
+  std::vector<std::vector<Record>> expected(spill.buckets());
+  std::mt19937_64 rng(seed);
+  std::vector<Record> batch;
+  for (size_t i = 0; i < appends; ++i) {
+    // Skewed: low buckets get most records, the last bucket none.
+    const uint32_t bucket = static_cast<uint32_t>(rng() % (rng() % (spill.buckets() - 1) + 1));
+    auto& mine = expected[bucket];
+    if (rng() % 4 == 0) {
+      batch.clear();
+      const size_t n = rng() % 300;
+      for (size_t k = 0; k < n; ++k)
+        batch.push_back({bucket, static_cast<uint32_t>(mine.size() + k), static_cast<uint32_t>(rng())});
+      spill.appendMany(bucket, batch.data(), batch.size());
+      mine.insert(mine.end(), batch.begin(), batch.end());
+    } else {
+      const Record r{bucket, static_cast<uint32_t>(mine.size()), static_cast<uint32_t>(rng())};
+      spill.append(bucket, &r);
+      mine.push_back(r);
+    }
+  }
+  return expected;
+}
+
+TEST(BucketSpill, interleavedAppendsReadBackPerBucketInAppendOrder) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBuckets = 37;
+  BucketSpill spill(space, "cells", kBuckets, sizeof(Record), 1000);  // 83 records per block
+  const auto expected = fill(spill, 60000, 1);
+  SpillCodec codec;
+  // Before flushAll: blocks plus the buffered tail.
+  for (size_t b = 0; b < kBuckets; ++b) {
+    ASSERT_EQ(spill.records(b), expected[b].size());
+    std::vector<std::byte> bytes;
+    spill.readBucket(b, bytes, codec);
+    EXPECT_EQ(asRecords(bytes), expected[b]) << "bucket " << b;
+  }
+  EXPECT_GT(spill.bytesOnDisk(), 0u);
+  spill.flushAll();
+  EXPECT_EQ(spill.bytesOnDisk(), space.currentBytes());
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<std::byte> bytes;
+    spill.readBucket(b, bytes, codec);
+    EXPECT_EQ(asRecords(bytes), expected[b]) << "bucket " << b;
+    // Block by block: whole records each time, the same sequence.
+    std::vector<std::byte> streamed;
+    size_t calls = 0;
+    spill.forEachBlock(b, codec, [&](std::span<const std::byte> block) {
+      EXPECT_EQ(block.size() % sizeof(Record), 0u);
+      EXPECT_LE(block.size(), 1000u);
+      streamed.insert(streamed.end(), block.begin(), block.end());
+      ++calls;
+    });
+    EXPECT_EQ(streamed, bytes);
+    EXPECT_EQ(calls, (expected[b].size() * sizeof(Record) + 995) / 996);
+  }
+}
+
+TEST(BucketSpill, readBucketAppendsAfterWhatOutAlreadyHolds) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  BucketSpill spill(space, "cells", 3, sizeof(Record), 64);
+  const auto expected = fill(spill, 500, 2);
+  SpillCodec codec;
+  std::vector<std::byte> bytes;
+  spill.readBucket(0, bytes, codec);
+  spill.readBucket(1, bytes, codec);
+  std::vector<Record> both = expected[0];
+  both.insert(both.end(), expected[1].begin(), expected[1].end());
+  EXPECT_EQ(asRecords(bytes), both);
+}
+
+TEST(BucketSpill, twoThreadsReadDifferentBucketsAfterFlushAll) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBuckets = 64;
+  BucketSpill spill(space, "ghosts", kBuckets, sizeof(Record), 4096);
+  const auto expected = fill(spill, 40000, 3);
+  spill.flushAll();
+  auto check = [&](size_t first, int& mismatches) {
+    SpillCodec codec;  // one per thread
+    for (size_t b = first; b < kBuckets; b += 2) {
+      std::vector<std::byte> bytes;
+      spill.readBucket(b, bytes, codec);
+      mismatches += asRecords(bytes) != expected[b];
+    }
+  };
+  int mismatchesA = 0, mismatchesB = 0;
+  std::thread other(check, 1, std::ref(mismatchesA));
+  check(0, mismatchesB);
+  other.join();
+  EXPECT_EQ(mismatchesA, 0);
+  EXPECT_EQ(mismatchesB, 0);
+}
+
+TEST(BucketSpill, bytesAreReleasedAndNoFileIsLeftWhenDestroyed) {
+  test::ScratchDir parent;
+  {
+    TempSpace space(parent.path());
+    {
+      BucketSpill spill(space, "cells", 5, sizeof(Record), 100);
+      fill(spill, 2000, 4);
+      spill.flushAll();
+      EXPECT_GT(space.currentBytes(), 0u);
+    }
+    EXPECT_EQ(space.currentBytes(), 0u);
+  }
+  EXPECT_TRUE(parent.empty());
+}
+
+TEST(BucketSpill, memoryBoundCoversTheBuffers) {
+  EXPECT_GE(BucketSpill::memoryBound(1000, 12, 65536), 1000u * (65536 / 12) * 12);
+  EXPECT_LT(BucketSpill::memoryBound(1000, 12, 65536), 1000u * 65536 + 1000u * 64 + 70000);
+}
+
+}  // namespace
+}  // namespace facetree

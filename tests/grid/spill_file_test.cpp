@@ -1,0 +1,323 @@
+// TempSpace (directory, accounting, --max-tmp, creation errors) and SpillFile (round trips from two
+// threads, corrupt handles, a full disk simulated with RLIMIT_FSIZE).
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <numeric>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "grid/spill_file.h"
+#include "grid/temp_space.h"
+#include "spill_test_util.h"
+
+namespace facetree {
+namespace {
+
+using test::ScratchDir;
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const TempSpaceError& e) {
+    return e.what();
+  }
+  return "(no TempSpaceError)";
+}
+
+// Random bytes: compressible (small alphabet, runs) or not, so blocks of both kinds round-trip.
+std::vector<std::byte> randomBlock(std::mt19937_64& rng, size_t size, bool compressible) {
+  std::vector<std::byte> block(size);
+  for (size_t i = 0; i < size; ++i) {
+    const uint64_t r = rng();
+    block[i] = std::byte(compressible ? (i / 64 + (r & 3)) & 0xff : r & 0xff);
+  }
+  return block;
+}
+
+TEST(TempSpace, createsItsDirectoryInsideParentAndRemovesItWithEverythingInside) {
+  ScratchDir parent;
+  std::filesystem::path dir;
+  {
+    TempSpace space(parent.path());
+    dir = space.path();
+    EXPECT_EQ(dir.parent_path(), parent.path());
+    EXPECT_EQ(dir.filename().string().rfind("facetree-", 0), 0u) << dir;
+    EXPECT_TRUE(std::filesystem::is_directory(dir));
+    std::ofstream(space.newFile("plain")) << "left behind by someone";
+    std::filesystem::create_directory(dir / "sub");
+    std::ofstream(dir / "sub" / "nested") << "x";
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir));
+  EXPECT_TRUE(parent.empty());
+}
+
+TEST(TempSpace, defaultParentIsTheSystemTemporaryDirectory) {
+  TempSpace space;
+  EXPECT_EQ(space.path().parent_path(), std::filesystem::temp_directory_path());
+}
+
+TEST(TempSpace, directoryIsRemovedWhenAnExceptionUnwinds) {
+  ScratchDir parent;
+  std::filesystem::path dir;
+  EXPECT_THROW(
+      {
+        TempSpace space(parent.path());
+        dir = space.path();
+        SpillCodec codec;
+        SpillFile file(space, "faces");
+        std::vector<std::byte> raw(1000, std::byte{7});
+        file.append(raw, codec);
+        throw std::runtime_error("the build failed");
+      },
+      std::runtime_error);
+  EXPECT_FALSE(dir.empty());
+  EXPECT_FALSE(std::filesystem::exists(dir));
+  EXPECT_TRUE(parent.empty());
+}
+
+TEST(TempSpace, newFileGivesDistinctNamesInsideTheDirectoryWithoutCreatingThem) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  const auto a = space.newFile("faces");
+  const auto b = space.newFile("faces");
+  const auto c = space.newFile("edges");
+  EXPECT_NE(a, b);
+  EXPECT_EQ(a.parent_path(), space.path());
+  EXPECT_EQ(c.extension(), ".spill");
+  EXPECT_EQ(a.filename().string().rfind("faces-", 0), 0u);
+  EXPECT_FALSE(std::filesystem::exists(a));
+}
+
+TEST(TempSpace, reservePastMaxTmpThrowsTheExactMessageAndAccountsNothing) {
+  ScratchDir parent;
+  TempSpace space(parent.path(), 1000000);
+  space.reserve(600000);
+  space.reserve(400000);  // exactly at the limit is allowed
+  EXPECT_EQ(space.currentBytes(), 1000000u);
+  EXPECT_EQ(errorOf([&] { space.reserve(1); }),
+            space.path().string() + ": temporary files would exceed --max-tmp 1000000 bytes");
+  EXPECT_EQ(space.currentBytes(), 1000000u);
+  space.release(500000);
+  EXPECT_EQ(errorOf([&] { space.reserve(500001); }),
+            space.path().string() + ": temporary files would exceed --max-tmp 1000000 bytes");
+  space.reserve(500000);
+  EXPECT_EQ(space.peakBytes(), 1000000u);
+  // An overflowing request is past any limit, not a wrap-around.
+  EXPECT_THROW(space.reserve(UINT64_MAX), TempSpaceError);
+}
+
+TEST(TempSpace, accountingFromTwoThreadsAddsUp) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr int kSteps = 200000;
+  auto work = [&](uint64_t bytes) {
+    for (int i = 0; i < kSteps; ++i) {
+      space.reserve(bytes);
+      if (i % 2) space.release(bytes);
+    }
+  };
+  std::thread other(work, 3);
+  work(5);
+  other.join();
+  EXPECT_EQ(space.currentBytes(), uint64_t{kSteps / 2} * 8);
+  // Each thread holds at most one unreleased odd step above its final share at any time.
+  EXPECT_GE(space.peakBytes(), space.currentBytes());
+  EXPECT_LE(space.peakBytes(), space.currentBytes() + 8);
+}
+
+TEST(TempSpace, missingParentNamesTheParentAndTheReason) {
+  ScratchDir scratch;
+  const auto parent = scratch.path() / "missing";
+  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
+            parent.string() + ": cannot create temporary directory: No such file or directory");
+}
+
+TEST(TempSpace, parentUnderARegularFileNamesTheParentAndTheReason) {
+  ScratchDir scratch;
+  std::ofstream(scratch.path() / "file") << "not a directory";
+  const auto parent = scratch.path() / "file";
+  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
+            parent.string() + ": cannot create temporary directory: Not a directory");
+  EXPECT_EQ(errorOf([&] { TempSpace space(parent / "below"); }),
+            (parent / "below").string() + ": cannot create temporary directory: Not a directory");
+}
+
+TEST(TempSpace, unwritableParentNamesTheParentAndTheReason) {
+  if (geteuid() == 0) GTEST_SKIP() << "permission bits do not stop root";
+  ScratchDir scratch;
+  const auto parent = scratch.path() / "readonly";
+  std::filesystem::create_directory(parent);
+  std::filesystem::permissions(parent,
+                               std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
+            parent.string() + ": cannot create temporary directory: Permission denied");
+}
+
+TEST(SpillFile, randomBlocksAppendedAndReadInRandomOrderFromTwoThreadsRoundTrip) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBlocks = 240;
+  std::vector<std::vector<std::byte>> raw(kBlocks);
+  std::mt19937_64 rng(11);
+  for (size_t i = 0; i < kBlocks; ++i) raw[i] = randomBlock(rng, i % 17 == 0 ? i % 3 : rng() % 150000, i % 2);
+  std::vector<SpillBlock> handles(kBlocks);
+  {
+    SpillFile file(space, "faces");
+    // Two writers at once, each with its own codec, interleaving blocks.
+    auto write = [&](size_t first) {
+      SpillCodec codec;
+      for (size_t i = first; i < kBlocks; i += 2) handles[i] = file.append(raw[i], codec);
+    };
+    std::thread writer(write, 1);
+    write(0);
+    writer.join();
+
+    // Blocks tile the file, each once, and the space accounts exactly the file.
+    std::vector<SpillBlock> byOffset = handles;
+    std::sort(byOffset.begin(), byOffset.end(), [](auto& a, auto& b) { return a.offset < b.offset; });
+    uint64_t end = 0;
+    for (const SpillBlock& b : byOffset) {
+      EXPECT_EQ(b.offset, end);
+      end += b.compressedBytes;
+    }
+    EXPECT_EQ(file.bytes(), end);
+    EXPECT_EQ(space.currentBytes(), end);
+    EXPECT_EQ(space.peakBytes(), end);
+    for (size_t i = 0; i < kBlocks; ++i) EXPECT_EQ(handles[i].rawBytes, raw[i].size());
+    // Compressible halves compress: the file is smaller than the data.
+    const uint64_t rawTotal = std::accumulate(raw.begin(), raw.end(), uint64_t{0},
+                                              [](uint64_t s, const auto& r) { return s + r.size(); });
+    EXPECT_LT(end, rawTotal);
+
+    // Two readers, each every block in its own random order.
+    auto readAll = [&](uint64_t seed, int& mismatches) {
+      SpillCodec codec;
+      std::vector<size_t> order(kBlocks);
+      std::iota(order.begin(), order.end(), size_t{0});
+      std::shuffle(order.begin(), order.end(), std::mt19937_64(seed));
+      std::vector<std::byte> back;
+      for (size_t i : order) {
+        file.read(handles[i], back, codec);
+        mismatches += back != raw[i];
+      }
+    };
+    int mismatchesA = 0, mismatchesB = 0;
+    std::thread reader(readAll, 1, std::ref(mismatchesA));
+    readAll(2, mismatchesB);
+    reader.join();
+    EXPECT_EQ(mismatchesA, 0);
+    EXPECT_EQ(mismatchesB, 0);
+  }
+  EXPECT_EQ(space.currentBytes(), 0u);
+  EXPECT_TRUE(std::filesystem::is_empty(space.path()));
+}
+
+TEST(SpillFile, leavesNoNameInTheDirectoryAndReleasesItsBytesWhenDestroyed) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  std::vector<std::byte> raw(4096, std::byte{1});
+  {
+    SpillFile file(space, "edges");
+    EXPECT_EQ(file.path().parent_path(), space.path());
+    file.append(raw, codec);
+    EXPECT_GT(space.currentBytes(), 0u);
+    // Unlinked at creation: nothing to leave behind if the process is killed.
+    EXPECT_TRUE(std::filesystem::is_empty(space.path()));
+  }
+  EXPECT_EQ(space.currentBytes(), 0u);
+  EXPECT_GT(space.peakBytes(), 0u);
+}
+
+TEST(SpillFile, aHandleThatDoesNotMatchTheDataIsATempSpaceError) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  SpillFile file(space, "faces");
+  std::mt19937_64 rng(3);
+  const auto first = randomBlock(rng, 5000, true);
+  const auto second = randomBlock(rng, 7000, false);
+  const SpillBlock a = file.append(first, codec);
+  const SpillBlock b = file.append(second, codec);
+  std::vector<std::byte> back;
+  const std::string prefix = file.path().string() + ": corrupt block at byte ";
+  auto expectCorrupt = [&](SpillBlock block) {
+    const std::string message = errorOf([&] { file.read(block, back, codec); });
+    EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
+  };
+  expectCorrupt({a.offset + 1, a.compressedBytes, a.rawBytes});  // not a frame
+  expectCorrupt({a.offset, a.compressedBytes, a.rawBytes + 1});  // wrong size
+  expectCorrupt({a.offset, a.compressedBytes - 1, a.rawBytes});  // truncated frame
+  expectCorrupt({a.offset, a.compressedBytes + b.compressedBytes, a.rawBytes + b.rawBytes});  // two frames
+  expectCorrupt({b.offset, b.compressedBytes + 1, b.rawBytes});  // past the end of the file
+  file.read(b, back, codec);
+  EXPECT_EQ(back, second);
+}
+
+TEST(SpillFile, maxTmpStopsAppendsWithTheExactMessage) {
+  ScratchDir parent;
+  TempSpace space(parent.path(), 200000);
+  SpillCodec codec;
+  SpillFile file(space, "faces");
+  std::mt19937_64 rng(5);
+  std::string message;
+  for (int i = 0; i < 10 && message.empty(); ++i)
+    message = [&]() -> std::string {
+      try {
+        file.append(randomBlock(rng, 65536, false), codec);
+      } catch (const TempSpaceError& e) {
+        return e.what();
+      }
+      return {};
+    }();
+  EXPECT_EQ(message, space.path().string() + ": temporary files would exceed --max-tmp 200000 bytes");
+  EXPECT_LE(space.peakBytes(), 200000u);
+  EXPECT_EQ(file.bytes(), space.currentBytes());
+}
+
+// RLIMIT_FSIZE makes the kernel refuse writes past the limit with EFBIG (SIGXFSZ ignored): a full disk
+// without a tmpfs mount. In a child so the limit does not outlive the test.
+TEST(SpillFile, fullDiskIsATempSpaceErrorNamingTheFileAndLeavesNoFiles) {
+  ScratchDir parent;
+  const test::ChildResult child = test::runInChild([&] {
+    const rlimit limit{300000, 300000};
+    if (setrlimit(RLIMIT_FSIZE, &limit) != 0) return std::string("setrlimit failed");
+    signal(SIGXFSZ, SIG_IGN);
+    TempSpace space(parent.path());
+    SpillCodec codec;
+    SpillFile file(space, "faces");
+    std::mt19937_64 rng(9);
+    for (int i = 0; i < 100; ++i) {
+      try {
+        file.append(randomBlock(rng, 65536, false), codec);
+      } catch (const TempSpaceError& e) {
+        // The failed block is neither accounted nor left in the file.
+        const bool consistent = file.bytes() == space.currentBytes() && file.bytes() <= limit.rlim_cur;
+        return std::string(e.what()) + "\n" + file.path().string() + "\n" +
+               (consistent ? "consistent" : "inconsistent");
+      }
+    }
+    return std::string("no error");
+  });
+  ASSERT_EQ(child.exitCode, 0) << child.output;
+  const size_t firstBreak = child.output.find('\n');
+  const size_t secondBreak = child.output.find('\n', firstBreak + 1);
+  ASSERT_NE(secondBreak, std::string::npos) << child.output;
+  const std::string message = child.output.substr(0, firstBreak);
+  const std::string path = child.output.substr(firstBreak + 1, secondBreak - firstBreak - 1);
+  EXPECT_EQ(std::filesystem::path(path).parent_path().parent_path(), parent.path());
+  EXPECT_EQ(message, path + ": write failed: File too large");
+  EXPECT_EQ(child.output.substr(secondBreak + 1), "consistent");
+  EXPECT_TRUE(parent.empty());
+}
+
+}  // namespace
+}  // namespace facetree
