@@ -16,6 +16,7 @@ foreach(module stream merge grid io)
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})
 endforeach()
 install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
+install(FILES ${PROJECT_SOURCE_DIR}/grid/temporary_file_error.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/grid)
 install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
 
 install(EXPORT facetreeTargets NAMESPACE facetree:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)

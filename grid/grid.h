@@ -15,6 +15,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "grid/temporary_file_error.h"
 #include "io/cluster_file.h"
 #include "merge/merge.h"
 #include "stream/stream.h"
@@ -101,12 +102,6 @@ struct JobReport {
 class JobCancelled : public std::runtime_error {
  public:
   JobCancelled() : std::runtime_error("cancelled") {}
-};
-
-// Temporary files: cannot be created or written (disk full), or over ClusterJob::maxTemporaryBytes.
-class TemporaryFileError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
 };
 
 // Thrown when the cap cannot hold even the smallest working set; what() says how much is needed.

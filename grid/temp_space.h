@@ -9,13 +9,16 @@
 #include <string>
 #include <string_view>
 
+#include "grid/temporary_file_error.h"
+
 namespace facetree {
 
 // Thrown for temporary-file failures; what() is one line "PATH: reason", e.g.
 // "/tmp/facetree-k2F9/faces-3.spill: write failed: No space left on device" or
 // "/tmp/facetree-k2F9: temporary files would exceed --max-tmp 1000000 bytes".
-class TempSpaceError : public std::runtime_error {
-  using runtime_error::runtime_error;
+class TempSpaceError : public TemporaryFileError {
+ public:
+  using TemporaryFileError::TemporaryFileError;
 };
 
 // "PATH: reason: strerror(error)" as a TempSpaceError.

@@ -1,0 +1,239 @@
+// The out-of-core build against the in-core one and the cluster file's invariants: verify
+// passes, every triangle of the input arrives once with its position and face id, non-join nodes
+// are edge-connected, the output is byte-identical across runs and thread counts, temporary
+// files are gone, and the memory cap holds (getrusage of a child process).
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include "grid/grid.h"
+#include "io/io.h"
+
+namespace facetree {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ScratchDir {
+ public:
+  ScratchDir() {
+    std::string pattern = (fs::temp_directory_path() / "facetree-ooc-test-XXXXXX").string();
+    path_ = ::mkdtemp(pattern.data());
+  }
+  ~ScratchDir() { fs::remove_all(path_); }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+fs::path generate(const ScratchDir& dir, const std::string& name, SyntheticKind kind, uint64_t triangles,
+                  bool shuffle = false) {
+  GenerateOptions options;
+  options.triangles = triangles;
+  options.shuffleVertices = options.shuffleFaces = shuffle;
+  const fs::path path = dir / name;
+  writeSyntheticMesh(kind, options, path);
+  return path;
+}
+
+JobReport build(const fs::path& in, const fs::path& out, uint64_t cellFaces, unsigned threads = 2,
+                const fs::path& tmp = {}, uint64_t memory = 0) {
+  ClusterJob job;
+  job.input = in;
+  job.output = out;
+  job.forceCellFaces = cellFaces;
+  job.threads = threads;
+  job.tmpDir = tmp;
+  job.memoryCap = memory;
+  return runClusterJob(job);
+}
+
+std::string bytesOf(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// Position key for connectivity across leaf clusters (which store shared vertices twice).
+uint64_t positionKey(const glm::vec3& p) {
+  uint64_t h = std::bit_cast<uint32_t>(p.x);
+  h = h * 0x9E3779B97F4A7C15ull ^ std::bit_cast<uint32_t>(p.y);
+  return h * 0x9E3779B97F4A7C15ull ^ std::bit_cast<uint32_t>(p.z);
+}
+
+// Faces [first, first + count) are edge-connected (edges matched by corner positions).
+bool edgeConnected(const ClusterFile& file, uint32_t first, uint32_t count) {
+  std::vector<uint32_t> parent(count);
+  std::iota(parent.begin(), parent.end(), 0u);
+  const auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  std::unordered_map<uint64_t, uint32_t> edgeOwner;
+  for (uint32_t i = 0; i < count; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      uint64_t a = positionKey(file.vertices[file.indices[3 * size_t(first + i) + k]]);
+      uint64_t b = positionKey(file.vertices[file.indices[3 * size_t(first + i) + (k + 1) % 3]]);
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      const auto [it, inserted] = edgeOwner.emplace(a * 0x2545F4914F6CDD1Dull ^ b, i);
+      if (!inserted) parent[find(i)] = find(it->second);
+    }
+  }
+  for (uint32_t i = 1; i < count; ++i)
+    if (find(i) != find(0)) return false;
+  return true;
+}
+
+TEST(OutOfCore, TerrainVerifiesAndKeepsEveryTriangle) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000);
+  const JobReport report = build(mesh, dir / "out.fch", 5000);
+  EXPECT_TRUE(report.outOfCore);
+  EXPECT_GT(report.cells, 8u);
+  EXPECT_GE(report.leaves, report.cells);
+
+  const ClusterFile file = readClusterFile(dir / "out.fch");
+  const VerifyResult verified = verifyClusterFile(file);
+  EXPECT_TRUE(verified.ok) << verified.message;
+  auto reader = openMesh(mesh);
+  const IndexedMesh input = loadMesh(*reader);
+  EXPECT_EQ(file.indices.size(), input.indices.size());
+  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
+  EXPECT_TRUE(same.ok) << same.message;
+  EXPECT_EQ(report.nodes, file.nodes.size());
+  EXPECT_EQ(file.nodes.size(), input.originalFace.size() - 1);
+  // A terrain is one surface: only nodes flagged as joins may be disconnected, and there are none.
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    const FchNode& node = file.nodes[j];
+    EXPECT_FALSE(node.flags & kFchJoinsDisjointSurfaces) << "node " << j;
+    if (j % 7 == 0 || j < 64) {
+      EXPECT_TRUE(edgeConnected(file, node.first, node.count)) << "node " << j;
+    }
+  }
+}
+
+TEST(OutOfCore, HeightCloseToInCore) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "sphere.ply", SyntheticKind::Sphere, 80000);
+  const JobReport inCore = build(mesh, dir / "in.fch", 0);
+  const JobReport outOfCore = build(mesh, dir / "out.fch", 4000);
+  EXPECT_FALSE(inCore.outOfCore);
+  EXPECT_TRUE(outOfCore.outOfCore);
+  EXPECT_EQ(inCore.balancedHeight, outOfCore.balancedHeight);
+  EXPECT_LE(outOfCore.height, 2 * outOfCore.balancedHeight);
+  EXPECT_LE(double(outOfCore.height), 1.25 * inCore.height);
+  EXPECT_TRUE(verifyClusterFile(readClusterFile(dir / "out.fch")).ok);
+}
+
+TEST(OutOfCore, ByteIdenticalAcrossRunsAndThreads) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 40000, true);
+  build(mesh, dir / "a.fch", 3000, 1);
+  build(mesh, dir / "b.fch", 3000, 2);
+  build(mesh, dir / "c.fch", 3000, 2);
+  const std::string a = bytesOf(dir / "a.fch");
+  EXPECT_GT(a.size(), 1000u);
+  EXPECT_EQ(a, bytesOf(dir / "b.fch"));
+  EXPECT_EQ(a, bytesOf(dir / "c.fch"));
+}
+
+TEST(OutOfCore, TemporaryFilesRemovedOnSuccessAndFailure) {
+  ScratchDir dir;
+  fs::create_directory(dir / "tmp");
+  const fs::path mesh = generate(dir, "grid.ply", SyntheticKind::Grid, 20000);
+  build(mesh, dir / "out.fch", 2000, 2, dir / "tmp");
+  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+  // A limit on temporary bytes too small to spill the input: a clean error, nothing left.
+  ClusterJob job;
+  job.input = mesh;
+  job.output = dir / "fail.fch";
+  job.forceCellFaces = 2000;
+  job.tmpDir = dir / "tmp";
+  job.maxTemporaryBytes = 4096;
+  EXPECT_THROW(runClusterJob(job), TemporaryFileError);
+  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+  EXPECT_FALSE(fs::exists(dir / "fail.fch"));
+  // Cancelled from the progress callback: the same.
+  job.maxTemporaryBytes = 0;
+  int calls = 0;
+  job.progress = [&calls](const JobProgress& p) { return std::string(p.phase) != "cells" || ++calls < 2; };
+  EXPECT_THROW(runClusterJob(job), JobCancelled);
+  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+  EXPECT_FALSE(fs::exists(dir / "fail.fch"));
+  for (const auto& entry : fs::directory_iterator(dir.path()))
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+}
+
+TEST(OutOfCore, SmallCapIsRefusedWithWhatItNeeds) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "grid.ply", SyntheticKind::Grid, 200000);
+  try {
+    build(mesh, dir / "out.fch", 0, 2, {}, uint64_t{20} << 20);
+    FAIL() << "a 20 MiB cap was accepted";
+  } catch (const MemoryCapError& e) {
+    EXPECT_NE(std::string(e.what()).find("is too small: an out-of-core build needs at least"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "out.fch"));
+}
+
+// Shuffled vertices and faces with positions spilled: the sort join serves them.
+TEST(OutOfCore, ShuffledInputWithSpilledPositions) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "shuffled.ply", SyntheticKind::Terrain, 300000, true);
+  const JobReport report = build(mesh, dir / "out.fch", 20000, 2, {}, uint64_t{64} << 20);
+  EXPECT_TRUE(report.outOfCore);
+  const ClusterFile file = readClusterFile(dir / "out.fch");
+  const VerifyResult verified = verifyClusterFile(file);
+  EXPECT_TRUE(verified.ok) << verified.message;
+  auto reader = openMesh(mesh);
+  const IndexedMesh input = loadMesh(*reader);
+  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
+  EXPECT_TRUE(same.ok) << same.message;
+}
+
+// The cap as a promise: peak RSS of a child process running the whole job.
+uint64_t childPeakRss(const std::function<void()>& work) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    try {
+      work();
+    } catch (...) {
+      ::_exit(3);
+    }
+    ::_exit(0);
+  }
+  int status = 0;
+  rusage usage{};
+  ::wait4(pid, &status, 0, &usage);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return ~uint64_t{0};
+  return uint64_t(usage.ru_maxrss) * 1024;
+}
+
+TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
+  ScratchDir dir;
+  constexpr uint64_t kCap = uint64_t{64} << 20;
+  for (const bool shuffle : {false, true}) {
+    const fs::path mesh =
+        generate(dir, shuffle ? "s.ply" : "c.ply", SyntheticKind::Terrain, 3000000, shuffle);
+    const uint64_t peak = childPeakRss([&] { build(mesh, dir / "out.fch", 0, 2, {}, kCap); });
+    EXPECT_LE(peak, kCap) << (shuffle ? "shuffled" : "coherent") << ": " << peak / 1048576.0 << " MiB";
+    EXPECT_TRUE(verifyClusterFile(readClusterFile(dir / "out.fch"), {.boxes = false, .statistics = false}).ok);
+  }
+}
+
+}  // namespace
+}  // namespace facetree
