@@ -59,6 +59,32 @@ TEST_P(Recast, EveryNodeIsABinaryNodeWithItsBoxAndChildrenFromItsSubtree) {
   EXPECT_GE(double(stats.internalNodes), stats.eq85Nodes - 1e-9);  // eq. 85 is the lower bound
 }
 
+TEST(RecastCounts, BinaryFilesSkipTheRecastTreeAndMatchIt) {
+  // makeClusterFile and the streamed writer take b = 2 straight from the hierarchy; the recast
+  // tree must give the same nodes: all of them, children in face order, each its own join flag.
+  const TestMesh mesh = gridMesh(19, 11);
+  Hierarchy binary = medianSplitHierarchy(mesh.view());
+  for (size_t i = 0; i < binary.nodes.size(); ++i) {
+    if (i % 3 == 1) std::swap(binary.nodes[i].child[0], binary.nodes[i].child[1]);
+    if (i % 5 == 0) binary.nodes[i].flags |= kNodeJoinsDisjointSurfaces;
+  }
+  for (const RecastRule rule : {RecastRule::LargestArea, RecastRule::FewestNodes}) {
+    FileOptions options;
+    options.rule = rule;
+    const ClusterFile file = makeClusterFile(mesh.view(), {}, binary, options);
+    const RecastTree tree = recastHierarchy(binary, 2, rule);
+    ASSERT_EQ(file.nodes.size(), tree.binaryNode.size());
+    for (size_t j = 0; j < file.nodes.size(); ++j) {
+      const FchNode& node = file.nodes[j];
+      EXPECT_EQ(tree.binaryNode[j], j);
+      ASSERT_EQ(node.childCount, tree.childCount[j]);
+      EXPECT_TRUE(std::equal(node.child, node.child + 2, tree.child[j].begin())) << "node " << j;
+      EXPECT_EQ((node.flags & kFchJoinsDisjointSurfaces) != 0, tree.joinFlag[j] != 0) << "node " << j;
+      EXPECT_EQ((node.flags & kFchFlatFrame) != 0, (binary.nodes[j].flags & kNodeFlatFrame) != 0);
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Factors, Recast,
                          ::testing::Combine(::testing::Values(2u, 3u, 4u, 8u),
                                             ::testing::Values(RecastRule::LargestArea,
