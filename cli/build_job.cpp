@@ -60,6 +60,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   job.threads = static_cast<unsigned>(args.count("threads", 2));
   if (job.threads < 1 || job.threads > 64) throw UsageError("--threads must be 1 to 64");
   job.forceCellFaces = args.count("cell-faces", 0);
+  job.zstdLevel = static_cast<int>(args.count("zstd-level", 9));
+  if (job.zstdLevel < 1 || job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19");
   if (job.memoryCap != 0 && job.memoryCap < (uint64_t{16} << 20))
     throw UsageError("--memory must be at least 16M");
   ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
@@ -83,6 +85,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     json.field("components", r.components);
     json.field("cells", r.cells);
     json.field("leaves", r.leaves);
+    json.field("cross_edges", r.crossEdges);
+    json.field("upper_components", r.upperComponents);
     json.field("cell_face_limit", r.cellFaceLimit);
     json.beginObject("seconds");
     json.field("read", r.secondsRead);
@@ -103,9 +107,12 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",
                r.memoryCap / 1048576.0);
   if (r.outOfCore)
-    std::fprintf(out, "cells         %llu (at most %llu faces each), %llu leaf clusters, %llu components\n",
+    std::fprintf(out,
+                 "cells         %llu (at most %llu faces each): %llu leaf clusters, %llu dual edges between "
+                 "them, %llu roots joined\n",
                  static_cast<unsigned long long>(r.cells), static_cast<unsigned long long>(r.cellFaceLimit),
-                 static_cast<unsigned long long>(r.leaves), static_cast<unsigned long long>(r.components));
+                 static_cast<unsigned long long>(r.leaves), static_cast<unsigned long long>(r.crossEdges),
+                 static_cast<unsigned long long>(r.upperComponents));
   std::fprintf(out, "hierarchy     %llu nodes, height %u (balanced %u, ratio %.2f)\n",
                static_cast<unsigned long long>(r.nodes), r.height, r.balancedHeight, ratio);
   std::fprintf(out, "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",

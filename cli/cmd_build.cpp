@@ -33,7 +33,7 @@ int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
                    "recast", "mesh-out", "draco-bits", "balance-slack", "memory", "tmp", "max-tmp", "threads",
-                   "cell-faces"},
+                   "cell-faces", "zstd-level"},
                   {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
@@ -63,7 +63,8 @@ int runBuild(const std::vector<std::string>& argv) {
   const auto meshOut = args.value("mesh-out");
   if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
   const bool jobOptions = args.value("memory") || args.value("tmp") || args.value("max-tmp") ||
-                          args.value("threads") || args.value("cell-faces");
+                          args.value("threads") || args.value("cell-faces") ||
+                          args.value("zstd-level");
   if (jobOptions && (!output || meshOut))
     throw UsageError("--memory, --tmp, --max-tmp, --threads and --cell-faces need -o and no --mesh-out");
   if (jobOptions) {

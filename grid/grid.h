@@ -73,6 +73,7 @@ struct ClusterJob {
   std::filesystem::path tmpDir;  // parent of the run's temporary directory; empty = system default
   uint64_t maxTemporaryBytes = 0;  // 0 = no limit
   unsigned threads = 2;
+  int zstdLevel = 9;  // of the cluster file's frames (WriteOptions::zstdLevel)
   // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
   uint64_t forceCellFaces = 0;
   // Called between steps; returning false cancels the job (JobCancelled is thrown after the
@@ -88,6 +89,8 @@ struct JobReport {
   uint64_t nodes = 0;
   uint64_t cells = 0;
   uint64_t leaves = 0;  // leaf clusters the upper merge started from (out of core)
+  uint64_t crossEdges = 0;       // dual edges between leaf clusters (out of core)
+  uint64_t upperComponents = 0;  // roots the upper merge joined (flagged) for want of edges
   uint64_t cellFaceLimit = 0;
   uint32_t height = 0;
   uint32_t balancedHeight = 0;

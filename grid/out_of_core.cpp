@@ -281,6 +281,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
     }
   }
   report_.cellFaceLimit = cellFaceLimit_;
+  frontierFaces_ = std::max<uint64_t>(kMinFrontierFaces, cellFaceLimit_ / kFrontiersPerCell);
 
   auto start = std::chrono::steady_clock::now();
   readAll(*reader, std::move(pending));

@@ -102,6 +102,7 @@ class OutOfCoreBuild {
   // bin
   std::unique_ptr<CellGrid> grid_;
   uint64_t cellFaceLimit_ = 0;
+  uint64_t frontierFaces_ = 0;  // leaf clusters: the frontier of each component's hierarchy at this size
   std::unique_ptr<BucketSpill> cellFaces_;
   std::unique_ptr<BucketSpill> ghosts_;
   // cells
@@ -130,5 +131,10 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
 inline constexpr uint64_t kBaseBytes = uint64_t{24} << 20;     // process, libraries, reader, codecs
 inline constexpr uint64_t kCellBytesPerFace = 640;              // one cell's build, at its peak
 inline constexpr uint64_t kMinCellFaces = 4096;                 // below this a cap is refused
+// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
+// faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
+// the top of the tree across cell borders, few enough that it stays small.
+inline constexpr uint64_t kFrontiersPerCell = 32;
+inline constexpr uint64_t kMinFrontierFaces = 64;
 
 }  // namespace facetree

@@ -207,18 +207,20 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     }
     label = {};
 
+    // Each component's hierarchy is cut at its frontier of clusters of at most frontierFaces_
+    // faces: those are the leaf clusters (the upper merge redoes what lies above them, with
+    // the neighbours across the cell's borders in view, and with pieces of similar sizes).
     std::vector<uint32_t> subId(positions.size(), kNoVertex);
     std::vector<glm::vec3> subPositions;
-    std::vector<uint32_t> subIndices;
+    std::vector<uint32_t> subIndices, leafFaces, frontier, remap, stack, collected;
     std::vector<uint64_t> subFaces;
     std::vector<std::byte> block;
-    result.leaves.resize(groups);
-    for (uint32_t g = 0; g < groups; ++g) {
-      const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
+    // A mesh of the given cell faces, in that order.
+    const auto makeMesh = [&](std::span<const uint32_t> cellFaces) {
       subPositions.clear();
       subIndices.clear();
       subFaces.clear();
-      for (const uint32_t f : members) {
+      for (const uint32_t f : cellFaces) {
         for (int k = 0; k < 3; ++k) {
           uint32_t& id = subId[indices[size_t{3} * f + k]];
           if (id == kNoVertex) {
@@ -229,55 +231,168 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         }
         subFaces.push_back(records[f].face);
       }
-      for (const uint32_t f : members)
+      for (const uint32_t f : cellFaces)
         for (int k = 0; k < 3; ++k) subId[indices[size_t{3} * f + k]] = kNoVertex;
-
-      const MeshView subMesh{subPositions, subIndices};
-      LeafCluster& leaf = result.leaves[g];
-      leaf.cell = cell;
-      leaf.faceCount = members.size();
-      leaf.stats = surfaceStats(subMesh, origin_);
-      ClusterFile file;
-      {
-        const Hierarchy hierarchy = buildHierarchy(subMesh, job_.build);
-        leaf.height = hierarchy.stats.height;
-        file = makeClusterFile(subMesh, subFaces, hierarchy, job_.file);
-      }
-      leaf.stats.height = leaf.height;
-      leaf.nodeCount = file.nodes.size();
-      leaf.vertexCount = file.vertices.size();
-      if (!file.nodes.empty()) {
-        const NodeBox& box = file.nodes[0].box;
-        const glm::mat3 axes = glm::mat3_cast(box.orientation);
-        for (int c = 0; c < 8; ++c) {
-          glm::vec3 p = box.center;
-          for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
-          leaf.corners[c] = p;
-        }
+      return MeshView{subPositions, subIndices};
+    };
+    for (uint32_t g = 0; g < groups; ++g) {
+      const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
+      Hierarchy component = buildHierarchy(makeMesh(members), job_.build);
+      frontier.clear();
+      if (component.nodes.empty() || component.nodes[0].count <= frontierFaces_) {
+        frontier.push_back(component.nodes.empty() ? kFaceChild : 0u);
       } else {
-        for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
+        for (const Node& node : component.nodes) {
+          if (node.count <= frontierFaces_) continue;
+          for (const uint32_t c : node.child)
+            if ((c & kFaceChild) || component.nodes[c].count <= frontierFaces_) frontier.push_back(c);
+        }
       }
-      for (size_t first = 0; first < file.nodes.size(); first += kNodesPerBlock) {
-        const size_t n = std::min(kNodesPerBlock, file.nodes.size() - first);
-        block.clear();
-        appendBytes(block, file.nodes.data() + first, n);
-        leaf.nodeBlocks.push_back(nodeSpill_->append(block, codec));
+      const auto firstOf = [&](uint32_t ref) { return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first; };
+      std::sort(frontier.begin(), frontier.end(), [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
+
+      for (const uint32_t ref : frontier) {
+        // The frontier cluster's subtree as a hierarchy of its own.
+        Hierarchy sub;
+        uint32_t first = firstOf(ref), count = 1;
+        if (!(ref & kFaceChild)) {
+          count = component.nodes[ref].count;
+          collected.clear();
+          stack.assign(1, ref);
+          while (!stack.empty()) {
+            const uint32_t i = stack.back();
+            stack.pop_back();
+            collected.push_back(i);
+            for (const uint32_t c : component.nodes[i].child)
+              if (!(c & kFaceChild)) stack.push_back(c);
+          }
+          std::sort(collected.begin(), collected.end());  // parents before children, as stored
+          remap.resize(component.nodes.size());
+          for (uint32_t k = 0; k < collected.size(); ++k) remap[collected[k]] = k;
+          sub.nodes.reserve(collected.size());
+          sub.boxes.reserve(collected.size());
+          for (const uint32_t i : collected) {
+            Node node = component.nodes[i];
+            node.first -= first;
+            for (uint32_t& c : node.child) c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
+            sub.nodes.push_back(node);
+            sub.boxes.push_back(component.boxes[i]);
+          }
+          std::vector<uint32_t> depth(sub.nodes.size(), 1);
+          uint32_t height = 1;
+          for (uint32_t i = 0; i < sub.nodes.size(); ++i)
+            for (const uint32_t c : sub.nodes[i].child) {
+              if (c & kFaceChild) height = std::max(height, depth[i] + 1);
+              else depth[c] = depth[i] + 1;
+            }
+          sub.stats.height = height;
+        } else {
+          sub.stats.height = 1;
+        }
+        sub.faceOrder.resize(count);
+        for (uint32_t k = 0; k < count; ++k) sub.faceOrder[k] = k;
+        leafFaces.resize(count);
+        for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
+
+        const auto leafIndex = static_cast<uint32_t>(result.leaves.size());
+        for (const uint32_t f : leafFaces) leafOf[f] = leafIndex;
+        const MeshView leafMesh = makeMesh(leafFaces);
+        LeafCluster& leaf = result.leaves.emplace_back();
+        leaf.cell = cell;
+        leaf.faceCount = count;
+        leaf.height = sub.stats.height;
+        leaf.stats = surfaceStats(leafMesh, origin_);
+        leaf.stats.height = leaf.height;
+        const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
+        leaf.nodeCount = file.nodes.size();
+        leaf.vertexCount = file.vertices.size();
+        if (!file.nodes.empty()) {
+          const NodeBox& box = file.nodes[0].box;
+          const glm::mat3 axes = glm::mat3_cast(box.orientation);
+          for (int c = 0; c < 8; ++c) {
+            glm::vec3 p = box.center;
+            for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
+            leaf.corners[c] = p;
+          }
+        } else {
+          for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
+        }
+        for (size_t at = 0; at < file.nodes.size(); at += kNodesPerBlock) {
+          const size_t n = std::min(kNodesPerBlock, file.nodes.size() - at);
+          block.clear();
+          appendBytes(block, file.nodes.data() + at, n);
+          leaf.nodeBlocks.push_back(nodeSpill_->append(block, codec));
+        }
+        const size_t triangles = file.originalFace.size();
+        uint32_t verticesSeen = 0;
+        for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
+          const size_t n = std::min(kTrianglesPerBlock, triangles - at);
+          uint32_t end = verticesSeen;
+          for (size_t i = 3 * at; i < 3 * (at + n); ++i) end = std::max(end, file.indices[i] + 1);
+          const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
+          block.clear();
+          appendBytes(block, &header, 1);
+          appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
+          appendBytes(block, file.indices.data() + 3 * at, 3 * n);
+          appendBytes(block, file.originalFace.data() + at, n);
+          leaf.geometryBlocks.push_back(geometrySpill_->append(block, codec));
+          verticesSeen = end;
+        }
       }
-      const size_t triangles = file.originalFace.size();
-      uint32_t verticesSeen = 0;
-      for (size_t first = 0; first < triangles; first += kTrianglesPerBlock) {
-        const size_t n = std::min(kTrianglesPerBlock, triangles - first);
-        uint32_t end = verticesSeen;
-        for (size_t i = 3 * first; i < 3 * (first + n); ++i) end = std::max(end, file.indices[i] + 1);
-        const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
-        block.clear();
-        appendBytes(block, &header, 1);
-        appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
-        appendBytes(block, file.indices.data() + 3 * first, 3 * n);
-        appendBytes(block, file.originalFace.data() + first, n);
-        leaf.geometryBlocks.push_back(geometrySpill_->append(block, codec));
-        verticesSeen = end;
+    }
+
+    // Dual edges between leaf clusters of this cell (same rules as dual_graph.cpp).
+    struct LocalEdge {
+      uint64_t key;
+      uint32_t face, sides;
+      bool operator<(const LocalEdge& o) const { return key != o.key ? key < o.key : face < o.face; }
+    };
+    std::vector<LocalEdge> local;
+    local.reserve(size_t{3} * faces);
+    for (uint32_t f = 0; f < faces; ++f) {
+      const uint32_t* v = &indices[size_t{3} * f];
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = v[k], b = v[(k + 1) % 3];
+        if (a == b) continue;
+        const uint32_t low = std::min(a, b), high = std::max(a, b);
+        uint32_t sides = 0;
+        bool seen = false;
+        for (int j = 0; j < 3; ++j) {
+          const uint32_t c = v[j], d = v[(j + 1) % 3];
+          if (c != d && std::min(c, d) == low && std::max(c, d) == high) {
+            ++sides;
+            seen |= j < k;
+          }
+        }
+        if (!seen) local.push_back({(uint64_t{low} << 32) | high, f, sides});
       }
+    }
+    std::sort(local.begin(), local.end());
+    for (size_t i = 0; i < local.size();) {
+      size_t j = i;
+      uint32_t totalSides = 0;
+      bool mixed = false;
+      for (; j < local.size() && local[j].key == local[i].key; ++j) {
+        totalSides += local[j].sides;
+        mixed |= leafOf[local[j].face] != leafOf[local[i].face];
+      }
+      if (mixed && totalSides >= 2) {
+        const glm::vec3 a = positions[local[i].key >> 32], b = positions[static_cast<uint32_t>(local[i].key)];
+        const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
+        const auto pair = [&](size_t x, size_t y, double shared) {
+          const uint32_t lx = leafOf[local[x].face], ly = leafOf[local[y].face];
+          if (lx != ly) result.pairs.push_back({{cell, cell}, {lx | CrossPair::kLeafRef, ly | CrossPair::kLeafRef}, shared});
+        };
+        const size_t k = j - i;
+        if (k <= kMaxFacesJoinedPairwise) {
+          for (size_t x = i; x < j; ++x)
+            for (size_t y = x + 1; y < j; ++y)
+              pair(x, y, length * local[x].sides * local[y].sides / (totalSides - 1));
+        } else {
+          for (size_t x = i; x + 1 < j; ++x) pair(x, x + 1, length * totalSides / (2.0 * double(k - 1)));
+        }
+      }
+      i = j;
     }
   }
 

@@ -30,8 +30,9 @@ void OutOfCoreBuild::mergeAbove() {
   for (size_t i = 0; i < leaves_.size(); ++i) stats[i] = leaves_[i].stats;
   checkCancel("merge", 0, leaves_.size());
   upper_ = mergeClusters(stats, edges_, diagonalSquared_, job_.build);
+  report_.crossEdges = edges_.size();
+  report_.upperComponents = upper_.components;
   edges_ = {};
-  report_.components = std::max<uint64_t>(report_.components, upper_.components);
 }
 
 void OutOfCoreBuild::write() {
@@ -121,7 +122,9 @@ void OutOfCoreBuild::write() {
   h.garlandWeights[2] = job_.build.garlandShapeWeight;
   h.memoryCapBytes = memoryCap_;
   info.maxOriginalFace = maxFace_;
-  ClusterFileWriter writer(job_.output, info, WriteOptions{}, temp_.path());
+  WriteOptions writeOptions;
+  writeOptions.zstdLevel = job_.zstdLevel;
+  ClusterFileWriter writer(job_.output, info, writeOptions, temp_.path());
   writer.setTemporaryBytesHook([this](int64_t delta) {
     if (delta > 0) temp_.reserve(static_cast<uint64_t>(delta));
     else temp_.release(static_cast<uint64_t>(-delta));
