@@ -90,6 +90,7 @@ class MergeEngine {
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
     slots_.reserve(n / 2 + 1);
+    triangles_.reserve(kTypicalDegree);
     // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
     uint32_t first = kNone;
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
@@ -123,7 +124,10 @@ class MergeEngine {
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;  // every edge left is blocked (lower bounds: all inf)
       ClusterRecord& r = clusters_[top.id];
-      if (r.slot == kDeadSlot) {
+      // Every live cluster with edges has an entry keyed by its stored minKey (the lower
+      // bound): an entry with any other key is a leftover of a key that fell, or of the
+      // survivor of a merge, and the cluster's own entry is still in the heap.
+      if (r.slot == kDeadSlot || top.key != r.minKey) {
         heap_.pop();
         continue;
       }
@@ -172,6 +176,8 @@ class MergeEngine {
   static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
   static constexpr uint32_t kDirty = 0x80000000u;
   static constexpr size_t kCacheLine = 64;
+  // Initial capacity of the per-merge neighbour list (the balance term keeps degrees near 5).
+  static constexpr size_t kTypicalDegree = 64;
 
   struct Cluster {
     ClusterStats stats;
@@ -305,6 +311,23 @@ class MergeEngine {
     }
   }
 
+  // The second stage of prefetchStats for the neighbours made of one or two triangles: their
+  // indices were requested while the lists were relinked and have mostly arrived by now, so
+  // the corner positions of all of them can be in flight at once before the re-costing reads
+  // them one neighbour at a time.
+  void prefetchCorners() {
+    const MeshView& mesh = geometry_.mesh();
+    const auto prefetchFace = [&](uint32_t f) {
+      const uint32_t* tri = mesh.indices.data() + size_t{3} * f;
+      for (int k = 0; k < 3; ++k) __builtin_prefetch(mesh.positions.data() + tri[k]);
+    };
+    for (const uint32_t x : triangles_) {
+      prefetchFace(x);
+      if (clusters_[x].slot != kLeafSlot) prefetchFace(clusters_[x].aux);
+    }
+    triangles_.clear();
+  }
+
   // Merges cluster b into cluster a (a keeps its id) along dual edge e, or joins two
   // components when e == kNone. `heapKey` is the merge's key (the cost times keyScale).
   void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
@@ -391,8 +414,10 @@ class MergeEngine {
         edge.next[side] = head;
         head = h;
         ++degree;
+        if (rx.slot == kLeafSlot || (rx.slot & kPairBit)) triangles_.push_back(x);
       }
     }
+    prefetchCorners();
     graph_.head[a] = head;
     graph_.head[b] = kNone;
     result_.degreeSum += degree;
@@ -477,6 +502,7 @@ class MergeEngine {
   std::vector<Slot> slots_;
   Cluster scratch_[2];  // leaf stats computed on the fly
   std::vector<uint32_t> freeSlots_;
+  std::vector<uint32_t> triangles_;  // neighbours of one or two faces in this merge (prefetchCorners)
   size_t peakSlots_ = 0;
   MergeResult result_;
 };
