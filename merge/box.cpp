@@ -10,9 +10,12 @@
 //
 // Extents and side areas are exact and never derived from the children's boxes (sec. 5.3.1):
 // every node projects every vertex of its face range on its axes as reconstructed from the
-// stored float quaternion, O(n h) in all. The faces are first packed in hierarchy order
-// (structure of arrays), so each node's scan is one contiguous sweep, and a parent's range is
-// the union of the ranges its children have just swept (depth-first: cache hot).
+// stored float quaternion, O(n h) in all. The faces are packed in hierarchy order (structure of
+// arrays), so each node's scan is one contiguous sweep, and a parent's range is the union of
+// the ranges its children have just swept (depth-first: cache hot). They are packed one
+// subtree (and above the subtrees, one side block) at a time, not all at once: the phase's
+// peak memory is then the nodes and boxes plus a window per thread, not 48 bytes more per face
+// (dragon_vrip: 42 MB less, at the cost of packing each face twice).
 //
 // Threads: the tree is cut into disjoint subtrees processed in parallel, then the few nodes
 // above them, whose scans are split into fixed blocks. Side areas are always summed per fixed
@@ -58,17 +61,52 @@ constexpr unsigned kMaxThreads = 8;
 // its faces (evenly strided) as hull candidates; its moments stay exact.
 constexpr uint32_t kGapSampleFaces = 256;
 
-// Faces in hierarchy order, structure of arrays: vertex k of face i is (x[k][i], y[k][i],
-// z[k][i]); (nx, ny, nz)[i] = a_f n_f, half the cross product.
+// A window [begin, end) of the faces in hierarchy order, structure of arrays: vertex k of the
+// face at position i is (x[k][i - begin], y[k][i - begin], z[k][i - begin]); (nx, ny, nz) =
+// a_f n_f, half the cross product. The arrays have 3 floats of padding (scanBlock).
 struct PackedFaces {
   std::vector<float> x[3], y[3], z[3];
   std::vector<float> nx, ny, nz;
-  glm::dvec3 origin{0.0};  // moments are taken about this point (the mesh's box center)
+  uint32_t begin = 0, end = 0;
 
-  glm::vec3 vertex(int k, uint32_t i) const { return {x[k][i], y[k][i], z[k][i]}; }
+  bool holds(uint32_t i) const { return i >= begin && i < end; }
+  glm::vec3 vertex(int k, uint32_t i) const {
+    i -= begin;
+    return {x[k][i], y[k][i], z[k][i]};
+  }
 };
 
-// Area integrals of a cluster's surface about PackedFaces::origin (cluster_stats.h formulas).
+// The faces in hierarchy order, read from the mesh: the source of the packed windows (which
+// hold copies of the same floats) and of the few reads outside any window.
+struct FaceSource {
+  const MeshView& mesh;
+  const std::vector<uint32_t>& order;
+  glm::dvec3 origin{0.0};  // moments are taken about this point (the mesh's box center)
+
+  glm::vec3 vertex(int k, uint32_t i) const { return mesh.positions[mesh.indices[3 * size_t(order[i]) + k]]; }
+
+  // Fills `f` with positions [begin, end); its buffers keep their capacity for the next window.
+  void pack(uint32_t begin, uint32_t end, PackedFaces& f) const {
+    const size_t padded = size_t(end - begin) + 3;  // scanBlock's last step reads up to 3 past the end
+    for (int k = 0; k < 3; ++k) f.x[k].resize(padded), f.y[k].resize(padded), f.z[k].resize(padded);
+    f.nx.resize(padded), f.ny.resize(padded), f.nz.resize(padded);
+    f.begin = begin, f.end = end;
+    for (uint32_t i = begin; i < end; ++i) {
+      const size_t j = i - begin;
+      const uint32_t* tri = &mesh.indices[3 * size_t(order[i])];
+      glm::dvec3 v[3];
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3& p = mesh.positions[tri[k]];
+        f.x[k][j] = p.x, f.y[k][j] = p.y, f.z[k][j] = p.z;
+        v[k] = glm::dvec3(p);
+      }
+      const glm::dvec3 half = 0.5 * glm::cross(v[1] - v[0], v[2] - v[0]);
+      f.nx[j] = float(half.x), f.ny[j] = float(half.y), f.nz[j] = float(half.z);
+    }
+  }
+};
+
+// Area integrals of a cluster's surface about FaceSource::origin (cluster_stats.h formulas).
 struct Moments {
   double area = 0;
   glm::dvec3 first{0.0};
@@ -139,12 +177,12 @@ V4f vmax(V4f a, V4f b) {
   return a > b ? a : b;
 }
 
-// Positions [begin, end) (within one side block): min/max of (p - origin) . axis_k in float,
-// side areas accumulated in double. Vertex positions minus a vertex of the node are exact to
-// half an ulp of the box size, so the float error is relative to the box, not to the distance
-// from the world origin (finishBox pads by the bound). PackedFaces arrays have 3 floats of
-// padding, so the last, partial step loads past `end`: its extra lanes repeat lane 0's
-// vertices (no effect on min/max) and have zero area.
+// Positions [begin, end) (within one side block and f's window): min/max of (p - origin) . axis_k
+// in float, side areas accumulated in double. Vertex positions minus a vertex of the node are
+// exact to half an ulp of the box size, so the float error is relative to the box, not to the
+// distance from the world origin (finishBox pads by the bound). PackedFaces arrays have 3
+// floats of padding, so the last, partial step loads past `end`: its extra lanes repeat lane
+// 0's vertices (no effect on min/max) and have zero area.
 // The main loop takes whole steps of four without masks (the masking blends were 5% of all
 // instructions); the partial last step, if any, is the same code with the lanes masked.
 // On x86-64 an AVX2 clone is chosen at load time where available: the same 4-lane operations
@@ -161,8 +199,9 @@ SCAN_CLONES Extent scanBlock(const PackedFaces& f, const ScanFrame& frame, uint3
   auto step = [&](uint32_t i, auto masked) {
     [[maybe_unused]] const V4i valid = V4i{0, 1, 2, 3} < int32_t(end - i);
     for (int k = 0; k < 3; ++k) {
-      V4f x = load4(f.x[k].data() + i) - ox, y = load4(f.y[k].data() + i) - oy,
-          z = load4(f.z[k].data() + i) - oz;
+      const uint32_t j = i - f.begin;
+      V4f x = load4(f.x[k].data() + j) - ox, y = load4(f.y[k].data() + j) - oy,
+          z = load4(f.z[k].data() + j) - oz;
       if constexpr (masked)
         x = valid ? x : splat(x[0]), y = valid ? y : splat(y[0]), z = valid ? z : splat(z[0]);
       const V4f p0 = x * a0x + y * a0y + z * a0z;
@@ -172,7 +211,8 @@ SCAN_CLONES Extent scanBlock(const PackedFaces& f, const ScanFrame& frame, uint3
       lo1 = vmin(lo1, p1), hi1 = vmax(hi1, p1);
       lo2 = vmin(lo2, p2), hi2 = vmax(hi2, p2);
     }
-    V4f nx = load4(f.nx.data() + i), ny = load4(f.ny.data() + i), nz = load4(f.nz.data() + i);
+    const uint32_t j = i - f.begin;
+    V4f nx = load4(f.nx.data() + j), ny = load4(f.ny.data() + j), nz = load4(f.nz.data() + j);
     if constexpr (masked) nx = valid ? nx : zero, ny = valid ? ny : zero, nz = valid ? nz : zero;
     const V4f d0 = nx * a0x + ny * a0y + nz * a0z;
     const V4f d1 = nx * a1x + ny * a1y + nz * a1z;
@@ -205,7 +245,7 @@ Extent scanRange(const PackedFaces& f, const ScanFrame& frame, uint32_t begin, u
   return total;
 }
 
-ScanFrame scanFrame(const PackedFaces& f, const glm::quat& q, uint32_t first) {
+ScanFrame scanFrame(const FaceSource& f, const glm::quat& q, uint32_t first) {
   const glm::mat3 m = glm::mat3_cast(q);
   return {{m[0], m[1], m[2]}, f.vertex(0, first)};
 }
@@ -231,7 +271,7 @@ struct Task {
 };
 
 struct Context {
-  const PackedFaces& faces;
+  const FaceSource& faces;
   Hierarchy& hierarchy;
   const BuildOptions& options;
   std::vector<uint32_t> subtreeOf;  // node -> subtree id + 1 for precomputed subtree roots (top pass)
@@ -253,7 +293,14 @@ class Worker {
   // Frames of every node below and including `root`. With `scan`, also the exact boxes (else
   // only the orientation is stored and `visited` lists the nodes). Subtree roots found in
   // ctx.subtreeOf (when `usePrecomputed`) are taken from ctx.subtrees.
+  // With `scan`, the faces of `root` are packed first.
   SubtreeResult run(uint32_t root, bool scan, bool usePrecomputed, std::vector<uint32_t>* visited) {
+    if (scan) {
+      const Node& n = ctx_.hierarchy.nodes[root];
+      ctx_.faces.pack(n.first, n.first + n.count, window_);
+    } else {
+      window_.begin = window_.end = 0;
+    }
     tasks_.clear();
     carries_.clear();
     arena_.clear();
@@ -341,24 +388,27 @@ class Worker {
     __builtin_prefetch(box + sizeof(NodeBox) - 1, 1);
   }
 
+  // Vertex k of the face at position i: from the window when it holds i (the same floats).
+  glm::vec3 vertex(int k, uint32_t i) const {
+    return window_.holds(i) ? window_.vertex(k, i) : ctx_.faces.vertex(k, i);
+  }
+
   void pushFace(uint32_t pos) {
     Carry c{{}, arena_.size()};
-    const PackedFaces& f = ctx_.faces;
-    const glm::vec3 v[3] = {f.vertex(0, pos), f.vertex(1, pos), f.vertex(2, pos)};
-    c.moments.addTriangle(glm::dvec3(v[0]) - f.origin, glm::dvec3(v[1]) - f.origin,
-                          glm::dvec3(v[2]) - f.origin);
+    const glm::dvec3 o = ctx_.faces.origin;
+    const glm::vec3 v[3] = {vertex(0, pos), vertex(1, pos), vertex(2, pos)};
+    c.moments.addTriangle(glm::dvec3(v[0]) - o, glm::dvec3(v[1]) - o, glm::dvec3(v[2]) - o);
     arena_.insert(arena_.end(), v, v + 3);
     carries_.push_back(c);
   }
 
   void pushRange(uint32_t begin, uint32_t end) {
     Carry c{{}, arena_.size()};
-    const PackedFaces& f = ctx_.faces;
+    const glm::dvec3 o = ctx_.faces.origin;
     const uint32_t stride = std::max<uint32_t>(1, (end - begin + kGapSampleFaces - 1) / kGapSampleFaces);
     for (uint32_t i = begin; i < end; ++i) {
-      const glm::vec3 v[3] = {f.vertex(0, i), f.vertex(1, i), f.vertex(2, i)};
-      c.moments.addTriangle(glm::dvec3(v[0]) - f.origin, glm::dvec3(v[1]) - f.origin,
-                            glm::dvec3(v[2]) - f.origin);
+      const glm::vec3 v[3] = {vertex(0, i), vertex(1, i), vertex(2, i)};
+      c.moments.addTriangle(glm::dvec3(v[0]) - o, glm::dvec3(v[1]) - o, glm::dvec3(v[2]) - o);
       if ((i - begin) % stride == 0) arena_.insert(arena_.end(), v, v + 3);
     }
     carries_.push_back(c);
@@ -390,7 +440,7 @@ class Worker {
     box.orientation = frameQuaternion(frame);
     if (scan) {
       const ScanFrame sf = scanFrame(ctx_.faces, box.orientation, n.first);
-      finishBox(scanRange(ctx_.faces, sf, n.first, n.first + n.count), sf, box);
+      finishBox(scanRange(window_, sf, n.first, n.first + n.count), sf, box);
     } else if (visited) {
       visited->push_back(node);
     }
@@ -403,7 +453,8 @@ class Worker {
   std::vector<Task> tasks_;
   std::vector<Carry> carries_;
   std::vector<glm::vec3> arena_;
-  uint32_t pos_ = 0;  // position of the next visit in ctx_.preorder, if the walk follows it
+  PackedFaces window_;  // the faces of the subtree being scanned
+  uint32_t pos_ = 0;    // position of the next visit in ctx_.preorder, if the walk follows it
 };
 
 void validate(const MeshView& mesh, const Hierarchy& h) {
@@ -441,32 +492,6 @@ void parallelFor(unsigned threads, F&& body) {
   std::vector<std::jthread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back([&body, t] { body(t); });
   body(0u);
-}
-
-PackedFaces pack(const MeshView& mesh, const std::vector<uint32_t>& order, unsigned threads) {
-  PackedFaces f;
-  const size_t n = order.size();
-  const size_t padded = n + 3;  // scanBlock's last step reads up to 3 past the end
-  for (int k = 0; k < 3; ++k) f.x[k].resize(padded), f.y[k].resize(padded), f.z[k].resize(padded);
-  f.nx.resize(padded), f.ny.resize(padded), f.nz.resize(padded);
-  glm::vec3 lo(INFINITY), hi(-INFINITY);
-  for (const glm::vec3& p : mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  if (!mesh.positions.empty()) f.origin = 0.5 * (glm::dvec3(lo) + glm::dvec3(hi));
-  parallelFor(threads, [&](unsigned t) {
-    const size_t b = n * t / threads, e = n * (t + 1) / threads;
-    for (size_t i = b; i < e; ++i) {
-      const uint32_t* tri = &mesh.indices[3 * size_t(order[i])];
-      glm::dvec3 v[3];
-      for (int k = 0; k < 3; ++k) {
-        const glm::vec3& p = mesh.positions[tri[k]];
-        f.x[k][i] = p.x, f.y[k][i] = p.y, f.z[k][i] = p.z;
-        v[k] = glm::dvec3(p);
-      }
-      const glm::dvec3 half = 0.5 * glm::cross(v[1] - v[0], v[2] - v[0]);
-      f.nx[i] = float(half.x), f.ny[i] = float(half.y), f.nz[i] = float(half.z);
-    }
-  });
-  return f;
 }
 
 float roundUp(double v) {
@@ -517,7 +542,12 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
   threads = std::min(threads, kMaxThreads);
   if (hierarchy.faceOrder.size() < kMinParallelFaces) threads = 1;
 
-  const PackedFaces faces = pack(mesh, hierarchy.faceOrder, threads);
+  FaceSource faces{mesh, hierarchy.faceOrder};
+  {
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    for (const glm::vec3& p : mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    if (!mesh.positions.empty()) faces.origin = 0.5 * (glm::dvec3(lo) + glm::dvec3(hi));
+  }
   Context ctx{faces, hierarchy, options, {}, {}, {}, {}};
 
   // Roots of nodes unreachable from nodes[0] (none in a well-formed hierarchy) are handled as
@@ -596,13 +626,35 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
         items.push_back({node, i, blockEnd(i, n.first + n.count)});
     }
     firstItem.push_back(items.size());
+    // Items grouped by side block: a worker packs one block and scans every top node's part
+    // of it (each partial goes to its item's slot, so the sums below keep their order).
+    std::vector<uint32_t> byBlock(items.size());
+    for (uint32_t i = 0; i < byBlock.size(); ++i) byBlock[i] = i;
+    std::stable_sort(byBlock.begin(), byBlock.end(), [&](uint32_t a, uint32_t b) {
+      return items[a].begin / kSideBlock < items[b].begin / kSideBlock;
+    });
+    std::vector<size_t> groups;  // starts of runs of byBlock in one block, then its size
+    for (size_t i = 0; i < byBlock.size(); ++i)
+      if (i == 0 || items[byBlock[i]].begin / kSideBlock != items[byBlock[i - 1]].begin / kSideBlock)
+        groups.push_back(i);
+    groups.push_back(byBlock.size());
     std::vector<Extent> partial(items.size());
-    std::atomic<size_t> nextItem{0};
+    std::atomic<size_t> nextGroup{0};
     parallelFor(threads, [&](unsigned) {
-      for (size_t i; (i = nextItem.fetch_add(1)) < items.size();) {
-        const ScanFrame sf =
-            scanFrame(faces, hierarchy.boxes[items[i].node].orientation, nodes[items[i].node].first);
-        partial[i] = scanBlock(faces, sf, items[i].begin, items[i].end);
+      PackedFaces window;
+      for (size_t g; (g = nextGroup.fetch_add(1)) + 1 < groups.size();) {
+        uint32_t begin = items[byBlock[groups[g]]].begin, end = begin;
+        for (size_t k = groups[g]; k < groups[g + 1]; ++k) {
+          begin = std::min(begin, items[byBlock[k]].begin);
+          end = std::max(end, items[byBlock[k]].end);
+        }
+        faces.pack(begin, end, window);
+        for (size_t k = groups[g]; k < groups[g + 1]; ++k) {
+          const Item& item = items[byBlock[k]];
+          const ScanFrame sf =
+              scanFrame(faces, hierarchy.boxes[item.node].orientation, nodes[item.node].first);
+          partial[byBlock[k]] = scanBlock(window, sf, item.begin, item.end);
+        }
       }
     });
     for (size_t t = 0; t < top.size(); ++t) {

@@ -96,7 +96,7 @@ struct ReadOptions {
   // vertices) and finds zero-area triangles (only repeated indices count as degenerate here).
   // vertices() then has the right size() but no positions. STL (positions per triangle, welded
   // in memory) and Draco (decoded whole) ignore the sink.
-  std::function<void(std::span<const glm::vec3>)> vertexSink;
+  std::function<void(std::span<const glm::vec3>)> vertexSink = {};
 };
 
 // Opens a mesh file; the format is detected from the content, not the name
