@@ -16,6 +16,14 @@
 #include "grid/external_sort.h"
 #include "spill_test_util.h"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define FACETREE_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FACETREE_TEST_ASAN 1
+#endif
+#endif
+
 namespace facetree {
 namespace {
 
@@ -214,7 +222,7 @@ TEST(ExternalSorter, peakMemoryStaysNearTheBudgetForTwentyMillionRecords) {
   EXPECT_GE(runs, kRecords * sizeof(Record16) / kBudget);
   EXPECT_EQ(passes, 1u);
   EXPECT_LT(peakDisk, kRecords * sizeof(Record16));  // compressed
-#if defined(__SANITIZE_ADDRESS__)
+#if FACETREE_TEST_ASAN
   // ASan's shadow memory, redzones and quarantine are not the sorter's; only correctness is checked.
 #else
   // The budget, plus the zstd contexts, one compressed block, the run index and the code pages of zstd
