@@ -27,6 +27,7 @@ class TempSpaceError : public TemporaryFileError {
 // The temporary directory of one run: created (mkdtemp) as `parent`/facetree-XXXXXX, parent defaulting to
 // std::filesystem::temp_directory_path(); the destructor removes it with everything inside. Accounts the
 // bytes its files hold (current and peak) and enforces maxBytes (0 = no limit). Thread-safe accounting.
+// It must outlive the SpillFiles made in it (they release their bytes to it when destroyed).
 class TempSpace {
  public:
   // Throws TempSpaceError "PARENT: cannot create temporary directory: <strerror>".
