@@ -31,6 +31,20 @@ void BoxAccumulator::addTriangle(const glm::vec3& a, const glm::vec3& b, const g
   addTriangles(corners);
 }
 
+namespace {
+
+// One vertex's projections on the three axes in the lanes of one vector (the fourth lane is
+// unused): lane k computes (x a_kx + y a_ky) + z a_kz, box.cpp's float operations in its order,
+// so the results are bit for bit scanBlock's. GCC/Clang vector extensions, as box.cpp.
+using V4f = float __attribute__((vector_size(16)));
+using V4d = double __attribute__((vector_size(32)));
+
+V4f splat(float x) {
+  return V4f{x, x, x, x};
+}
+
+}  // namespace
+
 void BoxAccumulator::addTriangles(std::span<const glm::vec3> corners) {
   const size_t n = corners.size() / 3;
   if (n == 0) return;
@@ -38,41 +52,36 @@ void BoxAccumulator::addTriangles(std::span<const glm::vec3> corners) {
     origin_ = corners[0];
     hasOrigin_ = true;
   }
-  const float a0x = axis_[0].x, a0y = axis_[0].y, a0z = axis_[0].z;
-  const float a1x = axis_[1].x, a1y = axis_[1].y, a1z = axis_[1].z;
-  const float a2x = axis_[2].x, a2y = axis_[2].y, a2z = axis_[2].z;
+  const V4f ax = {axis_[0].x, axis_[1].x, axis_[2].x, 0.0f};
+  const V4f ay = {axis_[0].y, axis_[1].y, axis_[2].y, 0.0f};
+  const V4f az = {axis_[0].z, axis_[1].z, axis_[2].z, 0.0f};
+  const V4f zero = splat(0.0f);
   const float ox = origin_.x, oy = origin_.y, oz = origin_.z;
-  // Float extremes as scanBlock keeps them (its vmin/vmax), widened to double at the end.
-  float lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
-  double s0 = 0, s1 = 0, s2 = 0, s3 = 0, s4 = 0, s5 = 0;
+  V4f lo = splat(INFINITY), hi = splat(-INFINITY);
+  V4d positive{}, negative{};  // side areas along +a_k and -a_k in lane k
   const glm::vec3* p = corners.data();
   for (size_t t = 0; t < n; ++t, p += 3) {
     for (int k = 0; k < 3; ++k) {
-      const float x = p[k].x - ox, y = p[k].y - oy, z = p[k].z - oz;
-      const float p0 = x * a0x + y * a0y + z * a0z;
-      const float p1 = x * a1x + y * a1y + z * a1z;
-      const float p2 = x * a2x + y * a2y + z * a2z;
-      lo0 = lo0 < p0 ? lo0 : p0, hi0 = hi0 > p0 ? hi0 : p0;
-      lo1 = lo1 < p1 ? lo1 : p1, hi1 = hi1 > p1 ? hi1 : p1;
-      lo2 = lo2 < p2 ? lo2 : p2, hi2 = hi2 > p2 ? hi2 : p2;
+      const V4f d = splat(p[k].x - ox) * ax + splat(p[k].y - oy) * ay + splat(p[k].z - oz) * az;
+      lo = lo < d ? lo : d;  // scanBlock's vmin / vmax
+      hi = hi > d ? hi : d;
     }
     // a_f n_f as box.cpp's pack() stores it: half the double cross product, rounded to float.
-    const double ax = p[0].x, ay = p[0].y, az = p[0].z;
-    const double ux = p[1].x - ax, uy = p[1].y - ay, uz = p[1].z - az;
-    const double vx = p[2].x - ax, vy = p[2].y - ay, vz = p[2].z - az;
-    const float nx = float(0.5 * (uy * vz - uz * vy)), ny = float(0.5 * (uz * vx - ux * vz)),
-                nz = float(0.5 * (ux * vy - uy * vx));
-    const float d0 = nx * a0x + ny * a0y + nz * a0z;
-    const float d1 = nx * a1x + ny * a1y + nz * a1z;
-    const float d2 = nx * a2x + ny * a2y + nz * a2z;
-    s0 += double(d0 > 0 ? d0 : 0.0f), s1 += double(-d0 > 0 ? -d0 : 0.0f);
-    s2 += double(d1 > 0 ? d1 : 0.0f), s3 += double(-d1 > 0 ? -d1 : 0.0f);
-    s4 += double(d2 > 0 ? d2 : 0.0f), s5 += double(-d2 > 0 ? -d2 : 0.0f);
+    const double x0 = p[0].x, y0 = p[0].y, z0 = p[0].z;
+    const double ux = p[1].x - x0, uy = p[1].y - y0, uz = p[1].z - z0;
+    const double vx = p[2].x - x0, vy = p[2].y - y0, vz = p[2].z - z0;
+    const V4f normal = splat(float(0.5 * (uy * vz - uz * vy))) * ax +
+                       splat(float(0.5 * (uz * vx - ux * vz))) * ay +
+                       splat(float(0.5 * (ux * vy - uy * vx))) * az;
+    positive += __builtin_convertvector(normal > zero ? normal : zero, V4d);
+    negative += __builtin_convertvector(-normal > zero ? -normal : zero, V4d);
   }
-  lo_[0] = std::min(lo_[0], double(lo0)), hi_[0] = std::max(hi_[0], double(hi0));
-  lo_[1] = std::min(lo_[1], double(lo1)), hi_[1] = std::max(hi_[1], double(hi1));
-  lo_[2] = std::min(lo_[2], double(lo2)), hi_[2] = std::max(hi_[2], double(hi2));
-  side_[0] += s0, side_[1] += s1, side_[2] += s2, side_[3] += s3, side_[4] += s4, side_[5] += s5;
+  for (int k = 0; k < 3; ++k) {
+    lo_[k] = std::min(lo_[k], double(lo[k]));
+    hi_[k] = std::max(hi_[k], double(hi[k]));
+    side_[2 * k] += positive[k];
+    side_[2 * k + 1] += negative[k];
+  }
 }
 
 void BoxAccumulator::merge(const BoxAccumulator& other) {
