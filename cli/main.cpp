@@ -26,6 +26,9 @@ commands:
         [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
+  build MESH --method octree [--leaf-size N] [--json]
+                                 baseline: tightest-fit octree volume clustering (time, nodes,
+                                 height); writes no cluster file (-o is a usage error)
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
