@@ -14,7 +14,8 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              pictures of one cut (dragon_vrip, openfoam_buildings, both metrics)
   scaling    Figs 77-78: time and peak RSS against faces over the shared and generated meshes,
              log-log slopes, average and maximum dual-edge degree per mesh
-  octree     Fig. 80: face clustering time / tightest-fit octree time per mesh
+  octree     Fig. 80: face clustering time / tightest-fit octree time per mesh; the same ratio
+             in instructions (callgrind) on bunny_zipper
   branching  cluster file size for branching 2, 4, 8 (verified) and per truncation prefix
   flat       Figs 69-71: flat regular grids: time and maximum dual-edge degree for the default
              metric against the constant-cost and Garland metrics, and the log-log slope
@@ -33,6 +34,7 @@ import os
 import pathlib
 import platform
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -42,6 +44,7 @@ SHARED = pathlib.Path(__file__).resolve().parent.parent.parent / "shared" / "dat
 QUICK_MESHES = ["bunny_zipper", "dragon_vrip", "openfoam_buildings", "turbine_blade_200k"]
 PROFILE_MESH = "dragon_vrip"
 PICTURE_MESHES = ["dragon_vrip", "openfoam_buildings"]
+CALLGRIND_MESH = "bunny_zipper"  # octree ratio in instructions: ~1 min of callgrind
 PICTURE_CUT = 64
 # Garland's metric builds deep, unbalanced trees (O(n h) boxes): fg_hawaii (3.2M faces, 1.2M of
 # them zero-area) had not finished after 30 CPU seconds. Larger meshes run the default only.
@@ -387,7 +390,7 @@ def bench_scaling(args, meshes, runs, out):
     return result
 
 
-def bench_octree(args, meshes, runs):
+def bench_octree(args, meshes, runs, out):
     rows = []
     for mesh in meshes:
         mesh_runs = runs.get(mesh)
@@ -416,7 +419,38 @@ def bench_octree(args, meshes, runs):
     if big:
         print(f"octree    median ratio over meshes of 50k faces and more: x{summary['median_ratio']:.1f} "
               f"(CPU x{summary['median_ratio_cpu']:.1f}); the seed reports about 2.5", flush=True)
+    if args.callgrind:
+        summary["instructions"] = octree_instructions(args, CALLGRIND_MESH, out)
     return summary
+
+
+def callgrind_total(args, command, out, toggle=None):
+    """Instructions callgrind counts for a whole run, or within calls of `toggle` (this thread)."""
+    target = out / "callgrind.out"
+    options = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={target}"]
+    if toggle:
+        options.append(f"--toggle-collect={toggle}")
+    run(options + [args.facetree] + command)
+    for line in target.read_text().splitlines():
+        if line.startswith("totals:"):
+            target.unlink()
+            return int(line.split()[1])
+    raise RuntimeError(f"no totals in {target}")
+
+
+def octree_instructions(args, mesh, out):
+    """The octree ratio in instructions (callgrind), which machine load does not move. The box
+    threads run outside buildHierarchy's call, so the clustering is the whole build process
+    minus what the octree process spends outside buildOctree (start, read, exit: the same)."""
+    path = mesh_path(mesh)
+    build = callgrind_total(args, ["build", path], out)
+    octree_all = callgrind_total(args, ["build", path, "--method", "octree"], out)
+    octree = callgrind_total(args, ["build", path, "--method", "octree"], out, "facetree::buildOctree(*")
+    clustering = build - (octree_all - octree)
+    result = {"mesh": mesh, "clustering": clustering, "octree": octree, "ratio": clustering / octree}
+    print(f"octree    {mesh}: {clustering / 1e6:.0f} M instructions clustering, {octree / 1e6:.0f} M octree: "
+          f"ratio x{result['ratio']:.1f} (callgrind)", flush=True)
+    return result
 
 
 def bench_branching(args, meshes, tmp):
@@ -513,7 +547,10 @@ def main():
                         help="run only these sections (repeatable; files is the old name of branching)")
     parser.add_argument("--no-pictures", dest="pictures", action="store_false",
                         help="skip the cluster pictures of the balance section")
+    parser.add_argument("--no-callgrind", dest="callgrind", action="store_false",
+                        help="skip the callgrind instruction counts of the octree section")
     args = parser.parse_args()
+    args.callgrind = args.callgrind and shutil.which("valgrind") is not None
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     all_meshes = sorted((p.name[:-len(".ply.zst")] for p in SHARED.glob("*.ply.zst")),
@@ -540,7 +577,7 @@ def main():
     if "scaling" in sections:
         report["scaling"] = bench_scaling(args, meshes, runs, out)
     if "octree" in sections:
-        report["octree"] = bench_octree(args, meshes, runs)
+        report["octree"] = bench_octree(args, meshes, runs, out)
     if "branching" in sections:
         report["branching"] = bench_branching(
             args, ["bunny_zipper", "turbine_blade_200k"] if args.quick else QUICK_MESHES, out)

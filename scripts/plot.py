@@ -269,6 +269,10 @@ def markdown(report, figures, rel):
                 (f"**Median ratio over the meshes of 50k faces and more: {o['median_ratio']:.1f} (wall), "
                  f"{o['median_ratio_cpu']:.1f} (CPU).** " if o.get("median_ratio") else "")
                 + "The seed reports about 2.5.", "",
+                (f"In instructions (callgrind, which machine load does not move), on {o['instructions']['mesh']}: "
+                 f"{o['instructions']['clustering'] / 1e6:.0f} M for the clustering, "
+                 f"{o['instructions']['octree'] / 1e6:.0f} M for the octree: **ratio "
+                 f"{o['instructions']['ratio']:.1f}**." if o.get("instructions") else ""), "",
                 table(["mesh", "faces", "clustering s", "octree s", "ratio (wall)", "ratio (CPU)", "height cluster / octree"],
                       [[r["mesh"], f"{r['triangles']:,}", f"{r['cluster_seconds']:.3f}", f"{r['octree_seconds']:.3f}",
                         f"{r['ratio']:.1f}", f"{r['ratio_cpu']:.1f}", f"{r['cluster_height']} / {r['octree_height']}"]
