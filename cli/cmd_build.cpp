@@ -33,11 +33,15 @@ int runBuild(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
                    "recast", "mesh-out", "draco-bits", "balance-slack", "memory", "tmp", "max-tmp", "threads",
-                   "cell-faces", "zstd-level"},
+                   "cell-faces", "zstd-level", "method", "leaf-size"},
                   {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
+  const std::string method = args.valueOr("method", "cluster");
+  if (method == "octree") return runBuildOctree(args);  // cli/cmd_octree.cpp
+  if (method != "cluster") throw UsageError("unknown method '" + method + "' (cluster, octree)");
+  if (args.value("leaf-size")) throw UsageError("--leaf-size is an option of --method octree");
 
   BuildOptions options;
   options.metric = parseMetric(args.valueOr("metric", "willmott"));

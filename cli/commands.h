@@ -8,8 +8,12 @@
 
 namespace facetree::cli {
 
+class Args;
+
 int runStats(const std::vector<std::string>& args);
 int runBuild(const std::vector<std::string>& args);
+// `build MESH --method octree`: the octree baseline (Willmott 2000, Fig. 80), called by runBuild.
+int runBuildOctree(const Args& args);
 int runGenerate(const std::vector<std::string>& args);
 int runRender(const std::vector<std::string>& args);
 int runExport(const std::vector<std::string>& args);

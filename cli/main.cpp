@@ -31,6 +31,9 @@ commands:
                                  with -o: the whole job under a memory cap (e.g. 256M): in core
                                  when it fits, else out of core with temporary files under --tmp;
                                  OUT.fch may be - (standard output)
+  build MESH --method octree [--leaf-size N] [--json]
+                                 baseline: tightest-fit octree volume clustering (time, nodes,
+                                 height); writes no cluster file (-o is a usage error)
   gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]

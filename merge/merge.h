@@ -196,5 +196,49 @@ class BoxAccumulator {
   double side_[6] = {};     // +a0, -a0, +a1, -a1, +a2, -a2
   double mergedError_ = 0;  // float error bound of projections merged from other origins
 };
+// --- Baseline: tightest-fit octree volume clustering (Willmott 2000, sec. 5.7.2, Fig. 80) ---
+//
+// Recursive octants of the mesh's bounding cube; a triangle goes to the child octant holding
+// its box centre unless it is larger than that octant, then it stays at the node; a node of at
+// most leafSize triangles (or at maxDepth) is a leaf. Each node gets the tight axis-aligned box
+// of its subtree's triangles, which may reach past its octant by half the octant's size. Used
+// to measure the face clustering's cost against the simplest volume clustering.
+
+struct OctreeOptions {
+  uint32_t leafSize = 8;   // a node of at most this many triangles is not subdivided
+  uint32_t maxDepth = 24;  // root 0; the float mantissa separates no finer octants (duplicates)
+};
+
+struct OctreeNode {
+  glm::vec3 boxMin, boxMax;  // tight box of every finite triangle of the subtree
+  glm::vec3 cubeMin;         // the node's octant: [cubeMin, cubeMin + cubeSize] per axis
+  float cubeSize;
+  uint32_t first;       // subtree triangles [first, first + count) of triangleOrder,
+  uint32_t count;       //   the node's own ones first, then each child's range in turn
+  uint32_t ownCount;    // triangles larger than a child octant (all of them at a leaf)
+  uint32_t firstChild;  // children are nodes [firstChild, firstChild + childCount)
+  uint32_t childCount;  // 0 to 8, in octant order (bit 0 x, bit 1 y, bit 2 z: upper half)
+  uint32_t depth;       // root 0
+};
+
+struct OctreeStats {
+  uint32_t height = 0;  // nodes on the longest root-to-triangle path, the triangle included
+  uint64_t leaves = 0;
+  uint32_t maxOwnCount = 0;     // the most triangles kept at one node
+  uint64_t keptAbove = 0;       // triangles kept at an internal node (larger than a child octant)
+  double secondsPartition = 0;  // triangle bounds and the top-down partition
+  double secondsBoxes = 0;      // bottom-up tight boxes
+};
+
+struct Octree {
+  std::vector<OctreeNode> nodes;        // breadth first: nodes[0] is the root, children after parents
+  std::vector<uint32_t> triangleOrder;  // triangleOrder[i] = input triangle at position i
+  OctreeStats stats;
+};
+
+// Builds the octree of `mesh`, iteratively (no recursion). Throws std::invalid_argument as
+// buildHierarchy does for an empty mesh, indices out of range or more than 2^31-1 triangles.
+// Triangles with a non-finite coordinate stay at the root and are left out of every box.
+Octree buildOctree(const MeshView& mesh, const OctreeOptions& options = {});
 
 }  // namespace facetree

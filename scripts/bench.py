@@ -1,22 +1,45 @@
 #!/usr/bin/env python3
 """facetree benchmarks: each case run several times, medians reported, comparisons as ratios
-against a baseline measured in the same invocation (the machine is shared and noisy).
+against a baseline measured in the same invocation (the machine is shared and noisy). Every
+run also records its process CPU time (user + system, from wait4): on a loaded machine CPU
+time moves far less than wall time, so ratios are given for both.
 
-Sections:
-  read   mesh reading throughput (facetree stats) against `zstd -dc` of the same file
-  build  file to hierarchy with boxes per shared mesh: time per phase, peak RSS, height/balanced,
-         dual-edge degree; ratio to the read time of the same mesh
-  files  cluster file size per mesh for branching 2, 4 and 8, verified
-  flat   flat regular grids (Willmott 2000, Figs 69-71): time and maximum dual-edge degree for
-         the default metric against the constant-cost and Garland metrics, and the log-log slope
+Sections (Willmott 2000, ch. 5, tables and figures named):
+  read       mesh reading throughput (facetree stats) against `zstd -dc` of the same file
+  build      file to hierarchy with boxes per mesh: phases, peak RSS, height/balanced, degree;
+             ratio to the read time of the same mesh
+  profile    Tables 5 and 8: time per phase for both metrics on dragon_vrip
+  balance    Table 6 and Fig. 73: height against balanced height and box time, default metric
+             against --metric garland per mesh; heights for k in {0, 1e-5, 1e-4, 1e-3} with and
+             without the balance guard; cluster pictures of one cut (dragon_vrip,
+             openfoam_buildings, both metrics)
+  scaling    Figs 77-78: time and peak RSS against faces over the shared and generated meshes,
+             log-log slopes, average and maximum dual-edge degree per mesh
+  octree     Fig. 80: face clustering time / tightest-fit octree time per mesh; the same ratio
+             in instructions (callgrind) on bunny_zipper
+  branching  cluster file size for branching 2, 4, 8 (verified) and per truncation prefix
+  flat       Figs 69-71: flat regular grids: time and maximum dual-edge degree for the default
+             metric against the constant-cost and Garland metrics, and the log-log slope
+  outofcore  TODO (issue 5): time and peak RSS against --memory cap, coherent and shuffled input;
+             skipped while `facetree build` has no --memory option
 
-Writes OUT/bench.json and prints a table per section.
+The per-mesh builds (default metric, Garland metric, octree) run interleaved, once per
+repetition, and are shared by build, profile, balance, scaling and octree.
+
+Writes OUT/bench.json (and OUT/pictures/*.png) and prints a table per section.
+
+Budget on the 2-CPU shared machine: --quick about 5 minutes at load 6 (2.3 CPU minutes); the
+full run about 30 CPU minutes by the quick run's per-face rates, so under an hour unless the
+machine is loaded several times over.
 """
 import argparse
 import json
+import math
 import os
 import pathlib
 import platform
+import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -24,29 +47,161 @@ import time
 
 SHARED = pathlib.Path(__file__).resolve().parent.parent.parent / "shared" / "data"
 QUICK_MESHES = ["bunny_zipper", "dragon_vrip", "openfoam_buildings", "turbine_blade_200k"]
+PROFILE_MESH = "dragon_vrip"
+PICTURE_MESHES = ["dragon_vrip", "openfoam_buildings"]
+CALLGRIND_MESH = "bunny_zipper"  # octree ratio in instructions: ~1 min of callgrind
+PICTURE_CUT = 64
+# Garland's metric builds deep, unbalanced trees (O(n h) boxes): fg_hawaii (3.2M faces, 1.2M of
+# them zero-area) had not finished after 30 CPU seconds. Larger meshes run the default only.
+GARLAND_MAX_FACES = 1_500_000
+K_VALUES = [0.0, 1e-5, 1e-4, 1e-3]  # 1e-4 is the default: its runs are the default-metric runs
+# Generated meshes for the scaling section (facetree gen terrain: a height field, closed to no
+# optimisation of ours). 50M faces need the out-of-core build (issue 5): listed, skipped.
+SCALING_QUICK = [100_000, 300_000]
+SCALING_FULL = [1_000_000, 2_000_000, 4_000_000]
+SCALING_OUT_OF_CORE = [50_000_000]
+OUT_OF_CORE_CAPS = ["64M", "256M", "1G", None]  # None: in core
+
+
+def run(command):
+    """Runs a command; returns (stdout, wall seconds)."""
+    start = time.perf_counter()
+    process = subprocess.Popen([str(c) for c in command], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    stdout, stderr = process.communicate()
+    wall = time.perf_counter() - start
+    if process.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, command))} failed: {stderr.strip()}")
+    return stdout, wall
+
+
+class ChildCpu:
+    """CPU seconds (user + system) of the children reaped since the last call: runs are
+    sequential and communicate() reaps each child, so a lap around one run is that run's."""
+
+    def __init__(self):
+        self.last = self.now()
+
+    @staticmethod
+    def now():
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    def lap(self):
+        now = self.now()
+        lap, self.last = now - self.last, now
+        return lap
+
+
+CPU = ChildCpu()
 
 
 def run_json(command):
-    result = subprocess.run(command, capture_output=True, text=True)
-    if result.returncode != 0:
-        raise RuntimeError(f"{' '.join(map(str, command))} failed: {result.stderr.strip()}")
-    return json.loads(result.stdout)
+    CPU.lap()
+    stdout, wall = run(command)
+    result = json.loads(stdout)
+    result["process_cpu_seconds"] = CPU.lap()
+    result["process_wall_seconds"] = wall
+    return result
 
 
 def timed(command):
-    start = time.perf_counter()
-    subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    CPU.lap()
+    _, wall = run(command)
+    CPU.lap()
+    return wall
 
 
 def repeat_runs(repeat, function):
     return [function() for _ in range(repeat)]
 
 
+def median(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def loglog_slope(points):
+    """Least-squares slope of log(y) against log(x)."""
+    points = [(x, y) for x, y in points if x and y and x > 0 and y > 0]
+    if len(points) < 2:
+        return float("nan")
+    xs = [math.log(x) for x, _ in points]
+    ys = [math.log(y) for _, y in points]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    var = sum((x - mx) ** 2 for x in xs)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / var if var > 0 else float("nan")
+
+
+def mesh_path(mesh):
+    return SHARED / f"{mesh}.ply.zst"
+
+
+class MeshRuns:
+    """The per-mesh builds shared by several sections, run once and interleaved: per repetition
+    the default metric, the Garland metric and the octree, one after the other, so that their
+    ratios see the same machine load."""
+
+    def __init__(self, args, out):
+        self.args = args
+        self.pictures = out / "pictures"
+        self.cache = {}
+
+    def get(self, mesh):
+        if mesh in self.cache:
+            return self.cache[mesh]
+        path = mesh_path(mesh)
+        runs = {"willmott": [], "garland": [], "octree": []}
+        for repetition in range(self.args.repeat):
+            # --quick runs the Garland metric once: its heights are deterministic, and its time
+            # on dragon_vrip alone would take a third of the quick budget on a loaded machine.
+            metrics = ("willmott", "garland") if repetition == 0 or not self.args.quick else ("willmott",)
+            for metric in metrics:
+                if metric == "garland" and runs["willmott"][0]["triangles"] > GARLAND_MAX_FACES:
+                    continue
+                command = [self.args.facetree, "build", "--json", path, "--metric", metric]
+                # The first run of a picture mesh also writes its cluster file (the phases end
+                # before the write; its peak RSS is left out of the memory figures).
+                wrote = repetition == 0 and mesh in PICTURE_MESHES and self.args.pictures
+                if wrote:
+                    self.pictures.mkdir(parents=True, exist_ok=True)
+                    command += ["-o", self.pictures / f"{mesh}.{metric}.fch"]
+                result = run_json(command)
+                result["wrote_file"] = bool(wrote)
+                runs[metric].append(result)
+            runs["octree"].append(run_json([self.args.facetree, "build", "--json", path, "--method", "octree"]))
+        self.cache[mesh] = runs
+        return runs
+
+
+def cluster_seconds(result):
+    """Wall seconds of the face clustering itself: hierarchy and boxes, without reading."""
+    return result["seconds"]["build"] - result["seconds"]["read"]
+
+
+def summarize_build(runs):
+    first = runs[0]
+    phases = {k: median(r["seconds"][k] for r in runs) for k in first["seconds"]}
+    no_file = [r for r in runs if not r.get("wrote_file")] or runs
+    return {
+        "triangles": first["triangles"], "seconds": phases,
+        "cluster_seconds": median(cluster_seconds(r) for r in runs),
+        "process_cpu_seconds": median(r["process_cpu_seconds"] for r in runs),
+        "peak_rss_bytes": max(r["peak_rss_bytes"] for r in no_file),
+        "height": first["height"], "balanced_height": first["balanced_height"],
+        "height_ratio": first["height_ratio"], "average_degree": first["average_degree"],
+        "max_degree": first["max_degree"], "components": first["components"], "nodes": first["nodes"],
+        "eigen_solves": first["eigen_solves"], "normal_shortcuts": first["normal_shortcuts"],
+        "runs": len(runs),
+    }
+
+
+# --- sections ---------------------------------------------------------------------------------
+
 def bench_read(args, meshes):
     rows = []
     for mesh in meshes:
-        path = SHARED / f"{mesh}.ply.zst"
+        path = mesh_path(mesh)
         stats = repeat_runs(args.repeat, lambda: run_json([args.facetree, "stats", "--json", path]))
         zstd = repeat_runs(args.repeat, lambda: timed(["zstd", "-dcq", path, "-o", "/dev/null"]))
         seconds = statistics.median(s["read_seconds"] for s in stats)
@@ -58,125 +213,411 @@ def bench_read(args, meshes):
             "peak_rss_bytes": max(s["peak_rss_bytes"] for s in stats),
             "zstd_seconds": baseline, "ratio_to_zstd": seconds / baseline,
         })
-        print(f"read  {mesh:24s} {seconds:7.3f} s  {rows[-1]['mb_per_second']:7.1f} MB/s  "
+        print(f"read      {mesh:24s} {seconds:7.3f} s  {rows[-1]['mb_per_second']:7.1f} MB/s  "
               f"{rows[-1]['faces_per_second'] / 1e6:6.2f} M faces/s  peak {rows[-1]['peak_rss_bytes'] / 2**20:6.1f} MiB  "
               f"x{rows[-1]['ratio_to_zstd']:.2f} of zstd -dc", flush=True)
     return rows
 
 
-def bench_build(args, meshes, extra=()):
+def bench_build(args, meshes, runs):
     rows = []
     for mesh in meshes:
-        path = SHARED / f"{mesh}.ply.zst"
-        builds = repeat_runs(args.repeat, lambda: run_json([args.facetree, "build", "--json", path, *extra]))
+        path = mesh_path(mesh)
+        builds = runs.get(mesh)["willmott"]
         reads = repeat_runs(args.repeat, lambda: run_json([args.facetree, "stats", "--json", path]))
-        first = builds[0]
-        phases = {k: statistics.median(b["seconds"][k] for b in builds) for k in first["seconds"]}
-        read_seconds = statistics.median(r["read_seconds"] for r in reads)
-        row = {
-            "mesh": mesh, "options": list(extra), "triangles": first["triangles"], "seconds": phases,
-            "peak_rss_bytes": max(b["peak_rss_bytes"] for b in builds),
-            "height": first["height"], "balanced_height": first["balanced_height"],
-            "height_ratio": first["height_ratio"], "average_degree": first["average_degree"],
-            "max_degree": first["max_degree"], "components": first["components"],
-            "read_seconds": read_seconds, "ratio_to_read": phases["total"] / read_seconds,
-        }
+        row = {"mesh": mesh, "options": [], **summarize_build(builds)}
+        row["read_seconds"] = statistics.median(r["read_seconds"] for r in reads)
+        row["ratio_to_read"] = row["seconds"]["total"] / row["read_seconds"]
         rows.append(row)
-        print(f"build {mesh:24s} {phases['total']:7.3f} s (merge {phases['merge']:.3f}, boxes {phases['boxes']:.3f})  "
+        phases = row["seconds"]
+        print(f"build     {mesh:24s} {phases['total']:7.3f} s (merge {phases['merge']:.3f}, boxes {phases['boxes']:.3f})  "
               f"peak {row['peak_rss_bytes'] / 2**20:6.1f} MiB  height {row['height']}/{row['balanced_height']} "
               f"= {row['height_ratio']:.2f}  degree {row['average_degree']:.2f}/{row['max_degree']}  "
               f"x{row['ratio_to_read']:.1f} of reading", flush=True)
     return rows
 
 
-def bench_files(args, meshes, tmp):
+# Table 5/8 rows from the phases `build --json` reports. The eigensolver is timed inside the
+# initial costs and the merge loop (sampled, merge/cost.cpp), so it is a share of those two,
+# shown on its own as the seed's Jacobi row is; "merge loop" excludes it.
+PROFILE_ROWS = [
+    ("eigen", "eigensolver (PCA)"),
+    ("initial_cost", "initial edge costs + heap"),
+    ("merge_loop", "merge loop: re-costing, edge lists, heap"),
+    ("init", "leaf init + dual graph"),
+    ("boxes", "boxes + side areas"),
+    ("rest", "rest (layout, join)"),
+]
+
+
+def profile_phases(summary):
+    s = summary["seconds"]
+    total = s["build"] - s["read"]
+    merge_loop = max(0.0, s["merge"] - s["eigen"])
+    initial_cost = s["cost"]
+    # Eigen time falls in both phases; take it out of the merge loop where it mostly is.
+    if s["eigen"] > s["merge"]:
+        initial_cost = max(0.0, s["cost"] - (s["eigen"] - s["merge"]))
+    phases = {"eigen": s["eigen"], "initial_cost": initial_cost, "merge_loop": merge_loop,
+              "init": s["init"], "boxes": s["boxes"]}
+    phases["rest"] = max(0.0, total - sum(phases.values()))
+    return phases, total
+
+
+def bench_profile(args, runs):
+    rows = []
+    mesh_runs = runs.get(PROFILE_MESH)
+    for metric in ("willmott", "garland"):
+        if not mesh_runs[metric]:
+            continue
+        summary = summarize_build(mesh_runs[metric])
+        phases, total = profile_phases(summary)
+        row = {"mesh": PROFILE_MESH, "metric": metric, "triangles": summary["triangles"], "phases": phases,
+               "total": total, "read": summary["seconds"]["read"],
+               "process_cpu_seconds": summary["process_cpu_seconds"],
+               "eigen_solves": summary["eigen_solves"], "normal_shortcuts": summary["normal_shortcuts"],
+               "phase_labels": PROFILE_ROWS}
+        rows.append(row)
+        print(f"profile   {PROFILE_MESH} --metric {metric}: {total:.3f} s without reading, "
+              f"{summary['eigen_solves']} PCA solves, {summary['normal_shortcuts']} normals from S", flush=True)
+        for key, label in PROFILE_ROWS:
+            print(f"profile     {phases[key]:8.3f} s {100 * phases[key] / total:5.1f}%  {label}", flush=True)
+    return rows
+
+
+def render_picture(args, fch, png, cut):
+    run([args.facetree, "render", fch, "--cut", cut, "-o", png, "--width", 480, "--height", 400])
+    fch.unlink()
+
+
+def bench_balance(args, meshes, runs, out):
     rows = []
     for mesh in meshes:
-        path = SHARED / f"{mesh}.ply.zst"
+        mesh_runs = runs.get(mesh)
+        default = summarize_build(mesh_runs["willmott"])
+        row = {"mesh": mesh, "triangles": default["triangles"], "balanced_height": default["balanced_height"],
+               "garland": None}
+        for name in ("willmott", "garland"):
+            if not mesh_runs[name]:
+                continue  # over GARLAND_MAX_FACES
+            s = summarize_build(mesh_runs[name])
+            row[name] = {"height": s["height"], "height_ratio": s["height_ratio"],
+                         "boxes_seconds": s["seconds"]["boxes"], "cluster_seconds": s["cluster_seconds"],
+                         "process_cpu_seconds": s["process_cpu_seconds"], "max_degree": s["max_degree"],
+                         "average_degree": s["average_degree"], "runs": s["runs"]}
+        rows.append(row)
+        if row["garland"] is None:
+            print(f"balance   {mesh:24s} balanced {row['balanced_height']:3d}  height default {default['height']:5d} "
+                  f"garland skipped (over {GARLAND_MAX_FACES} faces)", flush=True)
+            continue
+        garland = row["garland"]
+        row["garland_over_default_height"] = garland["height"] / default["height"]
+        row["garland_over_default_boxes"] = garland["boxes_seconds"] / max(default["seconds"]["boxes"], 1e-9)
+        print(f"balance   {mesh:24s} balanced {row['balanced_height']:3d}  height default {default['height']:5d} "
+              f"garland {garland['height']:5d} (x{row['garland_over_default_height']:.1f})  boxes "
+              f"{default['seconds']['boxes']:.3f} s / {garland['boxes_seconds']:.3f} s", flush=True)
+
+    # k of eq. 80 with the balance guard (default --balance-slack 1.5) and without it (0: pure
+    # eq. 84, the seed's metric): the guard caps the height whatever k is.
+    k_rows = []
+    # dragon_vrip is left out of the full sweep: 24 builds of it are a tenth of the full budget.
+    for mesh in (["bunny_zipper"] if args.quick else ["bunny_zipper", "turbine_blade_200k", "openfoam_buildings"]):
+        path = mesh_path(mesh)
+        cases = [(k, slack) for slack in (1.5, 0.0) for k in K_VALUES]
+        # Interleaved per repetition (the default k included) so that the times compare.
+        builds = {case: [] for case in cases}
+        for _ in range(args.repeat):
+            for k, slack in cases:
+                builds[(k, slack)].append(run_json([args.facetree, "build", "--json", path, "--k", repr(k),
+                                                    "--balance-slack", repr(slack)]))
+        for k, slack in cases:
+            s = summarize_build(builds[(k, slack)])
+            k_rows.append({"mesh": mesh, "k": k, "balance_slack": slack, "height": s["height"],
+                           "balanced_height": s["balanced_height"], "height_ratio": s["height_ratio"],
+                           "boxes_seconds": s["seconds"]["boxes"], "cluster_seconds": s["cluster_seconds"],
+                           "process_cpu_seconds": s["process_cpu_seconds"], "max_degree": s["max_degree"],
+                           "average_degree": s["average_degree"]})
+            print(f"balance   {mesh:24s} k={k:<7g} slack {slack:3.1f}  height {s['height']:5d}/{s['balanced_height']}  "
+                  f"boxes {s['seconds']['boxes']:.3f} s  clustering {s['cluster_seconds']:.3f} s  "
+                  f"CPU {s['process_cpu_seconds']:.3f} s", flush=True)
+
+    pictures = []
+    if args.pictures:
+        for mesh in PICTURE_MESHES:
+            if mesh not in meshes:
+                continue
+            mesh_runs = runs.get(mesh)  # writes the cluster files on its first repetition
+            # The top of a hierarchy joins the mesh's components (dragon_vrip has 151, mostly
+            # specks): a cut of PICTURE_CUT clusters below them, the same cut for both metrics.
+            cut = PICTURE_CUT + max(mesh_runs[m][0]["components"] for m in ("willmott", "garland"))
+            for metric in ("willmott", "garland"):
+                fch = out / "pictures" / f"{mesh}.{metric}.fch"
+                png = out / "pictures" / f"{mesh}.{metric}.png"
+                if fch.exists():
+                    render_picture(args, fch, png, cut)
+                    pictures.append({"mesh": mesh, "metric": metric, "cut": cut, "png": str(png)})
+                    print(f"balance   picture {png} (cut {cut})", flush=True)
+    return {"meshes": rows, "k": k_rows, "pictures": pictures}
+
+
+def bench_scaling(args, meshes, runs, out):
+    points = []
+    for mesh in meshes:
+        s = summarize_build(runs.get(mesh)["willmott"])
+        points.append({"mesh": mesh, "source": "shared", "memory": None, "faces": s["triangles"],
+                       "cluster_seconds": s["cluster_seconds"], "process_cpu_seconds": s["process_cpu_seconds"],
+                       "read_seconds": s["seconds"]["read"], "peak_rss_bytes": s["peak_rss_bytes"],
+                       "average_degree": s["average_degree"], "max_degree": s["max_degree"]})
+    for size in (SCALING_QUICK if args.quick else SCALING_FULL):
+        mesh = out / f"terrain_{size}.ply"
+        run([args.facetree, "gen", "terrain", "-n", size, "-o", mesh])
+        builds = repeat_runs(args.repeat, lambda: run_json([args.facetree, "build", "--json", mesh]))
+        mesh.unlink()
+        s = summarize_build(builds)
+        points.append({"mesh": f"terrain {size // 1000}k", "source": "generated", "memory": None,
+                       "faces": s["triangles"], "cluster_seconds": s["cluster_seconds"],
+                       "process_cpu_seconds": s["process_cpu_seconds"], "read_seconds": s["seconds"]["read"],
+                       "peak_rss_bytes": s["peak_rss_bytes"], "average_degree": s["average_degree"],
+                       "max_degree": s["max_degree"]})
+    points.sort(key=lambda p: p["faces"])
+    for p in points:
+        print(f"scaling   {p['mesh']:24s} {p['faces']:9d} faces  {p['cluster_seconds']:8.3f} s  cpu "
+              f"{p['process_cpu_seconds']:7.3f} s  peak {p['peak_rss_bytes'] / 2**20:7.1f} MiB  degree "
+              f"{p['average_degree']:.2f}/{p['max_degree']}", flush=True)
+    # Meshes under 10k faces are dominated by fixed costs (process start, thread pool): left out
+    # of the fits, as the seed's Fig. 77 starts at 10k.
+    fit = [p for p in points if p["faces"] >= 10_000]
+    result = {
+        "points": points,
+        "slope_time": loglog_slope([(p["faces"], p["cluster_seconds"]) for p in fit]),
+        "slope_cpu": loglog_slope([(p["faces"], p["process_cpu_seconds"]) for p in fit]),
+        "slope_rss": loglog_slope([(p["faces"], p["peak_rss_bytes"]) for p in fit]),
+        "todo": [{"faces": size, "memory": "1G", "reason": "needs the out-of-core build (issue 5)"}
+                 for size in SCALING_OUT_OF_CORE],
+    }
+    print(f"scaling   log-log slopes over {len(fit)} meshes of 10k faces and more: time {result['slope_time']:.2f}, "
+          f"CPU {result['slope_cpu']:.2f}, peak RSS {result['slope_rss']:.2f}", flush=True)
+    print(f"scaling   TODO {SCALING_OUT_OF_CORE} faces: needs the out-of-core build (issue 5)", flush=True)
+    return result
+
+
+def bench_octree(args, meshes, runs, out):
+    rows = []
+    for mesh in meshes:
+        mesh_runs = runs.get(mesh)
+        clustering, octree = mesh_runs["willmott"], mesh_runs["octree"]
+        # Per repetition: the two builds ran back to back, so their ratio sees one machine load.
+        wall = [cluster_seconds(c) / max(o["seconds"]["octree"], 1e-9) for c, o in zip(clustering, octree)]
+        # CPU: the clustering process minus what the octree process spent outside its octree
+        # (start, read, exit: the same work in both), over the octree's own CPU time.
+        cpu = [(c["process_cpu_seconds"] - (o["process_cpu_seconds"] - o["cpu_seconds"]["octree"]))
+               / max(o["cpu_seconds"]["octree"], 1e-9) for c, o in zip(clustering, octree)]
+        first = octree[0]
+        row = {"mesh": mesh, "triangles": first["triangles"],
+               "cluster_seconds": median(cluster_seconds(c) for c in clustering),
+               "octree_seconds": median(o["seconds"]["octree"] for o in octree),
+               "octree_cpu_seconds": median(o["cpu_seconds"]["octree"] for o in octree),
+               "ratio": median(wall), "ratio_cpu": median(cpu),
+               "octree_nodes": first["nodes"], "octree_height": first["height"],
+               "cluster_height": clustering[0]["height"], "octree_peak_rss_bytes": first["peak_rss_bytes"]}
+        rows.append(row)
+        print(f"octree    {mesh:24s} clustering {row['cluster_seconds']:7.3f} s  octree {row['octree_seconds']:6.3f} s  "
+              f"ratio x{row['ratio']:.1f} (CPU x{row['ratio_cpu']:.1f})  heights {row['cluster_height']}/"
+              f"{row['octree_height']}", flush=True)
+    big = [r for r in rows if r["triangles"] >= 50_000]
+    summary = {"rows": rows, "median_ratio": median(r["ratio"] for r in big),
+               "median_ratio_cpu": median(r["ratio_cpu"] for r in big)}
+    if big:
+        print(f"octree    median ratio over meshes of 50k faces and more: x{summary['median_ratio']:.1f} "
+              f"(CPU x{summary['median_ratio_cpu']:.1f}); the seed reports about 2.5", flush=True)
+    if args.callgrind:
+        summary["instructions"] = octree_instructions(args, CALLGRIND_MESH, out)
+    return summary
+
+
+def callgrind_total(args, command, out, toggle=None):
+    """Instructions callgrind counts for a whole run, or within calls of `toggle` (this thread)."""
+    target = out / "callgrind.out"
+    options = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={target}"]
+    if toggle:
+        options.append(f"--toggle-collect={toggle}")
+    run(options + [args.facetree] + command)
+    for line in target.read_text().splitlines():
+        if line.startswith("totals:"):
+            target.unlink()
+            return int(line.split()[1])
+    raise RuntimeError(f"no totals in {target}")
+
+
+def octree_instructions(args, mesh, out):
+    """The octree ratio in instructions (callgrind), which machine load does not move. The box
+    threads run outside buildHierarchy's call, so the clustering is the whole build process
+    minus what the octree process spends outside buildOctree (start, read, exit: the same)."""
+    path = mesh_path(mesh)
+    build = callgrind_total(args, ["build", path], out)
+    octree_all = callgrind_total(args, ["build", path, "--method", "octree"], out)
+    octree = callgrind_total(args, ["build", path, "--method", "octree"], out, "facetree::buildOctree(*")
+    clustering = build - (octree_all - octree)
+    result = {"mesh": mesh, "clustering": clustering, "octree": octree, "ratio": clustering / octree}
+    print(f"octree    {mesh}: {clustering / 1e6:.0f} M instructions clustering, {octree / 1e6:.0f} M octree: "
+          f"ratio x{result['ratio']:.1f} (callgrind)", flush=True)
+    return result
+
+
+def bench_branching(args, meshes, tmp):
+    rows, prefixes = [], []
+    for mesh in meshes:
+        path = mesh_path(mesh)
         for branching in (2, 4, 8):
             out = tmp / f"{mesh}.b{branching}.fch"
             run_json([args.facetree, "build", "--json", path, "-o", out, "--branching", str(branching)])
             verify = subprocess.run([args.facetree, "verify", out], capture_output=True, text=True)
             info = run_json([args.facetree, "info", "--json", out])
             size = out.stat().st_size
-            out.unlink()
-            rows.append({"mesh": mesh, "branching": branching, "bytes": size, "info": info,
-                         "verified": verify.returncode == 0})
-            print(f"files {mesh:24s} b={branching}  {size / 1e6:8.2f} MB  verify "
+            rows.append({"mesh": mesh, "branching": branching, "bytes": size, "nodes": info["nodes"],
+                         "height": info["height"], "info": info, "verified": verify.returncode == 0})
+            print(f"branching {mesh:24s} b={branching}  {size / 1e6:8.2f} MB  {info['nodes']:8d} nodes  verify "
                   f"{'ok' if verify.returncode == 0 else 'FAILED: ' + verify.stdout.strip()}", flush=True)
-    return rows
-
-
-def loglog_slope(points):
-    """Least-squares slope of log(y) against log(x)."""
-    import math
-    xs = [math.log(x) for x, _ in points]
-    ys = [math.log(max(y, 1e-9)) for _, y in points]
-    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
-    var = sum((x - mx) ** 2 for x in xs)
-    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / var if var > 0 else float("nan")
+            if branching == 2:
+                # Truncation prefixes: 1, 4, 16, ... nodes up to the whole file.
+                nodes, total = 1, info["nodes"]
+                while True:
+                    kept = min(nodes, total)
+                    prefix = tmp / f"{mesh}.prefix.fch"
+                    result = run_json([args.facetree, "truncate", "--json", out, "-o", prefix, "--nodes", kept])
+                    prefixes.append({"mesh": mesh, "nodes": result["nodes"], "bytes": result["bytes"],
+                                     "fraction_of_nodes": result["nodes"] / total, "fraction_of_bytes":
+                                     result["bytes"] / size})
+                    prefix.unlink()
+                    if kept == total:
+                        break
+                    nodes *= 4
+                print(f"branching {mesh:24s} prefixes: " + ", ".join(
+                    f"{p['nodes']}: {p['bytes'] / 1e6:.2f} MB" for p in prefixes if p["mesh"] == mesh), flush=True)
+            out.unlink()
+    return {"sizes": rows, "prefixes": prefixes}
 
 
 def bench_flat(args, tmp):
     sizes = [10_000, 40_000, 160_000] if args.quick else [10_000, 40_000, 160_000, 640_000, 1_000_000, 4_000_000]
-    # The constant metric is O(n^1.5 log n) (Fig. 69): keep it to the sizes that finish quickly.
-    constant_limit = 160_000 if args.quick else 640_000
+    # The constant and Garland metrics are O(n^1.5 log n) on grids (Fig. 69; Garland's slope is
+    # ~1.4 here: 4M triangles would take half an hour a run): keep them to the sizes that finish.
+    unbalanced_limit = 160_000 if args.quick else 640_000
     rows = []
     for metric in ("willmott", "constant", "garland"):
         points = []
         for size in sizes:
-            if metric == "constant" and size > constant_limit:
+            if metric != "willmott" and size > unbalanced_limit:
                 continue
             mesh = tmp / f"grid_{size}.ply"
             if not mesh.exists():
-                subprocess.run([args.facetree, "gen", "grid", "-n", str(size), "-o", mesh], check=True,
-                               stderr=subprocess.DEVNULL)
+                run([args.facetree, "gen", "grid", "-n", str(size), "-o", mesh])
             runs = repeat_runs(args.repeat, lambda: run_json(
                 [args.facetree, "build", "--json", "--no-boxes", "--metric", metric, mesh]))
             seconds = statistics.median(r["seconds"]["total"] for r in runs)
             row = {"metric": metric, "triangles": runs[0]["triangles"], "seconds": seconds,
+                   "process_cpu_seconds": median(r["process_cpu_seconds"] for r in runs),
                    "max_degree": runs[0]["max_degree"], "average_degree": runs[0]["average_degree"],
                    "height": runs[0]["height"], "balanced_height": runs[0]["balanced_height"]}
             rows.append(row)
             points.append((row["triangles"], seconds))
-            print(f"flat  {metric:9s} {row['triangles']:9d} tris  {seconds:8.3f} s  max degree {row['max_degree']:6d}  "
+            print(f"flat      {metric:9s} {row['triangles']:9d} tris  {seconds:8.3f} s  max degree {row['max_degree']:6d}  "
                   f"height {row['height']}/{row['balanced_height']}", flush=True)
-        print(f"flat  {metric:9s} log-log slope of time {loglog_slope(points):.2f}", flush=True)
-    return rows
+        print(f"flat      {metric:9s} log-log slope of time {loglog_slope(points):.2f}", flush=True)
+    for mesh in tmp.glob("grid_*.ply"):
+        mesh.unlink()
+    slopes = {}
+    for metric in ("willmott", "constant", "garland"):
+        points = [(r["triangles"], r["seconds"]) for r in rows if r["metric"] == metric]
+        slopes[metric] = loglog_slope(points)
+    return {"rows": rows, "slopes": slopes}
+
+
+def bench_outofcore(args):
+    """Issue 6 item 6, waiting for issue 5: the cases are laid out so that the results slot in."""
+    help_text = subprocess.run([args.facetree, "--help"], capture_output=True, text=True).stdout
+    cases = [{"mesh": f"terrain {SCALING_OUT_OF_CORE[-1] // 1_000_000}M", "memory": cap, "input": order}
+             for cap in OUT_OF_CORE_CAPS for order in ("coherent", "shuffled")]
+    if "--memory" not in help_text:
+        print("outofcore TODO: `facetree build` has no --memory option yet (issue 5); skipped", flush=True)
+        return {"todo": "needs the out-of-core build (issue 5)", "cases": cases, "results": []}
+    print("outofcore TODO: --memory exists but this section is not written yet; skipped", flush=True)
+    return {"todo": "section not written yet", "cases": cases, "results": []}
+
+
+SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "outofcore"]
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--facetree", required=True)
     parser.add_argument("--out", required=True)
-    parser.add_argument("--quick", action="store_true", help="a few meshes, 3 runs each")
-    parser.add_argument("--repeat", type=int, default=0, help="runs per case (default 3 quick, 5 full)")
-    parser.add_argument("--only", choices=["read", "build", "files", "flat"], action="append")
+    parser.add_argument("--quick", action="store_true",
+                        help="four meshes, small generated sizes, the Garland metric once per mesh")
+    parser.add_argument("--repeat", type=int, default=3, help="runs per case (default 3)")
+    parser.add_argument("--only", choices=SECTIONS + ["files"], action="append",
+                        help="run only these sections (repeatable; files is the old name of branching)")
+    parser.add_argument("--no-pictures", dest="pictures", action="store_false",
+                        help="skip the cluster pictures of the balance section")
+    parser.add_argument("--no-callgrind", dest="callgrind", action="store_false",
+                        help="skip the callgrind instruction counts of the octree section")
     args = parser.parse_args()
-    args.repeat = args.repeat or (3 if args.quick else 5)
+    args.callgrind = args.callgrind and shutil.which("valgrind") is not None
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    all_meshes = sorted(p.name[:-len(".ply.zst")] for p in SHARED.glob("*.ply.zst"))
+    all_meshes = sorted((p.name[:-len(".ply.zst")] for p in SHARED.glob("*.ply.zst")),
+                        key=lambda m: mesh_path(m).stat().st_size)
     if not all_meshes:
         sys.exit(f"bench: no meshes in {SHARED}")
-    meshes = [m for m in QUICK_MESHES if m in all_meshes] if args.quick else all_meshes
-    sections = args.only or ["read", "build", "files", "flat"]
+    meshes = [m for m in all_meshes if m in QUICK_MESHES] if args.quick else all_meshes
+    sections = [("branching" if s == "files" else s) for s in (args.only or SECTIONS)]
+    started = time.time()
     report = {
         "date": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": platform.node(), "cpus": os.cpu_count(),
-        "load_average": os.getloadavg(), "quick": args.quick, "repeat": args.repeat,
+        "cpu_model": cpu_model(), "memory_bytes": memory_bytes(), "load_average_start": os.getloadavg(),
+        "quick": args.quick, "repeat": args.repeat, "facetree": str(args.facetree),
     }
+    runs = MeshRuns(args, out)
     if "read" in sections:
         report["read"] = bench_read(args, ["dragon_vrip", "fg_hawaii"] if args.quick else all_meshes)
     if "build" in sections:
-        report["build"] = bench_build(args, meshes)
-    if "files" in sections:
-        report["files"] = bench_files(args, meshes, out)
+        report["build"] = bench_build(args, meshes, runs)
+    if "profile" in sections:
+        report["profile"] = bench_profile(args, runs)
+    if "balance" in sections:
+        report["balance"] = bench_balance(args, meshes, runs, out)
+    if "scaling" in sections:
+        report["scaling"] = bench_scaling(args, meshes, runs, out)
+    if "octree" in sections:
+        report["octree"] = bench_octree(args, meshes, runs, out)
+    if "branching" in sections:
+        report["branching"] = bench_branching(
+            args, ["bunny_zipper", "turbine_blade_200k"] if args.quick else QUICK_MESHES, out)
     if "flat" in sections:
         report["flat"] = bench_flat(args, out)
-        for mesh in out.glob("grid_*.ply"):
-            mesh.unlink()
+    if "outofcore" in sections:
+        report["outofcore"] = bench_outofcore(args)
+    report["load_average_end"] = os.getloadavg()
+    report["wall_seconds"] = time.time() - started
     (out / "bench.json").write_text(json.dumps(report, indent=1))
-    print(f"bench: wrote {out / 'bench.json'}")
+    print(f"bench: wrote {out / 'bench.json'} in {report['wall_seconds'] / 60:.1f} min")
+
+
+def cpu_model():
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def memory_bytes():
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError):
+        return None
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -87,6 +88,36 @@ TEST(Cli, BuildReportsABalancedHierarchy) {
   const size_t at = build.out.find("\"height_ratio\": ");
   ASSERT_NE(at, std::string::npos) << build.out;
   EXPECT_LE(std::stod(build.out.substr(at + 16)), 2.0) << build.out;
+  std::filesystem::remove(path);
+}
+
+// Number after `"key": ` in a --json report (NaN when missing).
+double jsonNumber(const std::string& json, const std::string& key) {
+  const size_t at = json.find("\"" + key + "\": ");
+  return at == std::string::npos ? std::nan("") : std::stod(json.substr(at + key.size() + 4));
+}
+
+TEST(Cli, OctreeMethodReportsItsTreeAndWritesNoFile) {
+  const std::string path = scratch("octree_sphere.ply"), fch = scratch("octree.fch");
+  ASSERT_EQ(runCli("gen sphere -n 20000 -o " + path).exitCode, 0);
+  auto octree = runCli("build --json --method octree --leaf-size 4 " + path);
+  ASSERT_EQ(octree.exitCode, 0) << octree.out;
+  EXPECT_EQ(jsonNumber(octree.out, "triangles"), 19880) << octree.out;
+  EXPECT_EQ(jsonNumber(octree.out, "leaf_size"), 4) << octree.out;
+  const double nodes = jsonNumber(octree.out, "nodes"), leaves = jsonNumber(octree.out, "leaves");
+  EXPECT_GT(leaves, 1) << octree.out;
+  EXPECT_GT(nodes, leaves) << octree.out;
+  EXPECT_LT(jsonNumber(octree.out, "kept_above_leaves"), 19880) << octree.out;
+  EXPECT_GE(jsonNumber(octree.out, "height"), 3) << octree.out;
+  EXPECT_LE(jsonNumber(octree.out, "height"), 26) << octree.out;  // maxDepth 24, the triangle
+  EXPECT_GT(jsonNumber(octree.out, "octree"), 0) << octree.out;
+  // A cluster file needs a face cluster hierarchy: -o and the metric options are usage errors.
+  auto withOutput = runCli("build --method octree " + path + " -o " + fch);
+  EXPECT_EQ(withOutput.exitCode, 2) << withOutput.out;
+  EXPECT_FALSE(std::filesystem::exists(fch));
+  EXPECT_EQ(runCli("build --method octree --metric garland " + path).exitCode, 2);
+  EXPECT_EQ(runCli("build --leaf-size 4 " + path).exitCode, 2) << "--leaf-size without --method octree";
+  EXPECT_EQ(runCli("build --method kdtree " + path).exitCode, 2);
   std::filesystem::remove(path);
 }
 
