@@ -60,8 +60,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   job.threads = static_cast<unsigned>(args.count("threads", 2));
   if (job.threads < 1 || job.threads > 64) throw UsageError("--threads must be 1 to 64");
   job.forceCellFaces = args.count("cell-faces", 0);
-  job.zstdLevel = static_cast<int>(args.count("zstd-level", 9));
-  if (job.zstdLevel < 1 || job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19");
+  job.zstdLevel = static_cast<int>(args.count("zstd-level", 0));
+  if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (0: 9 in core, 3 out of core)");
   if (job.memoryCap != 0 && job.memoryCap < (uint64_t{16} << 20))
     throw UsageError("--memory must be at least 16M");
   ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
@@ -95,6 +95,9 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     json.field("merge", r.secondsMerge);
     json.field("write", r.secondsWrite);
     json.field("total", r.seconds);
+    json.endObject();
+    json.beginObject("peak_rss_after");
+    for (const auto& [phase, bytes] : r.peakRssAfter) json.field(phase, bytes);
     json.endObject();
     json.field("memory_cap_bytes", r.memoryCap);
     json.field("peak_rss_bytes", peak);

@@ -3,6 +3,8 @@
 
 #include "grid/external_sort.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -265,6 +267,15 @@ void OutOfCoreBuild::binAndDistribute() {
   ghosts_->flushAll();
 }
 
+namespace {
+// Peak resident set so far (getrusage), for the per-phase figures of the report.
+uint64_t peakRss() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return uint64_t(usage.ru_maxrss) * 1024;
+}
+}  // namespace
+
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
   const unsigned threads = std::max(1u, job_.threads);
   if (job_.forceCellFaces) {
@@ -288,23 +299,28 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   reader.reset();
   resolveSpilledPositions();
   report_.secondsRead = secondsSince(start);
+  report_.peakRssAfter.push_back({"read", peakRss()});
 
   start = std::chrono::steady_clock::now();
   binAndDistribute();
   report_.secondsBin = secondsSince(start);
+  report_.peakRssAfter.push_back({"bin", peakRss()});
 
   start = std::chrono::steady_clock::now();
   buildCells();
   resolveCrossEdges();
   report_.secondsCells = secondsSince(start);
+  report_.peakRssAfter.push_back({"cells", peakRss()});
 
   start = std::chrono::steady_clock::now();
   mergeAbove();
   report_.secondsMerge = secondsSince(start);
+  report_.peakRssAfter.push_back({"merge", peakRss()});
 
   start = std::chrono::steady_clock::now();
   write();
   report_.secondsWrite = secondsSince(start);
+  report_.peakRssAfter.push_back({"write", peakRss()});
   report_.temporaryBytesPeak = temp_.peakBytes();
 }
 

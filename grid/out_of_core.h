@@ -44,7 +44,8 @@ struct LeafCluster {
   uint64_t nodeCount = 0;
   uint64_t vertexCount = 0;
   uint32_t height = 1;
-  std::vector<SpillBlock> nodeBlocks;      // FchNode arrays, leaf-local references
+  std::vector<SpillBlock> nodeBlocks;      // kNodeBlock FchNodes each (the last fewer), leaf-local references
+  std::vector<float> blockKeys;            // order key of each node block (out_of_core_write.cpp)
   std::vector<SpillBlock> geometryBlocks;  // GeometryBlock layout (out_of_core_cells.cpp)
   SurfaceStats stats;
   std::array<glm::vec3, 8> corners{};  // of the root box: points for the upper frames
@@ -129,12 +130,17 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
 
 // Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
 inline constexpr uint64_t kBaseBytes = uint64_t{24} << 20;     // process, libraries, reader, codecs
-inline constexpr uint64_t kCellBytesPerFace = 640;              // one cell's build, at its peak
+// One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
+// engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
+// arenas: 3M-triangle terrain at 64 MiB peaked at 58 MiB with 640.
+inline constexpr uint64_t kCellBytesPerFace = 720;
 inline constexpr uint64_t kMinCellFaces = 4096;                 // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
 // faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
 // the top of the tree across cell borders, few enough that it stays small.
 inline constexpr uint64_t kFrontiersPerCell = 32;
 inline constexpr uint64_t kMinFrontierFaces = 64;
+// The file interleaves the leaves' subtrees in blocks of this many nodes (out_of_core_write.cpp).
+inline constexpr size_t kNodeBlock = 256;
 
 }  // namespace facetree

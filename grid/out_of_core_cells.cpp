@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -17,7 +18,6 @@ namespace {
 // as one more leaf (its components joined by the engine, flagged): scans carry thousands of
 // specks, and every leaf costs the upper merge and the writer a little.
 constexpr uint32_t kMaxLeavesPerCell = 256;
-constexpr size_t kNodesPerBlock = 4096;
 constexpr size_t kTrianglesPerBlock = 65536;
 // Non-manifold edges with more faces than this are joined as a chain (as dual_graph.cpp).
 constexpr size_t kMaxFacesJoinedPairwise = 16;
@@ -317,8 +317,13 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         } else {
           for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
         }
-        for (size_t at = 0; at < file.nodes.size(); at += kNodesPerBlock) {
-          const size_t n = std::min(kNodesPerBlock, file.nodes.size() - at);
+        float key = std::numeric_limits<float>::infinity();
+        for (size_t at = 0; at < file.nodes.size(); at += kNodeBlock) {
+          const size_t n = std::min(kNodeBlock, file.nodes.size() - at);
+          // The running minimum of the costs in file order, at the block's first node.
+          key = std::min(key, file.nodes[at].cost);
+          leaf.blockKeys.push_back(key);
+          for (size_t i = at + 1; i < at + n; ++i) key = std::min(key, file.nodes[i].cost);
           block.clear();
           appendBytes(block, file.nodes.data() + at, n);
           leaf.nodeBlocks.push_back(nodeSpill_->append(block, codec));

@@ -3,6 +3,7 @@
 // the nodes, upper nodes first and each leaf's subtree after them (out_of_core.h).
 #include <algorithm>
 #include <cstring>
+#include <limits>
 
 #include "grid/out_of_core.h"
 #include "io/io.h"
@@ -77,18 +78,61 @@ void OutOfCoreBuild::write() {
       }
     }
   }
-  std::vector<uint64_t> faceBase(leafCount), nodeBase(leafCount);
+  std::vector<uint64_t> faceBase(leafCount);
   uint64_t faces = 0, nodes = upperCount, vertices = 0;
   uint32_t height = 1;
   for (const uint32_t leaf : leafOrder) {
     faceBase[leaf] = faces;
-    nodeBase[leaf] = nodes;
     faces += leaves_[leaf].faceCount;
     nodes += leaves_[leaf].nodeCount;
     vertices += leaves_[leaf].vertexCount;
     const uint32_t above = leafParent[leaf] == kNone ? 0 : depth[leafParent[leaf]];
     height = std::max(height, above + leaves_[leaf].height);
   }
+
+  // Node order: the upper nodes first (reverse creation, root first), then the leaves' subtrees
+  // interleaved in blocks of kNodeBlock nodes by decreasing cost, so that a prefix of the file
+  // (a truncated hierarchy, seed sec. 5.5.3) refines all leaves alike, as the in-core reverse
+  // creation order does. A block's key is the running minimum of its leaf's costs in file order,
+  // capped by its upper parent's (also a running minimum from the root): keys never increase
+  // from parent to child, so the sort keeps every child after its parent.
+  std::vector<float> upperKey(upperCount, std::numeric_limits<float>::infinity());
+  for (uint32_t j = 0; j < upperCount; ++j) {
+    const uint32_t i = upperCount - 1 - j;
+    const float parent = nodeParent[i] == kNone ? std::numeric_limits<float>::infinity() : upperKey[nodeParent[i]];
+    upperKey[i] = std::min(upper[i].cost, parent);
+  }
+  struct BlockRef {
+    float key;
+    uint32_t leafRank, block;
+  };
+  std::vector<BlockRef> order;
+  std::vector<uint64_t> blockStart(leafCount + 1, 0);
+  for (uint32_t rank = 0; rank < leafCount; ++rank) {
+    const uint32_t leaf = leafOrder[rank];
+    const float cap = leafParent[leaf] == kNone ? std::numeric_limits<float>::infinity() : upperKey[leafParent[leaf]];
+    const auto& keys = leaves_[leaf].blockKeys;
+    for (uint32_t b = 0; b < keys.size(); ++b) order.push_back({std::min(keys[b], cap), rank, b});
+  }
+  std::sort(order.begin(), order.end(), [](const BlockRef& x, const BlockRef& y) {
+    if (x.key != y.key) return x.key > y.key;
+    if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
+    return x.block < y.block;
+  });
+  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] = leaves_[leaf].blockKeys.size();
+  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] += blockStart[leaf];
+  std::vector<uint64_t> blockPosition(blockStart[leafCount]);
+  {
+    uint64_t position = upperCount;
+    for (const BlockRef& ref : order) {
+      const uint32_t leaf = leafOrder[ref.leafRank];
+      blockPosition[blockStart[leaf] + ref.block] = position;
+      position += std::min<uint64_t>(kNodeBlock, leaves_[leaf].nodeCount - uint64_t{ref.block} * kNodeBlock);
+    }
+  }
+  const auto nodePosition = [&](uint32_t leaf, uint32_t local) {
+    return static_cast<uint32_t>(blockPosition[blockStart[leaf] + local / kNodeBlock] + local % kNodeBlock);
+  };
   report_.nodes = nodes;
   report_.height = height;
   report_.balancedHeight = balancedHeight(faces);
@@ -123,7 +167,7 @@ void OutOfCoreBuild::write() {
   h.memoryCapBytes = memoryCap_;
   info.maxOriginalFace = maxFace_;
   WriteOptions writeOptions;
-  writeOptions.zstdLevel = job_.zstdLevel;
+  writeOptions.zstdLevel = job_.zstdLevel ? job_.zstdLevel : 3;
   ClusterFileWriter writer(job_.output, info, writeOptions, temp_.path());
   writer.setTemporaryBytesHook([this](int64_t delta) {
     if (delta > 0) temp_.reserve(static_cast<uint64_t>(delta));
@@ -166,7 +210,7 @@ void OutOfCoreBuild::write() {
       done += header.triangles;
     }
     vertexBase += leaf.vertexCount;
-    checkCancel("write", done, 2 * faces);
+    checkCancel("write", done, faces + nodes);
   }
   geometrySpill_.reset();
 
@@ -176,8 +220,7 @@ void OutOfCoreBuild::write() {
   const auto childRef = [&](uint32_t c) -> uint32_t {
     if (!(c & kLeafChild)) return upperCount - 1 - c;
     const uint32_t leaf = c & ~kLeafChild;
-    return leaves_[leaf].nodeCount ? static_cast<uint32_t>(nodeBase[leaf])
-                                   : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
+    return leaves_[leaf].nodeCount ? nodePosition(leaf, 0) : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
   };
   for (uint32_t j = 0; j < upperCount; ++j) {
     const uint32_t i = upperCount - 1 - j;
@@ -204,24 +247,22 @@ void OutOfCoreBuild::write() {
   writer.addNodes(out);
   boxes = {};
   std::vector<FchNode> leafNodes;
-  for (const uint32_t leafId : leafOrder) {
+  for (const BlockRef& ref : order) {
+    const uint32_t leafId = leafOrder[ref.leafRank];
     const LeafCluster& leaf = leaves_[leafId];
-    const auto nodeOffset = static_cast<uint32_t>(nodeBase[leafId]);
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
-    for (const SpillBlock& block : leaf.nodeBlocks) {
-      nodeSpill_->read(block, raw, codec_);
-      leafNodes.resize(raw.size() / sizeof(FchNode));
-      std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
-      for (FchNode& n : leafNodes) {
-        n.first += faceOffset;
-        for (uint32_t c = 0; c < n.childCount; ++c)
-          n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
-                                                 : n.child[c] + nodeOffset;
-      }
-      writer.addNodes(leafNodes);
+    nodeSpill_->read(leaf.nodeBlocks[ref.block], raw, codec_);
+    leafNodes.resize(raw.size() / sizeof(FchNode));
+    std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
+    for (FchNode& n : leafNodes) {
+      n.first += faceOffset;
+      for (uint32_t c = 0; c < n.childCount; ++c)
+        n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
+                                               : nodePosition(leafId, n.child[c]);
     }
-    done += leaf.faceCount;
-    checkCancel("write", done, 2 * faces);
+    writer.addNodes(leafNodes);
+    done += leafNodes.size();
+    checkCancel("write", done, faces + nodes);
   }
   nodeSpill_.reset();
   report_.fileBytes = writer.finish();
