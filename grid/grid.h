@@ -1,11 +1,13 @@
 // facetree/grid: drives the passes from a mesh file to a hierarchy (stream -> merge).
 // Public header of the module.
 //
-// Errors: throws facetree::ReadError for unreadable input (see stream.h) and
-// std::invalid_argument from the merge; nothing else except std::bad_alloc.
+// Errors: throws facetree::ReadError for unreadable input (see stream.h),
+// std::invalid_argument from the merge and Cancelled (merge.h) when a cancellation hook says
+// so; nothing else except std::bad_alloc.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -34,6 +36,9 @@ struct LoadOptions {
   // components, 1 after welding). Welding makes faces meeting at bit-identical positions
   // (-0 equal to +0) neighbours, so the merge sees one surface instead of loose patches.
   bool weldPositions = false;
+  // Cancellation hook polled between batches of triangles (see BuildOptions::cancelled):
+  // loadMesh throws Cancelled when it returns true.
+  std::function<bool()> cancelled;
 };
 
 // Reads every triangle of `reader` into memory.

@@ -80,7 +80,8 @@ class MergeEngine {
         policy_(options, geometry),
         keyScale_(policy_.keyScale()),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0),
-        balanceSlack_(options.balanceSlack) {}
+        balanceSlack_(options.balanceSlack),
+        cancelled_(options.cancelled) {}
 
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
@@ -119,7 +120,8 @@ class MergeEngine {
 
     // Each live cluster with edges has a heap entry whose key is a lower bound of its cheapest
     // edge; the top entry is valid when it equals the cluster's exact minimum.
-    while (!heap_.empty()) {
+    for (uint64_t step = 1; !heap_.empty(); ++step) {
+      if (step % kCancelPollSteps == 0 && cancelled_ && cancelled_()) throw Cancelled();
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;  // every edge left is blocked (lower bounds: all inf)
       ClusterRecord& r = clusters_[top.id];
@@ -172,6 +174,8 @@ class MergeEngine {
   static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
   static constexpr uint32_t kDirty = 0x80000000u;
   static constexpr size_t kCacheLine = 64;
+  // The cancellation hook is polled every this many heap steps: a few milliseconds of merging.
+  static constexpr uint64_t kCancelPollSteps = 1 << 14;
 
   struct Cluster {
     ClusterStats stats;
@@ -473,6 +477,7 @@ class MergeEngine {
   double keyScale_;
   bool guard_;
   double balanceSlack_;
+  const std::function<bool()>& cancelled_;  // BuildOptions::cancelled, which outlives the engine
   std::vector<ClusterRecord> clusters_;
   std::vector<Slot> slots_;
   Cluster scratch_[2];  // leaf stats computed on the fly
