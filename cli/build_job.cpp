@@ -2,10 +2,13 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <thread>
 
 #include "cli/commands.h"
 #include "cli/json.h"
+#include "cli/signals.h"
 
 namespace facetree::cli {
 namespace {
@@ -51,14 +54,15 @@ class ProgressLine {
 
 }  // namespace
 
-int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job) {
+int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job,
+                SignalGuard& signals) {
   job.input = input;
   job.output = output;
   job.memoryCap = args.count("memory", 0, true);
   if (const auto tmp = args.value("tmp")) job.tmpDir = *tmp;
   job.maxTemporaryBytes = args.count("max-tmp", 0, true);
-  job.threads = static_cast<unsigned>(args.count("threads", 2));
-  if (job.threads < 1 || job.threads > 64) throw UsageError("--threads must be 1 to 64");
+  // --threads (job.build.threads, 0 = all cores up to 8) also runs the cells in parallel.
+  job.threads = job.build.threads ? job.build.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
   job.forceCellFaces = args.count("cell-faces", 0);
   job.zstdLevel = static_cast<int>(args.count("zstd-level", 0));
   if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (0: 9 in core, 3 out of core)");
@@ -67,7 +71,19 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
   job.progress = [&progress](const JobProgress& p) { return progress.update(p); };
 
-  const JobReport r = runClusterJob(job);
+  std::filesystem::path temporary;
+  job.temporaryDirectory = [&](const std::filesystem::path& path) {
+    temporary = path;
+    signals.guardTemporary(path);
+  };
+  JobReport r;
+  try {
+    r = runClusterJob(job);
+  } catch (...) {
+    if (!temporary.empty()) signals.releaseTemporary(temporary);
+    throw;
+  }
+  if (!temporary.empty()) signals.releaseTemporary(temporary);
   progress.clear();
   const uint64_t peak = peakResidentBytes();
   const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;

@@ -7,6 +7,11 @@
 
 namespace facetree::cli {
 
-int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job);
+class SignalGuard;
+
+// `job.build.cancelled` is polled with the progress; the run's temporary directory is registered
+// with `signals` for its last-resort cleanup.
+int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job,
+                SignalGuard& signals);
 
 }  // namespace facetree::cli

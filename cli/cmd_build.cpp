@@ -7,12 +7,16 @@
 #include "cli/build_job.h"
 #include "cli/commands.h"
 #include "cli/json.h"
+#include "cli/signals.h"
 #include "grid/grid.h"
 #include "io/io.h"
 #include "merge/merge.h"
 
 namespace facetree::cli {
 namespace {
+
+// --threads: at most this many (the box phase uses no more, merge/box.cpp).
+constexpr uint64_t kMaxThreads = 8;
 
 Metric parseMetric(const std::string& name) {
   if (name == "willmott") return Metric::Willmott;
@@ -29,7 +33,7 @@ RecastRule parseRecastRule(const std::string& name) {
 
 }  // namespace
 
-int runBuild(const std::vector<std::string>& argv) {
+int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv,
                   {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
                    "recast", "mesh-out", "draco-bits", "balance-slack", "memory", "tmp", "max-tmp", "threads",
@@ -52,6 +56,10 @@ int runBuild(const std::vector<std::string>& argv) {
   options.garlandShapeWeight = args.number("w-shape", options.garlandShapeWeight);
   options.balanceSlack = args.number("balance-slack", options.balanceSlack);
   options.computeBoxes = !args.flag("no-boxes");
+  options.threads = static_cast<unsigned>(args.count("threads", options.threads));
+  if (options.threads > kMaxThreads)
+    throw UsageError("--threads must be 0 (all cores) to " + std::to_string(kMaxThreads));
+  options.cancelled = signals.cancelHook();
   if (!(options.balanceSlack >= 0)) throw UsageError("--balance-slack must be 0 (off) or positive");
   if (options.k < 0) throw UsageError("--k must not be negative");
   FileOptions fileOptions;
@@ -67,24 +75,27 @@ int runBuild(const std::vector<std::string>& argv) {
   const auto meshOut = args.value("mesh-out");
   if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
   const bool jobOptions = args.value("memory") || args.value("tmp") || args.value("max-tmp") ||
-                          args.value("threads") || args.value("cell-faces") ||
-                          args.value("zstd-level");
+                          args.value("cell-faces") || args.value("zstd-level");
   if (jobOptions && (!output || meshOut))
-    throw UsageError("--memory, --tmp, --max-tmp, --threads and --cell-faces need -o and no --mesh-out");
+    throw UsageError("--memory, --tmp, --max-tmp, --cell-faces and --zstd-level need -o and no --mesh-out");
   if (jobOptions) {
+    prepareOutput(signals, *output);
     ClusterJob job;
     job.build = options;
     job.file = fileOptions;
     job.load.weldPositions = args.flag("weld");
-    return runBuildJob(args, name, *output, job);
+    return runBuildJob(args, name, *output, job, signals);
   }
 
+  if (output) prepareOutput(signals, *output);
+  if (meshOut) prepareOutput(signals, *meshOut);
   const double start = nowSeconds();
   // The reader (its vertex store, buffers and zstd context) is released once the mesh is in
   // memory: the merge's peak comes after it.
   auto reader = name == "-" ? openStandardInput() : openMesh(name);
   LoadOptions loadOptions;
   loadOptions.weldPositions = args.flag("weld");
+  loadOptions.cancelled = options.cancelled;
   const IndexedMesh mesh = loadMesh(*reader, loadOptions);
   reader.reset();
   const double readSeconds = nowSeconds() - start;

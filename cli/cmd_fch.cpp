@@ -5,6 +5,7 @@
 #include "cli/commands.h"
 #include "cli/fch_commands.h"
 #include "cli/json.h"
+#include "cli/signals.h"
 #include "grid/grid.h"
 #include "io/cluster_file.h"
 #include "stream/stream.h"
@@ -40,7 +41,7 @@ int guarded(F&& body) {
 
 }  // namespace
 
-int runTruncate(const std::vector<std::string>& argv) {
+int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"output", "nodes", "max-bytes"}, {"json"}, {{"-o", "--output"}});
   if (args.positional().size() != 1) throw UsageError("truncate takes exactly one cluster file");
   const auto output = args.value("output");
@@ -48,6 +49,7 @@ int runTruncate(const std::vector<std::string>& argv) {
   if (args.value("nodes").has_value() == args.value("max-bytes").has_value())
     throw UsageError("truncate needs exactly one of --nodes N and --max-bytes B");
   const std::string& input = args.positional()[0];
+  prepareOutput(signals, *output);
   return guarded([&] {
     TruncateResult result;
     try {

@@ -3,16 +3,17 @@
 
 #include "cli/args.h"
 #include "cli/commands.h"
+#include "cli/signals.h"
 #include "grid/grid.h"
 #include "io/io.h"
 
 namespace facetree::cli {
 
-int runGenerate(const std::vector<std::string>& argv) {
+int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"triangles", "output", "seed", "levels"}, {"shuffle-vertices", "shuffle-faces"},
                   {{"-n", "--triangles"}, {"-o", "--output"}});
   const auto& positional = args.positional();
-  if (positional.empty()) throw UsageError("gen needs a kind: grid, sphere, terrain or subdivide");
+  if (positional.empty()) throw UsageError("gen needs a kind: grid, sphere, terrain, strip or subdivide");
   const auto output = args.value("output");
   if (!output) throw UsageError("gen needs -o OUTPUT.ply");
 
@@ -23,6 +24,7 @@ int runGenerate(const std::vector<std::string>& argv) {
   options.shuffleFaces = args.flag("shuffle-faces");
 
   const std::string& kind = positional[0];
+  prepareOutput(signals, *output);
   GeneratedCounts counts;
   if (kind == "subdivide") {
     if (positional.size() != 2) throw UsageError("gen subdivide takes one input mesh");
@@ -40,8 +42,10 @@ int runGenerate(const std::vector<std::string>& argv) {
       shape = SyntheticKind::Sphere;
     else if (kind == "terrain")
       shape = SyntheticKind::Terrain;
+    else if (kind == "strip")
+      shape = SyntheticKind::Strip;
     else
-      throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, subdivide)");
+      throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, strip, subdivide)");
     counts = writeSyntheticMesh(shape, options, *output);
   }
   std::fprintf(stderr, "wrote %s: %llu vertices, %llu triangles\n", output->c_str(),

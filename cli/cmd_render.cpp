@@ -4,6 +4,7 @@
 
 #include "cli/args.h"
 #include "cli/commands.h"
+#include "cli/signals.h"
 #include "io/io.h"
 
 namespace facetree::cli {
@@ -47,7 +48,7 @@ glm::vec3 parseVector(const std::string& text, const std::string& option) {
 
 }  // namespace
 
-int runRender(const std::vector<std::string>& argv) {
+int runRender(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"output", "cut", "depth", "width", "height", "view", "up"}, {},
                   {{"-o", "--output"}});
   const auto output = args.value("output");
@@ -60,6 +61,7 @@ int runRender(const std::vector<std::string>& argv) {
   if (const auto view = args.value("view")) options.viewDirection = parseVector(*view, "view");
   if (const auto up = args.value("up")) options.up = parseVector(*up, "up");
   const double start = nowSeconds();
+  prepareOutput(signals, *output);
   const CutRequest cut = readCut(args, "render");
   renderClustersPng(cut.clusterFile.mesh(), cut.faceCluster, options, *output);
   std::fprintf(stderr, "rendered %u clusters of %s to %s (%dx%d) in %.2f s\n", cut.clusters, cut.file.c_str(),
@@ -67,10 +69,11 @@ int runRender(const std::vector<std::string>& argv) {
   return kExitOk;
 }
 
-int runExport(const std::vector<std::string>& argv) {
+int runExport(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"output", "cut", "depth"}, {}, {{"-o", "--output"}});
   const auto output = args.value("output");
   if (!output) throw UsageError("export needs -o OUT.ply");
+  prepareOutput(signals, *output);
   const CutRequest cut = readCut(args, "export");
   writeClusterColouredPly(cut.clusterFile.mesh(), cut.faceCluster, *output);
   std::fprintf(stderr, "exported %u clusters of %s to %s\n", cut.clusters, cut.file.c_str(), output->c_str());

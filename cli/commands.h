@@ -9,14 +9,21 @@
 namespace facetree::cli {
 
 class Args;
+class SignalGuard;
 
+// Commands that write register their outputs with `signals` and poll it (cli/signals.h).
 int runStats(const std::vector<std::string>& args);
-int runBuild(const std::vector<std::string>& args);
+int runBuild(const std::vector<std::string>& args, SignalGuard& signals);
 // `build MESH --method octree`: the octree baseline (Willmott 2000, Fig. 80), called by runBuild.
 int runBuildOctree(const Args& args);
-int runGenerate(const std::vector<std::string>& args);
-int runRender(const std::vector<std::string>& args);
-int runExport(const std::vector<std::string>& args);
+int runGenerate(const std::vector<std::string>& args, SignalGuard& signals);
+int runRender(const std::vector<std::string>& args, SignalGuard& signals);
+int runExport(const std::vector<std::string>& args, SignalGuard& signals);
+
+// Before the work starts: fails with IoError ("PATH: cannot create: REASON", exit 4) when
+// `path` is a directory or its directory is missing or not writable, so that a long run does
+// not fail at its end; then registers it with `signals`. "-" (standard output) passes.
+void prepareOutput(SignalGuard& signals, const std::string& path);
 
 // Peak resident set size of this process, in bytes (getrusage).
 uint64_t peakResidentBytes();

@@ -8,8 +8,10 @@
 
 namespace facetree::cli {
 
+class SignalGuard;
+
 // truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B)
-int runTruncate(const std::vector<std::string>& args);
+int runTruncate(const std::vector<std::string>& args, SignalGuard& signals);
 // info FILE.fch [--json]
 int runInfo(const std::vector<std::string>& args);
 // verify FILE.fch [MESH] [--json]: exit 3 with the first violation when the file is invalid.

@@ -1,5 +1,6 @@
 // facetree: command-line entry point. Dispatches to the subcommands and turns every failure
-// into one line on stderr and an exit code per failure class.
+// into one line on stderr and an exit code per failure class; SIGINT, SIGTERM and SIGHUP end
+// the run with 128 + the signal and no output (cli/signals.h).
 #include <cstdio>
 #include <exception>
 #include <new>
@@ -11,6 +12,7 @@
 #include "cli/commands.h"
 #include "cli/fch_commands.h"
 #include "grid/grid.h"
+#include "cli/signals.h"
 #include "io/io.h"
 #include "stream/stream.h"
 
@@ -27,14 +29,16 @@ commands:
         [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
-        [--memory SIZE] [--tmp DIR] [--max-tmp SIZE] [--threads N]
+        [--threads N]            threads of the box phase and of the out-of-core cells
+                                 (default 0: all cores, at most 8); the output does not depend on it
+        [--memory SIZE] [--tmp DIR] [--max-tmp SIZE]
                                  with -o: the whole job under a memory cap (e.g. 256M): in core
                                  when it fits, else out of core with temporary files under --tmp;
                                  OUT.fch may be - (standard output)
   build MESH --method octree [--leaf-size N] [--json]
                                  baseline: tightest-fit octree volume clustering (time, nodes,
                                  height); writes no cluster file (-o is a usage error)
-  gen grid|sphere|terrain -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
+  gen grid|sphere|terrain|strip -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
                                  keep the first nodes of a cluster file (geometry counts in B)
@@ -49,10 +53,11 @@ commands:
 MESH may be - for standard input; the format is detected from the content.
 
 exit codes: 0 success, 1 internal error, 2 usage, 3 bad or unreadable input,
-            4 cannot write output, 5 out of memory or over a limit
+            4 cannot write output, 5 out of memory or over a limit,
+            130/143/129 interrupted by SIGINT/SIGTERM/SIGHUP (no output left behind)
 )";
 
-int dispatch(const std::vector<std::string>& args) {
+int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
   using namespace facetree::cli;
   if (args.empty()) {
     std::fputs(kUsage, stderr);
@@ -69,22 +74,23 @@ int dispatch(const std::vector<std::string>& args) {
     return kExitOk;
   }
   if (command == "stats") return runStats(rest);
-  if (command == "build") return runBuild(rest);
-  if (command == "gen") return runGenerate(rest);
-  if (command == "truncate") return runTruncate(rest);
+  if (command == "build") return runBuild(rest, signals);
+  if (command == "gen") return runGenerate(rest, signals);
+  if (command == "truncate") return runTruncate(rest, signals);
   if (command == "info") return runInfo(rest);
   if (command == "verify") return runVerify(rest);
-  if (command == "render") return runRender(rest);
-  if (command == "export") return runExport(rest);
+  if (command == "render") return runRender(rest, signals);
+  if (command == "export") return runExport(rest, signals);
   throw UsageError("unknown command '" + command + "'");
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+// Runs the command; failures become one line on stderr and an exit code.
+int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
   using namespace facetree::cli;
   try {
-    return dispatch(std::vector<std::string>(argv + 1, argv + argc));
+    return dispatch(args, signals);
+  } catch (const facetree::Cancelled&) {
+    return -1;  // main() reports the signal
   } catch (const UsageError& e) {
     std::fprintf(stderr, "facetree: %s (see facetree --help)\n", e.what());
     return kExitUsage;
@@ -113,4 +119,25 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "facetree: internal error: %s\n", e.what());
     return kExitInternal;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace facetree::cli;
+  int code = kExitInternal;
+  int received = 0;
+  {
+    // Before any other thread exists, so that every thread inherits the blocked signals.
+    SignalGuard signals;
+    code = run(std::vector<std::string>(argv + 1, argv + argc), signals);
+    received = signals.signal();
+  }
+  // Work that unwound on a signal (Cancelled, or an error it caused) reports the signal; work
+  // that completed despite a late signal keeps its own exit code: its outputs are complete.
+  if (received != 0 && code != kExitOk) {
+    std::fprintf(stderr, "facetree: interrupted by %s\n", signalName(received));
+    return 128 + received;
+  }
+  return code;
 }

@@ -41,12 +41,14 @@ JobReport runClusterJob(const ClusterJob& job) {
   effective.file.build = job.build;
   effective.file.memoryCapBytes = job.memoryCap;
   const auto check = [&](const char* phase, uint64_t done, uint64_t total) {
-    if (job.progress && !job.progress(JobProgress{phase, done, total})) throw JobCancelled();
+    if ((job.progress && !job.progress(JobProgress{phase, done, total})) || (job.build.cancelled && job.build.cancelled()))
+      throw Cancelled();
   };
 
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
   // of the cap (the reader would hold them all).
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes);
+  if (job.temporaryDirectory) job.temporaryDirectory(temp.path());
   VertexPositions positions(temp, cap / 4);
   ReadOptions readOptions;
   readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };

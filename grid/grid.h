@@ -1,8 +1,9 @@
 // facetree/grid: drives the passes from a mesh file to a hierarchy (stream -> merge).
 // Public header of the module.
 //
-// Errors: throws facetree::ReadError for unreadable input (see stream.h) and
-// std::invalid_argument from the merge; nothing else except std::bad_alloc.
+// Errors: throws facetree::ReadError for unreadable input (see stream.h),
+// std::invalid_argument from the merge and Cancelled (merge.h) when a cancellation hook says
+// so; nothing else except std::bad_alloc.
 #pragma once
 
 #include <cstdint>
@@ -40,6 +41,9 @@ struct LoadOptions {
   // components, 1 after welding). Welding makes faces meeting at bit-identical positions
   // (-0 equal to +0) neighbours, so the merge sees one surface instead of loose patches.
   bool weldPositions = false;
+  // Cancellation hook polled between batches of triangles (see BuildOptions::cancelled):
+  // loadMesh throws Cancelled when it returns true.
+  std::function<bool()> cancelled;
 };
 
 // Reads every triangle of `reader` into memory.
@@ -81,6 +85,9 @@ struct ClusterJob {
   // Called between steps; returning false cancels the job (JobCancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;
+  // Called with the run's temporary directory once created (it is removed, with everything in
+  // it, before runClusterJob returns or throws): e.g. for a signal handler's last-resort cleanup.
+  std::function<void(const std::filesystem::path&)> temporaryDirectory;
 };
 
 struct JobReport {
@@ -105,10 +112,8 @@ struct JobReport {
   BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
 };
 
-class JobCancelled : public std::runtime_error {
- public:
-  JobCancelled() : std::runtime_error("cancelled") {}
-};
+// Cancelling (a progress callback returning false, or build.cancelled) throws merge.h's Cancelled.
+using JobCancelled = Cancelled;
 
 // Thrown when the cap cannot hold even the smallest working set; what() says how much is needed.
 class MemoryCapError : public std::runtime_error {

@@ -30,7 +30,9 @@ OutOfCoreBuild::OutOfCoreBuild(const ClusterJob& job, TempSpace& temp, VertexPos
 OutOfCoreBuild::~OutOfCoreBuild() = default;
 
 void OutOfCoreBuild::checkCancel(const char* phase, uint64_t done, uint64_t total) const {
-  if (job_.progress && !job_.progress(JobProgress{phase, done, total})) throw JobCancelled();
+  if ((job_.progress && !job_.progress(JobProgress{phase, done, total})) ||
+      (job_.build.cancelled && job_.build.cancelled()))
+    throw Cancelled();
 }
 
 void OutOfCoreBuild::appendArrival(const FaceRecord& r) {

@@ -279,6 +279,7 @@ SourceFile::SourceFile(const std::filesystem::path& path) : name_(path.string())
   file_.reset(std::fopen(path.c_str(), "rb"));
   if (!file_) fail(std::string("cannot open: ") + std::strerror(errno));
   std::error_code error;
+  if (std::filesystem::is_directory(path, error)) fail("is a directory");  // fopen accepts one
   size_ = std::filesystem::file_size(path, error);
   if (error) fail("cannot read size: " + error.message());
   readLayout();

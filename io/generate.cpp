@@ -40,21 +40,26 @@ uint64_t hash64(uint64_t z) {
   return z ^ (z >> 31);
 }
 
+// Cells per side of a square grid of about `triangles` triangles.
+uint64_t gridSide(uint64_t triangles) {
+  return std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(std::sqrt(triangles / 2.0))));
+}
+
 class GridShape : public IndexedShape {
  public:
-  GridShape(uint64_t triangles, uint64_t seed, bool terrain) : seed_(seed), terrain_(terrain) {
-    side_ = std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(std::sqrt(triangles / 2.0))));
-  }
-  uint64_t vertexCount() const override { return (side_ + 1) * (side_ + 1); }
-  uint64_t triangleCount() const override { return 2 * side_ * side_; }
+  // `columns` x `rows` square cells of two triangles; the model is kGridSize wide.
+  GridShape(uint64_t columns, uint64_t rows, uint64_t seed, bool terrain)
+      : columns_(columns), rows_(rows), seed_(seed), terrain_(terrain) {}
+  uint64_t vertexCount() const override { return (columns_ + 1) * (rows_ + 1); }
+  uint64_t triangleCount() const override { return 2 * columns_ * rows_; }
   glm::dvec3 vertex(uint64_t i) const override {
-    const uint64_t x = i % (side_ + 1), y = i / (side_ + 1);
-    const double u = static_cast<double>(x) / side_, v = static_cast<double>(y) / side_;
+    const uint64_t x = i % (columns_ + 1), y = i / (columns_ + 1);
+    const double u = static_cast<double>(x) / columns_, v = static_cast<double>(y) / columns_;
     return {u * kGridSize, v * kGridSize, terrain_ ? height(u, v) : 0.0};
   }
   Tri triangle(uint64_t j) const override {
-    const uint64_t quad = j / 2, x = quad % side_, y = quad / side_;
-    const uint64_t a = y * (side_ + 1) + x, b = a + 1, c = a + side_ + 1, d = c + 1;
+    const uint64_t quad = j / 2, x = quad % columns_, y = quad / columns_;
+    const uint64_t a = y * (columns_ + 1) + x, b = a + 1, c = a + columns_ + 1, d = c + 1;
     return (j % 2 == 0) ? Tri{{a, b, d}} : Tri{{a, d, c}};
   }
 
@@ -80,7 +85,8 @@ class GridShape : public IndexedShape {
     }
     return sum * kTerrainRelief;
   }
-  uint64_t side_;
+  uint64_t columns_;
+  uint64_t rows_;
   uint64_t seed_;
   bool terrain_;
 };
@@ -240,9 +246,16 @@ GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& op
   if (options.triangles == 0) throw std::invalid_argument("cannot generate a mesh of 0 triangles");
   switch (kind) {
     case SyntheticKind::Grid:
-      return writeShape(GridShape(options.triangles, options.seed, false), options, path);
+      return writeShape(
+          GridShape(gridSide(options.triangles), gridSide(options.triangles), options.seed, false), options,
+          path);
     case SyntheticKind::Terrain:
-      return writeShape(GridShape(options.triangles, options.seed, true), options, path);
+      return writeShape(
+          GridShape(gridSide(options.triangles), gridSide(options.triangles), options.seed, true), options,
+          path);
+    case SyntheticKind::Strip:
+      return writeShape(GridShape(std::max<uint64_t>(1, options.triangles / 2), 1, options.seed, false),
+                        options, path);
     case SyntheticKind::Sphere:
       return writeShape(SphereShape(options.triangles), options, path);
   }

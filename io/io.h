@@ -23,6 +23,12 @@ class IoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Every output of this module (cluster files, meshes, pictures) is written under this
+// temporary name beside `path` (unique per process) and renamed to `path` when complete; a
+// writer that fails or is destroyed first removes it. Exposed for a caller that must clean up
+// without unwinding, e.g. a command-line tool exiting on a signal.
+std::filesystem::path temporaryOutputPath(const std::filesystem::path& path);
+
 // Streaming binary little-endian PLY writer (float x,y,z; uchar-count int indices). Counts
 // are given up front so nothing is held in memory. Writes to a temporary name beside the
 // target and renames on finish(); a writer destroyed before finish() removes its file.
@@ -44,7 +50,7 @@ class PlyWriter {
 // Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
 // memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
 // a keyed bijection so any size can be shuffled while streaming.
-enum class SyntheticKind { Grid, Sphere, Terrain };
+enum class SyntheticKind { Grid, Sphere, Terrain, Strip };
 struct GenerateOptions {
   uint64_t triangles = 20000;  // approximate target; the shape rounds it
   bool shuffleVertices = false;
@@ -56,7 +62,8 @@ struct GeneratedCounts {
   uint64_t triangles = 0;
 };
 // Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
-// radius 1. Terrain: grid with multi-octave value-noise heights.
+// radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square
+// cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long).
 GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
                                    const std::filesystem::path& path);
 // Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;

@@ -12,11 +12,12 @@ namespace facetree {
 namespace {
 constexpr size_t kBufferBytes = size_t{1} << 20;
 
-std::filesystem::path temporaryName(const std::filesystem::path& path) {
+}  // namespace
+
+std::filesystem::path temporaryOutputPath(const std::filesystem::path& path) {
   // Unique per process so that two runs writing the same target do not collide.
   return std::filesystem::path(path.string() + ".tmp" + std::to_string(::getpid()));
 }
-}  // namespace
 
 void OutputFile::Closer::operator()(std::FILE* f) const {
   if (f != stdout) std::fclose(f);
@@ -28,7 +29,7 @@ OutputFile::OutputFile(const std::filesystem::path& path) : path_(path) {
     file_.reset(stdout);
     return;
   }
-  temporary_ = temporaryName(path);
+  temporary_ = temporaryOutputPath(path);
   file_.reset(std::fopen(temporary_.c_str(), "wb"));
   if (!file_) fail("cannot create");
   std::setvbuf(file_.get(), nullptr, _IOFBF, kBufferBytes);

@@ -667,7 +667,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
 }
 
 void computeBoxes(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options) {
-  computeBoxesWithThreads(mesh, hierarchy, options, 0);
+  computeBoxesWithThreads(mesh, hierarchy, options, options.threads);
 }
 
 }  // namespace facetree

@@ -79,6 +79,10 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
   return height;
 }
 
+void throwIfCancelled(const BuildOptions& options) {
+  if (options.cancelled && options.cancelled()) throw Cancelled();
+}
+
 }  // namespace
 
 Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
@@ -90,6 +94,7 @@ Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
     const FaceGeometry geometry(mesh);
     DualGraph graph = buildDualGraph(geometry);
     stats.secondsInit = secondsSince(start);
+    throwIfCancelled(options);
 
     MergeResult merged = runMerge(geometry, std::move(graph), options);
     start = std::chrono::steady_clock::now();
@@ -105,6 +110,7 @@ Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
     stats.secondsMerge = merged.secondsMerge + secondsSince(start);
   }
 
+  throwIfCancelled(options);
   if (options.computeBoxes) {
     const auto start = std::chrono::steady_clock::now();
     computeBoxes(mesh, hierarchy, options);

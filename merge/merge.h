@@ -6,13 +6,16 @@
 // per-node face ranges over a reordered face list (sec. 5.5.3).
 //
 // Errors: buildHierarchy throws std::invalid_argument for indices out of range or a mesh too
-// large for 32-bit node ids; the functions for building above separate pieces (below
-// computeBoxes) throw std::invalid_argument for invalid input as documented there; nothing else
+// large for 32-bit node ids, and Cancelled when BuildOptions::cancelled says so; the functions for
+// building above separate pieces (below computeBoxes) throw std::invalid_argument for invalid input
+// as documented there; nothing else
 // is thrown except std::bad_alloc.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
+#include <stdexcept>
 #include <vector>
 
 #include <glm/gtc/quaternion.hpp>
@@ -45,6 +48,20 @@ struct BuildOptions {
   // kBalancePenaltyBase^(excess) (merge_engine.cpp). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
   bool computeBoxes = true;
+  // Worker threads of the box phase (0: the hardware's, at most 8). The output is
+  // bit-identical for every count.
+  unsigned threads = 0;
+  // Cancellation hook, polled by the calling thread every few thousand merges and between
+  // phases (never from worker threads): when it returns true the build stops by throwing
+  // Cancelled. Empty: never cancelled. The library keeps no state of its own for this; a
+  // caller typically returns an atomic flag set by its signal handling.
+  std::function<bool()> cancelled;
+};
+
+// Thrown by a build whose cancellation hook returned true; everything it allocated is freed.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("cancelled") {}
 };
 
 // A child reference is a node index, or a face (its position in faceOrder) with this bit set.

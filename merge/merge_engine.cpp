@@ -89,7 +89,8 @@ class MergeEngine {
         policy_(options, geometry),
         keyScale_(policy_.keyScale()),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0),
-        balanceSlack_(options.balanceSlack) {}
+        balanceSlack_(options.balanceSlack),
+        cancelled_(options.cancelled) {}
 
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
@@ -130,7 +131,8 @@ class MergeEngine {
 
     // Each live cluster with edges has a heap entry whose key is a lower bound of its cheapest
     // edge; the top entry is valid when it equals the cluster's exact minimum.
-    while (!heap_.empty()) {
+    for (uint64_t step = 1; !heap_.empty(); ++step) {
+      if (step % kCancelPollSteps == 0 && cancelled_ && cancelled_()) throw Cancelled();
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;  // every edge left is blocked (lower bounds: all inf)
       // Entries of merged clusters (~0.9 per merge) are dropped without a cold record read.
@@ -193,6 +195,8 @@ class MergeEngine {
   static constexpr size_t kCacheLine = 64;
   // Initial capacity of the per-merge neighbour list (the balance term keeps degrees near 5).
   static constexpr size_t kTypicalDegree = 64;
+  // The cancellation hook is polled every this many heap steps: a few milliseconds of merging.
+  static constexpr uint64_t kCancelPollSteps = 1 << 14;
 
   struct Cluster {
     ClusterStats stats;
@@ -515,6 +519,7 @@ class MergeEngine {
   double keyScale_;
   bool guard_;
   double balanceSlack_;
+  const std::function<bool()>& cancelled_;  // BuildOptions::cancelled, which outlives the engine
   std::vector<ClusterRecord> clusters_;
   // One bit per cluster id, set when it is merged into another (its slot is kDeadSlot): 1/192
   // of the records' size, so it stays in cache while the records do not.

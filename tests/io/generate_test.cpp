@@ -91,11 +91,32 @@ TEST(Generate, FlatGridHasTheExactCountsAndFileSize) {
   std::filesystem::remove(path);
 }
 
+TEST(Generate, StripIsOneRowOfSquareCells) {
+  const auto path = scratch("strip.ply");
+  GenerateOptions options;
+  options.triangles = 1000;  // 500 cells
+  const GeneratedCounts counts = writeSyntheticMesh(SyntheticKind::Strip, options, path);
+  EXPECT_EQ(counts.vertices, 2u * 501u);
+  EXPECT_EQ(counts.triangles, 1000u);
+  const IndexedMesh mesh = readBack(path);
+  EXPECT_EQ(mesh.stats.degenerateTriangles, 0u);
+  // Border: 2 x 500 long sides and the 2 ends; every cell is (1000/500)^2 square.
+  int border = 0;
+  for (const auto& [edge, use] : edgeUse(mesh)) {
+    ASSERT_LE(use, 2);
+    border += use == 1;
+  }
+  EXPECT_EQ(border, 1002);
+  EXPECT_NEAR(totalArea(mesh), 500 * 2.0 * 2.0, 1e-6);
+  std::filesystem::remove(path);
+}
+
 TEST(Generate, ShuffledMeshesHoldTheSameTriangles) {
   GenerateOptions options;
   options.triangles = 5000;
   const auto plain = scratch("plain.ply"), shuffled = scratch("shuffled.ply");
-  for (const SyntheticKind kind : {SyntheticKind::Grid, SyntheticKind::Sphere, SyntheticKind::Terrain}) {
+  for (const SyntheticKind kind :
+       {SyntheticKind::Grid, SyntheticKind::Sphere, SyntheticKind::Terrain, SyntheticKind::Strip}) {
     options.shuffleVertices = options.shuffleFaces = false;
     writeSyntheticMesh(kind, options, plain);
     options.shuffleVertices = options.shuffleFaces = true;

@@ -314,3 +314,32 @@ TEST(BalanceGuard, OnlyTheWillmottMetricIsGuarded) {
 
 }  // namespace
 }  // namespace facetree::test
+
+namespace facetree::test {
+namespace {
+
+// BuildOptions::cancelled: polled during the merge and between phases; true stops the build
+// with Cancelled, and a hook that never fires changes nothing.
+TEST(BuildHierarchy, CancellationHookStopsTheBuild) {
+  const TestMesh mesh = grid(128);  // 32768 triangles: more heap steps than one poll interval
+  BuildOptions options;
+  uint64_t polls = 0;
+  options.cancelled = [&polls] { return ++polls >= 2; };  // the second poll: inside the merge
+  EXPECT_THROW(buildHierarchy(mesh.view(), options), Cancelled);
+  EXPECT_EQ(polls, 2u);
+
+  polls = 0;
+  options.cancelled = [&polls] { return ++polls > 1000000; };
+  const Hierarchy polled = buildHierarchy(mesh.view(), options);
+  const Hierarchy plain = buildHierarchy(mesh.view());
+  EXPECT_GE(polls, 3u) << "polled after the dual graph, in the merge and before the boxes";
+  ASSERT_EQ(polled.nodes.size(), plain.nodes.size());
+  EXPECT_EQ(polled.faceOrder, plain.faceOrder);
+  for (size_t i = 0; i < plain.nodes.size(); ++i) {
+    ASSERT_EQ(polled.nodes[i].first, plain.nodes[i].first) << i;
+    ASSERT_EQ(polled.nodes[i].cost, plain.nodes[i].cost) << i;
+  }
+}
+
+}  // namespace
+}  // namespace facetree::test

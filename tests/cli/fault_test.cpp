@@ -1,0 +1,303 @@
+// Faults injected into the facetree executable: the disk filling up while an output is written
+// (RLIMIT_FSIZE), unreadable inputs, unwritable output folders, and SIGINT / SIGTERM mid-run.
+// Every case checks the exit code, the exact message, and that the output folder holds neither
+// the output nor a temporary file afterwards.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "child_process.h"
+#include "run_cli.h"
+
+namespace facetree {
+namespace {
+
+namespace fs = std::filesystem;
+using test::Child;
+using test::ChildOptions;
+using test::ChildResult;
+using test::runChild;
+
+// Small enough that every output below exceeds it (each case checks that it does).
+constexpr rlim_t kFileSizeLimit = 16 * 1024;
+
+std::vector<std::string> listing(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename().string());
+  return names;
+}
+
+// Shared inputs: a mesh and its cluster file, made once for the suite.
+class Faults : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    inputs_ = fs::temp_directory_path() / ("facetree_faults_" + std::to_string(::getpid()));
+    fs::create_directories(inputs_);
+    ASSERT_EQ(test::runCli("gen sphere -n 20000 -o " + mesh()).exitCode, 0);
+    ASSERT_EQ(test::runCli("build " + mesh() + " -o " + fch()).exitCode, 0);
+  }
+  static void TearDownTestSuite() { fs::remove_all(inputs_); }
+  static std::string mesh() { return (inputs_ / "sphere.ply").string(); }
+  static std::string fch() { return (inputs_ / "sphere.fch").string(); }
+
+  void SetUp() override {
+    out_ = inputs_ / ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    fs::create_directories(out_);
+  }
+  void TearDown() override {
+    fs::permissions(out_, fs::perms::owner_all, fs::perm_options::add);
+    fs::remove_all(out_);
+  }
+  std::string out(const std::string& name) const { return (out_ / name).string(); }
+  // The output folder is empty: no output and no temporary file.
+  void expectNothingLeft() const {
+    const auto names = listing(out_);
+    EXPECT_TRUE(names.empty()) << "left behind: " << ::testing::PrintToString(names);
+  }
+
+  static inline fs::path inputs_;
+  fs::path out_;
+};
+
+struct DiskFullCase {
+  const char* name;
+  std::vector<std::string> (*args)(const std::string& mesh, const std::string& fch, const std::string& out);
+  const char* output;
+};
+
+const DiskFullCase kDiskFullCases[] = {
+    {"gen",
+     [](auto&, auto&, auto& o) -> std::vector<std::string> { return {"gen", "grid", "-n", "50k", "-o", o}; },
+     "grid.ply"},
+    {"build",
+     [](auto& m, auto&, auto& o) -> std::vector<std::string> {
+       return {"build", m, "-o", o};
+     },
+     "s.fch"},
+    {"build_mesh_out",
+     [](auto& m, auto&, auto& o) -> std::vector<std::string> {
+       return {"build", m, "--mesh-out", o};
+     },
+     "reordered.ply"},
+    {"truncate",
+     [](auto&, auto& f, auto& o) -> std::vector<std::string> {
+       return {"truncate", f, "-o", o, "--nodes", "5000"};
+     },
+     "t.fch"},
+    {"export",
+     [](auto&, auto& f, auto& o) -> std::vector<std::string> {
+       return {"export", f, "--cut", "50", "-o", o};
+     },
+     "cut.ply"},
+    {"render",
+     [](auto&, auto& f, auto& o) -> std::vector<std::string> {
+       return {"render", f, "--cut", "50", "-o", o};
+     },
+     "cut.png"},
+};
+
+TEST_F(Faults, DiskFullWhileWritingExitsWithFourAndLeavesNothing) {
+  for (const DiskFullCase& c : kDiskFullCases) {
+    SCOPED_TRACE(c.name);
+    // Unlimited, the output is larger than the limit ...
+    const std::string reference = out(std::string("ref_") + c.output);
+    const ChildResult full = runChild(c.args(mesh(), fch(), reference));
+    ASSERT_EQ(full.exitCode, 0) << full.output;
+    ASSERT_GT(fs::file_size(reference), kFileSizeLimit);
+    fs::remove(reference);
+    // ... so with the limit the write fails: one message naming the file, nothing left.
+    const std::string target = out(c.output);
+    ChildOptions options;
+    options.fileSizeLimit = kFileSizeLimit;
+    const ChildResult result = runChild(c.args(mesh(), fch(), target), options);
+    EXPECT_EQ(result.exitCode, 4) << result.output;
+    EXPECT_EQ(result.output, "facetree: " + target + ": cannot write: File too large\n");
+    expectNothingLeft();
+  }
+}
+
+TEST_F(Faults, UnreadableInputExitsWithThreeAndNamesTheFile) {
+  const std::string dir = out("a_folder");
+  fs::create_directory(dir);
+  const std::string missing = out("missing.ply");
+  const std::string sink = out("sink");  // never written: every command fails first
+  struct Case {
+    std::vector<std::string> args;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {{"stats", dir}, dir + ": byte 0: is a directory"},
+      {{"build", dir}, dir + ": byte 0: is a directory"},
+      {{"gen", "subdivide", dir, "-o", sink}, dir + ": byte 0: is a directory"},
+      {{"info", dir}, dir + ": is a directory"},
+      {{"verify", dir}, dir + ": is a directory"},
+      {{"truncate", dir, "-o", sink, "--nodes", "3"}, dir + ": is a directory"},
+      {{"render", dir, "-o", sink}, dir + ": is a directory"},
+      {{"export", dir, "-o", sink}, dir + ": is a directory"},
+      {{"verify", fch(), dir}, dir + ": byte 0: is a directory"},
+      {{"stats", missing}, missing + ": byte 0: cannot open: no such file or directory"},
+      {{"build", missing, "-o", sink}, missing + ": byte 0: cannot open: no such file or directory"},
+      {{"info", missing}, missing + ": cannot open: No such file or directory"},
+      {{"export", missing, "-o", sink}, missing + ": cannot open: No such file or directory"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(::testing::PrintToString(c.args));
+    const ChildResult result = runChild(c.args);
+    EXPECT_EQ(result.exitCode, 3) << result.output;
+    EXPECT_EQ(result.output, "facetree: " + c.message + "\n");
+  }
+  fs::remove(dir);
+  expectNothingLeft();
+}
+
+TEST_F(Faults, InputWithoutReadPermissionExitsWithThree) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root reads files of mode 000";
+  const std::string locked = out("locked.ply");
+  fs::copy_file(mesh(), locked);
+  fs::permissions(locked, fs::perms::none);
+  const ChildResult result = runChild({"stats", locked});
+  EXPECT_EQ(result.exitCode, 3) << result.output;
+  EXPECT_EQ(result.output, "facetree: " + locked + ": byte 0: cannot open: permission denied\n");
+  fs::remove(locked);
+}
+
+// The output folder is checked before the work starts (a long build must not fail at its end).
+TEST_F(Faults, MissingOutputFolderExitsWithFourBeforeTheWork) {
+  const std::string target = out("no_such_folder/out");
+  const std::vector<std::vector<std::string>> cases = {
+      {"gen", "grid", "-n", "100", "-o", target},
+      {"build", mesh(), "-o", target},
+      {"build", mesh(), "--mesh-out", target},
+      {"truncate", fch(), "-o", target, "--nodes", "3"},
+      {"render", fch(), "-o", target},
+      {"export", fch(), "-o", target},
+      // The input is not even read: its error would be exit 3.
+      {"build", out("missing.ply"), "-o", target},
+  };
+  for (const auto& args : cases) {
+    SCOPED_TRACE(::testing::PrintToString(args));
+    const ChildResult result = runChild(args);
+    EXPECT_EQ(result.exitCode, 4) << result.output;
+    EXPECT_EQ(result.output, "facetree: " + target + ": cannot create: No such file or directory\n");
+  }
+  const ChildResult folder = runChild({"build", mesh(), "-o", out_.string()});
+  EXPECT_EQ(folder.exitCode, 4) << folder.output;
+  EXPECT_EQ(folder.output, "facetree: " + out_.string() + ": cannot create: Is a directory\n");
+  expectNothingLeft();
+}
+
+TEST_F(Faults, UnwritableOutputFolderExitsWithFour) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root writes into folders of mode 555";
+  fs::permissions(out_, fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write,
+                  fs::perm_options::remove);
+  const std::string target = out("out.fch");
+  const ChildResult result = runChild({"build", mesh(), "-o", target});
+  EXPECT_EQ(result.exitCode, 4) << result.output;
+  EXPECT_EQ(result.output, "facetree: " + target + ": cannot create: Permission denied\n");
+  fs::permissions(out_, fs::perms::owner_all, fs::perm_options::add);
+  expectNothingLeft();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Signals
+
+// CPU time the process has used so far (utime + stime of /proc/PID/stat), in seconds.
+double cpuSeconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(in)), {});
+  const size_t end = stat.rfind(')');  // the command name may hold spaces
+  if (end == std::string::npos) return 0;
+  std::istringstream fields(stat.substr(end + 2));
+  std::string skip;
+  for (int i = 3; i < 14; ++i) fields >> skip;  // fields 3..13
+  double utime = 0, stime = 0;
+  fields >> utime >> stime;
+  return (utime + stime) / double(::sysconf(_SC_CLK_TCK));
+}
+
+class Signals : public Faults, public ::testing::WithParamInterface<int> {
+ protected:
+  static void SetUpTestSuite() {
+    Faults::SetUpTestSuite();
+    // A few million faces: seconds of merging on any machine.
+    ASSERT_EQ(test::runCli("gen grid -n 3M --shuffle-faces -o " + bigMesh()).exitCode, 0);
+  }
+  static std::string bigMesh() { return (inputs_ / "grid3m.ply").string(); }
+  std::string message() const {
+    return std::string("facetree: interrupted by ") + (GetParam() == SIGINT ? "SIGINT" : "SIGTERM") + "\n";
+  }
+};
+
+// Mid-merge (the input is all read from a pipe): the build polls the signal, unwinds, exits
+// with 128 + signal and writes nothing.
+TEST_P(Signals, BuildFromStandardInputStopsWithNoOutput) {
+  const std::string target = out("big.fch");
+  ChildOptions options;
+  options.stdinPipe = true;
+  Child child({"build", "-", "-o", target}, options);
+  ASSERT_TRUE(child.started());
+  ASSERT_TRUE(child.writeInput(bigMesh()));
+  child.closeInput();
+  child.signal(GetParam());
+  const ChildResult result = child.wait();
+  EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
+  EXPECT_EQ(result.output, message());
+  expectNothingLeft();
+}
+
+// The same from a file: the signal comes once the process has worked a little.
+TEST_P(Signals, BuildFromFileStopsWithNoOutput) {
+  const std::string target = out("big.fch");
+  Child child({"build", bigMesh(), "-o", target, "--mesh-out", out("big.ply")});
+  ASSERT_TRUE(child.started());
+  while (child.running() && cpuSeconds(child.pid()) < 0.3)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  child.signal(GetParam());
+  const ChildResult result = child.wait();
+  EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
+  EXPECT_EQ(result.output, message());
+  expectNothingLeft();
+}
+
+// gen does not poll: the signal thread gives it the grace time, then removes its temporary
+// file and exits. If it completes within the grace time its output is complete and it exits 0
+// (the contract: exit 0 if and only if the outputs are complete).
+TEST_P(Signals, GenerateStopsWithNoOutputOrCompletes) {
+  const std::string target = out("big.ply");
+  Child child({"gen", "terrain", "-n", "8M", "--shuffle-vertices", "--shuffle-faces", "-o", target});
+  ASSERT_TRUE(child.started());
+  // Writing has started once the temporary file exists.
+  while (child.running() && listing(out_).empty()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  child.signal(GetParam());
+  const ChildResult result = child.wait();
+  if (result.exitCode == 0) {
+    std::printf("[ note ] gen completed within the grace time\n");
+    EXPECT_EQ(listing(out_), std::vector<std::string>{"big.ply"});
+    const ChildResult stats = runChild({"stats", target});
+    EXPECT_EQ(stats.exitCode, 0) << stats.output;
+    fs::remove(target);
+  } else {
+    EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
+    EXPECT_EQ(result.output, message());
+  }
+  expectNothingLeft();
+}
+
+INSTANTIATE_TEST_SUITE_P(IntAndTerm, Signals, ::testing::Values(SIGINT, SIGTERM),
+                         [](const auto& info) { return info.param == SIGINT ? "SIGINT" : "SIGTERM"; });
+
+TEST(Options, ThreadsOptionIsChecked) {
+  const auto result = test::runCli("build --threads 9 x.ply");
+  EXPECT_EQ(result.exitCode, 2);
+  EXPECT_EQ(result.out, "facetree: --threads must be 0 (all cores) to 8 (see facetree --help)\n");
+}
+
+}  // namespace
+}  // namespace facetree
