@@ -66,11 +66,20 @@ void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending)
   max_ = -min_;
   arrival_ = std::make_unique<BucketSpill>(temp_, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes);
   const bool deferred = reader.positionsDeferred();
-  // Triangles the job read in memory: their positions are in memory too.
+  const auto spillRef = [this](const uint32_t vertex[3], uint64_t face) {
+    if (!refs_) refs_ = std::make_unique<BucketSpill>(temp_, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
+    const TriangleRef ref{{vertex[0], vertex[1], vertex[2]}, 0, face};
+    refs_->append(0, &ref);
+  };
+  // Triangles the job read in memory (their positions may have been spilled since).
   {
     const size_t n = pending.originalFace.size();
     for (size_t t = 0; t < n; ++t) {
       const uint32_t* v = &pending.indices[3 * t];
+      if (deferred && !positions_->inMemory()) {
+        spillRef(v, pending.originalFace[t]);
+        continue;
+      }
       glm::vec3 corner[3];
       for (int k = 0; k < 3; ++k)
         corner[k] = deferred ? positions_->memory()[v[k]] : reader.vertices().position(v[k]);
@@ -89,9 +98,7 @@ void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending)
                                      positions_->memory()[t.vertex[2]]};
         appendResolved(t.vertex, t.face, corner);
       } else {
-        if (!refs_) refs_ = std::make_unique<BucketSpill>(temp_, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
-        const TriangleRef ref{{t.vertex[0], t.vertex[1], t.vertex[2]}, 0, t.face};
-        refs_->append(0, &ref);
+        spillRef(t.vertex, t.face);
       }
     }
     checkCancel("read", reader.stats().inputBytes, 0);
