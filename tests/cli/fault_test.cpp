@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -222,6 +223,55 @@ double cpuSeconds(pid_t pid) {
   return (utime + stime) / double(::sysconf(_SC_CLK_TCK));
 }
 
+// Out of core (forced with small cells), the temporary files are what fills the disk first:
+// exit 5, one message naming the spill file, no output and an empty --tmp folder.
+TEST_F(Faults, DiskFullInTemporaryFilesExitsWithFiveAndLeavesNothing) {
+  const fs::path tmp = inputs_ / "tmp-diskfull";
+  fs::create_directories(tmp);
+  const std::string target = out("ooc.fch");
+  ChildOptions options;
+  options.fileSizeLimit = kFileSizeLimit;
+  const ChildResult result =
+      runChild({"build", mesh(), "-o", target, "--cell-faces", "2000", "--tmp", tmp.string()}, options);
+  EXPECT_EQ(result.exitCode, 5) << result.output;
+  EXPECT_EQ(result.output.rfind("facetree: " + tmp.string() + "/facetree-", 0), 0u) << result.output;
+  EXPECT_NE(result.output.find(".spill: write failed: File too large\n"), std::string::npos) << result.output;
+  EXPECT_EQ(std::count(result.output.begin(), result.output.end(), '\n'), 1) << result.output;
+  expectNothingLeft();
+  EXPECT_TRUE(listing(tmp).empty()) << ::testing::PrintToString(listing(tmp));
+  fs::remove_all(tmp);
+}
+
+// --max-tmp: the same as a limit of the run, exit 5 with the limit in the message.
+TEST_F(Faults, TemporaryLimitExitsWithFive) {
+  const fs::path tmp = inputs_ / "tmp-limit";
+  fs::create_directories(tmp);
+  const ChildResult result = runChild(
+      {"build", mesh(), "-o", out("ooc.fch"), "--cell-faces", "2000", "--tmp", tmp.string(), "--max-tmp", "64k"});
+  EXPECT_EQ(result.exitCode, 5) << result.output;
+  EXPECT_NE(result.output.find("temporary files would exceed --max-tmp 65536 bytes"), std::string::npos)
+      << result.output;
+  expectNothingLeft();
+  EXPECT_TRUE(listing(tmp).empty());
+  fs::remove_all(tmp);
+}
+
+// Standard input to standard output through the out-of-core build: the bytes that come out are
+// the cluster file the same build writes to a file.
+TEST_F(Faults, OutOfCoreFromStandardInputToStandardOutput) {
+  const std::string piped = out("piped.fch"), direct = out("direct.fch");
+  // (runCli appends 2>&1 to the command line: it applies to the `true` after the build, and the
+  // build's report on stderr, which must not reach the file, goes to /dev/null.)
+  ASSERT_EQ(test::runCli("build - -o - --cell-faces 3000 < " + mesh() + " 2>/dev/null > " + piped + "; true").exitCode, 0);
+  ASSERT_EQ(test::runCli("build " + mesh() + " -o " + direct + " --cell-faces 3000").exitCode, 0);
+  std::ifstream a(piped, std::ios::binary), b(direct, std::ios::binary);
+  const std::string x{std::istreambuf_iterator<char>(a), {}}, y{std::istreambuf_iterator<char>(b), {}};
+  EXPECT_GT(x.size(), 10000u);
+  EXPECT_EQ(x, y);
+  const auto verified = test::runCli("verify " + piped + " " + mesh());
+  EXPECT_EQ(verified.exitCode, 0) << verified.out;
+}
+
 class Signals : public Faults, public ::testing::WithParamInterface<int> {
  protected:
   static void SetUpTestSuite() {
@@ -263,6 +313,24 @@ TEST_P(Signals, BuildFromFileStopsWithNoOutput) {
   const ChildResult result = child.wait();
   EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
   EXPECT_EQ(result.output, message());
+  expectNothingLeft();
+}
+
+// Out of core: the signal stops the cells pass; no output, and the --tmp folder is empty.
+TEST_P(Signals, OutOfCoreBuildStopsWithNoOutputOrTemporaryFiles) {
+  const fs::path tmp = out_ / "tmp";
+  fs::create_directories(tmp);
+  const std::string target = out("big.fch");
+  Child child({"build", bigMesh(), "-o", target, "--memory", "64M", "--tmp", tmp.string()});
+  ASSERT_TRUE(child.started());
+  while (child.running() && cpuSeconds(child.pid()) < 1.0)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  child.signal(GetParam());
+  const ChildResult result = child.wait();
+  EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
+  EXPECT_EQ(result.output, message());
+  EXPECT_TRUE(listing(tmp).empty()) << ::testing::PrintToString(listing(tmp));
+  fs::remove_all(tmp);
   expectNothingLeft();
 }
 
