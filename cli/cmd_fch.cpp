@@ -1,5 +1,7 @@
 // facetree truncate / info / verify: the cluster file commands (docs/FORMAT.md).
+#include <charconv>
 #include <cstdio>
+#include <sstream>
 
 #include "cli/args.h"
 #include "cli/commands.h"
@@ -37,6 +39,24 @@ int guarded(F&& body) {
   } catch (const ClusterFileError& e) {
     return invalid(e.what());
   }
+}
+
+// --fit-cuts 1000,100000: cluster counts of the cuts whose fit error info reports.
+std::vector<uint64_t> fitCutCounts(const Args& args) {
+  std::vector<uint64_t> counts;
+  const auto text = args.value("fit-cuts");
+  if (!text) return counts;
+  std::istringstream list(*text);
+  for (std::string item; std::getline(list, item, ',');) {
+    uint64_t count = 0;
+    const auto [end, error] = std::from_chars(item.data(), item.data() + item.size(), count);
+    if (error != std::errc() || end != item.data() + item.size() || count == 0)
+      throw UsageError("--fit-cuts needs cluster counts of at least 1 separated by commas, got '" + *text +
+                       "'");
+    counts.push_back(count);
+  }
+  if (counts.empty()) throw UsageError("--fit-cuts needs at least one cluster count");
+  return counts;
 }
 
 }  // namespace
@@ -80,12 +100,15 @@ int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
 }
 
 int runInfo(const std::vector<std::string>& argv) {
-  const Args args(argv, {}, {"json"});
+  const Args args(argv, {"fit-cuts"}, {"json"});
   if (args.positional().size() != 1) throw UsageError("info takes exactly one cluster file");
   const std::string& name = args.positional()[0];
+  const std::vector<uint64_t> fitCuts = fitCutCounts(args);
   return guarded([&] {
     const FchLayout layout = readClusterFileLayout(name);
-    ClusterFile file = readClusterFile(name, /*geometry=*/false);
+    ClusterFile file = readClusterFile(name, /*geometry=*/!fitCuts.empty());
+    std::vector<CutFit> fits;
+    for (const uint64_t clusters : fitCuts) fits.push_back(cutFit(file, clusters));
     // branchingStats needs the triangle count only from the indices' size.
     file.indices.resize(3 * layout.header.triangleCount);
     const BranchingStats s = branchingStats(file);
@@ -139,6 +162,17 @@ int runInfo(const std::vector<std::string>& argv) {
       }
       json.endObject();
       json.field("node_bytes_per_node", perNode);
+      if (!fits.empty()) {
+        json.beginObject("fit_cuts");  // keyed by the cluster count asked for
+        for (size_t i = 0; i < fits.size(); ++i) {
+          json.beginObject(std::to_string(fitCuts[i]));
+          json.field("clusters", fits[i].clusters);
+          json.field("sum_fit", fits[i].sumFit);
+          json.field("sum_area_fit", fits[i].sumAreaFit);
+          json.endObject();
+        }
+        json.endObject();
+      }
       std::fputs(json.finish().c_str(), stdout);
       return int{kExitOk};
     }
@@ -169,6 +203,10 @@ int runInfo(const std::vector<std::string>& argv) {
                   static_cast<unsigned long long>(sections[i].frames),
                   static_cast<unsigned long long>(sections[i].raw));
     std::printf("per node      %.1f bytes compressed\n", perNode);
+    for (size_t i = 0; i < fits.size(); ++i)
+      std::printf("fit cut       %llu asked, %llu clusters: sum eFit %.9g, sum area*eFit %.9g\n",
+                  static_cast<unsigned long long>(fitCuts[i]),
+                  static_cast<unsigned long long>(fits[i].clusters), fits[i].sumFit, fits[i].sumAreaFit);
     return int{kExitOk};
   });
 }

@@ -42,7 +42,10 @@ commands:
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
                                  keep the first nodes of a cluster file (geometry counts in B)
-  info FILE.fch [--json]         counts, height, branching histogram, bytes per section
+  info FILE.fch [--json] [--fit-cuts N,N...]
+                                 counts, height, branching histogram, bytes per section; with
+                                 --fit-cuts the fit error of cuts of N clusters (sum of eq. 84's
+                                 eFit and of area * eFit over the cut)
   verify FILE.fch [MESH] [--json]  check every invariant (exit 3 names the first violation)
 
   render FILE.fch (--cut N | --depth D) -o OUT.png [--width W] [--height H] [--view X,Y,Z] [--up X,Y,Z]

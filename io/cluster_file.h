@@ -260,6 +260,20 @@ VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
 std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters);
 std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth);
 
+// How well a cut approximates the surface (Willmott 2000, eq. 84): for the clusters of
+// clusterCut(file, clusters), the sum of their eFit (surfaceFitError with the default flat
+// threshold, whatever the file was built with, so files built differently compare on one measure)
+// and of area * eFit (the area integral of the squared distance to each cluster's plane along its
+// normal), from surfaceStats of each cluster's triangles about the centre of the vertices' bounding box.
+// Lower is better; a cut of single triangles gives 0. Needs the geometry (readClusterFile with
+// geometry; else std::invalid_argument). Cost O(triangles + vertices), memory O(vertices).
+struct CutFit {
+  uint64_t clusters = 0;  // of the cut: at least the number asked for, or every face if there are fewer
+  double sumFit = 0;      // sum of eFit (length^2)
+  double sumAreaFit = 0;  // sum of area * eFit (length^4)
+};
+CutFit cutFit(const ClusterFile& file, uint64_t clusters);
+
 // The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
 // PLY (".ply") or Draco (".drc", sequential connectivity so face order and point ids are kept).
 struct MeshOutOptions {

@@ -144,6 +144,13 @@ struct SurfaceStats {
 // gives zero statistics; throws std::invalid_argument as buildHierarchy does for invalid indices.
 SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin);
 
+// eFit of Willmott 2000, eq. 84: the variance of the surface along its normal, n = S/|S| when
+// |S|/A > flatThreshold (eq. 78), else the smallest eigenvector of the covariance (PCA), exactly as
+// the merge cost evaluates it. Units of length^2, independent of the origin of the moments (up to
+// rounding: take one near the surface); 0 for zero area. Measures how well a cut approximates the
+// surface (io/cluster_file.h cutFit).
+double surfaceFitError(const SurfaceStats& stats, double flatThreshold = 0.5);
+
 // Edge-connected components under the dual graph's edge rules (dual_graph.h): label[f] for each triangle,
 // components numbered 0, 1, ... in order of their lowest triangle. Returns the number of components.
 // Throws std::invalid_argument as buildHierarchy does for invalid indices.

@@ -4,8 +4,10 @@
 // numbers. The perimeter follows the dual graph's edge rules (dual_graph.h): the sum of the
 // triangles' perimeters minus twice every dual edge's shared length, which is what the merges
 // of all dual edges subtract (perim(A u B) = perim(A) + perim(B) - 2 shared).
+// surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
 
+#include "merge/cost.h"
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
 #include "merge/surface_stats.h"
@@ -54,6 +56,11 @@ SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin) {
   shared += blockShared;
   total.perimeter = std::max(0.0, total.perimeter - 2.0 * shared);
   return toSurfaceStats(total, n, 1);
+}
+
+double surfaceFitError(const SurfaceStats& stats, double flatThreshold) {
+  CostCounters counters;  // the merge's counters, not reported here
+  return willmottFitError(toClusterStats(stats), flatThreshold, counters);
 }
 
 }  // namespace facetree

@@ -20,8 +20,12 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
   branching  cluster file size for branching 2, 4, 8 (verified) and per truncation prefix
   flat       Figs 69-71: flat regular grids: time and maximum dual-edge degree for the default
              metric against the constant-cost and Garland metrics, and the log-log slope
-  outofcore  TODO (issue 5): time and peak RSS against --memory cap, coherent and shuffled input;
-             skipped while `facetree build` has no --memory option
+  outofcore  issue 5: a generated terrain (quick 2M faces, full 10M) and its shuffled twin built
+             with --memory 64M, 256M, 1G and in core (--memory 16G: the job's in-core path): time,
+             peak RSS (the job's --json and wait4's ru_maxrss, what /usr/bin/time prints), temporary
+             and file bytes, cells, leaves, height, ratios to in core; and the quality of forced
+             out-of-core builds (--cell-faces) of meshes that fit against the in-core one: eFit
+             summed over cuts of 1,000 and 100,000 clusters (`info --fit-cuts`), heights, ratios
 
 The per-mesh builds (default metric, Garland metric, octree) run interleaved, once per
 repetition, and are shared by build, profile, balance, scaling and octree.
@@ -30,7 +34,8 @@ Writes OUT/bench.json (and OUT/pictures/*.png) and prints a table per section.
 
 Budget on the 2-CPU shared machine: --quick about 5 minutes at load 6 (2.3 CPU minutes); the
 full run about 30 CPU minutes by the quick run's per-face rates, so under an hour unless the
-machine is loaded several times over.
+machine is loaded several times over. The outofcore section adds about 3 minutes in --quick (one run per
+case: 8 builds of 2M faces, 6 quality builds of ~1M) at load 3.
 """
 import argparse
 import json
@@ -43,6 +48,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 SHARED = pathlib.Path(__file__).resolve().parent.parent.parent / "shared" / "data"
@@ -61,6 +67,15 @@ SCALING_QUICK = [100_000, 300_000]
 SCALING_FULL = [1_000_000, 2_000_000, 4_000_000]
 SCALING_OUT_OF_CORE = [50_000_000]
 OUT_OF_CORE_CAPS = ["64M", "256M", "1G", None]  # None: in core
+# Without --memory the CLI takes its older in-core path (no job report); a cap far above the mesh
+# gives the job's in-core path, whose report and writer the out-of-core runs share.
+IN_CORE_CAP = "16G"
+OUT_OF_CORE_FACES_QUICK = 2_000_000
+OUT_OF_CORE_FACES_FULL = 10_000_000
+# Quality: meshes that fit, built in core and out of core forced with cells of at most N faces.
+QUALITY_MESHES = [("dragon_vrip", None), ("terrain 1M", 1_000_000)]  # (name, generated faces or shared)
+QUALITY_CELL_FACES = [20_000, 100_000]
+FIT_CUTS = [1000, 100_000]
 
 
 def run(command):
@@ -94,6 +109,24 @@ class ChildCpu:
 
 
 CPU = ChildCpu()
+
+
+def run_measured(command):
+    """Runs a command; returns (stdout, wall seconds, process CPU seconds, peak RSS bytes) from its own
+    wait4 rusage (ru_maxrss: what /usr/bin/time reports as maximum resident set size). Output goes
+    through temporary files so that the child is reaped here, by wait4, and not by Popen."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        start = time.perf_counter()
+        process = subprocess.Popen([str(c) for c in command], stdout=out, stderr=err, text=True)
+        _, status, usage = os.wait4(process.pid, 0)
+        wall = time.perf_counter() - start
+        process.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0), err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    if process.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, command))} failed ({process.returncode}): {stderr.strip()}")
+    CPU.lap()  # keep the children's CPU clock of the other sections in step
+    return stdout, wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss * 1024
 
 
 def run_json(command):
@@ -533,16 +566,113 @@ def bench_flat(args, tmp):
     return {"rows": rows, "slopes": slopes}
 
 
-def bench_outofcore(args):
-    """Issue 6 item 6, waiting for issue 5: the cases are laid out so that the results slot in."""
-    help_text = subprocess.run([args.facetree, "--help"], capture_output=True, text=True).stdout
-    cases = [{"mesh": f"terrain {SCALING_OUT_OF_CORE[-1] // 1_000_000}M", "memory": cap, "input": order}
-             for cap in OUT_OF_CORE_CAPS for order in ("coherent", "shuffled")]
-    if "--memory" not in help_text:
-        print("outofcore TODO: `facetree build` has no --memory option yet (issue 5); skipped", flush=True)
-        return {"todo": "needs the out-of-core build (issue 5)", "cases": cases, "results": []}
-    print("outofcore TODO: --memory exists but this section is not written yet; skipped", flush=True)
-    return {"todo": "section not written yet", "cases": cases, "results": []}
+def build_job(args, mesh, fch, options):
+    """One `facetree build MESH -o FCH --json` through the job; its report with the wall, process CPU
+    and peak RSS of the process as wait4 saw them."""
+    stdout, wall, cpu, rss = run_measured([args.facetree, "build", mesh, "-o", fch, "--json", *options])
+    report = json.loads(stdout)
+    report.update(process_wall_seconds=wall, process_cpu_seconds=cpu, process_peak_rss_bytes=rss)
+    return report
+
+
+def cap_bytes(cap):
+    return int(cap[:-1]) << {"M": 20, "G": 30}[cap[-1]]
+
+
+def fit_cuts(args, fch):
+    info = json.loads(run([args.facetree, "info", fch, "--json", "--fit-cuts", ",".join(map(str, FIT_CUTS))])[0])
+    return {"height": info["height"], "balanced_height": info["balanced_height"],
+            "cuts": {int(k): v for k, v in info["fit_cuts"].items()}}
+
+
+def ratio(a, b):
+    return a / b if a is not None and b else None
+
+
+def bench_outofcore(args, out):
+    """Issue 5: the out-of-core build against the in-core one, cost and quality."""
+    started, load_start = time.time(), os.getloadavg()
+    # Several GB-scale builds: one run per case in --quick (the trees are deterministic; times carry
+    # the machine's load, process CPU times less so), args.repeat otherwise.
+    repeat = 1 if args.quick else args.repeat
+    tmp = out / "outofcore_tmp"
+    tmp.mkdir(exist_ok=True)
+    fch = out / "outofcore.fch"
+    faces = OUT_OF_CORE_FACES_QUICK if args.quick else OUT_OF_CORE_FACES_FULL
+    rows = []
+    for order in ("coherent", "shuffled"):
+        mesh = out / f"outofcore_terrain_{order}.ply"
+        shuffle = ["--shuffle-vertices", "--shuffle-faces"] if order == "shuffled" else []
+        run([args.facetree, "gen", "terrain", "-n", faces, "-o", mesh, *shuffle])
+        for cap in OUT_OF_CORE_CAPS:
+            options = ["--memory", cap or IN_CORE_CAP, "--tmp", tmp]
+            runs = [build_job(args, mesh, fch, options) for _ in range(repeat)]
+            first = runs[0]
+            row = {"mesh": f"terrain {faces / 1e6:g}M", "input": order, "memory": cap,
+                   "triangles": first["triangles"], "out_of_core": first["out_of_core"],
+                   "seconds": median(r["process_wall_seconds"] for r in runs),
+                   "process_cpu_seconds": median(r["process_cpu_seconds"] for r in runs),
+                   "phases": {k: median(r["seconds"][k] for r in runs) for k in first["seconds"]},
+                   "peak_rss_bytes": max(r["peak_rss_bytes"] for r in runs),
+                   "process_peak_rss_bytes": max(r["process_peak_rss_bytes"] for r in runs),
+                   "peak_rss_after": first["peak_rss_after"],
+                   "temporary_bytes_peak": first["temporary_bytes_peak"], "file_bytes": first["file_bytes"],
+                   "cells": first["cells"], "leaves": first["leaves"], "height": first["height"],
+                   "balanced_height": first["balanced_height"], "runs": len(runs)}
+            row["under_cap"] = cap is None or row["process_peak_rss_bytes"] <= cap_bytes(cap)
+            rows.append(row)
+            print(f"outofcore {row['mesh']:12s} {order:8s} {cap or 'in core':8s} {row['seconds']:8.2f} s  cpu "
+                  f"{row['process_cpu_seconds']:8.2f} s  peak {row['process_peak_rss_bytes'] / 2**20:7.1f} MiB "
+                  f"(job {row['peak_rss_bytes'] / 2**20:.1f})  tmp {row['temporary_bytes_peak'] / 1e6:7.1f} MB  "
+                  f"file {row['file_bytes'] / 1e6:7.1f} MB  cells {row['cells']}  leaves {row['leaves']}  "
+                  f"height {row['height']}/{row['balanced_height']}", flush=True)
+        fch.unlink(missing_ok=True)
+        mesh.unlink()
+    for row in rows:
+        base = next(r for r in rows if r["input"] == row["input"] and r["memory"] is None)
+        row["ratio"] = {key: ratio(row[key], base[key]) for key in
+                        ("seconds", "process_cpu_seconds", "process_peak_rss_bytes", "file_bytes", "height")}
+
+    quality = []
+    for name, generated in QUALITY_MESHES:
+        if generated:
+            mesh = out / "outofcore_quality.ply"
+            run([args.facetree, "gen", "terrain", "-n", generated, "-o", mesh])
+        else:
+            mesh = mesh_path(name)
+        builds = [(None, ["--memory", IN_CORE_CAP])]
+        builds += [(n, ["--memory", IN_CORE_CAP, "--cell-faces", n, "--tmp", tmp]) for n in QUALITY_CELL_FACES]
+        for cell_faces, options in builds:
+            report = build_job(args, mesh, fch, options)
+            fits = fit_cuts(args, fch)
+            row = {"mesh": name, "triangles": report["triangles"], "cell_faces": cell_faces,
+                   "out_of_core": report["out_of_core"], "cells": report["cells"], "leaves": report["leaves"],
+                   "seconds": report["process_wall_seconds"], "height": fits["height"],
+                   "balanced_height": fits["balanced_height"], "cuts": fits["cuts"]}
+            quality.append(row)
+            print(f"outofcore quality {name:12s} {'in core' if cell_faces is None else f'cells of {cell_faces}':16s} "
+                  f"height {row['height']}/{row['balanced_height']}  " + "  ".join(
+                      f"{n}: {c['clusters']} clusters sum eFit {c['sum_fit']:.4g} sum A*eFit {c['sum_area_fit']:.4g}"
+                      for n, c in row["cuts"].items()), flush=True)
+        fch.unlink(missing_ok=True)
+        if generated:
+            mesh.unlink()
+    for row in quality:
+        base = next(r for r in quality if r["mesh"] == row["mesh"] and r["cell_faces"] is None)
+        row["ratio"] = {"height": ratio(row["height"], base["height"]),
+                        "sum_fit": {n: ratio(c["sum_fit"], base["cuts"][n]["sum_fit"]) for n, c in row["cuts"].items()},
+                        "sum_area_fit": {n: ratio(c["sum_area_fit"], base["cuts"][n]["sum_area_fit"])
+                                         for n, c in row["cuts"].items()}}
+        if row["cell_faces"] is not None:
+            print(f"outofcore quality {row['mesh']:12s} cells of {row['cell_faces']}: OOC / in core: height "
+                  f"{row['ratio']['height']:.3f}  " + "  ".join(
+                      f"{n}: sum eFit {row['ratio']['sum_fit'][n]:.3f} sum A*eFit {row['ratio']['sum_area_fit'][n]:.3f}"
+                      for n in row["cuts"]), flush=True)
+    shutil.rmtree(tmp, ignore_errors=True)
+    return {"faces": faces, "in_core_cap": IN_CORE_CAP, "repeat": repeat, "rows": rows, "quality": quality,
+            "fit_cuts": FIT_CUTS, "date": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(started)),
+            "load_average_start": load_start, "load_average_end": os.getloadavg(),
+            "wall_seconds": time.time() - started}
 
 
 SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "outofcore"]
@@ -561,6 +691,9 @@ def main():
                         help="skip the cluster pictures of the balance section")
     parser.add_argument("--no-callgrind", dest="callgrind", action="store_false",
                         help="skip the callgrind instruction counts of the octree section")
+    parser.add_argument("--keep-from", type=pathlib.Path, metavar="BENCH.json",
+                        help="copy the sections not run now from an earlier report (with its date and load), "
+                             "so that `--only SECTION --keep-from OLD.json` updates one section of the docs")
     args = parser.parse_args()
     args.callgrind = args.callgrind and shutil.which("valgrind") is not None
     out = pathlib.Path(args.out)
@@ -596,9 +729,17 @@ def main():
     if "flat" in sections:
         report["flat"] = bench_flat(args, out)
     if "outofcore" in sections:
-        report["outofcore"] = bench_outofcore(args)
+        report["outofcore"] = bench_outofcore(args, out)
     report["load_average_end"] = os.getloadavg()
     report["wall_seconds"] = time.time() - started
+    if args.keep_from:
+        earlier = json.loads(args.keep_from.read_text())
+        kept = [s for s in SECTIONS if s not in sections and s in earlier]
+        for section in kept:
+            report[section] = earlier[section]
+        report["kept_from"] = {"sections": kept, "quick": earlier.get("quick"), "repeat": earlier.get("repeat"),
+                               **{k: earlier.get(k) for k in ("date", "load_average_start", "load_average_end",
+                                                              "wall_seconds")}}
     (out / "bench.json").write_text(json.dumps(report, indent=1))
     print(f"bench: wrote {out / 'bench.json'} in {report['wall_seconds'] / 60:.1f} min")
 

@@ -243,6 +243,57 @@ def plot_flat(flat, path):
     save(fig, path)
 
 
+def cap_label(cap):
+    return cap or "in core"
+
+
+def plot_outofcore(o, path):
+    rows = o["rows"]
+    caps = [cap_label(r["memory"]) for r in rows if r["input"] == "coherent"]
+    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(13, 3.8))
+    x = range(len(caps))
+    for i, (order, color) in enumerate((("coherent", "tab:blue"), ("shuffled", "tab:orange"))):
+        sel = [r for r in rows if r["input"] == order]
+        offset = [j + (i - 0.5) * 0.38 for j in x]
+        ax.bar(offset, [r["seconds"] for r in sel], 0.38, color=color, label=f"{order} (wall)")
+        ax.scatter(offset, [r["process_cpu_seconds"] for r in sel], color="black", marker="_", s=120,
+                   label="process CPU" if i == 0 else None, zorder=3)
+        bx.bar(offset, [r["process_peak_rss_bytes"] / 2**20 for r in sel], 0.38, color=color, label=order)
+        for j, r in zip(offset, sel):
+            if r["out_of_core"]:
+                ax.annotate(f"{r['cells']} cells", (j, r["seconds"]), ha="center", va="bottom", fontsize=6)
+    for j, r in enumerate(r for r in rows if r["input"] == "coherent"):
+        if r["memory"]:
+            bx.hlines(cap_bytes_mib(r["memory"]), j - 0.45, j + 0.45, color="black", linestyle="--", linewidth=1,
+                      label="cap" if j == 0 else None)
+    for a, label in ((ax, "seconds"), (bx, "peak RSS (wait4), MiB")):
+        a.set_xticks(list(x), [f"--memory {c}" if c != "in core" else c for c in caps], fontsize=7)
+        a.set_ylabel(label)
+        a.legend(fontsize=7)
+    bx.set_yscale("log")
+    ax.set_title(f"{rows[0]['mesh']} ({rows[0]['triangles']:,} faces): build time", fontsize=10)
+    bx.set_title("Peak resident memory against the cap", fontsize=10)
+    q = [r for r in o["quality"] if r["cell_faces"] is not None]
+    cuts = [str(n) for n in o["fit_cuts"]]
+    series = [(f"sum eFit, {int(n):,} clusters", lambda r, n=n: r["ratio"]["sum_fit"][n]) for n in cuts]
+    series.append(("height", lambda r: r["ratio"]["height"]))
+    width = 0.8 / len(series)
+    for k, (label, value) in enumerate(series):
+        cx.bar([j + (k - (len(series) - 1) / 2) * width for j in range(len(q))], [value(r) for r in q], width,
+               label=label)
+    cx.axhline(1.0, color="black", linewidth=0.8)
+    cx.axhline(1.1, color="black", linestyle="--", linewidth=0.8, label="aim: within 10%")
+    cx.set_xticks(range(len(q)), [f"{short(r['mesh'])}\ncells of {r['cell_faces'] // 1000}k" for r in q], fontsize=7)
+    cx.set_ylabel("out of core / in core")
+    cx.legend(fontsize=7)
+    cx.set_title("Quality of forced out-of-core builds", fontsize=10)
+    save(fig, path)
+
+
+def cap_bytes_mib(cap):
+    return int(cap[:-1]) * {"M": 1, "G": 1024}[cap[-1]]
+
+
 # --- markdown ---------------------------------------------------------------------------------
 
 def table(header, rows):
@@ -280,7 +331,9 @@ def markdown(report, figures, rel):
                ["load average at start / end", f"{report['load_average_start'][0]:.1f} / "
                                                f"{report.get('load_average_end', [float('nan')])[0]:.1f}"],
                ["bench wall time", f"{report.get('wall_seconds', 0) / 60:.1f} min"],
-           ]), ""]
+           ] + ([[f"sections {', '.join(k['sections'])}", f"kept from the run of {k['date']} (load "
+                  f"{k['load_average_start'][0]:.1f} / {k['load_average_end'][0]:.1f}, "
+                  f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) else [])), ""]
 
     if "octree" in report:
         o = report["octree"]
@@ -405,16 +458,78 @@ def markdown(report, figures, rel):
                         f"{r['faces_per_second'] / 1e6:.2f}", mib(r["peak_rss_bytes"]), f"{r['ratio_to_zstd']:.2f}"]
                        for r in report["read"]]), ""]
 
-    out += ["## Out of core (TODO, issue 5)", "",
-            "Time and peak RSS against `--memory` 64M, 256M, 1G and in core on the largest generated mesh, "
-            "coherent against shuffled input: waits for the out-of-core build. `scripts/bench` lists the cases "
-            "(`outofcore.cases`) and skips them while `facetree build` has no `--memory`.", "",
-            "## Regenerating", "",
+    if "outofcore" in report:
+        out += outofcore_markdown(report["outofcore"], rel)
+    out += ["## Regenerating", "",
             "```sh",
             "scripts/bench --quick        # or without --quick: every shared mesh, larger generated ones",
             "scripts/plot                 # JSON of the last run -> docs/figures/*.png + docs/benchmarks.md",
+            "# one section, the others kept from an earlier report:",
+            "scripts/bench --quick --only outofcore --keep-from OLD/bench.json",
             "```", ""]
     return "\n".join(out)
+
+
+def outofcore_markdown(o, rel):
+    rows, quality = o["rows"], o["quality"]
+    first = rows[0]
+    cuts = [str(n) for n in o["fit_cuts"]]
+    ooc = [r for r in rows if r["out_of_core"]]
+    quality_ooc = [r for r in quality if r["cell_faces"] is not None]
+    worst_fit = {n: max(r["ratio"]["sum_fit"][n] for r in quality_ooc) for n in cuts} if quality_ooc else {}
+    out = ["## Out of core (issue 5)", "",
+           f"`facetree build MESH -o OUT.fch --memory CAP --tmp DIR --json` on `facetree gen terrain -n "
+           f"{o['faces']:,}` ({first['triangles']:,} faces) and its shuffled twin (`--shuffle-vertices "
+           f"--shuffle-faces`). In core is `--memory {o['in_core_cap']}`: the job's in-core path (without "
+           "`--memory` the CLI takes its older in-core path, which has no job report). "
+           f"{o['repeat']} run{'s' if o['repeat'] > 1 else ''} per case"
+           f"{' (medians)' if o['repeat'] > 1 else ''}; section run at {o['date']}, load "
+           f"{o['load_average_start'][0]:.1f} / {o['load_average_end'][0]:.1f}, {o['wall_seconds'] / 60:.1f} min. "
+           "Peak RSS: the process's own (wait4's ru_maxrss, what `/usr/bin/time` prints) and the job's report. "
+           "Out-of-core files are written at zstd level 3, in-core ones at 9 (the job's defaults).", "",
+           table(["input", "--memory", "out of core", "s (wall)", "process CPU s", "peak RSS MiB", "job peak MiB",
+                  "under cap", "temporary MB", "file MB", "cells", "leaves", "height / balanced"],
+                 [[r["input"], cap_label(r["memory"]), "yes" if r["out_of_core"] else "no", f"{r['seconds']:.2f}",
+                   f"{r['process_cpu_seconds']:.2f}", mib(r["process_peak_rss_bytes"]), mib(r["peak_rss_bytes"]),
+                   "yes" if r["under_cap"] else "**no**", f"{r['temporary_bytes_peak'] / 1e6:.1f}",
+                   f"{r['file_bytes'] / 1e6:.1f}", f"{r['cells']:,}", f"{r['leaves']:,}",
+                   f"{r['height']} / {r['balanced_height']}"] for r in rows]), "",
+           "Ratios to the in-core build of the same input:", "",
+           table(["input", "--memory", "time (wall)", "process CPU", "peak RSS", "file bytes", "height"],
+                 [[r["input"], cap_label(r["memory"])] +
+                  [f"{r['ratio'][k]:.2f}" for k in ("seconds", "process_cpu_seconds", "process_peak_rss_bytes",
+                                                   "file_bytes", "height")]
+                  for r in rows if r["memory"]]), ""]
+    if ooc:
+        phases = [k for k in ("read", "bin", "cells", "merge", "write") if k in ooc[0]["phases"]]
+        out += ["Out-of-core phases (seconds, from the job's report):", "",
+                table(["input", "--memory"] + phases + ["total"],
+                      [[r["input"], cap_label(r["memory"])] + [f"{r['phases'][k]:.2f}" for k in phases + ["total"]]
+                       for r in ooc]), ""]
+    out += ["### Quality: out of core against in core on meshes that fit", "",
+            "Each mesh built in core and out of core forced with cells of at most N faces (`--cell-faces N`), "
+            f"then `facetree info OUT.fch --fit-cuts {','.join(cuts)}`: the cut is the shortest prefix of the "
+            "file giving at least that many clusters (what a truncated file or `render --cut` shows), and its "
+            "fit error the sum over its clusters of eq. 84's eFit (the variance of the surface along the "
+            "cluster's normal) and of area x eFit (the squared distance to the cluster's plane integrated over "
+            "the surface). Lower is better. The issue's aim: within 10% of in core." +
+            (" **Largest ratio of sum eFit: " + ", ".join(f"{worst_fit[n]:.2f} at {int(n):,} clusters" for n in cuts)
+             + ".**" if worst_fit else ""), "",
+            table(["mesh", "faces", "build", "cells / leaves", "height / balanced"] +
+                  [f"sum eFit, {int(n):,}" for n in cuts] + [f"sum area x eFit, {int(n):,}" for n in cuts],
+                  [[r["mesh"], f"{r['triangles']:,}",
+                    "in core" if r["cell_faces"] is None else f"cells of {r['cell_faces']:,}",
+                    f"{r['cells']:,} / {r['leaves']:,}", f"{r['height']} / {r['balanced_height']}"] +
+                   [f"{r['cuts'][n]['sum_fit']:.4g}" for n in cuts] + [f"{r['cuts'][n]['sum_area_fit']:.4g}" for n in cuts]
+                   for r in quality]), "",
+            "Ratios out of core / in core:", "",
+            table(["mesh", "build", "height"] + [f"sum eFit, {int(n):,}" for n in cuts] +
+                  [f"sum area x eFit, {int(n):,}" for n in cuts],
+                  [[r["mesh"], f"cells of {r['cell_faces']:,}", f"{r['ratio']['height']:.3f}"] +
+                   [f"{r['ratio']['sum_fit'][n]:.3f}" for n in cuts] +
+                   [f"{r['ratio']['sum_area_fit'][n]:.3f}" for n in cuts] for r in quality_ooc]), "",
+            f"![outofcore]({rel}/outofcore.png)", ""]
+    return out
 
 
 def main():
@@ -441,6 +556,8 @@ def main():
         plot_branching(report["branching"], figures / "branching.png")
     if "flat" in report:
         plot_flat(report["flat"], figures / "flat.png")
+    if "outofcore" in report and report["outofcore"].get("rows"):
+        plot_outofcore(report["outofcore"], figures / "outofcore.png")
     md = pathlib.Path(args.markdown)
     rel = os.path.relpath(figures, md.parent)
     md.write_text(markdown(report, figures, rel))

@@ -1,6 +1,8 @@
 // facetree truncate / info / verify as a user runs them.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include "../cli/run_cli.h"
 #include "fch_test_util.h"
 
@@ -33,6 +35,26 @@ TEST_F(FchCli, InfoReportsCountsAndSections) {
   EXPECT_EQ(json.exitCode, 0) << json.out;
   EXPECT_NE(json.out.find("\"branching\": 4"), std::string::npos) << json.out;
   EXPECT_NE(json.out.find("\"children_histogram\""), std::string::npos) << json.out;
+}
+
+TEST_F(FchCli, InfoFitCutsReportTheLibrarysCutFit) {
+  const ClusterFile file = readClusterFile(fch);
+  const CutFit one = cutFit(file, 1), some = cutFit(file, 50);
+  char want[64];
+  const CliResult json = runCli("info " + fch.string() + " --fit-cuts 1,50,5000 --json");
+  EXPECT_EQ(json.exitCode, 0) << json.out;
+  EXPECT_NE(json.out.find("\"fit_cuts\""), std::string::npos) << json.out;
+  std::snprintf(want, sizeof want, "\"sum_fit\": %.9g", one.sumFit);
+  EXPECT_NE(json.out.find(want), std::string::npos) << want << "\n" << json.out;
+  std::snprintf(want, sizeof want, "\"sum_area_fit\": %.9g", some.sumAreaFit);
+  EXPECT_NE(json.out.find(want), std::string::npos) << want << "\n" << json.out;
+  EXPECT_NE(json.out.find("\"clusters\": 1200"), std::string::npos) << json.out;  // 5000 asked: every face
+  const CliResult text = runCli("info " + fch.string() + " --fit-cuts 50");
+  EXPECT_EQ(text.exitCode, 0) << text.out;
+  std::snprintf(want, sizeof want, "50 asked, %llu clusters", static_cast<unsigned long long>(some.clusters));
+  EXPECT_NE(text.out.find(want), std::string::npos) << text.out;
+  for (const char* bad : {"0", "10,x", ",", "-5"})
+    EXPECT_EQ(runCli("info " + fch.string() + " --fit-cuts " + bad).exitCode, 2) << bad;
 }
 
 TEST_F(FchCli, VerifyAcceptsGoodAndRejectsCorruptFiles) {

@@ -365,6 +365,85 @@ TEST(SurfaceStats, EmptyMeshAndInvalidIndices) {
   EXPECT_THROW(faceComponents(bad.view(), label), std::invalid_argument);
 }
 
+// --- surfaceFitError --------------------------------------------------------------------------
+
+// Brute force: variance of the surface along the unit direction n, from the exact integral of a
+// linear function over each triangle (int d^2 dA = A/6 (da^2 + db^2 + dc^2 + da db + db dc + dc da)).
+double varianceAlong(const TestMesh& mesh, const glm::dvec3& n) {
+  double area = 0, first = 0;
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    const glm::dvec3 a(mesh.positions[mesh.indices[3 * f]]), b(mesh.positions[mesh.indices[3 * f + 1]]),
+        c(mesh.positions[mesh.indices[3 * f + 2]]);
+    const double af = 0.5 * glm::length(glm::cross(b - a, c - a));
+    area += af;
+    first += af * (glm::dot(n, a) + glm::dot(n, b) + glm::dot(n, c)) / 3.0;
+  }
+  const double mean = first / area;
+  double second = 0;
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    const glm::dvec3 a(mesh.positions[mesh.indices[3 * f]]), b(mesh.positions[mesh.indices[3 * f + 1]]),
+        c(mesh.positions[mesh.indices[3 * f + 2]]);
+    const double af = 0.5 * glm::length(glm::cross(b - a, c - a));
+    const double da = glm::dot(n, a) - mean, db = glm::dot(n, b) - mean, dc = glm::dot(n, c) - mean;
+    second += af / 6.0 * (da * da + db * db + dc * dc + da * db + db * dc + dc * da);
+  }
+  return second / area;
+}
+
+glm::dvec3 sumNormalDirection(const TestMesh& mesh) {
+  glm::dvec3 s(0.0);
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    const glm::dvec3 a(mesh.positions[mesh.indices[3 * f]]), b(mesh.positions[mesh.indices[3 * f + 1]]),
+        c(mesh.positions[mesh.indices[3 * f + 2]]);
+    s += glm::cross(b - a, c - a);
+  }
+  return glm::normalize(s);
+}
+
+TEST(SurfaceFitError, IsTheVarianceAlongTheSumNormalOfANearlyFlatSurface) {
+  const TestMesh mesh = bumpyGrid(16, 0.05f, 0.3f);
+  const double want = varianceAlong(mesh, sumNormalDirection(mesh));
+  ASSERT_GT(want, 1e-5);
+  // Whatever the origin of the moments (near the surface): same variance.
+  for (const glm::dvec3 origin : {glm::dvec3(0.5, 0.4, 0.1), glm::dvec3(0.0), glm::dvec3(-2.0, 3.0, 1.0)}) {
+    const SurfaceStats s = surfaceStats(mesh.view(), origin);
+    ASSERT_GT(glm::length(s.sumNormal), 0.5 * s.area);  // the S branch of eq. 78
+    EXPECT_NEAR(surfaceFitError(s), want, 1e-9 * want);
+  }
+}
+
+TEST(SurfaceFitError, PcaNormalMinimisesTheVarianceWhenTheSurfaceIsNotFlat) {
+  const TestMesh mesh = bumpyGrid(16, 0.05f, 0.3f);
+  const SurfaceStats s = surfaceStats(mesh.view(), glm::dvec3(0.5, 0.4, 0.1));
+  const double alongS = surfaceFitError(s);
+  const double pca = surfaceFitError(s, /*flatThreshold=*/2.0);  // |S|/A <= 1 < 2: always PCA
+  EXPECT_LE(pca, alongS * (1 + 1e-12));
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g;
+  for (int i = 0; i < 200; ++i) {
+    const glm::dvec3 n = glm::normalize(glm::dvec3(g(rng), g(rng), g(rng)));
+    EXPECT_LE(pca, varianceAlong(mesh, n) * (1 + 1e-9));
+  }
+  // A closed sphere has S ~ 0 and takes the PCA branch at the default threshold; icosahedral
+  // symmetry makes its covariance isotropic: the variance along any axis, about r^2 / 3.
+  const TestMesh sphere = icosphere(3);
+  const SurfaceStats ss = surfaceStats(sphere.view(), glm::dvec3(0.0));
+  ASSERT_LT(glm::length(ss.sumNormal), 1e-6 * ss.area);
+  const double eFit = surfaceFitError(ss);
+  EXPECT_NEAR(eFit, varianceAlong(sphere, glm::dvec3(0, 0, 1)), 1e-6 * eFit);
+  EXPECT_NEAR(eFit, varianceAlong(sphere, glm::normalize(glm::dvec3(1, 2, 3))), 1e-6 * eFit);
+  EXPECT_NEAR(eFit, 1.0 / 3.0, 0.03);
+}
+
+TEST(SurfaceFitError, ZeroForAPlaneAndForNoArea) {
+  TestMesh plane = grid(12, 0.25f);
+  for (glm::vec3& p : plane.positions) p = glm::vec3(p.x, 0.6f * p.y, 0.8f * p.y);  // tilted, in float
+  const SurfaceStats s = surfaceStats(plane.view(), glm::dvec3(1.5, 0.9, 1.2));
+  EXPECT_LE(surfaceFitError(s), 1e-12);
+  EXPECT_GT(s.area, 1.0);
+  EXPECT_EQ(surfaceFitError(SurfaceStats{}), 0.0);
+}
+
 // --- faceComponents --------------------------------------------------------------------------
 
 TEST(FaceComponents, CountsKnownPiecesInOrderOfTheirLowestFace) {
