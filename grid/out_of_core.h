@@ -36,6 +36,14 @@ struct PendingTriangles {
   std::vector<uint64_t> originalFace;
 };
 
+// A run of a leaf's nodes as the file interleaves them (nodeBlocks, out_of_core_cells.cpp).
+struct NodeBlock {
+  float key;       // the sort key (a band of log cost), non-increasing along the leaf
+  uint32_t first;  // its first node, leaf-local
+  uint32_t count;
+  SpillBlock spill{};  // the FchNodes
+};
+
 // One leaf cluster of the upper merge: an edge-connected component of a cell (or the cell's
 // remaining small components together) with its spilled subtree and geometry.
 struct LeafCluster {
@@ -44,8 +52,7 @@ struct LeafCluster {
   uint64_t nodeCount = 0;
   uint64_t vertexCount = 0;
   uint32_t height = 1;
-  std::vector<SpillBlock> nodeBlocks;      // kNodeBlock FchNodes each (the last fewer), leaf-local references
-  std::vector<float> blockKeys;            // order key of each node block (out_of_core_write.cpp)
+  std::vector<NodeBlock> blocks;           // its nodes (leaf-local references), in file order
   std::vector<SpillBlock> geometryBlocks;  // GeometryBlock layout (out_of_core_cells.cpp)
   SurfaceStats stats;
   std::array<glm::vec3, 8> corners{};  // of the root box: points for the upper frames
@@ -133,15 +140,19 @@ inline constexpr uint64_t kBaseBytes = uint64_t{28} << 20;     // process, libra
 // One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
 // engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
 // arenas: a 3M-triangle terrain at 64 MiB peaked at 58 MiB with 640 and 24 MiB of base, its
-// shuffled twin (positions spilled, sort join) at 61.5 MiB with 720.
-inline constexpr uint64_t kCellBytesPerFace = 800;
+// shuffled twin (positions spilled, sort join) at 61.5 MiB with 720; a 55.8M-triangle scan at
+// 256 MiB (cells of 144k faces) at 285 MiB with 800: ~900 B per face in big cells.
+inline constexpr uint64_t kCellBytesPerFace = 1000;
 inline constexpr uint64_t kMinCellFaces = 4096;                 // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
 // faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
 // the top of the tree across cell borders, few enough that it stays small.
 inline constexpr uint64_t kFrontiersPerCell = 32;
 inline constexpr uint64_t kMinFrontierFaces = 64;
-// The file interleaves the leaves' subtrees in blocks of this many nodes (out_of_core_write.cpp).
-inline constexpr size_t kNodeBlock = 256;
+// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
+// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
+inline constexpr uint32_t kNodeBlock = 256;
+inline constexpr double kKeyBand = 0.25;
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes);
 
 }  // namespace facetree

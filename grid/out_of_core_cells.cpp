@@ -2,6 +2,7 @@
 // components, one in-core hierarchy per component (a leaf cluster of the upper merge), spilled;
 // and the cross-cell dual edges of the edges the cell owns (out_of_core.h).
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <cstring>
 #include <exception>
@@ -103,6 +104,44 @@ void forEachEdge(const FaceRecord& r, F&& f) {
 }
 
 }  // namespace
+
+// How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
+// (out_of_core_write.cpp sorts all leaves' blocks by key). Each node's key is its log cost made
+// non-increasing along the leaf by isotonic regression (pool adjacent violators), so sorting
+// keeps a leaf's blocks in order while following the costs as closely as a monotone sequence
+// can; keys are then quantised to bands of kKeyBand and a block is a run of nodes in one band (at
+// most kNodeBlock long). Sorted, the blocks give nearly the cost order of the in-core reverse
+// creation order: dragon_vrip in cells of 20k faces, cut at 100,000 clusters, fits within 3% of
+// in core, against 4x with fixed 64-node blocks (their costs spread too widely) and 11x with a
+// running minimum as the key (one cheap early node held back a whole leaf).
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
+  struct Pool {
+    double sum, weight;
+    size_t count;
+  };
+  std::vector<Pool> pools;
+  for (const FchNode& node : nodes) {
+    pools.push_back({std::log(std::max(double(node.cost), 1e-30)), 1.0, 1});
+    while (pools.size() >= 2) {
+      Pool& a = pools[pools.size() - 2];
+      const Pool& b = pools.back();
+      if (a.sum / a.weight >= b.sum / b.weight) break;  // non-increasing: fine
+      a.sum += b.sum, a.weight += b.weight, a.count += b.count;
+      pools.pop_back();
+    }
+  }
+  std::vector<NodeBlock> blocks;
+  uint32_t at = 0;
+  for (const Pool& p : pools) {
+    const float band = static_cast<float>(std::floor(p.sum / p.weight / kKeyBand));
+    for (size_t k = 0; k < p.count; ++k, ++at) {
+      if (blocks.empty() || blocks.back().key != band || blocks.back().count == kNodeBlock)
+        blocks.push_back({band, at, 0});
+      ++blocks.back().count;
+    }
+  }
+  return blocks;
+}
 
 void OutOfCoreBuild::buildCells() {
   nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
@@ -317,16 +356,11 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         } else {
           for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
         }
-        float key = std::numeric_limits<float>::infinity();
-        for (size_t at = 0; at < file.nodes.size(); at += kNodeBlock) {
-          const size_t n = std::min(kNodeBlock, file.nodes.size() - at);
-          // The running minimum of the costs in file order, at the block's first node.
-          key = std::min(key, file.nodes[at].cost);
-          leaf.blockKeys.push_back(key);
-          for (size_t i = at + 1; i < at + n; ++i) key = std::min(key, file.nodes[i].cost);
+        leaf.blocks = nodeBlocks(file.nodes);
+        for (NodeBlock& b : leaf.blocks) {
           block.clear();
-          appendBytes(block, file.nodes.data() + at, n);
-          leaf.nodeBlocks.push_back(nodeSpill_->append(block, codec));
+          appendBytes(block, file.nodes.data() + b.first, b.count);
+          b.spill = nodeSpill_->append(block, codec);
         }
         const size_t triangles = file.originalFace.size();
         uint32_t verticesSeen = 0;

@@ -91,17 +91,11 @@ void OutOfCoreBuild::write() {
   }
 
   // Node order: the upper nodes first (reverse creation, root first), then the leaves' subtrees
-  // interleaved in blocks of kNodeBlock nodes by decreasing cost, so that a prefix of the file
-  // (a truncated hierarchy, seed sec. 5.5.3) refines all leaves alike, as the in-core reverse
-  // creation order does. A block's key is the running minimum of its leaf's costs in file order,
-  // capped by its upper parent's (also a running minimum from the root): keys never increase
-  // from parent to child, so the sort keeps every child after its parent.
-  std::vector<float> upperKey(upperCount, std::numeric_limits<float>::infinity());
-  for (uint32_t j = 0; j < upperCount; ++j) {
-    const uint32_t i = upperCount - 1 - j;
-    const float parent = nodeParent[i] == kNone ? std::numeric_limits<float>::infinity() : upperKey[nodeParent[i]];
-    upperKey[i] = std::min(upper[i].cost, parent);
-  }
+  // interleaved in runs by decreasing key (nodeBlocks: bands of the nodes' costs, non-increasing
+  // along each leaf), so that a prefix of the file (a truncated hierarchy,
+  // seed sec. 5.5.3) refines the leaves as the in-core reverse creation order refines the mesh:
+  // cheapest merges last. Every leaf block follows all upper nodes and its own earlier blocks, so
+  // children always follow their parents.
   struct BlockRef {
     float key;
     uint32_t leafRank, block;
@@ -109,17 +103,15 @@ void OutOfCoreBuild::write() {
   std::vector<BlockRef> order;
   std::vector<uint64_t> blockStart(leafCount + 1, 0);
   for (uint32_t rank = 0; rank < leafCount; ++rank) {
-    const uint32_t leaf = leafOrder[rank];
-    const float cap = leafParent[leaf] == kNone ? std::numeric_limits<float>::infinity() : upperKey[leafParent[leaf]];
-    const auto& keys = leaves_[leaf].blockKeys;
-    for (uint32_t b = 0; b < keys.size(); ++b) order.push_back({std::min(keys[b], cap), rank, b});
+    const auto& blocks = leaves_[leafOrder[rank]].blocks;
+    for (uint32_t b = 0; b < blocks.size(); ++b) order.push_back({blocks[b].key, rank, b});
   }
   std::sort(order.begin(), order.end(), [](const BlockRef& x, const BlockRef& y) {
     if (x.key != y.key) return x.key > y.key;
     if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
     return x.block < y.block;
   });
-  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] = leaves_[leaf].blockKeys.size();
+  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] = leaves_[leaf].blocks.size();
   for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] += blockStart[leaf];
   std::vector<uint64_t> blockPosition(blockStart[leafCount]);
   {
@@ -127,11 +119,15 @@ void OutOfCoreBuild::write() {
     for (const BlockRef& ref : order) {
       const uint32_t leaf = leafOrder[ref.leafRank];
       blockPosition[blockStart[leaf] + ref.block] = position;
-      position += std::min<uint64_t>(kNodeBlock, leaves_[leaf].nodeCount - uint64_t{ref.block} * kNodeBlock);
+      position += leaves_[leaf].blocks[ref.block].count;
     }
   }
   const auto nodePosition = [&](uint32_t leaf, uint32_t local) {
-    return static_cast<uint32_t>(blockPosition[blockStart[leaf] + local / kNodeBlock] + local % kNodeBlock);
+    const auto& blocks = leaves_[leaf].blocks;
+    const auto it = std::upper_bound(blocks.begin(), blocks.end(), local,
+                                     [](uint32_t x, const NodeBlock& b) { return x < b.first; }) - 1;
+    const size_t b = static_cast<size_t>(it - blocks.begin());
+    return static_cast<uint32_t>(blockPosition[blockStart[leaf] + b] + (local - it->first));
   };
   report_.nodes = nodes;
   report_.height = height;
@@ -251,7 +247,7 @@ void OutOfCoreBuild::write() {
     const uint32_t leafId = leafOrder[ref.leafRank];
     const LeafCluster& leaf = leaves_[leafId];
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
-    nodeSpill_->read(leaf.nodeBlocks[ref.block], raw, codec_);
+    nodeSpill_->read(leaf.blocks[ref.block].spill, raw, codec_);
     leafNodes.resize(raw.size() / sizeof(FchNode));
     std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
     for (FchNode& n : leafNodes) {
