@@ -307,6 +307,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   readAll(*reader, std::move(pending));
   reader.reset();
   resolveSpilledPositions();
+  if (positions_) positions_->release();  // every position is in the arrival spill now
   report_.secondsRead = secondsSince(start);
   report_.peakRssAfter.push_back({"read", peakRss()});
 

@@ -37,7 +37,7 @@ class VertexPositions {
   // Spills the partial last block (after the reader ended).
   void finish();
   // Frees the in-memory positions (once copied).
-  void release() { positions_ = {}; }
+  void release() { positions_ = {}; }  // (blocks stay readable while spilled)
 
  private:
   void spillFull();
