@@ -183,6 +183,7 @@ void OutOfCoreBuild::buildCells() {
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
   cellFaces_.reset();
+  grid_.reset();  // its 8 MiB table serves the owner-cell lookups of the cells pass only
   ghosts_.reset();
 }
 
