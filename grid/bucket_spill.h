@@ -34,6 +34,11 @@ class BucketSpill {
   void appendMany(size_t bucket, const void* records, size_t n);  // n records
   void flush(size_t bucket);                                      // its buffer becomes a block
   void flushAll();
+  // flushAll(), then frees the buffers (buckets * bufferBytes): the spill is read-only afterwards.
+  void releaseBuffers() {
+    flushAll();
+    buffer_.reset();
+  }
 
   uint64_t records(size_t bucket) const { return records_[bucket]; }
   size_t recordBytes() const { return recordBytes_; }

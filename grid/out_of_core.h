@@ -136,7 +136,7 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
                   JobReport& report);
 
 // Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
-inline constexpr uint64_t kBaseBytes = uint64_t{28} << 20;     // process, libraries, reader, codecs, writer
+inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;     // process, libraries, reader, codecs, writer
 // One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
 // engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
 // arenas: a 3M-triangle terrain at 64 MiB peaked at 58 MiB with 640 and 24 MiB of base, its
