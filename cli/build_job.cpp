@@ -30,11 +30,11 @@ class ProgressLine {
       const double fraction = double(p.done) / double(p.total);
       const double rate = elapsed > 0 ? double(p.done) / elapsed : 0;
       const double eta = fraction > 0 ? elapsed * (1 - fraction) / fraction : 0;
-      std::fprintf(stderr, "\r%-6s %5.1f%%  %8.2f M/s  ETA %5.0f s  (%.0f s total)   ", p.phase, 100 * fraction,
-                   rate / 1e6, eta, now - start_);
+      std::fprintf(stderr, "\r%-6s %5.1f%%  %8.2f M/s  ETA %5.0f s  (%.0f s total)   ", p.phase,
+                   100 * fraction, rate / 1e6, eta, now - start_);
     } else {
-      std::fprintf(stderr, "\r%-6s %10.1f MB  (%.0f s total)                  ", p.phase, double(p.done) / 1e6,
-                   now - start_);
+      std::fprintf(stderr, "\r%-6s %10.1f MB  (%.0f s total)                  ", p.phase,
+                   double(p.done) / 1e6, now - start_);
     }
     std::fflush(stderr);
     drawn_ = true;
@@ -62,7 +62,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   if (const auto tmp = args.value("tmp")) job.tmpDir = *tmp;
   job.maxTemporaryBytes = args.count("max-tmp", 0, true);
   // --threads (job.build.threads, 0 = all cores up to 8) also runs the cells in parallel.
-  job.threads = job.build.threads ? job.build.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
+  job.threads =
+      job.build.threads ? job.build.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
   job.forceCellFaces = args.count("cell-faces", 0);
   job.zstdLevel = static_cast<int>(args.count("zstd-level", 0));
   if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (0: 9 in core, 3 out of core)");
@@ -122,7 +123,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     std::fputs(json.finish().c_str(), out);
     return kExitOk;
   }
-  std::fprintf(out, "mesh          %s: %llu triangles\n", input.c_str(), static_cast<unsigned long long>(r.triangles));
+  std::fprintf(out, "mesh          %s: %llu triangles\n", input.c_str(),
+               static_cast<unsigned long long>(r.triangles));
   std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",
                r.memoryCap / 1048576.0);
   if (r.outOfCore)
@@ -134,8 +136,9 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
                  static_cast<unsigned long long>(r.upperComponents));
   std::fprintf(out, "hierarchy     %llu nodes, height %u (balanced %u, ratio %.2f)\n",
                static_cast<unsigned long long>(r.nodes), r.height, r.balancedHeight, ratio);
-  std::fprintf(out, "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",
-               r.secondsRead, r.secondsBin, r.secondsCells, r.secondsMerge, r.secondsWrite, r.seconds);
+  std::fprintf(
+      out, "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",
+      r.secondsRead, r.secondsBin, r.secondsCells, r.secondsMerge, r.secondsWrite, r.seconds);
   std::fprintf(out, "output        %s: %.2f MB\n", output.c_str(), r.fileBytes / 1e6);
   std::fprintf(out, "peak memory   %.1f MiB, temporary files %.1f MiB at most\n", peak / 1048576.0,
                r.temporaryBytesPeak / 1048576.0);

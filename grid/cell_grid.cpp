@@ -87,7 +87,8 @@ void CellGrid::partition(uint64_t maxFaces) {
 uint32_t CellGrid::nextFaceCell(uint32_t bin) {
   if (!split_.empty()) {
     const auto it = split_.find(bin);
-    if (it != split_.end()) return it->second.firstCell + static_cast<uint32_t>(it->second.seen++ / maxFaces_);
+    if (it != split_.end())
+      return it->second.firstCell + static_cast<uint32_t>(it->second.seen++ / maxFaces_);
   }
   return table_[bin];
 }

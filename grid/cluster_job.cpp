@@ -41,7 +41,8 @@ JobReport runClusterJob(const ClusterJob& job) {
   effective.file.build = job.build;
   effective.file.memoryCapBytes = job.memoryCap;
   const auto check = [&](const char* phase, uint64_t done, uint64_t total) {
-    if ((job.progress && !job.progress(JobProgress{phase, done, total})) || (job.build.cancelled && job.build.cancelled()))
+    if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
+        (job.build.cancelled && job.build.cancelled()))
       throw Cancelled();
   };
 

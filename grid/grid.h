@@ -71,10 +71,10 @@ struct ClusterJob {
   std::filesystem::path input;   // "-" = standard input (format detected from the content)
   std::filesystem::path output;  // "-" = standard output
   BuildOptions build;
-  FileOptions file;  // branching, recast rule (file.build and memoryCapBytes are filled in)
-  LoadOptions load;  // weldPositions: in-core builds only (rejected out of core)
-  uint64_t memoryCap = 0;        // bytes; 0 = half the physical memory
-  std::filesystem::path tmpDir;  // parent of the run's temporary directory; empty = system default
+  FileOptions file;                // branching, recast rule (file.build and memoryCapBytes are filled in)
+  LoadOptions load;                // weldPositions: in-core builds only (rejected out of core)
+  uint64_t memoryCap = 0;          // bytes; 0 = half the physical memory
+  std::filesystem::path tmpDir;    // parent of the run's temporary directory; empty = system default
   uint64_t maxTemporaryBytes = 0;  // 0 = no limit
   unsigned threads = 2;
   // zstd level of the cluster file's frames; 0 = 9 in core, 3 out of core (level 9 costs 2.5x
@@ -97,7 +97,7 @@ struct JobReport {
   uint64_t triangles = 0;
   uint64_t nodes = 0;
   uint64_t cells = 0;
-  uint64_t leaves = 0;  // leaf clusters the upper merge started from (out of core)
+  uint64_t leaves = 0;           // leaf clusters the upper merge started from (out of core)
   uint64_t crossEdges = 0;       // dual edges between leaf clusters (out of core)
   uint64_t upperComponents = 0;  // roots the upper merge joined (flagged) for want of edges
   uint64_t cellFaceLimit = 0;

@@ -70,7 +70,8 @@ void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending)
   arrival_ = std::make_unique<BucketSpill>(temp_, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes);
   const bool deferred = reader.positionsDeferred();
   const auto spillRef = [this](const uint32_t vertex[3], uint64_t face) {
-    if (!refs_) refs_ = std::make_unique<BucketSpill>(temp_, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
+    if (!refs_)
+      refs_ = std::make_unique<BucketSpill>(temp_, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
     const TriangleRef ref{{vertex[0], vertex[1], vertex[2]}, 0, face};
     refs_->append(0, &ref);
   };
@@ -124,7 +125,9 @@ void OutOfCoreBuild::resolveSpilledPositions() {
     };
     struct ByVertex {
       bool operator()(const CornerRef& a, const CornerRef& b) const {
-        return a.vertex != b.vertex ? a.vertex < b.vertex : a.seq != b.seq ? a.seq < b.seq : a.corner < b.corner;
+        return a.vertex != b.vertex ? a.vertex < b.vertex
+               : a.seq != b.seq     ? a.seq < b.seq
+                                    : a.corner < b.corner;
       }
     };
     struct CornerPos {
@@ -153,7 +156,8 @@ void OutOfCoreBuild::resolveSpilledPositions() {
             appendResolved(r.vertex, r.face, corner);
             if ((seq + 1) % kWindow == 0) {
               if (cache.misses() - windowMisses > kMaxWindowMisses) {
-                byVertex = std::make_unique<ExternalSorter<CornerRef, ByVertex>>(temp_, "join-vertex", sortBudget);
+                byVertex =
+                    std::make_unique<ExternalSorter<CornerRef, ByVertex>>(temp_, "join-vertex", sortBudget);
                 joinFrom = seq + 1;
               }
               windowMisses = cache.misses();
@@ -177,7 +181,8 @@ void OutOfCoreBuild::resolveSpilledPositions() {
           for (size_t i = 0; i < got; ++i) {
             const size_t b = batch[i].vertex / VertexPositions::kBlockVertices;
             if (b != current) positions_->readBlock(current = b, block, codec_);
-            bySeq.push(CornerPos{batch[i].seq, batch[i].corner, block[batch[i].vertex % VertexPositions::kBlockVertices]});
+            bySeq.push(CornerPos{batch[i].seq, batch[i].corner,
+                                 block[batch[i].vertex % VertexPositions::kBlockVertices]});
           }
         }
         byVertex.reset();
@@ -224,7 +229,8 @@ void OutOfCoreBuild::binAndDistribute() {
   };
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
     decode(bytes);
-    for (const FaceRecord& r : records) grid_->count(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
+    for (const FaceRecord& r : records)
+      grid_->count(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
   });
   grid_->partition(cellFaceLimit_);
   const uint32_t cells = grid_->cellCount();
@@ -238,7 +244,8 @@ void OutOfCoreBuild::binAndDistribute() {
   };
   cellFaces_ = std::make_unique<BucketSpill>(temp_, "cell-faces", cells, sizeof(FaceRecord),
                                              bufferFor(sizeof(FaceRecord)));
-  ghosts_ = std::make_unique<BucketSpill>(temp_, "ghosts", cells, sizeof(GhostEdge), bufferFor(sizeof(GhostEdge)));
+  ghosts_ =
+      std::make_unique<BucketSpill>(temp_, "ghosts", cells, sizeof(GhostEdge), bufferFor(sizeof(GhostEdge)));
 
   uint64_t done = 0;
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
@@ -308,9 +315,10 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
     cellFaceLimit_ = perThread / kCellBytesPerFace;
     if (cellFaceLimit_ < kMinCellFaces) {
       const uint64_t need = fixed + threads * kMinCellFaces * kCellBytesPerFace;
-      throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) + " MiB is too small: an out-of-core build needs at least " +
-                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB with " + std::to_string(threads) +
-                           " thread(s)");
+      throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) +
+                           " MiB is too small: an out-of-core build needs at least " +
+                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB with " +
+                           std::to_string(threads) + " thread(s)");
     }
   }
   report_.cellFaceLimit = cellFaceLimit_;

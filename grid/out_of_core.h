@@ -19,13 +19,13 @@
 
 #include <glm/vec3.hpp>
 
+#include "grid/bucket_spill.h"
 #include "grid/cell_grid.h"
 #include "grid/face_record.h"
 #include "grid/grid.h"
-#include "grid/bucket_spill.h"
-#include "grid/vertex_positions.h"
 #include "grid/spill_file.h"
 #include "grid/temp_space.h"
+#include "grid/vertex_positions.h"
 
 namespace facetree {
 
@@ -136,14 +136,14 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
                   JobReport& report);
 
 // Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
-inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;     // process, libraries, reader, codecs, writer
+inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
 // One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
 // engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
 // arenas: a 3M-triangle terrain at 64 MiB peaked at 58 MiB with 640 and 24 MiB of base, its
 // shuffled twin (positions spilled, sort join) at 61.5 MiB with 720; a 55.8M-triangle scan at
 // 256 MiB (cells of 144k faces) at 285 MiB with 800: ~900 B per face in big cells.
 inline constexpr uint64_t kCellBytesPerFace = 1000;
-inline constexpr uint64_t kMinCellFaces = 4096;                 // below this a cap is refused
+inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
 // faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
 // the top of the tree across cell borders, few enough that it stays small.

@@ -2,8 +2,8 @@
 // components, one in-core hierarchy per component (a leaf cluster of the upper merge), spilled;
 // and the cross-cell dual edges of the edges the cell owns (out_of_core.h).
 #include <algorithm>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <exception>
 #include <limits>
@@ -208,7 +208,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       for (uint32_t f = 0; f < faces; ++f) {
         for (int k = 0; k < 3; ++k) {
           bool inserted = false;
-          const uint32_t id = map.find(records[f].vertex[k], static_cast<uint32_t>(positions.size()), inserted);
+          const uint32_t id =
+              map.find(records[f].vertex[k], static_cast<uint32_t>(positions.size()), inserted);
           if (inserted) positions.push_back(records[f].corner(k));
           indices[size_t{3} * f + k] = id;
         }
@@ -294,8 +295,11 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
             if ((c & kFaceChild) || component.nodes[c].count <= frontierFaces_) frontier.push_back(c);
         }
       }
-      const auto firstOf = [&](uint32_t ref) { return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first; };
-      std::sort(frontier.begin(), frontier.end(), [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
+      const auto firstOf = [&](uint32_t ref) {
+        return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
+      };
+      std::sort(frontier.begin(), frontier.end(),
+                [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
 
       for (const uint32_t ref : frontier) {
         // The frontier cluster's subtree as a hierarchy of its own.
@@ -320,7 +324,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           for (const uint32_t i : collected) {
             Node node = component.nodes[i];
             node.first -= first;
-            for (uint32_t& c : node.child) c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
+            for (uint32_t& c : node.child)
+              c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
             sub.nodes.push_back(node);
             sub.boxes.push_back(component.boxes[i]);
           }
@@ -328,8 +333,10 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           uint32_t height = 1;
           for (uint32_t i = 0; i < sub.nodes.size(); ++i)
             for (const uint32_t c : sub.nodes[i].child) {
-              if (c & kFaceChild) height = std::max(height, depth[i] + 1);
-              else depth[c] = depth[i] + 1;
+              if (c & kFaceChild)
+                height = std::max(height, depth[i] + 1);
+              else
+                depth[c] = depth[i] + 1;
             }
           sub.stats.height = height;
         } else {
@@ -357,7 +364,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           const glm::mat3 axes = glm::mat3_cast(box.orientation);
           for (int c = 0; c < 8; ++c) {
             glm::vec3 p = box.center;
-            for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
+            for (int a = 0; a < 3; ++a)
+              p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
             leaf.corners[c] = p;
           }
         } else {
@@ -427,7 +435,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
         const auto pair = [&](size_t x, size_t y, double shared) {
           const uint32_t lx = leafOf[local[x].face], ly = leafOf[local[y].face];
-          if (lx != ly) result.pairs.push_back({{cell, cell}, {lx | CrossPair::kLeafRef, ly | CrossPair::kLeafRef}, shared});
+          if (lx != ly)
+            result.pairs.push_back(
+                {{cell, cell}, {lx | CrossPair::kLeafRef, ly | CrossPair::kLeafRef}, shared});
         };
         const size_t k = j - i;
         if (k <= kMaxFacesJoinedPairwise) {
@@ -493,14 +503,16 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           for (size_t b = a + 1; b < j; ++b) {
             if (incidences[a].cell == incidences[b].cell) continue;
             const double shared = length * incidences[a].sides * incidences[b].sides / (totalSides - 1);
-            result.pairs.push_back({{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
+            result.pairs.push_back(
+                {{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
           }
       } else {
         const double shared = length * totalSides / (2.0 * double(k - 1));
         for (size_t a = i; a + 1 < j; ++a) {
           if (incidences[a].cell == incidences[a + 1].cell) continue;
-          result.pairs.push_back(
-              {{incidences[a].cell, incidences[a + 1].cell}, {incidences[a].ref, incidences[a + 1].ref}, shared});
+          result.pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
+                                  {incidences[a].ref, incidences[a + 1].ref},
+                                  shared});
         }
       }
     }
@@ -511,7 +523,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
 void OutOfCoreBuild::resolveCrossEdges() {
   const auto cells = static_cast<uint32_t>(cells_.size());
   std::vector<uint32_t> leafBase(cells + 1, 0);
-  for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
+  for (uint32_t c = 0; c < cells; ++c)
+    leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
   const auto resolve = [&](uint32_t cell, uint32_t ref) -> uint32_t {
     if (ref & CrossPair::kLeafRef) return leafBase[cell] + (ref & ~CrossPair::kLeafRef);
     const auto& border = cells_[cell].border;

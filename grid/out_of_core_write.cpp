@@ -125,7 +125,8 @@ void OutOfCoreBuild::write() {
   const auto nodePosition = [&](uint32_t leaf, uint32_t local) {
     const auto& blocks = leaves_[leaf].blocks;
     const auto it = std::upper_bound(blocks.begin(), blocks.end(), local,
-                                     [](uint32_t x, const NodeBlock& b) { return x < b.first; }) - 1;
+                                     [](uint32_t x, const NodeBlock& b) { return x < b.first; }) -
+                    1;
     const size_t b = static_cast<size_t>(it - blocks.begin());
     return static_cast<uint32_t>(blockPosition[blockStart[leaf] + b] + (local - it->first));
   };
@@ -136,13 +137,15 @@ void OutOfCoreBuild::write() {
   // Frames of the upper nodes from their statistics and their leaves' box corners.
   std::vector<glm::vec3> corners(size_t{8} * leafCount);
   for (uint32_t i = 0; i < leafCount; ++i)
-    std::copy(leaves_[leafOrder[i]].corners.begin(), leaves_[leafOrder[i]].corners.end(), corners.begin() + 8 * i);
+    std::copy(leaves_[leafOrder[i]].corners.begin(), leaves_[leafOrder[i]].corners.end(),
+              corners.begin() + 8 * i);
   std::vector<BoxAccumulator> boxes;
   std::vector<uint8_t> flat(upperCount, 0);
   boxes.reserve(upperCount);
   for (uint32_t i = 0; i < upperCount; ++i) {
     bool isFlat = false;
-    const std::span<const glm::vec3> points(corners.data() + size_t{8} * firstLeaf[i], size_t{8} * leavesUnder[i]);
+    const std::span<const glm::vec3> points(corners.data() + size_t{8} * firstLeaf[i],
+                                            size_t{8} * leavesUnder[i]);
     boxes.emplace_back(clusterOrientation(upper[i].stats, points, job_.build.flatThreshold, isFlat));
     flat[i] = isFlat;
   }
@@ -166,8 +169,10 @@ void OutOfCoreBuild::write() {
   writeOptions.zstdLevel = job_.zstdLevel ? job_.zstdLevel : 3;
   ClusterFileWriter writer(job_.output, info, writeOptions, temp_.path());
   writer.setTemporaryBytesHook([this](int64_t delta) {
-    if (delta > 0) temp_.reserve(static_cast<uint64_t>(delta));
-    else temp_.release(static_cast<uint64_t>(-delta));
+    if (delta > 0)
+      temp_.reserve(static_cast<uint64_t>(delta));
+    else
+      temp_.release(static_cast<uint64_t>(-delta));
   });
 
   // Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
@@ -216,7 +221,8 @@ void OutOfCoreBuild::write() {
   const auto childRef = [&](uint32_t c) -> uint32_t {
     if (!(c & kLeafChild)) return upperCount - 1 - c;
     const uint32_t leaf = c & ~kLeafChild;
-    return leaves_[leaf].nodeCount ? nodePosition(leaf, 0) : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
+    return leaves_[leaf].nodeCount ? nodePosition(leaf, 0)
+                                   : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
   };
   for (uint32_t j = 0; j < upperCount; ++j) {
     const uint32_t i = upperCount - 1 - j;

@@ -5,7 +5,8 @@
 
 namespace facetree {
 
-VertexPositions::VertexPositions(TempSpace& space, uint64_t memoryBudget) : space_(space), budget_(memoryBudget) {}
+VertexPositions::VertexPositions(TempSpace& space, uint64_t memoryBudget)
+    : space_(space), budget_(memoryBudget) {}
 
 void VertexPositions::append(std::span<const glm::vec3> positions) {
   for (const glm::vec3& p : positions) {
@@ -46,7 +47,8 @@ void VertexPositions::readBlock(size_t b, std::vector<glm::vec3>& out, SpillCode
 BlockCache::BlockCache(const VertexPositions& positions, uint64_t memoryBudget)
     : positions_(positions), slotOfBlock_(positions.blockCount(), -1) {
   const uint64_t blockBytes = uint64_t{VertexPositions::kBlockVertices} * sizeof(glm::vec3);
-  const size_t slots = static_cast<size_t>(std::clamp<uint64_t>(memoryBudget / blockBytes, 2, positions.blockCount()));
+  const size_t slots =
+      static_cast<size_t>(std::clamp<uint64_t>(memoryBudget / blockBytes, 2, positions.blockCount()));
   slots_.resize(slots);
   lastUse_.assign(slots, 0);
   blockOfSlot_.assign(slots, ~0u);

@@ -5,8 +5,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <csignal>
 #include <algorithm>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -246,8 +246,8 @@ TEST_F(Faults, DiskFullInTemporaryFilesExitsWithFiveAndLeavesNothing) {
 TEST_F(Faults, TemporaryLimitExitsWithFive) {
   const fs::path tmp = inputs_ / "tmp-limit";
   fs::create_directories(tmp);
-  const ChildResult result = runChild(
-      {"build", mesh(), "-o", out("ooc.fch"), "--cell-faces", "2000", "--tmp", tmp.string(), "--max-tmp", "64k"});
+  const ChildResult result = runChild({"build", mesh(), "-o", out("ooc.fch"), "--cell-faces", "2000", "--tmp",
+                                       tmp.string(), "--max-tmp", "64k"});
   EXPECT_EQ(result.exitCode, 5) << result.output;
   EXPECT_NE(result.output.find("temporary files would exceed --max-tmp 65536 bytes"), std::string::npos)
       << result.output;
@@ -262,7 +262,9 @@ TEST_F(Faults, OutOfCoreFromStandardInputToStandardOutput) {
   const std::string piped = out("piped.fch"), direct = out("direct.fch");
   // (runCli appends 2>&1 to the command line: it applies to the `true` after the build, and the
   // build's report on stderr, which must not reach the file, goes to /dev/null.)
-  ASSERT_EQ(test::runCli("build - -o - --cell-faces 3000 < " + mesh() + " 2>/dev/null > " + piped + "; true").exitCode, 0);
+  ASSERT_EQ(test::runCli("build - -o - --cell-faces 3000 < " + mesh() + " 2>/dev/null > " + piped + "; true")
+                .exitCode,
+            0);
   ASSERT_EQ(test::runCli("build " + mesh() + " -o " + direct + " --cell-faces 3000").exitCode, 0);
   std::ifstream a(piped, std::ios::binary), b(direct, std::ios::binary);
   const std::string x{std::istreambuf_iterator<char>(a), {}}, y{std::istreambuf_iterator<char>(b), {}};

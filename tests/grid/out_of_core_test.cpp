@@ -185,7 +185,8 @@ TEST(OutOfCore, SmallCapIsRefusedWithWhatItNeeds) {
     build(mesh, dir / "out.fch", 0, 2, {}, uint64_t{20} << 20);
     FAIL() << "a 20 MiB cap was accepted";
   } catch (const MemoryCapError& e) {
-    EXPECT_NE(std::string(e.what()).find("is too small: an out-of-core build needs at least"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("is too small: an out-of-core build needs at least"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_FALSE(fs::exists(dir / "out.fch"));
