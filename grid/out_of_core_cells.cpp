@@ -140,8 +140,11 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
   for (const Pool& p : pools) {
     const float band = static_cast<float>(std::floor(p.sum / p.weight / kKeyBand));
     for (size_t k = 0; k < p.count; ++k, ++at) {
+      // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
+      // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
+      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, kMinNodeBlock);
       if (blocks.empty() || blocks.back().count == kNodeBlock ||
-          (blocks.back().key != band && blocks.back().count >= kMinNodeBlock))
+          (blocks.back().key != band && blocks.back().count >= minimum))
         blocks.push_back({band, at, 0});
       ++blocks.back().count;
     }

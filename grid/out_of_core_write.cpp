@@ -2,6 +2,7 @@
 // file: geometry in leaf order (accumulating the upper nodes' exact boxes and side areas), then
 // the nodes, upper nodes first and each leaf's subtree after them (out_of_core.h).
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 
@@ -96,27 +97,49 @@ void OutOfCoreBuild::write() {
   // seed sec. 5.5.3) refines the leaves as the in-core reverse creation order refines the mesh:
   // cheapest merges last. Every leaf block follows all upper nodes and its own earlier blocks, so
   // children always follow their parents.
+  // Upper nodes take part in the order too (a cheap upper merge, e.g. two slivers, should come
+  // late, not first): their key is the band of their log cost, capped by their parent's, and a
+  // leaf block's key is capped by its upper parent's, so keys never increase from parent to child;
+  // at equal keys upper nodes go first, each in its file order (parents before children).
+  std::vector<float> upperKey(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j) {
+    const uint32_t i = upperCount - 1 - j;
+    const float own =
+        static_cast<float>(std::floor(std::log(std::max(double(upper[i].cost), 1e-30)) / kKeyBand));
+    upperKey[i] = nodeParent[i] == kNone ? own : std::min(own, upperKey[nodeParent[i]]);
+  }
   struct BlockRef {
     float key;
+    uint32_t kind;  // 0: upper node (leafRank = its file index), 1: leaf block
     uint32_t leafRank, block;
   };
   std::vector<BlockRef> order;
+  for (uint32_t j = 0; j < upperCount; ++j) order.push_back({upperKey[upperCount - 1 - j], 0, j, 0});
   std::vector<uint64_t> blockStart(leafCount + 1, 0);
   for (uint32_t rank = 0; rank < leafCount; ++rank) {
-    const auto& blocks = leaves_[leafOrder[rank]].blocks;
-    for (uint32_t b = 0; b < blocks.size(); ++b) order.push_back({blocks[b].key, rank, b});
+    const uint32_t leaf = leafOrder[rank];
+    const float cap =
+        leafParent[leaf] == kNone ? std::numeric_limits<float>::infinity() : upperKey[leafParent[leaf]];
+    const auto& blocks = leaves_[leaf].blocks;
+    for (uint32_t b = 0; b < blocks.size(); ++b) order.push_back({std::min(blocks[b].key, cap), 1, rank, b});
   }
   std::sort(order.begin(), order.end(), [](const BlockRef& x, const BlockRef& y) {
     if (x.key != y.key) return x.key > y.key;
+    if (x.kind != y.kind) return x.kind < y.kind;
     if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
     return x.block < y.block;
   });
   for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] = leaves_[leaf].blocks.size();
   for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] += blockStart[leaf];
   std::vector<uint64_t> blockPosition(blockStart[leafCount]);
+  std::vector<uint32_t> upperPosition(upperCount);
   {
-    uint64_t position = upperCount;
+    uint64_t position = 0;
     for (const BlockRef& ref : order) {
+      if (ref.kind == 0) {
+        upperPosition[ref.leafRank] = static_cast<uint32_t>(position++);
+        continue;
+      }
       const uint32_t leaf = leafOrder[ref.leafRank];
       blockPosition[blockStart[leaf] + ref.block] = position;
       position += leaves_[leaf].blocks[ref.block].count;
@@ -219,12 +242,12 @@ void OutOfCoreBuild::write() {
   std::vector<FchNode> out;
   out.reserve(std::min<size_t>(upperCount, 4096));
   const auto childRef = [&](uint32_t c) -> uint32_t {
-    if (!(c & kLeafChild)) return upperCount - 1 - c;
+    if (!(c & kLeafChild)) return upperPosition[upperCount - 1 - c];
     const uint32_t leaf = c & ~kLeafChild;
     return leaves_[leaf].nodeCount ? nodePosition(leaf, 0)
                                    : kFaceChild | static_cast<uint32_t>(faceBase[leaf]);
   };
-  for (uint32_t j = 0; j < upperCount; ++j) {
+  const auto upperNode = [&](uint32_t j) {
     const uint32_t i = upperCount - 1 - j;
     const ClusterMergeNode& u = upper[i];
     FchNode n;
@@ -240,16 +263,18 @@ void OutOfCoreBuild::write() {
     n.perimeter = static_cast<float>(u.stats.perimeter);
     n.sumNormal = glm::vec3(u.stats.sumNormal);
     n.box = boxes[i].box();
-    out.push_back(n);
-    if (out.size() == 4096) {
+    return n;
+  };
+  std::vector<FchNode> leafNodes;
+  for (const BlockRef& ref : order) {
+    if (ref.kind == 0) {
+      out.push_back(upperNode(ref.leafRank));
+      continue;
+    }
+    if (!out.empty()) {
       writer.addNodes(out);
       out.clear();
     }
-  }
-  writer.addNodes(out);
-  boxes = {};
-  std::vector<FchNode> leafNodes;
-  for (const BlockRef& ref : order) {
     const uint32_t leafId = leafOrder[ref.leafRank];
     const LeafCluster& leaf = leaves_[leafId];
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
@@ -266,6 +291,7 @@ void OutOfCoreBuild::write() {
     done += leafNodes.size();
     checkCancel("write", done, faces + nodes);
   }
+  writer.addNodes(out);
   nodeSpill_.reset();
   report_.fileBytes = writer.finish();
 }
