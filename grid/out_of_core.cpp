@@ -329,6 +329,11 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   reader.reset();
   resolveSpilledPositions();
   if (positions_) positions_->release();  // every position is in the arrival spill now
+  // Each leaf costs ~kLeafBytes until the write (record, node blocks, cross pairs): leaves are made
+  // big enough that they all fit an eighth of the cap.
+  const uint64_t leavesAllowed = std::max<uint64_t>(1, memoryCap_ / 8 / kLeafBytes);
+  frontierFaces_ = std::clamp<uint64_t>((triangles_ + leavesAllowed - 1) / leavesAllowed, frontierFaces_,
+                                        std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
   report_.secondsRead = secondsSince(start);
   report_.peakRssAfter.push_back({"read", peakRss()});
 

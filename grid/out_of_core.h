@@ -139,16 +139,19 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
 inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
 // One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
 // engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
-// arenas: a 3M-triangle terrain at 64 MiB peaked at 58 MiB with 640 and 24 MiB of base, its
-// shuffled twin (positions spilled, sort join) at 61.5 MiB with 720; a 55.8M-triangle scan at
-// 256 MiB (cells of 144k faces) at 285 MiB with 800: ~900 B per face in big cells.
-inline constexpr uint64_t kCellBytesPerFace = 1000;
+// arenas. Measured: a 3M-triangle terrain at 64 MiB (cells of 12.6k faces) peaks at 59-63 MB
+// with 1000; a 55.8M-triangle scan at 256 MiB (cells of 113k-144k faces) at 280-285 MiB with
+// 800 and 1000: ~1140 B per face in big cells.
+inline constexpr uint64_t kCellBytesPerFace = 1200;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
 // faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
 // the top of the tree across cell borders, few enough that it stays small.
 inline constexpr uint64_t kFrontiersPerCell = 32;
 inline constexpr uint64_t kMinFrontierFaces = 64;
+// Memory per leaf cluster from the cells to the write: its record (~350 B), ~20 node blocks of
+// 32 B, cross-cell pairs and border faces (a 3M terrain at 64 MiB: ~1.3 KB per leaf).
+inline constexpr uint64_t kLeafBytes = 1536;
 // The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
 // one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
 inline constexpr uint32_t kNodeBlock = 256;
