@@ -155,7 +155,7 @@ inline constexpr uint64_t kLeafBytes = 1536;
 // The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
 // one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
 inline constexpr uint32_t kNodeBlock = 256;
-inline constexpr uint32_t kMinNodeBlock = 32;
+inline constexpr uint32_t kMinNodeBlock = 256;
 inline constexpr double kKeyBand = 0.25;
 std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes);
 

@@ -131,10 +131,11 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
       pools.pop_back();
     }
   }
-  // Runs of one band, at least kMinNodeBlock long (a shorter run joins the next, under the
-  // earlier, higher key): the block table costs ~50 bytes per block in memory until the write
-  // (one block per node made fg_hawaii's table 166 MB). Dragon in 20k cells, cut at 100,000
-  // clusters, fits 1.04x in core with runs of 16 or more, 1.08x with 32, 2.5x with 64.
+  // Runs of one band, at least min(f / 2, kMinNodeBlock) long for a run from node f (a shorter
+  // run joins the next, under the earlier, higher key): the block table costs ~50 bytes per block
+  // in memory until the write (one block per node made fg_hawaii's table 166 MB; runs of >= 32
+  // made a 55.8M scan's 56 MB). Dragon in 20k cells, cut at 100,000 clusters, fits 1.035x in
+  // core with kMinNodeBlock 32 and with 256; fixed runs of >= 64 from the top of a leaf: 2.5x.
   std::vector<NodeBlock> blocks;
   uint32_t at = 0;
   for (const Pool& p : pools) {
