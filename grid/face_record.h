@@ -2,6 +2,7 @@
 // never leave the run's temporary directory.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <type_traits>
 
@@ -19,6 +20,29 @@ struct FaceRecord {
   glm::vec3 corner(int i) const { return {position[3 * i], position[3 * i + 1], position[3 * i + 2]}; }
 };
 static_assert(sizeof(FaceRecord) == 56 && std::is_trivially_copyable_v<FaceRecord>);
+
+// Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.
+template <class F>
+inline void forEachEdge(const FaceRecord& r, F&& f) {
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t a = r.vertex[k], b = r.vertex[(k + 1) % 3];
+    if (a == b) continue;
+    const uint32_t low = std::min(a, b), high = std::max(a, b);
+    bool seen = false;
+    uint32_t sides = 0;
+    for (int j = 0; j < 3; ++j) {
+      const uint32_t c = r.vertex[j], d = r.vertex[(j + 1) % 3];
+      if (c != d && std::min(c, d) == low && std::max(c, d) == high) {
+        ++sides;
+        seen |= j < k;
+      }
+    }
+    if (seen) continue;
+    const int lowCorner = a == low ? k : (k + 1) % 3;
+    const int highCorner = lowCorner == k ? (k + 1) % 3 : k;
+    f(low, high, sides, lowCorner, highCorner);
+  }
+}
 
 // A face edge whose owner cell (the cell of its lower-id endpoint's position) is not the face's
 // own cell: sent to the owner, which alone sees every face on the edge (out_of_core.cpp).

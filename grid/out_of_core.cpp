@@ -254,29 +254,14 @@ void OutOfCoreBuild::binAndDistribute() {
       const uint32_t cell = grid_->nextFaceCell(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
       const auto local = static_cast<uint32_t>(cellFaces_->records(cell));
       cellFaces_->append(cell, &r);
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t a = r.vertex[k], b = r.vertex[(k + 1) % 3];
-        if (a == b) continue;
-        const uint32_t low = std::min(a, b), high = std::max(a, b);
-        bool seen = false;
-        uint32_t sides = 0;
-        for (int j = 0; j < 3; ++j) {
-          const uint32_t c = r.vertex[j], d = r.vertex[(j + 1) % 3];
-          if (std::min(c, d) == low && std::max(c, d) == high && c != d) {
-            ++sides;
-            seen |= j < k;
-          }
-        }
-        if (seen) continue;  // counted at its first side
-        const int lowCorner = r.vertex[k] == low ? k : (k + 1) % 3;
-        const int highCorner = lowCorner == k ? (k + 1) % 3 : k;
+      forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
         const glm::vec3 pLow = r.corner(lowCorner);
         const uint32_t owner = grid_->ownerCell(grid_->bin(pLow));
-        if (owner == cell) continue;
+        if (owner == cell) return;
         const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
         const GhostEdge ghost{low, high, cell, local, sides, static_cast<float>(length)};
         ghosts_->append(owner, &ghost);
-      }
+      });
     }
     done += records.size();
     checkCancel("bin", done, triangles_);

@@ -80,29 +80,6 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
   if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
 }
 
-// Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.
-template <class F>
-void forEachEdge(const FaceRecord& r, F&& f) {
-  for (int k = 0; k < 3; ++k) {
-    const uint32_t a = r.vertex[k], b = r.vertex[(k + 1) % 3];
-    if (a == b) continue;
-    const uint32_t low = std::min(a, b), high = std::max(a, b);
-    bool seen = false;
-    uint32_t sides = 0;
-    for (int j = 0; j < 3; ++j) {
-      const uint32_t c = r.vertex[j], d = r.vertex[(j + 1) % 3];
-      if (c != d && std::min(c, d) == low && std::max(c, d) == high) {
-        ++sides;
-        seen |= j < k;
-      }
-    }
-    if (seen) continue;
-    const int lowCorner = a == low ? k : (k + 1) % 3;
-    const int highCorner = lowCorner == k ? (k + 1) % 3 : k;
-    f(low, high, sides, lowCorner, highCorner);
-  }
-}
-
 }  // namespace
 
 // How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
