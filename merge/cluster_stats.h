@@ -67,8 +67,8 @@ struct ClusterStats {
   }
 
   // fromTriangle for float corners taken about `origin`, written out in scalars with the exact
-  // arithmetic of FaceGeometry::leafStats (tests/merge/merge_api_test.cpp checks they agree bit
-  // for bit), so that stats summed from it match the engine's.
+  // arithmetic FaceGeometry::leafStats uses (it calls this; tests/merge/merge_api_test.cpp checks
+  // they agree bit for bit), so that stats summed from it match the engine's.
   static ClusterStats fromShiftedTriangle(const glm::vec3& pa, const glm::vec3& pb, const glm::vec3& pc,
                                           const glm::dvec3& origin) {
     const double ax = pa.x - origin.x, ay = pa.y - origin.y, az = pa.z - origin.z;

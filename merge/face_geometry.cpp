@@ -67,29 +67,7 @@ ClusterStats FaceGeometry::leafStats(uint32_t face) const {
   const glm::vec3& pa = mesh_.positions[mesh_.indices[base]];
   const glm::vec3& pb = mesh_.positions[mesh_.indices[base + 1]];
   const glm::vec3& pc = mesh_.positions[mesh_.indices[base + 2]];
-  const double ax = pa.x - origin_.x, ay = pa.y - origin_.y, az = pa.z - origin_.z;
-  const double bx = pb.x - origin_.x, by = pb.y - origin_.y, bz = pb.z - origin_.z;
-  const double cx = pc.x - origin_.x, cy = pc.y - origin_.y, cz = pc.z - origin_.z;
-  const double ux = bx - ax, uy = by - ay, uz = bz - az;  // b - a
-  const double vx = cx - ax, vy = cy - ay, vz = cz - az;  // c - a
-  const double wx = cx - bx, wy = cy - by, wz = cz - bz;  // c - b
-  const double nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
-  ClusterStats s;
-  s.sumNormal = glm::dvec3(0.5 * nx, 0.5 * ny, 0.5 * nz);
-  s.area = 0.5 * std::sqrt(nx * nx + ny * ny + nz * nz);
-  s.perimeter = std::sqrt(ux * ux + uy * uy + uz * uz) + std::sqrt(vx * vx + vy * vy + vz * vz) +
-                std::sqrt(wx * wx + wy * wy + wz * wz);
-  const double sx = ax + bx + cx, sy = ay + by + cy, sz = az + bz + cz;
-  const double third = s.area / 3.0, w = s.area / 12.0;
-  s.firstMoment = glm::dvec3(third * sx, third * sy, third * sz);
-  double* m = s.secondMoment.m;
-  m[0] = w * (ax * ax + bx * bx + cx * cx + sx * sx);
-  m[1] = w * (ax * ay + bx * by + cx * cy + sx * sy);
-  m[2] = w * (ax * az + bx * bz + cx * cz + sx * sz);
-  m[3] = w * (ay * ay + by * by + cy * cy + sy * sy);
-  m[4] = w * (ay * az + by * bz + cy * cz + sy * sz);
-  m[5] = w * (az * az + bz * bz + cz * cz + sz * sz);
-  return s;
+  return ClusterStats::fromShiftedTriangle(pa, pb, pc, origin_);
 }
 
 double FaceGeometry::sharedLength(uint32_t f, uint32_t g) const {

@@ -46,6 +46,7 @@
 #include <queue>
 #include <tuple>
 
+#include "merge/balance_guard.h"
 #include "merge/heap.h"
 
 namespace facetree {
@@ -57,21 +58,7 @@ constexpr uint32_t kNone = DualGraph::kNone;
 constexpr uint32_t kLeafSlot = 0xFFFFFFFFu;  // a single face: stats from the triangle
 constexpr uint32_t kDeadSlot = 0xFFFFFFFEu;  // merged into another cluster
 constexpr uint32_t kPairBit = 0x80000000u;   // | node index: two faces, stats from the triangles
-// Balance guard (BuildOptions::balanceSlack): a merge of height h' over n' faces with
-// h' > H = slack * (ceil(log2 n') + 1) costs eq. 84 times kBalancePenaltyBase^(h' - H).
-// Graded meshes (openfoam_buildings: triangle sizes grow geometrically away from the
-// buildings) otherwise grow one compact cluster by absorbing its ever larger neighbours one at
-// a time, since perim^2/projArea favours the compact growing cluster: heights 6x balanced.
-// Base 4: one level over the allowance must outweigh the spread of eq. 84 between a chain
-// step and the best balanced alternative; measured over the 18 shared meshes (see the report
-// in the commit log). Keys stay finite: toKey clamps to the float range.
-constexpr double kBalancePenaltyBase = 4.0;
-// Past this many levels over the allowance an edge is not merged at all (its key is +inf,
-// which toKey never produces): the penalty cannot help where a cluster's last neighbours are
-// slivers adjacent to it only (matterport_cedar_creek: a cluster of 8.7k faces absorbed 28
-// slivers one at a time, forced). Such clusters stay roots and are joined by joinComponents,
-// balanced by face count, like disconnected pieces.
-constexpr double kBalanceBlockExcess = 3.0;
+// Balance guard: merge/balance_guard.h (constants and their reasons, shared with mergeClusters).
 constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
@@ -265,9 +252,7 @@ class MergeEngine {
   double balanceExcess(uint32_t ia, uint32_t ib) const {
     const ClusterRecord& x = clusters_[ia];
     const ClusterRecord& y = clusters_[ib];
-    const uint32_t n = x.count + y.count;
-    const double allowance = balanceSlack_ * (std::bit_width(n - 1) + 1);  // ceil(log2 n) + 1
-    return std::max(height(x), height(y)) + 1 - allowance;
+    return facetree::balanceExcess(height(x), height(y), uint64_t{x.count} + y.count, balanceSlack_);
   }
 
   void pushEntry(float k, uint32_t c) {
