@@ -12,6 +12,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "merge/huge_pages.h"
+
 namespace facetree {
 
 namespace {
@@ -52,7 +54,9 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
     if (c != a && c != b) ++offset[c + 1];
   }
   for (size_t v = 0; v < vertexCount; ++v) offset[v + 1] += offset[v];
-  std::vector<uint32_t> incident(offset[vertexCount]);
+  std::vector<uint32_t> incident;
+  reserveHugePages(incident, offset[vertexCount]);
+  incident.resize(offset[vertexCount]);
   {
     std::vector<size_t> fill(offset.begin(), offset.end() - 1);
     for (uint32_t f = 0; f < n; ++f) {
@@ -65,7 +69,7 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
 
   DualGraph graph;
   // A closed manifold mesh has exactly 3n/2 dual edges; reserve that (growth covers the rest).
-  graph.edges.reserve(size_t{n} * 3 / 2 + 16);
+  reserveHugePages(graph.edges, size_t{n} * 3 / 2 + 16);
 
   // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
   std::array<Candidate, 3 * kMaxFacesJoinedPairwise> candidates;
@@ -146,6 +150,7 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
   incident = {};
 
   // Adjacency lists; pushing to the front leaves each list in descending edge order.
+  reserveHugePages(graph.head, n);
   graph.head.assign(n, DualGraph::kNone);
   for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
     DualEdge& edge = graph.edges[e];

@@ -17,6 +17,8 @@
 #include <cstring>
 #include <vector>
 
+#include "merge/huge_pages.h"
+
 namespace facetree {
 
 class EdgeHeap {
@@ -36,7 +38,7 @@ class EdgeHeap {
     }
   }
 
-  void reserve(size_t capacity) { entries_.reserve(capacity); }
+  void reserve(size_t capacity) { reserveHugePages(entries_, capacity); }
   bool empty() const { return entries_.empty(); }
   size_t size() const { return entries_.size(); }
   size_t capacity() const { return entries_.capacity(); }

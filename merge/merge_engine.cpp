@@ -48,6 +48,7 @@
 
 #include "merge/balance_guard.h"
 #include "merge/heap.h"
+#include "merge/huge_pages.h"
 
 namespace facetree {
 
@@ -82,12 +83,13 @@ class MergeEngine {
   MergeResult run() {
     const uint32_t n = geometry_.faceCount();
     auto start = std::chrono::steady_clock::now();
+    reserveHugePages(clusters_, n);
     clusters_.assign(n, ClusterRecord{kLeafSlot, kNone, 0.0f, kNoEdge, 1, 1});
     dead_.assign((size_t{n} + 63) / 64, 0);
     result_.records.reserve(n - 1);  // touched as merges happen
     // At most n/2 clusters of 2+ faces are live at once, so this never reallocates (references
     // into it stay valid); pages are touched only as slots are first used.
-    slots_.reserve(n / 2 + 1);
+    reserveHugePages(slots_, n / 2 + 1);
     triangles_.reserve(kTypicalDegree);
     // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
     uint32_t first = kNone;
