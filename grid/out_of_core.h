@@ -15,6 +15,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -88,6 +89,16 @@ class OutOfCoreBuild {
   void binAndDistribute();
   void buildCells();
   void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  // The upper tree recast to the file's branching factor (identity for 2), per binary node in
+  // creation order: whether it stays, and its children (kLeafChild | leaf, or a kept node).
+  struct UpperRecast {
+    std::vector<uint8_t> kept;
+    std::vector<std::array<uint32_t, kMaxBranching>> children;
+    std::vector<uint8_t> childCount;
+    std::vector<uint8_t> joined;  // joins disjoint surfaces (itself or a node folded into it)
+  };
+  UpperRecast recastUpper(std::span<const uint32_t> leafOrder, std::span<const uint32_t> firstLeaf,
+                          std::span<const uint32_t> leavesUnder) const;
   void resolveCrossEdges();
   void mergeAbove();
   void write();

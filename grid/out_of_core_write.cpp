@@ -37,6 +37,59 @@ void OutOfCoreBuild::mergeAbove() {
   edges_ = {};
 }
 
+OutOfCoreBuild::UpperRecast OutOfCoreBuild::recastUpper(std::span<const uint32_t> leafOrder,
+                                                        std::span<const uint32_t> firstLeaf,
+                                                        std::span<const uint32_t> leavesUnder) const {
+  const auto& upper = upper_.nodes;
+  const auto upperCount = static_cast<uint32_t>(upper.size());
+  UpperRecast r;
+  r.kept.assign(upperCount, 1);
+  r.children.resize(upperCount);
+  r.childCount.assign(upperCount, 2);
+  r.joined.resize(upperCount);
+  for (uint32_t i = 0; i < upperCount; ++i) {
+    r.children[i][0] = upper[i].child[0];
+    r.children[i][1] = upper[i].child[1];
+    r.joined[i] = (upper[i].flags & kNodeJoinsDisjointSurfaces) != 0;
+  }
+  if (job_.file.branching <= 2 || upperCount == 0) return r;
+
+  // The same recast as a leaf's subtree gets (io's recastHierarchy, seed sec. 5.5.1), on the
+  // upper tree with the leaf clusters as its atoms (their subtrees are recast on their own):
+  // a binary Hierarchy in reverse creation order whose "faces" are the leaves in DFS rank.
+  std::vector<uint32_t> rank(leafOrder.size());
+  for (uint32_t k = 0; k < leafOrder.size(); ++k) rank[leafOrder[k]] = k;
+  Hierarchy binary;
+  binary.faceOrder.resize(leafOrder.size());
+  binary.nodes.resize(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j) {
+    const uint32_t i = upperCount - 1 - j;
+    Node& node = binary.nodes[j];
+    for (int k = 0; k < 2; ++k) {
+      const uint32_t c = upper[i].child[k];
+      node.child[k] = (c & kLeafChild) ? kFaceChild | rank[c & ~kLeafChild] : upperCount - 1 - c;
+    }
+    node.first = firstLeaf[i];
+    node.count = leavesUnder[i];
+    node.flags = upper[i].flags & kNodeJoinsDisjointSurfaces;
+    node.area = static_cast<float>(upper[i].stats.area);
+  }
+  const RecastTree tree = recastHierarchy(binary, job_.file.branching, job_.file.rule);
+  std::fill(r.kept.begin(), r.kept.end(), uint8_t{0});
+  for (size_t t = 0; t < tree.binaryNode.size(); ++t) {
+    const uint32_t i = upperCount - 1 - tree.binaryNode[t];
+    r.kept[i] = 1;
+    r.childCount[i] = tree.childCount[t];
+    r.joined[i] = tree.joinFlag[t] != 0;
+    for (uint32_t k = 0; k < tree.childCount[t]; ++k) {
+      const uint32_t c = tree.child[t][k];
+      r.children[i][k] =
+          (c & kFaceChild) ? kLeafChild | leafOrder[c & ~kFaceChild] : upperCount - 1 - tree.binaryNode[c];
+    }
+  }
+  return r;
+}
+
 void OutOfCoreBuild::write() {
   const auto leafCount = static_cast<uint32_t>(leaves_.size());
   const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
@@ -79,8 +132,28 @@ void OutOfCoreBuild::write() {
       }
     }
   }
+  // The upper tree in the file's branching factor: kept[i] says whether binary node i stays,
+  // children[i] lists its children (recastUpper); parents and depths are redone over kept nodes.
+  const UpperRecast recast = recastUpper(leafOrder, firstLeaf, leavesUnder);
+  const uint64_t keptCount = std::count(recast.kept.begin(), recast.kept.end(), uint8_t{1});
+  if (upperCount > 0) {
+    std::fill(nodeParent.begin(), nodeParent.end(), kNone);
+    for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
+      if (!recast.kept[i]) continue;
+      if (nodeParent[i] == kNone) depth[i] = 1;
+      for (uint32_t k = 0; k < recast.childCount[i]; ++k) {
+        const uint32_t c = recast.children[i][k];
+        if (c & kLeafChild) {
+          leafParent[c & ~kLeafChild] = i;
+        } else {
+          nodeParent[c] = i;
+          depth[c] = depth[i] + 1;
+        }
+      }
+    }
+  }
   std::vector<uint64_t> faceBase(leafCount);
-  uint64_t faces = 0, nodes = upperCount, vertices = 0;
+  uint64_t faces = 0, nodes = keptCount, vertices = 0;
   uint32_t height = 1;
   for (const uint32_t leaf : leafOrder) {
     faceBase[leaf] = faces;
@@ -104,6 +177,7 @@ void OutOfCoreBuild::write() {
   std::vector<float> upperKey(upperCount);
   for (uint32_t j = 0; j < upperCount; ++j) {
     const uint32_t i = upperCount - 1 - j;
+    if (!recast.kept[i]) continue;
     const float own =
         static_cast<float>(std::floor(std::log(std::max(double(upper[i].cost), 1e-30)) / kKeyBand));
     upperKey[i] = nodeParent[i] == kNone ? own : std::min(own, upperKey[nodeParent[i]]);
@@ -114,7 +188,8 @@ void OutOfCoreBuild::write() {
     uint32_t leafRank, block;
   };
   std::vector<BlockRef> order;
-  for (uint32_t j = 0; j < upperCount; ++j) order.push_back({upperKey[upperCount - 1 - j], 0, j, 0});
+  for (uint32_t j = 0; j < upperCount; ++j)
+    if (recast.kept[upperCount - 1 - j]) order.push_back({upperKey[upperCount - 1 - j], 0, j, 0});
   std::vector<uint64_t> blockStart(leafCount + 1, 0);
   for (uint32_t rank = 0; rank < leafCount; ++rank) {
     const uint32_t leaf = leafOrder[rank];
@@ -253,10 +328,9 @@ void OutOfCoreBuild::write() {
     FchNode n;
     n.first = static_cast<uint32_t>(firstFace[i]);
     n.count = static_cast<uint32_t>(u.stats.faceCount);
-    n.childCount = 2;
-    n.child[0] = childRef(u.child[0]);
-    n.child[1] = childRef(u.child[1]);
-    n.flags = static_cast<uint8_t>(((u.flags & kNodeJoinsDisjointSurfaces) ? kFchJoinsDisjointSurfaces : 0) |
+    n.childCount = recast.childCount[i];
+    for (uint32_t k = 0; k < n.childCount; ++k) n.child[k] = childRef(recast.children[i][k]);
+    n.flags = static_cast<uint8_t>((recast.joined[i] ? kFchJoinsDisjointSurfaces : 0) |
                                    (flat[i] ? kFchFlatFrame : 0));
     n.cost = u.cost;
     n.area = static_cast<float>(u.stats.area);

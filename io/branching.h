@@ -1,5 +1,5 @@
-// Internal to io/: recasting the binary hierarchy to a larger branching factor (Willmott 2000,
-// sec. 5.5.1).
+// Recasting a binary hierarchy to a larger branching factor (Willmott 2000,
+// sec. 5.5.1). Public through io.h: the out-of-core build recasts its upper tree with it.
 #pragma once
 
 #include <array>

@@ -13,6 +13,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "io/branching.h"
 #include "io/cluster_file.h"
 #include "merge/merge.h"
 

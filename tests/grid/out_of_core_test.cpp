@@ -139,6 +139,41 @@ TEST(OutOfCore, HeightCloseToInCore) {
   EXPECT_TRUE(verifyClusterFile(readClusterFile(dir / "out.fch")).ok);
 }
 
+// Branching 4 and 8: the upper tree is recast like each leaf's subtree, so the whole file has
+// the height of an in-core build of the same branching (a binary upper tree over recast leaves
+// was as tall as the binary build: 22 and 21 levels on bunny_zipper for 13 and 8 in core).
+TEST(OutOfCore, BranchingRecastsTheUpperTreeToo) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "sphere.ply", SyntheticKind::Sphere, 60000);
+  for (const uint32_t b : {4u, 8u}) {
+    SCOPED_TRACE(b);
+    ClusterJob job;
+    job.input = mesh;
+    job.file.branching = b;
+    job.output = dir / "in.fch";
+    const JobReport inCore = runClusterJob(job);
+    job.output = dir / "out.fch";
+    job.forceCellFaces = 3000;
+    const JobReport outOfCore = runClusterJob(job);
+    ASSERT_TRUE(outOfCore.outOfCore);
+    EXPECT_GT(outOfCore.upperComponents + outOfCore.leaves, 20u);
+    const ClusterFile file = readClusterFile(dir / "out.fch");
+    const VerifyResult verified = verifyClusterFile(file);
+    EXPECT_TRUE(verified.ok) << verified.message;
+    EXPECT_EQ(file.header.branching, b);
+    // The root and the nodes right below it are upper nodes: they use the full branching.
+    EXPECT_EQ(file.nodes[0].childCount, b);
+    uint64_t wide = 0;
+    for (const FchNode& node : file.nodes) {
+      EXPECT_LE(node.childCount, b);
+      wide += node.childCount > 2;
+    }
+    EXPECT_GT(wide, file.nodes.size() / 3);
+    EXPECT_LE(outOfCore.height, inCore.height + 2);
+    EXPECT_LT(double(outOfCore.nodes), 1.1 * double(inCore.nodes));
+  }
+}
+
 TEST(OutOfCore, ByteIdenticalAcrossRunsAndThreads) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 40000, true);
