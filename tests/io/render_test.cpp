@@ -3,13 +3,11 @@
 #include <unistd.h>
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -394,20 +392,16 @@ TEST(RenderClustersPng, UnwritablePathThrowsIoErrorAndLeavesNothing) {
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(scratch.dir()), {}), 1);
 }
 
-// Renders a million-triangle terrain and a sphere, timing the terrain; with
+// Renders a million-triangle terrain and a sphere (the picture is centred, the corners are
+// background; render speed is measured by scripts/bench, not here); with
 // FACETREE_RENDER_CHECK_DIR set the pictures are kept there to be looked at.
-TEST(RenderClustersPng, MillionTrianglesRenderQuickly) {
+TEST(RenderClustersPng, MillionTrianglesRenderCentred) {
   Scratch scratch("large");
   const char* keep = std::getenv("FACETREE_RENDER_CHECK_DIR");
   const std::filesystem::path dir = keep ? std::filesystem::path(keep) : scratch.dir();
   const TestMesh land = terrain(708);
   ASSERT_GE(land.clusters.size(), 1000000u);
-  const auto start = std::chrono::steady_clock::now();
   renderClustersPng(land.view(), land.clusters, {}, dir / "terrain.png");
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::cout << "rendered " << land.clusters.size() << " triangles at 1024x768 in " << seconds << " s\n";
-  RecordProperty("render_seconds", std::to_string(seconds));
-  EXPECT_LT(seconds, 20.0) << "generous bound for sanitizer builds";
   const Image image = loadPng(dir / "terrain.png");
   expectBackgroundCorners(image);
   const glm::vec2 centroid = modelCentroid(image);
