@@ -30,8 +30,9 @@ def short(mesh):
     return mesh.replace("_", " ")
 
 
-def fit_line(ax, points, color, label_prefix):
-    """Draws the least-squares log-log line through points; returns its slope."""
+def fit_line(ax, points, color, label_prefix, extend_to=None, extend_label=None):
+    """Draws the least-squares log-log line through points (dotted on to x = extend_to when given);
+    returns its slope."""
     points = [(x, y) for x, y in points if x > 0 and y > 0]
     if len(points) < 2:
         return float("nan")
@@ -42,6 +43,10 @@ def fit_line(ax, points, color, label_prefix):
     lo, hi = min(xs), max(xs)
     ax.plot([math.exp(lo), math.exp(hi)], [math.exp(my + slope * (lo - mx)), math.exp(my + slope * (hi - mx))],
             color=color, linestyle="--", linewidth=1, label=f"{label_prefix} slope {slope:.2f}")
+    if extend_to and math.log(extend_to) > hi:
+        far = math.log(extend_to)
+        ax.plot([math.exp(hi), extend_to], [math.exp(my + slope * (hi - mx)), math.exp(my + slope * (far - mx))],
+                color=color, linestyle=":", linewidth=1, label=extend_label)
     return slope
 
 
@@ -138,39 +143,72 @@ def plot_pictures(pictures, path):
     save(fig, path)
 
 
+def log_axes(ax, xlabel, ylabel):
+    """Log-log axes with plain numbers on the ticks (a decade or less has too few powers of ten)."""
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+        lambda v, _: f"{v:g}" if f"{v:.1e}"[0] in "25" else ""))
+
+
+def count_label(v):
+    for unit, name in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if v >= unit:
+            return f"{v / unit:g}{name}"
+    return f"{v:g}"
+
+
 def plot_scaling(scaling, path):
     points = scaling["points"]
-    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(12, 3.6))
+    in_core = [p for p in points if not p.get("memory")]
+    capped = [p for p in points if p.get("memory")]
+    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(13, 4.2))
     for source, marker in (("shared", "o"), ("generated", "s")):
-        sel = [p for p in points if p["source"] == source]
+        sel = [p for p in in_core if p["source"] == source]
         ax.scatter([p["faces"] for p in sel], [p["cluster_seconds"] for p in sel], marker=marker,
                    color="tab:blue", label=f"{source} (wall)")
         ax.scatter([p["faces"] for p in sel], [p["process_cpu_seconds"] for p in sel], marker=marker,
                    facecolors="none", edgecolors="tab:red", label=f"{source} (process CPU)")
         bx.scatter([p["faces"] for p in sel], [p["peak_rss_bytes"] / 2**20 for p in sel], marker=marker,
                    color="tab:green", label=source)
-    fit = [p for p in points if p["faces"] >= 10_000]
-    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall")
-    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU")
-    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "")
-    for a, label in ((ax, "seconds"), (bx, "peak RSS, MiB")):
-        a.set_xscale("log")
-        a.set_yscale("log")
-        a.set_xlabel("faces")
-        a.set_ylabel(label)
-        a.legend(fontsize=7)
+    for p in capped:  # out of core under a cap: a star, labelled, left out of the fitted lines
+        label = f"{p['mesh']} out of core, --memory {p['memory']}, 1 run"
+        ax.scatter([p["faces"]], [p["cluster_seconds"]], marker="*", s=160, color="tab:blue",
+                   label=f"{label} (wall)")
+        ax.scatter([p["faces"]], [p["process_cpu_seconds"]], marker="*", s=160, facecolors="none",
+                   edgecolors="tab:red", label=f"{label} (CPU)")
+        bx.scatter([p["faces"]], [p["peak_rss_bytes"] / 2**20], marker="*", s=160, color="tab:purple", label=label)
+        bx.axhline(cap_mib(p["memory"]), color="tab:purple", linestyle=":", linewidth=1,
+                   label=f"cap {p['memory']}")
+    fit = [p for p in in_core if p["faces"] >= 10_000]
+    # The in-core fits run on dotted to the out-of-core point: where an in-core build would be.
+    far = max((p["faces"] for p in capped), default=None)
+    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall (in core)", far,
+             "in-core fits extrapolated")
+    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU (in core)", far)
+    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "in core")
+    log_axes(ax, "faces", "seconds (clustering, without reading)")
+    log_axes(bx, "faces", "peak RSS, MiB")
+    ax.legend(fontsize=6, loc="upper left")
+    bx.legend(fontsize=6, loc="upper left")
     ax.set_title("Time against faces (cf. Fig. 77)", fontsize=10)
     bx.set_title("Memory against faces (cf. Fig. 77)", fontsize=10)
-    cx.scatter([p["faces"] for p in points], [p["average_degree"] for p in points], color="tab:blue",
+    degree = [p for p in points if p.get("average_degree") is not None]
+    cx.scatter([p["faces"] for p in degree], [p["average_degree"] for p in degree], color="tab:blue",
                label="average")
-    cx.scatter([p["faces"] for p in points], [p["max_degree"] for p in points], color="tab:orange", label="maximum")
-    cx.set_xscale("log")
-    cx.set_yscale("log")
-    cx.set_xlabel("faces")
-    cx.set_ylabel("dual-edge degree")
+    cx.scatter([p["faces"] for p in degree], [p["max_degree"] for p in degree], color="tab:orange", label="maximum")
+    log_axes(cx, "faces", "dual-edge degree")
     cx.legend(fontsize=7)
-    cx.set_title("Degree per mesh (cf. Fig. 78)", fontsize=10)
+    cx.set_title("Degree per mesh, in core (cf. Fig. 78)", fontsize=10)
     save(fig, path)
+
+
+def cap_mib(cap):
+    return int(cap[:-1]) * {"M": 1, "G": 1024}[cap[-1]]
 
 
 def plot_octree(octree, path):
@@ -331,6 +369,9 @@ def markdown(report, figures, rel):
                ["load average at start / end", f"{report['load_average_start'][0]:.1f} / "
                                                f"{report.get('load_average_end', [float('nan')])[0]:.1f}"],
                ["bench wall time", f"{report.get('wall_seconds', 0) / 60:.1f} min"],
+           ] + ([["wall time per section, min (load average at its end)", ", ".join(
+               f"{name} {seconds / 60:.1f} ({report.get('section_load_average_end', {}).get(name, float('nan')):.1f})"
+               for name, seconds in report["section_seconds"].items())]] if report.get("section_seconds") else []) + [
            ] + ([[f"sections {', '.join(k['sections'])}", f"kept from the run of {k['date']} (load "
                   f"{k['load_average_start'][0]:.1f} / {k['load_average_end'][0]:.1f}, "
                   f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) else [])), ""]
@@ -413,20 +454,7 @@ def markdown(report, figures, rel):
         out += [table(header, body), "", f"![profile]({rel}/profile.png)", ""]
 
     if "scaling" in report:
-        s = report["scaling"]
-        out += ["## Scaling (Figs 77-78)", "",
-                f"Log-log slopes over the meshes of 10k faces and more: **time {s['slope_time']:.2f} (wall), "
-                f"{s['slope_cpu']:.2f} (process CPU), peak RSS {s['slope_rss']:.2f}**. Slope 1 is O(n) "
-                "(O(n log n) looks the same), 1.5 the seed's unbalanced worst case. Generated meshes: "
-                "`facetree gen terrain`.", "",
-                table(["mesh", "faces", "clustering s", "process CPU s", "peak RSS MiB", "bytes / face",
-                       "average degree", "max degree"],
-                      [[p["mesh"], f"{p['faces']:,}", f"{p['cluster_seconds']:.3f}", f"{p['process_cpu_seconds']:.3f}",
-                        mib(p["peak_rss_bytes"]), f"{p['peak_rss_bytes'] / p['faces']:.0f}",
-                        f"{p['average_degree']:.2f}", p["max_degree"]] for p in s["points"]]), "",
-                f"![scaling]({rel}/scaling.png)", "",
-                "**TODO (issue 5):** " + ", ".join(f"{t['faces'] // 1_000_000}M faces" for t in s.get("todo", []))
-                + " need the out-of-core build; the JSON reserves a `memory` field per point for them.", ""]
+        out += scaling_markdown(report["scaling"], rel)
 
     if "flat" in report:
         f = report["flat"]
@@ -468,6 +496,41 @@ def markdown(report, figures, rel):
             "scripts/bench --quick --only outofcore --keep-from OLD/bench.json",
             "```", ""]
     return "\n".join(out)
+
+
+def scaling_markdown(s, rel):
+    capped = [p for p in s["points"] if p.get("memory")]
+    w = s.get("with_out_of_core")
+    out = ["## Scaling (Figs 77-78)", "",
+           f"Log-log slopes over the in-core builds of 10k faces and more: **time {s['slope_time']:.2f} (wall), "
+           f"{s['slope_cpu']:.2f} (process CPU), peak RSS {s['slope_rss']:.2f}**"
+           + (f"; with the out-of-core point: time {w['time']:.2f} (wall), {w['cpu']:.2f} (process CPU), "
+              f"peak RSS {w['rss']:.2f} (bounded by its cap, not a memory scaling)" if w else "") + ". "
+           "Slope 1 is O(n) (O(n log n) looks the same), 1.5 the seed's unbalanced worst case. Generated "
+           "meshes: `facetree gen terrain`. Clustering time is hierarchy and boxes without reading.", ""]
+    if capped:
+        out += [" ".join(
+            f"**{p['mesh']} ({p['faces']:,} faces) is built out of core** (`facetree build MESH -o OUT.fch "
+            f"--memory {p['memory']} --tmp DIR --json`), once: the tree is deterministic and the run takes "
+            f"{p['process_wall_seconds'] / 60:.1f} minutes (in core it would need ~8.6 GB and ~12 minutes). "
+            f"Its time is the job's total less its read (bin {p['phases']['bin']:.0f} s, cells "
+            f"{p['phases']['cells']:.0f} s, merge {p['phases']['merge']:.0f} s, write {p['phases']['write']:.0f} s: "
+            "the write computes the boxes and compresses the file, which the in-core points do not write), "
+            f"its peak RSS the process's under the cap ({p['cells']:,} cells, {p['leaves']:,} leaf clusters, "
+            f"height {p['height']} / {p['balanced_height']}, temporary peak "
+            f"{p['temporary_bytes_peak'] / 1e9:.1f} GB, file {p['file_bytes'] / 1e9:.2f} GB). It is left out of "
+            "the fit: a different build whose memory is bounded by the cap. It is the star in the figure; its "
+            "dual-edge degrees are not reported by the out-of-core job." for p in capped), ""]
+    out += [table(["mesh", "faces", "build", "clustering s", "process CPU s", "peak RSS MiB", "bytes / face",
+                   "average degree", "max degree"],
+                  [[p["mesh"], f"{p['faces']:,}",
+                    f"out of core, --memory {p['memory']}, 1 run" if p.get("memory") else "in core",
+                    f"{p['cluster_seconds']:.3f}", f"{p['process_cpu_seconds']:.3f}",
+                    mib(p["peak_rss_bytes"]), f"{p['peak_rss_bytes'] / p['faces']:.0f}",
+                    f"{p['average_degree']:.2f}" if p.get("average_degree") is not None else "-",
+                    p["max_degree"] if p.get("max_degree") is not None else "-"] for p in s["points"]]), "",
+            f"![scaling]({rel}/scaling.png)", ""]
+    return out
 
 
 def outofcore_markdown(o, rel):
