@@ -375,6 +375,7 @@ def markdown(report, figures, rel):
            ] + ([[f"sections {', '.join(k['sections'])}", f"kept from the run of {k['date']} (load "
                   f"{k['load_average_start'][0]:.1f} / {k['load_average_end'][0]:.1f}, "
                   f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) else [])), ""]
+    out += headline_markdown(report)
 
     if "octree" in report:
         o = report["octree"]
@@ -496,6 +497,46 @@ def markdown(report, figures, rel):
             "scripts/bench --quick --only outofcore --keep-from OLD/bench.json",
             "```", ""]
     return "\n".join(out)
+
+
+def headline_markdown(report):
+    """The ratios the sections below lead to, in one list."""
+    lines = []
+    if (o := report.get("octree")) and o.get("median_ratio"):
+        lines.append(f"Face clustering / tightest-fit octree time, median over the meshes of 50k faces and more: "
+                     f"**{o['median_ratio']:.1f}** (wall), **{o['median_ratio_cpu']:.1f}** (CPU)"
+                     + (f"; **{o['instructions']['ratio']:.1f}** in instructions on {o['instructions']['mesh']}"
+                        if o.get("instructions") else "") + " (the seed: about 2.5).")
+    if b := report.get("balance"):
+        heights = [f"{r['mesh']} {r['willmott']['height']} against {r['garland']['height']} "
+                   f"(x{r['garland_over_default_height']:.1f}, balanced {r['balanced_height']})"
+                   for r in b["meshes"] if r["mesh"] in ("dragon_vrip", "openfoam_buildings") and r.get("garland")]
+        if heights:
+            lines.append("Height, default metric against Garland's: **" + "**, **".join(heights) + "**.")
+    if f := report.get("flat"):
+        lines.append("Flat grids, log-log slope of time: " +
+                     ", ".join(f"{METRIC_LABEL[m]} **{v:.2f}**" for m, v in f["slopes"].items()) + ".")
+    if s := report.get("scaling"):
+        line = (f"Scaling, log-log slopes over the in-core builds: time **{s['slope_time']:.2f}** (wall), "
+                f"**{s['slope_cpu']:.2f}** (CPU), peak RSS **{s['slope_rss']:.2f}**")
+        if w := s.get("with_out_of_core"):
+            line += f"; with the out-of-core point: time **{w['time']:.2f}** (wall), **{w['cpu']:.2f}** (CPU)"
+        lines.append(line + ".")
+        for p in (p for p in s["points"] if p.get("memory")):
+            lines.append(f"{p['mesh']} ({p['faces']:,} faces) out of core under --memory {p['memory']}: "
+                         f"**{p['process_wall_seconds'] / 60:.1f} min** wall, {p['process_cpu_seconds'] / 60:.1f} "
+                         f"CPU min, peak RSS **{p['peak_rss_bytes'] / 2**20:.0f} MiB**.")
+    if (o := report.get("outofcore")) and o.get("rows"):
+        parts = []
+        for order in ("coherent", "shuffled"):
+            rows = [r for r in o["rows"] if r["input"] == order and r["memory"]]
+            if rows:
+                parts.append(f"{order} " + ", ".join(
+                    f"{r['memory']} x{r['ratio']['seconds']:.2f} ({r['ratio']['process_cpu_seconds']:.2f} CPU, "
+                    f"RSS x{r['ratio']['process_peak_rss_bytes']:.2f})" for r in rows))
+        lines.append(f"Out of core / in core on terrain {o['faces'] / 1e6:g}M, time (wall): **" +
+                     "**; **".join(parts) + "**.")
+    return (["## Headline figures", ""] + [f"- {line}" for line in lines] + [""]) if lines else []
 
 
 def scaling_markdown(s, rel):
