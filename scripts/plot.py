@@ -81,6 +81,9 @@ def plot_balance(balance, path):
     nan = float("nan")
     ax.bar([i + 0.2 for i in x], [r["garland"]["height"] / r["balanced_height"] if r["garland"] else nan for r in rows], 0.4,
            color=METRIC_COLOR["garland"], label=METRIC_LABEL["garland"])
+    for i, r in enumerate(rows):
+        if not r["garland"]:
+            ax.text(i + 0.2, 1.15, "Garland skipped", fontsize=6, rotation=90, ha="center", va="bottom")
     ax.axhline(1, color="black", linewidth=0.8)
     ax.set_yscale("log")
     ax.set_ylabel("tree height / balanced height")
@@ -117,8 +120,10 @@ def plot_k(k_rows, path):
     ratios = [r["height"] / r["balanced_height"] for r in k_rows]
     if max(ratios) > 5 * min(ratios):  # a full run's no-guard heights span decades
         ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        # Plain numbers, the minor ticks at 2 and 5 labelled too (a decade has one power of ten).
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            lambda v, _: f"{v:g}" if f"{v:.1e}"[0] in "125" else ""))
     ax.set_xticks([1e-6, 1e-5, 1e-4, 1e-3], ["0", "1e-5", "1e-4\n(default)", "1e-3"])
     ax.set_xlabel("k (balance weight, eq. 80)")
     ax.set_ylabel("height / balanced height")
@@ -221,6 +226,11 @@ def loglog_slope(points):
         return float("nan")
     mx, my = sum(x for x, _ in points) / len(points), sum(y for _, y in points) / len(points)
     return sum((x - mx) * (y - my) for x, y in points) / sum((x - mx) ** 2 for x, _ in points)
+
+
+def large_rss_slope(s):
+    return loglog_slope([(p["faces"], p["peak_rss_bytes"]) for p in s["points"]
+                         if p["faces"] >= LARGE_FACES and not p.get("memory")])
 
 
 def cap_mib(cap):
@@ -350,7 +360,9 @@ def plot_outofcore(o, path):
     cx.axhline(1.1, color="black", linestyle="--", linewidth=0.8, label="aim: within 10%")
     cx.set_xticks(range(len(q)), [f"{short(r['mesh'])}\ncells of {r['cell_faces'] // 1000}k" for r in q], fontsize=7)
     cx.set_ylabel("out of core / in core")
-    cx.legend(fontsize=7)
+    # Room above the bars for the legend, which covered them at the bottom.
+    cx.set_ylim(0, 1.6 if max(b.get_height() for b in cx.patches) < 1.3 else None)
+    cx.legend(fontsize=7, loc="upper center", ncol=2)
     cx.set_title("Quality of forced out-of-core builds", fontsize=10)
     save(fig, path)
 
@@ -545,7 +557,8 @@ def headline_markdown(report):
                      ", ".join(f"{METRIC_LABEL[m]} **{v:.2f}**" for m, v in f["slopes"].items()) + ".")
     if s := report.get("scaling"):
         line = (f"Scaling, log-log slopes over the in-core builds: time **{s['slope_time']:.2f}** (wall), "
-                f"**{s['slope_cpu']:.2f}** (CPU), peak RSS **{s['slope_rss']:.2f}**")
+                f"**{s['slope_cpu']:.2f}** (CPU), peak RSS **{s['slope_rss']:.2f}** (from 10k faces; "
+                f"**{large_rss_slope(s):.2f}** from {count_label(LARGE_FACES)}, past the process's fixed base)")
         if w := s.get("with_out_of_core"):
             line += f"; with the out-of-core point: time **{w['time']:.2f}** (wall), **{w['cpu']:.2f}** (CPU)"
         lines.append(line + ".")
@@ -590,8 +603,8 @@ def scaling_markdown(s, rel):
             f"**{p['mesh']} ({p['faces']:,} faces) is built out of core** (`facetree build MESH -o OUT.fch "
             f"--memory {p['memory']} --tmp DIR --json`), once: the tree is deterministic and the run takes "
             f"{p['process_wall_seconds'] / 60:.1f} minutes (in core it would need ~8.6 GB and ~12 minutes). "
-            f"Its time is the job's total less its read (bin {p['phases']['bin']:.0f} s, cells "
-            f"{p['phases']['cells']:.0f} s, merge {p['phases']['merge']:.0f} s, write {p['phases']['write']:.0f} s: "
+            f"Its time is the job's total less its read (bin {p['phases']['bin']:.1f} s, cells "
+            f"{p['phases']['cells']:.1f} s, merge {p['phases']['merge']:.1f} s, write {p['phases']['write']:.1f} s: "
             "the write computes the boxes and compresses the file, which the in-core points do not write), "
             f"its peak RSS the process's under the cap ({p['cells']:,} cells, {p['leaves']:,} leaf clusters, "
             f"height {p['height']} / {p['balanced_height']}, temporary peak "
