@@ -34,12 +34,15 @@ repetition, and are shared by build, profile, balance, scaling and octree.
 
 Writes OUT/bench.json (and OUT/pictures/*.png) and prints a table per section.
 
-Budget on the 2-CPU shared machine: --quick about 5-7 minutes at load 6 (2.3 CPU minutes for the
-sections before outofcore, which adds about 3 minutes: one run per case, 8 builds of 2M faces, 6
-quality builds of ~1M). The full run, by the quick run's per-face rates: about 16 CPU minutes for the
-sections before outofcore, 8-10 for the 50M-face scaling point, 13 for outofcore (one run per case:
-8 builds of 10M faces), under an hour of wall time at load 2-3. OUT/bench.json records each
-section's wall time (section_seconds) and the load average at its end.
+Budget on the 2-CPU shared machine, measured on 2026-11-21 (/usr/bin/time -v, another helper's
+out-of-core builds running alongside): --quick 6.3 minutes of wall time, 5.7 CPU minutes, at load
+1.7-4.0 (outofcore 3.0 of them: one run per case, 8 builds of 2M faces, 6 quality builds of ~1M);
+the full run 41.5 minutes, 37.2 CPU minutes, at load 1.4-9.3 (mean 4.1). Full run per section: build
+8.2 min (the shared per-mesh builds), balance 2.4, scaling 9.1 (the 50M-face point's build 6.0 of them,
+generating its 950 MB PLY 6 s), flat 7.2 (Garland on the 640k grid: 87 s a run),
+outofcore 13.3 (one run per case: three would add some 27 CPU minutes and pass the hour), the rest
+under a minute each. OUT/bench.json records each section's wall time (section_seconds) and the load
+average at its end.
 """
 import argparse
 import json
@@ -639,8 +642,8 @@ def bench_outofcore(args, out):
     """Issue 5: the out-of-core build against the in-core one, cost and quality."""
     started, load_start = time.time(), os.getloadavg()
     # One run per case, in the full run too: the trees are deterministic, times carry the machine's
-    # load (process CPU times less so), and the 8 builds of 10M faces take 80-120 CPU seconds each
-    # (from the 2M rates): three runs of each would take some 40 minutes of the hour alone.
+    # load (process CPU times less so), and the 8 builds of 10M faces take 70-180 CPU seconds each
+    # (measured): three runs of each would take some 40 minutes of the hour alone.
     repeat = 1
     tmp = out / "outofcore_tmp"
     tmp.mkdir(exist_ok=True)

@@ -641,9 +641,11 @@ def outofcore_markdown(o, rel):
            "Peak RSS: the process's own (wait4's ru_maxrss, what `/usr/bin/time` prints) and the job's report. "
            "Out-of-core files are written at zstd level 3, in-core ones at 9 (the job's defaults). The trees "
            "are deterministic, hence one run per case even in the full run, whose 8 builds of 10M faces take "
-           "80-120 CPU seconds each: 10M is the largest terrain whose in-core reference fits the full run's "
+           "70-180 CPU seconds each: 10M is the largest terrain whose in-core reference fits the full run's "
            "hour. The 50M terrain of the scaling section is built at --memory 1G only (in core it needs "
-           "~8.6 GB).", "",
+           "~8.6 GB)." + "".join(
+               f" **Over the cap: {r['input']} at --memory {r['memory']} peaked at "
+               f"{r['process_peak_rss_bytes'] / 2**20:.1f} MiB.**" for r in rows if not r["under_cap"]), "",
            table(["input", "--memory", "out of core", "s (wall)", "process CPU s", "peak RSS MiB", "job peak MiB",
                   "under cap", "temporary MB", "file MB", "cells", "leaves", "height / balanced"],
                  [[r["input"], cap_label(r["memory"]), "yes" if r["out_of_core"] else "no", f"{r['seconds']:.2f}",
