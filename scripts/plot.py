@@ -601,7 +601,7 @@ def scaling_markdown(s, rel):
     if capped:
         out += [" ".join(
             f"**{p['mesh']} ({p['faces']:,} faces) is built out of core** (`facetree build MESH -o OUT.fch "
-            f"--memory {p['memory']} --tmp DIR --json`), once: the tree is deterministic and the run takes "
+            f"--memory {p['memory']} --tmp DIR --json`), in the full run only (`--quick` skips it) and once: the tree is deterministic and the run takes "
             f"{p['process_wall_seconds'] / 60:.1f} minutes (in core it would need ~8.6 GB and ~12 minutes). "
             f"Its time is the job's total less its read (bin {p['phases']['bin']:.1f} s, cells "
             f"{p['phases']['cells']:.1f} s, merge {p['phases']['merge']:.1f} s, write {p['phases']['write']:.1f} s: "
