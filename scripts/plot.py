@@ -171,17 +171,20 @@ def plot_scaling(scaling, path):
     points = scaling["points"]
     in_core = [p for p in points if not p.get("memory")]
     capped = [p for p in points if p.get("memory")]
-    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(13, 4.2))
+    fig, ((ax, bx, cx), (lax, lbx, lcx)) = plt.subplots(2, 3, figsize=(13, 5.4),
+                                                        gridspec_kw={"height_ratios": [4, 1.1]})
+    for legend_ax in (lax, lbx, lcx):
+        legend_ax.axis("off")
     for source, marker in (("shared", "o"), ("generated", "s")):
         sel = [p for p in in_core if p["source"] == source]
         ax.scatter([p["faces"] for p in sel], [p["cluster_seconds"] for p in sel], marker=marker,
                    color="tab:blue", label=f"{source} (wall)")
         ax.scatter([p["faces"] for p in sel], [p["process_cpu_seconds"] for p in sel], marker=marker,
-                   facecolors="none", edgecolors="tab:red", label=f"{source} (process CPU)")
+                   facecolors="none", edgecolors="tab:red", label=f"{source} (CPU)")
         bx.scatter([p["faces"] for p in sel], [p["peak_rss_bytes"] / 2**20 for p in sel], marker=marker,
                    color="tab:green", label=source)
     for p in capped:  # out of core under a cap: a star, labelled, left out of the fitted lines
-        label = f"{p['mesh']} out of core, --memory {p['memory']}, 1 run"
+        label = f"{count_label(p['faces'])} out of core at {p['memory']}, 1 run"
         ax.scatter([p["faces"]], [p["cluster_seconds"]], marker="*", s=160, color="tab:blue",
                    label=f"{label} (wall)")
         ax.scatter([p["faces"]], [p["process_cpu_seconds"]], marker="*", s=160, facecolors="none",
@@ -192,17 +195,20 @@ def plot_scaling(scaling, path):
     fit = [p for p in in_core if p["faces"] >= 10_000]
     # The in-core fits run on dotted to the out-of-core point: where an in-core build would be.
     far = max((p["faces"] for p in capped), default=None)
-    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall (in core)", far,
-             "in-core fits extrapolated")
-    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU (in core)", far)
-    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "in core, >= 10k faces")
+    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall, in core:", far,
+             "fits extrapolated")
+    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU, in core:", far)
+    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "in core, >= 10k faces:")
     large = [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit if p["faces"] >= LARGE_FACES]
     if len(large) >= 2:
-        fit_line(bx, large, "tab:olive", f"in core, >= {count_label(LARGE_FACES)} faces")
+        fit_line(bx, large, "tab:olive", f"in core, >= {count_label(LARGE_FACES)} faces:")
     log_axes(ax, "faces", "seconds (clustering, without reading)")
     log_axes(bx, "faces", "peak RSS, MiB")
-    ax.legend(fontsize=6, loc="upper left")
-    bx.legend(fontsize=6, loc="upper left")
+    # Legends in a row of their own below the panels: inside, they covered points.
+    for a, legend_ax in ((ax, lax), (bx, lbx)):
+        legend = legend_ax.legend(*a.get_legend_handles_labels(), fontsize=7, loc="upper center", ncol=2,
+                                  frameon=False)
+        legend.set_in_layout(False)
     ax.set_title("Time against faces (cf. Fig. 77)", fontsize=10)
     bx.set_title("Memory against faces (cf. Fig. 77)", fontsize=10)
     degree = [p for p in points if p.get("average_degree") is not None]
