@@ -14,7 +14,9 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              without the balance guard; cluster pictures of one cut (dragon_vrip,
              openfoam_buildings, both metrics)
   scaling    Figs 77-78: time and peak RSS against faces over the shared and generated meshes,
-             log-log slopes, average and maximum dual-edge degree per mesh
+             log-log slopes, average and maximum dual-edge degree per mesh; the full run adds a
+             generated 50M-face terrain built out of core under --memory 1G (one run, marked
+             "memory": "1G" in the JSON; slopes fitted without it and given again with it)
   octree     Fig. 80: face clustering time / tightest-fit octree time per mesh; the same ratio
              in instructions (callgrind) on bunny_zipper
   branching  cluster file size for branching 2, 4, 8 (verified) and per truncation prefix
@@ -32,10 +34,15 @@ repetition, and are shared by build, profile, balance, scaling and octree.
 
 Writes OUT/bench.json (and OUT/pictures/*.png) and prints a table per section.
 
-Budget on the 2-CPU shared machine: --quick about 5 minutes at load 6 (2.3 CPU minutes); the
-full run about 30 CPU minutes by the quick run's per-face rates, so under an hour unless the
-machine is loaded several times over. The outofcore section adds about 3 minutes in --quick (one run per
-case: 8 builds of 2M faces, 6 quality builds of ~1M) at load 3.
+Budget on the 2-CPU shared machine, measured on 2026-11-21 (/usr/bin/time -v, another helper's
+out-of-core builds running alongside): --quick 6.3 minutes of wall time, 5.7 CPU minutes, at load
+1.7-4.0 (outofcore 3.0 of them: one run per case, 8 builds of 2M faces, 6 quality builds of ~1M);
+the full run 41.5 minutes, 37.2 CPU minutes, at load 1.4-9.3 (mean 4.1). Full run per section: build
+8.2 min (the shared per-mesh builds), balance 2.4, scaling 9.1 (the 50M-face point's build 6.0 of them,
+generating its 950 MB PLY 6 s), flat 7.2 (Garland on the 640k grid: 87 s a run),
+outofcore 13.3 (one run per case: three would add some 27 CPU minutes and pass the hour), the rest
+under a minute each. OUT/bench.json records each section's wall time (section_seconds) and the load
+average at its end.
 """
 import argparse
 import json
@@ -62,10 +69,16 @@ PICTURE_CUT = 64
 GARLAND_MAX_FACES = 1_500_000
 K_VALUES = [0.0, 1e-5, 1e-4, 1e-3]  # 1e-4 is the default: its runs are the default-metric runs
 # Generated meshes for the scaling section (facetree gen terrain: a height field, closed to no
-# optimisation of ours). 50M faces need the out-of-core build (issue 5): listed, skipped.
+# optimisation of ours).
 SCALING_QUICK = [100_000, 300_000]
 SCALING_FULL = [1_000_000, 2_000_000, 4_000_000]
+# 50M faces in core would take ~8.6 GB and ~12 minutes: the full run builds it out of core under
+# a 1G cap (facetree build -o --memory), once (the tree is deterministic; the run takes ~10 minutes
+# on the shared 2-CPU machine). Skipped in --quick. Its time and peak RSS are not those of an
+# in-core build (bin and cells passes, the file written; RSS bounded by the cap), so the slopes
+# are fitted over the in-core points and given again with it.
 SCALING_OUT_OF_CORE = [50_000_000]
+SCALING_OUT_OF_CORE_CAP = "1G"
 OUT_OF_CORE_CAPS = ["64M", "256M", "1G", None]  # None: in core
 # Without --memory the CLI takes its older in-core path (no job report); a cap far above the mesh
 # gives the job's in-core path, whose report and writer the out-of-core runs share.
@@ -393,44 +406,80 @@ def bench_balance(args, meshes, runs, out):
     return {"meshes": rows, "k": k_rows, "pictures": pictures}
 
 
+def scaling_point(mesh, source, s):
+    """A scaling point from summarize_build of in-core `build --json` runs."""
+    return {"mesh": mesh, "source": source, "memory": None, "out_of_core": False, "faces": s["triangles"],
+            "cluster_seconds": s["cluster_seconds"], "process_cpu_seconds": s["process_cpu_seconds"],
+            "read_seconds": s["seconds"]["read"], "peak_rss_bytes": s["peak_rss_bytes"],
+            "average_degree": s["average_degree"], "max_degree": s["max_degree"], "runs": s["runs"]}
+
+
+def scaling_out_of_core_point(args, size, out):
+    """One capped build (`build MESH -o OUT --memory CAP --tmp DIR --json`) of a generated terrain.
+    Its clustering time is the job's total less its read (bin, cells, merge, and the write, which
+    computes the boxes and compresses the file); CPU and peak RSS are the process's (wait4)."""
+    mesh, fch, tmp = out / f"terrain_{size}.ply", out / "scaling_out_of_core.fch", out / "scaling_tmp"
+    tmp.mkdir(exist_ok=True)
+    try:
+        started = time.perf_counter()
+        run([args.facetree, "gen", "terrain", "-n", size, "-o", mesh])
+        generate_seconds = time.perf_counter() - started
+        input_bytes = mesh.stat().st_size
+        report = build_job(args, mesh, fch, ["--memory", SCALING_OUT_OF_CORE_CAP, "--tmp", tmp])
+    finally:
+        mesh.unlink(missing_ok=True)
+        fch.unlink(missing_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+    phases = report["seconds"]
+    return {"mesh": f"terrain {size // 1_000_000}M", "source": "generated", "memory": SCALING_OUT_OF_CORE_CAP,
+            "out_of_core": report["out_of_core"], "faces": report["triangles"],
+            "cluster_seconds": phases["total"] - phases["read"], "process_cpu_seconds": report["process_cpu_seconds"],
+            "read_seconds": phases["read"], "peak_rss_bytes": report["process_peak_rss_bytes"],
+            "job_peak_rss_bytes": report["peak_rss_bytes"], "average_degree": None, "max_degree": None,
+            "runs": 1, "phases": phases, "process_wall_seconds": report["process_wall_seconds"],
+            "cells": report["cells"], "leaves": report["leaves"], "height": report["height"],
+            "balanced_height": report["balanced_height"], "file_bytes": report["file_bytes"],
+            "temporary_bytes_peak": report["temporary_bytes_peak"], "input_bytes": input_bytes,
+            "generate_seconds": generate_seconds}
+
+
+def scaling_slopes(points):
+    return {"time": loglog_slope([(p["faces"], p["cluster_seconds"]) for p in points]),
+            "cpu": loglog_slope([(p["faces"], p["process_cpu_seconds"]) for p in points]),
+            "rss": loglog_slope([(p["faces"], p["peak_rss_bytes"]) for p in points])}
+
+
 def bench_scaling(args, meshes, runs, out):
-    points = []
-    for mesh in meshes:
-        s = summarize_build(runs.get(mesh)["willmott"])
-        points.append({"mesh": mesh, "source": "shared", "memory": None, "faces": s["triangles"],
-                       "cluster_seconds": s["cluster_seconds"], "process_cpu_seconds": s["process_cpu_seconds"],
-                       "read_seconds": s["seconds"]["read"], "peak_rss_bytes": s["peak_rss_bytes"],
-                       "average_degree": s["average_degree"], "max_degree": s["max_degree"]})
+    points = [scaling_point(mesh, "shared", summarize_build(runs.get(mesh)["willmott"])) for mesh in meshes]
     for size in (SCALING_QUICK if args.quick else SCALING_FULL):
         mesh = out / f"terrain_{size}.ply"
         run([args.facetree, "gen", "terrain", "-n", size, "-o", mesh])
         builds = repeat_runs(args.repeat, lambda: run_json([args.facetree, "build", "--json", mesh]))
         mesh.unlink()
-        s = summarize_build(builds)
-        points.append({"mesh": f"terrain {size // 1000}k", "source": "generated", "memory": None,
-                       "faces": s["triangles"], "cluster_seconds": s["cluster_seconds"],
-                       "process_cpu_seconds": s["process_cpu_seconds"], "read_seconds": s["seconds"]["read"],
-                       "peak_rss_bytes": s["peak_rss_bytes"], "average_degree": s["average_degree"],
-                       "max_degree": s["max_degree"]})
+        points.append(scaling_point(f"terrain {size // 1000}k", "generated", summarize_build(builds)))
+    for size in ([] if args.quick else SCALING_OUT_OF_CORE):
+        points.append(scaling_out_of_core_point(args, size, out))
     points.sort(key=lambda p: p["faces"])
     for p in points:
+        degree = (f"degree {p['average_degree']:.2f}/{p['max_degree']}" if p["average_degree"] is not None else
+                  f"out of core under --memory {p['memory']}, 1 run: {p['cells']} cells, height "
+                  f"{p['height']}/{p['balanced_height']}")
         print(f"scaling   {p['mesh']:24s} {p['faces']:9d} faces  {p['cluster_seconds']:8.3f} s  cpu "
-              f"{p['process_cpu_seconds']:7.3f} s  peak {p['peak_rss_bytes'] / 2**20:7.1f} MiB  degree "
-              f"{p['average_degree']:.2f}/{p['max_degree']}", flush=True)
+              f"{p['process_cpu_seconds']:7.3f} s  peak {p['peak_rss_bytes'] / 2**20:7.1f} MiB  {degree}", flush=True)
     # Meshes under 10k faces are dominated by fixed costs (process start, thread pool): left out
-    # of the fits, as the seed's Fig. 77 starts at 10k.
-    fit = [p for p in points if p["faces"] >= 10_000]
-    result = {
-        "points": points,
-        "slope_time": loglog_slope([(p["faces"], p["cluster_seconds"]) for p in fit]),
-        "slope_cpu": loglog_slope([(p["faces"], p["process_cpu_seconds"]) for p in fit]),
-        "slope_rss": loglog_slope([(p["faces"], p["peak_rss_bytes"]) for p in fit]),
-        "todo": [{"faces": size, "memory": "1G", "reason": "needs the out-of-core build (issue 5)"}
-                 for size in SCALING_OUT_OF_CORE],
-    }
-    print(f"scaling   log-log slopes over {len(fit)} meshes of 10k faces and more: time {result['slope_time']:.2f}, "
-          f"CPU {result['slope_cpu']:.2f}, peak RSS {result['slope_rss']:.2f}", flush=True)
-    print(f"scaling   TODO {SCALING_OUT_OF_CORE} faces: needs the out-of-core build (issue 5)", flush=True)
+    # of the fits, as the seed's Fig. 77 starts at 10k. The fit is over the in-core builds; the
+    # out-of-core point is a different build (its RSS is bounded by the cap): slopes with it apart.
+    fit = [p for p in points if p["faces"] >= 10_000 and not p["memory"]]
+    slopes = scaling_slopes(fit)
+    result = {"points": points, "fit": "in-core points of 10k faces and more",
+              "slope_time": slopes["time"], "slope_cpu": slopes["cpu"], "slope_rss": slopes["rss"]}
+    print(f"scaling   log-log slopes over {len(fit)} in-core meshes of 10k faces and more: time "
+          f"{result['slope_time']:.2f}, CPU {result['slope_cpu']:.2f}, peak RSS {result['slope_rss']:.2f}", flush=True)
+    if any(p["memory"] for p in points):
+        result["with_out_of_core"] = scaling_slopes([p for p in points if p["faces"] >= 10_000])
+        w = result["with_out_of_core"]
+        print(f"scaling   with the out-of-core point: time {w['time']:.2f}, CPU {w['cpu']:.2f}, peak RSS "
+              f"{w['rss']:.2f} (bounded by the cap)", flush=True)
     return result
 
 
@@ -592,9 +641,10 @@ def ratio(a, b):
 def bench_outofcore(args, out):
     """Issue 5: the out-of-core build against the in-core one, cost and quality."""
     started, load_start = time.time(), os.getloadavg()
-    # Several GB-scale builds: one run per case in --quick (the trees are deterministic; times carry
-    # the machine's load, process CPU times less so), args.repeat otherwise.
-    repeat = 1 if args.quick else args.repeat
+    # One run per case, in the full run too: the trees are deterministic, times carry the machine's
+    # load (process CPU times less so), and the 8 builds of 10M faces take 70-180 CPU seconds each
+    # (measured): three runs of each would take some 40 minutes of the hour alone.
+    repeat = 1
     tmp = out / "outofcore_tmp"
     tmp.mkdir(exist_ok=True)
     fch = out / "outofcore.fch"
@@ -711,25 +761,45 @@ def main():
         "quick": args.quick, "repeat": args.repeat, "facetree": str(args.facetree),
     }
     runs = MeshRuns(args, out)
+    report["section_seconds"] = section_seconds = {}
+    report["section_load_average_end"] = section_load = {}
+    lap = time.time()
+
+    def section_done(name):
+        # Wall time per section, to find the one that makes a run long; the shared per-mesh
+        # builds are counted in the first section that asks for a mesh.
+        nonlocal lap
+        section_seconds[name], lap = time.time() - lap, time.time()
+        section_load[name] = os.getloadavg()[0]
+
     if "read" in sections:
         report["read"] = bench_read(args, ["dragon_vrip", "fg_hawaii"] if args.quick else all_meshes)
+        section_done("read")
     if "build" in sections:
         report["build"] = bench_build(args, meshes, runs)
+        section_done("build")
     if "profile" in sections:
         report["profile"] = bench_profile(args, runs)
+        section_done("profile")
     if "balance" in sections:
         report["balance"] = bench_balance(args, meshes, runs, out)
+        section_done("balance")
     if "scaling" in sections:
         report["scaling"] = bench_scaling(args, meshes, runs, out)
+        section_done("scaling")
     if "octree" in sections:
         report["octree"] = bench_octree(args, meshes, runs, out)
+        section_done("octree")
     if "branching" in sections:
         report["branching"] = bench_branching(
             args, ["bunny_zipper", "turbine_blade_200k"] if args.quick else QUICK_MESHES, out)
+        section_done("branching")
     if "flat" in sections:
         report["flat"] = bench_flat(args, out)
+        section_done("flat")
     if "outofcore" in sections:
         report["outofcore"] = bench_outofcore(args, out)
+        section_done("outofcore")
     report["load_average_end"] = os.getloadavg()
     report["wall_seconds"] = time.time() - started
     if args.keep_from:

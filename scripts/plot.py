@@ -30,8 +30,9 @@ def short(mesh):
     return mesh.replace("_", " ")
 
 
-def fit_line(ax, points, color, label_prefix):
-    """Draws the least-squares log-log line through points; returns its slope."""
+def fit_line(ax, points, color, label_prefix, extend_to=None, extend_label=None):
+    """Draws the least-squares log-log line through points (dotted on to x = extend_to when given);
+    returns its slope."""
     points = [(x, y) for x, y in points if x > 0 and y > 0]
     if len(points) < 2:
         return float("nan")
@@ -42,6 +43,10 @@ def fit_line(ax, points, color, label_prefix):
     lo, hi = min(xs), max(xs)
     ax.plot([math.exp(lo), math.exp(hi)], [math.exp(my + slope * (lo - mx)), math.exp(my + slope * (hi - mx))],
             color=color, linestyle="--", linewidth=1, label=f"{label_prefix} slope {slope:.2f}")
+    if extend_to and math.log(extend_to) > hi:
+        far = math.log(extend_to)
+        ax.plot([math.exp(hi), extend_to], [math.exp(my + slope * (hi - mx)), math.exp(my + slope * (far - mx))],
+                color=color, linestyle=":", linewidth=1, label=extend_label)
     return slope
 
 
@@ -76,6 +81,9 @@ def plot_balance(balance, path):
     nan = float("nan")
     ax.bar([i + 0.2 for i in x], [r["garland"]["height"] / r["balanced_height"] if r["garland"] else nan for r in rows], 0.4,
            color=METRIC_COLOR["garland"], label=METRIC_LABEL["garland"])
+    for i, r in enumerate(rows):
+        if not r["garland"]:
+            ax.text(i + 0.2, 1.15, "Garland skipped", fontsize=6, rotation=90, ha="center", va="bottom")
     ax.axhline(1, color="black", linewidth=0.8)
     ax.set_yscale("log")
     ax.set_ylabel("tree height / balanced height")
@@ -112,8 +120,10 @@ def plot_k(k_rows, path):
     ratios = [r["height"] / r["balanced_height"] for r in k_rows]
     if max(ratios) > 5 * min(ratios):  # a full run's no-guard heights span decades
         ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        # Plain numbers, the minor ticks at 2 and 5 labelled too (a decade has one power of ten).
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            lambda v, _: f"{v:g}" if f"{v:.1e}"[0] in "125" else ""))
     ax.set_xticks([1e-6, 1e-5, 1e-4, 1e-3], ["0", "1e-5", "1e-4\n(default)", "1e-3"])
     ax.set_xlabel("k (balance weight, eq. 80)")
     ax.set_ylabel("height / balanced height")
@@ -138,39 +148,99 @@ def plot_pictures(pictures, path):
     save(fig, path)
 
 
+def log_axes(ax, xlabel, ylabel):
+    """Log-log axes with plain numbers on the ticks (a decade or less has too few powers of ten)."""
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+        lambda v, _: f"{v:g}" if f"{v:.1e}"[0] in "25" else ""))
+
+
+def count_label(v):
+    for unit, name in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if v >= unit:
+            return f"{v / unit:g}{name}"
+    return f"{v:g}"
+
+
 def plot_scaling(scaling, path):
     points = scaling["points"]
-    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(12, 3.6))
+    in_core = [p for p in points if not p.get("memory")]
+    capped = [p for p in points if p.get("memory")]
+    fig, ((ax, bx, cx), (lax, lbx, lcx)) = plt.subplots(2, 3, figsize=(13, 5.4),
+                                                        gridspec_kw={"height_ratios": [4, 1.1]})
+    for legend_ax in (lax, lbx, lcx):
+        legend_ax.axis("off")
     for source, marker in (("shared", "o"), ("generated", "s")):
-        sel = [p for p in points if p["source"] == source]
+        sel = [p for p in in_core if p["source"] == source]
         ax.scatter([p["faces"] for p in sel], [p["cluster_seconds"] for p in sel], marker=marker,
                    color="tab:blue", label=f"{source} (wall)")
         ax.scatter([p["faces"] for p in sel], [p["process_cpu_seconds"] for p in sel], marker=marker,
-                   facecolors="none", edgecolors="tab:red", label=f"{source} (process CPU)")
+                   facecolors="none", edgecolors="tab:red", label=f"{source} (CPU)")
         bx.scatter([p["faces"] for p in sel], [p["peak_rss_bytes"] / 2**20 for p in sel], marker=marker,
                    color="tab:green", label=source)
-    fit = [p for p in points if p["faces"] >= 10_000]
-    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall")
-    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU")
-    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "")
-    for a, label in ((ax, "seconds"), (bx, "peak RSS, MiB")):
-        a.set_xscale("log")
-        a.set_yscale("log")
-        a.set_xlabel("faces")
-        a.set_ylabel(label)
-        a.legend(fontsize=7)
+    for p in capped:  # out of core under a cap: a star, labelled, left out of the fitted lines
+        label = f"{count_label(p['faces'])} out of core at {p['memory']}, 1 run"
+        ax.scatter([p["faces"]], [p["cluster_seconds"]], marker="*", s=160, color="tab:blue",
+                   label=f"{label} (wall)")
+        ax.scatter([p["faces"]], [p["process_cpu_seconds"]], marker="*", s=160, facecolors="none",
+                   edgecolors="tab:red", label=f"{label} (CPU)")
+        bx.scatter([p["faces"]], [p["peak_rss_bytes"] / 2**20], marker="*", s=160, color="tab:purple", label=label)
+        bx.axhline(cap_mib(p["memory"]), color="tab:purple", linestyle=":", linewidth=1,
+                   label=f"cap {p['memory']}")
+    fit = [p for p in in_core if p["faces"] >= 10_000]
+    # The in-core fits run on dotted to the out-of-core point: where an in-core build would be.
+    far = max((p["faces"] for p in capped), default=None)
+    fit_line(ax, [(p["faces"], p["cluster_seconds"]) for p in fit], "tab:blue", "wall, in core:", far,
+             "fits extrapolated")
+    fit_line(ax, [(p["faces"], p["process_cpu_seconds"]) for p in fit], "tab:red", "CPU, in core:", far)
+    fit_line(bx, [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit], "tab:green", "in core, >= 10k faces:")
+    large = [(p["faces"], p["peak_rss_bytes"] / 2**20) for p in fit if p["faces"] >= LARGE_FACES]
+    if len(large) >= 2:
+        fit_line(bx, large, "tab:olive", f"in core, >= {count_label(LARGE_FACES)} faces:")
+    log_axes(ax, "faces", "seconds (clustering, without reading)")
+    log_axes(bx, "faces", "peak RSS, MiB")
+    # Legends in a row of their own below the panels: inside, they covered points.
+    for a, legend_ax in ((ax, lax), (bx, lbx)):
+        legend = legend_ax.legend(*a.get_legend_handles_labels(), fontsize=7, loc="upper center", ncol=2,
+                                  frameon=False)
+        legend.set_in_layout(False)
     ax.set_title("Time against faces (cf. Fig. 77)", fontsize=10)
     bx.set_title("Memory against faces (cf. Fig. 77)", fontsize=10)
-    cx.scatter([p["faces"] for p in points], [p["average_degree"] for p in points], color="tab:blue",
+    degree = [p for p in points if p.get("average_degree") is not None]
+    cx.scatter([p["faces"] for p in degree], [p["average_degree"] for p in degree], color="tab:blue",
                label="average")
-    cx.scatter([p["faces"] for p in points], [p["max_degree"] for p in points], color="tab:orange", label="maximum")
-    cx.set_xscale("log")
-    cx.set_yscale("log")
-    cx.set_xlabel("faces")
-    cx.set_ylabel("dual-edge degree")
+    cx.scatter([p["faces"] for p in degree], [p["max_degree"] for p in degree], color="tab:orange", label="maximum")
+    log_axes(cx, "faces", "dual-edge degree")
     cx.legend(fontsize=7)
-    cx.set_title("Degree per mesh (cf. Fig. 78)", fontsize=10)
+    cx.set_title("Degree per mesh, in core (cf. Fig. 78)", fontsize=10)
     save(fig, path)
+
+
+# Below 100k faces peak RSS is mostly the process's fixed ~17.5 MiB, which flattens the RSS fit from
+# 10k faces: its slope is given over the meshes of 100k faces and more as well.
+LARGE_FACES = 100_000
+
+
+def loglog_slope(points):
+    points = [(math.log(x), math.log(y)) for x, y in points if x > 0 and y > 0]
+    if len(points) < 2:
+        return float("nan")
+    mx, my = sum(x for x, _ in points) / len(points), sum(y for _, y in points) / len(points)
+    return sum((x - mx) * (y - my) for x, y in points) / sum((x - mx) ** 2 for x, _ in points)
+
+
+def large_rss_slope(s):
+    return loglog_slope([(p["faces"], p["peak_rss_bytes"]) for p in s["points"]
+                         if p["faces"] >= LARGE_FACES and not p.get("memory")])
+
+
+def cap_mib(cap):
+    return int(cap[:-1]) * {"M": 1, "G": 1024}[cap[-1]]
 
 
 def plot_octree(octree, path):
@@ -183,13 +253,24 @@ def plot_octree(octree, path):
     ax.set_ylabel("seconds (wall, median)")
     ax.legend(fontsize=8)
     ax.set_title("Face clustering against octree (cf. Fig. 80)", fontsize=10)
-    bx.semilogx(faces, [r["ratio"] for r in rows], "o-", label="wall-time ratio")
-    bx.semilogx(faces, [r["ratio_cpu"] for r in rows], "s-", label="CPU-time ratio")
+    # One point per mesh (not a series: no lines); the medians are over the meshes of 50k faces and
+    # more, as in the text (below that the octree takes a millisecond or less: timer noise).
+    bx.semilogx(faces, [r["ratio"] for r in rows], "o", color="tab:blue", label="wall-time ratio")
+    bx.semilogx(faces, [r["ratio_cpu"] for r in rows], "s", color="tab:orange", markerfacecolor="none",
+                label="CPU-time ratio")
+    if octree.get("median_ratio"):
+        big = [f for f in faces if f >= 50_000]
+        for key, name, color in (("median_ratio", "wall", "tab:blue"), ("median_ratio_cpu", "CPU", "tab:orange")):
+            bx.plot([min(big), max(big)], [octree[key]] * 2, color=color, linewidth=1,
+                    label=f"{name} median over >= 50k faces: {octree[key]:.1f}")
+        bx.axvline(50_000, color="gray", linestyle=":", linewidth=0.8)
     bx.axhline(2.5, color="black", linestyle="--", linewidth=0.8, label="seed: about 2.5")
+    bx.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
     bx.set_xlabel("faces")
     bx.set_ylabel("clustering time / octree time")
     bx.set_ylim(bottom=0)
-    bx.legend(fontsize=8)
+    bx.legend(fontsize=7)
     bx.set_title("Ratio per mesh", fontsize=10)
     save(fig, path)
 
@@ -285,7 +366,9 @@ def plot_outofcore(o, path):
     cx.axhline(1.1, color="black", linestyle="--", linewidth=0.8, label="aim: within 10%")
     cx.set_xticks(range(len(q)), [f"{short(r['mesh'])}\ncells of {r['cell_faces'] // 1000}k" for r in q], fontsize=7)
     cx.set_ylabel("out of core / in core")
-    cx.legend(fontsize=7)
+    # Room above the bars for the legend, which covered them at the bottom.
+    cx.set_ylim(0, 1.6 if max(b.get_height() for b in cx.patches) < 1.3 else None)
+    cx.legend(fontsize=7, loc="upper center", ncol=2)
     cx.set_title("Quality of forced out-of-core builds", fontsize=10)
     save(fig, path)
 
@@ -331,9 +414,13 @@ def markdown(report, figures, rel):
                ["load average at start / end", f"{report['load_average_start'][0]:.1f} / "
                                                f"{report.get('load_average_end', [float('nan')])[0]:.1f}"],
                ["bench wall time", f"{report.get('wall_seconds', 0) / 60:.1f} min"],
+           ] + ([["wall time per section, min (load average at its end)", ", ".join(
+               f"{name} {seconds / 60:.1f} ({report.get('section_load_average_end', {}).get(name, float('nan')):.1f})"
+               for name, seconds in report["section_seconds"].items())]] if report.get("section_seconds") else []) + [
            ] + ([[f"sections {', '.join(k['sections'])}", f"kept from the run of {k['date']} (load "
                   f"{k['load_average_start'][0]:.1f} / {k['load_average_end'][0]:.1f}, "
                   f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) else [])), ""]
+    out += headline_markdown(report)
 
     if "octree" in report:
         o = report["octree"]
@@ -413,20 +500,7 @@ def markdown(report, figures, rel):
         out += [table(header, body), "", f"![profile]({rel}/profile.png)", ""]
 
     if "scaling" in report:
-        s = report["scaling"]
-        out += ["## Scaling (Figs 77-78)", "",
-                f"Log-log slopes over the meshes of 10k faces and more: **time {s['slope_time']:.2f} (wall), "
-                f"{s['slope_cpu']:.2f} (process CPU), peak RSS {s['slope_rss']:.2f}**. Slope 1 is O(n) "
-                "(O(n log n) looks the same), 1.5 the seed's unbalanced worst case. Generated meshes: "
-                "`facetree gen terrain`.", "",
-                table(["mesh", "faces", "clustering s", "process CPU s", "peak RSS MiB", "bytes / face",
-                       "average degree", "max degree"],
-                      [[p["mesh"], f"{p['faces']:,}", f"{p['cluster_seconds']:.3f}", f"{p['process_cpu_seconds']:.3f}",
-                        mib(p["peak_rss_bytes"]), f"{p['peak_rss_bytes'] / p['faces']:.0f}",
-                        f"{p['average_degree']:.2f}", p["max_degree"]] for p in s["points"]]), "",
-                f"![scaling]({rel}/scaling.png)", "",
-                "**TODO (issue 5):** " + ", ".join(f"{t['faces'] // 1_000_000}M faces" for t in s.get("todo", []))
-                + " need the out-of-core build; the JSON reserves a `memory` field per point for them.", ""]
+        out += scaling_markdown(report["scaling"], rel)
 
     if "flat" in report:
         f = report["flat"]
@@ -470,6 +544,91 @@ def markdown(report, figures, rel):
     return "\n".join(out)
 
 
+def headline_markdown(report):
+    """The ratios the sections below lead to, in one list."""
+    lines = []
+    if (o := report.get("octree")) and o.get("median_ratio"):
+        lines.append(f"Face clustering / tightest-fit octree time, median over the meshes of 50k faces and more: "
+                     f"**{o['median_ratio']:.1f}** (wall), **{o['median_ratio_cpu']:.1f}** (CPU)"
+                     + (f"; **{o['instructions']['ratio']:.1f}** in instructions on {o['instructions']['mesh']}"
+                        if o.get("instructions") else "") + " (the seed: about 2.5).")
+    if b := report.get("balance"):
+        heights = [f"{r['mesh']} {r['willmott']['height']} against {r['garland']['height']} "
+                   f"(x{r['garland_over_default_height']:.1f}, balanced {r['balanced_height']})"
+                   for r in b["meshes"] if r["mesh"] in ("dragon_vrip", "openfoam_buildings") and r.get("garland")]
+        if heights:
+            lines.append("Height, default metric against Garland's: **" + "**, **".join(heights) + "**.")
+    if f := report.get("flat"):
+        lines.append("Flat grids, log-log slope of time: " +
+                     ", ".join(f"{METRIC_LABEL[m]} **{v:.2f}**" for m, v in f["slopes"].items()) + ".")
+    if s := report.get("scaling"):
+        line = (f"Scaling, log-log slopes over the in-core builds: time **{s['slope_time']:.2f}** (wall), "
+                f"**{s['slope_cpu']:.2f}** (CPU), peak RSS **{s['slope_rss']:.2f}** (from 10k faces; "
+                f"**{large_rss_slope(s):.2f}** from {count_label(LARGE_FACES)}, past the process's fixed base)")
+        if w := s.get("with_out_of_core"):
+            line += f"; with the out-of-core point: time **{w['time']:.2f}** (wall), **{w['cpu']:.2f}** (CPU)"
+        lines.append(line + ".")
+        for p in (p for p in s["points"] if p.get("memory")):
+            lines.append(f"{p['mesh']} ({p['faces']:,} faces) out of core under --memory {p['memory']}: "
+                         f"**{p['process_wall_seconds'] / 60:.1f} min** wall, {p['process_cpu_seconds'] / 60:.1f} "
+                         f"CPU min, peak RSS **{p['peak_rss_bytes'] / 2**20:.0f} MiB**.")
+    if (o := report.get("outofcore")) and o.get("rows"):
+        parts = []
+        for order in ("coherent", "shuffled"):
+            rows = [r for r in o["rows"] if r["input"] == order and r["memory"]]
+            if rows:
+                parts.append(f"{order} " + ", ".join(
+                    f"{r['memory']} x{r['ratio']['seconds']:.2f} ({r['ratio']['process_cpu_seconds']:.2f} CPU, "
+                    f"RSS x{r['ratio']['process_peak_rss_bytes']:.2f})" for r in rows))
+        lines.append(f"Out of core / in core on terrain {o['faces'] / 1e6:g}M, time (wall): **" +
+                     "**; **".join(parts) + "**.")
+    return (["## Headline figures", ""] + [f"- {line}" for line in lines] + [""]) if lines else []
+
+
+def scaling_markdown(s, rel):
+    capped = [p for p in s["points"] if p.get("memory")]
+    w = s.get("with_out_of_core")
+    large = [p for p in s["points"] if p["faces"] >= LARGE_FACES and not p.get("memory")]
+    large_time, large_cpu, large_rss = (loglog_slope([(p["faces"], p[key]) for p in large])
+                                        for key in ("cluster_seconds", "process_cpu_seconds", "peak_rss_bytes"))
+    out = ["## Scaling (Figs 77-78)", "",
+           f"Log-log slopes over the in-core builds of 10k faces and more: **time {s['slope_time']:.2f} (wall), "
+           f"{s['slope_cpu']:.2f} (process CPU), peak RSS {s['slope_rss']:.2f}**"
+           + (f"; with the out-of-core point: time {w['time']:.2f} (wall), {w['cpu']:.2f} (process CPU), "
+              f"peak RSS {w['rss']:.2f} (bounded by its cap, not a memory scaling)" if w else "") + ". "
+           "Slope 1 is O(n) (O(n log n) looks the same), 1.5 the seed's unbalanced worst case. Generated "
+           "meshes: `facetree gen terrain`. Clustering time is hierarchy and boxes without reading. Peak RSS "
+           "below 100k faces is mostly the process's fixed ~17.5 MiB, which flattens its fit: over the in-core "
+           f"builds of {count_label(LARGE_FACES)} faces and more its slope is **{large_rss:.2f}** (time "
+           f"{large_time:.2f} wall, {large_cpu:.2f} CPU). Wall times carry the machine's load at the moment each "
+           "build ran, which varies over a run (see the load per section in the header): the CPU slope is the "
+           "one to read.",
+           ""]
+    if capped:
+        out += [" ".join(
+            f"**{p['mesh']} ({p['faces']:,} faces) is built out of core** (`facetree build MESH -o OUT.fch "
+            f"--memory {p['memory']} --tmp DIR --json`), in the full run only (`--quick` skips it) and once: the tree is deterministic and the run takes "
+            f"{p['process_wall_seconds'] / 60:.1f} minutes (in core it would need ~8.6 GB and ~12 minutes). "
+            f"Its time is the job's total less its read (bin {p['phases']['bin']:.1f} s, cells "
+            f"{p['phases']['cells']:.1f} s, merge {p['phases']['merge']:.1f} s, write {p['phases']['write']:.1f} s: "
+            "the write computes the boxes and compresses the file, which the in-core points do not write), "
+            f"its peak RSS the process's under the cap ({p['cells']:,} cells, {p['leaves']:,} leaf clusters, "
+            f"height {p['height']} / {p['balanced_height']}, temporary peak "
+            f"{p['temporary_bytes_peak'] / 1e9:.1f} GB, file {p['file_bytes'] / 1e9:.2f} GB). It is left out of "
+            "the fit: a different build whose memory is bounded by the cap. It is the star in the figure; its "
+            "dual-edge degrees are not reported by the out-of-core job." for p in capped), ""]
+    out += [table(["mesh", "faces", "build", "clustering s", "process CPU s", "peak RSS MiB", "bytes / face",
+                   "average degree", "max degree"],
+                  [[p["mesh"], f"{p['faces']:,}",
+                    f"out of core, --memory {p['memory']}, 1 run" if p.get("memory") else "in core",
+                    f"{p['cluster_seconds']:.3f}", f"{p['process_cpu_seconds']:.3f}",
+                    mib(p["peak_rss_bytes"]), f"{p['peak_rss_bytes'] / p['faces']:.0f}",
+                    f"{p['average_degree']:.2f}" if p.get("average_degree") is not None else "-",
+                    p["max_degree"] if p.get("max_degree") is not None else "-"] for p in s["points"]]), "",
+            f"![scaling]({rel}/scaling.png)", ""]
+    return out
+
+
 def outofcore_markdown(o, rel):
     rows, quality = o["rows"], o["quality"]
     first = rows[0]
@@ -486,7 +645,13 @@ def outofcore_markdown(o, rel):
            f"{' (medians)' if o['repeat'] > 1 else ''}; section run at {o['date']}, load "
            f"{o['load_average_start'][0]:.1f} / {o['load_average_end'][0]:.1f}, {o['wall_seconds'] / 60:.1f} min. "
            "Peak RSS: the process's own (wait4's ru_maxrss, what `/usr/bin/time` prints) and the job's report. "
-           "Out-of-core files are written at zstd level 3, in-core ones at 9 (the job's defaults).", "",
+           "Out-of-core files are written at zstd level 3, in-core ones at 9 (the job's defaults). The trees "
+           "are deterministic, hence one run per case even in the full run, whose 8 builds of 10M faces take "
+           "70-180 CPU seconds each: 10M is the largest terrain whose in-core reference fits the full run's "
+           "hour. The 50M terrain of the scaling section is built at --memory 1G only (in core it needs "
+           "~8.6 GB)." + "".join(
+               f" **Over the cap: {r['input']} at --memory {r['memory']} peaked at "
+               f"{r['process_peak_rss_bytes'] / 2**20:.1f} MiB.**" for r in rows if not r["under_cap"]), "",
            table(["input", "--memory", "out of core", "s (wall)", "process CPU s", "peak RSS MiB", "job peak MiB",
                   "under cap", "temporary MB", "file MB", "cells", "leaves", "height / balanced"],
                  [[r["input"], cap_label(r["memory"]), "yes" if r["out_of_core"] else "no", f"{r['seconds']:.2f}",
