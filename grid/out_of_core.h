@@ -67,6 +67,13 @@ struct CrossPair {
   double shared;
 };
 
+// A face of a cell with an edge owned by another cell (it sent ghosts there), and its leaf: what
+// a CrossPair's face reference resolves through.
+struct BorderFace {
+  uint32_t face;  // index within its cell
+  uint32_t leaf;  // cell-local leaf
+};
+
 // The state of one out-of-core run; the passes are its member functions, in
 // out_of_core.cpp (read, bin), out_of_core_cells.cpp (cells) and out_of_core_write.cpp (merge, write).
 class OutOfCoreBuild {
@@ -116,10 +123,16 @@ class OutOfCoreBuild {
   // cells
   std::unique_ptr<SpillFile> nodeSpill_;
   std::unique_ptr<SpillFile> geometrySpill_;
+  // The dual edges a cell finds and its table of border faces grow with the input (fg_hawaii: 445k
+  // cross-cell pairs, 24 B each, and their faces): they go to disk as the cell ends, and
+  // resolveCrossEdges reads them back through external sorts (out_of_core_edges.cpp). In memory
+  // only their handles: O(cells).
+  std::unique_ptr<SpillFile> pairSpill_;    // CrossPair blocks
+  std::unique_ptr<SpillFile> borderSpill_;  // BorderFace blocks, one per cell
   struct CellResult {
     std::vector<LeafCluster> leaves;
-    std::vector<std::pair<uint32_t, uint32_t>> border;  // (face in cell, local leaf), by face
-    std::vector<CrossPair> pairs;
+    std::vector<SpillBlock> pairs;  // its CrossPairs (leaf-to-leaf ones within the cell summed)
+    SpillBlock border{};            // its BorderFaces by face (rawBytes 0: none)
     uint64_t components = 0;
   };
   std::vector<CellResult> cells_;
@@ -152,6 +165,9 @@ inline constexpr uint64_t kMinFrontierFaces = 64;
 // Memory per leaf cluster from the cells to the write: its record (~350 B), ~20 node blocks of
 // 32 B, cross-cell pairs and border faces (a 3M terrain at 64 MiB: ~1.3 KB per leaf).
 inline constexpr uint64_t kLeafBytes = 1536;
+// resolveCrossEdges sorts the cells' pairs with up to three ExternalSorters holding memory at once,
+// each with this fraction of the cap (together an eighth: the cells pass has released far more).
+inline constexpr uint64_t kEdgeSortShare = 24;
 // The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
 // one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
 inline constexpr uint32_t kNodeBlock = 256;

@@ -22,6 +22,8 @@ constexpr uint32_t kMaxLeavesPerCell = 256;
 constexpr size_t kTrianglesPerBlock = 65536;
 // Non-manifold edges with more faces than this are joined as a chain (as dual_graph.cpp).
 constexpr size_t kMaxFacesJoinedPairwise = 16;
+// A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
+constexpr size_t kPairsPerBlock = 16384;
 
 // Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids.
 class VertexMap {
@@ -133,6 +135,8 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
 void OutOfCoreBuild::buildCells() {
   nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
   geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry");
+  pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
+  borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
   const uint32_t cells = grid_->cellCount();
   cells_.assign(cells, {});
   std::atomic<uint32_t> next{0};
@@ -170,6 +174,17 @@ void OutOfCoreBuild::buildCells() {
 
 void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
   CellResult& result = cells_[cell];
+  // Dual edges between two of this cell's leaves (summed below), and the cross-cell ones.
+  struct LocalPair {
+    uint32_t a, b;  // a < b, cell-local leaves
+    double shared;
+    bool operator<(const LocalPair& o) const {
+      return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
+    }
+  };
+  std::vector<LocalPair> localPairs;
+  std::vector<CrossPair> pairs;
+  std::vector<BorderFace> border;
   records.clear();
   records.reserve(cellFaces_->records(cell));
   cellFaces_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
@@ -416,9 +431,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
         const auto pair = [&](size_t x, size_t y, double shared) {
           const uint32_t lx = leafOf[local[x].face], ly = leafOf[local[y].face];
-          if (lx != ly)
-            result.pairs.push_back(
-                {{cell, cell}, {lx | CrossPair::kLeafRef, ly | CrossPair::kLeafRef}, shared});
+          if (lx != ly) localPairs.push_back({std::min(lx, ly), std::max(lx, ly), shared});
         };
         const size_t k = j - i;
         if (k <= kMaxFacesJoinedPairwise) {
@@ -453,11 +466,11 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   ghosts = {};
   for (uint32_t f = 0; f < faces; ++f) {
     const FaceRecord& r = records[f];
-    bool border = false;
+    bool sentGhosts = false;
     forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
       const glm::vec3 pLow = r.corner(lowCorner);
       if (grid_->ownerCell(grid_->bin(pLow)) != cell) {
-        border = true;
+        sentGhosts = true;
         return;
       }
       const uint64_t key = (uint64_t{low} << 32) | high;
@@ -465,7 +478,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
       incidences.push_back({key, cell, leafOf[f] | CrossPair::kLeafRef, sides, static_cast<float>(length)});
     });
-    if (border) result.border.emplace_back(f, leafOf[f]);
+    if (sentGhosts) border.push_back({f, leafOf[f]});
   }
   std::sort(incidences.begin(), incidences.end());
   for (size_t i = 0; i < incidences.size();) {
@@ -484,56 +497,39 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           for (size_t b = a + 1; b < j; ++b) {
             if (incidences[a].cell == incidences[b].cell) continue;
             const double shared = length * incidences[a].sides * incidences[b].sides / (totalSides - 1);
-            result.pairs.push_back(
+            pairs.push_back(
                 {{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
           }
       } else {
         const double shared = length * totalSides / (2.0 * double(k - 1));
         for (size_t a = i; a + 1 < j; ++a) {
           if (incidences[a].cell == incidences[a + 1].cell) continue;
-          result.pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
-                                  {incidences[a].ref, incidences[a + 1].ref},
-                                  shared});
+          pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
+                           {incidences[a].ref, incidences[a + 1].ref},
+                           shared});
         }
       }
     }
     i = j;
   }
-}
+  incidences = {};
 
-void OutOfCoreBuild::resolveCrossEdges() {
-  const auto cells = static_cast<uint32_t>(cells_.size());
-  std::vector<uint32_t> leafBase(cells + 1, 0);
-  for (uint32_t c = 0; c < cells; ++c)
-    leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
-  const auto resolve = [&](uint32_t cell, uint32_t ref) -> uint32_t {
-    if (ref & CrossPair::kLeafRef) return leafBase[cell] + (ref & ~CrossPair::kLeafRef);
-    const auto& border = cells_[cell].border;
-    const auto it = std::lower_bound(border.begin(), border.end(), std::pair<uint32_t, uint32_t>{ref, 0});
-    if (it == border.end() || it->first != ref)
-      throw std::logic_error("out-of-core build: a cross-cell edge names a face that sent no ghost");
-    return leafBase[cell] + it->second;
-  };
-  for (uint32_t c = 0; c < cells; ++c) {
-    for (const CrossPair& p : cells_[c].pairs) {
-      uint32_t a = resolve(p.cell[0], p.ref[0]), b = resolve(p.cell[1], p.ref[1]);
-      if (a == b) continue;
-      if (a > b) std::swap(a, b);
-      edges_.push_back({a, b, p.shared});
-    }
+  // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
+  // instead of one per mesh edge between them (most of a cell's pairs).
+  std::sort(localPairs.begin(), localPairs.end());
+  for (size_t i = 0; i < localPairs.size();) {
+    const uint32_t a = localPairs[i].a, b = localPairs[i].b;
+    double shared = 0;
+    for (; i < localPairs.size() && localPairs[i].a == a && localPairs[i].b == b; ++i)
+      shared += localPairs[i].shared;
+    pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
   }
-  std::sort(edges_.begin(), edges_.end(), [](const ClusterEdge& x, const ClusterEdge& y) {
-    if (x.a != y.a) return x.a < y.a;
-    if (x.b != y.b) return x.b < y.b;
-    return x.shared < y.shared;
-  });
-  leaves_.reserve(leafBase[cells]);
-  for (CellResult& cell : cells_) {
-    report_.components += cell.components;
-    for (LeafCluster& leaf : cell.leaves) leaves_.push_back(std::move(leaf));
+  localPairs = {};
+  for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
+    const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
+    result.pairs.push_back(pairSpill_->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
   }
-  cells_ = {};
-  report_.leaves = leaves_.size();
+  if (!border.empty()) result.border = borderSpill_->append(std::as_bytes(std::span(border)), codec);
 }
 
 }  // namespace facetree
