@@ -290,6 +290,48 @@ uint64_t peakRss() {
 }
 }  // namespace
 
+namespace {
+// Runs nodeBlocks makes at the top of a leaf before they reach `minRun` nodes (a run from node f
+// holds at least min(f / 2, minRun)), and one for the leaf's last, partial run.
+uint64_t topRunsPerLeaf(uint32_t minRun) {
+  uint64_t runs = 1;
+  for (uint64_t f = 0; f < 2 * uint64_t{minRun}; f += std::clamp<uint64_t>(f / 2, 1, minRun)) ++runs;
+  return runs;
+}
+}  // namespace
+
+// The leaves' metadata (records, stats, box corners, node runs, geometry handles) is spilled by
+// each cell as it ends, and in memory from resolveCrossEdges to the write, when the cells' share
+// of the cap is free: it has all of the cap but kBaseBytes, and is bounded by construction. Each
+// leaf costs at most kLeafBytes, plus kRunBytes per run: at most topRunsPerLeaf at its top, then
+// one per minNodeRun_ nodes (fewer nodes than triangles in all). Half the budget goes to those
+// bulk runs (minNodeRun_ grows past kMinNodeBlock when 256-node runs would not fit: beyond ~2^26
+// triangles at 64 MiB), the rest to the leaves: leafBudget_, which the cells split by faces
+// (cellLeafQuota). Every cell has a leaf, so the bound holds while the cells are fewer than the
+// leaves the budget allows (64 MiB: ~16k; 256 MiB: ~110k).
+void OutOfCoreBuild::planMetadata() {
+  const uint64_t budget = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
+  const uint64_t half = std::max<uint64_t>(budget / 2, 1);
+  minNodeRun_ =
+      static_cast<uint32_t>(std::max<uint64_t>(kMinNodeBlock, (triangles_ * kRunBytes + half - 1) / half));
+  const uint64_t bulk = triangles_ / minNodeRun_ * kRunBytes;
+  const uint64_t perLeaf = kLeafBytes + topRunsPerLeaf(minNodeRun_) * kRunBytes;
+  const uint64_t cells = grid_->cellCount();
+  leafBudget_ = std::max<uint64_t>(cells, (budget - std::min(budget, bulk)) / perLeaf);
+  // Frontier clusters of the size that makes about the budgeted count; the quota enforces it.
+  const uint64_t spare = std::max<uint64_t>(1, leafBudget_ - cells);
+  frontierFaces_ = std::clamp<uint64_t>((triangles_ + spare - 1) / spare, frontierFaces_,
+                                        std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
+}
+
+uint64_t OutOfCoreBuild::cellLeafQuota(uint64_t faces) const {
+  // One leaf per cell, the rest of the budget by faces: the sum over the cells is at most
+  // cells + (leafBudget_ - cells) = leafBudget_. (faces * spare < 2^31 * 2^32.)
+  const uint64_t cells = grid_->cellCount();
+  const uint64_t spare = leafBudget_ > cells ? leafBudget_ - cells : 0;
+  return 1 + faces * spare / std::max<uint64_t>(triangles_, 1);
+}
+
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
   const unsigned threads = std::max(1u, job_.threads);
   if (job_.forceCellFaces) {
@@ -314,16 +356,12 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   reader.reset();
   resolveSpilledPositions();
   if (positions_) positions_->release();  // every position is in the arrival spill now
-  // Each leaf costs ~kLeafBytes until the write (record, node blocks, cross pairs): leaves are made
-  // big enough that they all fit an eighth of the cap.
-  const uint64_t leavesAllowed = std::max<uint64_t>(1, memoryCap_ / 8 / kLeafBytes);
-  frontierFaces_ = std::clamp<uint64_t>((triangles_ + leavesAllowed - 1) / leavesAllowed, frontierFaces_,
-                                        std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
   report_.secondsRead = secondsSince(start);
   report_.peakRssAfter.push_back({"read", peakRss()});
 
   start = std::chrono::steady_clock::now();
   binAndDistribute();
+  planMetadata();
   releaseFreeMemory();
   report_.secondsBin = secondsSince(start);
   report_.peakRssAfter.push_back({"bin", peakRss()});

@@ -82,6 +82,41 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
   if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
 }
 
+// The leaf clusters of a component's hierarchy: its frontier of clusters of at most `faces` faces
+// (a node of more is replaced by its children, largest first), stopping at `quota` clusters (each
+// split adds one: binary nodes). Refs: node indices or kFaceChild | face, root alone for a
+// hierarchy without nodes (one face). Ties by node index: deterministic.
+void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t quota, std::vector<uint32_t>& frontier) {
+  frontier.clear();
+  if (component.nodes.empty()) {
+    frontier.push_back(kFaceChild);
+    return;
+  }
+  const auto larger = [&](uint32_t a, uint32_t b) {  // heap order: largest count, then lowest index
+    const uint32_t ca = component.nodes[a].count, cb = component.nodes[b].count;
+    return ca != cb ? ca < cb : a > b;
+  };
+  std::vector<uint32_t> open;  // nodes of more than `faces` faces, still on the frontier
+  uint64_t size = 1;
+  const auto add = [&](uint32_t ref) {
+    if (!(ref & kFaceChild) && component.nodes[ref].count > faces) {
+      open.push_back(ref);
+      std::push_heap(open.begin(), open.end(), larger);
+    } else {
+      frontier.push_back(ref);
+    }
+  };
+  add(0);
+  while (!open.empty() && size < quota) {
+    std::pop_heap(open.begin(), open.end(), larger);
+    const uint32_t node = open.back();
+    open.pop_back();
+    for (const uint32_t c : component.nodes[node].child) add(c);
+    ++size;
+  }
+  frontier.insert(frontier.end(), open.begin(), open.end());
+}
+
 }  // namespace
 
 // How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
@@ -94,7 +129,8 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
 // in core (runs of at least 32 nodes: 8%), against 4x with fixed 64-node blocks (their costs
 // spread too widely) and 11x with a running minimum as the key (one cheap early node held back a
 // whole leaf).
-std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
+  const uint32_t maxRun = std::max(kNodeBlock, minRun);
   struct Pool {
     double sum, weight;
     size_t count;
@@ -122,10 +158,10 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
     for (size_t k = 0; k < p.count; ++k, ++at) {
       // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
       // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
-      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, kMinNodeBlock);
-      if (blocks.empty() || blocks.back().count == kNodeBlock ||
+      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
+      if (blocks.empty() || blocks.back().count == maxRun ||
           (blocks.back().key != band && blocks.back().count >= minimum))
-        blocks.push_back({band, at, 0});
+        blocks.push_back({band, at, 0, 0, 0});
       ++blocks.back().count;
     }
   }
@@ -136,6 +172,7 @@ void OutOfCoreBuild::buildCells() {
   nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
   geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry");
   pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
+  leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");
   borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
   const uint32_t cells = grid_->cellCount();
   cells_.assign(cells, {});
@@ -185,6 +222,12 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   std::vector<LocalPair> localPairs;
   std::vector<CrossPair> pairs;
   std::vector<BorderFace> border;
+  // Its leaves (spilled at the end).
+  std::vector<LeafCluster> leaves;
+  std::vector<SurfaceStats> leafStats;
+  std::vector<BoxCorners> leafCorners;
+  std::vector<NodeBlock> runs;
+  std::vector<SpillBlock> geometry;
   records.clear();
   records.reserve(cellFaces_->records(cell));
   cellFaces_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
@@ -216,17 +259,21 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     const uint32_t components = faceComponents(cellMesh, label);
     result.components = components;
 
-    // Groups: every component its own leaf, or the largest kMaxLeavesPerCell - 1 and the rest.
+    // The cell's leaves: at most its quota (the leaf budget's share of its faces). Groups: every
+    // component its own, or the largest quota - 1 (and at most kMaxLeavesPerCell - 1) and the rest
+    // together; the quota left is shared among the groups by their faces (frontierQuota).
+    const uint64_t quota = cellLeafQuota(faces);
+    const auto maxGroups = static_cast<uint32_t>(std::min<uint64_t>(kMaxLeavesPerCell, quota));
     std::vector<uint32_t> groupOf(components);
     uint32_t groups = components;
-    if (components > kMaxLeavesPerCell) {
+    if (components > maxGroups) {
       std::vector<uint32_t> size(components, 0);
       for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
       std::vector<uint32_t> order(components);
       for (uint32_t c = 0; c < components; ++c) order[c] = c;
       std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
       std::vector<bool> kept(components, false);
-      for (uint32_t i = 0; i + 1 < kMaxLeavesPerCell; ++i) kept[order[i]] = true;
+      for (uint32_t i = 0; i + 1 < maxGroups; ++i) kept[order[i]] = true;
       groups = 0;
       for (uint32_t c = 0; c < components; ++c)
         if (kept[c]) groupOf[c] = groups++;
@@ -281,16 +328,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     for (uint32_t g = 0; g < groups; ++g) {
       const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
       Hierarchy component = buildHierarchy(makeMesh(members), job_.build);
-      frontier.clear();
-      if (component.nodes.empty() || component.nodes[0].count <= frontierFaces_) {
-        frontier.push_back(component.nodes.empty() ? kFaceChild : 0u);
-      } else {
-        for (const Node& node : component.nodes) {
-          if (node.count <= frontierFaces_) continue;
-          for (const uint32_t c : node.child)
-            if ((c & kFaceChild) || component.nodes[c].count <= frontierFaces_) frontier.push_back(c);
-        }
-      }
+      // Its share of the quota: sum over the groups <= groups + (quota - groups) = quota.
+      const uint64_t groupQuota = 1 + (quota - groups) * members.size() / faces;
+      frontierOf(component, frontierFaces_, groupQuota, frontier);
       const auto firstOf = [&](uint32_t ref) {
         return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
       };
@@ -343,18 +383,18 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         leafFaces.resize(count);
         for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
 
-        const auto leafIndex = static_cast<uint32_t>(result.leaves.size());
+        const auto leafIndex = static_cast<uint32_t>(leaves.size());
         for (const uint32_t f : leafFaces) leafOf[f] = leafIndex;
         const MeshView leafMesh = makeMesh(leafFaces);
-        LeafCluster& leaf = result.leaves.emplace_back();
-        leaf.cell = cell;
+        LeafCluster& leaf = leaves.emplace_back();
         leaf.faceCount = count;
         leaf.height = sub.stats.height;
-        leaf.stats = surfaceStats(leafMesh, origin_);
-        leaf.stats.height = leaf.height;
+        SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, origin_));
+        stats.height = leaf.height;
+        BoxCorners& corners = leafCorners.emplace_back();
         const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
-        leaf.nodeCount = file.nodes.size();
-        leaf.vertexCount = file.vertices.size();
+        leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
+        leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
         if (!file.nodes.empty()) {
           const NodeBox& box = file.nodes[0].box;
           const glm::mat3 axes = glm::mat3_cast(box.orientation);
@@ -362,17 +402,22 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
             glm::vec3 p = box.center;
             for (int a = 0; a < 3; ++a)
               p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
-            leaf.corners[c] = p;
+            corners[c] = p;
           }
         } else {
-          for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
+          for (int c = 0; c < 8; ++c) corners[c] = file.vertices[file.indices[c % 3]];
         }
-        leaf.blocks = nodeBlocks(file.nodes);
-        for (NodeBlock& b : leaf.blocks) {
+        leaf.firstBlock = static_cast<uint32_t>(runs.size());
+        for (NodeBlock b : nodeBlocks(file.nodes, minNodeRun_)) {
           block.clear();
           appendBytes(block, file.nodes.data() + b.first, b.count);
-          b.spill = nodeSpill_->append(block, codec);
+          const SpillBlock spill = nodeSpill_->append(block, codec);
+          b.offset = spill.offset;
+          b.compressedBytes = spill.compressedBytes;
+          runs.push_back(b);
+          ++leaf.blockCount;
         }
+        leaf.firstGeometry = static_cast<uint32_t>(geometry.size());
         const size_t triangles = file.originalFace.size();
         uint32_t verticesSeen = 0;
         for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
@@ -385,7 +430,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
           appendBytes(block, file.indices.data() + 3 * at, 3 * n);
           appendBytes(block, file.originalFace.data() + at, n);
-          leaf.geometryBlocks.push_back(geometrySpill_->append(block, codec));
+          geometry.push_back(geometrySpill_->append(block, codec));
+          ++leaf.geometryCount;
           verticesSeen = end;
         }
       }
@@ -513,6 +559,15 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     i = j;
   }
   incidences = {};
+  const auto spill = [&](const auto& items) {
+    return items.empty() ? SpillBlock{} : leafSpill_->append(std::as_bytes(std::span(items)), codec);
+  };
+  result.leafCount = static_cast<uint32_t>(leaves.size());
+  result.leaves = spill(leaves);
+  result.stats = spill(leafStats);
+  result.corners = spill(leafCorners);
+  result.blocks = spill(runs);
+  result.geometry = spill(geometry);
 
   // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
   // instead of one per mesh edge between them (most of a cell's pairs).

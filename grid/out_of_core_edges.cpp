@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
+#include <type_traits>
 
 #include "grid/external_sort.h"
 #include "grid/out_of_core.h"
@@ -58,8 +59,7 @@ void pushEdge(EdgeSorter& edges, uint32_t a, uint32_t b, double shared) {
 void OutOfCoreBuild::resolveCrossEdges() {
   const auto cells = static_cast<uint32_t>(cells_.size());
   std::vector<uint32_t> leafBase(cells + 1, 0);
-  for (uint32_t c = 0; c < cells; ++c)
-    leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
+  for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + cells_[c].leafCount;
   // Three sorters may hold memory at once (one merging, two filling): a share of the cap the
   // cells pass has just released.
   const uint64_t budget = std::max<uint64_t>(memoryCap_ / kEdgeSortShare, uint64_t{1} << 20);
@@ -147,14 +147,36 @@ void OutOfCoreBuild::resolveCrossEdges() {
   }
   edges_.shrink_to_fit();
 
-  uint64_t leafCount = 0;
-  for (const CellResult& cell : cells_) leafCount += cell.leaves.size();
-  leaves_.reserve(leafCount);
+  // The cells' leaves in one array each, read back cell by cell.
+  const auto append = [&](auto& out, const SpillBlock& block) {
+    using T = typename std::remove_reference_t<decltype(out)>::value_type;
+    if (block.rawBytes == 0) return;
+    leafSpill_->read(block, raw, codec_);
+    const size_t at = out.size();
+    out.resize(at + raw.size() / sizeof(T));
+    std::memcpy(static_cast<void*>(out.data() + at), raw.data(), raw.size());
+  };
+  leaves_.reserve(leafBase[cells]);
+  leafStats_.reserve(leafBase[cells]);
+  leafCorners_.reserve(leafBase[cells]);
   for (CellResult& cell : cells_) {
     report_.components += cell.components;
-    for (LeafCluster& leaf : cell.leaves) leaves_.push_back(std::move(leaf));
-    cell.leaves = {};  // freed cell by cell: the records are not held twice
+    const size_t first = leaves_.size();
+    const auto blockBase = static_cast<uint32_t>(blocks_.size());
+    const auto geometryBase = static_cast<uint32_t>(geometry_.size());
+    append(leaves_, cell.leaves);
+    append(leafStats_, cell.stats);
+    append(leafCorners_, cell.corners);
+    append(blocks_, cell.blocks);
+    append(geometry_, cell.geometry);
+    for (size_t i = first; i < leaves_.size(); ++i) {
+      leaves_[i].firstBlock += blockBase;
+      leaves_[i].firstGeometry += geometryBase;
+    }
+    if (blocks_.size() > UINT32_MAX || geometry_.size() > UINT32_MAX)
+      throw std::logic_error("out-of-core build: more than 2^32 node runs");
   }
+  leafSpill_.reset();
   cells_ = {};
   report_.leaves = leaves_.size();
 }
