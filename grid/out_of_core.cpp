@@ -302,34 +302,39 @@ uint64_t topRunsPerLeaf(uint32_t minRun) {
 
 // The leaves' metadata (records, stats, box corners, node runs, geometry handles) is spilled by
 // each cell as it ends, and in memory from resolveCrossEdges to the write, when the cells' share
-// of the cap is free: it has all of the cap but kBaseBytes, and is bounded by construction. Each
-// leaf costs at most kLeafBytes, plus kRunBytes per run: at most topRunsPerLeaf at its top, then
-// one per minNodeRun_ nodes (fewer nodes than triangles in all). Half the budget goes to those
-// bulk runs (minNodeRun_ grows past kMinNodeBlock when 256-node runs would not fit: beyond ~2^26
-// triangles at 64 MiB), the rest to the leaves: leafBudget_, which the cells split by faces
-// (cellLeafQuota). Every cell has a leaf, so the bound holds while the cells are fewer than the
-// leaves the budget allows (64 MiB: ~16k; 256 MiB: ~110k).
+// of the cap is free: it has all of the cap but kBaseBytes (leafBudget_), and is bounded by
+// construction. A leaf of n faces (at most n - 1 nodes) costs at most leafBytes(n): kLeafBytes,
+// plus kRunBytes per run, of which nodeBlocks makes at most topRuns_ at its top, then one per
+// minNodeRun_ nodes. minNodeRun_ is 256, or more when the runs past the tops of all leaves
+// (fewer nodes than triangles) would take more than half the budget (beyond ~2^26 triangles at
+// 64 MiB). Each cell may spend its faces' share of the budget (cellLeafAllowance) and spends it
+// by leafBytes: a speck of 2 faces costs ~1 KB, a frontier cluster of 600 ~2 KB. A cell always
+// makes one leaf, so the bound holds while the cells are fewer than the budget's leaves of a cell's
+// size (64 MiB: ~2k cells, ~20M triangles; 256 MiB: ~4k cells, ~380M triangles).
 void OutOfCoreBuild::planMetadata() {
-  const uint64_t budget = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
-  const uint64_t half = std::max<uint64_t>(budget / 2, 1);
+  leafBudget_ = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
+  const uint64_t half = std::max<uint64_t>(leafBudget_ / 2, 1);
   minNodeRun_ =
       static_cast<uint32_t>(std::max<uint64_t>(kMinNodeBlock, (triangles_ * kRunBytes + half - 1) / half));
-  const uint64_t bulk = triangles_ / minNodeRun_ * kRunBytes;
-  const uint64_t perLeaf = kLeafBytes + topRunsPerLeaf(minNodeRun_) * kRunBytes;
-  const uint64_t cells = grid_->cellCount();
-  leafBudget_ = std::max<uint64_t>(cells, (budget - std::min(budget, bulk)) / perLeaf);
-  // Frontier clusters of the size that makes about the budgeted count; the quota enforces it.
-  const uint64_t spare = std::max<uint64_t>(1, leafBudget_ - cells);
-  frontierFaces_ = std::clamp<uint64_t>((triangles_ + spare - 1) / spare, frontierFaces_,
+  topRuns_ = topRunsPerLeaf(minNodeRun_);
+  // Frontier clusters of the size that makes a kFrontierShare-th of the leaves the budget pays
+  // for at most: the rest goes to the cells' many small components (fg_hawaii: 13,888), which
+  // the upper merge joins better than a cell does.
+  const uint64_t leaves = std::max<uint64_t>(1, leafBudget_ / (kLeafBytes + topRuns_ * kRunBytes));
+  const uint64_t target = std::max<uint64_t>(1, leaves / kFrontierShare);
+  frontierFaces_ = std::clamp<uint64_t>((triangles_ + target - 1) / target, frontierFaces_,
                                         std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
 }
 
-uint64_t OutOfCoreBuild::cellLeafQuota(uint64_t faces) const {
-  // One leaf per cell, the rest of the budget by faces: the sum over the cells is at most
-  // cells + (leafBudget_ - cells) = leafBudget_. (faces * spare < 2^31 * 2^32.)
-  const uint64_t cells = grid_->cellCount();
-  const uint64_t spare = leafBudget_ > cells ? leafBudget_ - cells : 0;
-  return 1 + faces * spare / std::max<uint64_t>(triangles_, 1);
+uint64_t OutOfCoreBuild::leafBytes(uint64_t faces) const {
+  const uint64_t nodes = faces > 0 ? faces - 1 : 0;
+  return kLeafBytes + kRunBytes * std::min(nodes, topRuns_ + nodes / minNodeRun_);
+}
+
+uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
+  // In double: budget * faces may pass 2^64; the same expression everywhere, so deterministic.
+  return static_cast<uint64_t>(double(leafBudget_) * double(faces) /
+                               double(std::max<uint64_t>(triangles_, 1)));
 }
 
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {

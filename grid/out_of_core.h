@@ -90,6 +90,7 @@ inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // the top of the tree across cell borders, few enough that it stays small.
 inline constexpr uint64_t kFrontiersPerCell = 32;
 inline constexpr uint64_t kMinFrontierFaces = 64;
+inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetadata)
 // The leaves' metadata is in memory from the merge to the write (planMetadata, out_of_core.cpp).
 // Per leaf at most (x86-64 sizes), the write's peak: record 32 B and its geometry handle 16, box
 // corners 96, its upper merge node (ClusterMergeNode) 144 and
@@ -138,8 +139,10 @@ class OutOfCoreBuild {
   void buildCells();
   void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
   void planMetadata();
-  // The most leaves a cell of `faces` faces may make (its share of leafBudget_, at least 1).
-  uint64_t cellLeafQuota(uint64_t faces) const;
+  // The most a leaf of `faces` faces costs from the merge to the write (kLeafBytes, kRunBytes).
+  uint64_t leafBytes(uint64_t faces) const;
+  // The leaf metadata a cell of `faces` faces may make: its share of leafBudget_.
+  uint64_t cellLeafAllowance(uint64_t faces) const;
   void resolveCrossEdges();
   void mergeAbove();
   void write();
@@ -163,8 +166,9 @@ class OutOfCoreBuild {
   std::unique_ptr<CellGrid> grid_;
   uint64_t cellFaceLimit_ = 0;
   uint64_t frontierFaces_ = 0;  // leaf clusters: the frontier of each component's hierarchy at this size
-  uint64_t leafBudget_ = 0;     // leaves of all cells together (each cell its share: cellLeafQuota)
+  uint64_t leafBudget_ = 0;     // bytes of leaf metadata, all cells together (cellLeafAllowance)
   uint32_t minNodeRun_ = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs
+  uint64_t topRuns_ = 0;                 // runs at the top of a leaf (topRunsPerLeaf)
   std::unique_ptr<BucketSpill> cellFaces_;
   std::unique_ptr<BucketSpill> ghosts_;
   // cells

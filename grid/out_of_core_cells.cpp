@@ -83,10 +83,12 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
 }
 
 // The leaf clusters of a component's hierarchy: its frontier of clusters of at most `faces` faces
-// (a node of more is replaced by its children, largest first), stopping at `quota` clusters (each
-// split adds one: binary nodes). Refs: node indices or kFaceChild | face, root alone for a
-// hierarchy without nodes (one face). Ties by node index: deterministic.
-void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t quota, std::vector<uint32_t>& frontier) {
+// (a node of more is replaced by its children, largest first), while the metadata the split adds
+// (leafBytes of the children minus the node's) fits `bytes`. Refs: node indices or kFaceChild |
+// face, root alone for a hierarchy without nodes (one face). Ties by node index: deterministic.
+template <class LeafBytes>
+void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, const LeafBytes& leafBytes,
+                std::vector<uint32_t>& frontier) {
   frontier.clear();
   if (component.nodes.empty()) {
     frontier.push_back(kFaceChild);
@@ -97,7 +99,9 @@ void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t quota, std:
     return ca != cb ? ca < cb : a > b;
   };
   std::vector<uint32_t> open;  // nodes of more than `faces` faces, still on the frontier
-  uint64_t size = 1;
+  const auto count = [&](uint32_t ref) -> uint64_t {
+    return (ref & kFaceChild) ? 1 : component.nodes[ref].count;
+  };
   const auto add = [&](uint32_t ref) {
     if (!(ref & kFaceChild) && component.nodes[ref].count > faces) {
       open.push_back(ref);
@@ -107,12 +111,15 @@ void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t quota, std:
     }
   };
   add(0);
-  while (!open.empty() && size < quota) {
+  while (!open.empty()) {
+    const Node& node = component.nodes[open.front()];
+    const uint64_t added =
+        leafBytes(count(node.child[0])) + leafBytes(count(node.child[1])) - leafBytes(node.count);
+    if (added > bytes) break;
+    bytes -= added;
     std::pop_heap(open.begin(), open.end(), larger);
-    const uint32_t node = open.back();
     open.pop_back();
-    for (const uint32_t c : component.nodes[node].child) add(c);
-    ++size;
+    for (const uint32_t c : node.child) add(c);
   }
   frontier.insert(frontier.end(), open.begin(), open.end());
 }
@@ -236,6 +243,19 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     std::memcpy(records.data() + at, bytes.data(), bytes.size());
   });
   const auto faces = static_cast<uint32_t>(records.size());
+  // The ghosts of the edges this cell owns (other cells' faces on them), and their edges' keys.
+  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
+  {
+    size_t at = 0;
+    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
+      at += bytes.size();
+    });
+  }
+  std::vector<uint64_t> ghostKeys(ghosts.size());
+  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
+  std::sort(ghostKeys.begin(), ghostKeys.end());
+  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
 
   std::vector<uint32_t> leafOf(faces, 0);
   if (faces > 0) {
@@ -259,26 +279,42 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     const uint32_t components = faceComponents(cellMesh, label);
     result.components = components;
 
-    // The cell's leaves: at most its quota (the leaf budget's share of its faces). Groups: every
-    // component its own, or the largest quota - 1 (and at most kMaxLeavesPerCell - 1) and the rest
-    // together; the quota left is shared among the groups by their faces (frontierQuota).
-    const uint64_t quota = cellLeafQuota(faces);
-    const auto maxGroups = static_cast<uint32_t>(std::min<uint64_t>(kMaxLeavesPerCell, quota));
+    // The cell's leaves cost at most its allowance of metadata (its faces' share, planMetadata;
+    // leafBytes bounds a leaf's cost by its faces). Groups: every component its own, or the largest
+    // ones (fewer than kMaxLeavesPerCell) and the rest together, as many as the allowance pays for;
+    // what is left is shared among the groups by faces, for their frontiers (frontierOf).
+    const auto leafBytes = [this](uint64_t n) { return this->leafBytes(n); };
+    const uint64_t allowance = cellLeafAllowance(faces);
     std::vector<uint32_t> groupOf(components);
     uint32_t groups = components;
-    if (components > maxGroups) {
-      std::vector<uint32_t> size(components, 0);
-      for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
-      std::vector<uint32_t> order(components);
-      for (uint32_t c = 0; c < components; ++c) order[c] = c;
-      std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
-      std::vector<bool> kept(components, false);
-      for (uint32_t i = 0; i + 1 < maxGroups; ++i) kept[order[i]] = true;
+    uint64_t groupBytes = 0;  // the groups' leaves before their frontiers split them
+    std::vector<uint32_t> size(components, 0);
+    for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
+    std::vector<uint32_t> order(components);
+    for (uint32_t c = 0; c < components; ++c) order[c] = c;
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
+    // kept: the largest that stay alone (all of them, if so many fit); the rest is one group.
+    uint32_t kept = 0;
+    {
+      uint64_t keptBytes = 0, keptFaces = 0;
+      const uint32_t most = components <= kMaxLeavesPerCell ? components : kMaxLeavesPerCell - 1;
+      for (uint32_t k = 0;; ++k) {
+        const uint64_t cost = keptBytes + (k < components ? leafBytes(faces - keptFaces) : 0);
+        if (k > 0 && cost > allowance) break;  // k = 0 (one leaf) is always taken
+        kept = k, groupBytes = cost;
+        if (k == most) break;
+        keptBytes += leafBytes(size[order[k]]);
+        keptFaces += size[order[k]];
+      }
+    }
+    if (kept < components) {
+      std::vector<bool> alone(components, false);
+      for (uint32_t i = 0; i < kept; ++i) alone[order[i]] = true;
       groups = 0;
       for (uint32_t c = 0; c < components; ++c)
-        if (kept[c]) groupOf[c] = groups++;
+        if (alone[c]) groupOf[c] = groups++;
       for (uint32_t c = 0; c < components; ++c)
-        if (!kept[c]) groupOf[c] = groups;
+        if (!alone[c]) groupOf[c] = groups;
       ++groups;
     } else {
       for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
@@ -296,6 +332,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       }
     }
     label = {};
+    size = {};
+    order = {};
+    const uint64_t spare = allowance > groupBytes ? allowance - groupBytes : 0;
 
     // Each component's hierarchy is cut at its frontier of clusters of at most frontierFaces_
     // faces: those are the leaf clusters (the upper merge redoes what lies above them, with
@@ -328,9 +367,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     for (uint32_t g = 0; g < groups; ++g) {
       const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
       Hierarchy component = buildHierarchy(makeMesh(members), job_.build);
-      // Its share of the quota: sum over the groups <= groups + (quota - groups) = quota.
-      const uint64_t groupQuota = 1 + (quota - groups) * members.size() / faces;
-      frontierOf(component, frontierFaces_, groupQuota, frontier);
+      // Its share of the allowance left: the groups' shares sum to at most `spare`.
+      const auto share = static_cast<uint64_t>(double(spare) * double(members.size()) / double(faces));
+      frontierOf(component, frontierFaces_, share, leafBytes, frontier);
       const auto firstOf = [&](uint32_t ref) {
         return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
       };
@@ -493,19 +532,6 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   }
 
   // Cross-cell dual edges: the ghosts of the edges this cell owns against its own faces.
-  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
-  {
-    size_t at = 0;
-    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
-      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
-      at += bytes.size();
-    });
-  }
-  std::vector<uint64_t> ghostKeys(ghosts.size());
-  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
-  std::sort(ghostKeys.begin(), ghostKeys.end());
-  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
-
   std::vector<Incidence> incidences;
   incidences.reserve(ghosts.size() * 2);
   for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
