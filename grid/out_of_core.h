@@ -82,7 +82,9 @@ inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, librarie
 // engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
 // arenas. Measured: a 3M-triangle terrain at 64 MiB (cells of 12.6k faces) peaks at 59-63 MB
 // with 1000; a 55.8M-triangle scan at 256 MiB (cells of 113k-144k faces) at 280-285 MiB with
-// 800 and 1000: ~1140 B per face in big cells.
+// 800 and 1000: ~1140 B per face in big cells. Those peaks included the leaves' metadata and the
+// cross-cell pairs the cells pass then held; spilled, the scan's cells pass peaks at 103 MiB with
+// cells of 94k faces (the constant is conservative; kept: cell sizes change the output).
 inline constexpr uint64_t kCellBytesPerFace = 1200;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
@@ -93,11 +95,12 @@ inline constexpr uint64_t kMinFrontierFaces = 64;
 inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetadata)
 // The leaves' metadata is in memory from the merge to the write (planMetadata, out_of_core.cpp).
 // Per leaf at most (x86-64 sizes), the write's peak: record 32 B and its geometry handle 16, box
-// corners 96, its upper merge node (ClusterMergeNode) 144 and
-// BoxAccumulator 176, the write's tables ~70 (leaf order, parents, depths, positions, keys and
-// the upper node's entry in the block order), and the frame builder's hull scratch over 8
-// corners per leaf (~300 at the root). During the merge instead: stats 128 twice (the input and
-// mergeClusters' copy), its record 32 and heap 9, and its leaf edges (~2 per leaf, 32 B + 16 B).
+// corners 96, its upper merge node (ClusterMergeNode) 144 and BoxAccumulator 176, the write's
+// tables ~70 (leaf order, parents, depths, positions, keys, the upper node's entry in the block
+// order), the frame builder's hull scratch over 8 corners per leaf (~300 at the root). During the
+// merge instead: stats 128 twice (the input and mergeClusters' copy), its record 32 and heap 9,
+// and its leaf edges (~2 per leaf, 32 B + 16 B). Measured on fg_hawaii at 64 MiB: ~1.1 KB per
+// leaf with its runs (9 on average).
 inline constexpr uint64_t kLeafBytes = 1024;
 // Per node run: its NodeBlock 24 B, its entry in the write's block order 16 and position 4.
 inline constexpr uint64_t kRunBytes = 48;
