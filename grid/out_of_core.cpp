@@ -290,6 +290,53 @@ uint64_t peakRss() {
 }
 }  // namespace
 
+namespace {
+// Runs nodeBlocks makes at the top of a leaf before they reach `minRun` nodes (a run from node f
+// holds at least min(f / 2, minRun)), and one for the leaf's last, partial run.
+uint64_t topRunsPerLeaf(uint32_t minRun) {
+  uint64_t runs = 1;
+  for (uint64_t f = 0; f < 2 * uint64_t{minRun}; f += std::clamp<uint64_t>(f / 2, 1, minRun)) ++runs;
+  return runs;
+}
+}  // namespace
+
+// The leaves' metadata (records, stats, box corners, node runs, geometry handles) is spilled by
+// each cell as it ends, and in memory from resolveCrossEdges to the write, when the cells' share
+// of the cap is free: it has all of the cap but kBaseBytes (leafBudget_), and is bounded by
+// construction. A leaf of n faces (at most n - 1 nodes) costs at most leafBytes(n): kLeafBytes,
+// plus kRunBytes per run, of which nodeBlocks makes at most topRuns_ at its top, then one per
+// minNodeRun_ nodes. minNodeRun_ is 256, or more when the runs past the tops of all leaves
+// (fewer nodes than triangles) would take more than half the budget (beyond ~2^26 triangles at
+// 64 MiB). Each cell may spend its faces' share of the budget (cellLeafAllowance) and spends it
+// by leafBytes: a speck of 2 faces costs ~1 KB, a frontier cluster of 600 ~2 KB. A cell always
+// makes one leaf, so the bound holds while the cells are fewer than the budget's leaves of a cell's
+// size (64 MiB: ~2k cells, ~20M triangles; 256 MiB: ~4k cells, ~380M triangles).
+void OutOfCoreBuild::planMetadata() {
+  leafBudget_ = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
+  const uint64_t half = std::max<uint64_t>(leafBudget_ / 2, 1);
+  minNodeRun_ =
+      static_cast<uint32_t>(std::max<uint64_t>(kMinNodeBlock, (triangles_ * kRunBytes + half - 1) / half));
+  topRuns_ = topRunsPerLeaf(minNodeRun_);
+  // Frontier clusters of the size that makes a kFrontierShare-th of the leaves the budget pays
+  // for at most: the rest goes to the cells' many small components (fg_hawaii: 13,888), which
+  // the upper merge joins better than a cell does.
+  const uint64_t leaves = std::max<uint64_t>(1, leafBudget_ / (kLeafBytes + topRuns_ * kRunBytes));
+  const uint64_t target = std::max<uint64_t>(1, leaves / kFrontierShare);
+  frontierFaces_ = std::clamp<uint64_t>((triangles_ + target - 1) / target, frontierFaces_,
+                                        std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
+}
+
+uint64_t OutOfCoreBuild::leafBytes(uint64_t faces) const {
+  const uint64_t nodes = faces > 0 ? faces - 1 : 0;
+  return kLeafBytes + kRunBytes * std::min(nodes, topRuns_ + nodes / minNodeRun_);
+}
+
+uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
+  // In double: budget * faces may pass 2^64; the same expression everywhere, so deterministic.
+  return static_cast<uint64_t>(double(leafBudget_) * double(faces) /
+                               double(std::max<uint64_t>(triangles_, 1)));
+}
+
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
   const unsigned threads = std::max(1u, job_.threads);
   if (job_.forceCellFaces) {
@@ -314,16 +361,12 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   reader.reset();
   resolveSpilledPositions();
   if (positions_) positions_->release();  // every position is in the arrival spill now
-  // Each leaf costs ~kLeafBytes until the write (record, node blocks, cross pairs): leaves are made
-  // big enough that they all fit an eighth of the cap.
-  const uint64_t leavesAllowed = std::max<uint64_t>(1, memoryCap_ / 8 / kLeafBytes);
-  frontierFaces_ = std::clamp<uint64_t>((triangles_ + leavesAllowed - 1) / leavesAllowed, frontierFaces_,
-                                        std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
   report_.secondsRead = secondsSince(start);
   report_.peakRssAfter.push_back({"read", peakRss()});
 
   start = std::chrono::steady_clock::now();
   binAndDistribute();
+  planMetadata();
   releaseFreeMemory();
   report_.secondsBin = secondsSince(start);
   report_.peakRssAfter.push_back({"bin", peakRss()});

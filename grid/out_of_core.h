@@ -37,27 +37,36 @@ struct PendingTriangles {
   std::vector<uint64_t> originalFace;
 };
 
-// A run of a leaf's nodes as the file interleaves them (nodeBlocks, out_of_core_cells.cpp).
+// A run of a leaf's nodes as the file interleaves them (nodeBlocks, out_of_core_cells.cpp). One of
+// these lives per run from the cells pass to the write: 24 B, the spill handle without its raw size
+// (count FchNodes).
 struct NodeBlock {
   float key;       // the sort key (a band of log cost), non-increasing along the leaf
   uint32_t first;  // its first node, leaf-local
   uint32_t count;
-  SpillBlock spill{};  // the FchNodes
+  uint32_t compressedBytes = 0;  // the FchNodes in the node spill
+  uint64_t offset = 0;
+  SpillBlock spill() const {
+    return {offset, compressedBytes, static_cast<uint32_t>(count * sizeof(FchNode))};
+  }
 };
 
-// One leaf cluster of the upper merge: an edge-connected component of a cell (or the cell's
-// remaining small components together) with its spilled subtree and geometry.
+// One leaf cluster of the upper merge: a frontier cluster of a cell's component (or of the cell's
+// remaining small components together), with its spilled subtree and geometry. Its statistics and
+// box corners are kept apart (OutOfCoreBuild::leafStats_, leafCorners_): the stats go after the
+// merge, the corners are sorted into the write's leaf order in place. Plain data: a cell spills
+// its leaves' records as it ends (the cells pass holds none of them).
 struct LeafCluster {
-  uint32_t cell = 0;
-  uint64_t faceCount = 0;
-  uint64_t nodeCount = 0;
-  uint64_t vertexCount = 0;
+  uint32_t faceCount = 0;  // at most a cell's
+  uint32_t nodeCount = 0;
+  uint32_t vertexCount = 0;
   uint32_t height = 1;
-  std::vector<NodeBlock> blocks;           // its nodes (leaf-local references), in file order
-  std::vector<SpillBlock> geometryBlocks;  // GeometryBlock layout (out_of_core_cells.cpp)
-  SurfaceStats stats;
-  std::array<glm::vec3, 8> corners{};  // of the root box: points for the upper frames
+  uint32_t firstBlock = 0;  // its runs, blocks_[firstBlock, + blockCount), in file order
+  uint32_t blockCount = 0;
+  uint32_t firstGeometry = 0;  // its geometry, geometry_[firstGeometry, + geometryCount): GeometryBlock
+  uint32_t geometryCount = 0;  // layout (out_of_core_cells.cpp)
 };
+using BoxCorners = std::array<glm::vec3, 8>;  // of a leaf's root box: points for the upper frames
 
 // A cross-cell dual edge as the owner cell finds it: each end is a local leaf (kLeafRef) or a
 // face of another cell (index within that cell), resolved after every cell is done.
@@ -66,6 +75,50 @@ struct CrossPair {
   uint32_t cell[2];
   uint32_t ref[2];
   double shared;
+};
+
+// Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
+inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
+// One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
+// engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
+// arenas. Measured: a 3M-triangle terrain at 64 MiB (cells of 12.6k faces) peaks at 59-63 MB
+// with 1000; a 55.8M-triangle scan at 256 MiB (cells of 113k-144k faces) at 280-285 MiB with
+// 800 and 1000: ~1140 B per face in big cells. Those peaks included the leaves' metadata and the
+// cross-cell pairs the cells pass then held; spilled, the scan's cells pass peaks at 103 MiB with
+// cells of 94k faces (the constant is conservative; kept: cell sizes change the output).
+inline constexpr uint64_t kCellBytesPerFace = 1200;
+inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
+// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
+// faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
+// the top of the tree across cell borders, few enough that it stays small.
+inline constexpr uint64_t kFrontiersPerCell = 32;
+inline constexpr uint64_t kMinFrontierFaces = 64;
+inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetadata)
+// The leaves' metadata is in memory from the merge to the write (planMetadata, out_of_core.cpp).
+// Per leaf at most (x86-64 sizes), the write's peak: record 32 B and its geometry handle 16, box
+// corners 96, its upper merge node (ClusterMergeNode) 144 and BoxAccumulator 176, the write's
+// tables ~70 (leaf order, parents, depths, positions, keys, the upper node's entry in the block
+// order), the frame builder's hull scratch over 8 corners per leaf (~300 at the root). During the
+// merge instead: stats 128 twice (the input and mergeClusters' copy), its record 32 and heap 9,
+// and its leaf edges (~2 per leaf, 32 B + 16 B). Measured on fg_hawaii at 64 MiB: ~1.1 KB per
+// leaf with its runs (9 on average).
+inline constexpr uint64_t kLeafBytes = 1024;
+// Per node run: its NodeBlock 24 B, its entry in the write's block order 16 and position 4.
+inline constexpr uint64_t kRunBytes = 48;
+// resolveCrossEdges sorts the cells' pairs with up to three ExternalSorters holding memory at once,
+// each with this fraction of the cap (together an eighth: the cells pass has released far more).
+inline constexpr uint64_t kEdgeSortShare = 24;
+// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
+// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
+inline constexpr uint32_t kNodeBlock = 256;
+inline constexpr uint32_t kMinNodeBlock = 256;
+inline constexpr double kKeyBand = 0.25;
+
+// A face of a cell with an edge owned by another cell (it sent ghosts there), and its leaf: what
+// a CrossPair's face reference resolves through.
+struct BorderFace {
+  uint32_t face;  // index within its cell
+  uint32_t leaf;  // cell-local leaf
 };
 
 // The state of one out-of-core run; the passes are its member functions, in
@@ -89,6 +142,11 @@ class OutOfCoreBuild {
   void binAndDistribute();
   void buildCells();
   void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  void planMetadata();
+  // The most a leaf of `faces` faces costs from the merge to the write (kLeafBytes, kRunBytes).
+  uint64_t leafBytes(uint64_t faces) const;
+  // The leaf metadata a cell of `faces` faces may make: its share of leafBudget_.
+  uint64_t cellLeafAllowance(uint64_t faces) const;
   // The upper tree recast to the file's branching factor (identity for 2), per binary node in
   // creation order: whether it stays, and its children (kLeafChild | leaf, or a kept node).
   struct UpperRecast {
@@ -122,20 +180,38 @@ class OutOfCoreBuild {
   std::unique_ptr<CellGrid> grid_;
   uint64_t cellFaceLimit_ = 0;
   uint64_t frontierFaces_ = 0;  // leaf clusters: the frontier of each component's hierarchy at this size
+  uint64_t leafBudget_ = 0;     // bytes of leaf metadata, all cells together (cellLeafAllowance)
+  uint32_t minNodeRun_ = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs
+  uint64_t topRuns_ = 0;                 // runs at the top of a leaf (topRunsPerLeaf)
   std::unique_ptr<BucketSpill> cellFaces_;
   std::unique_ptr<BucketSpill> ghosts_;
   // cells
   std::unique_ptr<SpillFile> nodeSpill_;
   std::unique_ptr<SpillFile> geometrySpill_;
+  // The dual edges a cell finds and its table of border faces grow with the input (fg_hawaii: 445k
+  // cross-cell pairs, 24 B each, and their faces): they go to disk as the cell ends, and
+  // resolveCrossEdges reads them back through external sorts (out_of_core_edges.cpp). In memory
+  // only their handles: O(cells).
+  std::unique_ptr<SpillFile> pairSpill_;    // CrossPair blocks
+  std::unique_ptr<SpillFile> borderSpill_;  // BorderFace blocks, one per cell
+  // What a cell made, spilled as it ends (leafSpill_): its leaves (firstBlock, firstGeometry
+  // index its own arrays), their stats and corners, their runs and geometry handles. In memory
+  // from resolveCrossEdges on, when the cells' share of the cap is free (planMetadata).
+  std::unique_ptr<SpillFile> leafSpill_;
   struct CellResult {
-    std::vector<LeafCluster> leaves;
-    std::vector<std::pair<uint32_t, uint32_t>> border;  // (face in cell, local leaf), by face
-    std::vector<CrossPair> pairs;
+    uint32_t leafCount = 0;
+    SpillBlock leaves{}, stats{}, corners{}, blocks{}, geometry{};  // rawBytes 0: empty
+    std::vector<SpillBlock> pairs;  // its CrossPairs (leaf-to-leaf ones within the cell summed)
+    SpillBlock border{};            // its BorderFaces by face (rawBytes 0: none)
     uint64_t components = 0;
   };
   std::vector<CellResult> cells_;
   // merge
   std::vector<LeafCluster> leaves_;  // global leaf ids: cells in order, their leaves in order
+  std::vector<SurfaceStats> leafStats_;
+  std::vector<BoxCorners> leafCorners_;
+  std::vector<NodeBlock> blocks_;     // every leaf's runs
+  std::vector<SpillBlock> geometry_;  // every leaf's geometry blocks
   std::vector<ClusterEdge> edges_;
   ClusterMergeResult upper_;
 };
@@ -146,28 +222,8 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report);
 
-// Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
-inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
-// One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
-// engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
-// arenas. Measured: a 3M-triangle terrain at 64 MiB (cells of 12.6k faces) peaks at 59-63 MB
-// with 1000; a 55.8M-triangle scan at 256 MiB (cells of 113k-144k faces) at 280-285 MiB with
-// 800 and 1000: ~1140 B per face in big cells.
-inline constexpr uint64_t kCellBytesPerFace = 1200;
-inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
-// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
-// faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
-// the top of the tree across cell borders, few enough that it stays small.
-inline constexpr uint64_t kFrontiersPerCell = 32;
-inline constexpr uint64_t kMinFrontierFaces = 64;
-// Memory per leaf cluster from the cells to the write: its record (~350 B), ~20 node blocks of
-// 32 B, cross-cell pairs and border faces (a 3M terrain at 64 MiB: ~1.3 KB per leaf).
-inline constexpr uint64_t kLeafBytes = 1536;
-// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
-// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
-inline constexpr uint32_t kNodeBlock = 256;
-inline constexpr uint32_t kMinNodeBlock = 256;
-inline constexpr double kKeyBand = 0.25;
-std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes);
+// `minRun`: kMinNodeBlock, or more when the input's nodes would make more runs than the budget
+// holds (planned in run()); runs are at most max(kNodeBlock, minRun) long.
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun = kMinNodeBlock);
 
 }  // namespace facetree

@@ -22,6 +22,8 @@ constexpr uint32_t kMaxLeavesPerCell = 256;
 constexpr size_t kTrianglesPerBlock = 65536;
 // Non-manifold edges with more faces than this are joined as a chain (as dual_graph.cpp).
 constexpr size_t kMaxFacesJoinedPairwise = 16;
+// A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
+constexpr size_t kPairsPerBlock = 16384;
 
 // Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids.
 class VertexMap {
@@ -80,6 +82,48 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
   if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
 }
 
+// The leaf clusters of a component's hierarchy: its frontier of clusters of at most `faces` faces
+// (a node of more is replaced by its children, largest first), while the metadata the split adds
+// (leafBytes of the children minus the node's) fits `bytes`. Refs: node indices or kFaceChild |
+// face, root alone for a hierarchy without nodes (one face). Ties by node index: deterministic.
+template <class LeafBytes>
+void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, const LeafBytes& leafBytes,
+                std::vector<uint32_t>& frontier) {
+  frontier.clear();
+  if (component.nodes.empty()) {
+    frontier.push_back(kFaceChild);
+    return;
+  }
+  const auto larger = [&](uint32_t a, uint32_t b) {  // heap order: largest count, then lowest index
+    const uint32_t ca = component.nodes[a].count, cb = component.nodes[b].count;
+    return ca != cb ? ca < cb : a > b;
+  };
+  std::vector<uint32_t> open;  // nodes of more than `faces` faces, still on the frontier
+  const auto count = [&](uint32_t ref) -> uint64_t {
+    return (ref & kFaceChild) ? 1 : component.nodes[ref].count;
+  };
+  const auto add = [&](uint32_t ref) {
+    if (!(ref & kFaceChild) && component.nodes[ref].count > faces) {
+      open.push_back(ref);
+      std::push_heap(open.begin(), open.end(), larger);
+    } else {
+      frontier.push_back(ref);
+    }
+  };
+  add(0);
+  while (!open.empty()) {
+    const Node& node = component.nodes[open.front()];
+    const uint64_t added =
+        leafBytes(count(node.child[0])) + leafBytes(count(node.child[1])) - leafBytes(node.count);
+    if (added > bytes) break;
+    bytes -= added;
+    std::pop_heap(open.begin(), open.end(), larger);
+    open.pop_back();
+    for (const uint32_t c : node.child) add(c);
+  }
+  frontier.insert(frontier.end(), open.begin(), open.end());
+}
+
 }  // namespace
 
 // How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
@@ -92,7 +136,8 @@ void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
 // in core (runs of at least 32 nodes: 8%), against 4x with fixed 64-node blocks (their costs
 // spread too widely) and 11x with a running minimum as the key (one cheap early node held back a
 // whole leaf).
-std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
+  const uint32_t maxRun = std::max(kNodeBlock, minRun);
   struct Pool {
     double sum, weight;
     size_t count;
@@ -120,10 +165,10 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
     for (size_t k = 0; k < p.count; ++k, ++at) {
       // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
       // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
-      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, kMinNodeBlock);
-      if (blocks.empty() || blocks.back().count == kNodeBlock ||
+      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
+      if (blocks.empty() || blocks.back().count == maxRun ||
           (blocks.back().key != band && blocks.back().count >= minimum))
-        blocks.push_back({band, at, 0});
+        blocks.push_back({band, at, 0, 0, 0});
       ++blocks.back().count;
     }
   }
@@ -133,6 +178,9 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes) {
 void OutOfCoreBuild::buildCells() {
   nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
   geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry");
+  pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
+  leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");
+  borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
   const uint32_t cells = grid_->cellCount();
   cells_.assign(cells, {});
   std::atomic<uint32_t> next{0};
@@ -170,6 +218,23 @@ void OutOfCoreBuild::buildCells() {
 
 void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
   CellResult& result = cells_[cell];
+  // Dual edges between two of this cell's leaves (summed below), and the cross-cell ones.
+  struct LocalPair {
+    uint32_t a, b;  // a < b, cell-local leaves
+    double shared;
+    bool operator<(const LocalPair& o) const {
+      return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
+    }
+  };
+  std::vector<LocalPair> localPairs;
+  std::vector<CrossPair> pairs;
+  std::vector<BorderFace> border;
+  // Its leaves (spilled at the end).
+  std::vector<LeafCluster> leaves;
+  std::vector<SurfaceStats> leafStats;
+  std::vector<BoxCorners> leafCorners;
+  std::vector<NodeBlock> runs;
+  std::vector<SpillBlock> geometry;
   records.clear();
   records.reserve(cellFaces_->records(cell));
   cellFaces_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
@@ -178,6 +243,19 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     std::memcpy(records.data() + at, bytes.data(), bytes.size());
   });
   const auto faces = static_cast<uint32_t>(records.size());
+  // The ghosts of the edges this cell owns (other cells' faces on them), and their edges' keys.
+  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
+  {
+    size_t at = 0;
+    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
+      at += bytes.size();
+    });
+  }
+  std::vector<uint64_t> ghostKeys(ghosts.size());
+  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
+  std::sort(ghostKeys.begin(), ghostKeys.end());
+  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
 
   std::vector<uint32_t> leafOf(faces, 0);
   if (faces > 0) {
@@ -201,22 +279,42 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     const uint32_t components = faceComponents(cellMesh, label);
     result.components = components;
 
-    // Groups: every component its own leaf, or the largest kMaxLeavesPerCell - 1 and the rest.
+    // The cell's leaves cost at most its allowance of metadata (its faces' share, planMetadata;
+    // leafBytes bounds a leaf's cost by its faces). Groups: every component its own, or the largest
+    // ones (fewer than kMaxLeavesPerCell) and the rest together, as many as the allowance pays for;
+    // what is left is shared among the groups by faces, for their frontiers (frontierOf).
+    const auto leafBytes = [this](uint64_t n) { return this->leafBytes(n); };
+    const uint64_t allowance = cellLeafAllowance(faces);
     std::vector<uint32_t> groupOf(components);
     uint32_t groups = components;
-    if (components > kMaxLeavesPerCell) {
-      std::vector<uint32_t> size(components, 0);
-      for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
-      std::vector<uint32_t> order(components);
-      for (uint32_t c = 0; c < components; ++c) order[c] = c;
-      std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
-      std::vector<bool> kept(components, false);
-      for (uint32_t i = 0; i + 1 < kMaxLeavesPerCell; ++i) kept[order[i]] = true;
+    uint64_t groupBytes = 0;  // the groups' leaves before their frontiers split them
+    std::vector<uint32_t> size(components, 0);
+    for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
+    std::vector<uint32_t> order(components);
+    for (uint32_t c = 0; c < components; ++c) order[c] = c;
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
+    // kept: the largest that stay alone (all of them, if so many fit); the rest is one group.
+    uint32_t kept = 0;
+    {
+      uint64_t keptBytes = 0, keptFaces = 0;
+      const uint32_t most = components <= kMaxLeavesPerCell ? components : kMaxLeavesPerCell - 1;
+      for (uint32_t k = 0;; ++k) {
+        const uint64_t cost = keptBytes + (k < components ? leafBytes(faces - keptFaces) : 0);
+        if (k > 0 && cost > allowance) break;  // k = 0 (one leaf) is always taken
+        kept = k, groupBytes = cost;
+        if (k == most) break;
+        keptBytes += leafBytes(size[order[k]]);
+        keptFaces += size[order[k]];
+      }
+    }
+    if (kept < components) {
+      std::vector<bool> alone(components, false);
+      for (uint32_t i = 0; i < kept; ++i) alone[order[i]] = true;
       groups = 0;
       for (uint32_t c = 0; c < components; ++c)
-        if (kept[c]) groupOf[c] = groups++;
+        if (alone[c]) groupOf[c] = groups++;
       for (uint32_t c = 0; c < components; ++c)
-        if (!kept[c]) groupOf[c] = groups;
+        if (!alone[c]) groupOf[c] = groups;
       ++groups;
     } else {
       for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
@@ -234,6 +332,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       }
     }
     label = {};
+    size = {};
+    order = {};
+    const uint64_t spare = allowance > groupBytes ? allowance - groupBytes : 0;
 
     // Each component's hierarchy is cut at its frontier of clusters of at most frontierFaces_
     // faces: those are the leaf clusters (the upper merge redoes what lies above them, with
@@ -266,16 +367,9 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     for (uint32_t g = 0; g < groups; ++g) {
       const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
       Hierarchy component = buildHierarchy(makeMesh(members), job_.build);
-      frontier.clear();
-      if (component.nodes.empty() || component.nodes[0].count <= frontierFaces_) {
-        frontier.push_back(component.nodes.empty() ? kFaceChild : 0u);
-      } else {
-        for (const Node& node : component.nodes) {
-          if (node.count <= frontierFaces_) continue;
-          for (const uint32_t c : node.child)
-            if ((c & kFaceChild) || component.nodes[c].count <= frontierFaces_) frontier.push_back(c);
-        }
-      }
+      // Its share of the allowance left: the groups' shares sum to at most `spare`.
+      const auto share = static_cast<uint64_t>(double(spare) * double(members.size()) / double(faces));
+      frontierOf(component, frontierFaces_, share, leafBytes, frontier);
       const auto firstOf = [&](uint32_t ref) {
         return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
       };
@@ -328,18 +422,18 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         leafFaces.resize(count);
         for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
 
-        const auto leafIndex = static_cast<uint32_t>(result.leaves.size());
+        const auto leafIndex = static_cast<uint32_t>(leaves.size());
         for (const uint32_t f : leafFaces) leafOf[f] = leafIndex;
         const MeshView leafMesh = makeMesh(leafFaces);
-        LeafCluster& leaf = result.leaves.emplace_back();
-        leaf.cell = cell;
+        LeafCluster& leaf = leaves.emplace_back();
         leaf.faceCount = count;
         leaf.height = sub.stats.height;
-        leaf.stats = surfaceStats(leafMesh, origin_);
-        leaf.stats.height = leaf.height;
+        SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, origin_));
+        stats.height = leaf.height;
+        BoxCorners& corners = leafCorners.emplace_back();
         const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
-        leaf.nodeCount = file.nodes.size();
-        leaf.vertexCount = file.vertices.size();
+        leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
+        leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
         if (!file.nodes.empty()) {
           const NodeBox& box = file.nodes[0].box;
           const glm::mat3 axes = glm::mat3_cast(box.orientation);
@@ -347,17 +441,22 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
             glm::vec3 p = box.center;
             for (int a = 0; a < 3; ++a)
               p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
-            leaf.corners[c] = p;
+            corners[c] = p;
           }
         } else {
-          for (int c = 0; c < 8; ++c) leaf.corners[c] = file.vertices[file.indices[c % 3]];
+          for (int c = 0; c < 8; ++c) corners[c] = file.vertices[file.indices[c % 3]];
         }
-        leaf.blocks = nodeBlocks(file.nodes);
-        for (NodeBlock& b : leaf.blocks) {
+        leaf.firstBlock = static_cast<uint32_t>(runs.size());
+        for (NodeBlock b : nodeBlocks(file.nodes, minNodeRun_)) {
           block.clear();
           appendBytes(block, file.nodes.data() + b.first, b.count);
-          b.spill = nodeSpill_->append(block, codec);
+          const SpillBlock spill = nodeSpill_->append(block, codec);
+          b.offset = spill.offset;
+          b.compressedBytes = spill.compressedBytes;
+          runs.push_back(b);
+          ++leaf.blockCount;
         }
+        leaf.firstGeometry = static_cast<uint32_t>(geometry.size());
         const size_t triangles = file.originalFace.size();
         uint32_t verticesSeen = 0;
         for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
@@ -370,7 +469,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
           appendBytes(block, file.indices.data() + 3 * at, 3 * n);
           appendBytes(block, file.originalFace.data() + at, n);
-          leaf.geometryBlocks.push_back(geometrySpill_->append(block, codec));
+          geometry.push_back(geometrySpill_->append(block, codec));
+          ++leaf.geometryCount;
           verticesSeen = end;
         }
       }
@@ -416,9 +516,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
         const auto pair = [&](size_t x, size_t y, double shared) {
           const uint32_t lx = leafOf[local[x].face], ly = leafOf[local[y].face];
-          if (lx != ly)
-            result.pairs.push_back(
-                {{cell, cell}, {lx | CrossPair::kLeafRef, ly | CrossPair::kLeafRef}, shared});
+          if (lx != ly) localPairs.push_back({std::min(lx, ly), std::max(lx, ly), shared});
         };
         const size_t k = j - i;
         if (k <= kMaxFacesJoinedPairwise) {
@@ -434,30 +532,17 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   }
 
   // Cross-cell dual edges: the ghosts of the edges this cell owns against its own faces.
-  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
-  {
-    size_t at = 0;
-    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
-      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
-      at += bytes.size();
-    });
-  }
-  std::vector<uint64_t> ghostKeys(ghosts.size());
-  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
-  std::sort(ghostKeys.begin(), ghostKeys.end());
-  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
-
   std::vector<Incidence> incidences;
   incidences.reserve(ghosts.size() * 2);
   for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
   ghosts = {};
   for (uint32_t f = 0; f < faces; ++f) {
     const FaceRecord& r = records[f];
-    bool border = false;
+    bool sentGhosts = false;
     forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
       const glm::vec3 pLow = r.corner(lowCorner);
       if (grid_->ownerCell(grid_->bin(pLow)) != cell) {
-        border = true;
+        sentGhosts = true;
         return;
       }
       const uint64_t key = (uint64_t{low} << 32) | high;
@@ -465,7 +550,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
       incidences.push_back({key, cell, leafOf[f] | CrossPair::kLeafRef, sides, static_cast<float>(length)});
     });
-    if (border) result.border.emplace_back(f, leafOf[f]);
+    if (sentGhosts) border.push_back({f, leafOf[f]});
   }
   std::sort(incidences.begin(), incidences.end());
   for (size_t i = 0; i < incidences.size();) {
@@ -484,56 +569,48 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
           for (size_t b = a + 1; b < j; ++b) {
             if (incidences[a].cell == incidences[b].cell) continue;
             const double shared = length * incidences[a].sides * incidences[b].sides / (totalSides - 1);
-            result.pairs.push_back(
+            pairs.push_back(
                 {{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
           }
       } else {
         const double shared = length * totalSides / (2.0 * double(k - 1));
         for (size_t a = i; a + 1 < j; ++a) {
           if (incidences[a].cell == incidences[a + 1].cell) continue;
-          result.pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
-                                  {incidences[a].ref, incidences[a + 1].ref},
-                                  shared});
+          pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
+                           {incidences[a].ref, incidences[a + 1].ref},
+                           shared});
         }
       }
     }
     i = j;
   }
-}
-
-void OutOfCoreBuild::resolveCrossEdges() {
-  const auto cells = static_cast<uint32_t>(cells_.size());
-  std::vector<uint32_t> leafBase(cells + 1, 0);
-  for (uint32_t c = 0; c < cells; ++c)
-    leafBase[c + 1] = leafBase[c] + static_cast<uint32_t>(cells_[c].leaves.size());
-  const auto resolve = [&](uint32_t cell, uint32_t ref) -> uint32_t {
-    if (ref & CrossPair::kLeafRef) return leafBase[cell] + (ref & ~CrossPair::kLeafRef);
-    const auto& border = cells_[cell].border;
-    const auto it = std::lower_bound(border.begin(), border.end(), std::pair<uint32_t, uint32_t>{ref, 0});
-    if (it == border.end() || it->first != ref)
-      throw std::logic_error("out-of-core build: a cross-cell edge names a face that sent no ghost");
-    return leafBase[cell] + it->second;
+  incidences = {};
+  const auto spill = [&](const auto& items) {
+    return items.empty() ? SpillBlock{} : leafSpill_->append(std::as_bytes(std::span(items)), codec);
   };
-  for (uint32_t c = 0; c < cells; ++c) {
-    for (const CrossPair& p : cells_[c].pairs) {
-      uint32_t a = resolve(p.cell[0], p.ref[0]), b = resolve(p.cell[1], p.ref[1]);
-      if (a == b) continue;
-      if (a > b) std::swap(a, b);
-      edges_.push_back({a, b, p.shared});
-    }
+  result.leafCount = static_cast<uint32_t>(leaves.size());
+  result.leaves = spill(leaves);
+  result.stats = spill(leafStats);
+  result.corners = spill(leafCorners);
+  result.blocks = spill(runs);
+  result.geometry = spill(geometry);
+
+  // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
+  // instead of one per mesh edge between them (most of a cell's pairs).
+  std::sort(localPairs.begin(), localPairs.end());
+  for (size_t i = 0; i < localPairs.size();) {
+    const uint32_t a = localPairs[i].a, b = localPairs[i].b;
+    double shared = 0;
+    for (; i < localPairs.size() && localPairs[i].a == a && localPairs[i].b == b; ++i)
+      shared += localPairs[i].shared;
+    pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
   }
-  std::sort(edges_.begin(), edges_.end(), [](const ClusterEdge& x, const ClusterEdge& y) {
-    if (x.a != y.a) return x.a < y.a;
-    if (x.b != y.b) return x.b < y.b;
-    return x.shared < y.shared;
-  });
-  leaves_.reserve(leafBase[cells]);
-  for (CellResult& cell : cells_) {
-    report_.components += cell.components;
-    for (LeafCluster& leaf : cell.leaves) leaves_.push_back(std::move(leaf));
+  localPairs = {};
+  for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
+    const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
+    result.pairs.push_back(pairSpill_->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
   }
-  cells_ = {};
-  report_.leaves = leaves_.size();
+  if (!border.empty()) result.border = borderSpill_->append(std::as_bytes(std::span(border)), codec);
 }
 
 }  // namespace facetree

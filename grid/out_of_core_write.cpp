@@ -28,13 +28,12 @@ uint32_t balancedHeight(uint64_t n) {
 }  // namespace
 
 void OutOfCoreBuild::mergeAbove() {
-  std::vector<SurfaceStats> stats(leaves_.size());
-  for (size_t i = 0; i < leaves_.size(); ++i) stats[i] = leaves_[i].stats;
   checkCancel("merge", 0, leaves_.size());
-  upper_ = mergeClusters(stats, edges_, diagonalSquared_, job_.build);
+  upper_ = mergeClusters(leafStats_, edges_, diagonalSquared_, job_.build);
   report_.crossEdges = edges_.size();
   report_.upperComponents = upper_.components;
   edges_ = {};
+  leafStats_ = {};  // the upper nodes carry what the write needs
 }
 
 OutOfCoreBuild::UpperRecast OutOfCoreBuild::recastUpper(std::span<const uint32_t> leafOrder,
@@ -190,13 +189,13 @@ void OutOfCoreBuild::write() {
   std::vector<BlockRef> order;
   for (uint32_t j = 0; j < upperCount; ++j)
     if (recast.kept[upperCount - 1 - j]) order.push_back({upperKey[upperCount - 1 - j], 0, j, 0});
-  std::vector<uint64_t> blockStart(leafCount + 1, 0);
   for (uint32_t rank = 0; rank < leafCount; ++rank) {
     const uint32_t leaf = leafOrder[rank];
     const float cap =
         leafParent[leaf] == kNone ? std::numeric_limits<float>::infinity() : upperKey[leafParent[leaf]];
-    const auto& blocks = leaves_[leaf].blocks;
-    for (uint32_t b = 0; b < blocks.size(); ++b) order.push_back({std::min(blocks[b].key, cap), 1, rank, b});
+    const LeafCluster& l = leaves_[leaf];
+    for (uint32_t b = 0; b < l.blockCount; ++b)
+      order.push_back({std::min(blocks_[l.firstBlock + b].key, cap), 1, rank, b});
   }
   std::sort(order.begin(), order.end(), [](const BlockRef& x, const BlockRef& y) {
     if (x.key != y.key) return x.key > y.key;
@@ -204,9 +203,8 @@ void OutOfCoreBuild::write() {
     if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
     return x.block < y.block;
   });
-  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] = leaves_[leaf].blocks.size();
-  for (uint32_t leaf = 0; leaf < leafCount; ++leaf) blockStart[leaf + 1] += blockStart[leaf];
-  std::vector<uint64_t> blockPosition(blockStart[leafCount]);
+  // Node positions fit 32 bits (fewer nodes than triangles < 2^31).
+  std::vector<uint32_t> blockPosition(blocks_.size());
   std::vector<uint32_t> upperPosition(upperCount);
   {
     uint64_t position = 0;
@@ -215,39 +213,56 @@ void OutOfCoreBuild::write() {
         upperPosition[ref.leafRank] = static_cast<uint32_t>(position++);
         continue;
       }
-      const uint32_t leaf = leafOrder[ref.leafRank];
-      blockPosition[blockStart[leaf] + ref.block] = position;
-      position += leaves_[leaf].blocks[ref.block].count;
+      const LeafCluster& leaf = leaves_[leafOrder[ref.leafRank]];
+      blockPosition[leaf.firstBlock + ref.block] = static_cast<uint32_t>(position);
+      position += blocks_[leaf.firstBlock + ref.block].count;
     }
   }
   const auto nodePosition = [&](uint32_t leaf, uint32_t local) {
-    const auto& blocks = leaves_[leaf].blocks;
-    const auto it = std::upper_bound(blocks.begin(), blocks.end(), local,
+    const LeafCluster& l = leaves_[leaf];
+    const auto begin = blocks_.begin() + l.firstBlock;
+    const auto it = std::upper_bound(begin, begin + l.blockCount, local,
                                      [](uint32_t x, const NodeBlock& b) { return x < b.first; }) -
                     1;
-    const size_t b = static_cast<size_t>(it - blocks.begin());
-    return static_cast<uint32_t>(blockPosition[blockStart[leaf] + b] + (local - it->first));
+    return blockPosition[static_cast<size_t>(it - blocks_.begin())] + (local - it->first);
   };
   report_.nodes = nodes;
   report_.height = height;
   report_.balancedHeight = balancedHeight(faces);
 
-  // Frames of the upper nodes from their statistics and their leaves' box corners.
-  std::vector<glm::vec3> corners(size_t{8} * leafCount);
-  for (uint32_t i = 0; i < leafCount; ++i)
-    std::copy(leaves_[leafOrder[i]].corners.begin(), leaves_[leafOrder[i]].corners.end(),
-              corners.begin() + 8 * i);
+  // Frames of the upper nodes from their statistics and their leaves' box corners (put in leaf
+  // order in place, cycle by cycle: no second copy).
+  {
+    std::vector<bool> placed(leafCount, false);
+    for (uint32_t start = 0; start < leafCount; ++start) {
+      if (placed[start]) continue;
+      const BoxCorners first = leafCorners_[start];
+      uint32_t at = start;
+      for (;;) {
+        placed[at] = true;
+        const uint32_t from = leafOrder[at];
+        if (from == start) {
+          leafCorners_[at] = first;
+          break;
+        }
+        leafCorners_[at] = leafCorners_[from];
+        at = from;
+      }
+    }
+  }
+  const std::span<const glm::vec3> corners(leafCorners_.empty() ? nullptr : leafCorners_[0].data(),
+                                           size_t{8} * leafCount);
   std::vector<BoxAccumulator> boxes;
   std::vector<uint8_t> flat(upperCount, 0);
   boxes.reserve(upperCount);
   for (uint32_t i = 0; i < upperCount; ++i) {
     bool isFlat = false;
-    const std::span<const glm::vec3> points(corners.data() + size_t{8} * firstLeaf[i],
-                                            size_t{8} * leavesUnder[i]);
+    const std::span<const glm::vec3> points =
+        corners.subspan(size_t{8} * firstLeaf[i], size_t{8} * leavesUnder[i]);
     boxes.emplace_back(clusterOrientation(upper[i].stats, points, job_.build.flatThreshold, isFlat));
     flat[i] = isFlat;
   }
-  corners = {};
+  leafCorners_ = {};
 
   StreamFileInfo info;
   FileHeader& h = info.header;
@@ -284,8 +299,8 @@ void OutOfCoreBuild::write() {
     ancestors.clear();
     for (uint32_t a = leafParent[leafId]; a != kNone; a = nodeParent[a]) ancestors.push_back(a);
     leafVertices.clear();
-    for (const SpillBlock& block : leaf.geometryBlocks) {
-      geometrySpill_->read(block, raw, codec_);
+    for (uint32_t g = 0; g < leaf.geometryCount; ++g) {
+      geometrySpill_->read(geometry_[leaf.firstGeometry + g], raw, codec_);
       GeometryBlockHeader header;
       std::memcpy(&header, raw.data(), sizeof header);
       const std::byte* at = raw.data() + sizeof header;
@@ -312,6 +327,7 @@ void OutOfCoreBuild::write() {
     checkCancel("write", done, faces + nodes);
   }
   geometrySpill_.reset();
+  geometry_ = {};
 
   // Nodes: the upper ones (reverse creation order, root first), then each leaf's subtree.
   std::vector<FchNode> out;
@@ -352,7 +368,7 @@ void OutOfCoreBuild::write() {
     const uint32_t leafId = leafOrder[ref.leafRank];
     const LeafCluster& leaf = leaves_[leafId];
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
-    nodeSpill_->read(leaf.blocks[ref.block].spill, raw, codec_);
+    nodeSpill_->read(blocks_[leaf.firstBlock + ref.block].spill(), raw, codec_);
     leafNodes.resize(raw.size() / sizeof(FchNode));
     std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
     for (FchNode& n : leafNodes) {
