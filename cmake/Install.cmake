@@ -15,7 +15,8 @@ foreach(module stream merge grid io)
   install(FILES ${PROJECT_SOURCE_DIR}/${module}/${module}.h
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})
 endforeach()
-install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
+install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h ${PROJECT_SOURCE_DIR}/io/branching.h
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
 install(FILES ${PROJECT_SOURCE_DIR}/grid/temporary_file_error.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/grid)
 install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
 
