@@ -29,9 +29,9 @@
 // not help measurably either (the chain of a merge is deeper than two levels).
 // TLB: with 4 KiB pages nearly every one of those misses also missed the TLB (a page walk,
 // nested under virtualisation); the big arrays are now advised as huge pages (huge_pages.h):
-// dragon_vrip merge phase 8.1 -> 6.4 s, process user time 7.2 -> 6.1 s (medians of 3 runs
-// interleaved with the old binary at load ~3; glibc's hugetlb tunable for every allocation
-// gained nothing measurable on top).
+// total time x0.89 on dragon_vrip (median of 6 runs interleaved with the old binary, pair
+// ratios 0.82-1.08 on this noisy VM) and x0.88 on openfoam_buildings (3 pairs); glibc's
+// hugetlb tunable for every allocation gained nothing measurable on top.
 // Heap traffic (dragon_vrip, 871k edge merges): per merge 1 valid pop, 0.90 entries of dead
 // clusters (dropped on a bit of dead_, which stays in cache, instead of a cold record read),
 // 0.15 leftovers of fallen keys or of a merge's survivor (dropped on key != minKey: the
