@@ -4,6 +4,7 @@
 #pragma once
 
 #include <fcntl.h>
+#include <grp.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -26,7 +27,13 @@ struct ChildOptions {
   std::optional<rlim_t> stackLimit;     // bytes, for the main thread and new threads
   std::string stdinPath;                // empty: /dev/null (unless stdinPipe)
   bool stdinPipe = false;               // feed standard input through writeInput()
+  // Run the child as this user id (with the same group id and no supplementary groups). For a
+  // parent running as root, whose file accesses permission bits do not stop: CI runs as root.
+  std::optional<uid_t> user;
 };
+
+// The unprivileged user that permission tests run their child as when the suite runs as root.
+inline constexpr uid_t kNobody = 65534;
 
 struct ChildResult {
   int exitCode = -1;   // when the child exited
@@ -64,6 +71,10 @@ class Child {
       if (options.stackLimit) {
         const rlimit limit{*options.stackLimit, *options.stackLimit};
         ::setrlimit(RLIMIT_STACK, &limit);
+      }
+      if (options.user) {
+        const auto id = static_cast<gid_t>(*options.user);
+        if (::setgroups(0, nullptr) != 0 || ::setgid(id) != 0 || ::setuid(*options.user) != 0) ::_exit(125);
       }
       sigset_t none;
       sigemptyset(&none);
