@@ -1,11 +1,14 @@
 // TempSpace (directory, accounting, --max-tmp, creation errors) and SpillFile (round trips from two
 // threads, corrupt handles, a full disk simulated with RLIMIT_FSIZE).
+#include <grp.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <numeric>
 #include <random>
@@ -150,15 +153,27 @@ TEST(TempSpace, parentUnderARegularFileNamesTheParentAndTheReason) {
             (parent / "below").string() + ": cannot create temporary directory: Not a directory");
 }
 
+// In a child process (a death test's fork), which as root (CI runs as root) first becomes
+// nobody: permission bits do not stop root.
 TEST(TempSpace, unwritableParentNamesTheParentAndTheReason) {
-  if (geteuid() == 0) GTEST_SKIP() << "permission bits do not stop root";
   ScratchDir scratch;
+  std::filesystem::permissions(scratch.path(), std::filesystem::perms::others_exec,
+                               std::filesystem::perm_options::add);
   const auto parent = scratch.path() / "readonly";
   std::filesystem::create_directory(parent);
   std::filesystem::permissions(parent,
-                               std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
-  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
-            parent.string() + ": cannot create temporary directory: Permission denied");
+                               std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec |
+                                   std::filesystem::perms::others_read | std::filesystem::perms::others_exec);
+  const std::string expected = parent.string() + ": cannot create temporary directory: Permission denied";
+  const auto check = [&] {
+    constexpr uid_t kNobody = 65534;
+    if (geteuid() == 0 && (setgroups(0, nullptr) != 0 || setgid(kNobody) != 0 || setuid(kNobody) != 0))
+      std::_Exit(2);
+    const std::string error = errorOf([&] { TempSpace space(parent); });
+    std::fprintf(stderr, "error: %s\n", error.c_str());
+    std::_Exit(error == expected ? 0 : 1);
+  };
+  EXPECT_EXIT(check(), ::testing::ExitedWithCode(0), "error: " + expected);
 }
 
 TEST(SpillFile, randomBlocksAppendedAndReadInRandomOrderFromTwoThreadsRoundTrip) {
