@@ -303,6 +303,17 @@ class Signals : public Faults, public ::testing::WithParamInterface<int> {
   std::string message() const {
     return std::string("facetree: interrupted by ") + (GetParam() == SIGINT ? "SIGINT" : "SIGTERM") + "\n";
   }
+  // Sends the signal once the child has worked `cpu` seconds, and checks that it stopped with
+  // 128 + signal and said so.
+  void interruptAfter(Child& child, double cpu) const {
+    ASSERT_TRUE(child.started());
+    while (child.running() && cpuSeconds(child.pid()) < cpu)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    child.signal(GetParam());
+    const ChildResult result = child.wait();
+    EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
+    EXPECT_EQ(result.output, message());
+  }
 };
 
 // Mid-merge (the input is all read from a pipe): the build polls the signal, unwinds, exits
@@ -326,13 +337,7 @@ TEST_P(Signals, BuildFromStandardInputStopsWithNoOutput) {
 TEST_P(Signals, BuildFromFileStopsWithNoOutput) {
   const std::string target = out("big.fch");
   Child child({"build", bigMesh(), "-o", target, "--mesh-out", out("big.ply")});
-  ASSERT_TRUE(child.started());
-  while (child.running() && cpuSeconds(child.pid()) < 0.3)
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  child.signal(GetParam());
-  const ChildResult result = child.wait();
-  EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
-  EXPECT_EQ(result.output, message());
+  interruptAfter(child, 0.3);
   expectNothingLeft();
 }
 
@@ -342,13 +347,7 @@ TEST_P(Signals, OutOfCoreBuildStopsWithNoOutputOrTemporaryFiles) {
   fs::create_directories(tmp);
   const std::string target = out("big.fch");
   Child child({"build", bigMesh(), "-o", target, "--memory", "64M", "--tmp", tmp.string()});
-  ASSERT_TRUE(child.started());
-  while (child.running() && cpuSeconds(child.pid()) < 1.0)
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  child.signal(GetParam());
-  const ChildResult result = child.wait();
-  EXPECT_EQ(result.exitCode, 128 + GetParam()) << result.output;
-  EXPECT_EQ(result.output, message());
+  interruptAfter(child, 1.0);
   EXPECT_TRUE(listing(tmp).empty()) << ::testing::PrintToString(listing(tmp));
   fs::remove_all(tmp);
   expectNothingLeft();
