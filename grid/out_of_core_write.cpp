@@ -119,35 +119,23 @@ void OutOfCoreBuild::write() {
       }
       firstLeaf[ref] = static_cast<uint32_t>(leafOrder.size());
       firstFace[ref] = face;
-      for (int k = 1; k >= 0; --k) {
-        const uint32_t c = upper[ref].child[k];
-        if (c & kLeafChild) {
-          leafParent[c & ~kLeafChild] = ref;
-        } else {
-          nodeParent[c] = ref;
-          depth[c] = depth[ref] + 1;
-        }
-        stack.push_back(c);
-      }
+      stack.push_back(upper[ref].child[1]);
+      stack.push_back(upper[ref].child[0]);
     }
   }
   // The upper tree in the file's branching factor: kept[i] says whether binary node i stays,
-  // children[i] lists its children (recastUpper); parents and depths are redone over kept nodes.
+  // children[i] lists its children (recastUpper); parents and depths are over kept nodes.
   const UpperRecast recast = recastUpper(leafOrder, firstLeaf, leavesUnder);
   const uint64_t keptCount = std::count(recast.kept.begin(), recast.kept.end(), uint8_t{1});
-  if (upperCount > 0) {
-    std::fill(nodeParent.begin(), nodeParent.end(), kNone);
-    for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
-      if (!recast.kept[i]) continue;
-      if (nodeParent[i] == kNone) depth[i] = 1;
-      for (uint32_t k = 0; k < recast.childCount[i]; ++k) {
-        const uint32_t c = recast.children[i][k];
-        if (c & kLeafChild) {
-          leafParent[c & ~kLeafChild] = i;
-        } else {
-          nodeParent[c] = i;
-          depth[c] = depth[i] + 1;
-        }
+  for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
+    if (!recast.kept[i]) continue;
+    for (uint32_t k = 0; k < recast.childCount[i]; ++k) {
+      const uint32_t c = recast.children[i][k];
+      if (c & kLeafChild) {
+        leafParent[c & ~kLeafChild] = i;
+      } else {
+        nodeParent[c] = i;
+        depth[c] = depth[i] + 1;
       }
     }
   }
