@@ -11,7 +11,9 @@ namespace {
 
 using Entry = EdgeHeap::Entry;
 
-TEST(EdgeHeap, MatchesOrderedSetUnderRandomOperations) {
+// Random pushes, pops and re-keys checked against a multiset after every operation; with a
+// batch of 16 most operations cross a refill of the hot level, with the default batch few do.
+void checkAgainstMultiset(size_t minBatch) {
   const uint32_t n = 5000;
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> small(0, 50);  // many equal keys: ties by id
@@ -21,7 +23,8 @@ TEST(EdgeHeap, MatchesOrderedSetUnderRandomOperations) {
     entries.push_back({float(small(rng)), i});
     reference.insert({entries.back().key, i});
   }
-  EdgeHeap heap;
+  EdgeHeap heap(minBatch);
+  heap.reserve(n);
   for (const Entry& e : entries) heap.append(e);
   heap.heapify();
   uint32_t nextId = n;
@@ -45,15 +48,31 @@ TEST(EdgeHeap, MatchesOrderedSetUnderRandomOperations) {
     ASSERT_EQ(heap.size(), reference.size());
   }
   EXPECT_TRUE(heap.empty());
+  // Pushes into the emptied queue still come out in order.
+  for (uint32_t i = 0; i < 100; ++i) heap.push({float((i * 37) % 100), i});
+  for (uint32_t i = 0; i < 100; ++i) {
+    ASSERT_EQ(heap.top().key, float(i));
+    heap.pop();
+  }
+  EXPECT_TRUE(heap.empty());
+}
+
+TEST(EdgeHeap, MatchesOrderedSetUnderRandomOperations) {
+  checkAgainstMultiset(4096);
+}
+
+TEST(EdgeHeap, MatchesOrderedSetAcrossManyRefills) {
+  checkAgainstMultiset(16);
 }
 
 TEST(EdgeHeap, EqualKeysPopInIdOrder) {
   std::vector<Entry> entries;
   for (uint32_t i = 100; i-- > 0;) entries.push_back({1.0f, i});
-  EdgeHeap heap;
+  EdgeHeap heap(4);  // refills cut through the run of equal keys
   for (const Entry& e : entries) heap.append(e);
   heap.heapify();
   for (uint32_t i = 0; i < 100; ++i) {
+    ASSERT_FALSE(heap.empty());
     EXPECT_EQ(heap.top().id, i);
     heap.pop();
   }
