@@ -66,7 +66,7 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
       job.build.threads ? job.build.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
   job.forceCellFaces = args.count("cell-faces", 0);
   job.zstdLevel = static_cast<int>(args.count("zstd-level", 0));
-  if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (0: 9 in core, 3 out of core)");
+  if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (default 3)");
   if (job.memoryCap != 0 && job.memoryCap < (uint64_t{16} << 20))
     throw UsageError("--memory must be at least 16M");
   ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));

@@ -136,7 +136,7 @@ JobReport runClusterJob(const ClusterJob& job) {
 
   phase = std::chrono::steady_clock::now();
   report.fileBytes = writeClusterFile(job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
-                                      WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 9});
+                                      WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3});
   report.secondsWrite = secondsSince(phase);
   report.seconds = secondsSince(start);
   return report;

@@ -7,8 +7,9 @@
 //  - Adjacency: intrusive singly-linked lists through 24-byte dual edge records (dual_graph.h);
 //    a merge relinks the two lists in O(d), folds parallel edges with a per-cluster stamp and
 //    drops dead half-edges lazily. Nothing is allocated per merge.
-//  - Heap: one entry per cluster keyed by a lower bound of its cheapest edge (heap.h); a
-//    neighbour whose cheapest edge got dearer is only flagged, and rescanned if it surfaces.
+//  - Queue: one entry per cluster keyed by a lower bound of its cheapest edge (heap.h, a hot
+//    heap of the cheapest entries over an unsorted cold level); a neighbour whose cheapest
+//    edge got dearer is only flagged, and rescanned if it surfaces.
 //    Global order: (key, cluster id), and each cluster's cheapest edge by (key, edge id).
 //  - Stats: single faces and pairs have none stored (recomputed from the triangles); larger
 //    clusters own a ClusterStats slot, recycled through a free list when they die.
@@ -37,6 +38,11 @@
 // 0.15 leftovers of fallen keys or of a merge's survivor (dropped on key != minKey: the
 // cluster's own entry, keyed by its stored minKey, is still in the heap; they used to be
 // rescanned and re-keyed, and then stayed as duplicates), 1.24 dirty rescans with a re-key.
+// Session 4 (perf cpu-clock samples, dragon_vrip): the 4-ary heap's sifts were 23% of the
+// build; the two-level queue of heap.h cut the merge x0.87 (3 interleaved pairs, same output).
+// Tried and not kept: adjacency as contiguous per-cluster blocks in an arena (half-edge ids,
+// edges loaded in parallel instead of chased through `next`): same output, merge time within
+// the noise of the heap-only build (3 interleaved triples), 18 MB more peak memory.
 // The re-costing prefetches in two stages (indices while relinking, then corner positions
 // of every one- and two-face neighbour at once), which cut the simulated last-level misses of
 // leafStats 24% and of sharedLength 51% (callgrind, turbine_blade_200k, 8 MB LL); no gain was
