@@ -95,6 +95,8 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     json.field("mesh", input);
     json.field("out_of_core", r.outOfCore);
     json.field("triangles", r.triangles);
+    json.field("vertices", r.stats.vertices);
+    if (args.flag("weld")) json.field("welded_vertices", r.weldedVertices);
     json.field("nodes", r.nodes);
     json.field("height", r.height);
     json.field("balanced_height", r.balancedHeight);
@@ -123,8 +125,12 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     std::fputs(json.finish().c_str(), out);
     return kExitOk;
   }
-  std::fprintf(out, "mesh          %s: %llu triangles\n", input.c_str(),
-               static_cast<unsigned long long>(r.triangles));
+  std::fprintf(out, "mesh          %s: %llu triangles, %llu vertices", input.c_str(),
+               static_cast<unsigned long long>(r.triangles),
+               static_cast<unsigned long long>(r.stats.vertices));
+  if (args.flag("weld"))
+    std::fprintf(out, ", %llu vertices welded", static_cast<unsigned long long>(r.weldedVertices));
+  std::fputc('\n', out);
   std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",
                r.memoryCap / 1048576.0);
   if (r.outOfCore)

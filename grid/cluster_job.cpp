@@ -115,6 +115,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   mesh.originalFace = std::move(pending.originalFace);
   reader.reset();
   if (job.load.weldPositions) mesh.weldedVertices = weldPositions(mesh.positions, mesh.indices);
+  report.weldedVertices = mesh.weldedVertices;
   report.info = mesh.info;
   report.stats = mesh.stats;
   report.triangles = mesh.originalFace.size();

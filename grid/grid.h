@@ -72,7 +72,7 @@ struct ClusterJob {
   std::filesystem::path output;  // "-" = standard output
   BuildOptions build;
   FileOptions file;                // branching, recast rule (file.build and memoryCapBytes are filled in)
-  LoadOptions load;                // weldPositions: in-core builds only (rejected out of core)
+  LoadOptions load;                // weldPositions: also out of core (an external sort)
   uint64_t memoryCap = 0;          // bytes; 0 = half the physical memory
   std::filesystem::path tmpDir;    // parent of the run's temporary directory; empty = system default
   uint64_t maxTemporaryBytes = 0;  // 0 = no limit
@@ -96,6 +96,7 @@ struct JobReport {
   MeshInfo info;
   ReadStats stats;
   uint64_t triangles = 0;
+  uint64_t weldedVertices = 0;  // LoadOptions::weldPositions (out of core: of the vertices used)
   uint64_t nodes = 0;
   uint64_t cells = 0;
   uint64_t leaves = 0;           // leaf clusters the upper merge started from (out of core)

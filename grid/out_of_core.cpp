@@ -91,6 +91,8 @@ void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending)
     }
     pending = {};
   }
+  // STL: the reader's welding table grows with the mesh; the weld pass takes over.
+  if (!deferred) soup_ = reader.stopWelding();
   std::vector<Triangle> batch(kBatchTriangles);
   for (size_t got; (got = reader.read(batch)) > 0;) {
     for (size_t i = 0; i < got; ++i) {
@@ -361,6 +363,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
   reader.reset();
   resolveSpilledPositions();
   if (positions_) positions_->release();  // every position is in the arrival spill now
+  if (soup_ || job_.load.weldPositions) weldArrival();
   report_.secondsRead = secondsSince(start);
   report_.peakRssAfter.push_back({"read", peakRss()});
 
@@ -393,8 +396,6 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report) {
-  if (job.load.weldPositions)
-    throw std::invalid_argument("--weld is not supported by out-of-core builds yet (raise --memory)");
   if (job.build.metric == Metric::Garland)
     throw std::invalid_argument("--metric garland needs an in-core build (raise --memory)");
   report.outOfCore = true;

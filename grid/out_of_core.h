@@ -139,6 +139,8 @@ class OutOfCoreBuild {
   // FaceRecord from vertex ids, face id and corner positions; false (counted) if non-finite.
   bool appendResolved(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3]);
   void resolveSpilledPositions();
+  // Rewrites the arrival spill's vertex ids: one per distinct position (out_of_core_weld.cpp).
+  void weldArrival();
   void binAndDistribute();
   void buildCells();
   void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
@@ -169,6 +171,7 @@ class OutOfCoreBuild {
   SpillCodec codec_;
   std::unique_ptr<BucketSpill> refs_;  // triangles waiting for spilled positions (TriangleRef)
   uint64_t skipped_ = 0;               // triangles dropped for a non-finite vertex
+  bool soup_ = false;                  // the reader stopped welding (STL): weldArrival() does it
   // read
   std::unique_ptr<BucketSpill> arrival_;
   glm::vec3 min_{0.0f}, max_{0.0f};

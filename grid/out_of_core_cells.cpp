@@ -25,12 +25,14 @@ constexpr size_t kMaxFacesJoinedPairwise = 16;
 // A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
 constexpr size_t kPairsPerBlock = 16384;
 
-// Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids.
+// Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids, for at most
+// `capacity` distinct ids (load factor <= 3/4). A cell of n faces can have 3n vertices (a
+// triangle soup): sized for 2n, such a cell filled the table and the probe never ended.
 class VertexMap {
  public:
-  explicit VertexMap(size_t expected) {
+  explicit VertexMap(size_t capacity) {
     size_t size = 16;
-    while (size < 2 * expected) size *= 2;
+    while (3 * size < 4 * capacity) size *= 2;
     slots_.assign(size, kEmpty);
     mask_ = size - 1;
   }
@@ -263,7 +265,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> indices(size_t{3} * faces);
     {
-      VertexMap map(faces);
+      VertexMap map(size_t{3} * faces);
       for (uint32_t f = 0; f < faces; ++f) {
         for (int k = 0; k < 3; ++k) {
           bool inserted = false;

@@ -3,7 +3,8 @@
 // STL stores each triangle with its own three positions. To hand on indexed triangles like
 // every other format, bit-identical positions (with -0.0 equal to 0.0) are welded into one
 // vertex index with a hash table; the vertex store and the table grow with the number of
-// distinct positions, the triangles themselves are streamed.
+// distinct positions, the triangles themselves are streamed. Out-of-core builds stop the
+// welding (stopWelding) and weld with bounded memory themselves.
 #include <algorithm>
 #include <bit>
 #include <cstring>
@@ -34,7 +35,16 @@ class StlReaderBase : public ReaderBase {
  protected:
   explicit StlReaderBase(std::unique_ptr<InputBuffer> input) : input_(std::move(input)) {}
 
+  bool stopWelding() override {
+    soup_ = true;
+    welder_ = {};
+    vertices_ = {};
+    return true;
+  }
+
+  // The vertex index of a corner (kNoVertex once welding stopped).
   uint32_t weld(const glm::vec3& position) {
+    if (soup_) return kNoVertex;
     return welder_.indexOf(position, vertices_, [this](const glm::vec3& p) {
       if (vertices_.size() >= kMaxVertices)
         throwReadError(info_.name, Place::byte(input_->offset()),
@@ -91,6 +101,7 @@ class BinaryStlReader final : public StlReaderBase {
           const glm::vec3 position(loadLittleEndianFloat(vertex), loadLittleEndianFloat(vertex + 4),
                                    loadLittleEndianFloat(vertex + 8));
           triangle.vertex[corner] = weld(position);
+          triangle.position[corner] = position;  // kept in a soup, else replaced from the vertices
         }
         triangle.face = next_ + r;
       }
@@ -211,6 +222,7 @@ class AsciiStlReader final : public StlReaderBase {
       glm::vec3 position;
       for (int axis = 0; axis < 3; ++axis) position[axis] = number(context);
       if (corners == 3) fail("facet " + std::to_string(stats_.faces) + " has more than 3 vertices");
+      triangle.position[corners] = position;  // kept in a soup, else replaced from the vertices
       triangle.vertex[corners++] = weld(position);
     }
     if (corners != 3)

@@ -33,11 +33,19 @@ struct Triangle {
   uint64_t face;
 };
 
-enum class MeshFormat { PlyAscii, PlyBinaryLittleEndian, PlyBinaryBigEndian, Obj, StlAscii, StlBinary, Draco };
+enum class MeshFormat {
+  PlyAscii,
+  PlyBinaryLittleEndian,
+  PlyBinaryBigEndian,
+  Obj,
+  StlAscii,
+  StlBinary,
+  Draco
+};
 const char* formatName(MeshFormat format);
 
 struct MeshInfo {
-  std::string name;          // file name as given, "-" for standard input
+  std::string name;  // file name as given, "-" for standard input
   MeshFormat format{};
   bool zstdCompressed = false;
   uint64_t declaredVertices = 0;  // from the header where the format has one, else 0
@@ -46,31 +54,31 @@ struct MeshInfo {
 
 // Counts gathered while reading; final once read() returned 0.
 struct ReadStats {
-  uint64_t vertices = 0;            // vertices in the VertexSource
-  uint64_t faces = 0;               // faces in the file (polygons, strips count as one each)
-  uint64_t triangles = 0;           // triangles handed on
-  uint64_t degenerateTriangles = 0; // repeated vertex index or zero area: handed on, counted
-  uint64_t skippedTriangles = 0;    // touching a NaN/Inf vertex: not handed on
+  uint64_t vertices = 0;             // vertices in the VertexSource
+  uint64_t faces = 0;                // faces in the file (polygons, strips count as one each)
+  uint64_t triangles = 0;            // triangles handed on
+  uint64_t degenerateTriangles = 0;  // repeated vertex index or zero area: handed on, counted
+  uint64_t skippedTriangles = 0;     // touching a NaN/Inf vertex: not handed on
   uint64_t nonFiniteVertices = 0;
-  uint64_t inputBytes = 0;          // bytes of the (decompressed) mesh file consumed
-  uint64_t compressedBytes = 0;     // bytes read from disk when zstd-compressed, else 0
+  uint64_t inputBytes = 0;       // bytes of the (decompressed) mesh file consumed
+  uint64_t compressedBytes = 0;  // bytes read from disk when zstd-compressed, else 0
 };
 
 // Positions of an indexed mesh, by vertex index.
 class VertexSource {
-public:
+ public:
   virtual ~VertexSource() = default;
   virtual uint64_t size() const = 0;
   virtual glm::vec3 position(uint64_t index) const = 0;
 };
 
 class ReadError : public std::runtime_error {
-public:
+ public:
   using std::runtime_error::runtime_error;
 };
 
 class TriangleReader {
-public:
+ public:
   virtual ~TriangleReader() = default;
   // Fills `out` from the front; returns how many triangles were written, 0 at the end.
   virtual size_t read(std::span<Triangle> out) = 0;
@@ -83,6 +91,12 @@ public:
   virtual const VertexSource& vertices() const = 0;
   // True when ReadOptions::vertexSink took the positions (see there).
   virtual bool positionsDeferred() const { return false; }
+  // STL only (the other formats return false and change nothing): stops welding corners into
+  // vertices, whose table grows with the mesh, and frees the vertices welded so far. Triangles
+  // read afterwards carry their positions with every vertex index kNoVertex (a triangle soup),
+  // and vertices() is empty; a non-finite corner counts as one non-finite vertex, coincident
+  // corners as a degenerate triangle. The caller welds (out-of-core builds: by an external sort).
+  virtual bool stopWelding() { return false; }
 };
 
 struct ReadOptions {

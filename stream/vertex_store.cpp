@@ -52,13 +52,31 @@ size_t ReaderBase::read(std::span<Triangle> out) {
     throw;
   }
   vertices_.flush();  // positions of every vertex a returned triangle uses reach the sink first
-  stats_.vertices = vertices_.size();
+  if (!soup_) stats_.vertices = vertices_.size();
   stats_.inputBytes = inputOffset();
   stats_.compressedBytes = compressedOffset();
   return count;
 }
 
 size_t ReaderBase::completeTriangles(Triangle* triangles, size_t count) {
+  if (soup_) {
+    size_t kept = 0;
+    for (size_t i = 0; i < count; ++i) {
+      const Triangle t = triangles[i];
+      const int finite = isFinite(t.position[0]) + isFinite(t.position[1]) + isFinite(t.position[2]);
+      if (finite < 3) {
+        stats_.nonFiniteVertices += 3 - finite;
+        ++stats_.skippedTriangles;
+        continue;
+      }
+      if (samePosition(t.position[0], t.position[1]) || samePosition(t.position[1], t.position[2]) ||
+          samePosition(t.position[0], t.position[2]) || zeroArea(t.position[0], t.position[1], t.position[2]))
+        ++stats_.degenerateTriangles;
+      triangles[kept++] = t;
+    }
+    stats_.triangles += kept;
+    return kept;
+  }
   if (vertices_.deferred()) {
     for (size_t i = 0; i < count; ++i) {
       Triangle& t = triangles[i];

@@ -100,6 +100,8 @@ class ReaderBase : public TriangleReader {
   MeshInfo info_;
   ReadStats stats_;
   VertexStore vertices_;
+  // Triangles carry their own positions, vertex indices are kNoVertex (TriangleReader::stopWelding).
+  bool soup_ = false;
 
  private:
   size_t completeTriangles(Triangle* triangles, size_t count);

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -342,6 +343,118 @@ TEST(OutOfCore, MemoryCapHeldWithManyLeavesAndCrossCellEdges) {
   EXPECT_EQ(file.indices.size() / 3, 2u * (uint64_t{kSide} * kSide + kSpecks));
   const VerifyResult verified = verifyClusterFile(file, {.boxes = false, .statistics = false});
   EXPECT_TRUE(verified.ok) << verified.message;
+}
+
+// The triangles of `mesh` as a binary STL (each corner its own position: no indices).
+fs::path writeBinaryStl(const IndexedMesh& mesh, const fs::path& path) {
+  std::ofstream out(path, std::ios::binary);
+  const std::string header(80, ' ');
+  out.write(header.data(), 80);
+  const auto count = static_cast<uint32_t>(mesh.indices.size() / 3);
+  out.write(reinterpret_cast<const char*>(&count), 4);
+  std::vector<char> record(50, 0);
+  for (size_t t = 0; t < count; ++t) {
+    for (int k = 0; k < 3; ++k)
+      std::memcpy(record.data() + 12 + 12 * k, &mesh.positions[mesh.indices[3 * t + k]], 12);
+    out.write(record.data(), 50);
+  }
+  return path;
+}
+
+IndexedMesh load(const fs::path& path) {
+  auto reader = openMesh(path);
+  return loadMesh(*reader);
+}
+
+// Issue 5 for STL: its reader welds corners with a table as large as the distinct positions
+// (a 10M-triangle STL took 174 MiB under --memory 64M); out of core the welding is an external
+// sort, so an STL costs no more memory than the same mesh indexed, and gives the same tree.
+TEST(OutOfCore, StlIsWeldedWithBoundedMemory) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
+#endif
+  ScratchDir dir;
+  const fs::path ply = generate(dir, "t.ply", SyntheticKind::Terrain, 2000000);
+  const IndexedMesh mesh = load(ply);
+  const fs::path stl = writeBinaryStl(mesh, dir / "t.stl");
+  const uint64_t plyPeak =
+      cliPeakRss({"build", ply.string(), "-o", (dir / "ply.fch").string(), "--memory", "64M"});
+  const uint64_t stlPeak =
+      cliPeakRss({"build", stl.string(), "-o", (dir / "stl.fch").string(), "--memory", "64M"});
+  // The welding table of 1M vertices alone is ~20 MiB (positions and slots).
+  EXPECT_LE(stlPeak, plyPeak + (uint64_t{6} << 20))
+      << "stl " << stlPeak / 1048576.0 << " MiB, ply " << plyPeak / 1048576.0 << " MiB";
+  EXPECT_LE(stlPeak, uint64_t{64} << 20);
+  const ClusterFile fromPly = readClusterFile(dir / "ply.fch");
+  const ClusterFile fromStl = readClusterFile(dir / "stl.fch");
+  EXPECT_TRUE(verifyClusterFile(fromStl, {.boxes = false, .statistics = false}).ok);
+  ASSERT_EQ(fromStl.indices.size(), fromPly.indices.size());
+  ASSERT_EQ(fromStl.nodes.size(), fromPly.nodes.size());
+  // Welded, the STL is one surface like the PLY: no node joins disjoint pieces where the PLY's
+  // do not.
+  const auto joins = [](const ClusterFile& file) {
+    return std::count_if(file.nodes.begin(), file.nodes.end(),
+                         [](const FchNode& n) { return (n.flags & kFchJoinsDisjointSurfaces) != 0; });
+  };
+  EXPECT_EQ(joins(fromStl), joins(fromPly));
+}
+
+// A grid of `side` x `side` quads in which every triangle has its own three vertices, as a
+// binary PLY: without welding every triangle is a component.
+fs::path writeSplitGrid(const ScratchDir& dir, uint32_t side) {
+  std::vector<float> xyz;
+  for (uint32_t j = 0; j < side; ++j)
+    for (uint32_t i = 0; i < side; ++i) {
+      const float x = float(i), y = float(j);
+      xyz.insert(xyz.end(), {x, y, 0, x + 1, y, 0, x + 1, y + 1, 0});  // lower triangle
+      xyz.insert(xyz.end(), {x, y, 0, x + 1, y + 1, 0, x, y + 1, 0});  // upper triangle
+    }
+  const fs::path path = dir / "split.ply";
+  std::ofstream out(path, std::ios::binary);
+  const size_t vertices = xyz.size() / 3;
+  out << "ply\nformat binary_little_endian 1.0\nelement vertex " << vertices
+      << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << vertices / 3
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  out.write(reinterpret_cast<const char*>(xyz.data()), std::streamsize(xyz.size() * sizeof(float)));
+  for (uint32_t v = 0; v < vertices; v += 3) {
+    const uint32_t tri[3] = {v, v + 1, v + 2};
+    out.put(3);
+    out.write(reinterpret_cast<const char*>(tri), sizeof tri);
+  }
+  return path;
+}
+
+// --weld out of core (an external sort over the corners) welds what the in-core build welds.
+TEST(OutOfCore, WeldMatchesTheInCoreWeld) {
+  ScratchDir dir;
+  constexpr uint32_t kSide = 60;
+  const fs::path mesh = writeSplitGrid(dir, kSide);
+  ClusterJob job;
+  job.input = mesh;
+  job.load.weldPositions = true;
+  job.output = dir / "in.fch";
+  const JobReport inCore = runClusterJob(job);
+  ASSERT_FALSE(inCore.outOfCore);
+  job.output = dir / "ooc.fch";
+  job.forceCellFaces = 500;
+  const JobReport outOfCore = runClusterJob(job);
+  ASSERT_TRUE(outOfCore.outOfCore);
+  const uint64_t corners = 6ull * kSide * kSide, positions = uint64_t{kSide + 1} * (kSide + 1);
+  EXPECT_EQ(inCore.weldedVertices, corners - positions);
+  EXPECT_EQ(outOfCore.weldedVertices, corners - positions);
+  EXPECT_EQ(outOfCore.stats.vertices, positions);
+  EXPECT_EQ(outOfCore.upperComponents, 1u);  // one surface: a single root, nothing joined
+  const ClusterFile file = readClusterFile(dir / "ooc.fch");
+  EXPECT_TRUE(verifyClusterFile(file, {.boxes = false, .statistics = false}).ok);
+  for (const FchNode& n : file.nodes) EXPECT_EQ(n.flags & kFchJoinsDisjointSurfaces, 0);
+
+  // Without --weld the same build joins every triangle as a disjoint piece (a soup: cells of 3
+  // vertices per face once filled VertexMap, sized for 2, and its probe never ended).
+  job.load.weldPositions = false;
+  job.output = dir / "unwelded.fch";
+  const JobReport unwelded = runClusterJob(job);
+  EXPECT_EQ(unwelded.weldedVertices, 0u);
+  EXPECT_GT(unwelded.upperComponents, 1u);
 }
 
 }  // namespace

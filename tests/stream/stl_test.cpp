@@ -2,6 +2,8 @@
 // welding of identical positions.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "stream/readers.h"
 #include "stream/stream.h"
 #include "test_util.h"
@@ -59,6 +61,47 @@ TEST(StreamStl, BinaryWithSolidHeaderIsDetectedAsBinary) {
   auto compressed = openMesh(dir.write("p.stl.zst", test::zstdCompress(bytes)));
   EXPECT_EQ(compressed->info().format, MeshFormat::StlBinary);
   expectPyramid(*compressed);
+}
+
+// Out-of-core builds stop the welding (its table grows with the mesh) after the first triangles.
+TEST(StreamStl, StopWeldingHandsOnASoupWithPositions) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const test::SimpleMesh mesh{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {nan, 0, 0}},
+                              {{0, 1, 2}, {0, 2, 3}, {1, 1, 3}, {0, 4, 3}, {3, 2, 1}}};
+  TempDir dir;
+  for (const bool ascii : {false, true}) {
+    auto reader =
+        openMesh(dir.write("s.stl", ascii ? test::writeAsciiStl(mesh) : test::writeBinaryStl(mesh)));
+    std::vector<Triangle> first(1);
+    ASSERT_EQ(reader->read(first), 1u);
+    EXPECT_NE(first[0].vertex[0], kNoVertex);
+    EXPECT_TRUE(reader->stopWelding());
+    EXPECT_EQ(reader->vertices().size(), 0u);  // the welded vertices are freed
+    const auto rest = readAll(*reader);
+    ASSERT_EQ(rest.size(), 3u);  // the triangle with a NaN corner is skipped
+    const uint64_t faces[] = {1, 2, 4};
+    for (size_t i = 0; i < rest.size(); ++i) {
+      EXPECT_EQ(rest[i].face, faces[i]);
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(rest[i].vertex[c], kNoVertex);
+        EXPECT_EQ(rest[i].position[c], mesh.vertices[size_t(mesh.faces[faces[i]][c])]);
+      }
+    }
+    EXPECT_EQ(reader->stats().triangles, 4u);
+    EXPECT_EQ(reader->stats().skippedTriangles, 1u);
+    EXPECT_EQ(reader->stats().nonFiniteVertices, 1u);
+    EXPECT_EQ(reader->stats().degenerateTriangles, 1u);  // (1, 1, 3): coincident corners
+  }
+}
+
+TEST(StreamStl, OtherFormatsKeepTheirIndices) {
+  TempDir dir;
+  auto reader = openMesh(dir.write("p.ply", test::writePly(pyramid())));
+  EXPECT_FALSE(reader->stopWelding());
+  const auto triangles = readAll(*reader);
+  ASSERT_EQ(triangles.size(), 6u);
+  for (const Triangle& t : triangles)
+    for (int c = 0; c < 3; ++c) EXPECT_LT(t.vertex[c], 5u);
 }
 
 TEST(StreamStl, MinusZeroWeldsWithZero) {

@@ -1,0 +1,131 @@
+// The out-of-core build: welding corners at bit-identical positions with bounded memory.
+//
+// Why: STL has no vertex indices (its reader welds with a hash table as large as the mesh's
+// distinct positions: a 10M-triangle STL took 174 MiB under --memory 64M), and --weld asks the
+// same of indexed inputs. Here every corner of the arrival spill is sorted by position
+// (ExternalSorter), each distinct position gets the next vertex id in that order, the ids are
+// sorted back to arrival order, and the arrival spill is rewritten with them: two sorts of
+// 24- and 16-byte records, each under a sixth of the cap, the same pattern as the position
+// join of out_of_core.cpp.
+#include <bit>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "grid/external_sort.h"
+#include "grid/out_of_core.h"
+
+namespace facetree {
+namespace {
+
+constexpr size_t kArrivalBufferBytes = size_t{1} << 20;
+constexpr size_t kReadBatch = 4096;
+
+uint32_t canonicalBits(float f) {
+  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);  // -0 and +0 weld (as grid/weld.cpp)
+}
+
+// A corner by position; `input` is the reader's vertex id (kNoVertex in a soup), `slot` is
+// 3 * arrival index + corner.
+struct CornerByPosition {
+  uint32_t bits[3];
+  uint32_t input;
+  uint64_t slot;
+};
+static_assert(sizeof(CornerByPosition) == 24);
+struct PositionOrder {
+  bool operator()(const CornerByPosition& a, const CornerByPosition& b) const {
+    if (a.bits[0] != b.bits[0]) return a.bits[0] < b.bits[0];
+    if (a.bits[1] != b.bits[1]) return a.bits[1] < b.bits[1];
+    if (a.bits[2] != b.bits[2]) return a.bits[2] < b.bits[2];
+    if (a.input != b.input) return a.input < b.input;
+    return a.slot < b.slot;
+  }
+};
+
+struct CornerId {
+  uint64_t slot;
+  uint32_t vertex;
+  uint32_t unused;
+};
+static_assert(sizeof(CornerId) == 16);
+struct SlotOrder {
+  bool operator()(const CornerId& a, const CornerId& b) const { return a.slot < b.slot; }
+};
+
+}  // namespace
+
+void OutOfCoreBuild::weldArrival() {
+  arrival_->flushAll();
+  const uint64_t sortBudget = std::max<uint64_t>(memoryCap_ / 6, uint64_t{4} << 20);
+  std::vector<FaceRecord> records;
+  const auto decode = [&records](std::span<const std::byte> bytes) {
+    records.resize(bytes.size() / sizeof(FaceRecord));
+    std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
+  };
+
+  ExternalSorter<CornerId, SlotOrder> bySlot(temp_, "weld-slot", sortBudget);
+  uint64_t vertices = 0, welded = 0;
+  {
+    ExternalSorter<CornerByPosition, PositionOrder> byPosition(temp_, "weld-position", sortBudget);
+    uint64_t slot = 0;
+    arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+      decode(bytes);
+      for (const FaceRecord& r : records) {
+        for (int k = 0; k < 3; ++k, ++slot) {
+          byPosition.push({{canonicalBits(r.position[3 * k]), canonicalBits(r.position[3 * k + 1]),
+                            canonicalBits(r.position[3 * k + 2])},
+                           r.vertex[k],
+                           slot});
+        }
+      }
+      checkCancel("weld", slot / 3, triangles_);
+    });
+    byPosition.finish();
+    // One id per distinct position; input vertices sharing a position beyond the first are the
+    // welded ones (--weld's count, over the vertices the triangles use).
+    std::vector<CornerByPosition> batch(kReadBatch);
+    bool first = true;
+    CornerByPosition previous{};
+    for (size_t got; (got = byPosition.read(batch)) > 0;) {
+      for (size_t i = 0; i < got; ++i) {
+        const CornerByPosition& c = batch[i];
+        const bool samePosition = !first && std::memcmp(c.bits, previous.bits, sizeof c.bits) == 0;
+        if (!samePosition) {
+          if (vertices == kNoVertex)
+            throw ReadError(report_.info.name + ": more than " + std::to_string(kNoVertex) +
+                            " distinct vertex positions");
+          ++vertices;
+        } else if (c.input != previous.input && c.input != kNoVertex) {
+          ++welded;
+        }
+        bySlot.push({c.slot, static_cast<uint32_t>(vertices - 1), 0});
+        previous = c;
+        first = false;
+      }
+    }
+  }
+  bySlot.finish();
+
+  auto rewritten =
+      std::make_unique<BucketSpill>(temp_, "arrival-welded", 1, sizeof(FaceRecord), kArrivalBufferBytes);
+  std::vector<CornerId> ids(3);
+  uint64_t slot = 0;
+  arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+    decode(bytes);
+    for (FaceRecord& r : records) {
+      if (bySlot.read(ids) != 3 || ids[0].slot != slot || ids[2].slot != slot + 2)
+        throw std::logic_error("out-of-core build: the weld lost a corner");
+      for (int k = 0; k < 3; ++k) r.vertex[k] = ids[k].vertex;
+      slot += 3;
+      rewritten->append(0, &r);
+    }
+    checkCancel("weld", slot / 3, triangles_);
+  });
+  arrival_ = std::move(rewritten);
+  arrival_->releaseBuffers();
+  report_.stats.vertices = vertices;
+  report_.weldedVertices = welded;
+}
+
+}  // namespace facetree
