@@ -338,20 +338,24 @@ uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
 }
 
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
-  const unsigned threads = std::max(1u, job_.threads);
+  // Cell size from the cap alone (kCellWorkers at once; one if two would be too small), then
+  // as many workers as the cap holds, up to --threads: the output does not depend on the threads.
+  const uint64_t fixed = kBaseBytes + CellGrid::kBins * sizeof(uint32_t);
+  const uint64_t spare = memoryCap_ > fixed ? memoryCap_ - fixed : 0;
   if (job_.forceCellFaces) {
     cellFaceLimit_ = job_.forceCellFaces;
+    cellWorkers_ = std::max(1u, job_.threads);
   } else {
-    const uint64_t fixed = kBaseBytes + CellGrid::kBins * sizeof(uint32_t);
-    const uint64_t perThread = memoryCap_ > fixed ? (memoryCap_ - fixed) / threads : 0;
-    cellFaceLimit_ = perThread / kCellBytesPerFace;
+    cellFaceLimit_ = std::min(kMaxCellFaces, spare / kCellWorkers / kCellBytesPerFace);
+    if (cellFaceLimit_ < kMinCellFaces) cellFaceLimit_ = spare / kCellBytesPerFace;
     if (cellFaceLimit_ < kMinCellFaces) {
-      const uint64_t need = fixed + threads * kMinCellFaces * kCellBytesPerFace;
+      const uint64_t need = fixed + kMinCellFaces * kCellBytesPerFace;
       throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) +
                            " MiB is too small: an out-of-core build needs at least " +
-                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB with " +
-                           std::to_string(threads) + " thread(s)");
+                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
     }
+    cellWorkers_ = static_cast<unsigned>(
+        std::clamp<uint64_t>(spare / (cellFaceLimit_ * kCellBytesPerFace), 1, std::max(1u, job_.threads)));
   }
   report_.cellFaceLimit = cellFaceLimit_;
   frontierFaces_ = std::max<uint64_t>(kMinFrontierFaces, cellFaceLimit_ / kFrontiersPerCell);

@@ -196,7 +196,7 @@ void OutOfCoreBuild::buildCells() {
       stop = true;
     }
   };
-  const unsigned threads = std::clamp(job_.threads, 1u, std::max(1u, cells));
+  const unsigned threads = std::clamp(cellWorkers_, 1u, std::max(1u, cells));
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
   worker(true);
