@@ -310,7 +310,8 @@ uint64_t topRunsPerLeaf(uint32_t minRun) {
 // 64 MiB). Each cell may spend its faces' share of the budget (cellLeafAllowance) and spends it
 // by leafBytes: a speck of 2 faces costs ~1 KB, a frontier cluster of 600 ~2 KB. A cell always
 // makes one leaf, so the bound holds while the cells are fewer than the budget's leaves of a cell's
-// size (64 MiB: ~2k cells, ~20M triangles; 256 MiB: ~4k cells, ~380M triangles).
+// size (64 MiB: cells of 31k faces, 7.7 KB as one leaf, ~4k cells, ~130M triangles; 256 MiB: cells
+// of 2^17 faces, 26.5 KB, ~9k cells, ~1G triangles).
 void OutOfCoreBuild::planMetadata() {
   leafBudget_ = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
   const uint64_t half = std::max<uint64_t>(leafBudget_ / 2, 1);
