@@ -81,14 +81,16 @@ struct CrossPair {
 inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
 // One cell's build at its peak: records 56 B, cell mesh and labels ~30, the group's copy ~30, the
 // in-core build of the group (the job's in-core model: 240 B per face and 24 per vertex), frontier
-// pieces and edge tables. Specks (3 vertices per face) are the worst case, ~500 B. Measured with
-// the metadata spilled, at 64 MiB and two workers (cells pass peaks, the rest of the run below):
-// fg_hawaii (874k non-manifold edges) 44.4 / 49.8 / 55.9 / 61.9 MiB with cells of 21k / 32k /
-// 48k / 64k faces, ~200 B per face more per worker; matterport_cedar_creek 34.3 / 37.0 / 42.3 /
-// 50.9. It was 1200 while the cells pass held the leaves' metadata and cross-cell pairs (a 55.8M
-// scan peaked at ~1140 B per face then, at 103 MiB with cells of 94k faces after the spills).
-// Larger cells cut fewer clusters at their borders: fg_hawaii at 64 MiB cut at 100,000 clusters
-// fits 1.19 / 1.11 / 1.08 / 1.06x in core with cells of 10.5k / 21k / 32k / 48k faces.
+// pieces and edge tables. Added up from those upper bounds: ~360 B for a manifold mesh, ~500 B for
+// specks (3 vertices per face). Measured with the metadata spilled, at 64 MiB and two workers
+// (cells pass peaks, the rest of the run below), a cell grows by ~200-260 B per face: fg_hawaii
+// (874k non-manifold edges) 44.4 / 49.8 / 55.9 / 61.9 MiB with cells of 21k / 32k / 48k / 64k
+// faces; matterport_cedar_creek 34.3 / 37.0 / 42.3 / 50.9; 400k two-triangle specks on a 700^2
+// grid 38.4 / 49.7 / 57.5 with 31k / 48k / 64k. 400 keeps 1.5x over the measured growth. It was 1200 while
+// the cells pass held the leaves' metadata and cross-cell pairs (a 55.8M scan peaked at ~1140 B per face
+// then, at 103 MiB with cells of 94k faces after the spills). Larger cells cut fewer clusters at their
+// borders: fg_hawaii at 64 MiB cut at 100,000 clusters fits 1.19 / 1.11 / 1.08 / 1.06x in core with cells
+// of 10.5k / 21k / 32k / 48k faces.
 inline constexpr uint64_t kCellBytesPerFace = 400;
 // Cells are sized for this many at once whatever --threads says, so the output does not depend
 // on it: more threads build more cells at once only where the cap holds them (kMaxCellFaces).
