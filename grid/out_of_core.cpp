@@ -312,7 +312,8 @@ uint64_t topRunsPerLeaf(uint32_t minRun) {
 // 64 MiB). Each cell may spend its faces' share of the budget (cellLeafAllowance) and spends it
 // by leafBytes: a speck of 2 faces costs ~1 KB, a frontier cluster of 600 ~2 KB. A cell always
 // makes one leaf, so the bound holds while the cells are fewer than the budget's leaves of a cell's
-// size (64 MiB: ~2k cells, ~20M triangles; 256 MiB: ~4k cells, ~380M triangles).
+// size (64 MiB: cells of 31k faces, 7.7 KB as one leaf, ~4k cells, ~130M triangles; 256 MiB: cells
+// of 2^17 faces, 26.5 KB, ~9k cells, ~1G triangles).
 void OutOfCoreBuild::planMetadata() {
   leafBudget_ = memoryCap_ > kBaseBytes ? memoryCap_ - kBaseBytes : 0;
   const uint64_t half = std::max<uint64_t>(leafBudget_ / 2, 1);
@@ -340,20 +341,24 @@ uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
 }
 
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
-  const unsigned threads = std::max(1u, job_.threads);
+  // Cell size from the cap alone (kCellWorkers at once; one if two would be too small), then
+  // as many workers as the cap holds, up to --threads: the output does not depend on the threads.
+  const uint64_t fixed = kBaseBytes + CellGrid::kBins * sizeof(uint32_t);
+  const uint64_t spare = memoryCap_ > fixed ? memoryCap_ - fixed : 0;
   if (job_.forceCellFaces) {
     cellFaceLimit_ = job_.forceCellFaces;
+    cellWorkers_ = std::max(1u, job_.threads);
   } else {
-    const uint64_t fixed = kBaseBytes + CellGrid::kBins * sizeof(uint32_t);
-    const uint64_t perThread = memoryCap_ > fixed ? (memoryCap_ - fixed) / threads : 0;
-    cellFaceLimit_ = perThread / kCellBytesPerFace;
+    cellFaceLimit_ = std::min(kMaxCellFaces, spare / kCellWorkers / kCellBytesPerFace);
+    if (cellFaceLimit_ < kMinCellFaces) cellFaceLimit_ = spare / kCellBytesPerFace;
     if (cellFaceLimit_ < kMinCellFaces) {
-      const uint64_t need = fixed + threads * kMinCellFaces * kCellBytesPerFace;
+      const uint64_t need = fixed + kMinCellFaces * kCellBytesPerFace;
       throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) +
                            " MiB is too small: an out-of-core build needs at least " +
-                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB with " +
-                           std::to_string(threads) + " thread(s)");
+                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
     }
+    cellWorkers_ = static_cast<unsigned>(
+        std::clamp<uint64_t>(spare / (cellFaceLimit_ * kCellBytesPerFace), 1, std::max(1u, job_.threads)));
   }
   report_.cellFaceLimit = cellFaceLimit_;
   frontierFaces_ = std::max<uint64_t>(kMinFrontierFaces, cellFaceLimit_ / kFrontiersPerCell);

@@ -79,19 +79,34 @@ struct CrossPair {
 
 // Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
 inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
-// One cell's build at its peak (records 56 B, cell mesh 30, its copy per component 30, the
-// engine ~200, nodes and boxes 100, labels and orders 12), plus the allocator's per-thread
-// arenas. Measured: a 3M-triangle terrain at 64 MiB (cells of 12.6k faces) peaks at 59-63 MB
-// with 1000; a 55.8M-triangle scan at 256 MiB (cells of 113k-144k faces) at 280-285 MiB with
-// 800 and 1000: ~1140 B per face in big cells. Those peaks included the leaves' metadata and the
-// cross-cell pairs the cells pass then held; spilled, the scan's cells pass peaks at 103 MiB with
-// cells of 94k faces (the constant is conservative; kept: cell sizes change the output).
-inline constexpr uint64_t kCellBytesPerFace = 1200;
+// One cell's build at its peak: records 56 B, cell mesh and labels ~30, the group's copy ~30, the
+// in-core build of the group (the job's in-core model: 240 B per face and 24 per vertex), frontier
+// pieces and edge tables. Added up from those upper bounds: ~360 B for a manifold mesh, ~500 B for
+// specks (3 vertices per face). Measured with the metadata spilled, at 64 MiB and two workers
+// (cells pass peaks, the rest of the run below), a cell grows by ~200-260 B per face: fg_hawaii
+// (874k non-manifold edges) 44.4 / 49.8 / 55.9 / 61.9 MiB with cells of 21k / 32k / 48k / 64k
+// faces; matterport_cedar_creek 34.3 / 37.0 / 42.3 / 50.9; 400k two-triangle specks on a 700^2
+// grid 38.4 / 49.7 / 57.5 with 31k / 48k / 64k. 400 keeps 1.5x over the measured growth. It was 1200 while
+// the cells pass held the leaves' metadata and cross-cell pairs (a 55.8M scan peaked at ~1140 B per face
+// then, at 103 MiB with cells of 94k faces after the spills). Larger cells cut fewer clusters at their
+// borders: fg_hawaii at 64 MiB cut at 100,000 clusters fits 1.19 / 1.11 / 1.08 / 1.06x in core with cells
+// of 10.5k / 21k / 32k / 48k faces.
+inline constexpr uint64_t kCellBytesPerFace = 400;
+// Cells are sized for this many at once whatever --threads says, so the output does not depend
+// on it: more threads build more cells at once only where the cap holds them (kMaxCellFaces).
+inline constexpr uint64_t kCellWorkers = 2;
+// Cells of at most this many faces (52 MiB by kCellBytesPerFace): enough for the quality
+// (fg_hawaii cut at 100,000 clusters: 1.035x in core in cells of 100k faces, 1.02x in cells of
+// 2M), small enough that large caps build several at once.
+inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
-// faces (and at least kMinFrontierFaces): enough pieces per cell that the upper merge can balance
-// the top of the tree across cell borders, few enough that it stays small.
-inline constexpr uint64_t kFrontiersPerCell = 32;
+// faces (and at least kMinFrontierFaces; larger when the leaf budget pays for fewer): enough pieces
+// per cell that the upper merge can balance the top of the tree across cell borders and that cuts
+// of a few leaves' size find pieces of that size. 32 with cells of 31k faces at 64 MiB (leaves of
+// ~1k faces) made cuts at 1,000 clusters fit 1.12x in core on a 1M terrain and 1.09x on
+// dragon_vrip; 128 (~250 faces): 1.04x and 0.97x (cuts at 100,000 unchanged or better).
+inline constexpr uint64_t kFrontiersPerCell = 128;
 inline constexpr uint64_t kMinFrontierFaces = 64;
 inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetadata)
 // The leaves' metadata is in memory from the merge to the write (planMetadata, out_of_core.cpp).
@@ -182,6 +197,7 @@ class OutOfCoreBuild {
   // bin
   std::unique_ptr<CellGrid> grid_;
   uint64_t cellFaceLimit_ = 0;
+  unsigned cellWorkers_ = 1;    // cells built at once (run(): as many as the cap holds, up to --threads)
   uint64_t frontierFaces_ = 0;  // leaf clusters: the frontier of each component's hierarchy at this size
   uint64_t leafBudget_ = 0;     // bytes of leaf metadata, all cells together (cellLeafAllowance)
   uint32_t minNodeRun_ = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs

@@ -129,31 +129,25 @@ void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, cons
 }  // namespace
 
 // How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
-// (out_of_core_write.cpp sorts all leaves' blocks by key). Each node's key is its log cost made
-// non-increasing along the leaf by isotonic regression (pool adjacent violators), so sorting
-// keeps a leaf's blocks in order while following the costs as closely as a monotone sequence
-// can; keys are then quantised to bands of kKeyBand and a block is a run of nodes in one band (at
-// most kNodeBlock long). Sorted, the blocks give nearly the cost order of the in-core reverse
-// creation order: dragon_vrip in cells of 20k faces, cut at 100,000 clusters, fits within 8% of
-// in core (runs of at least 32 nodes: 8%), against 4x with fixed 64-node blocks (their costs
-// spread too widely) and 11x with a running minimum as the key (one cheap early node held back a
-// whole leaf).
+// (out_of_core_write.cpp sorts all leaves' blocks by key). A node's key is its leaf's *level* when
+// the engine made it: the highest log cost among it and the nodes made before it in the leaf
+// (those after it in file order: a suffix maximum). The in-core file is the reverse creation
+// order of one greedy run, whose level only rises; the leaves are separate runs of the same
+// greedy, and sorting their nodes by level interleaves them as one run would. The key is
+// non-increasing along the leaf, so sorting keeps a leaf's blocks in order. Keys are quantised
+// to bands of kKeyBand and a block is a run of nodes in one band (at most kNodeBlock long).
+// Keys tried before: each node's log cost made non-increasing by isotonic regression (pool
+// adjacent violators: fg_hawaii at 64 MiB cut at 100,000 clusters 1.84x in core, 1.19x with the
+// level; a leaf of specks joined by the engine holds expensive joins under cheap ones, and the
+// pools averaged them down), the running minimum from the root (11x: one cheap early node held
+// back a whole leaf), fixed 64-node blocks of mean cost (4x: a block's costs spread too widely).
 std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
   const uint32_t maxRun = std::max(kNodeBlock, minRun);
-  struct Pool {
-    double sum, weight;
-    size_t count;
-  };
-  std::vector<Pool> pools;
-  for (const FchNode& node : nodes) {
-    pools.push_back({std::log(std::max(double(node.cost), 1e-30)), 1.0, 1});
-    while (pools.size() >= 2) {
-      Pool& a = pools[pools.size() - 2];
-      const Pool& b = pools.back();
-      if (a.sum / a.weight >= b.sum / b.weight) break;  // non-increasing: fine
-      a.sum += b.sum, a.weight += b.weight, a.count += b.count;
-      pools.pop_back();
-    }
+  std::vector<float> band(nodes.size());
+  double level = -std::numeric_limits<double>::infinity();
+  for (size_t i = nodes.size(); i-- > 0;) {
+    level = std::max(level, std::log(std::max(double(nodes[i].cost), 1e-30)));
+    band[i] = static_cast<float>(std::floor(level / kKeyBand));
   }
   // Runs of one band, at least min(f / 2, kMinNodeBlock) long for a run from node f (a shorter
   // run joins the next, under the earlier, higher key): the block table costs ~50 bytes per block
@@ -162,17 +156,14 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRu
   // core with kMinNodeBlock 32 and with 256; fixed runs of >= 64 from the top of a leaf: 2.5x.
   std::vector<NodeBlock> blocks;
   uint32_t at = 0;
-  for (const Pool& p : pools) {
-    const float band = static_cast<float>(std::floor(p.sum / p.weight / kKeyBand));
-    for (size_t k = 0; k < p.count; ++k, ++at) {
-      // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
-      // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
-      const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
-      if (blocks.empty() || blocks.back().count == maxRun ||
-          (blocks.back().key != band && blocks.back().count >= minimum))
-        blocks.push_back({band, at, 0, 0, 0});
-      ++blocks.back().count;
-    }
+  for (; at < nodes.size(); ++at) {
+    // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
+    // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
+    const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
+    if (blocks.empty() || blocks.back().count == maxRun ||
+        (blocks.back().key != band[at] && blocks.back().count >= minimum))
+      blocks.push_back({band[at], at, 0, 0, 0});
+    ++blocks.back().count;
   }
   return blocks;
 }
@@ -207,7 +198,7 @@ void OutOfCoreBuild::buildCells() {
       stop = true;
     }
   };
-  const unsigned threads = std::clamp(job_.threads, 1u, std::max(1u, cells));
+  const unsigned threads = std::clamp(cellWorkers_, 1u, std::max(1u, cells));
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
   worker(true);
