@@ -20,7 +20,7 @@ class BucketSpill {
   // full buffer becomes one block of the SpillFile. Memory is memoryBound(): buckets * bufferBytes (touched
   // only as buckets fill) plus one compressed block of scratch in the writer's codec.
   BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes, size_t bufferBytes,
-              int level = 1);
+              int level = kSpillLevel);
 
   static uint64_t memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes);
 

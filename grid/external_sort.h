@@ -12,7 +12,7 @@
 //   merge          (fanIn + 1) * blockBytes <= budget   (one decompressed block per open run and one
 //                                                         output block in intermediate passes)
 //   at any time    + one compressed block (ZSTD_compressBound(64 KiB) = 65824 bytes)
-//                  + the zstd contexts (level 1, 64 KiB blocks: CCtx 297 KiB, DCtx 94 KiB)
+//                  + the zstd contexts (kSpillLevel, 64 KiB blocks: CCtx 281 KiB, DCtx 94 KiB)
 //                  + 16 bytes per spilled block (the run index, 0.025% of the raw data)
 //                  + (sizeof(Record) + 8) * fanIn of merge heap.
 // Measured (sort_memory_probe, 20M 16-byte records): peak RSS grows by 2.3 MiB for a 1 MiB budget, 9.0 MiB
@@ -109,7 +109,8 @@ class ExternalSorter {
   static_assert(std::is_trivially_copyable_v<Record>, "records are spilled as bytes");
 
  public:
-  ExternalSorter(TempSpace& space, std::string_view stem, size_t budgetBytes, Less less = {}, int level = 1)
+  ExternalSorter(TempSpace& space, std::string_view stem, size_t budgetBytes, Less less = {},
+                 int level = kSpillLevel)
       : space_(space),
         stem_(stem),
         plan_(sortPlan(sizeof(Record), budgetBytes)),

@@ -267,9 +267,11 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         }
       }
     }
-    const MeshView cellMesh{positions, indices};
+    // Which faces share which edges, found once: for the components, each group's hierarchy, each
+    // leaf's statistics and the pairs of leaves.
+    FaceAdjacency adjacency = buildFaceAdjacency(MeshView{positions, indices});
     std::vector<uint32_t> label;
-    const uint32_t components = faceComponents(cellMesh, label);
+    const uint32_t components = faceComponents(adjacency, label);
     result.components = components;
 
     // The cell's leaves cost at most its allowance of metadata (its faces' share, planMetadata;
@@ -359,7 +361,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     };
     for (uint32_t g = 0; g < groups; ++g) {
       const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
-      Hierarchy component = buildHierarchy(makeMesh(members), job_.build);
+      Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, job_.build);
       // Its share of the allowance left: the groups' shares sum to at most `spare`.
       const auto share = static_cast<uint64_t>(double(spare) * double(members.size()) / double(faces));
       frontierOf(component, frontierFaces_, share, leafBytes, frontier);
@@ -421,7 +423,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         LeafCluster& leaf = leaves.emplace_back();
         leaf.faceCount = count;
         leaf.height = sub.stats.height;
-        SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, origin_));
+        SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, adjacency, leafFaces, origin_));
         stats.height = leaf.height;
         BoxCorners& corners = leafCorners.emplace_back();
         const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
@@ -469,58 +471,20 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
       }
     }
 
-    // Dual edges between leaf clusters of this cell (same rules as dual_graph.cpp).
-    struct LocalEdge {
-      uint64_t key;
-      uint32_t face, sides;
-      bool operator<(const LocalEdge& o) const { return key != o.key ? key < o.key : face < o.face; }
-    };
-    std::vector<LocalEdge> local;
-    local.reserve(size_t{3} * faces);
+    // Dual edges between leaf clusters of this cell: one pair per mesh edge two faces of different
+    // leaves share, with its factor of the edge's length (FaceAdjacency::Share).
     for (uint32_t f = 0; f < faces; ++f) {
-      const uint32_t* v = &indices[size_t{3} * f];
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t a = v[k], b = v[(k + 1) % 3];
-        if (a == b) continue;
-        const uint32_t low = std::min(a, b), high = std::max(a, b);
-        uint32_t sides = 0;
-        bool seen = false;
-        for (int j = 0; j < 3; ++j) {
-          const uint32_t c = v[j], d = v[(j + 1) % 3];
-          if (c != d && std::min(c, d) == low && std::max(c, d) == high) {
-            ++sides;
-            seen |= j < k;
-          }
-        }
-        if (!seen) local.push_back({(uint64_t{low} << 32) | high, f, sides});
-      }
-    }
-    std::sort(local.begin(), local.end());
-    for (size_t i = 0; i < local.size();) {
-      size_t j = i;
-      uint32_t totalSides = 0;
-      bool mixed = false;
-      for (; j < local.size() && local[j].key == local[i].key; ++j) {
-        totalSides += local[j].sides;
-        mixed |= leafOf[local[j].face] != leafOf[local[i].face];
-      }
-      if (mixed && totalSides >= 2) {
-        const glm::vec3 a = positions[local[i].key >> 32], b = positions[static_cast<uint32_t>(local[i].key)];
-        const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
-        const auto pair = [&](size_t x, size_t y, double shared) {
-          const uint32_t lx = leafOf[local[x].face], ly = leafOf[local[y].face];
-          if (lx != ly) localPairs.push_back({std::min(lx, ly), std::max(lx, ly), shared});
-        };
-        const size_t k = j - i;
-        if (k <= kMaxFacesJoinedPairwise) {
-          for (size_t x = i; x < j; ++x)
-            for (size_t y = x + 1; y < j; ++y)
-              pair(x, y, length * local[x].sides * local[y].sides / (totalSides - 1));
-        } else {
-          for (size_t x = i; x + 1 < j; ++x) pair(x, x + 1, length * totalSides / (2.0 * double(k - 1)));
+      for (const FaceAdjacency::Link& link : adjacency.links(f)) {
+        const uint32_t lf = leafOf[f], lg = leafOf[link.face];
+        if (link.face < f || lf == lg) continue;  // each edge once, from its lower face
+        for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
+          const glm::vec3 a = positions[indices[size_t{3} * f + share.corner]];
+          const glm::vec3 b = positions[indices[size_t{3} * f + (share.corner + 1) % 3]];
+          const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
+          localPairs.push_back(
+              {std::min(lf, lg), std::max(lf, lg), length * share.numerator / share.denominator});
         }
       }
-      i = j;
     }
   }
 

@@ -3,14 +3,114 @@
 // the nodes, upper nodes first and each leaf's subtree after them (out_of_core.h).
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <limits>
+#include <mutex>
+#include <thread>
 
 #include "grid/out_of_core.h"
 #include "io/io.h"
 
 namespace facetree {
+
 namespace {
+
+// The upper nodes' boxes see every triangle under them (BoxAccumulator), ~1.5k instructions per face
+// for a dozen ancestors: with more than one thread they accumulate on a helper while the writer's thread
+// reads, encodes and compresses. Batches of leaves' triangles with their ancestors go over in two
+// alternating buffers, in order, so every accumulator sees the same triangles in the same order as
+// inline (the boxes are bit-identical). Memory: two batches of at most kBatchTriangles triangles, or one
+// leaf block's if larger (a block holds at most kTrianglesPerBlock).
+class UpperBoxes {
+ public:
+  static constexpr size_t kBatchTriangles = 8192;
+
+  UpperBoxes(std::vector<BoxAccumulator>& boxes, bool helper) : boxes_(boxes) {
+    if (helper) thread_ = std::thread([this] { run(); });
+  }
+  ~UpperBoxes() { finish(); }
+  UpperBoxes(const UpperBoxes&) = delete;
+  UpperBoxes& operator=(const UpperBoxes&) = delete;
+
+  // The triangles (3 corners each) of a leaf block under `ancestors`.
+  void add(std::span<const glm::vec3> corners, std::span<const uint32_t> ancestors) {
+    if (ancestors.empty() || corners.empty()) return;
+    Batch& b = batch_[filling_];
+    b.runs.push_back({b.corners.size(), corners.size(), b.ancestors.size(), ancestors.size()});
+    b.corners.insert(b.corners.end(), corners.begin(), corners.end());
+    b.ancestors.insert(b.ancestors.end(), ancestors.begin(), ancestors.end());
+    if (b.corners.size() >= 3 * kBatchTriangles) hand();
+  }
+  // Waits until every triangle added is in its accumulators.
+  void finish() {
+    if (!thread_.joinable()) {
+      accumulate(batch_[filling_]);
+      return;
+    }
+    hand();
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+
+ private:
+  struct Run {
+    size_t corner, corners, ancestor, ancestors;
+  };
+  struct Batch {
+    std::vector<glm::vec3> corners;
+    std::vector<uint32_t> ancestors;
+    std::vector<Run> runs;
+  };
+
+  void accumulate(Batch& b) {
+    for (const Run& r : b.runs) {
+      const std::span<const glm::vec3> corners(b.corners.data() + r.corner, r.corners);
+      for (size_t k = 0; k < r.ancestors; ++k) boxes_[b.ancestors[r.ancestor + k]].addTriangles(corners);
+    }
+    b.corners.clear();
+    b.ancestors.clear();
+    b.runs.clear();
+  }
+  // Gives the filled batch to the helper once it is done with the other one, and fills that one next.
+  void hand() {
+    if (!thread_.joinable()) {
+      accumulate(batch_[filling_]);
+      return;
+    }
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return !pending_; });
+    pending_ = true;
+    filling_ ^= 1;
+    lock.unlock();
+    changed_.notify_all();
+  }
+  void run() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      changed_.wait(lock, [&] { return pending_ || stop_; });
+      if (!pending_) return;
+      Batch& b = batch_[filling_ ^ 1];
+      lock.unlock();
+      accumulate(b);  // arithmetic on preallocated accumulators: nothing throws
+      lock.lock();
+      pending_ = false;
+      changed_.notify_all();
+    }
+  }
+
+  std::vector<BoxAccumulator>& boxes_;
+  Batch batch_[2];
+  int filling_ = 0;  // the batch this thread fills; the helper reads the other while pending_
+  bool pending_ = false, stop_ = false;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::thread thread_;
+};
 
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
@@ -287,6 +387,7 @@ void OutOfCoreBuild::write() {
   std::vector<uint32_t> indices, ancestors;
   std::vector<uint64_t> ids;
   uint64_t vertexBase = 0, done = 0;
+  UpperBoxes upperBoxes(boxes, job_.threads > 1);
   for (const uint32_t leafId : leafOrder) {
     const LeafCluster& leaf = leaves_[leafId];
     ancestors.clear();
@@ -310,7 +411,7 @@ void OutOfCoreBuild::write() {
       if (!ancestors.empty()) {
         triangleCorners.resize(indices.size());
         for (size_t i = 0; i < indices.size(); ++i) triangleCorners[i] = leafVertices[indices[i]];
-        for (const uint32_t a : ancestors) boxes[a].addTriangles(triangleCorners);
+        upperBoxes.add(triangleCorners, ancestors);
       }
       for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
       writer.addTriangles(indices, ids);
@@ -319,6 +420,7 @@ void OutOfCoreBuild::write() {
     vertexBase += leaf.vertexCount;
     checkCancel("write", done, faces + nodes);
   }
+  upperBoxes.finish();
   geometrySpill_.reset();
   geometry_ = {};
 

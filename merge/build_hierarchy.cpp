@@ -85,14 +85,18 @@ void throwIfCancelled(const BuildOptions& options) {
 
 }  // namespace
 
-Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
+namespace {
+
+// The build with the dual graph from `makeGraph(geometry)`.
+template <class MakeGraph>
+Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGraph& makeGraph) {
   Hierarchy hierarchy;
   BuildStats& stats = hierarchy.stats;
   {
     // Everything of the merge is released at the end of this scope, before the boxes.
     auto start = std::chrono::steady_clock::now();
     const FaceGeometry geometry(mesh);
-    DualGraph graph = buildDualGraph(geometry);
+    DualGraph graph = makeGraph(geometry);
     stats.secondsInit = secondsSince(start);
     throwIfCancelled(options);
 
@@ -117,6 +121,20 @@ Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
     stats.secondsBoxes = secondsSince(start);
   }
   return hierarchy;
+}
+
+}  // namespace
+
+Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
+  return build(mesh, options, [](const FaceGeometry& geometry) { return buildDualGraph(geometry); });
+}
+
+Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
+                         const BuildOptions& options) {
+  return build(piece, options, [&](const FaceGeometry& geometry) {
+    std::optional<DualGraph> graph = pieceDualGraph(geometry, adjacency, faces);
+    return graph ? std::move(*graph) : buildDualGraph(geometry);
+  });
 }
 
 }  // namespace facetree

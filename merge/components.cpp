@@ -3,18 +3,19 @@
 // edges joining all their faces), i.e. the pieces the engine can only join with
 // kNodeJoinsDisjointSurfaces. A depth-first flood fill over the dual graph's adjacency lists
 // from each unlabelled triangle in increasing order numbers them by their lowest triangle.
-// O(n + E) time; memory: the dual graph and a stack of at most n face ids.
+// O(n + E) time; memory: the dual graph and a stack of at most n face ids. With a FaceAdjacency built
+// once for the mesh, its links instead of a dual graph.
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
 
 namespace facetree {
 
-uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label) {
-  label.clear();
-  if (mesh.triangleCount() == 0) return 0;
-  const FaceGeometry geometry(mesh);  // validates the indices
-  const DualGraph graph = buildDualGraph(geometry);
-  const uint32_t n = geometry.faceCount();
+namespace {
+
+// Flood fill from each unlabelled face in increasing order; forEachNeighbour(f, visit) visits f's
+// neighbours.
+template <class ForEachNeighbour>
+uint32_t label(uint32_t n, std::vector<uint32_t>& label, const ForEachNeighbour& forEachNeighbour) {
   constexpr uint32_t kUnlabelled = DualGraph::kNone;
   label.assign(n, kUnlabelled);
   std::vector<uint32_t> stack;
@@ -26,17 +27,35 @@ uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label) {
     while (!stack.empty()) {
       const uint32_t f = stack.back();
       stack.pop_back();
-      for (uint32_t h = graph.head[f]; h != DualGraph::kNone; h = graph.next(h)) {
-        const uint32_t g = graph.other(h);
+      forEachNeighbour(f, [&](uint32_t g) {
         if (label[g] == kUnlabelled) {
           label[g] = components;
           stack.push_back(g);
         }
-      }
+      });
     }
     ++components;
   }
   return components;
+}
+
+}  // namespace
+
+uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& labels) {
+  labels.clear();
+  if (mesh.triangleCount() == 0) return 0;
+  const FaceGeometry geometry(mesh);  // validates the indices
+  const DualGraph graph = buildDualGraph(geometry);
+  return label(geometry.faceCount(), labels, [&](uint32_t f, const auto& visit) {
+    for (uint32_t h = graph.head[f]; h != DualGraph::kNone; h = graph.next(h)) visit(graph.other(h));
+  });
+}
+
+uint32_t faceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& labels) {
+  labels.clear();
+  return label(adjacency.faceCount(), labels, [&](uint32_t f, const auto& visit) {
+    for (const FaceAdjacency::Link& link : adjacency.links(f)) visit(link.face);
+  });
 }
 
 }  // namespace facetree

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <stdexcept>
+#include <string>
 
 #include <glm/geometric.hpp>
 
@@ -22,11 +23,6 @@ namespace {
 // (the worst shared mesh, fg_hawaii, has at most 8 faces on an edge).
 constexpr size_t kMaxFacesJoinedPairwise = 16;
 
-struct Candidate {
-  uint32_t face;
-  float length;
-};
-
 // How many of the face's three sides lie on the mesh edge (a, b): 1, or 2 for a face with a
 // repeated index such as (a, a, b).
 uint32_t uses(const FaceGeometry& geometry, uint32_t face, uint32_t a, uint32_t b) {
@@ -38,9 +34,20 @@ uint32_t uses(const FaceGeometry& geometry, uint32_t face, uint32_t a, uint32_t 
   return count;
 }
 
-}  // namespace
+template <class Value>
+struct Candidate {
+  uint32_t face;
+  Value value;
+};
 
-DualGraph buildDualGraph(const FaceGeometry& geometry) {
+// The matching under the edge rules (dual_graph.h), shared by the dual graph and the face adjacency. For
+// each face f in increasing order it hands `policy.face(f, candidates, count)` the dual edges of f to
+// faces g > f, sorted by g (stably: a g sharing several mesh edges with f comes once per edge, in the
+// order of f's corners). A candidate's value is what the policy makes of the mesh edge: `policy.edge(a, b,
+// corner)` once per shared mesh edge (a, b) from corner `corner` of f, then `policy.pair(edge, u_f, u_g, U)`
+// per pair or `policy.chain(edge, U, K - 1)` for a chain link.
+template <class Policy>
+void matchFaces(const FaceGeometry& geometry, Policy& policy) {
   const uint32_t n = geometry.faceCount();
   const MeshView& mesh = geometry.mesh();
   const size_t vertexCount = mesh.positions.size();
@@ -67,12 +74,9 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
     }
   }
 
-  DualGraph graph;
-  // A closed manifold mesh has exactly 3n/2 dual edges; reserve that (growth covers the rest).
-  reserveHugePages(graph.edges, size_t{n} * 3 / 2 + 16);
-
   // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
-  std::array<Candidate, 3 * kMaxFacesJoinedPairwise> candidates;
+  using Entry = Candidate<typename Policy::Value>;
+  std::array<Entry, 3 * kMaxFacesJoinedPairwise> candidates;
   std::array<uint32_t, kMaxFacesJoinedPairwise> sharing;  // faces on the current mesh edge
   std::array<uint32_t, kMaxFacesJoinedPairwise> sharingUses;
   for (uint32_t f = 0; f < n; ++f) {
@@ -113,45 +117,94 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
         if (*g > f && nextFace == DualGraph::kNone) nextFace = *g;  // lists are ascending
       }
       if (sharingCount == 0) continue;
-      const double length = glm::length(geometry.position(a) - geometry.position(b));
+      const auto edge = policy.edge(a, b, i);
       if (sharingCount + 1 > kMaxFacesJoinedPairwise) {
         // Chain: join f only to the next face on the edge; the K - 1 links share U |e| / 2.
         if (nextFace != DualGraph::kNone) {
-          candidates[candidateCount++] = {nextFace, float(length * totalUses / (2.0 * sharingCount))};
+          candidates[candidateCount++] = {nextFace, policy.chain(edge, totalUses, sharingCount)};
         }
         continue;
       }
       for (size_t k = 0; k < sharingCount; ++k) {
         if (sharing[k] <= f) continue;
-        // s_fg = |e| u_f u_g / (U - 1): |e| on a manifold edge; on a non-manifold one, merging
-        // all its faces removes exactly the U |e| their perimeters count, never more.
-        const double shared = length * usesF * sharingUses[k] / (totalUses - 1);
-        candidates[candidateCount++] = {sharing[k], float(shared)};
+        candidates[candidateCount++] = {sharing[k], policy.pair(edge, usesF, sharingUses[k], totalUses)};
       }
     }
-    // Insertion sort by face (a handful of entries), then one dual edge per distinct face.
+    // Insertion sort by face (a handful of entries).
     for (size_t i = 1; i < candidateCount; ++i) {
-      const Candidate c = candidates[i];
+      const Entry c = candidates[i];
       size_t j = i;
       for (; j > 0 && candidates[j - 1].face > c.face; --j) candidates[j] = candidates[j - 1];
       candidates[j] = c;
     }
-    for (size_t i = 0; i < candidateCount;) {
+    policy.face(f, candidates.data(), candidateCount);
+  }
+}
+
+// Shared lengths in float: what the dual graph's edges carry.
+struct LengthPolicy {
+  using Value = float;
+  const FaceGeometry& geometry;
+  DualGraph& graph;
+
+  double edge(uint32_t a, uint32_t b, int) const {
+    return glm::length(geometry.position(a) - geometry.position(b));
+  }
+  // s_fg = |e| u_f u_g / (U - 1): |e| on a manifold edge; on a non-manifold one, merging all its
+  // faces removes exactly the U |e| their perimeters count, never more.
+  static float pair(double length, uint32_t usesF, uint32_t usesG, uint32_t totalUses) {
+    return float(length * usesF * usesG / (totalUses - 1));
+  }
+  static float chain(double length, uint32_t totalUses, size_t links) {
+    return float(length * totalUses / (2.0 * links));
+  }
+  // One dual edge per distinct face, its mesh edges' lengths summed.
+  void face(uint32_t f, const Candidate<float>* candidates, size_t count) {
+    for (size_t i = 0; i < count;) {
       const uint32_t g = candidates[i].face;
       float length = 0;
-      for (; i < candidateCount && candidates[i].face == g; ++i) length += candidates[i].length;
+      for (; i < count && candidates[i].face == g; ++i) length += candidates[i].value;
       graph.edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, length, 0.0f});
     }
   }
-  if (graph.edges.size() >= size_t{0x7FFFFFFF}) {
-    throw std::invalid_argument("mesh has more than 2^31-1 dual edges");
-  }
-  offset = {};
-  incident = {};
+};
 
-  // Adjacency lists; pushing to the front leaves each list in descending edge order.
-  reserveHugePages(graph.head, n);
-  graph.head.assign(n, DualGraph::kNone);
+// Shares without lengths, for the face adjacency: forward edges (f, g > f) in order.
+struct SharePolicy {
+  using Value = FaceAdjacency::Share;
+  std::vector<uint32_t>& edgeLow;  // per dual edge: its lower face
+  std::vector<uint32_t>& edgeHigh;
+  std::vector<uint32_t>& shareStart;
+  std::vector<FaceAdjacency::Share>& shares;
+
+  static uint8_t edge(uint32_t, uint32_t, int corner) { return static_cast<uint8_t>(corner); }
+  // u_f u_g is 1, 2 or 4, and |e| u_f u_g in double is exactly (|e| u_f) u_g: the same number.
+  static Value pair(uint8_t corner, uint32_t usesF, uint32_t usesG, uint32_t totalUses) {
+    return {usesF * usesG, totalUses - 1, corner, false};
+  }
+  static Value chain(uint8_t corner, uint32_t totalUses, size_t links) {
+    return {totalUses, static_cast<uint32_t>(2 * links), corner, true};
+  }
+  void face(uint32_t f, const Candidate<Value>* candidates, size_t count) {
+    for (size_t i = 0; i < count; ++i) {
+      if (i == 0 || candidates[i].face != candidates[i - 1].face) {
+        edgeLow.push_back(f);
+        edgeHigh.push_back(candidates[i].face);
+        shareStart.push_back(static_cast<uint32_t>(shares.size()));
+      }
+      shares.push_back(candidates[i].value);
+    }
+  }
+};
+
+void throwIfTooManyEdges(size_t edges) {
+  if (edges >= size_t{0x7FFFFFFF}) throw std::invalid_argument("mesh has more than 2^31-1 dual edges");
+}
+
+// Adjacency lists; pushing to the front leaves each list in descending edge order.
+void linkLists(DualGraph& graph, uint32_t faces) {
+  reserveHugePages(graph.head, faces);
+  graph.head.assign(faces, DualGraph::kNone);
   for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
     DualEdge& edge = graph.edges[e];
     for (uint32_t s = 0; s < 2; ++s) {
@@ -159,6 +212,102 @@ DualGraph buildDualGraph(const FaceGeometry& geometry) {
       graph.head[edge.end[s]] = 2 * e + s;
     }
   }
+}
+
+}  // namespace
+
+DualGraph buildDualGraph(const FaceGeometry& geometry) {
+  DualGraph graph;
+  // A closed manifold mesh has exactly 3n/2 dual edges; reserve that (growth covers the rest).
+  reserveHugePages(graph.edges, size_t{geometry.faceCount()} * 3 / 2 + 16);
+  LengthPolicy policy{geometry, graph};
+  matchFaces(geometry, policy);
+  throwIfTooManyEdges(graph.edges.size());
+  linkLists(graph, geometry.faceCount());
+  return graph;
+}
+
+FaceAdjacency FaceAdjacencyAccess::build(const MeshView& mesh) {
+  FaceAdjacency adjacency;
+  if (mesh.triangleCount() == 0) return adjacency;
+  const FaceGeometry geometry(mesh);  // validates the indices
+  const uint32_t n = geometry.faceCount();
+  std::vector<uint32_t> edgeLow, edgeHigh;
+  edgeLow.reserve(size_t{n} * 3 / 2 + 16);
+  edgeHigh.reserve(size_t{n} * 3 / 2 + 16);
+  adjacency.shareStart_.reserve(size_t{n} * 3 / 2 + 17);
+  adjacency.shares_.reserve(size_t{n} * 3 / 2 + 16);
+  SharePolicy policy{edgeLow, edgeHigh, adjacency.shareStart_, adjacency.shares_};
+  matchFaces(geometry, policy);
+  throwIfTooManyEdges(edgeLow.size());
+  adjacency.shareStart_.push_back(static_cast<uint32_t>(adjacency.shares_.size()));
+
+  // Both directions of every edge; filled in edge order, each face's list comes out ascending (its lower
+  // neighbours from earlier faces' edges, then its own edges in order).
+  std::vector<uint32_t>& start = adjacency.linkStart_;
+  start.assign(size_t{n} + 1, 0);
+  for (size_t e = 0; e < edgeLow.size(); ++e) {
+    ++start[edgeLow[e] + 1];
+    ++start[edgeHigh[e] + 1];
+  }
+  for (uint32_t f = 0; f < n; ++f) start[f + 1] += start[f];
+  adjacency.links_.resize(start[n]);
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (uint32_t e = 0; e < edgeLow.size(); ++e) {
+      adjacency.links_[fill[edgeLow[e]]++] = {edgeHigh[e], e};
+      adjacency.links_[fill[edgeHigh[e]]++] = {edgeLow[e], e};
+    }
+  }
+  adjacency.position_.assign(n, kNotInPiece);
+  return adjacency;
+}
+
+FaceAdjacency buildFaceAdjacency(const MeshView& mesh) {
+  return FaceAdjacencyAccess::build(mesh);
+}
+
+size_t FaceAdjacency::memoryBytes() const {
+  return linkStart_.capacity() * sizeof(uint32_t) + links_.capacity() * sizeof(Link) +
+         shareStart_.capacity() * sizeof(uint32_t) + shares_.capacity() * sizeof(Share) +
+         position_.capacity() * sizeof(uint32_t);
+}
+
+FaceAdjacencyAccess::Piece::Piece(FaceAdjacency& adjacency, std::span<const uint32_t> faces, size_t triangles)
+    : adjacency_(adjacency), faces_(faces) {
+  if (faces.size() != triangles)
+    throw std::invalid_argument("piece of " + std::to_string(triangles) + " triangles given " +
+                                std::to_string(faces.size()) + " faces of the adjacency");
+  std::vector<uint32_t>& position = adjacency.position_;
+  for (size_t k = 0; k < faces.size(); ++k) {
+    const uint32_t f = faces[k];
+    if (f >= position.size() || position[f] != kNotInPiece) {
+      for (size_t i = 0; i < k; ++i) position[faces[i]] = kNotInPiece;  // no destructor after a throw
+      throw std::invalid_argument(
+          "piece face " + std::to_string(k) + " (" + std::to_string(f) +
+          (f >= position.size() ? ") is out of the adjacency's range" : ") is repeated"));
+    }
+    position[f] = static_cast<uint32_t>(k);
+    monotone_ &= k == 0 || f > faces[k - 1];
+  }
+  set_ = faces.size();
+}
+
+FaceAdjacencyAccess::Piece::~Piece() {
+  for (size_t k = 0; k < set_; ++k) adjacency_.position_[faces_[k]] = kNotInPiece;
+}
+
+std::optional<DualGraph> pieceDualGraph(const FaceGeometry& piece, FaceAdjacency& adjacency,
+                                        std::span<const uint32_t> faces) {
+  const FaceAdjacencyAccess::Piece view(adjacency, faces, piece.faceCount());
+  DualGraph graph;
+  reserveHugePages(graph.edges, size_t{piece.faceCount()} * 3 / 2 + 16);
+  if (!view.forEachEdge(piece, [&](uint32_t f, uint32_t g, float shared) {
+        graph.edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, shared, 0.0f});
+      }))
+    return std::nullopt;
+  throwIfTooManyEdges(graph.edges.size());
+  linkLists(graph, piece.faceCount());
   return graph;
 }
 

@@ -10,9 +10,14 @@
 // allocated per merge.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <optional>
+#include <span>
 #include <vector>
+
+#include <glm/geometric.hpp>
 
 #include "merge/face_geometry.h"
 
@@ -52,5 +57,88 @@ struct DualGraph {
 // clusters (874k non-manifold edges) to 0, and with them the costs. Edges are
 // numbered by (lower face, higher face), so the graph is a pure function of the input.
 DualGraph buildDualGraph(const FaceGeometry& geometry);
+
+// The face adjacency's internals (merge.h FaceAdjacency): its construction, and a piece of its mesh
+// read through it.
+struct FaceAdjacencyAccess {
+  static constexpr uint32_t kNotInPiece = std::numeric_limits<uint32_t>::max();
+
+  static FaceAdjacency build(const MeshView& mesh);
+
+  // Marks the piece's faces in the adjacency's scratch (their positions) for its lifetime.
+  class Piece {
+   public:
+    Piece(FaceAdjacency& adjacency, std::span<const uint32_t> faces, size_t triangles);
+    ~Piece();
+    Piece(const Piece&) = delete;
+    Piece& operator=(const Piece&) = delete;
+
+    // The piece's dual graph as buildDualGraph(piece) would build it, edge by edge in its order:
+    // emit(f, g, shared) with piece positions f < g. Returns whether that is the piece's graph: true
+    // when the piece is closed (no face outside it shares a mesh edge with it) with its faces in the
+    // adjacency's order, or when its faces share only manifold edges among themselves (pairs of faces
+    // sharing all three edges in the adjacency's order) and none lies on a chained edge. Then every
+    // mesh edge joins the same faces with the same factors in both graphs; lengths are the piece's own.
+    template <class Emit>
+    bool forEachEdge(const FaceGeometry& piece, Emit&& emit) const;
+
+   private:
+    FaceAdjacency& adjacency_;
+    std::span<const uint32_t> faces_;
+    size_t set_ = 0;  // faces marked so far
+    bool monotone_ = true;
+  };
+};
+
+// The dual graph of a piece of the adjacency's mesh (FaceAdjacency), or nothing when the adjacency's
+// restricted to the piece would not be the piece's own (see Piece::forEachEdge).
+std::optional<DualGraph> pieceDualGraph(const FaceGeometry& piece, FaceAdjacency& adjacency,
+                                        std::span<const uint32_t> faces);
+
+template <class Emit>
+bool FaceAdjacencyAccess::Piece::forEachEdge(const FaceGeometry& piece, Emit&& emit) const {
+  const FaceAdjacency& a = adjacency_;
+  const std::vector<uint32_t>& position = a.position_;
+  bool closed = true, nonManifoldInside = false, chained = false, tripleInside = false;
+  struct Next {
+    uint32_t position, edge, face;
+  };
+  std::vector<Next> next;
+  for (uint32_t k = 0; k < faces_.size(); ++k) {
+    const uint32_t f = faces_[k];
+    next.clear();
+    for (const FaceAdjacency::Link& link : a.links(f)) {
+      const uint32_t p = position[link.face];
+      const std::span<const FaceAdjacency::Share> shares = a.shares(link.edge);
+      for (const FaceAdjacency::Share& s : shares) chained |= s.chain;
+      if (p == kNotInPiece) {
+        closed = false;
+        continue;
+      }
+      for (const FaceAdjacency::Share& s : shares)
+        nonManifoldInside |= s.numerator != 1 || s.denominator != 1;
+      tripleInside |= shares.size() >= 3;
+      if (p > k) next.push_back({p, link.edge, link.face});
+    }
+    for (size_t i = 1; i < next.size(); ++i) {
+      const Next x = next[i];
+      size_t j = i;
+      for (; j > 0 && next[j - 1].position > x.position; --j) next[j] = next[j - 1];
+      next[j] = x;
+    }
+    for (const Next& x : next) {
+      // The corners are the adjacency's lower face's.
+      const uint32_t low = f < x.face ? k : x.position;
+      float shared = 0;
+      for (const FaceAdjacency::Share& s : a.shares(x.edge)) {
+        const uint32_t va = piece.vertex(low, s.corner), vb = piece.vertex(low, (s.corner + 1) % 3);
+        const double length = glm::length(piece.position(va) - piece.position(vb));
+        shared += float(length * s.numerator / s.denominator);
+      }
+      emit(k, x.position, shared);
+    }
+  }
+  return (closed && monotone_) || (!nonManifoldInside && !chained && (monotone_ || !tripleInside));
+}
 
 }  // namespace facetree

@@ -156,6 +156,73 @@ double surfaceFitError(const SurfaceStats& stats, double flatThreshold = 0.5);
 // Throws std::invalid_argument as buildHierarchy does for invalid indices.
 uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label);
 
+// The dual graph's matching of a mesh without its lengths: which faces share which mesh edges under the
+// edge rules (dual_graph.h), and which factor of each edge's length they share. Built once for a mesh (an
+// out-of-core cell), it stands in for the dual graph that faceComponents, buildHierarchy and surfaceStats
+// would each build again for the pieces of it; lengths are evaluated per piece about the piece's own
+// origin, so every result is bit-identical to the call on the piece's own MeshView.
+class FaceAdjacency {
+ public:
+  // A neighbour of a face and the dual edge to it. Dual edges are numbered by (lower face, higher face),
+  // as the dual graph numbers them.
+  struct Link {
+    uint32_t face;
+    uint32_t edge;
+  };
+  // One mesh edge's part in a dual edge: the edge from corner `corner` to corner (corner + 1) % 3 of the
+  // dual edge's lower face, of which the two faces share length * numerator / denominator (dual_graph.h:
+  // u_f u_g / (U - 1) pairwise, U / (2 (K - 1)) along a chain of K faces).
+  struct Share {
+    uint32_t numerator = 1;
+    uint32_t denominator = 1;
+    uint8_t corner = 0;
+    bool chain = false;
+  };
+
+  uint32_t faceCount() const { return linkStart_.empty() ? 0 : static_cast<uint32_t>(linkStart_.size() - 1); }
+  uint32_t edgeCount() const {
+    return shareStart_.empty() ? 0 : static_cast<uint32_t>(shareStart_.size() - 1);
+  }
+  // The face's neighbours in increasing order (a face sharing several mesh edges is one neighbour).
+  std::span<const Link> links(uint32_t face) const {
+    return {links_.data() + linkStart_[face], links_.data() + linkStart_[face + 1]};
+  }
+  // In the order of the lower face's corners (the order the dual graph sums them in).
+  std::span<const Share> shares(uint32_t edge) const {
+    return {shares_.data() + shareStart_[edge], shares_.data() + shareStart_[edge + 1]};
+  }
+  // 4 bytes per face of scratch included.
+  size_t memoryBytes() const;
+
+ private:
+  friend struct FaceAdjacencyAccess;  // dual_graph.cpp builds it and reads pieces of it
+  std::vector<uint32_t> linkStart_;   // faceCount + 1
+  std::vector<Link> links_;
+  std::vector<uint32_t> shareStart_;  // edgeCount + 1
+  std::vector<Share> shares_;
+  std::vector<uint32_t> position_;  // scratch: a face's position in the piece being read, else ~0u
+};
+
+// The matching of `mesh`; throws std::invalid_argument as buildHierarchy does for invalid indices. Memory
+// about 60 bytes per face of a manifold mesh.
+FaceAdjacency buildFaceAdjacency(const MeshView& mesh);
+
+// faceComponents of the adjacency's mesh.
+uint32_t faceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& label);
+
+// The calls on a piece of the adjacency's mesh: triangle k of `piece` is face faces[k] of the adjacency's
+// mesh (the same corners in the same order; vertex ids may differ, positions not), the faces distinct. The
+// result is the call's on `piece` alone; the adjacency saves building the piece's dual graph when that
+// graph is the adjacency's restricted to the piece: for a union of components in increasing face order
+// (a component group), and for any piece whose faces share only manifold mesh edges among themselves
+// (most leaf clusters). Otherwise the piece's graph is built as without it. Throws std::invalid_argument
+// as those calls do, and for a face out of the adjacency's range, repeated, or a count that is not the
+// piece's. The adjacency's scratch is used: one call at a time per adjacency.
+Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
+                         const BuildOptions& options = {});
+SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
+                          const glm::dvec3& origin);
+
 // A dual edge between two leaf clusters (a != b): shared boundary length. Parallel edges are summed.
 struct ClusterEdge {
   uint32_t a = 0, b = 0;

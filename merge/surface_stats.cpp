@@ -4,6 +4,8 @@
 // numbers. The perimeter follows the dual graph's edge rules (dual_graph.h): the sum of the
 // triangles' perimeters minus twice every dual edge's shared length, which is what the merges
 // of all dual edges subtract (perim(A u B) = perim(A) + perim(B) - 2 shared).
+// With a FaceAdjacency built once for a whole mesh, the shared lengths of a piece come from it
+// (dual_graph.h FaceAdjacencyAccess::Piece) instead of the piece's own dual graph.
 // surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
 
@@ -28,9 +30,30 @@ void add(ClusterStats& sum, const ClusterStats& s) {
   for (int i = 0; i < 6; ++i) sum.secondMoment.m[i] += s.secondMoment.m[i];
 }
 
-}  // namespace
+// Sums the dual graph's shared lengths (float, as the engine subtracts them) in blocks, in the graph's
+// edge order.
+class SharedSum {
+ public:
+  void add(float shared) {
+    block_ += shared;
+    if (++edges_ % kSumBlock == 0) total_ += block_, block_ = 0;
+  }
+  double total() const { return total_ + block_; }
 
-SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin) {
+ private:
+  double total_ = 0, block_ = 0;
+  uint32_t edges_ = 0;
+};
+
+double graphShared(const FaceGeometry& geometry) {
+  SharedSum sum;
+  for (const DualEdge& edge : buildDualGraph(geometry).edges) sum.add(edge.shared);
+  return sum.total();
+}
+
+// The statistics with the total shared length of the dual graph from `sharedOf(geometry)`.
+template <class SharedOf>
+SurfaceStats stats(const MeshView& mesh, const glm::dvec3& origin, const SharedOf& sharedOf) {
   if (mesh.triangleCount() == 0) return SurfaceStats{};
   const FaceGeometry geometry(mesh);  // validates the indices
   const uint32_t n = geometry.faceCount();
@@ -46,16 +69,29 @@ SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin) {
     }
     add(total, block);
   }
-  // Shared lengths are the dual graph's (float, as the engine subtracts them).
-  double shared = 0, blockShared = 0;
-  const DualGraph graph = buildDualGraph(geometry);
-  for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
-    blockShared += graph.edges[e].shared;
-    if ((e + 1) % kSumBlock == 0) shared += blockShared, blockShared = 0;
-  }
-  shared += blockShared;
-  total.perimeter = std::max(0.0, total.perimeter - 2.0 * shared);
+  total.perimeter = std::max(0.0, total.perimeter - 2.0 * sharedOf(geometry));
   return toSurfaceStats(total, n, 1);
+}
+
+}  // namespace
+
+SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin) {
+  return stats(mesh, origin, graphShared);
+}
+
+SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
+                          const glm::dvec3& origin) {
+  if (piece.triangleCount() == 0) {
+    // Nothing to read, but the faces must still be the piece's.
+    const FaceAdjacencyAccess::Piece view(adjacency, faces, 0);
+    return SurfaceStats{};
+  }
+  return stats(piece, origin, [&](const FaceGeometry& geometry) {
+    const FaceAdjacencyAccess::Piece view(adjacency, faces, geometry.faceCount());
+    SharedSum sum;
+    const bool exact = view.forEachEdge(geometry, [&](uint32_t, uint32_t, float shared) { sum.add(shared); });
+    return exact ? sum.total() : graphShared(geometry);
+  });
 }
 
 double surfaceFitError(const SurfaceStats& stats, double flatThreshold) {
