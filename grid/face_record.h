@@ -3,8 +3,13 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <span>
 #include <type_traits>
+#include <vector>
 
 #include <glm/vec3.hpp>
 
@@ -20,6 +25,18 @@ struct FaceRecord {
   glm::vec3 corner(int i) const { return {position[3 * i], position[3 * i + 1], position[3 * i + 2]}; }
 };
 static_assert(sizeof(FaceRecord) == 56 && std::is_trivially_copyable_v<FaceRecord>);
+
+// The records of one spill block (its raw bytes) into `records`.
+inline void decodeRecords(std::span<const std::byte> bytes, std::vector<FaceRecord>& records) {
+  records.resize(bytes.size() / sizeof(FaceRecord));
+  std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
+}
+
+// A coordinate as bits that compare equal exactly when welding makes the floats one: -0 and +0
+// weld (grid/weld.cpp in core, out_of_core_weld.cpp out of core).
+inline uint32_t weldBits(float f) {
+  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);
+}
 
 // Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.
 template <class F>

@@ -18,7 +18,6 @@ namespace facetree {
 namespace {
 
 constexpr size_t kBatchTriangles = 4096;
-constexpr size_t kArrivalBufferBytes = size_t{1} << 20;
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -225,12 +224,8 @@ void OutOfCoreBuild::resolveSpilledPositions() {
 void OutOfCoreBuild::binAndDistribute() {
   grid_ = std::make_unique<CellGrid>(min_, max_);
   std::vector<FaceRecord> records;
-  const auto decode = [&records](std::span<const std::byte> bytes) {
-    records.resize(bytes.size() / sizeof(FaceRecord));
-    std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
-  };
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-    decode(bytes);
+    decodeRecords(bytes, records);
     for (const FaceRecord& r : records)
       grid_->count(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
   });
@@ -251,7 +246,7 @@ void OutOfCoreBuild::binAndDistribute() {
 
   uint64_t done = 0;
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-    decode(bytes);
+    decodeRecords(bytes, records);
     for (const FaceRecord& r : records) {
       const uint32_t cell = grid_->nextFaceCell(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
       const auto local = static_cast<uint32_t>(cellFaces_->records(cell));

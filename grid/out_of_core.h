@@ -148,6 +148,8 @@ class OutOfCoreBuild {
   void run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending);
 
  private:
+  // Buffer of the arrival (and triangle reference) spills.
+  static constexpr size_t kArrivalBufferBytes = size_t{1} << 20;
   void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
   void readAll(TriangleReader& reader, PendingTriangles&& pending);
   void appendArrival(const FaceRecord& record);

@@ -18,12 +18,7 @@
 namespace facetree {
 namespace {
 
-constexpr size_t kArrivalBufferBytes = size_t{1} << 20;
 constexpr size_t kReadBatch = 4096;
-
-uint32_t canonicalBits(float f) {
-  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);  // -0 and +0 weld (as grid/weld.cpp)
-}
 
 // A corner by position; `input` is the reader's vertex id (kNoVertex in a soup), `slot` is
 // 3 * arrival index + corner.
@@ -59,10 +54,6 @@ void OutOfCoreBuild::weldArrival() {
   arrival_->flushAll();
   const uint64_t sortBudget = std::max<uint64_t>(memoryCap_ / 6, uint64_t{4} << 20);
   std::vector<FaceRecord> records;
-  const auto decode = [&records](std::span<const std::byte> bytes) {
-    records.resize(bytes.size() / sizeof(FaceRecord));
-    std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
-  };
 
   ExternalSorter<CornerId, SlotOrder> bySlot(temp_, "weld-slot", sortBudget);
   uint64_t vertices = 0, welded = 0;
@@ -70,11 +61,11 @@ void OutOfCoreBuild::weldArrival() {
     ExternalSorter<CornerByPosition, PositionOrder> byPosition(temp_, "weld-position", sortBudget);
     uint64_t slot = 0;
     arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-      decode(bytes);
+      decodeRecords(bytes, records);
       for (const FaceRecord& r : records) {
         for (int k = 0; k < 3; ++k, ++slot) {
-          byPosition.push({{canonicalBits(r.position[3 * k]), canonicalBits(r.position[3 * k + 1]),
-                            canonicalBits(r.position[3 * k + 2])},
+          byPosition.push({{weldBits(r.position[3 * k]), weldBits(r.position[3 * k + 1]),
+                            weldBits(r.position[3 * k + 2])},
                            r.vertex[k],
                            slot});
         }
@@ -112,7 +103,7 @@ void OutOfCoreBuild::weldArrival() {
   std::vector<CornerId> ids(3);
   uint64_t slot = 0;
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-    decode(bytes);
+    decodeRecords(bytes, records);
     for (FaceRecord& r : records) {
       if (bySlot.read(ids) != 3 || ids[0].slot != slot || ids[2].slot != slot + 2)
         throw std::logic_error("out-of-core build: the weld lost a corner");

@@ -3,6 +3,7 @@
 #include <bit>
 #include <numeric>
 
+#include "grid/face_record.h"
 #include "grid/grid.h"
 
 namespace facetree {
@@ -14,17 +15,13 @@ struct PositionKey {
   auto operator<=>(const PositionKey&) const = default;
 };
 
-uint32_t canonicalBits(float f) {
-  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);  // -0 and +0 weld
-}
-
 }  // namespace
 
 uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices) {
   const size_t n = positions.size();
   std::vector<PositionKey> keys(n);
   for (size_t i = 0; i < n; ++i)
-    keys[i] = {canonicalBits(positions[i].x), canonicalBits(positions[i].y), canonicalBits(positions[i].z)};
+    keys[i] = {weldBits(positions[i].x), weldBits(positions[i].y), weldBits(positions[i].z)};
   std::vector<uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   // Ties by index, so each run of equal positions starts at its lowest-numbered vertex.
