@@ -53,6 +53,8 @@ JobReport runClusterJob(const ClusterJob& job) {
   VertexPositions positions(temp, cap / 4);
   ReadOptions readOptions;
   readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };
+  // Draco is decoded whole: refused before decoding when that alone would pass the cap.
+  readOptions.wholeMeshLimitBytes = cap > kBaseBytes ? cap - kBaseBytes : 1;
   std::unique_ptr<TriangleReader> reader =
       job.input == "-" ? openStandardInput(readOptions) : openMesh(job.input, readOptions);
   const bool deferred = reader->positionsDeferred();
@@ -76,8 +78,21 @@ JobReport runClusterJob(const ClusterJob& job) {
     }
   }
   if (outOfCore) {
-    runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending), cap,
-                 report);
+    // A reader that holds the whole mesh (Draco) keeps it through the out-of-core read and bin
+    // passes: the build gets the rest of the cap (its cells are sized from that).
+    const uint64_t held = reader->heldBytes();
+    const uint64_t left = cap > held ? cap - held : 0;
+    if (held > 0 && left < outOfCoreMinimumBytes()) {
+      constexpr uint64_t kMiB = uint64_t{1} << 20;
+      throw MemoryCapError(reader->info().name + ": the " + formatName(reader->info().format) +
+                           " mesh is decoded whole (the format cannot be streamed) and holds " +
+                           std::to_string((held + kMiB - 1) / kMiB) + " MiB of --memory " +
+                           std::to_string(cap / kMiB) + " MiB; the out-of-core build needs " +
+                           std::to_string((outOfCoreMinimumBytes() + kMiB - 1) / kMiB) +
+                           " MiB beside it: raise --memory or convert the mesh to PLY, which streams");
+    }
+    runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending),
+                 left, report);
     report.seconds = secondsSince(start);
     return report;
   }

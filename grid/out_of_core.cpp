@@ -335,6 +335,10 @@ uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
                                double(std::max<uint64_t>(triangles_, 1)));
 }
 
+uint64_t outOfCoreMinimumBytes() {
+  return kBaseBytes + CellGrid::kBins * sizeof(uint32_t) + kMinCellFaces * kCellBytesPerFace;
+}
+
 void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending) {
   // Cell size from the cap alone (kCellWorkers at once; one if two would be too small), then
   // as many workers as the cap holds, up to --threads: the output does not depend on the threads.
@@ -347,7 +351,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
     cellFaceLimit_ = std::min(kMaxCellFaces, spare / kCellWorkers / kCellBytesPerFace);
     if (cellFaceLimit_ < kMinCellFaces) cellFaceLimit_ = spare / kCellBytesPerFace;
     if (cellFaceLimit_ < kMinCellFaces) {
-      const uint64_t need = fixed + kMinCellFaces * kCellBytesPerFace;
+      const uint64_t need = outOfCoreMinimumBytes();
       throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) +
                            " MiB is too small: an out-of-core build needs at least " +
                            std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");

@@ -100,6 +100,8 @@ inline constexpr uint64_t kCellWorkers = 2;
 // 2M), small enough that large caps build several at once.
 inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
+// The least cap an out-of-core build accepts: the fixed part and one cell of kMinCellFaces.
+uint64_t outOfCoreMinimumBytes();
 // Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
 // faces (and at least kMinFrontierFaces; larger when the leaf budget pays for fewer): enough pieces
 // per cell that the upper merge can balance the top of the tree across cell borders and that cuts

@@ -284,5 +284,8 @@ void writeReorderedMesh(const MeshView& mesh, const Hierarchy& hierarchy, const 
                         const MeshOutOptions& options = {});
 void writeReorderedMesh(const ClusterFile& file, const std::filesystem::path& path,
                         const MeshOutOptions& options = {});
+// An indexed mesh as it is (binary PLY or Draco, by the name's extension, as above).
+void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices,
+               const std::filesystem::path& path, const MeshOutOptions& options = {});
 
 }  // namespace facetree

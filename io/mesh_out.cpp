@@ -61,6 +61,8 @@ void writeDraco(std::span<const glm::vec3> vertices, std::span<const uint32_t> i
   out.commit();
 }
 
+}  // namespace
+
 void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices,
                const std::filesystem::path& path, const MeshOutOptions& options) {
   if (hasExtension(path, ".drc"))
@@ -70,8 +72,6 @@ void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> in
   else
     throw std::invalid_argument(path.string() + ": reordered mesh name must end in .ply or .drc");
 }
-
-}  // namespace
 
 FirstUseNumbering numberByFirstUse(const MeshView& mesh, std::span<const uint32_t> faceOrder) {
   FirstUseNumbering out;

@@ -16,11 +16,13 @@ namespace facetree::stream_detail {
 std::unique_ptr<TriangleReader> makePlyReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
 std::unique_ptr<TriangleReader> makeObjReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
 std::unique_ptr<TriangleReader> makeStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
-std::unique_ptr<TriangleReader> makeDracoReader(std::unique_ptr<InputBuffer> input, MeshInfo info);
+std::unique_ptr<TriangleReader> makeDracoReader(std::unique_ptr<InputBuffer> input, MeshInfo info,
+                                                uint64_t wholeMeshLimitBytes = 0);
 
 // The reader for an already detected mesh format; nullptr for Empty, Unknown and Zstd.
+// `wholeMeshLimitBytes`: ReadOptions::wholeMeshLimitBytes.
 std::unique_ptr<TriangleReader> makeReader(DetectedFormat format, std::unique_ptr<InputBuffer> input,
-                                           MeshInfo info);
+                                           MeshInfo info, uint64_t wholeMeshLimitBytes = 0);
 
 // Detects the format of `input` (unwrapping zstd) and opens the matching reader.
 std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, const std::string& name,

@@ -48,7 +48,7 @@ std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, co
       throwReadError(name, Place::byte(0), "zstd inside zstd is not supported");
   }
   if (format == DetectedFormat::Empty) throwReadError(name, Place::byte(0), "empty file");
-  if (auto reader = makeReader(format, std::move(input), std::move(info))) {
+  if (auto reader = makeReader(format, std::move(input), std::move(info), options.wholeMeshLimitBytes)) {
     const MeshFormat f = reader->info().format;
     const bool indexed = f == MeshFormat::PlyAscii || f == MeshFormat::PlyBinaryLittleEndian ||
                          f == MeshFormat::PlyBinaryBigEndian || f == MeshFormat::Obj;
@@ -59,7 +59,7 @@ std::unique_ptr<TriangleReader> openInput(std::unique_ptr<InputBuffer> input, co
 }
 
 std::unique_ptr<TriangleReader> makeReader(DetectedFormat format, std::unique_ptr<InputBuffer> input,
-                                           MeshInfo info) {
+                                           MeshInfo info, uint64_t wholeMeshLimitBytes) {
   switch (format) {
     case DetectedFormat::Empty:
     case DetectedFormat::Unknown:
@@ -68,7 +68,7 @@ std::unique_ptr<TriangleReader> makeReader(DetectedFormat format, std::unique_pt
     case DetectedFormat::Ply:
       return makePlyReader(std::move(input), std::move(info));
     case DetectedFormat::Draco:
-      return makeDracoReader(std::move(input), std::move(info));
+      return makeDracoReader(std::move(input), std::move(info), wholeMeshLimitBytes);
     case DetectedFormat::Obj:
       return makeObjReader(std::move(input), std::move(info));
     case DetectedFormat::StlAscii:

@@ -97,6 +97,9 @@ class TriangleReader {
   // and vertices() is empty; a non-finite corner counts as one non-finite vertex, coincident
   // corners as a degenerate triangle. The caller welds (out-of-core builds: by an external sort).
   virtual bool stopWelding() { return false; }
+  // Bytes the reader holds for the whole mesh until it is destroyed: Draco's decoded mesh
+  // (see ReadOptions::wholeMeshLimitBytes); 0 for the streaming formats.
+  virtual uint64_t heldBytes() const { return 0; }
 };
 
 struct ReadOptions {
@@ -111,6 +114,12 @@ struct ReadOptions {
   // vertices() then has the right size() but no positions. STL (positions per triangle, welded
   // in memory) and Draco (decoded whole) ignore the sink.
   std::function<void(std::span<const glm::vec3>)> vertexSink = {};
+  // Draco has no streaming decoder: its reader decodes the whole mesh at open. With a limit, it
+  // first estimates the decoding's peak from the counts in the file's header (and the encoded
+  // bytes as they are read) and fails with a ReadError, before decoding, when it is over the
+  // limit; after decoding it checks the decoded mesh's actual size again (attributes the
+  // header does not count). 0: no limit. The streaming formats ignore it.
+  uint64_t wholeMeshLimitBytes = 0;
 };
 
 // Opens a mesh file; the format is detected from the content, not the name

@@ -1,9 +1,11 @@
 // Draco: a mesh encoded in the test with draco's encoder reads back exactly.
 #include <draco/compression/encode.h>
 #include <draco/mesh/triangle_soup_mesh_builder.h>
+#include <draco/metadata/geometry_metadata.h>
 
 #include <gtest/gtest.h>
 
+#include "stream/draco_header.h"
 #include "stream/stream.h"
 #include "test_util.h"
 
@@ -89,6 +91,116 @@ TEST(StreamDraco, BoolPositionAttributeIsAnError) {
   const auto path = dir.write("bool.drc", bytes);
   EXPECT_EQ(test::errorOf([&] { test::readFile(path); }),
             path.string() + ": byte 0: draco position attribute has unsupported data type 11");
+}
+
+// A side x side grid of unit squares, two triangles each.
+test::SimpleMesh squareGrid(int side) {
+  test::SimpleMesh mesh;
+  for (int j = 0; j <= side; ++j)
+    for (int i = 0; i <= side; ++i)
+      mesh.vertices.emplace_back(float(i), float(j), 0.25f * float((i * j) % 3));
+  for (int j = 0; j < side; ++j)
+    for (int i = 0; i < side; ++i) {
+      const int64_t v = j * (side + 1) + i;
+      mesh.faces.push_back({v, v + 1, v + side + 2});
+      mesh.faces.push_back({v, v + side + 2, v + side + 1});
+    }
+  return mesh;
+}
+
+// `mesh` encoded by either method, with nested metadata when asked (which sits between the
+// header and the counts).
+std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod method, bool metadata) {
+  draco::Mesh draco;
+  draco.set_num_points(static_cast<uint32_t>(mesh.vertices.size()));
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3,
+                0);
+  const int id = draco.AddAttribute(position, true, static_cast<uint32_t>(mesh.vertices.size()));
+  for (size_t v = 0; v < mesh.vertices.size(); ++v)
+    draco.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(v)),
+                                           &mesh.vertices[v].x);
+  for (const Triangle& t : test::expectedTriangles(mesh))
+    draco.AddFace(
+        {draco::PointIndex(t.vertex[0]), draco::PointIndex(t.vertex[1]), draco::PointIndex(t.vertex[2])});
+  if (metadata) {
+    auto geometry = std::make_unique<draco::GeometryMetadata>();
+    geometry->AddEntryString("scanner", std::string(300, 's'));  // a value longer than 127: 2-byte varint
+    geometry->AddEntryInt("pass", 7);
+    auto child = std::make_unique<draco::Metadata>();
+    child->AddEntryDouble("gain", 1.5);
+    auto grandchild = std::make_unique<draco::Metadata>();
+    grandchild->AddEntryString("note", "nested");
+    child->AddSubMetadata("inner", std::move(grandchild));
+    geometry->AddSubMetadata("calibration", std::move(child));
+    draco.AddMetadata(std::move(geometry));
+    auto attribute = std::make_unique<draco::AttributeMetadata>();
+    attribute->AddEntryString("unit", "m");
+    draco.AddAttributeMetadata(id, std::move(attribute));
+  }
+  draco::Encoder encoder;
+  encoder.SetEncodingMethod(method);
+  draco::EncoderBuffer buffer;
+  const draco::Status status = encoder.EncodeMeshToBuffer(draco, &buffer);
+  if (!status.ok()) throw std::runtime_error(status.error_msg_string());
+  return std::string(buffer.data(), buffer.size());
+}
+
+// The counts come from the header alone, for both methods and past metadata; a prefix that
+// ends before them gives no counts (and no read past its end).
+TEST(StreamDraco, HeaderCountsWithoutDecoding) {
+  const test::SimpleMesh mesh = squareGrid(30);
+  for (const auto method : {draco::MESH_SEQUENTIAL_ENCODING, draco::MESH_EDGEBREAKER_ENCODING})
+    for (const bool metadata : {false, true}) {
+      SCOPED_TRACE(testing::Message() << "method " << method << ", metadata " << metadata);
+      const std::string bytes = encodeWith(mesh, method, metadata);
+      const auto counts = stream_detail::parseDracoCounts(bytes);
+      ASSERT_TRUE(counts.has_value());
+      EXPECT_EQ(counts->major, 2);
+      EXPECT_EQ(counts->edgebreaker, method == draco::MESH_EDGEBREAKER_ENCODING);
+      EXPECT_EQ(counts->faces, 1800u);
+      EXPECT_EQ(counts->points, 961u);
+      size_t needed = 0;
+      for (size_t length = 0; length <= bytes.size() && needed == 0; ++length) {
+        const std::string prefix = bytes.substr(0, length);  // its own allocation: ASan sees overreads
+        if (stream_detail::parseDracoCounts(prefix)) needed = length;
+      }
+      EXPECT_GT(needed, metadata ? 330u : 11u);  // the metadata is read through, not guessed
+      EXPECT_LT(needed, bytes.size());
+    }
+  EXPECT_FALSE(stream_detail::parseDracoCounts(std::string("DRACO\x02\x02\x00\x00\x00\x00", 11)))
+      << "a point cloud has no faces";
+}
+
+std::string mebibytes(uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
+  return text;
+}
+
+// With a limit, a mesh whose decoding would pass it is refused from its header, before being
+// decoded; under the limit it decodes, and the reader says what it holds.
+TEST(StreamDraco, WholeMeshLimitRefusesBeforeDecoding) {
+  const std::string bytes = encodeWith(squareGrid(100), draco::MESH_SEQUENTIAL_ENCODING, false);
+  test::TempDir dir;
+  const auto path = dir.write("grid.drc", bytes);
+  ReadOptions options;
+  options.wholeMeshLimitBytes = 100000;
+  EXPECT_EQ(test::errorOf([&] { openMesh(path, options); }),
+            path.string() +
+                ": byte 0: a draco mesh is decoded whole (the format cannot be streamed): 20000 faces and "
+                "10201 points need about " +
+                mebibytes(bytes.size() + 24 * (20000 + 10201)) +
+                ", over the 0.1 MiB allowed to the reader; raise the memory cap "
+                "or convert the mesh to PLY, which streams");
+  options.wholeMeshLimitBytes = uint64_t{8} << 20;
+  auto reader = openMesh(path, options);
+  EXPECT_EQ(reader->info().declaredFaces, 20000u);
+  // Faces (12 B) and positions (draco's 12 B and ours) at least.
+  EXPECT_GE(reader->heldBytes(), 12u * 20000 + 24u * 10201);
+  EXPECT_EQ(test::readAll(*reader, 4096).size(), 20000u);
+  EXPECT_EQ(openMesh(path)->heldBytes(), reader->heldBytes()) << "no limit: the same reader";
+  EXPECT_EQ(openMesh(dir.write("p.ply", test::writePly(test::pyramid())))->heldBytes(), 0u);
 }
 
 }  // namespace
