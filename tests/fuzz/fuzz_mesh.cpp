@@ -36,7 +36,7 @@ bool wanted(DetectedFormat format) {
 std::unique_ptr<TriangleReader> openDetected(std::unique_ptr<InputBuffer> input, DetectedFormat format) {
   MeshInfo info;
   info.name = "fuzz";
-  return makeReader(format, std::move(input), std::move(info));
+  return makeReader(format, std::move(input), std::move(info), fuzz::kWholeMeshLimitBytes);
 }
 
 }  // namespace

@@ -33,6 +33,9 @@ inline constexpr uint64_t kMaxTriangles = uint64_t{1} << 20;
 // (once through a 7-byte buffer) made fuzz_zstd run at 41 exec/s with a 64 MiB cap.
 inline constexpr uint64_t kMaxDecompressedBytes = uint64_t{4} << 20;
 inline constexpr size_t kBatchTriangles = 1024;
+// The tool always gives the readers a limit for a mesh decoded whole (Draco): its memory cap
+// less its base. 256 MiB is the cap of a typical pipeline stage.
+inline constexpr uint64_t kWholeMeshLimitBytes = uint64_t{256} << 20;
 // Buffer sizes compared: the production default would be 1 MiB; a tiny one exercises every
 // refill and growth path of InputBuffer.
 inline constexpr size_t kLargeBuffer = size_t{1} << 16;

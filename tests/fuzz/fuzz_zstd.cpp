@@ -23,7 +23,8 @@ std::unique_ptr<TriangleReader> openZstd(const uint8_t* data, size_t size, size_
   info.name = "fuzz";
   info.zstdCompressed = true;
   const DetectedFormat format = detectFormat(*input, std::nullopt);
-  if (auto reader = makeReader(format, std::move(input), std::move(info))) return reader;
+  if (auto reader = makeReader(format, std::move(input), std::move(info), fuzz::kWholeMeshLimitBytes))
+    return reader;
   // openInput rejects Empty, Unknown and zstd-in-zstd with a ReadError too.
   throw ReadError("fuzz: byte 0: no mesh format inside zstd");
 }

@@ -110,7 +110,8 @@ test::SimpleMesh squareGrid(int side) {
 
 // `mesh` encoded by either method, with nested metadata when asked (which sits between the
 // header and the counts).
-std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod method, bool metadata) {
+std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod method, bool metadata,
+                       int speed = -1, int positionBits = 0) {
   draco::Mesh draco;
   draco.set_num_points(static_cast<uint32_t>(mesh.vertices.size()));
   draco::GeometryAttribute position;
@@ -140,6 +141,8 @@ std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod me
   }
   draco::Encoder encoder;
   encoder.SetEncodingMethod(method);
+  if (speed >= 0) encoder.SetSpeedOptions(speed, speed);
+  if (positionBits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, positionBits);
   draco::EncoderBuffer buffer;
   const draco::Status status = encoder.EncodeMeshToBuffer(draco, &buffer);
   if (!status.ok()) throw std::runtime_error(status.error_msg_string());
@@ -201,6 +204,48 @@ TEST(StreamDraco, WholeMeshLimitRefusesBeforeDecoding) {
   EXPECT_EQ(test::readAll(*reader, 4096).size(), 20000u);
   EXPECT_EQ(openMesh(path)->heldBytes(), reader->heldBytes()) << "no limit: the same reader";
   EXPECT_EQ(openMesh(dir.write("p.ply", test::writePly(test::pyramid())))->heldBytes(), 0u);
+}
+
+std::string varint(uint32_t value) {
+  std::string out;
+  for (; value >= 0x80; value >>= 7) out += static_cast<char>(0x80 | (value & 0x7F));
+  return out + static_cast<char>(value);
+}
+
+// Draco sizes its tables from the header's counts before reading what they describe: counts no
+// encoding of the file's size could hold are refused before decoding, with no limit given and
+// whether the size is known or not (found by fuzz_draco: 151 bytes declaring 202M faces made
+// draco allocate 2.4 GB; that file is a seed of the fuzz corpus).
+TEST(StreamDraco, CountsTheFileCannotHoldAreRefusedBeforeDecoding) {
+  const std::string genuine = encodeWith(squareGrid(30), draco::MESH_EDGEBREAKER_ENCODING, false);
+  const auto counts = stream_detail::parseDracoCounts(genuine);
+  ASSERT_TRUE(counts.has_value());
+  // Bitstream 2.2: header (11 bytes), traversal method, then the points and faces as varints.
+  const size_t countsAt = 12,
+               countsEnd = countsAt + varint(counts->points).size() + varint(counts->faces).size();
+  const std::string lying =
+      genuine.substr(0, countsAt) + varint(961) + varint(200000000) + genuine.substr(countsEnd);
+  test::TempDir dir;
+  const auto path = dir.write("lying.drc", lying);
+  const std::string expected =
+      path.string() + ": byte 0: the header declares 200000000 faces and 961 points in " +
+      std::to_string(lying.size()) +
+      " bytes, more than any draco encoding holds (8192 per byte at most): the file is "
+      "corrupt";
+  EXPECT_EQ(test::errorOf([&] { openMesh(path); }), expected);
+  const auto zst = dir.write("lying.drc.zst", test::zstdCompress(lying));
+  EXPECT_EQ(test::errorOf([&] { openMesh(zst); }), zst.string() + expected.substr(path.string().size()));
+}
+
+// The most compressible meshes draco makes stay far inside that bound: a regular grid with
+// positions quantised to 1 bit, valence edgebreaker at speed 0.
+TEST(StreamDraco, HighlyCompressedMeshIsRead) {
+  const std::string bytes = encodeWith(squareGrid(300), draco::MESH_EDGEBREAKER_ENCODING, false, 0, 1);
+  EXPECT_GT(180000.0 / double(bytes.size()), 100.0)
+      << bytes.size() << " bytes: the test needs a dense encoding";
+  test::TempDir dir;
+  auto reader = openMesh(dir.write("dense.drc", bytes));
+  EXPECT_EQ(test::readAll(*reader, 4096).size(), 180000u);
 }
 
 }  // namespace
