@@ -16,12 +16,14 @@ namespace facetree {
 
 namespace {
 
-// The upper nodes' boxes see every triangle under them (BoxAccumulator), ~1.5k instructions per face
-// for a dozen ancestors: with more than one thread they accumulate on a helper while the writer's thread
-// reads, encodes and compresses. Batches of leaves' triangles with their ancestors go over in two
-// alternating buffers, in order, so every accumulator sees the same triangles in the same order as
-// inline (the boxes are bit-identical). Memory: two batches of at most kBatchTriangles triangles, or one
-// leaf block's if larger (a block holds at most kTrianglesPerBlock).
+// The upper nodes' boxes see every triangle under them (BoxAccumulator): with more than one
+// thread they accumulate on a helper while the writer's thread reads, encodes and compresses.
+// Batches of leaf blocks (vertices, triangles, ancestors) go over in two alternating buffers, in
+// order, so every accumulator sees the same triangles in the same runs and order as inline (the
+// boxes are bit-identical). Each block is one run (TriangleRun: its a_f n_f and distinct vertices
+// computed once for all its ancestors, BoxAccumulator::addRun). Memory: two batches of at most
+// kBatchTriangles triangles, or one leaf block's if larger (a block holds at most
+// kTrianglesPerBlock), and one run's scratch.
 class UpperBoxes {
  public:
   static constexpr size_t kBatchTriangles = 8192;
@@ -33,14 +35,17 @@ class UpperBoxes {
   UpperBoxes(const UpperBoxes&) = delete;
   UpperBoxes& operator=(const UpperBoxes&) = delete;
 
-  // The triangles (3 corners each) of a leaf block under `ancestors`.
-  void add(std::span<const glm::vec3> corners, std::span<const uint32_t> ancestors) {
-    if (ancestors.empty() || corners.empty()) return;
+  // The triangles `indices` (3 each, into `vertices`) of a leaf block under `ancestors`.
+  void add(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices,
+           std::span<const uint32_t> ancestors) {
+    if (ancestors.empty() || indices.empty()) return;
     Batch& b = batch_[filling_];
-    b.runs.push_back({b.corners.size(), corners.size(), b.ancestors.size(), ancestors.size()});
-    b.corners.insert(b.corners.end(), corners.begin(), corners.end());
+    b.runs.push_back({b.vertices.size(), vertices.size(), b.indices.size(), indices.size(),
+                      b.ancestors.size(), ancestors.size()});
+    b.vertices.insert(b.vertices.end(), vertices.begin(), vertices.end());
+    b.indices.insert(b.indices.end(), indices.begin(), indices.end());
     b.ancestors.insert(b.ancestors.end(), ancestors.begin(), ancestors.end());
-    if (b.corners.size() >= 3 * kBatchTriangles) hand();
+    if (b.indices.size() >= 3 * kBatchTriangles) hand();
   }
   // Waits until every triangle added is in its accumulators.
   void finish() {
@@ -59,20 +64,25 @@ class UpperBoxes {
 
  private:
   struct Run {
-    size_t corner, corners, ancestor, ancestors;
+    size_t vertex, vertices, index, indices, ancestor, ancestors;
   };
   struct Batch {
-    std::vector<glm::vec3> corners;
+    std::vector<glm::vec3> vertices;
+    std::vector<uint32_t> indices;
     std::vector<uint32_t> ancestors;
     std::vector<Run> runs;
   };
 
   void accumulate(Batch& b) {
     for (const Run& r : b.runs) {
-      const std::span<const glm::vec3> corners(b.corners.data() + r.corner, r.corners);
-      for (size_t k = 0; k < r.ancestors; ++k) boxes_[b.ancestors[r.ancestor + k]].addTriangles(corners);
+      run_.assign(std::span(b.vertices).subspan(r.vertex, r.vertices),
+                  std::span(b.indices).subspan(r.index, r.indices));
+      targets_.clear();
+      for (size_t k = 0; k < r.ancestors; ++k) targets_.push_back(&boxes_[b.ancestors[r.ancestor + k]]);
+      BoxAccumulator::addRun(run_, targets_);
     }
-    b.corners.clear();
+    b.vertices.clear();
+    b.indices.clear();
     b.ancestors.clear();
     b.runs.clear();
   }
@@ -104,6 +114,8 @@ class UpperBoxes {
   }
 
   std::vector<BoxAccumulator>& boxes_;
+  TriangleRun run_;                       // scratch of accumulate()
+  std::vector<BoxAccumulator*> targets_;  // a run's ancestors
   Batch batch_[2];
   int filling_ = 0;  // the batch this thread fills; the helper reads the other while pending_
   bool pending_ = false, stop_ = false;
@@ -383,7 +395,7 @@ void OutOfCoreBuild::write() {
 
   // Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
   std::vector<std::byte> raw;
-  std::vector<glm::vec3> leafVertices, triangleCorners;
+  std::vector<glm::vec3> leafVertices;
   std::vector<uint32_t> indices, ancestors;
   std::vector<uint64_t> ids;
   uint64_t vertexBase = 0, done = 0;
@@ -408,11 +420,7 @@ void OutOfCoreBuild::write() {
       ids.resize(header.triangles);
       std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
       writer.addVertices(std::span(leafVertices).subspan(firstNew));
-      if (!ancestors.empty()) {
-        triangleCorners.resize(indices.size());
-        for (size_t i = 0; i < indices.size(); ++i) triangleCorners[i] = leafVertices[indices[i]];
-        upperBoxes.add(triangleCorners, ancestors);
-      }
+      upperBoxes.add(leafVertices, indices, ancestors);
       for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
       writer.addTriangles(indices, ids);
       done += header.triangles;

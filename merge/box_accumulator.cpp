@@ -8,6 +8,8 @@
 // merge() of an accumulator with another reference vertex shifts its projections in double;
 // their float errors were bounded relative to the distances from *its* vertex, which can be
 // up to twice the merged box's radius about ours, so that bound is carried into box()'s pad.
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include <glm/geometric.hpp>
@@ -43,7 +45,88 @@ V4f splat(float x) {
   return V4f{x, x, x, x};
 }
 
+// a_f n_f as box.cpp's pack() stores it: half the double cross product, rounded to float.
+glm::vec3 areaNormal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  const double x0 = a.x, y0 = a.y, z0 = a.z;
+  const double ux = b.x - x0, uy = b.y - y0, uz = b.z - z0;
+  const double vx = c.x - x0, vy = c.y - y0, vz = c.z - z0;
+  return {float(0.5 * (uy * vz - uz * vy)), float(0.5 * (uz * vx - ux * vz)),
+          float(0.5 * (ux * vy - uy * vx))};
+}
+
+#if defined(__x86_64__) && defined(__GNUC__) && defined(__GLIBC__)  // ifunc: glibc only, as box.cpp
+#define RUN_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define RUN_CLONES
+#endif
+
+// addRun's accumulators four at a time, one per lane: lane j of axis[k][c] is component c of
+// accumulator j's axis k. Per lane the operations are addTriangles' (projections of a point, then
+// min / max; a_f n_f . a_k clamped at 0 and summed in double in triangle order), so each lane's
+// results are bit for bit those of its accumulator alone, except which of +0 and -0 a zero
+// extreme is (addRun rescans those).
+constexpr size_t kLanes = 4;
+struct LaneFrames {
+  V4f axis[3][3];
+  V4f origin[3];
+};
+struct LaneSums {
+  V4f lo[3], hi[3];
+  V4d positive[3], negative[3];
+};
+
+RUN_CLONES void scanLanes(std::span<const float> points, std::span<const float> normals, const LaneFrames& f,
+                          LaneSums& r) {
+  for (int k = 0; k < 3; ++k) r.lo[k] = splat(INFINITY), r.hi[k] = splat(-INFINITY);
+  for (size_t i = 0; i < points.size(); i += 3) {
+    const V4f x = splat(points[i]) - f.origin[0], y = splat(points[i + 1]) - f.origin[1],
+              z = splat(points[i + 2]) - f.origin[2];
+    for (int k = 0; k < 3; ++k) {
+      const V4f d = x * f.axis[k][0] + y * f.axis[k][1] + z * f.axis[k][2];
+      r.lo[k] = r.lo[k] < d ? r.lo[k] : d;
+      r.hi[k] = r.hi[k] > d ? r.hi[k] : d;
+    }
+  }
+  // One axis per pass over the triangles: the sums stay in registers.
+  const V4f zero = splat(0.0f);
+  for (int k = 0; k < 3; ++k) {
+    V4d positive{}, negative{};
+    for (size_t t = 0; t < normals.size(); t += 3) {
+      const V4f d = splat(normals[t]) * f.axis[k][0] + splat(normals[t + 1]) * f.axis[k][1] +
+                    splat(normals[t + 2]) * f.axis[k][2];
+      positive += __builtin_convertvector(d > zero ? d : zero, V4d);
+      negative += __builtin_convertvector(-d > zero ? -d : zero, V4d);
+    }
+    r.positive[k] = positive, r.negative[k] = negative;
+  }
+}
+
+// Coordinates of at most this magnitude keep every projection finite (|p - o| <= 2e30, three
+// products and two sums below 1e31): no infinity or NaN whose min / max would depend on order.
+constexpr float kRunBound = 1e30f;
+
 }  // namespace
+
+void BoxAccumulator::scanCorners(std::span<const glm::vec3> corners, float lo[3], float hi[3]) const {
+  const V4f ax = {axis_[0].x, axis_[1].x, axis_[2].x, 0.0f};
+  const V4f ay = {axis_[0].y, axis_[1].y, axis_[2].y, 0.0f};
+  const V4f az = {axis_[0].z, axis_[1].z, axis_[2].z, 0.0f};
+  const float ox = origin_.x, oy = origin_.y, oz = origin_.z;
+  V4f l = splat(INFINITY), h = splat(-INFINITY);
+  for (const glm::vec3& p : corners) {
+    const V4f d = splat(p.x - ox) * ax + splat(p.y - oy) * ay + splat(p.z - oz) * az;
+    l = l < d ? l : d;  // scanBlock's vmin / vmax
+    h = h > d ? h : d;
+  }
+  for (int k = 0; k < 3; ++k) lo[k] = l[k], hi[k] = h[k];
+}
+
+void BoxAccumulator::addExtents(const float lo[3], const float hi[3]) {
+  for (int k = 0; k < 3; ++k) {
+    lo_[k] = std::min(lo_[k], double(lo[k]));
+    hi_[k] = std::max(hi_[k], double(hi[k]));
+  }
+}
 
 void BoxAccumulator::addTriangles(std::span<const glm::vec3> corners) {
   const size_t n = corners.size() / 3;
@@ -52,35 +135,102 @@ void BoxAccumulator::addTriangles(std::span<const glm::vec3> corners) {
     origin_ = corners[0];
     hasOrigin_ = true;
   }
+  corners = corners.first(3 * n);
+  float lo[3], hi[3];
+  scanCorners(corners, lo, hi);
   const V4f ax = {axis_[0].x, axis_[1].x, axis_[2].x, 0.0f};
   const V4f ay = {axis_[0].y, axis_[1].y, axis_[2].y, 0.0f};
   const V4f az = {axis_[0].z, axis_[1].z, axis_[2].z, 0.0f};
   const V4f zero = splat(0.0f);
-  const float ox = origin_.x, oy = origin_.y, oz = origin_.z;
-  V4f lo = splat(INFINITY), hi = splat(-INFINITY);
   V4d positive{}, negative{};  // side areas along +a_k and -a_k in lane k
-  const glm::vec3* p = corners.data();
-  for (size_t t = 0; t < n; ++t, p += 3) {
-    for (int k = 0; k < 3; ++k) {
-      const V4f d = splat(p[k].x - ox) * ax + splat(p[k].y - oy) * ay + splat(p[k].z - oz) * az;
-      lo = lo < d ? lo : d;  // scanBlock's vmin / vmax
-      hi = hi > d ? hi : d;
-    }
-    // a_f n_f as box.cpp's pack() stores it: half the double cross product, rounded to float.
-    const double x0 = p[0].x, y0 = p[0].y, z0 = p[0].z;
-    const double ux = p[1].x - x0, uy = p[1].y - y0, uz = p[1].z - z0;
-    const double vx = p[2].x - x0, vy = p[2].y - y0, vz = p[2].z - z0;
-    const V4f normal = splat(float(0.5 * (uy * vz - uz * vy))) * ax +
-                       splat(float(0.5 * (uz * vx - ux * vz))) * ay +
-                       splat(float(0.5 * (ux * vy - uy * vx))) * az;
+  for (size_t t = 0; t < n; ++t) {
+    const glm::vec3 m = areaNormal(corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
+    const V4f normal = splat(m.x) * ax + splat(m.y) * ay + splat(m.z) * az;
     positive += __builtin_convertvector(normal > zero ? normal : zero, V4d);
     negative += __builtin_convertvector(-normal > zero ? -normal : zero, V4d);
   }
+  addExtents(lo, hi);
   for (int k = 0; k < 3; ++k) {
-    lo_[k] = std::min(lo_[k], double(lo[k]));
-    hi_[k] = std::max(hi_[k], double(hi[k]));
     side_[2 * k] += positive[k];
     side_[2 * k + 1] += negative[k];
+  }
+}
+
+void TriangleRun::assign(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices) {
+  vertices_ = vertices;
+  indices_ = indices.first(indices.size() / 3 * 3);
+  if (++call_ == 0) {  // wrapped: forget every earlier call
+    std::fill(seen_.begin(), seen_.end(), 0u);
+    call_ = 1;
+  }
+  if (seen_.size() < vertices.size()) seen_.resize(vertices.size(), 0u);
+  points_.clear();
+  normal_.clear();
+  bounded_ = true;
+  for (const uint32_t v : indices_) {
+    if (seen_[v] == call_) continue;
+    seen_[v] = call_;
+    const glm::vec3& p = vertices[v];
+    points_.insert(points_.end(), {p.x, p.y, p.z});
+    for (int c = 0; c < 3; ++c) bounded_ = bounded_ && std::abs(p[c]) <= kRunBound;
+  }
+  for (size_t i = 0; i < indices_.size(); i += 3) {
+    const glm::vec3 m = areaNormal(corner(i), corner(i + 1), corner(i + 2));
+    normal_.insert(normal_.end(), {m.x, m.y, m.z});
+  }
+}
+
+// Every accumulator scans the run's distinct vertices instead of its 3 corners per triangle, and
+// the run's a_f n_f instead of a cross product per triangle; four accumulators share each vector
+// operation (scanLanes). The same projections of the same points give the same min and max
+// whatever their order and repetition, but for the sign of a zero (the order decides between
+// +0 and -0, which compare equal): an extreme that is zero (the reference vertex at an end of an
+// axis, say) is rescanned in corner order.
+void BoxAccumulator::addRun(const TriangleRun& run, std::span<BoxAccumulator* const> boxes) {
+  if (run.triangles() == 0) return;
+  std::vector<glm::vec3> corners;  // only where the fast path cannot be exact
+  if (!run.bounded_) {
+    for (const uint32_t v : run.indices_) corners.push_back(run.vertices_[v]);
+    for (BoxAccumulator* box : boxes) box->addTriangles(corners);
+    return;
+  }
+  for (BoxAccumulator* box : boxes) {
+    if (box->hasOrigin_) continue;
+    box->origin_ = run.corner(0);
+    box->hasOrigin_ = true;
+  }
+  for (size_t first = 0; first < boxes.size(); first += kLanes) {
+    const std::span<BoxAccumulator* const> group =
+        boxes.subspan(first, std::min(kLanes, boxes.size() - first));
+    LaneFrames f;
+    for (size_t j = 0; j < kLanes; ++j) {
+      const BoxAccumulator& b = *group[std::min(j, group.size() - 1)];  // spare lanes repeat the last
+      for (int k = 0; k < 3; ++k) {
+        for (int c = 0; c < 3; ++c) f.axis[k][c][j] = b.axis_[k][c];
+        f.origin[k][j] = b.origin_[k];
+      }
+    }
+    LaneSums r;
+    scanLanes(run.points_, run.normal_, f, r);
+    for (size_t j = 0; j < group.size(); ++j) {
+      BoxAccumulator& b = *group[j];
+      float lo[3], hi[3];
+      bool zero = false;
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = r.lo[k][j], hi[k] = r.hi[k][j];
+        zero = zero || lo[k] == 0.0f || hi[k] == 0.0f;
+      }
+      if (zero) {
+        if (corners.empty())
+          for (const uint32_t v : run.indices_) corners.push_back(run.vertices_[v]);
+        b.scanCorners(corners, lo, hi);
+      }
+      b.addExtents(lo, hi);
+      for (int k = 0; k < 3; ++k) {
+        b.side_[2 * k] += r.positive[k][j];
+        b.side_[2 * k + 1] += r.negative[k][j];
+      }
+    }
   }
 }
 

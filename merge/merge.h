@@ -269,16 +269,25 @@ glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec
 // stream the faces of a huge cluster, or merge accumulators of disjoint face sets). box() gives the same
 // NodeBox computeBoxes would give for that orientation and those triangles (every vertex inside, each face
 // touching a vertex, side areas = sum a_f max(0, +-n_f . axis)), with the arithmetic of box.cpp.
+class TriangleRun;
 class BoxAccumulator {
  public:
   explicit BoxAccumulator(const glm::quat& orientation);
   void addTriangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
-  void addTriangles(std::span<const glm::vec3> corners);  // 3 per triangle; the hot path
-  void merge(const BoxAccumulator& other);                // same orientation (else std::invalid_argument)
+  void addTriangles(std::span<const glm::vec3> corners);  // 3 per triangle
+  // The same triangles added to each of `boxes` (distinct accumulators): the same bits as
+  // boxes[i]->addTriangles(run's corners) for each i, for a fraction of the work (the hot path
+  // of the out-of-core write, where every triangle goes to all the upper nodes above its leaf).
+  static void addRun(const TriangleRun& run, std::span<BoxAccumulator* const> boxes);
+  void merge(const BoxAccumulator& other);  // same orientation (else std::invalid_argument)
   bool empty() const { return !hasOrigin_; }
   NodeBox box() const;
 
  private:
+  friend class TriangleRun;
+  // Extents of `corners` in corner order, relative to origin_, as addTriangles scans them.
+  void scanCorners(std::span<const glm::vec3> corners, float lo[3], float hi[3]) const;
+  void addExtents(const float lo[3], const float hi[3]);
   glm::quat orientation_;
   glm::vec3 axis_[3];       // mat3_cast(orientation_): the axes the extents are measured along
   glm::vec3 origin_{0.0f};  // the first vertex added: projections are relative to it (box.cpp)
@@ -286,6 +295,27 @@ class BoxAccumulator {
   double lo_[3], hi_[3];    // projections of the vertices, relative to origin_
   double side_[6] = {};     // +a0, -a0, +a1, -a1, +a2, -a2
   double mergedError_ = 0;  // float error bound of projections merged from other origins
+};
+
+// Triangles prepared once for BoxAccumulator::addRun: what every accumulator needs of them and
+// shares (each triangle's a_f n_f, the distinct vertices its corners use), computed by assign().
+// Reused across runs: its buffers keep their capacity.
+class TriangleRun {
+ public:
+  // `indices` (3 per triangle) into `vertices`; both must outlive the run's use.
+  void assign(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices);
+  size_t triangles() const { return indices_.size() / 3; }
+
+ private:
+  friend class BoxAccumulator;
+  glm::vec3 corner(size_t i) const { return vertices_[indices_[i]]; }
+  std::span<const glm::vec3> vertices_;
+  std::span<const uint32_t> indices_;
+  std::vector<float> points_;   // the distinct vertices used, x, y, z for each (first use order)
+  std::vector<float> normal_;   // a_f n_f of each triangle, x, y, z (box.cpp's pack)
+  std::vector<uint32_t> seen_;  // per vertex: the assign() call that listed it last
+  uint32_t call_ = 0;
+  bool bounded_ = true;  // every coordinate within kRunBound: no projection overflows
 };
 // --- Baseline: tightest-fit octree volume clustering (Willmott 2000, sec. 5.7.2, Fig. 80) ---
 //

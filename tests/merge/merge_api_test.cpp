@@ -947,5 +947,94 @@ TEST(BoxAccumulator, MergedPartsEqualTheWhole) {
   EXPECT_EQ(none.halfExtent, glm::vec3(0.0f));
 }
 
+// The bits of a box and of its state, comparable with memcmp (+0 and -0 differ).
+std::vector<uint32_t> boxBits(const BoxAccumulator& acc) {
+  const NodeBox b = acc.box();
+  std::vector<uint32_t> bits;
+  for (int k = 0; k < 3; ++k) bits.push_back(std::bit_cast<uint32_t>(b.center[k]));
+  for (int k = 0; k < 3; ++k) bits.push_back(std::bit_cast<uint32_t>(b.halfExtent[k]));
+  for (int k = 0; k < 6; ++k) bits.push_back(std::bit_cast<uint32_t>(b.sideArea[k]));
+  return bits;
+}
+
+TEST(BoxAccumulator, AddRunEqualsAddTrianglesBitForBit) {
+  // Meshes whose projections hit zero exactly (a flat grid through the origin, with -0
+  // coordinates, and exact axes), a far one and a closed one; runs of a few faces up to whole
+  // meshes, several runs per accumulator, 1 to 9 accumulators at once (lane groups and spares).
+  TestMesh flat = bumpyGrid(12, 0.0f);  // z = 0 * (+-x): +0 and -0
+  for (glm::vec3& p : flat.positions) p = glm::vec3(p.x - 0.5f, p.y - 0.5f, p.z);
+  TestMesh far = bumpyGrid(16, 0.2f, 0.4f);
+  for (glm::vec3& p : far.positions) p += glm::vec3(1000.0f, -500.0f, 20.0f);
+  const glm::quat orientations[] = {glm::quat(1, 0, 0, 0),
+                                    glm::quat(0, 0, 0, 1),
+                                    glm::quat(0, 1, 0, 0),
+                                    glm::normalize(glm::quat(1, 1, 0, 0)),
+                                    glm::normalize(glm::quat(0.3f, -0.5f, 0.2f, 0.8f)),
+                                    glm::normalize(glm::quat(0.9f, 0.1f, -0.3f, -0.2f)),
+                                    glm::quat(-0.0f, -0.0f, -1.0f, -0.0f),
+                                    glm::normalize(glm::quat(1, 0, 0, -1)),
+                                    glm::normalize(glm::quat(2, 1, 1, 1))};
+  std::mt19937 random(7);
+  for (const TestMesh& mesh : {flat, far, icosphere(3), bumpyGrid(24, 0.3f, 0.7f)}) {
+    const size_t triangles = mesh.indices.size() / 3;
+    for (size_t count = 1; count <= 9; ++count) {
+      std::vector<BoxAccumulator> want, got;
+      for (size_t a = 0; a < count; ++a) {
+        want.emplace_back(orientations[(a + count) % 9]);
+        got.emplace_back(orientations[(a + count) % 9]);
+      }
+      TriangleRun run;
+      for (size_t at = 0; at < triangles;) {
+        const size_t n = std::min<size_t>(triangles - at, 1 + random() % (count == 1 ? triangles : 40));
+        const std::span<const uint32_t> indices(mesh.indices.data() + 3 * at, 3 * n);
+        std::vector<glm::vec3> corners;
+        for (const uint32_t v : indices) corners.push_back(mesh.positions[v]);
+        // Accumulators join at different runs, so their reference vertices differ.
+        const size_t active = std::min(count, 1 + at / 5);
+        std::vector<BoxAccumulator*> targets;
+        for (size_t a = 0; a < active; ++a) {
+          want[a].addTriangles(corners);
+          targets.push_back(&got[a]);
+        }
+        run.assign(mesh.positions, indices);
+        BoxAccumulator::addRun(run, targets);
+        at += n;
+      }
+      for (size_t a = 0; a < count; ++a) {
+        SCOPED_TRACE(::testing::Message() << count << " accumulators, #" << a);
+        EXPECT_EQ(boxBits(got[a]), boxBits(want[a]));
+      }
+    }
+  }
+  // Triangles collapsed to one point whose coordinates are +0 or -0: every projection is a zero
+  // and the box's centre takes the sign the corner order gives the extremes.
+  std::vector<glm::vec3> zeros;
+  for (int v = 0; v < 8; ++v)
+    zeros.emplace_back((v & 1) ? -0.0f : 0.0f, (v & 2) ? -0.0f : 0.0f, (v & 4) ? -0.0f : 0.0f);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::vector<uint32_t> indices;
+    for (int i = 0; i < 3 * (1 + trial % 5); ++i) indices.push_back(random() % 8);
+    std::vector<glm::vec3> corners;
+    for (const uint32_t v : indices) corners.push_back(zeros[v]);
+    BoxAccumulator want(orientations[trial % 9]), got(orientations[trial % 9]);
+    want.addTriangles(corners);
+    TriangleRun run;
+    run.assign(zeros, indices);
+    BoxAccumulator* target = &got;
+    BoxAccumulator::addRun(run, std::span(&target, 1));
+    EXPECT_EQ(boxBits(got), boxBits(want)) << "trial " << trial;
+  }
+  // Coordinates beyond the bound where projections could overflow take the corner path.
+  const std::vector<glm::vec3> huge{{3e38f, 0, 0}, {-3e38f, 1, 0}, {0, 2e38f, -3e38f}};
+  const std::vector<uint32_t> one{0, 1, 2};
+  BoxAccumulator want(orientations[4]), got(orientations[4]);
+  want.addTriangles(huge);
+  TriangleRun run;
+  run.assign(huge, one);
+  BoxAccumulator* target = &got;
+  BoxAccumulator::addRun(run, std::span(&target, 1));
+  EXPECT_EQ(boxBits(got), boxBits(want));
+}
+
 }  // namespace
 }  // namespace facetree::test
