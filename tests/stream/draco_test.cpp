@@ -12,9 +12,25 @@
 namespace facetree {
 namespace {
 
-std::string encodeDraco(const test::SimpleMesh& mesh) {
-  // Build an indexed draco mesh: one point per vertex, faces from the fan triangulation.
-  const auto triangles = test::expectedTriangles(mesh);
+// A side x side grid of unit squares, two triangles each.
+test::SimpleMesh squareGrid(int side) {
+  test::SimpleMesh mesh;
+  for (int j = 0; j <= side; ++j)
+    for (int i = 0; i <= side; ++i)
+      mesh.vertices.emplace_back(float(i), float(j), 0.25f * float((i * j) % 3));
+  for (int j = 0; j < side; ++j)
+    for (int i = 0; i < side; ++i) {
+      const int64_t v = j * (side + 1) + i;
+      mesh.faces.push_back({v, v + 1, v + side + 2});
+      mesh.faces.push_back({v, v + side + 2, v + side + 1});
+    }
+  return mesh;
+}
+
+// `mesh` encoded by either method, with nested metadata when asked (which sits between the
+// header and the counts).
+std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod method, bool metadata,
+                       int speed = -1, int positionBits = 0) {
   draco::Mesh draco;
   draco.set_num_points(static_cast<uint32_t>(mesh.vertices.size()));
   draco::GeometryAttribute position;
@@ -24,15 +40,37 @@ std::string encodeDraco(const test::SimpleMesh& mesh) {
   for (size_t v = 0; v < mesh.vertices.size(); ++v)
     draco.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(v)),
                                            &mesh.vertices[v].x);
-  for (const Triangle& t : triangles)
+  for (const Triangle& t : test::expectedTriangles(mesh))
     draco.AddFace(
         {draco::PointIndex(t.vertex[0]), draco::PointIndex(t.vertex[1]), draco::PointIndex(t.vertex[2])});
+  if (metadata) {
+    auto geometry = std::make_unique<draco::GeometryMetadata>();
+    geometry->AddEntryString("scanner", std::string(300, 's'));  // a value longer than 127: 2-byte varint
+    geometry->AddEntryInt("pass", 7);
+    auto child = std::make_unique<draco::Metadata>();
+    child->AddEntryDouble("gain", 1.5);
+    auto grandchild = std::make_unique<draco::Metadata>();
+    grandchild->AddEntryString("note", "nested");
+    child->AddSubMetadata("inner", std::move(grandchild));
+    geometry->AddSubMetadata("calibration", std::move(child));
+    draco.AddMetadata(std::move(geometry));
+    auto attribute = std::make_unique<draco::AttributeMetadata>();
+    attribute->AddEntryString("unit", "m");
+    draco.AddAttributeMetadata(id, std::move(attribute));
+  }
   draco::Encoder encoder;
-  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);  // keeps point and face order, no quantization
+  encoder.SetEncodingMethod(method);
+  if (speed >= 0) encoder.SetSpeedOptions(speed, speed);
+  if (positionBits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, positionBits);
   draco::EncoderBuffer buffer;
   const draco::Status status = encoder.EncodeMeshToBuffer(draco, &buffer);
   if (!status.ok()) throw std::runtime_error(status.error_msg_string());
   return std::string(buffer.data(), buffer.size());
+}
+
+// Sequential encoding keeps point and face order, and without quantization the positions.
+std::string encodeDraco(const test::SimpleMesh& mesh) {
+  return encodeWith(mesh, draco::MESH_SEQUENTIAL_ENCODING, false);
 }
 
 TEST(StreamDraco, SequentialEncodedMeshReadsBackExactly) {
@@ -91,62 +129,6 @@ TEST(StreamDraco, BoolPositionAttributeIsAnError) {
   const auto path = dir.write("bool.drc", bytes);
   EXPECT_EQ(test::errorOf([&] { test::readFile(path); }),
             path.string() + ": byte 0: draco position attribute has unsupported data type 11");
-}
-
-// A side x side grid of unit squares, two triangles each.
-test::SimpleMesh squareGrid(int side) {
-  test::SimpleMesh mesh;
-  for (int j = 0; j <= side; ++j)
-    for (int i = 0; i <= side; ++i)
-      mesh.vertices.emplace_back(float(i), float(j), 0.25f * float((i * j) % 3));
-  for (int j = 0; j < side; ++j)
-    for (int i = 0; i < side; ++i) {
-      const int64_t v = j * (side + 1) + i;
-      mesh.faces.push_back({v, v + 1, v + side + 2});
-      mesh.faces.push_back({v, v + side + 2, v + side + 1});
-    }
-  return mesh;
-}
-
-// `mesh` encoded by either method, with nested metadata when asked (which sits between the
-// header and the counts).
-std::string encodeWith(const test::SimpleMesh& mesh, draco::MeshEncoderMethod method, bool metadata,
-                       int speed = -1, int positionBits = 0) {
-  draco::Mesh draco;
-  draco.set_num_points(static_cast<uint32_t>(mesh.vertices.size()));
-  draco::GeometryAttribute position;
-  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3,
-                0);
-  const int id = draco.AddAttribute(position, true, static_cast<uint32_t>(mesh.vertices.size()));
-  for (size_t v = 0; v < mesh.vertices.size(); ++v)
-    draco.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(v)),
-                                           &mesh.vertices[v].x);
-  for (const Triangle& t : test::expectedTriangles(mesh))
-    draco.AddFace(
-        {draco::PointIndex(t.vertex[0]), draco::PointIndex(t.vertex[1]), draco::PointIndex(t.vertex[2])});
-  if (metadata) {
-    auto geometry = std::make_unique<draco::GeometryMetadata>();
-    geometry->AddEntryString("scanner", std::string(300, 's'));  // a value longer than 127: 2-byte varint
-    geometry->AddEntryInt("pass", 7);
-    auto child = std::make_unique<draco::Metadata>();
-    child->AddEntryDouble("gain", 1.5);
-    auto grandchild = std::make_unique<draco::Metadata>();
-    grandchild->AddEntryString("note", "nested");
-    child->AddSubMetadata("inner", std::move(grandchild));
-    geometry->AddSubMetadata("calibration", std::move(child));
-    draco.AddMetadata(std::move(geometry));
-    auto attribute = std::make_unique<draco::AttributeMetadata>();
-    attribute->AddEntryString("unit", "m");
-    draco.AddAttributeMetadata(id, std::move(attribute));
-  }
-  draco::Encoder encoder;
-  encoder.SetEncodingMethod(method);
-  if (speed >= 0) encoder.SetSpeedOptions(speed, speed);
-  if (positionBits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, positionBits);
-  draco::EncoderBuffer buffer;
-  const draco::Status status = encoder.EncodeMeshToBuffer(draco, &buffer);
-  if (!status.ok()) throw std::runtime_error(status.error_msg_string());
-  return std::string(buffer.data(), buffer.size());
 }
 
 // The counts come from the header alone, for both methods and past metadata; a prefix that
