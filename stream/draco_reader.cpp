@@ -52,17 +52,18 @@ class DracoReader final : public ReaderBase {
     info_.format = MeshFormat::Draco;
     input_->fill(kHeaderPeekBytes);
     std::optional<DracoCounts> counts = parseDracoCounts({input_->data(), input_->available()});
-    if (counts) expectDecoding(*counts);
+    if (counts) {
+      expectDecoding(*counts);
+      // A corrupt file is named as such before the limit could ask for a larger cap.
+      if (const std::optional<uint64_t> size = input_->size()) checkPlausible(*counts, *size);
+    }
     const std::vector<char> encoded = readAll();
     if (!counts && (counts = parseDracoCounts(encoded))) {  // metadata longer than the peek
       expectDecoding(*counts);
+      checkPlausible(*counts, encoded.size());
       checkLimit(encoded.capacity() + decodingBytes_, "need about");
     }
-    if (counts && std::max(counts->faces, counts->points) > kMaxElementsPerEncodedByte * encoded.size())
-      fail("the header declares " + std::to_string(counts->faces) + " faces and " +
-           std::to_string(counts->points) + " points in " + std::to_string(encoded.size()) +
-           " bytes, more than any draco encoding holds (" + std::to_string(kMaxElementsPerEncodedByte) +
-           " per byte at most): the file is corrupt");
+    if (counts) checkPlausible(*counts, encoded.size());
     draco::DecoderBuffer buffer;
     buffer.Init(encoded.data(), encoded.size());
     draco::Decoder decoder;
@@ -130,6 +131,15 @@ class DracoReader final : public ReaderBase {
     decodingBytes_ = counts.edgebreaker
                          ? kEdgebreakerBytesPerFace * counts.faces + kEdgebreakerBytesPerPoint * counts.points
                          : kSequentialBytesPerFace * counts.faces + kSequentialBytesPerPoint * counts.points;
+  }
+
+  // Fails when the counts are more than `encodedBytes` could describe.
+  void checkPlausible(const DracoCounts& counts, uint64_t encodedBytes) const {
+    if (std::max(counts.faces, counts.points) <= kMaxElementsPerEncodedByte * encodedBytes) return;
+    fail("the header declares " + std::to_string(counts.faces) + " faces and " +
+         std::to_string(counts.points) + " points in " + std::to_string(encodedBytes) +
+         " bytes, more than any draco encoding holds (" + std::to_string(kMaxElementsPerEncodedByte) +
+         " per byte at most): the file is corrupt");
   }
 
   // Fails when `bytes` pass the limit; `verb` says whether they are an estimate ("need about").

@@ -217,6 +217,11 @@ TEST(StreamDraco, CountsTheFileCannotHoldAreRefusedBeforeDecoding) {
   EXPECT_EQ(test::errorOf([&] { openMesh(path); }), expected);
   const auto zst = dir.write("lying.drc.zst", test::zstdCompress(lying));
   EXPECT_EQ(test::errorOf([&] { openMesh(zst); }), zst.string() + expected.substr(path.string().size()));
+  // Under a limit (as the tool always reads), a file of known size is still called corrupt, not
+  // too large for the cap: raising the cap would not help.
+  ReadOptions limited;
+  limited.wholeMeshLimitBytes = uint64_t{64} << 20;
+  EXPECT_EQ(test::errorOf([&] { openMesh(path, limited); }), expected);
 }
 
 // The most compressible meshes draco makes stay far inside that bound: a regular grid with
