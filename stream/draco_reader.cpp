@@ -62,8 +62,9 @@ class DracoReader final : public ReaderBase {
       expectDecoding(*counts);
       checkPlausible(*counts, encoded.size());
       checkLimit(encoded.capacity() + decodingBytes_, "need about");
+    } else if (counts && !input_->size()) {
+      checkPlausible(*counts, encoded.size());  // standard input, zstd: the size is known now
     }
-    if (counts) checkPlausible(*counts, encoded.size());
     draco::DecoderBuffer buffer;
     buffer.Init(encoded.data(), encoded.size());
     draco::Decoder decoder;

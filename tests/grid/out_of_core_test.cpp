@@ -26,6 +26,15 @@
 namespace facetree {
 namespace {
 
+// Peak RSS under AddressSanitizer says nothing about the cap (its shadow memory), so the tests
+// that measure it skip themselves in the sanitizer build.
+#if defined(__SANITIZE_ADDRESS__)
+#define SKIP_PEAK_RSS_CHECKS_UNDER_ASAN() \
+  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)"
+#else
+#define SKIP_PEAK_RSS_CHECKS_UNDER_ASAN() static_cast<void>(0)
+#endif
+
 namespace fs = std::filesystem;
 
 class ScratchDir {
@@ -301,9 +310,7 @@ uint64_t cliPeakRss(const std::vector<std::string>& arguments) {
 }
 
 TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
-#endif
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;
   constexpr uint64_t kCap = uint64_t{64} << 20;
   for (const bool shuffle : {false, true}) {
@@ -361,9 +368,7 @@ fs::path dracoTerrain(const ScratchDir& dir, uint64_t triangles) {
 // cap is refused from its header's counts, before it is decoded (a 1M-face terrain: the
 // process peaks at ~60 MiB decoding it; refused, at its base of ~16 MiB).
 TEST(OutOfCore, DracoThatCannotFitIsRefusedBeforeDecoding) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
-#endif
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;
   const fs::path mesh = dracoTerrain(dir, 1000000);
   const fs::path out = dir / "out.fch";
@@ -385,9 +390,7 @@ TEST(OutOfCore, DracoThatCannotFitIsRefusedBeforeDecoding) {
 // A Draco mesh that fits is decoded whole and held through the out-of-core read: the build gets
 // the rest of the cap, and the whole process stays under it.
 TEST(OutOfCore, DracoHoldsTheCapBesideItsDecodedMesh) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
-#endif
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;
   const fs::path mesh = dracoTerrain(dir, 400000);
   const fs::path out = dir / "out.fch";
@@ -473,9 +476,7 @@ fs::path writeGridWithSpecks(const ScratchDir& dir, uint32_t side, uint32_t spec
 // peaked at 78 MiB under 64, and this mesh (small cells: many borders; 100k specks: ~95 components
 // per cell, 35k leaves) at 76 MiB. The spills and the leaf budget keep it at ~36 MiB.
 TEST(OutOfCore, MemoryCapHeldWithManyLeavesAndCrossCellEdges) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
-#endif
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;
   constexpr uint64_t kCap = uint64_t{64} << 20;
   constexpr uint32_t kSide = 500, kSpecks = 100000;
@@ -515,9 +516,7 @@ IndexedMesh load(const fs::path& path) {
 // (a 10M-triangle STL took 174 MiB under --memory 64M); out of core the welding is an external
 // sort, so an STL costs no more memory than the same mesh indexed, and gives the same tree.
 TEST(OutOfCore, StlIsWeldedWithBoundedMemory) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "peak RSS under AddressSanitizer says nothing about the cap (shadow memory)";
-#endif
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;
   const fs::path ply = generate(dir, "t.ply", SyntheticKind::Terrain, 2000000);
   const IndexedMesh mesh = load(ply);
