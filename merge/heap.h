@@ -128,20 +128,6 @@ class EdgeHeap {
 
   size_t memoryBytes() const { return (hot_.capacity() + cold_.capacity()) * sizeof(uint64_t); }
 
- private:
-  static constexpr size_t kMinBatch = 4096;
-  static constexpr size_t kMaxBatch = size_t{1} << 17;  // 1 MB of entries
-  static constexpr size_t kBatchDivisor = 8;            // a refill takes ~1/8 of cold_
-  static constexpr size_t kSamples = 1024;              // for the refill's threshold
-  // 4 children of 8 bytes: entry i is stored at i + kPad, so the children 4i + 1 .. 4i + 4
-  // sit at 4(i + 1) .. 4(i + 1) + 3, half of an aligned cache line.
-  static constexpr size_t kArity = 4;
-  static constexpr size_t kPad = kArity - 1;
-
-  size_t hotSize() const { return hot_.size() - kPad; }
-  uint64_t& at(size_t i) { return hot_[i + kPad]; }
-  uint64_t at(size_t i) const { return hot_[i + kPad]; }
-
   // (key, id) as one integer whose unsigned order is (key, then id): the float's bits made
   // monotone (negative keys flipped) in the high half. One compare per pair, no branches on ties.
   static uint64_t pack(Entry e) {
@@ -158,6 +144,20 @@ class EdgeHeap {
     e.id = static_cast<uint32_t>(v);
     return e;
   }
+
+ private:
+  static constexpr size_t kMinBatch = 4096;
+  static constexpr size_t kMaxBatch = size_t{1} << 17;  // 1 MB of entries
+  static constexpr size_t kBatchDivisor = 8;            // a refill takes ~1/8 of cold_
+  static constexpr size_t kSamples = 1024;              // for the refill's threshold
+  // 4 children of 8 bytes: entry i is stored at i + kPad, so the children 4i + 1 .. 4i + 4
+  // sit at 4(i + 1) .. 4(i + 1) + 3, half of an aligned cache line.
+  static constexpr size_t kArity = 4;
+  static constexpr size_t kPad = kArity - 1;
+
+  size_t hotSize() const { return hot_.size() - kPad; }
+  uint64_t& at(size_t i) { return hot_[i + kPad]; }
+  uint64_t at(size_t i) const { return hot_[i + kPad]; }
 
   // Moves the smallest ~batch entries of cold_ (all entries <= a sampled threshold) into the
   // empty hot heap. The new threshold is an entry of cold_, so at least one entry moves.
