@@ -161,8 +161,16 @@ RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching, Recas
       frontier[best] = expanded.child[0];
       frontier[size++] = expanded.child[1];
     }
-    std::sort(frontier.begin(), frontier.begin() + size,
-              [&](uint32_t a, uint32_t b) { return rangeStart(a) < rangeStart(b); });
+    // In face order (the starts are distinct: the ranges are disjoint and never empty). At most
+    // kMaxBranching entries: an insertion sort, which also keeps GCC's -Warray-bounds quiet where
+    // std::sort's inlined bounds did not (sanitizer builds).
+    for (unsigned f = 1; f < size; ++f) {
+      const uint32_t ref = frontier[f];
+      const auto start = rangeStart(ref);
+      unsigned g = f;
+      for (; g > 0 && rangeStart(frontier[g - 1]) > start; --g) frontier[g] = frontier[g - 1];
+      frontier[g] = ref;
+    }
     for (unsigned f = 0; f < size; ++f)
       if (!(frontier[f] & kFaceChild)) kept[frontier[f]] = 1;
     frontierOf[i] = frontier;
