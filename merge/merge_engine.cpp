@@ -11,6 +11,8 @@
 //    heap of the cheapest entries over an unsorted cold level); a neighbour whose cheapest
 //    edge got dearer is only flagged, and rescanned if it surfaces.
 //    Global order: (key, cluster id), and each cluster's cheapest edge by (key, edge id).
+//    The queue's 16 cheapest entries sit in a window (lookahead_queue.h) whose chains of loads
+//    are walked ahead with prefetches, one stage per merge (advance(): see there).
 //  - Stats: single faces and pairs have none stored (recomputed from the triangles); larger
 //    clusters own a ClusterStats slot, recycled through a free list when they die.
 //  - Balance guard (Willmott only, BuildOptions::balanceSlack): merges that would make a
