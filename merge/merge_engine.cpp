@@ -106,6 +106,8 @@ class MergeEngine {
     // into it stay valid); pages are touched only as slots are first used.
     reserveHugePages(slots_, n / 2 + 1);
     triangles_.reserve(kTypicalDegree);
+    listA_.reserve(kTypicalDegree);
+    listB_.reserve(kTypicalDegree);
     // Edges come sorted by their first face (a leaf here): its stats are computed once per run.
     uint32_t first = kNone;
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
@@ -479,6 +481,30 @@ class MergeEngine {
     triangles_.clear();
   }
 
+  // The half-edges of a's and b's lists, in list order, read before the relinking changes any
+  // `next`: the two chains are walked in step, so that their misses (and those of the
+  // neighbours' records, requested on the way) overlap instead of following one another.
+  // The relinking then visits exactly the half-edges it would have followed, in the same order
+  // (an edge in both lists joins a and b and is dead by the time b's list reaches it).
+  void gatherLists(uint32_t a, uint32_t b) {
+    listA_.clear();
+    listB_.clear();
+    uint32_t ha = graph_.head[a], hb = graph_.head[b];
+    const auto step = [this](uint32_t& h, std::vector<uint32_t>& list) {
+      const DualEdge& edge = graph_.edges[h >> 1];
+      list.push_back(h);
+      const uint32_t x = edge.end[(h & 1) ^ 1];
+      if (x != kNone) __builtin_prefetch(&clusters_[x]);
+      h = edge.next[h & 1];
+    };
+    while (ha != kNone && hb != kNone) {
+      step(ha, listA_);
+      step(hb, listB_);
+    }
+    while (ha != kNone) step(ha, listA_);
+    while (hb != kNone) step(hb, listB_);
+  }
+
   // Merges cluster b into cluster a (a keeps its id) along dual edge e, or joins two
   // components when e == kNone. `heapKey` is the merge's key (the cost times keyScale).
   void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
@@ -539,12 +565,11 @@ class MergeEngine {
     // into one: stamp = the live edge already kept between a and that neighbour in this pass
     // (stamps are cleared again while re-costing, so a set stamp is never stale).
     uint32_t head = kNone, degree = 0;
-    for (const uint32_t list : {a, b}) {
-      uint32_t next;
-      for (uint32_t h = graph_.head[list]; h != kNone; h = next) {
+    gatherLists(a, b);
+    for (const std::vector<uint32_t>* list : {&listA_, &listB_}) {
+      for (const uint32_t h : *list) {
         DualEdge& edge = graph_.edges[h >> 1];
         const uint32_t side = h & 1;
-        next = edge.next[side];
         if (edge.end[0] == kNone) continue;
         const uint32_t x = edge.end[side ^ 1];
         if (x == a || x == b) {
@@ -658,7 +683,8 @@ class MergeEngine {
   std::vector<Slot> slots_;
   Cluster scratch_[2];  // leaf stats computed on the fly
   std::vector<uint32_t> freeSlots_;
-  std::vector<uint32_t> triangles_;  // neighbours of one or two faces in this merge (prefetchCorners)
+  std::vector<uint32_t> listA_, listB_;  // gatherLists
+  std::vector<uint32_t> triangles_;      // neighbours of one or two faces in this merge (prefetchCorners)
   size_t peakSlots_ = 0;
   MergeResult result_;
 };
