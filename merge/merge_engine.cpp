@@ -292,11 +292,11 @@ class MergeEngine {
   // costs wasted loads, never a different result.
   // Measured (dragon_vrip, 1 thread, merge phase, 6 interleaved rounds): x0.73 of the engine
   // without it (openfoam_buildings x0.79, turbine_blade_200k x0.73, bunny_zipper x0.71), for
-  // 18% more instructions. Not better: windows of 6 to 64 advanced at every loop step (x0.85 at
-  // 8, x1.05 at 64), a window of 24, a second stage halfway through each merge, a walk without
-  // the stats or corner prefetches, huge pages for the mesh's indices and positions. Entries
-  // reach the top after 4-6 stages (histogram over 871k merges), so adjacency lists are walked
-  // only partly ahead: the linked lists are what limits this now.
+  // 15% more instructions (bunny_zipper, callgrind). Not better: windows of 6 to 64 advanced at
+  // every loop step (x0.85 at 8, x1.05 at 64), a window of 24, a second stage halfway through
+  // each merge, a walk without the stats or corner prefetches, huge pages for the mesh's indices
+  // and positions. Entries reach the top after 4-6 stages (histogram over 871k merges), so
+  // adjacency lists are walked only partly ahead: the linked lists are what limits this now.
   static constexpr uint32_t kWindow = 16;
   // Where the prefetching walk of a window entry has got to (advance()).
   struct Ahead {
