@@ -141,7 +141,8 @@ class MergeEngine {
       if (step % kCancelPollSteps == 0 && cancelled_ && cancelled_()) throw Cancelled();
       const EdgeHeap::Entry top = queue_.top();
       if (top.key == kBlockedKey) break;  // every edge left is blocked (lower bounds: all inf)
-      // Entries of merged clusters (~0.9 per merge) are dropped without a cold record read.
+      // Entries of merged clusters (~0.9 per merge) are dropped without a cold record read: by
+      // the queue as they enter its window, here if the cluster died while in the window.
       if (isDead(top.id)) {
         queue_.pop();
         continue;
@@ -225,7 +226,7 @@ class MergeEngine {
     uint32_t count;
     uint32_t aux;
   };
-  bool isDead(uint32_t c) const { return (dead_[c >> 6] >> (c & 63)) & 1; }
+  bool isDead(uint32_t c) const { return IsDead{&dead_}(c); }
   static bool isPair(uint32_t slot) { return (slot & kPairBit) && slot < kDeadSlot; }
   uint32_t height(const ClusterRecord& r) const { return isPair(r.slot) ? 2 : r.aux; }
 
@@ -406,6 +407,7 @@ class MergeEngine {
     __builtin_prefetch(&clusters_[x]);
     w.found[s][0] = x;
   }
+  // The corner positions of face f (its indices should be in cache or on their way).
   void prefetchFace(uint32_t f) const {
     const MeshView& mesh = geometry_.mesh();
     const uint32_t* tri = mesh.indices.data() + size_t{3} * f;
@@ -473,11 +475,6 @@ class MergeEngine {
   // the corner positions of all of them can be in flight at once before the re-costing reads
   // them one neighbour at a time.
   void prefetchCorners() {
-    const MeshView& mesh = geometry_.mesh();
-    const auto prefetchFace = [&](uint32_t f) {
-      const uint32_t* tri = mesh.indices.data() + size_t{3} * f;
-      for (int k = 0; k < 3; ++k) __builtin_prefetch(mesh.positions.data() + tri[k]);
-    };
     for (const uint32_t x : triangles_) {
       prefetchFace(x);
       if (clusters_[x].slot != kLeafSlot) prefetchFace(clusters_[x].aux);
