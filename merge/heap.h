@@ -60,7 +60,8 @@ class EdgeHeap {
 
   // Refills move at least `minBatch` entries into the hot heap (tests use small batches to
   // exercise refills; the default keeps a refill's pass worth its cost).
-  explicit EdgeHeap(size_t minBatch = kMinBatch) : minBatch_(std::max<size_t>(minBatch, 1)) {
+  static constexpr size_t kDefaultMinBatch = 4096;
+  explicit EdgeHeap(size_t minBatch = kDefaultMinBatch) : minBatch_(std::max<size_t>(minBatch, 1)) {
     hot_.assign(kPad, 0);
   }
 
@@ -146,7 +147,6 @@ class EdgeHeap {
   }
 
  private:
-  static constexpr size_t kMinBatch = 4096;
   static constexpr size_t kMaxBatch = size_t{1} << 17;  // 1 MB of entries
   static constexpr size_t kBatchDivisor = 8;            // a refill takes ~1/8 of cold_
   static constexpr size_t kSamples = 1024;              // for the refill's threshold

@@ -28,8 +28,8 @@ class LookaheadQueue {
  public:
   using Entry = EdgeHeap::Entry;
 
-  explicit LookaheadQueue(Skip skip, size_t heapMinBatch = 0)
-      : heap_(heapMinBatch ? EdgeHeap(heapMinBatch) : EdgeHeap()), skip_(std::move(skip)) {
+  explicit LookaheadQueue(Skip skip, size_t heapMinBatch = EdgeHeap::kDefaultMinBatch)
+      : heap_(heapMinBatch), skip_(std::move(skip)) {
     clearWindow();
   }
 
