@@ -269,15 +269,16 @@ void OutOfCoreBuild::binAndDistribute() {
   ghosts_->releaseBuffers();
 }
 
-namespace {
-// Returns the heap's free pages to the system. The cells pass frees its memory in the worker
-// threads' malloc arenas, which the main thread's later allocations do not reuse: without this the
-// write pass stacked its 5-10 MB on top of the cells' peak (glibc; elsewhere a no-op).
+// The cells pass frees its memory in the worker threads' malloc arenas, which the main thread's
+// later allocations do not reuse: without this the write pass stacked its 5-10 MB on top of the
+// cells' peak (glibc; elsewhere a no-op).
 void releaseFreeMemory() {
 #if defined(__GLIBC__)
   malloc_trim(0);
 #endif
 }
+
+namespace {
 
 // Peak resident set so far (getrusage), for the per-phase figures of the report.
 uint64_t peakRss() {
@@ -318,7 +319,7 @@ void OutOfCoreBuild::planMetadata() {
   // Frontier clusters of the size that makes a kFrontierShare-th of the leaves the budget pays
   // for at most: the rest goes to the cells' many small components (fg_hawaii: 13,888), which
   // the upper merge joins better than a cell does.
-  const uint64_t leaves = std::max<uint64_t>(1, leafBudget_ / (kLeafBytes + topRuns_ * kRunBytes));
+  const uint64_t leaves = std::max<uint64_t>(1, leafBudget_ / (leafFixedBytes() + topRuns_ * kRunBytes));
   const uint64_t target = std::max<uint64_t>(1, leaves / kFrontierShare);
   frontierFaces_ = std::clamp<uint64_t>((triangles_ + target - 1) / target, frontierFaces_,
                                         std::max<uint64_t>(frontierFaces_, cellFaceLimit_ / 4));
@@ -326,7 +327,15 @@ void OutOfCoreBuild::planMetadata() {
 
 uint64_t OutOfCoreBuild::leafBytes(uint64_t faces) const {
   const uint64_t nodes = faces > 0 ? faces - 1 : 0;
-  return kLeafBytes + kRunBytes * std::min(nodes, topRuns_ + nodes / minNodeRun_);
+  return leafFixedBytes() + kRunBytes * std::min(nodes, topRuns_ + nodes / minNodeRun_);
+}
+
+uint64_t OutOfCoreBuild::cellBytesPerFace() const {
+  return job_.build.metric == Metric::Garland ? kGarlandCellBytesPerFace : kCellBytesPerFace;
+}
+
+uint64_t OutOfCoreBuild::leafFixedBytes() const {
+  return kLeafBytes + (job_.build.metric == Metric::Garland ? kGarlandLeafBytes : 0);
 }
 
 uint64_t OutOfCoreBuild::cellLeafAllowance(uint64_t faces) const {
@@ -348,8 +357,8 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
     cellFaceLimit_ = job_.forceCellFaces;
     cellWorkers_ = std::max(1u, job_.threads);
   } else {
-    cellFaceLimit_ = std::min(kMaxCellFaces, spare / kCellWorkers / kCellBytesPerFace);
-    if (cellFaceLimit_ < kMinCellFaces) cellFaceLimit_ = spare / kCellBytesPerFace;
+    cellFaceLimit_ = std::min(kMaxCellFaces, spare / kCellWorkers / cellBytesPerFace());
+    if (cellFaceLimit_ < kMinCellFaces) cellFaceLimit_ = spare / cellBytesPerFace();
     if (cellFaceLimit_ < kMinCellFaces) {
       const uint64_t need = outOfCoreMinimumBytes();
       throw MemoryCapError("--memory " + std::to_string(memoryCap_ >> 20) +
@@ -357,7 +366,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
                            std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
     }
     cellWorkers_ = static_cast<unsigned>(
-        std::clamp<uint64_t>(spare / (cellFaceLimit_ * kCellBytesPerFace), 1, std::max(1u, job_.threads)));
+        std::clamp<uint64_t>(spare / (cellFaceLimit_ * cellBytesPerFace()), 1, std::max(1u, job_.threads)));
   }
   report_.cellFaceLimit = cellFaceLimit_;
   frontierFaces_ = std::max<uint64_t>(kMinFrontierFaces, cellFaceLimit_ / kFrontiersPerCell);
@@ -387,6 +396,7 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
 
   start = std::chrono::steady_clock::now();
   mergeAbove();
+  releaseFreeMemory();  // the merge's stats and edges, before the write's tables take their place
   report_.secondsMerge = secondsSince(start);
   report_.peakRssAfter.push_back({"merge", peakRss()});
 
@@ -400,8 +410,6 @@ void OutOfCoreBuild::run(std::unique_ptr<TriangleReader> reader, PendingTriangle
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report) {
-  if (job.build.metric == Metric::Garland)
-    throw std::invalid_argument("--metric garland needs an in-core build (raise --memory)");
   report.outOfCore = true;
   OutOfCoreBuild build(job, temp, positions, memoryCap, report);
   build.run(std::move(reader), std::move(pending));

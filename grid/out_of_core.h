@@ -92,6 +92,11 @@ inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, librarie
 // borders: fg_hawaii at 64 MiB cut at 100,000 clusters fits 1.19 / 1.11 / 1.08 / 1.06x in core with cells
 // of 10.5k / 21k / 32k / 48k faces.
 inline constexpr uint64_t kCellBytesPerFace = 400;
+// With --metric garland: its clusters carry Garland's quadrics (184 B per stats slot) and its trees
+// are deep (the boxes' hull stacks grow with the height). fg_hawaii at 64 MiB in cells of 31k faces
+// peaked 7 MiB above the default metric's 52.8 MiB in the cells pass (~110 B per face of the two
+// cells at once) and passed the cap in the write.
+inline constexpr uint64_t kGarlandCellBytesPerFace = 560;
 // Cells are sized for this many at once whatever --threads says, so the output does not depend
 // on it: more threads build more cells at once only where the cap holds them (kMaxCellFaces).
 inline constexpr uint64_t kCellWorkers = 2;
@@ -115,11 +120,14 @@ inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetada
 // Per leaf at most (x86-64 sizes), the write's peak: record 32 B and its geometry handle 16, box
 // corners 96, its upper merge node (ClusterMergeNode) 144 and BoxAccumulator 176, the write's
 // tables ~70 (leaf order, parents, depths, positions, keys, the upper node's entry in the block
-// order), the frame builder's hull scratch over 8 corners per leaf (~300 at the root). During the
+// order), the hull points its upper node carries on for the frames (384). During the
 // merge instead: stats 128 twice (the input and mergeClusters' copy), its record 32 and heap 9,
 // and its leaf edges (~2 per leaf, 32 B + 16 B). Measured on fg_hawaii at 64 MiB: ~1.1 KB per
 // leaf with its runs (9 on average).
 inline constexpr uint64_t kLeafBytes = 1024;
+// With --metric garland a leaf also brings Garland's quadrics (GarlandQuadrics) to the upper merge,
+// which keeps its own copy (GarlandStats, the same 23 doubles).
+inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
 // Per node run: its NodeBlock 24 B, its entry in the write's block order 16 and position 4.
 inline constexpr uint64_t kRunBytes = 48;
 // resolveCrossEdges sorts the cells' pairs with up to three ExternalSorters holding memory at once,
@@ -166,6 +174,10 @@ class OutOfCoreBuild {
   void planMetadata();
   // The most a leaf of `faces` faces costs from the merge to the write (kLeafBytes, kRunBytes).
   uint64_t leafBytes(uint64_t faces) const;
+  // The part of it that does not depend on the faces (kLeafBytes, kGarlandLeafBytes).
+  uint64_t leafFixedBytes() const;
+  // kCellBytesPerFace, or kGarlandCellBytesPerFace for --metric garland.
+  uint64_t cellBytesPerFace() const;
   // The leaf metadata a cell of `faces` faces may make: its share of leafBudget_.
   uint64_t cellLeafAllowance(uint64_t faces) const;
   // The upper tree recast to the file's branching factor (identity for 2), per binary node in
@@ -223,7 +235,7 @@ class OutOfCoreBuild {
   std::unique_ptr<SpillFile> leafSpill_;
   struct CellResult {
     uint32_t leafCount = 0;
-    SpillBlock leaves{}, stats{}, corners{}, blocks{}, geometry{};  // rawBytes 0: empty
+    SpillBlock leaves{}, stats{}, garland{}, corners{}, blocks{}, geometry{};  // rawBytes 0: empty
     std::vector<SpillBlock> pairs;  // its CrossPairs (leaf-to-leaf ones within the cell summed)
     SpillBlock border{};            // its BorderFaces by face (rawBytes 0: none)
     uint64_t components = 0;
@@ -232,12 +244,16 @@ class OutOfCoreBuild {
   // merge
   std::vector<LeafCluster> leaves_;  // global leaf ids: cells in order, their leaves in order
   std::vector<SurfaceStats> leafStats_;
+  std::vector<GarlandQuadrics> leafGarland_;  // --metric garland only
   std::vector<BoxCorners> leafCorners_;
   std::vector<NodeBlock> blocks_;     // every leaf's runs
   std::vector<SpillBlock> geometry_;  // every leaf's geometry blocks
   std::vector<ClusterEdge> edges_;
   ClusterMergeResult upper_;
 };
+
+// Returns the heap's free pages to the system between passes (malloc_trim on glibc).
+void releaseFreeMemory();
 
 // Runs the out-of-core build from `reader` (released after the read pass), `pending` holding the
 // triangles the job had already read into memory; fills `report`.

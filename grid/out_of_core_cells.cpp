@@ -225,6 +225,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   // Its leaves (spilled at the end).
   std::vector<LeafCluster> leaves;
   std::vector<SurfaceStats> leafStats;
+  std::vector<GarlandQuadrics> leafGarland;  // --metric garland only
   std::vector<BoxCorners> leafCorners;
   std::vector<NodeBlock> runs;
   std::vector<SpillBlock> geometry;
@@ -425,6 +426,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         leaf.height = sub.stats.height;
         SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, adjacency, leafFaces, origin_));
         stats.height = leaf.height;
+        if (job_.build.metric == Metric::Garland) leafGarland.push_back(garlandQuadrics(leafMesh, origin_));
         BoxCorners& corners = leafCorners.emplace_back();
         const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
         leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
@@ -548,6 +550,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   result.leafCount = static_cast<uint32_t>(leaves.size());
   result.leaves = spill(leaves);
   result.stats = spill(leafStats);
+  result.garland = spill(leafGarland);
   result.corners = spill(leafCorners);
   result.blocks = spill(runs);
   result.geometry = spill(geometry);

@@ -158,6 +158,7 @@ void OutOfCoreBuild::resolveCrossEdges() {
   };
   leaves_.reserve(leafBase[cells]);
   leafStats_.reserve(leafBase[cells]);
+  if (job_.build.metric == Metric::Garland) leafGarland_.reserve(leafBase[cells]);
   leafCorners_.reserve(leafBase[cells]);
   for (CellResult& cell : cells_) {
     report_.components += cell.components;
@@ -166,6 +167,7 @@ void OutOfCoreBuild::resolveCrossEdges() {
     const auto geometryBase = static_cast<uint32_t>(geometry_.size());
     append(leaves_, cell.leaves);
     append(leafStats_, cell.stats);
+    append(leafGarland_, cell.garland);
     append(leafCorners_, cell.corners);
     append(blocks_, cell.blocks);
     append(geometry_, cell.geometry);

@@ -22,11 +22,14 @@ namespace {
 // order, so every accumulator sees the same triangles in the same runs and order as inline (the
 // boxes are bit-identical). Each block is one run (TriangleRun: its a_f n_f and distinct vertices
 // computed once for all its ancestors, BoxAccumulator::addRun). Memory: two batches of at most
-// kBatchTriangles triangles, or one leaf block's if larger (a block holds at most
-// kTrianglesPerBlock), and one run's scratch.
+// kBatchTriangles triangles and kBatchAncestors ancestor entries, or one leaf block's if larger (a
+// block holds at most kTrianglesPerBlock, its ancestors at most the upper tree's height), and one
+// run's scratch. (The ancestors need their own bound: --metric garland's upper trees are thousands
+// of levels deep, and openfoam_buildings' batches of small leaves under them grew to 14 MB each.)
 class UpperBoxes {
  public:
   static constexpr size_t kBatchTriangles = 8192;
+  static constexpr size_t kBatchAncestors = size_t{1} << 16;
 
   UpperBoxes(std::vector<BoxAccumulator>& boxes, bool helper) : boxes_(boxes) {
     if (helper) thread_ = std::thread([this] { run(); });
@@ -45,7 +48,7 @@ class UpperBoxes {
     b.vertices.insert(b.vertices.end(), vertices.begin(), vertices.end());
     b.indices.insert(b.indices.end(), indices.begin(), indices.end());
     b.ancestors.insert(b.ancestors.end(), ancestors.begin(), ancestors.end());
-    if (b.indices.size() >= 3 * kBatchTriangles) hand();
+    if (b.indices.size() >= 3 * kBatchTriangles || b.ancestors.size() >= kBatchAncestors) hand();
   }
   // Waits until every triangle added is in its accumulators.
   void finish() {
@@ -141,11 +144,12 @@ uint32_t balancedHeight(uint64_t n) {
 
 void OutOfCoreBuild::mergeAbove() {
   checkCancel("merge", 0, leaves_.size());
-  upper_ = mergeClusters(leafStats_, edges_, diagonalSquared_, job_.build);
+  upper_ = mergeClusters(leafStats_, edges_, diagonalSquared_, job_.build, leafGarland_);
   report_.crossEdges = edges_.size();
   report_.upperComponents = upper_.components;
   edges_ = {};
   leafStats_ = {};  // the upper nodes carry what the write needs
+  leafGarland_ = {};
 }
 
 OutOfCoreBuild::UpperRecast OutOfCoreBuild::recastUpper(std::span<const uint32_t> leafOrder,
@@ -335,37 +339,40 @@ void OutOfCoreBuild::write() {
   report_.height = height;
   report_.balancedHeight = balancedHeight(faces);
 
-  // Frames of the upper nodes from their statistics and their leaves' box corners (put in leaf
-  // order in place, cycle by cycle: no second copy).
-  {
-    std::vector<bool> placed(leafCount, false);
-    for (uint32_t start = 0; start < leafCount; ++start) {
-      if (placed[start]) continue;
-      const BoxCorners first = leafCorners_[start];
-      uint32_t at = start;
-      for (;;) {
-        placed[at] = true;
-        const uint32_t from = leafOrder[at];
-        if (from == start) {
-          leafCorners_[at] = first;
-          break;
-        }
-        leafCorners_[at] = leafCorners_[from];
-        at = from;
-      }
-    }
-  }
-  const std::span<const glm::vec3> corners(leafCorners_.empty() ? nullptr : leafCorners_[0].data(),
-                                           size_t{8} * leafCount);
+  // Frames of the upper nodes from their statistics, bottom-up (creation order): each is oriented
+  // from its children's carried hull points (a leaf's: its root box's 8 corners) and carries at most
+  // kMaxCarried on (ClusterOrienter). Orienting each node from all its leaves' corners instead was
+  // O(leaves * height): with --metric garland's upper trees (openfoam_buildings: 21k leaves, 7.8k
+  // levels) most of the write's time, and its scratch fragmented the heap by 17 MB (fg_hawaii).
   std::vector<BoxAccumulator> boxes;
   std::vector<uint8_t> flat(upperCount, 0);
   boxes.reserve(upperCount);
-  for (uint32_t i = 0; i < upperCount; ++i) {
-    bool isFlat = false;
-    const std::span<const glm::vec3> points =
-        corners.subspan(size_t{8} * firstLeaf[i], size_t{8} * leavesUnder[i]);
-    boxes.emplace_back(clusterOrientation(upper[i].stats, points, job_.build.flatThreshold, isFlat));
-    flat[i] = isFlat;
+  {
+    constexpr size_t kCap = ClusterOrienter::kMaxCarried;
+    std::vector<glm::vec3> carried(size_t{upperCount} * kCap);
+    std::vector<uint8_t> carriedCount(upperCount, 0);
+    std::vector<glm::vec3> points;
+    points.reserve(2 * kCap);
+    ClusterOrienter orienter;
+    for (uint32_t i = 0; i < upperCount; ++i) {
+      points.clear();
+      for (const uint32_t c : upper[i].child) {
+        if (c & kLeafChild) {
+          const BoxCorners& corners = leafCorners_[c & ~kLeafChild];
+          points.insert(points.end(), corners.begin(), corners.end());
+        } else {
+          const auto from = carried.begin() + static_cast<ptrdiff_t>(size_t{c} * kCap);
+          points.insert(points.end(), from, from + carriedCount[c]);
+        }
+      }
+      bool isFlat = false;
+      size_t keep = 0;
+      boxes.emplace_back(orienter.orient(upper[i].stats, points, job_.build.flatThreshold, isFlat, keep));
+      flat[i] = isFlat;
+      std::copy(points.begin(), points.begin() + static_cast<ptrdiff_t>(keep),
+                carried.begin() + static_cast<ptrdiff_t>(size_t{i} * kCap));
+      carriedCount[i] = static_cast<uint8_t>(keep);
+    }
   }
   leafCorners_ = {};
 
@@ -431,6 +438,7 @@ void OutOfCoreBuild::write() {
   upperBoxes.finish();
   geometrySpill_.reset();
   geometry_ = {};
+  releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
 
   // Nodes: the upper ones (reverse creation order, root first), then each leaf's subtree.
   std::vector<FchNode> out;

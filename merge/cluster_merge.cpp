@@ -17,14 +17,15 @@
 //    a pair of faces from its triangles.
 //  - The lazy heap (heap.h) holds a lower bound of each cluster's cheapest key; see
 //    merge_engine.cpp for why. Unlike the engine, every cluster keeps its stats in place
-//    (leaf clusters are few and large: no pair recomputation, no slot recycling).
+//    (leaf clusters are few and large: no pair recomputation, no slot recycling), and with
+//    Metric::Garland their quadrics (GarlandStats, from the caller's GarlandQuadrics).
 //  - Roots left when the edges run out (or are blocked) are joined Huffman-style by face
 //    count, ties by the Morton rank of their centroids, flagged kNodeJoinsDisjointSurfaces.
 //    The engine ranks within the model's bounding box; here, having only the leaves'
 //    statistics, within the box of the roots' centroids (zero-area roots sit at the origin):
 //    the same joins, except possibly among roots of equal face count.
-// Memory: 112 B of stats and 32 B of record per leaf, 32 B per distinct edge (24 in the graph,
-// 8 for the double length), the heap ~9 B per leaf, and the output nodes (~144 B each).
+// Memory: 112 B of stats (Garland: 184 more) and 32 B of record per leaf, 32 B per distinct edge (24 in the
+// graph, 8 for the double length), the heap ~9 B per leaf, and the output nodes (~144 B each).
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -120,15 +121,22 @@ DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input,
 
 class ClusterMerger {
  public:
+  // `garland`: one per leaf with Metric::Garland (checked by mergeClusters), else unused.
   ClusterMerger(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                double diagonalSquared, const BuildOptions& options)
+                double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland)
       : leaves_(leaves),
+        options_(options),
         constant_(options.metric == Metric::Constant),
+        garland_(options.metric == Metric::Garland),
         k_(options.k),
         flatThreshold_(options.flatThreshold),
-        keyScale_(constant_ ? 1.0 : 1.0 / diagonalSquared),
-        guard_(!constant_ && options.balanceSlack > 0),
+        keyScale_(constant_ || garland_ ? 1.0 : 1.0 / diagonalSquared),  // as the policies' keyScale()
+        guard_(!constant_ && !garland_ && options.balanceSlack > 0),     // as their kBalanceGuard
         balanceSlack_(options.balanceSlack) {
+    if (garland_) {
+      extras_.reserve(garland.size());
+      for (const GarlandQuadrics& q : garland) extras_.push_back(toGarlandStats(q));
+    }
     graph_ = buildLeafGraph(static_cast<uint32_t>(leaves.size()), edges, exactShared_);
   }
 
@@ -219,12 +227,17 @@ class ClusterMerger {
     uint64_t faceCount;
   };
 
-  double cost(const ClusterStats& m) {
-    return constant_ ? 1.0 : willmottCost(m, k_, flatThreshold_, counters_);
+  // The cost of merging clusters ia and ib (stats a and b) into m, as the engine's policies
+  // evaluate it (cost.h); Garland's quadrics are ia's and ib's current ones.
+  double cost(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b, uint32_t ia, uint32_t ib) {
+    if (constant_) return 1.0;
+    if (garland_)
+      return garlandCost(m, a, b, GarlandStats::merged(extras_[ia], extras_[ib]), options_, counters_);
+    return willmottCost(m, k_, flatThreshold_, counters_);
   }
 
   float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib) {
-    double c = cost(ClusterStats::merged(a, b, shared)) * keyScale_;
+    double c = cost(ClusterStats::merged(a, b, shared), a, b, ia, ib) * keyScale_;
     if (guard_) {
       const Record& x = clusters_[ia];
       const Record& y = clusters_[ib];
@@ -294,7 +307,8 @@ class ClusterMerger {
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
     node.flags = joining ? kNodeJoinsDisjointSurfaces : 0u;
-    node.cost = joining ? toKey(cost(merged)) : toKey(static_cast<double>(heapKey) / keyScale_);
+    node.cost = joining ? toKey(cost(merged, stats_[a], stats_[b], a, b))
+                        : toKey(static_cast<double>(heapKey) / keyScale_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
     node.stats = toSurfaceStats(kept, ra.faceCount, ra.height);
@@ -302,6 +316,7 @@ class ClusterMerger {
     rb.node = kDead;
     result_.nodes.push_back(node);
     stats_[a] = kept;
+    if (garland_) extras_[a] = GarlandStats::merged(extras_[a], extras_[b]);  // the engine's order
     if (joining) return;
     kill(graph_.edges[e]);
 
@@ -405,13 +420,15 @@ class ClusterMerger {
   }
 
   std::span<const SurfaceStats> leaves_;
-  bool constant_;
+  const BuildOptions& options_;  // outlives the merger (mergeClusters' argument)
+  bool constant_, garland_;
   double k_, flatThreshold_, keyScale_;
   bool guard_;
   double balanceSlack_;
   DualGraph graph_;
   std::vector<double> exactShared_;  // per edge: the caller's summed length
   std::vector<ClusterStats> stats_;
+  std::vector<GarlandStats> extras_;  // Metric::Garland only: each cluster's quadrics
   std::vector<Record> clusters_;
   EdgeHeap heap_;
   CostCounters counters_;
@@ -423,13 +440,14 @@ class ClusterMerger {
 }  // namespace
 
 ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                                 double diagonalSquared, const BuildOptions& options) {
-  if (options.metric == Metric::Garland) {
-    throw std::invalid_argument("mergeClusters: the Garland metric needs face-level statistics");
+                                 double diagonalSquared, const BuildOptions& options,
+                                 std::span<const GarlandQuadrics> garland) {
+  if (options.metric == Metric::Garland && garland.size() != leaves.size()) {
+    throw std::invalid_argument("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf");
   }
   if (leaves.size() > kMaxLeaves) throw std::invalid_argument("mergeClusters: more than 2^31-1 leaves");
   if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
-  return ClusterMerger(leaves, edges, diagonalSquared, options).run();
+  return ClusterMerger(leaves, edges, diagonalSquared, options, garland).run();
 }
 
 }  // namespace facetree

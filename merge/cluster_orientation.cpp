@@ -11,21 +11,41 @@
 
 namespace facetree {
 
-glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
-                             double flatThreshold, bool& flat) {
+namespace {
+
+glm::quat orientation(FrameBuilder& builder, const SurfaceStats& stats, std::span<glm::vec3> points,
+                      double flatThreshold, bool& flat, size_t& carried) {
   FrameInput in;
   in.area = stats.area;
   in.sumNormal = stats.sumNormal;
   in.flatThreshold = flatThreshold;
   if (!isFlatCluster(in.area, in.sumNormal, flatThreshold))
     in.covariance = toClusterStats(stats).covariance();
+  ClusterFrame frame;
+  carried = builder.build(in, points, frame);
+  flat = frame.flat;
+  return frameQuaternion(frame);
+}
+
+}  // namespace
+
+glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
+                             double flatThreshold, bool& flat) {
   // FrameBuilder reorders its points (hull candidates to the front): work on a copy.
   std::vector<glm::vec3> scratch(points.begin(), points.end());
   FrameBuilder builder;
-  ClusterFrame frame;
-  builder.build(in, scratch, frame);
-  flat = frame.flat;
-  return frameQuaternion(frame);
+  size_t carried = 0;
+  return orientation(builder, stats, scratch, flatThreshold, flat, carried);
+}
+
+static_assert(ClusterOrienter::kMaxCarried == kFrameHullCap);
+
+ClusterOrienter::ClusterOrienter() : builder_(std::make_unique<FrameBuilder>()) {}
+ClusterOrienter::~ClusterOrienter() = default;
+
+glm::quat ClusterOrienter::orient(const SurfaceStats& stats, std::span<glm::vec3> points,
+                                  double flatThreshold, bool& flat, size_t& carried) {
+  return orientation(*builder_, stats, points, flatThreshold, flat, carried);
 }
 
 }  // namespace facetree

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -139,10 +140,28 @@ struct SurfaceStats {
   uint32_t height = 1;  // nodes on the longest root-to-face path, the face included
 };
 
+// Garland's per-cluster quadrics for Metric::Garland (Garland, Willmott & Heckbert 2001, as MixKit's
+// MxDualSlim keeps them), additive like SurfaceStats and about the same origin: the corner quadric (sum over
+// every face's 3 corners of v v^T and v, and their count) and the orientation quadric of unit face normals
+// weighted by sqrt(area) (W = sum sqrt(a_f), sum sqrt(a_f) n_f, sum sqrt(a_f) n_f n_f^T), with the plain sum
+// of unit normals. Degenerate faces add their corners only.
+struct GarlandQuadrics {
+  double cornerSecond[6] = {};  // xx xy xz yy yz zz
+  glm::dvec3 cornerFirst{0.0};
+  double cornerCount = 0;
+  double dirWeight = 0;
+  glm::dvec3 dirFirst{0.0};
+  double dirSecond[6] = {};  // xx xy xz yy yz zz
+  glm::dvec3 normalSum{0.0};
+};
+
 // Statistics of all triangles of `mesh` about `origin` (perimeter = sum of triangle perimeters minus twice
 // the shared lengths of the dual graph, exactly as the engine's root would have it), height 1. An empty mesh
 // gives zero statistics; throws std::invalid_argument as buildHierarchy does for invalid indices.
 SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin);
+// Garland's quadrics of all triangles of `mesh`, corners about `origin` (one triangle gives exactly what the
+// engine gives a face); throws std::invalid_argument as buildHierarchy does for invalid indices.
+GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin);
 
 // eFit of Willmott 2000, eq. 84: the variance of the surface along its normal, n = S/|S| when
 // |S|/A > flatThreshold (eq. 78), else the smallest eigenvector of the covariance (PCA), exactly as
@@ -250,13 +269,16 @@ struct ClusterMergeResult {
 // hierarchies): eq. 84 with options.k / flatThreshold, the balance guard with options.balanceSlack using the
 // leaves' heights and face counts, Huffman component joins by face count as the engine does, deterministic
 // ties (cost, then ids). `diagonalSquared` is the squared bounding-box diagonal of the whole model (the key
-// scale the engine uses). Metric::Constant supported; Metric::Garland throws
-// std::invalid_argument("mergeClusters: the Garland metric needs face-level statistics"). Cost O((L + E) log
-// L); memory O(L + E). With one leaf per face (the faces' surfaceStats about the engine's origin, the dual
-// graph's edges with their exact shared lengths) the nodes are buildHierarchy's, in creation order. Throws
-// std::invalid_argument for an edge with an endpoint out of range or equal ends, and for 2^31 leaves or more.
+// scale the engine uses). Metric::Constant supported; Metric::Garland with `garland`, the leaves' quadrics
+// (one per leaf, about the origin of their stats; ignored by the other metrics), without the balance guard as
+// the engine runs it. Cost O((L + E) log L); memory O(L + E). With one leaf per face (the faces' surfaceStats
+// and garlandQuadrics about the engine's origin, the dual graph's edges with their exact shared lengths) the
+// nodes are buildHierarchy's, in creation order. Throws std::invalid_argument for an edge with an endpoint
+// out of range or equal ends, for 2^31 leaves or more, and for Metric::Garland without one quadric per leaf
+// ("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf").
 ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                                 double diagonalSquared, const BuildOptions& options = {});
+                                 double diagonalSquared, const BuildOptions& options = {},
+                                 std::span<const GarlandQuadrics> garland = {});
 
 // Box frame of a cluster from its statistics (PCA of the covariance, or S plus the minimum-area rectangle for
 // flat clusters, sec. 5.3.2, as computeBoxes chooses them) and `points`, a sample containing its extreme
@@ -264,6 +286,28 @@ ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span
 // orientation (columns of mat3_cast = axes, as NodeBox) and sets `flat`.
 glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
                              double flatThreshold, bool& flat);
+
+// clusterOrientation for a tree of clusters, bottom-up, as computeBoxes carries hull candidates (box.cpp):
+// a cluster is oriented from its children's carried points (a leaf from a sample of its own, e.g. its box's
+// 8 corners), and carries at most kMaxCarried of them (its hull vertices in its frame's plane, evenly
+// subsampled) to its parent. O(1) per cluster whatever the tree's height, where orienting every cluster from
+// all its leaves' points is O(leaves * height). Keeps its scratch between calls (no allocation once warm).
+class FrameBuilder;
+class ClusterOrienter {
+ public:
+  static constexpr size_t kMaxCarried = 32;
+  ClusterOrienter();
+  ~ClusterOrienter();
+  ClusterOrienter(const ClusterOrienter&) = delete;
+  ClusterOrienter& operator=(const ClusterOrienter&) = delete;
+  // The orientation (as clusterOrientation) of a cluster of `stats` whose points are `points`, which it
+  // reorders: on return the first `carried` (at most kMaxCarried) are the ones to pass on to its parent.
+  glm::quat orient(const SurfaceStats& stats, std::span<glm::vec3> points, double flatThreshold, bool& flat,
+                   size_t& carried);
+
+ private:
+  std::unique_ptr<FrameBuilder> builder_;
+};
 
 // Exact box extents and side areas in a given orientation, accumulated triangle by triangle (so a caller can
 // stream the faces of a huge cluster, or merge accumulators of disjoint face sets). box() gives the same

@@ -6,6 +6,7 @@
 // of all dual edges subtract (perim(A u B) = perim(A) + perim(B) - 2 shared).
 // With a FaceAdjacency built once for a whole mesh, the shared lengths of a piece come from it
 // (dual_graph.h FaceAdjacencyAccess::Piece) instead of the piece's own dual graph.
+// garlandQuadrics: the same sums of Garland's quadrics (cost.h GarlandStats).
 // surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
 
@@ -92,6 +93,28 @@ SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::
     const bool exact = view.forEachEdge(geometry, [&](uint32_t, uint32_t, float shared) { sum.add(shared); });
     return exact ? sum.total() : graphShared(geometry);
   });
+}
+
+GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin) {
+  if (mesh.triangleCount() == 0) return GarlandQuadrics{};
+  const FaceGeometry geometry(mesh);  // validates the indices
+  const uint32_t n = geometry.faceCount();
+  // The corners as the engine's GarlandCost::leafExtra takes them (double, minus the origin).
+  const auto corner = [&](uint32_t f, int k) {
+    return glm::dvec3(mesh.positions[mesh.indices[size_t{3} * f + k]]) - origin;
+  };
+  const auto face = [&](uint32_t f) {
+    return GarlandStats::fromTriangle(corner(f, 0), corner(f, 1), corner(f, 2));
+  };
+  // Sums start from their first term, not from zero: a single face keeps its bits (signed zeros too).
+  GarlandStats total;
+  for (uint32_t begin = 0; begin < n; begin += kSumBlock) {
+    GarlandStats block = face(begin);
+    const uint32_t end = std::min(n, begin + kSumBlock);
+    for (uint32_t f = begin + 1; f < end; ++f) block = GarlandStats::merged(block, face(f));
+    total = begin == 0 ? block : GarlandStats::merged(total, block);
+  }
+  return toGarlandQuadrics(total);
 }
 
 double surfaceFitError(const SurfaceStats& stats, double flatThreshold) {

@@ -1,9 +1,11 @@
-// Conversions between the public SurfaceStats (merge.h) and the merge's ClusterStats.
+// Conversions between the public SurfaceStats and GarlandQuadrics (merge.h) and the merge's
+// ClusterStats and GarlandStats (cost.h).
 #pragma once
 
 #include <cstdint>
 
 #include "merge/cluster_stats.h"
+#include "merge/cost.h"
 #include "merge/merge.h"
 
 namespace facetree {
@@ -28,6 +30,30 @@ inline SurfaceStats toSurfaceStats(const ClusterStats& c, uint64_t faceCount, ui
   s.faceCount = faceCount;
   s.height = height;
   return s;
+}
+
+inline GarlandStats toGarlandStats(const GarlandQuadrics& q) {
+  GarlandStats g;
+  for (int i = 0; i < 6; ++i) g.cornerSecond.m[i] = q.cornerSecond[i];
+  g.cornerFirst = q.cornerFirst;
+  g.cornerCount = q.cornerCount;
+  g.dirWeight = q.dirWeight;
+  g.dirFirst = q.dirFirst;
+  for (int i = 0; i < 6; ++i) g.dirSecond.m[i] = q.dirSecond[i];
+  g.normalSum = q.normalSum;
+  return g;
+}
+
+inline GarlandQuadrics toGarlandQuadrics(const GarlandStats& g) {
+  GarlandQuadrics q;
+  for (int i = 0; i < 6; ++i) q.cornerSecond[i] = g.cornerSecond.m[i];
+  q.cornerFirst = g.cornerFirst;
+  q.cornerCount = g.cornerCount;
+  q.dirWeight = g.dirWeight;
+  q.dirFirst = g.dirFirst;
+  for (int i = 0; i < 6; ++i) q.dirSecond[i] = g.dirSecond.m[i];
+  q.normalSum = g.normalSum;
+  return q;
 }
 
 }  // namespace facetree

@@ -171,6 +171,7 @@ std::vector<uint32_t> spatialPieces(const TestMesh& mesh, uint32_t cells) {
 // lengths: the input for which mergeClusters must reproduce buildHierarchy.
 struct FaceLeaves {
   std::vector<SurfaceStats> stats;
+  std::vector<GarlandQuadrics> garland;
   std::vector<ClusterEdge> edges;
   double diagonalSquared;
   glm::dvec3 origin;
@@ -184,6 +185,7 @@ FaceLeaves faceLeaves(const TestMesh& mesh) {
   for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
     const TestMesh one = subMesh(mesh, {f});
     out.stats.push_back(surfaceStats(one.view(), out.origin));
+    out.garland.push_back(garlandQuadrics(one.view(), out.origin));
   }
   const DualGraph graph = buildDualGraph(geometry);
   for (const DualEdge& e : graph.edges) {
@@ -352,6 +354,69 @@ TEST(SurfaceStats, AddUpOverAnySplit) {
     EXPECT_EQ(sum.faceCount, whole.faceCount);
     expectStatsNear(sum, whole, 1e-12, sumOfTrianglePerimeters(mesh), 1e-12);
   }
+}
+
+TEST(GarlandQuadrics, OfATriangleByHandAndAdditiveOverAnySplit) {
+  // Right triangle (0,0,0) (2,0,0) (0,2,0) about origin (0,0,-1): corners z = 1, area 2,
+  // normal +z, weight sqrt(2).
+  TestMesh tri;
+  tri.positions = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
+  tri.indices = {0, 1, 2};
+  const GarlandQuadrics q = garlandQuadrics(tri.view(), glm::dvec3(0, 0, -1));
+  const double w = std::sqrt(2.0);
+  const double cornerSecond[6] = {4, 0, 2, 4, 2, 3};  // sum v v^T of (0,0,1) (2,0,1) (0,2,1)
+  for (int k = 0; k < 6; ++k) EXPECT_DOUBLE_EQ(q.cornerSecond[k], cornerSecond[k]) << k;
+  EXPECT_EQ(q.cornerFirst, glm::dvec3(2, 2, 3));
+  EXPECT_EQ(q.cornerCount, 3.0);
+  EXPECT_DOUBLE_EQ(q.dirWeight, w);
+  EXPECT_DOUBLE_EQ(q.dirFirst.z, w);
+  EXPECT_EQ(q.dirFirst.x, 0.0);
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(q.dirSecond[k], 0.0) << k;
+  EXPECT_DOUBLE_EQ(q.dirSecond[5], w);
+  EXPECT_EQ(q.normalSum, glm::dvec3(0, 0, 1));
+  // A degenerate face adds its corners only.
+  TestMesh flat;
+  flat.positions = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}};
+  flat.indices = {0, 1, 2};
+  const GarlandQuadrics d = garlandQuadrics(flat.view(), glm::dvec3(0.0));
+  EXPECT_EQ(d.cornerCount, 3.0);
+  EXPECT_EQ(d.dirWeight, 0.0);
+  EXPECT_EQ(d.normalSum, glm::dvec3(0.0));
+
+  const TestMesh mesh = bumpyGrid(20, 0.2f, 0.3f);
+  const glm::dvec3 origin(0.4, -0.2, 0.1);
+  const GarlandQuadrics whole = garlandQuadrics(mesh.view(), origin);
+  EXPECT_EQ(whole.cornerCount, 3.0 * mesh.faceCount());
+  std::mt19937 rng(5);
+  std::vector<std::vector<uint32_t>> parts(7);
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) parts[rng() % parts.size()].push_back(f);
+  GarlandQuadrics sum;
+  for (const std::vector<uint32_t>& part : parts) {
+    const GarlandQuadrics p = garlandQuadrics(subMesh(mesh, part).view(), origin);
+    for (int k = 0; k < 6; ++k) sum.cornerSecond[k] += p.cornerSecond[k], sum.dirSecond[k] += p.dirSecond[k];
+    sum.cornerFirst += p.cornerFirst;
+    sum.cornerCount += p.cornerCount;
+    sum.dirWeight += p.dirWeight;
+    sum.dirFirst += p.dirFirst;
+    sum.normalSum += p.normalSum;
+  }
+  const auto near = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(1.0, std::abs(b)); };
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_TRUE(near(sum.cornerSecond[k], whole.cornerSecond[k])) << k;
+    EXPECT_TRUE(near(sum.dirSecond[k], whole.dirSecond[k])) << k;
+  }
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_TRUE(near(sum.cornerFirst[k], whole.cornerFirst[k])) << k;
+    EXPECT_TRUE(near(sum.dirFirst[k], whole.dirFirst[k])) << k;
+    EXPECT_TRUE(near(sum.normalSum[k], whole.normalSum[k])) << k;
+  }
+  EXPECT_EQ(sum.cornerCount, whole.cornerCount);
+  EXPECT_TRUE(near(sum.dirWeight, whole.dirWeight));
+
+  EXPECT_EQ(garlandQuadrics(TestMesh{}.view(), origin).cornerCount, 0.0);
+  TestMesh bad = tri;
+  bad.indices[2] = 7;
+  EXPECT_THROW(garlandQuadrics(bad.view(), origin), std::invalid_argument);
 }
 
 TEST(SurfaceStats, EmptyMeshAndInvalidIndices) {
@@ -547,7 +612,8 @@ void expectSameMerge(const TestMesh& mesh, const BuildOptions& options, bool equ
                                     << options.balanceSlack);
   const Hierarchy h = buildHierarchy(mesh.view(), options);
   const FaceLeaves leaves = faceLeaves(mesh);
-  const ClusterMergeResult r = mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, options);
+  const ClusterMergeResult r =
+      mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, options, leaves.garland);
   const std::vector<ClusterMergeNode> want = creationOrder(h);
   ASSERT_EQ(r.nodes.size(), want.size());
   // Edge merges come first and must be the engine's, merge for merge. The Huffman joins that
@@ -594,6 +660,7 @@ TEST(MergeClusters, SingleFaceLeavesReproduceBuildHierarchy) {
     SCOPED_TRACE(mesh.faceCount());
     expectSameMerge(mesh, noBoxes());
     expectSameMerge(mesh, noBoxes(Metric::Constant));
+    expectSameMerge(mesh, noBoxes(Metric::Garland));
     BuildOptions tight = noBoxes();
     tight.balanceSlack = 1.0;  // the guard blocks merges: roots of equal size to join
     tight.k = 1e-2;
@@ -740,6 +807,14 @@ TEST(MergeClusters, EdgeCasesAndErrors) {
   EXPECT_EQ(mergeClusters(two, {}, 4.0).nodes[0].flags, uint32_t(kNodeJoinsDisjointSurfaces));
   BuildOptions garland;
   garland.metric = Metric::Garland;
+  // Garland's metric needs one quadric per leaf.
+  const std::vector<GarlandQuadrics> quadrics(1);
+  try {
+    mergeClusters(two, once, 4.0, garland, quadrics);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "mergeClusters: the Garland metric needs one GarlandQuadrics per leaf");
+  }
   EXPECT_THROW(mergeClusters(two, once, 4.0, garland), std::invalid_argument);
   const std::vector<ClusterEdge> outOfRange{{0, 2, 1.0}}, loop{{1, 1, 1.0}};
   EXPECT_THROW(mergeClusters(two, outOfRange, 4.0), std::invalid_argument);
@@ -878,6 +953,82 @@ void checkBox(const NodeBox& box, std::span<const glm::vec3> corners) {
     EXPECT_LE(lo[k], -he[k] + tol) << "axis " << k;
   }
   for (int k = 0; k < 6; ++k) EXPECT_NEAR(box.sideArea[k], side[k], 1e-5 * area + 1e-30) << "side " << k;
+}
+
+// ClusterOrienter is clusterOrientation with bounded points carried up a tree: with few points it
+// is clusterOrientation bit for bit and carries its hull's vertices (its extreme points); up a deep chain of
+// pieces of a plane (hull points carried exactly) the root gets the frame of all the points.
+TEST(ClusterOrienter, IsClusterOrientationCarryingAtMostTheCap) {
+  const glm::dmat3 rotation(glm::mat3_cast(glm::normalize(glm::quat(0.9f, 0.3f, -0.2f, 0.25f))));
+  TestMesh plane = grid(24);
+  for (glm::vec3& p : plane.positions) p = glm::vec3(rotation * glm::dvec3(p));
+  const glm::dvec3 origin = boxOrigin(plane);
+  ClusterOrienter orienter;
+  const auto same = [](const glm::quat& a, const glm::quat& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+
+  // Single faces and a few pairs: few points.
+  for (uint32_t f = 0; f + 1 < plane.faceCount(); f += 97) {
+    for (const std::vector<uint32_t>& faces : {std::vector<uint32_t>{f}, std::vector<uint32_t>{f, f + 1}}) {
+      const TestMesh piece = subMesh(plane, faces);
+      const SurfaceStats s = surfaceStats(piece.view(), origin);
+      std::vector<glm::vec3> points;
+      for (const uint32_t v : piece.indices) points.push_back(piece.positions[v]);
+      bool flatA = false, flatB = false;
+      size_t carried = 0;
+      const glm::quat a = clusterOrientation(s, points, 0.5, flatA);
+      std::vector<glm::vec3> reordered = points;
+      const glm::quat b = orienter.orient(s, reordered, 0.5, flatB, carried);
+      EXPECT_TRUE(same(a, b)) << "face " << f;
+      EXPECT_EQ(flatA, flatB);
+      EXPECT_TRUE(flatB);
+      // A flat cluster carries its hull's vertices: the extremes of all its points.
+      EXPECT_GE(carried, 3u);
+      EXPECT_LE(carried, points.size());
+      const glm::dvec3 e = extents(b, std::span(reordered).first(carried)), x = extents(b, points);
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(e[k], x[k], 1e-6) << "face " << f << ", axis " << k;
+    }
+  }
+
+  // A chain: piece k (a band of the plane) joins the cluster of pieces 0..k-1, every cluster oriented
+  // from its children's carried points only.
+  constexpr uint32_t kPieces = 48;
+  const uint32_t perPiece = plane.faceCount() / kPieces;
+  std::vector<glm::vec3> carriedUp, all;
+  std::vector<uint32_t> sofar;
+  for (uint32_t k = 0; k < kPieces; ++k) {
+    std::vector<uint32_t> faces(perPiece);
+    std::iota(faces.begin(), faces.end(), k * perPiece);
+    const TestMesh piece = subMesh(plane, faces);
+    std::vector<glm::vec3> points;
+    for (const uint32_t v : piece.indices) points.push_back(piece.positions[v]);
+    all.insert(all.end(), points.begin(), points.end());
+    bool flat = false;
+    size_t carried = 0;
+    orienter.orient(surfaceStats(piece.view(), origin), points, 0.5, flat, carried);
+    ASSERT_LE(carried, ClusterOrienter::kMaxCarried);
+    ASSERT_GT(carried, 2u);
+    if (k == 0) {
+      carriedUp.assign(points.begin(), points.begin() + carried);
+      sofar = faces;
+      continue;
+    }
+    std::vector<glm::vec3> joined = carriedUp;
+    joined.insert(joined.end(), points.begin(), points.begin() + carried);
+    sofar.insert(sofar.end(), faces.begin(), faces.end());
+    const SurfaceStats s = surfaceStats(subMesh(plane, sofar).view(), origin);
+    std::vector<glm::vec3> candidates = joined;
+    const glm::quat q = orienter.orient(s, joined, 0.5, flat, carried);
+    ASSERT_TRUE(flat);
+    ASSERT_LE(carried, ClusterOrienter::kMaxCarried);
+    for (size_t i = 0; i < carried; ++i)  // carried points are its input points
+      ASSERT_NE(std::find(candidates.begin(), candidates.end(), joined[i]), candidates.end());
+    carriedUp.assign(joined.begin(), joined.begin() + carried);
+    // The plane's hull is carried exactly: the rectangle is that of all the points so far.
+    bool flatAll = false;
+    const glm::quat exact = clusterOrientation(s, all, 0.5, flatAll);
+    const glm::dvec3 e = extents(q, all), x = extents(exact, all);
+    EXPECT_NEAR(e[0] * e[1], x[0] * x[1], 1e-4 * x[0] * x[1]) << "piece " << k;
+  }
 }
 
 TEST(BoxAccumulator, EqualsComputeBoxesForEveryNode) {
