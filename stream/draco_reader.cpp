@@ -132,6 +132,8 @@ class DracoReader final : public ReaderBase {
     decodingBytes_ = counts.edgebreaker
                          ? kEdgebreakerBytesPerFace * counts.faces + kEdgebreakerBytesPerPoint * counts.points
                          : kSequentialBytesPerFace * counts.faces + kSequentialBytesPerPoint * counts.points;
+    const uint64_t most = std::max(counts.faces, counts.points);
+    plausibleBytes_ = (most + kMaxElementsPerEncodedByte - 1) / kMaxElementsPerEncodedByte;
   }
 
   // Fails when the counts are more than `encodedBytes` could describe.
@@ -175,26 +177,30 @@ class DracoReader final : public ReaderBase {
 
   // The encoded file, checked against the limit as it arrives (with the decoding's estimate):
   // when its size is unknown (standard input, zstd) the vector grows by doubling, so up to three
-  // times its bytes are counted.
+  // times its bytes are counted. The estimate counts only once the bytes read could hold the
+  // header's counts (plausibleBytes_, at most 512 KiB): a stream that ends before is corrupt, and
+  // the constructor says so rather than asking for a larger cap.
   std::vector<char> readAll() {
     std::vector<char> data;
     const std::optional<uint64_t> size = input_->size();
+    const auto decoding = [&] { return size || data.size() >= plausibleBytes_ ? decodingBytes_ : 0; };
     // First on its own, so that the refusal of a mesh whose decoding alone passes the limit does
     // not depend on how much of the file has arrived.
-    checkLimit(size.value_or(0) + decodingBytes_, "need about");
+    checkLimit(size.value_or(0) + decoding(), "need about");
     if (size) data.reserve(*size);
     while (input_->fill(1) > 0) {
       data.insert(data.end(), input_->data(), input_->data() + input_->available());
       input_->consume(input_->available());
-      checkLimit((size ? data.capacity() : 3 * data.size()) + decodingBytes_, "need about");
+      checkLimit((size ? data.capacity() : 3 * data.size()) + decoding(), "need about");
     }
     return data;
   }
 
   std::unique_ptr<InputBuffer> input_;
-  uint64_t limit_;              // ReadOptions::wholeMeshLimitBytes, 0 for none
-  uint64_t decodingBytes_ = 0;  // estimated from the header's counts, over the encoded bytes
-  uint64_t heldBytes_ = 0;      // the decoded mesh, once decoded
+  uint64_t limit_;               // ReadOptions::wholeMeshLimitBytes, 0 for none
+  uint64_t decodingBytes_ = 0;   // estimated from the header's counts, over the encoded bytes
+  uint64_t plausibleBytes_ = 0;  // the fewest encoded bytes that could hold the header's counts
+  uint64_t heldBytes_ = 0;       // the decoded mesh, once decoded
   std::unique_ptr<draco::Mesh> mesh_;
   uint32_t next_ = 0;
 };
