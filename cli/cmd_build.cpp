@@ -34,11 +34,11 @@ RecastRule parseRecastRule(const std::string& name) {
 }  // namespace
 
 int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv,
-                  {"output", "metric", "k", "flat-threshold", "w-fit", "w-dir", "w-shape", "branching",
-                   "recast", "mesh-out", "draco-bits", "balance-slack", "memory", "tmp", "max-tmp", "threads",
-                   "cell-faces", "zstd-level", "method", "leaf-size"},
-                  {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
+  const Args args(
+      argv, {"output",    "metric",  "k",          "flat-threshold", "w-fit",         "w-dir",    "w-shape",
+             "branching", "recast",  "mesh-out",   "draco-bits",     "balance-slack", "memory",   "tmp",
+             "max-tmp",   "threads", "cell-faces", "zstd-level",     "method",        "leaf-size"},
+      {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
@@ -104,7 +104,8 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   uint64_t fileBytes = 0;
   if (output) {
     // Streamed into the writer: no ClusterFile, only frame-sized batches beside the hierarchy.
-    fileBytes = writeClusterFile(*output, mesh.view(), mesh.originalFace, hierarchy, fileOptions);
+    fileBytes = writeClusterFile(*output, mesh.view(), mesh.originalFace, hierarchy, fileOptions,
+                                 WriteOptions{.threads = options.threads});
   }
   if (meshOut) writeReorderedMesh(mesh.view(), hierarchy, *meshOut, meshOutOptions);
   const double totalSeconds = nowSeconds() - start;

@@ -151,8 +151,9 @@ JobReport runClusterJob(const ClusterJob& job) {
   check("write", 0, report.triangles);
 
   phase = std::chrono::steady_clock::now();
-  report.fileBytes = writeClusterFile(job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
-                                      WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3});
+  report.fileBytes =
+      writeClusterFile(job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
+                       WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3, .threads = job.threads});
   report.secondsWrite = secondsSince(phase);
   report.seconds = secondsSince(start);
   return report;

@@ -392,6 +392,7 @@ void OutOfCoreBuild::write() {
   info.maxOriginalFace = maxFace_;
   WriteOptions writeOptions;
   writeOptions.zstdLevel = job_.zstdLevel ? job_.zstdLevel : 3;
+  writeOptions.threads = job_.threads;  // frames compressed beside the geometry pass's reads
   ClusterFileWriter writer(job_.output, info, writeOptions, temp_.path());
   writer.setTemporaryBytesHook([this](int64_t delta) {
     if (delta > 0)

@@ -243,36 +243,41 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
     info.maxOriginalFace = *std::max_element(originalFace.begin(), originalFace.end());
   ClusterFileWriter writer(path, info, writeOptions);
 
+  // The three streams go to the writer interleaved: a batch of nodes, then the geometry of the same
+  // share of the faces, so that with WriteOptions::threads the node frames (zstd-bound) compress on
+  // the writer's helper while this thread walks the faces (random reads). The file's bytes do not
+  // depend on the interleaving.
   std::vector<FchNode> nodeBatch;
   nodeBatch.reserve(std::min(kNodeBatch, nodes.size()));
-  for (size_t j = 0; j < nodes.size(); ++j) {
-    nodeBatch.push_back(nodes[j]);
-    if (nodeBatch.size() == kNodeBatch || j + 1 == nodes.size())
-      writer.addNodes(nodeBatch), nodeBatch.clear();
-  }
-  // Vertices in first-use order: a walk along the faces meets each one's number in turn.
   const std::span<const uint32_t> order = hierarchy.faceOrder;
   std::vector<glm::vec3> vertexBatch;
   vertexBatch.reserve(std::min<size_t>(kGeometryBatch, numbering.vertexCount));
-  uint32_t next = 0;
-  for (const uint32_t t : order)
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t v = mesh.indices[3 * size_t{t} + k];
-      if (numbering.remap[v] != next) continue;
-      vertexBatch.push_back(mesh.positions[v]);
-      if (++next == numbering.vertexCount || vertexBatch.size() == kGeometryBatch)
-        writer.addVertices(vertexBatch), vertexBatch.clear();
-    }
   std::vector<uint32_t> indexBatch;
   std::vector<uint64_t> idBatch;
   indexBatch.reserve(3 * std::min(kGeometryBatch, triangles));
   idBatch.reserve(std::min(kGeometryBatch, triangles));
-  for (size_t i = 0; i < triangles; ++i) {
-    const uint32_t t = order[i];
-    for (int k = 0; k < 3; ++k) indexBatch.push_back(numbering.remap[mesh.indices[3 * size_t{t} + k]]);
-    idBatch.push_back(originalFace.empty() ? t : originalFace[t]);
-    if (idBatch.size() == kGeometryBatch || i + 1 == triangles)
-      writer.addTriangles(indexBatch, idBatch), indexBatch.clear(), idBatch.clear();
+  uint32_t next = 0;  // vertices numbered so far: a walk along the faces meets each one's number in turn
+  size_t node = 0, face = 0;
+  const size_t steps = std::max<size_t>(1, (nodes.size() + kNodeBatch - 1) / kNodeBatch);
+  for (size_t step = 1; step <= steps; ++step) {
+    for (const size_t end = std::min(nodes.size(), step * kNodeBatch); node < end; ++node)
+      nodeBatch.push_back(nodes[node]);
+    if (!nodeBatch.empty()) writer.addNodes(nodeBatch), nodeBatch.clear();
+    for (const size_t end = step == steps ? triangles : triangles / steps * step; face < end; ++face) {
+      const uint32_t t = order[face];
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = mesh.indices[3 * size_t{t} + k];
+        const uint32_t number = numbering.remap[v];
+        indexBatch.push_back(number);
+        if (number != next) continue;
+        vertexBatch.push_back(mesh.positions[v]);
+        if (++next == numbering.vertexCount || vertexBatch.size() == kGeometryBatch)
+          writer.addVertices(vertexBatch), vertexBatch.clear();
+      }
+      idBatch.push_back(originalFace.empty() ? t : originalFace[t]);
+      if (idBatch.size() == kGeometryBatch || face + 1 == triangles)
+        writer.addTriangles(indexBatch, idBatch), indexBatch.clear(), idBatch.clear();
+    }
   }
   return writer.finish();
 }

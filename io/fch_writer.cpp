@@ -11,10 +11,15 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <condition_variable>
 #include <cstring>
+#include <exception>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <thread>
+#include <utility>
 
 #include <glm/common.hpp>
 
@@ -91,6 +96,84 @@ class SpillFile {
   uint64_t bytes_ = 0;
 };
 
+// Compresses one frame at a time on its own thread while the caller encodes the next. The caller
+// takes each result back (wait) before it submits another and writes it where the frame goes, so
+// frames land in submission order, compressed exactly as inline (each frame is independent).
+class BackgroundCompressor {
+ public:
+  struct Job {
+    FchSection section{};
+    uint64_t first = 0;
+    uint32_t count = 0;
+    std::string raw;
+    std::string compressed;
+    FchFrame frame{};
+  };
+
+  explicit BackgroundCompressor(int level) : compressor_(level), thread_([this] { run(); }) {}
+  ~BackgroundCompressor() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  BackgroundCompressor(const BackgroundCompressor&) = delete;
+  BackgroundCompressor& operator=(const BackgroundCompressor&) = delete;
+
+  // The frame submitted last, once compressed (its compressor's exception rethrown), or null when
+  // none is outstanding. It stays valid until the next submit.
+  const Job* wait() {
+    std::unique_lock lock(mutex_);
+    done_.wait(lock, [this] { return !busy_; });
+    if (!outstanding_) return nullptr;
+    outstanding_ = false;
+    if (failure_) std::rethrow_exception(std::exchange(failure_, nullptr));
+    return &job_;
+  }
+  // Call after wait(): nothing is in flight.
+  void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw) {
+    {
+      std::lock_guard lock(mutex_);
+      job_.section = section;
+      job_.first = first;
+      job_.count = count;
+      job_.raw = std::move(raw);
+      busy_ = outstanding_ = true;
+    }
+    wake_.notify_one();
+  }
+
+ private:
+  void run() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      wake_.wait(lock, [this] { return busy_ || stop_; });
+      if (!busy_) return;  // stopping, nothing in flight
+      lock.unlock();
+      std::exception_ptr failure;
+      try {
+        job_.frame = compressor_.compress(job_.section, job_.first, job_.count, job_.raw, job_.compressed);
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      lock.lock();
+      failure_ = failure;
+      busy_ = false;
+      done_.notify_all();
+    }
+  }
+
+  fch::FrameCompressor compressor_;
+  Job job_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  bool busy_ = false, outstanding_ = false, stop_ = false;
+  std::exception_ptr failure_;
+  std::thread thread_;  // last: starts once the rest exists
+};
+
 }  // namespace
 
 struct ClusterFileWriter::State {
@@ -111,6 +194,7 @@ struct ClusterFileWriter::State {
   uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
+  std::optional<BackgroundCompressor> background;  // WriteOptions::threads > 1
   std::optional<OutputFile> output;  // file output: from the start; standard output: in finish()
   bool toStandardOutput = false;
   Section sections[kSections];
@@ -133,7 +217,11 @@ struct ClusterFileWriter::State {
     throw std::invalid_argument("ClusterFileWriter " + name + ": " + what);
   }
   void checkNode(const FchNode& node, uint64_t index) const;
-  void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string_view raw);
+  void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw);
+  // Places a compressed frame: in the output (file-output nodes) or its section's spill.
+  void placeFrame(FchSection s, FchFrame frame, std::string_view bytes);
+  // Places the frame still being compressed in the background, if any.
+  void drain();
   void nodeFrame(std::span<const FchNode> batch);
   void vertexFrame(std::span<const glm::vec3> batch);
   void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
@@ -157,6 +245,8 @@ struct ClusterFileWriter::State {
 ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFileInfo& info,
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
     : name(out.string()), compressor(options.zstdLevel) {
+  const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
+  if (threads > 1) background.emplace(options.zstdLevel);
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
@@ -234,21 +324,36 @@ void ClusterFileWriter::State::checkNode(const FchNode& node, uint64_t index) co
   }
 }
 
-void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t count,
-                                          std::string_view raw) {
+void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw) {
+  if (background) {
+    drain();
+    background->submit(s, first, count, std::move(raw));
+    return;
+  }
+  const FchFrame frame =
+      compressor.compress(s, first, count, raw, compressed);  // before `compressed` is read
+  placeFrame(s, frame, compressed);
+}
+
+void ClusterFileWriter::State::drain() {
+  if (!background) return;
+  if (const BackgroundCompressor::Job* done = background->wait())
+    placeFrame(done->section, done->frame, done->compressed);
+}
+
+void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::string_view bytes) {
   Section& sec = section(s);
-  FchFrame frame = compressor.compress(s, first, count, raw, compressed);
   frame.offset = sec.bytes;
   if (s == FchSection::Nodes && !toStandardOutput) {
-    output->write(compressed);
+    output->write(bytes);
   } else {
-    if (hook) hook(static_cast<int64_t>(compressed.size()));
-    spilled += compressed.size();  // counted once the hook agreed, released whatever happens next
+    if (hook) hook(static_cast<int64_t>(bytes.size()));
+    spilled += bytes.size();  // counted once the hook agreed, released whatever happens next
     spilledPeak = std::max(spilledPeak, spilled);
     if (!sec.spill) sec.spill.emplace(spillDir, name);
-    sec.spill->append(compressed);
+    sec.spill->append(bytes);
   }
-  sec.bytes += compressed.size();
+  sec.bytes += bytes.size();
   sec.frames.push_back(frame);
 }
 
@@ -411,6 +516,7 @@ uint64_t ClusterFileWriter::finish() {
                    " " + sectionName(section);
     }
     if (!missing.empty()) s.reject("finish: only " + missing + " arrived");
+    s.drain();
 
     FchLayout& layout = s.layout;
     FileHeader& h = layout.header;
@@ -460,8 +566,14 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
+  // In the background: a second compressor, the frame in flight and its compressed bytes.
+  const uint64_t background = options.threads != 1
+                                  ? fch::compressorMemoryBound(options.zstdLevel, largestRaw) + largestRaw +
+                                        fch::compressedBound(largestRaw)
+                                  : 0;
   return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
-         kCopyBufferBytes + kOutputBufferBytes + 64 * 1024;  // + the header, index entry vectors, names
+         background + kCopyBufferBytes + kOutputBufferBytes +
+         64 * 1024;  // + the header, index entry vectors, names
 }
 
 void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,

@@ -212,6 +212,12 @@ WriteOptions smallFrames() {
   return options;
 }
 
+// The same options with frames compressed on the writer's helper thread.
+WriteOptions threaded(WriteOptions options) {
+  options.threads = 2;
+  return options;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Same bytes
 
@@ -231,11 +237,14 @@ TEST(ClusterFileWriter, AnyBatchingAndInterleavingGivesTheWholeFileWritersBytes)
           [&rng] { return int(rng() % 3); },
       };
       for (const auto& order : orders) {
-        SyntheticFile source(triangles);
-        ClusterFileWriter writer(streamed, source.info(), options);
-        feed(writer, source, order, [&rng] { return size_t(rng() % 40); });
-        EXPECT_EQ(writer.finish(), expected.size());
-        ASSERT_EQ(slurp(streamed), expected) << triangles << " triangles";
+        for (const WriteOptions& streaming : {options, threaded(options)}) {
+          const std::function<int()> pick = order;  // a fresh copy of the order's state for each run
+          SyntheticFile source(triangles);
+          ClusterFileWriter writer(streamed, source.info(), streaming);
+          feed(writer, source, pick, [&rng] { return size_t(rng() % 40); });
+          EXPECT_EQ(writer.finish(), expected.size());
+          ASSERT_EQ(slurp(streamed), expected) << triangles << " triangles, threads " << streaming.threads;
+        }
       }
     }
   }
@@ -275,10 +284,12 @@ TEST(ClusterFileWriter, StreamedHierarchyGivesTheBytesOfMakeClusterFile) {
           fileOptions.build.k = 5e-4;
           fileOptions.memoryCapBytes = 77;
           writeClusterFile(whole, makeClusterFile(c.mesh.view(), c.ids, c.hierarchy, fileOptions), options);
-          const uint64_t bytes =
-              writeClusterFile(streamed, c.mesh.view(), c.ids, c.hierarchy, fileOptions, options);
-          EXPECT_EQ(bytes, std::filesystem::file_size(streamed));
-          ASSERT_EQ(slurp(streamed), slurp(whole)) << "b = " << b;
+          for (const WriteOptions& streaming : {options, threaded(options)}) {
+            const uint64_t bytes =
+                writeClusterFile(streamed, c.mesh.view(), c.ids, c.hierarchy, fileOptions, streaming);
+            EXPECT_EQ(bytes, std::filesystem::file_size(streamed));
+            ASSERT_EQ(slurp(streamed), slurp(whole)) << "b = " << b << ", threads " << streaming.threads;
+          }
         }
   EXPECT_TRUE(verifyClusterFile(readClusterFile(streamed)).ok);
 }
@@ -360,7 +371,8 @@ TEST(ClusterFileWriter, StandardOutputGivesTheFileBytesThroughAPipe) {
       [&](int out) {
         if (::dup2(out, STDOUT_FILENO) < 0) return 1;
         SyntheticFile source(3000);
-        ClusterFileWriter writer("-", source.info(), smallFrames(), dir.path);
+        ClusterFileWriter writer("-", source.info(), threaded(smallFrames()),
+                                 dir.path);  // and in the background
         feed(
             writer, source, [n = 0]() mutable { return 2 - n++ % 3; }, [] { return size_t{77}; });
         writer.finish();
@@ -439,24 +451,26 @@ TEST(ClusterFileWriter, DiskFullIsAnIoErrorNamingTheFileAndLeavesNothing) {
 TEST(ClusterFileWriter, TemporaryBytesHookCanAbortTheWrite) {
   ScratchDir dir("hook");
   const auto path = dir.path / "vetoed.fch";
-  SyntheticFile source(5000);
-  int64_t spilled = 0;
-  const int64_t budget = 4000;
-  {
-    ClusterFileWriter writer(path, source.info(), smallFrames());
-    writer.setTemporaryBytesHook([&](int64_t bytes) {
-      if (spilled + bytes > budget) throw std::runtime_error("--max-tmp exceeded");
-      spilled += bytes;
-    });
-    EXPECT_THROW(feed(
-                     writer, source, [] { return 1; }, [] { return size_t{100}; }),
-                 std::runtime_error);
-    EXPECT_LE(spilled, budget);
-    EXPECT_GT(spilled, 0);
-    EXPECT_THROW(writer.addNodes(source.nodes(1)), std::logic_error) << "a failed writer refuses more";
+  for (const WriteOptions& options : {smallFrames(), threaded(smallFrames())}) {
+    SyntheticFile source(5000);
+    int64_t spilled = 0;
+    const int64_t budget = 4000;
+    {
+      ClusterFileWriter writer(path, source.info(), options);
+      writer.setTemporaryBytesHook([&](int64_t bytes) {
+        if (spilled + bytes > budget) throw std::runtime_error("--max-tmp exceeded");
+        spilled += bytes;
+      });
+      EXPECT_THROW(feed(
+                       writer, source, [] { return 1; }, [] { return size_t{100}; }),
+                   std::runtime_error);
+      EXPECT_LE(spilled, budget);
+      EXPECT_GT(spilled, 0);
+      EXPECT_THROW(writer.addNodes(source.nodes(1)), std::logic_error) << "a failed writer refuses more";
+    }
+    EXPECT_EQ(spilled, 0);
+    EXPECT_EQ(dir.entries(), 0u);
   }
-  EXPECT_EQ(spilled, 0);
-  EXPECT_EQ(dir.entries(), 0u);
 }
 
 std::string invalidArgument(const std::function<void()>& body) {
