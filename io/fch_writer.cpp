@@ -96,9 +96,10 @@ class SpillFile {
   uint64_t bytes_ = 0;
 };
 
-// Compresses one frame at a time on its own thread while the caller encodes the next. The caller
-// takes each result back (wait) before it submits another and writes it where the frame goes, so
-// frames land in submission order, compressed exactly as inline (each frame is independent).
+// Compresses one frame at a time on its own thread, with the writer's compressor (which the caller
+// then leaves alone), while the caller encodes the next. The caller takes each result back (wait)
+// before it submits another and writes it where the frame goes, so frames land in submission
+// order, compressed exactly as inline (each frame is independent).
 class BackgroundCompressor {
  public:
   struct Job {
@@ -110,7 +111,8 @@ class BackgroundCompressor {
     FchFrame frame{};
   };
 
-  explicit BackgroundCompressor(int level) : compressor_(level), thread_([this] { run(); }) {}
+  explicit BackgroundCompressor(fch::FrameCompressor& compressor)
+      : compressor_(compressor), thread_([this] { run(); }) {}
   ~BackgroundCompressor() {
     {
       std::lock_guard lock(mutex_);
@@ -165,7 +167,7 @@ class BackgroundCompressor {
     }
   }
 
-  fch::FrameCompressor compressor_;
+  fch::FrameCompressor& compressor_;
   Job job_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
@@ -194,7 +196,7 @@ struct ClusterFileWriter::State {
   uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
-  std::optional<BackgroundCompressor> background;  // WriteOptions::threads > 1
+  std::optional<BackgroundCompressor> background;  // WriteOptions::threads > 1: uses `compressor`
   std::optional<OutputFile> output;  // file output: from the start; standard output: in finish()
   bool toStandardOutput = false;
   Section sections[kSections];
@@ -246,7 +248,7 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
     : name(out.string()), compressor(options.zstdLevel) {
   const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
-  if (threads > 1) background.emplace(options.zstdLevel);
+  if (threads > 1) background.emplace(compressor);
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
@@ -566,11 +568,8 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
-  // In the background: a second compressor, the frame in flight and its compressed bytes.
-  const uint64_t background = options.threads != 1
-                                  ? fch::compressorMemoryBound(options.zstdLevel, largestRaw) + largestRaw +
-                                        fch::compressedBound(largestRaw)
-                                  : 0;
+  // In the background: the frame in flight and its compressed bytes.
+  const uint64_t background = options.threads != 1 ? largestRaw + fch::compressedBound(largestRaw) : 0;
   return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
          background + kCopyBufferBytes + kOutputBufferBytes +
          64 * 1024;  // + the header, index entry vectors, names
