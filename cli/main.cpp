@@ -11,8 +11,8 @@
 #include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/fch_commands.h"
-#include "grid/grid.h"
 #include "cli/signals.h"
+#include "grid/grid.h"
 #include "io/io.h"
 #include "stream/stream.h"
 

@@ -91,7 +91,8 @@ std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth) {
   const size_t n = file.nodes.size();
   std::vector<uint32_t> nodeDepth(n, 0);
   std::vector<uint8_t> kept(n, 0);
-  for (size_t j = 0; j < n; ++j) {  // parents precede children
+  // Parents precede children: one pass sets every kept node's depth before its children's turn.
+  for (size_t j = 0; j < n; ++j) {
     if (nodeDepth[j] >= depth || (j > 0 && nodeDepth[j] == 0)) continue;  // too deep, or not reached
     kept[j] = 1;
     const FchNode& node = file.nodes[j];
