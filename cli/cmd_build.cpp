@@ -25,6 +25,12 @@ Metric parseMetric(const std::string& name) {
   throw UsageError("unknown metric '" + name + "' (willmott, garland, constant)");
 }
 
+MergeOrder parseOrder(const std::string& name) {
+  if (name == "rounds") return MergeOrder::Rounds;
+  if (name == "exact") return MergeOrder::Exact;
+  throw UsageError("unknown merge order '" + name + "' (rounds, exact)");
+}
+
 RecastRule parseRecastRule(const std::string& name) {
   if (name == "largest-area") return RecastRule::LargestArea;
   if (name == "fewest-nodes") return RecastRule::FewestNodes;
@@ -35,9 +41,9 @@ RecastRule parseRecastRule(const std::string& name) {
 
 int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(
-      argv, {"output",    "metric",  "k",          "flat-threshold", "w-fit",         "w-dir",    "w-shape",
-             "branching", "recast",  "mesh-out",   "draco-bits",     "balance-slack", "memory",   "tmp",
-             "max-tmp",   "threads", "cell-faces", "zstd-level",     "method",        "leaf-size"},
+      argv, {"output",    "metric",  "k",          "flat-threshold", "w-fit",         "w-dir",     "w-shape",
+             "branching", "recast",  "mesh-out",   "draco-bits",     "balance-slack", "memory",    "tmp",
+             "max-tmp",   "threads", "cell-faces", "zstd-level",     "method",        "leaf-size", "order"},
       {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
@@ -49,6 +55,7 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
 
   BuildOptions options;
   options.metric = parseMetric(args.valueOr("metric", "willmott"));
+  options.order = parseOrder(args.valueOr("order", "rounds"));
   options.k = args.number("k", options.k);
   options.flatThreshold = args.number("flat-threshold", options.flatThreshold);
   options.garlandFitWeight = args.number("w-fit", options.garlandFitWeight);
@@ -127,6 +134,8 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
     json.field("eigen_solves", s.eigenSolves);
     json.field("normal_shortcuts", s.normalShortcuts);
     json.field("components", s.components);
+    json.field("order", options.order == MergeOrder::Exact ? "exact" : "rounds");
+    json.field("rounds", s.rounds);
     json.beginObject("seconds");
     json.field("read", readSeconds);
     json.field("init", s.secondsInit);

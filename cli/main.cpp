@@ -29,7 +29,9 @@ commands:
         [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
         [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
-        [--threads N]            threads of the box phase and of the out-of-core cells
+        [--order rounds|exact]   merge order: rounds of reciprocal cheapest pairs (default,
+                                 parallel), or the exact global greedy (the reference)
+        [--threads N]            threads of the merge rounds, the box phase and the out-of-core cells
                                  (default 0: all cores, at most 8); the output does not depend on it
         [--memory SIZE] [--tmp DIR] [--max-tmp SIZE]
                                  with -o: the whole job under a memory cap (e.g. 256M): in core

@@ -1,11 +1,12 @@
-// buildHierarchy: validation, dual graph, greedy merge, then the output layout (nodes in
-// reverse creation order, contiguous face ranges, heights), all iterative: Garland-metric
+// buildHierarchy: validation, dual graph, greedy merge, then the output layout (nodes by
+// decreasing effective cost, contiguous face ranges, heights), all iterative: Garland-metric
 // trees on flat CAD are thousands of levels deep and a chain may be millions.
 //
 // A mesh of one triangle has no internal node: nodes is empty and faceOrder = {0}.
 #include <algorithm>
 #include <bit>
 #include <chrono>
+#include <functional>
 
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
@@ -25,8 +26,37 @@ uint32_t balancedHeight(uint32_t n) {
   return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
 }
 
-// Output nodes from the creation-ordered records: reversed (the root first), child records
-// renumbered, leaf children turned from face ids into positions of faceOrder, and
+// A float's bits as an unsigned key of the same order (-0 is normalised to +0 by the caller).
+uint32_t orderedBits(float f) {
+  const uint32_t bits = std::bit_cast<uint32_t>(f);
+  return (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
+}
+
+// Output position of each record: by decreasing effective cost, the maximum of the node's own
+// cost and its children's effective costs, ties by decreasing creation index (a later round
+// first, then the later merge of the round). A parent's key is never below its children's and it
+// is created after them, so parents precede children, and any prefix of the order is a
+// hierarchy truncated at its cheapest merges (Willmott 2000, sec. 5.5.3).
+std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records) {
+  const uint32_t count = static_cast<uint32_t>(records.size());
+  std::vector<uint64_t> key(count);
+  std::vector<float> effective(count);
+  for (uint32_t i = 0; i < count; ++i) {
+    float e = records[i].cost;
+    for (const uint32_t child : records[i].child)
+      if (!(child & kFaceChild)) e = std::max(e, effective[child]);
+    effective[i] = e + 0.0f;
+    key[i] = uint64_t{orderedBits(effective[i])} << 32 | i;
+  }
+  effective = {};
+  std::sort(key.begin(), key.end(), std::greater<>());
+  std::vector<uint32_t> position(count);
+  for (uint32_t p = 0; p < count; ++p) position[static_cast<uint32_t>(key[p])] = p;
+  return position;
+}
+
+// Output nodes from the creation-ordered records: in effective-cost order (the root first),
+// child records renumbered, leaf children turned from face ids into positions of faceOrder, and
 // the face ranges laid out: the root covers [0, n), each node hands [first, first +
 // count(left)) to its left child and the rest to its right child. Parents precede children
 // in the output, so one forward pass suffices (no recursion: trees may be millions deep).
@@ -40,12 +70,12 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     return 1;
   }
   const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
+  const std::vector<uint32_t> position = effectiveCostOrder(records);
   nodes.resize(records.size());
   for (uint32_t i = 0; i <= last; ++i) {
     const MergeRecord& r = records[i];
-    Node& node = nodes[last - i];
-    node.child[0] = r.child[0];
-    node.child[1] = r.child[1];
+    Node& node = nodes[position[i]];
+    for (int k = 0; k < 2; ++k) node.child[k] = (r.child[k] & kFaceChild) ? r.child[k] : position[r.child[k]];
     node.first = 0;
     node.count = r.faceCount();
     node.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
@@ -69,7 +99,6 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
         ++first;
         height = std::max(height, depth[i] + 1);
       } else {
-        child = last - child;  // creation index -> output index
         nodes[child].first = first;
         depth[child] = depth[i] + 1;
         first += nodes[child].count;
@@ -100,7 +129,9 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGra
     stats.secondsInit = secondsSince(start);
     throwIfCancelled(options);
 
-    MergeResult merged = runMerge(geometry, std::move(graph), options);
+    MergeResult merged = options.order == MergeOrder::Exact
+                             ? runMerge(geometry, std::move(graph), options)
+                             : runRoundsMerge(geometry, std::move(graph), options);
     start = std::chrono::steady_clock::now();
     stats.height = layOut(std::move(merged.records), hierarchy, geometry);
     stats.balancedHeight = balancedHeight(geometry.faceCount());
@@ -109,6 +140,7 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGra
     stats.eigenSolves = merged.counters.eigenSolves;
     stats.normalShortcuts = merged.counters.normalShortcuts;
     stats.components = merged.components;
+    stats.rounds = merged.rounds;
     stats.secondsCost = merged.secondsCost;
     stats.secondsEigen = merged.counters.eigenSeconds;
     stats.secondsMerge = merged.secondsMerge + secondsSince(start);

@@ -24,4 +24,20 @@ void adviseHugePages(const void* data, size_t bytes) {
 #endif
 }
 
+void releasePagesBeyond(const void* data, size_t used, size_t capacity) {
+#if defined(__linux__) && defined(MADV_DONTNEED)
+  if (data == nullptr) return;
+  constexpr uintptr_t kHugePage = uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<uintptr_t>(data);
+  const uintptr_t first = (begin + used + kHugePage - 1) & ~(kHugePage - 1);
+  const uintptr_t last = (begin + capacity) & ~(kHugePage - 1);
+  if (first >= last) return;
+  (void)madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED);
+#else
+  (void)data;
+  (void)used;
+  (void)capacity;
+#endif
+}
+
 }  // namespace facetree

@@ -20,6 +20,10 @@ namespace facetree {
 inline constexpr size_t kHugePageMinBytes = size_t{8} << 20;
 void adviseHugePages(const void* data, size_t bytes);
 
+// Returns the whole 2 MiB pages of [data + used, data + capacity) to the system (their contents
+// are lost; touching them again maps zeroed pages): for buffers that shrink and are reused.
+void releasePagesBeyond(const void* data, size_t used, size_t capacity);
+
 // reserve() that advises the new buffer before anything touches it. Use before assign(),
 // resize() or push_back() of a large vector.
 template <class T, class Allocator>

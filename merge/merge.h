@@ -37,8 +37,19 @@ enum class Metric : uint8_t {
   Constant,  // every merge costs the same: the unbalanced worst case of Willmott's Fig. 69
 };
 
+// The order in which the greedy dual-edge merge takes its merges.
+enum class MergeOrder : uint8_t {
+  // Rounds of reciprocal cheapest pairs: every cluster whose cheapest edge is also its
+  // neighbour's cheapest merges in the same round, in parallel (Sumengen et al. 2021; Meister &
+  // Bittner 2018); the exact greedy takes over when rounds merge too little.
+  Rounds,
+  // The global greedy order, one cheapest edge at a time (Garland et al. 2001): the reference.
+  Exact,
+};
+
 struct BuildOptions {
   Metric metric = Metric::Willmott;
+  MergeOrder order = MergeOrder::Rounds;
   double k = 1e-4;             // balance weight of eq. 80
   double flatThreshold = 0.5;  // eq. 78: |S|/A above it takes S as the cluster normal
   double garlandFitWeight = 1.0;
@@ -49,8 +60,8 @@ struct BuildOptions {
   // kBalancePenaltyBase^(excess) (merge_engine.cpp). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
   bool computeBoxes = true;
-  // Worker threads of the box phase (0: the hardware's, at most 8). The output is
-  // bit-identical for every count.
+  // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
+  // output is bit-identical for every count.
   unsigned threads = 0;
   // Cancellation hook, polled by the calling thread every few thousand merges and between
   // phases (never from worker threads): when it returns true the build stops by throwing
@@ -102,11 +113,14 @@ struct BuildStats {
   uint64_t eigenSolves = 0;      // PCA solves for non-flat clusters
   uint64_t normalShortcuts = 0;  // clusters whose normal came from S (eq. 78)
   uint64_t components = 0;       // roots joined at the top: components, and pieces the balance guard blocked
+  uint32_t rounds = 0;           // rounds of reciprocal pairs before the greedy finished (MergeOrder::Rounds)
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
 };
 
 struct Hierarchy {
-  std::vector<Node> nodes;          // reverse creation order: nodes[0] is the root
+  // By decreasing effective cost (max of a node's cost and its children's), nodes[0] the root:
+  // parents precede children, and a prefix drops the cheapest merges first.
+  std::vector<Node> nodes;
   std::vector<NodeBox> boxes;       // parallel to nodes (empty without computeBoxes)
   std::vector<uint32_t> faceOrder;  // faceOrder[i] = input triangle of the i-th face in hierarchy order
   BuildStats stats;

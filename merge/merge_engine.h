@@ -34,6 +34,7 @@ struct MergeResult {
   std::vector<MergeRecord> records;  // creation order, n - 1 of them
   uint64_t components = 0;           // roots left when the heap ran empty
   uint64_t edgeMerges = 0;           // merges along dual edges (the rest join components)
+  uint32_t rounds = 0;               // rounds of reciprocal pairs (merge_rounds.cpp), 0 for the exact order
   double degreeSum = 0;              // dual-edge degree of each merged cluster, summed over edge merges
   uint32_t maxDegree = 0;
   CostCounters counters;
@@ -42,7 +43,11 @@ struct MergeResult {
   size_t peakStructureBytes = 0;  // dual graph + heap + live cluster slots at their largest
 };
 
-// Consumes `graph` (its memory is released before returning).
+// The exact global greedy order. Consumes `graph` (its memory is released before returning).
 MergeResult runMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options);
+
+// Rounds of reciprocal cheapest pairs (merge_rounds.cpp), on options.threads threads with the
+// same result for every count. Consumes `graph`.
+MergeResult runRoundsMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options);
 
 }  // namespace facetree

@@ -23,6 +23,7 @@
 #include "merge/face_geometry.h"
 #include "merge/frame.h"
 #include "merge/hull.h"
+#include "merge/merge_engine.h"
 #include "merge/surface_stats.h"
 #include "test_meshes.h"
 
@@ -589,32 +590,38 @@ TEST(FaceComponents, AgreeWithTheJoinsOfBuildHierarchy) {
 
 // --- mergeClusters ---------------------------------------------------------------------------
 
-// The engine's nodes in creation order, children as mergeClusters references them.
-std::vector<ClusterMergeNode> creationOrder(const Hierarchy& h) {
-  const uint32_t last = uint32_t(h.nodes.size()) - 1;
-  std::vector<ClusterMergeNode> out(h.nodes.size());
-  for (uint32_t i = 0; i < h.nodes.size(); ++i) {
-    const Node& node = h.nodes[i];
-    ClusterMergeNode& m = out[last - i];
-    for (int k = 0; k < 2; ++k) {
-      const uint32_t c = node.child[k];
-      m.child[k] = (c & kFaceChild) ? (kLeafChild | h.faceOrder[c & ~kFaceChild]) : last - c;
-    }
-    m.flags = node.flags & kNodeJoinsDisjointSurfaces;
-    m.cost = node.cost;
-    m.stats.faceCount = node.count;
+// The exact engine's merges in creation order, children as mergeClusters references them.
+std::vector<ClusterMergeNode> creationOrder(const TestMesh& mesh, const BuildOptions& options) {
+  const FaceGeometry geometry(mesh.view());
+  const MergeResult merged = runMerge(geometry, buildDualGraph(geometry), options);
+  std::vector<ClusterMergeNode> out(merged.records.size());
+  for (size_t i = 0; i < out.size(); ++i) {
+    const MergeRecord& r = merged.records[i];
+    ClusterMergeNode& m = out[i];
+    for (int k = 0; k < 2; ++k)
+      m.child[k] = (r.child[k] & kFaceChild) ? (kLeafChild | (r.child[k] & ~kFaceChild)) : r.child[k];
+    m.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
+    m.cost = r.cost;
+    m.stats.faceCount = r.faceCount();
   }
   return out;
 }
 
-void expectSameMerge(const TestMesh& mesh, const BuildOptions& options, bool equalJoinTies = true) {
+// Options for the exact order, which mergeClusters reproduces merge for merge.
+BuildOptions exact(BuildOptions options) {
+  options.order = MergeOrder::Exact;
+  return options;
+}
+
+void expectSameMerge(const TestMesh& mesh, const BuildOptions& given, bool equalJoinTies = true) {
+  const BuildOptions options = exact(given);
   SCOPED_TRACE(::testing::Message() << "metric " << int(options.metric) << ", slack "
                                     << options.balanceSlack);
   const Hierarchy h = buildHierarchy(mesh.view(), options);
   const FaceLeaves leaves = faceLeaves(mesh);
   const ClusterMergeResult r =
       mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, options, leaves.garland);
-  const std::vector<ClusterMergeNode> want = creationOrder(h);
+  const std::vector<ClusterMergeNode> want = creationOrder(mesh, options);
   ASSERT_EQ(r.nodes.size(), want.size());
   // Edge merges come first and must be the engine's, merge for merge. The Huffman joins that
   // follow rank roots of equal face count by the Morton code of their centroid, which the
@@ -674,10 +681,9 @@ TEST(MergeClusters, SingleFaceLeavesOfDisjointPiecesGiveTheEnginesJoins) {
   TestMesh mesh = bumpyGrid(6, 0.1f);
   mesh.append(icosphere(0), glm::vec3(3, 0, 0));
   mesh.append(strip(5), glm::vec3(0, 3, 0));
-  const Hierarchy h = buildHierarchy(mesh.view(), noBoxes());
   const FaceLeaves leaves = faceLeaves(mesh);
   const ClusterMergeResult r = mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, noBoxes());
-  const std::vector<ClusterMergeNode> want = creationOrder(h);
+  const std::vector<ClusterMergeNode> want = creationOrder(mesh, exact(noBoxes()));
   ASSERT_EQ(r.nodes.size(), want.size());
   EXPECT_EQ(r.components, 3u);
   for (size_t i = 0; i < want.size(); ++i) {

@@ -1,0 +1,644 @@
+// The dual-edge merge in rounds of reciprocal cheapest pairs.
+//
+// Every live cluster finds its cheapest dual edge under one strict total order, (key, lower
+// cluster id, higher cluster id); an edge that is the cheapest of both its clusters is a
+// reciprocal pair, and all the pairs of a round are disjoint and merge at once. The round then
+// contracts: clusters are renumbered densely in their old order (so memory order stays the
+// mesh's spatial order), adjacency lists are rewritten for the new ids with parallel edges
+// folded (shared lengths summed), and only the edges that touch a merged cluster are re-costed
+// in the next round. For a reducible cost this is exactly the sequential greedy hierarchy
+// (Sumengen et al. 2021, "Scaling Hierarchical Agglomerative Clustering to Billion-sized
+// Datasets", RAC); eq. 84 (Willmott 2000) is not reducible, so the rounds approximate the
+// greedy order, as the locally ordered clustering of Meister & Bittner 2018 (PLOC) approximates
+// the agglomerative BVH.
+//
+// The global cheapest edge is always a reciprocal pair, so every round merges. Rounds shrink
+// the live clusters by about a fifth each on scans, but a chain of ever cheaper edges (graded
+// terrain, runs of slivers) merges only at its end, one pair a round. When a round would merge
+// fewer than 1/kStallRatio of the live clusters, or few clusters are left, the rest of the merge
+// is the exact greedy over the contracted clusters (mergeClusters), which also joins the
+// components.
+//
+// Parallel and deterministic: each phase runs over fixed blocks of kBlock clusters, every
+// decision is a function of the cluster's own data, and outputs are placed by prefix sums over
+// the blocks, so the result is the same for every thread count.
+//
+// Layout per live cluster: its node (kFaceChild | face for a single face), face count, height,
+// a flag for "merged last round", and its adjacency list as [begin, end) of 12-byte half-edges
+// (neighbour, shared length, key). Single faces keep no statistics (recomputed from the
+// triangle, as the exact engine does); clusters of two or more faces keep theirs in a dense
+// array in cluster order.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <thread>
+#include <type_traits>
+
+#include <glm/geometric.hpp>
+
+#include "merge/balance_guard.h"
+#include "merge/buffer.h"
+#include "merge/merge_engine.h"
+#include "merge/surface_stats.h"
+
+namespace facetree {
+
+namespace {
+
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
+// Clusters per block of every parallel phase: the unit of work and of output placement.
+constexpr uint32_t kBlock = 4096;
+// A round that would merge fewer than live / kStallRatio pairs hands the rest to the greedy.
+constexpr uint32_t kStallRatio = 64;
+// The greedy also takes the last min(kTailClusters, faces / kTailFraction) clusters: the top of
+// the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
+constexpr uint32_t kTailClusters = 1024;
+constexpr uint32_t kTailFraction = 8;
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Runs body(block, thread) for blocks [0, blocks) on `threads` threads; which thread runs a
+// block never changes what it computes.
+template <class F>
+void forBlocks(unsigned threads, uint32_t blocks, F&& body) {
+  if (threads <= 1 || blocks <= 1) {
+    for (uint32_t b = 0; b < blocks; ++b) body(b, 0u);
+    return;
+  }
+  std::atomic<uint32_t> nextBlock{0};
+  const auto work = [&](unsigned t) {
+    for (uint32_t b; (b = nextBlock.fetch_add(1, std::memory_order_relaxed)) < blocks;) body(b, t);
+  };
+  std::vector<std::jthread> pool;
+  const unsigned helpers = std::min<unsigned>(threads, blocks) - 1;
+  for (unsigned t = 1; t <= helpers; ++t) pool.emplace_back(work, t);
+  work(0);
+}
+
+struct Half {
+  uint32_t neighbour;
+  float shared;
+  float key;
+};
+
+// A cluster's statistics about its own centroid (Willmott 2000, sec. 5.2.3: the moments are
+// additive, and shifting them to the centroid is the parallel-axis theorem): moments about a
+// cluster's own centroid keep their precision in float whatever the cluster's distance from the
+// origin, so a stored cluster takes 64 bytes instead of ClusterStats' 112.
+struct Centred {
+  double area = 0, perimeter = 0;
+  glm::dvec3 sumNormal{0.0}, centroid{0.0};
+  SymMat3 second;  // integral of (x - centroid)(x - centroid)^T dA
+
+  // As ClusterStats about the centroid (first moment 0): what the costs read.
+  ClusterStats view() const {
+    ClusterStats s;
+    s.area = area;
+    s.perimeter = perimeter;
+    s.sumNormal = sumNormal;
+    s.secondMoment = second;
+    return s;
+  }
+  // The moments about the merge's origin (SurfaceStats, for the greedy).
+  ClusterStats aboutOrigin() const {
+    ClusterStats s = view();
+    s.firstMoment = area * centroid;
+    s.secondMoment.addOuter(centroid, area);
+    return s;
+  }
+
+  static Centred triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    Centred s;
+    const glm::dvec3 cross = glm::cross(b - a, c - a);
+    s.sumNormal = 0.5 * cross;
+    s.area = 0.5 * glm::length(cross);
+    s.perimeter = glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
+    s.centroid = (a + b + c) / 3.0;
+    const double w = s.area / 12.0;  // the corners' sum is 0 about the centroid
+    for (const glm::dvec3& p : {a, b, c}) s.second.addOuter(p - s.centroid, w);
+    return s;
+  }
+
+  static Centred merged(const Centred& a, const Centred& b, double shared) {
+    Centred s;
+    s.area = a.area + b.area;
+    s.perimeter = std::max(0.0, a.perimeter + b.perimeter - 2.0 * shared);
+    s.sumNormal = a.sumNormal + b.sumNormal;
+    s.second = a.second + b.second;
+    if (s.area > 0) {
+      s.centroid = (a.area * a.centroid + b.area * b.centroid) / s.area;
+      s.second.addOuter(a.centroid - b.centroid, a.area * b.area / s.area);
+    } else {
+      s.centroid = 0.5 * (a.centroid + b.centroid);
+    }
+    return s;
+  }
+};
+
+// Centred in 56 bytes. Every merge sums in double (Centred::merged) and rounds once to store, so
+// the rounding does not accumulate with the cluster's size or distance from the origin.
+struct StoredCentred {
+  float area, perimeter;
+  float sumNormal[3], centroid[3], second[6];
+
+  static StoredCentred of(const Centred& c) {
+    StoredCentred s;
+    s.area = static_cast<float>(c.area);
+    s.perimeter = static_cast<float>(c.perimeter);
+    for (int i = 0; i < 3; ++i) {
+      s.sumNormal[i] = static_cast<float>(c.sumNormal[i]);
+      s.centroid[i] = static_cast<float>(c.centroid[i]);
+    }
+    for (int i = 0; i < 6; ++i) s.second[i] = static_cast<float>(c.second.m[i]);
+    return s;
+  }
+  Centred load() const {
+    Centred c;
+    c.area = area;
+    c.perimeter = perimeter;
+    c.sumNormal = glm::dvec3(sumNormal[0], sumNormal[1], sumNormal[2]);
+    c.centroid = glm::dvec3(centroid[0], centroid[1], centroid[2]);
+    for (int i = 0; i < 6; ++i) c.second.m[i] = second[i];
+    return c;
+  }
+};
+
+template <class Policy>
+class RoundsEngine {
+ public:
+  using Extra = typename Policy::Extra;
+  // A cluster as the costs read it.
+  struct Cluster {
+    Centred stats;
+    [[no_unique_address]] Extra extra;
+    uint32_t node, count, height;
+  };
+
+  RoundsEngine(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options)
+      : geometry_(geometry),
+        options_(options),
+        keyScale_(Policy(options, geometry).keyScale()),
+        guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
+    threads_ = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    threads_ = std::min(threads_, kMaxThreads);
+    for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, geometry);
+    auto start = std::chrono::steady_clock::now();
+    initialise(std::move(graph));
+    result_.secondsCost = secondsSince(start);
+  }
+
+  MergeResult run() {
+    auto start = std::chrono::steady_clock::now();
+    uint32_t rounds = 0;
+    const uint32_t tail = std::min(kTailClusters, geometry_.faceCount() / kTailFraction);
+    for (;;) {
+      if (options_.cancelled && options_.cancelled()) throw Cancelled();
+      if (rounds > 0) findCheapest();
+      const uint32_t pairs = markPairs();
+      if (pairs == 0 || live_ <= tail || uint64_t{pairs} * kStallRatio < live_) break;
+      contract(pairs);
+      ++rounds;
+    }
+    result_.rounds = rounds;
+    finishGreedy();
+    result_.secondsMerge = secondsSince(start);
+    for (const Policy& p : policies_) {
+      result_.counters.eigenSolves += p.counters.eigenSolves;
+      result_.counters.normalShortcuts += p.counters.normalShortcuts;
+      result_.counters.eigenSeconds += p.counters.eigenSeconds;
+    }
+    return std::move(result_);
+  }
+
+ private:
+  static constexpr unsigned kMaxThreads = 8;
+
+  // A cluster of two faces or more: its statistics with what a single face has implicitly.
+  struct Slot {
+    StoredCentred stats;
+    uint32_t node;    // the creation index of its record
+    uint32_t count;   // faces
+    uint32_t height;  // nodes on its longest path down to a face, the face included
+    [[no_unique_address]] Extra extra;
+  };
+
+  // The live clusters of a round. Cluster c's adjacency list is halves [begin[c], begin[c + 1]).
+  // A block's lists are written one after another from the block's bound on its output; the
+  // bound's unused rest (edges folded away) is filled with blocked self-loops of its last cluster.
+  struct Clusters {
+    Buffer<uint32_t> ref;    // kFaceChild | face for a single face, else its slot
+    Buffer<uint32_t> begin;  // live + 1
+    Buffer<uint8_t> merged;  // made in the last round: its edges need new keys
+    Buffer<Slot> slots;      // in cluster order
+    Buffer<Half> halves;
+
+    void reserve(size_t clusters, size_t halfCount) {
+      reserveHugePages(ref, clusters);
+      reserveHugePages(begin, clusters + 1);
+      reserveHugePages(merged, clusters);
+      reserveHugePages(slots, clusters / 2 + 1);  // at most half the clusters have two faces or more
+      reserveHugePages(halves, halfCount);
+    }
+    void resize(uint32_t clusters) {
+      ref.resize(clusters);
+      begin.resize(clusters + 1);
+      merged.resize(clusters);
+    }
+  };
+
+  uint32_t blockCount() const { return (live_ + kBlock - 1) / kBlock; }
+  bool single(uint32_t c) const { return (now_.ref[c] & kFaceChild) != 0; }
+  uint32_t node(uint32_t c) const { return single(c) ? now_.ref[c] : now_.slots[now_.ref[c]].node; }
+
+  // Round 0: one adjacency list per face in the order of its edges (lower neighbours, then
+  // higher ones, each ascending), each edge's key computed once from the two triangles.
+  void initialise(DualGraph graph) {
+    const uint32_t n = geometry_.faceCount();
+    const uint32_t edgeCount = graph.edgeCount();
+    live_ = n;
+    now_.reserve(n, size_t{2} * edgeCount);
+    next_.reserve(n, size_t{2} * edgeCount);
+    reserveHugePages(best_, n);
+    reserveHugePages(paired_, n);
+    reserveHugePages(newId_, n);
+    best_.resize(n);
+    paired_.resize(n);
+    now_.resize(n);
+    const uint32_t edgeBlocks = (edgeCount + kBlock - 1) / kBlock;
+    forBlocks(threads_, edgeBlocks, [&](uint32_t block, unsigned t) {
+      Policy& policy = policies_[t];
+      const uint32_t hi = std::min(edgeCount, (block + 1) * kBlock);
+      uint32_t first = kNone;
+      Cluster a;
+      for (uint32_t e = block * kBlock; e < hi; ++e) {
+        DualEdge& edge = graph.edges[e];
+        if (edge.end[0] != first) {  // edges come sorted by their lower face
+          first = edge.end[0];
+          a = leaf(first, policy);
+        }
+        edge.key = key(policy, a, leaf(edge.end[1], policy), edge.shared);
+      }
+    });
+    Buffer<uint32_t>& begin = now_.begin;
+    std::fill(begin.begin(), begin.end(), 0u);
+    for (const DualEdge& e : graph.edges) {
+      ++begin[e.end[0] + 1];
+      ++begin[e.end[1] + 1];
+    }
+    for (uint32_t f = 0; f < n; ++f) {
+      begin[f + 1] += begin[f];
+      now_.ref[f] = kFaceChild | f;
+      now_.merged[f] = 0;
+    }
+    now_.halves.resize(begin[n]);
+    Buffer<uint32_t>& fill = newId_;  // scratch: the next free half of each list
+    fill.assign(begin.begin(), begin.end() - 1);
+    for (const DualEdge& e : graph.edges) {
+      now_.halves[fill[e.end[0]]++] = {e.end[1], e.shared, e.key};
+      now_.halves[fill[e.end[1]]++] = {e.end[0], e.shared, e.key};
+    }
+    graph = DualGraph{};
+    forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
+    });
+  }
+
+  Cluster leaf(uint32_t face, const Policy& policy) const {
+    return {
+        Centred::triangle(geometry_.corner(face, 0), geometry_.corner(face, 1), geometry_.corner(face, 2)),
+        policy.leafExtra(face), kFaceChild | face, 1, 1};
+  }
+  Cluster cluster(uint32_t c, const Policy& policy) const {
+    const uint32_t ref = now_.ref[c];
+    if (ref & kFaceChild) return leaf(ref & ~kFaceChild, policy);
+    const Slot& slot = now_.slots[ref];
+    return {slot.stats.load(), slot.extra, slot.node, slot.count, slot.height};
+  }
+
+  // The key of merging clusters a and b along `shared` boundary.
+  float key(Policy& policy, const Cluster& a, const Cluster& b, float shared) const {
+    const Centred m = Centred::merged(a.stats, b.stats, shared);
+    double cost = policy(m.view(), a.stats.view(), b.stats.view(), a.extra, b.extra) * keyScale_;
+    if (guard_) {
+      const double excess =
+          balanceExcess(a.height, b.height, uint64_t{a.count} + b.count, options_.balanceSlack);
+      if (excess > kBalanceBlockExcess) return kBlockedKey;
+      if (excess > 0) cost *= std::pow(kBalancePenaltyBase, excess);
+    }
+    return toKey(cost);
+  }
+
+  // The other end of c's cheapest edge by (key, other end's id); kNone when every edge is
+  // blocked or there is none.
+  uint32_t cheapest(uint32_t c) const {
+    uint32_t bestOther = kNone;
+    float bestKey = kBlockedKey;
+    for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
+      const Half& half = now_.halves[h];
+      if (half.key < bestKey ||
+          (half.key == bestKey && half.key != kBlockedKey && half.neighbour < bestOther)) {
+        bestKey = half.key;
+        bestOther = half.neighbour;
+      }
+    }
+    return bestOther;
+  }
+
+  // New keys for the edges that touch a cluster merged last round, then every cheapest edge.
+  void findCheapest() {
+    forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned t) {
+      Policy& policy = policies_[t];
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        bool have = false;
+        Cluster own;
+        for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
+          Half& half = now_.halves[h];
+          const uint32_t x = half.neighbour;
+          if (x == c || !(now_.merged[c] | now_.merged[x])) continue;
+          if (!have) {
+            own = cluster(c, policy);
+            have = true;
+          }
+          half.key = key(policy, own, cluster(x, policy), half.shared);
+        }
+        best_[c] = cheapest(c);
+      }
+    });
+  }
+
+  // paired_[c]: c's cheapest edge is its other end's cheapest (best_[c] is then its partner).
+  // Returns the number of pairs.
+  uint32_t markPairs() {
+    const uint32_t blocks = blockCount();
+    pairsInBlock_.assign(blocks, 0);
+    forBlocks(threads_, blocks, [&](uint32_t block, unsigned) {
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      uint32_t pairs = 0;
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        const uint32_t b = best_[c];
+        const bool reciprocal = b != kNone && best_[b] == c;
+        paired_[c] = reciprocal;
+        pairs += reciprocal && c < b;
+      }
+      pairsInBlock_[block] = pairs;
+    });
+    uint32_t pairs = 0;
+    for (const uint32_t p : pairsInBlock_) pairs += p;
+    return pairs;
+  }
+
+  uint32_t partner(uint32_t c) const { return paired_[c] ? best_[c] : kNone; }
+
+  // One contraction: renumbering, merged statistics and records, rewritten adjacency.
+  void contract(uint32_t pairs) {
+    const uint32_t blocks = blockCount();
+    // Per block: new clusters, clusters with a slot, records, and a bound on the half-edges it
+    // writes (the pair's shared edge leaves both lists).
+    struct Counts {
+      uint32_t clusters = 0, slots = 0, records = 0;
+      uint64_t halves = 0;
+    };
+    std::vector<Counts> counts(blocks + 1);
+    forBlocks(threads_, blocks, [&](uint32_t block, unsigned) {
+      Counts k;
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        const uint32_t p = partner(c);
+        if (p < c) continue;  // the lower member writes the pair
+        ++k.clusters;
+        k.halves += now_.begin[c + 1] - now_.begin[c];
+        if (p != kNone) {
+          ++k.records;
+          ++k.slots;
+          k.halves += now_.begin[p + 1] - now_.begin[p];
+          k.halves -= 2;  // each list holds the pair's edge once
+        } else if (!single(c)) {
+          ++k.slots;
+        }
+      }
+      counts[block + 1] = k;
+    });
+    for (uint32_t b = 0; b < blocks; ++b) {
+      counts[b + 1].clusters += counts[b].clusters;
+      counts[b + 1].slots += counts[b].slots;
+      counts[b + 1].records += counts[b].records;
+      counts[b + 1].halves += counts[b].halves;
+    }
+    const uint32_t live = counts[blocks].clusters;
+    const uint32_t recordBase = static_cast<uint32_t>(result_.records.size());
+    result_.records.resize(recordBase + pairs);
+
+    // New ids in old order; a pair takes its lower member's place.
+    newId_.resize(live_);
+    forBlocks(threads_, blocks, [&](uint32_t block, unsigned) {
+      uint32_t id = counts[block].clusters;
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        const uint32_t p = partner(c);
+        if (p < c) continue;
+        newId_[c] = id;
+        if (p != kNone) newId_[p] = id;  // p's only writer: its lower partner
+        ++id;
+      }
+    });
+
+    next_.resize(live);
+    next_.slots.resize(counts[blocks].slots);
+    next_.halves.resize(counts[blocks].halves);
+    next_.begin[live] = static_cast<uint32_t>(counts[blocks].halves);
+    // Per thread, new id -> 1 + its half in the list that wrote it last. A thread takes blocks
+    // in increasing order and a block's output follows the blocks before it, so a mark at or
+    // after the current list's first half is this list's: parallel edges are folded in O(1).
+    stamps_.resize(threads_);
+    for (Buffer<uint32_t>& stamp : stamps_) {
+      stamp.resize(live);
+      std::fill(stamp.begin(), stamp.end(), 0u);
+    }
+    std::vector<uint64_t> degreeSum(blocks, 0);
+    std::vector<uint32_t> degreeMax(blocks, 0);
+    forBlocks(threads_, blocks, [&](uint32_t block, unsigned t) {
+      Policy& policy = policies_[t];
+      Buffer<uint32_t>& stamp = stamps_[t];
+      uint32_t id = counts[block].clusters;
+      uint32_t s = counts[block].slots;
+      uint32_t r = recordBase + counts[block].records;
+      uint32_t out = static_cast<uint32_t>(counts[block].halves);
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        const uint32_t p = partner(c);
+        if (p < c) continue;
+        const uint32_t first = out;
+        float shared = 0, pairKey = 0;
+        const auto take = [&](uint32_t from, uint32_t skip) {
+          for (uint32_t h = now_.begin[from]; h < now_.begin[from + 1]; ++h) {
+            const Half& half = now_.halves[h];
+            if (half.neighbour == from) continue;  // filler
+            if (half.neighbour == skip) {
+              shared = half.shared;
+              pairKey = half.key;
+              continue;
+            }
+            const uint32_t x = newId_[half.neighbour];
+            const uint32_t seen = stamp[x];
+            if (seen > first) {
+              next_.halves[seen - 1].shared += half.shared;  // a parallel edge: fold it
+            } else {
+              stamp[x] = out + 1;
+              next_.halves[out++] = {x, half.shared, half.key};
+            }
+          }
+        };
+        next_.begin[id] = first;
+        if (p == kNone) {
+          take(c, kNone);
+          next_.merged[id] = 0;
+          if (single(c)) {
+            next_.ref[id] = now_.ref[c];
+          } else {
+            next_.slots[s] = now_.slots[now_.ref[c]];
+            next_.ref[id] = s++;
+          }
+        } else {
+          take(c, p);
+          take(p, c);
+          const Cluster a = cluster(c, policy), b = cluster(p, policy);
+          const Centred m = Centred::merged(a.stats, b.stats, shared);
+          MergeRecord& record = result_.records[r];
+          record.child[0] = a.node;
+          record.child[1] = b.node;
+          record.count = a.count + b.count;
+          record.cost = toKey(static_cast<double>(pairKey) / keyScale_);
+          record.area = static_cast<float>(m.area);
+          record.perimeter = static_cast<float>(m.perimeter);
+          for (int i = 0; i < 3; ++i) record.sumNormal[i] = static_cast<float>(m.sumNormal[i]);
+          next_.slots[s] = {StoredCentred::of(m), r++, record.count, std::max(a.height, b.height) + 1,
+                            Policy::merge(a.extra, b.extra)};
+          next_.ref[id] = s++;
+          next_.merged[id] = 1;
+          const uint32_t degree = out - first;
+          degreeSum[block] += degree;
+          degreeMax[block] = std::max(degreeMax[block], degree);
+        }
+        ++id;
+      }
+      // The rest of the block's bound: blocked self-loops of its last cluster.
+      const uint32_t bound = static_cast<uint32_t>(counts[block + 1].halves);
+      for (; out < bound; ++out) next_.halves[out] = {id - 1, 0.0f, kBlockedKey};
+    });
+    for (uint32_t b = 0; b < blocks; ++b) {
+      result_.degreeSum += static_cast<double>(degreeSum[b]);
+      result_.maxDegree = std::max(result_.maxDegree, degreeMax[b]);
+    }
+    result_.edgeMerges += pairs;
+    live_ = live;
+    std::swap(now_, next_);
+    // The next contraction writes no more than this round holds: the spare arrays keep no more.
+    shrinkResident(next_.ref, live_);
+    shrinkResident(next_.begin, live_ + 1);
+    shrinkResident(next_.merged, live_);
+    shrinkResident(next_.halves, now_.halves.size());
+    shrinkResident(next_.slots, std::min<size_t>(live_, next_.slots.capacity()));
+    shrinkResident(best_, live_);
+    shrinkResident(paired_, live_);
+    shrinkResident(newId_, live_);
+  }
+
+  // The exact greedy over the live clusters, as leaves, with their edges (each once), then the
+  // component joins; its nodes become records after the rounds'.
+  void finishGreedy() {
+    if (live_ == 1) {
+      result_.components = 1;
+      return;
+    }
+    std::vector<SurfaceStats> leaves(live_);
+    std::vector<uint32_t> nodes(live_);
+    std::vector<GarlandQuadrics> quadrics;
+    const bool garland = options_.metric == Metric::Garland;
+    if (garland) quadrics.resize(live_);
+    std::vector<ClusterEdge> edges;
+    for (uint32_t c = 0; c < live_; ++c) {
+      const Cluster k = cluster(c, policies_[0]);
+      leaves[c] = toSurfaceStats(k.stats.aboutOrigin(), k.count, k.height);
+      nodes[c] = k.node;
+      if constexpr (std::is_same_v<Extra, GarlandStats>) {
+        if (garland) quadrics[c] = toGarlandQuadrics(k.extra);
+      }
+      for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
+        const Half& half = now_.halves[h];
+        if (half.neighbour > c) edges.push_back({c, half.neighbour, half.shared});
+      }
+    }
+    now_ = {};
+    next_ = {};
+    ClusterMergeResult tail = mergeClusters(leaves, edges, geometry_.diagonalSquared(), options_,
+                                            std::span<const GarlandQuadrics>(quadrics));
+    const uint32_t base = static_cast<uint32_t>(result_.records.size());
+    for (const ClusterMergeNode& n : tail.nodes) {
+      MergeRecord record;
+      for (int i = 0; i < 2; ++i) {
+        const uint32_t child = n.child[i];
+        record.child[i] = (child & kLeafChild) ? nodes[child & ~kLeafChild] : base + child;
+      }
+      record.count = static_cast<uint32_t>(n.stats.faceCount) |
+                     ((n.flags & kNodeJoinsDisjointSurfaces) ? MergeRecord::kJoinBit : 0u);
+      record.cost = n.cost;
+      record.area = static_cast<float>(n.stats.area);
+      record.perimeter = static_cast<float>(n.stats.perimeter);
+      for (int i = 0; i < 3; ++i) record.sumNormal[i] = static_cast<float>(n.stats.sumNormal[i]);
+      result_.records.push_back(record);
+    }
+    const uint64_t joins = tail.components ? tail.components - 1 : 0;
+    const uint64_t edgeMerges = tail.nodes.size() - joins;
+    result_.degreeSum += tail.averageDegree * static_cast<double>(edgeMerges);
+    result_.maxDegree = std::max(result_.maxDegree, tail.maxDegree);
+    result_.edgeMerges += edgeMerges;
+    result_.components = tail.components;
+    result_.counters.eigenSolves += tail.eigenSolves;
+    result_.counters.normalShortcuts += tail.normalShortcuts;
+  }
+
+  const FaceGeometry& geometry_;
+  const BuildOptions& options_;
+  double keyScale_;
+  bool guard_;
+  unsigned threads_ = 1;
+  std::vector<Policy> policies_;  // one per thread: each counts its own solves
+  uint32_t live_ = 0;
+  Clusters now_, next_;  // this round's clusters, and the arrays the contraction writes
+  Buffer<uint32_t> best_;
+  Buffer<uint8_t> paired_;
+  Buffer<uint32_t> newId_;
+  std::vector<uint32_t> pairsInBlock_;
+  std::vector<Buffer<uint32_t>> stamps_;
+  MergeResult result_ = emptyResult(geometry_.faceCount());
+
+  static MergeResult emptyResult(uint32_t faces) {
+    MergeResult result;
+    reserveHugePages(result.records, faces - 1);  // every record is written once, in order
+    return result;
+  }
+};
+
+}  // namespace
+
+MergeResult runRoundsMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options) {
+  switch (options.metric) {
+    case Metric::Garland:
+      return RoundsEngine<GarlandCost>(geometry, std::move(graph), options).run();
+    case Metric::Constant:
+      return RoundsEngine<ConstantCost>(geometry, std::move(graph), options).run();
+    case Metric::Willmott:
+    default:
+      return RoundsEngine<WillmottCost>(geometry, std::move(graph), options).run();
+  }
+}
+
+}  // namespace facetree
