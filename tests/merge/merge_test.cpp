@@ -16,6 +16,7 @@ Hierarchy buildChecked(const TestMesh& mesh, Metric metric = Metric::Willmott) {
   Hierarchy h = buildHierarchy(mesh.view(), noBoxes(metric));
   const Layout layout = checkStructure(h, mesh.faceCount());
   checkConnectivity(h, mesh, layout);
+  checkEffectiveCostOrder(h);
   return h;
 }
 
@@ -323,6 +324,7 @@ namespace {
 TEST(BuildHierarchy, CancellationHookStopsTheBuild) {
   const TestMesh mesh = grid(128);  // 32768 triangles: more heap steps than one poll interval
   BuildOptions options;
+  options.order = kTestOrder;
   uint64_t polls = 0;
   options.cancelled = [&polls] { return ++polls >= 2; };  // the second poll: inside the merge
   EXPECT_THROW(buildHierarchy(mesh.view(), options), Cancelled);
@@ -331,7 +333,9 @@ TEST(BuildHierarchy, CancellationHookStopsTheBuild) {
   polls = 0;
   options.cancelled = [&polls] { return ++polls > 1000000; };
   const Hierarchy polled = buildHierarchy(mesh.view(), options);
-  const Hierarchy plain = buildHierarchy(mesh.view());
+  BuildOptions unpolled;
+  unpolled.order = kTestOrder;
+  const Hierarchy plain = buildHierarchy(mesh.view(), unpolled);
   EXPECT_GE(polls, 3u) << "polled after the dual graph, in the merge and before the boxes";
   ASSERT_EQ(polled.nodes.size(), plain.nodes.size());
   EXPECT_EQ(polled.faceOrder, plain.faceOrder);

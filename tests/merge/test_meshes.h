@@ -129,6 +129,24 @@ struct Layout {
   std::vector<uint32_t> faceParent;  // per face position: the node holding it as a child
 };
 
+// Nodes by decreasing effective cost (the maximum of a node's cost and its children's).
+inline void checkEffectiveCostOrder(const Hierarchy& h) {
+  std::vector<float> effective(h.nodes.size());
+  for (size_t i = h.nodes.size(); i-- > 0;) {
+    float e = h.nodes[i].cost;
+    for (const uint32_t child : h.nodes[i].child)
+      if (!(child & kFaceChild) && child > i && child < h.nodes.size()) e = std::max(e, effective[child]);
+    effective[i] = e;
+  }
+  for (size_t i = 1; i < effective.size(); ++i) {
+    if (!(effective[i] <= effective[i - 1])) {
+      ADD_FAILURE() << "node " << i << " has effective cost " << effective[i] << " above node " << i - 1
+                    << "'s " << effective[i - 1];
+      return;
+    }
+  }
+}
+
 inline uint32_t childCount(const Hierarchy& h, uint32_t child) {
   return (child & kFaceChild) ? 1 : h.nodes[child].count;
 }
@@ -280,9 +298,17 @@ inline uint64_t hashHierarchy(const Hierarchy& h) {
   return x;
 }
 
+// The merge order the tests build with: the default, or the exact greedy where the test target
+// defines FACETREE_TEST_ORDER=Exact (merge_test.cpp runs under both).
+#ifndef FACETREE_TEST_ORDER
+#define FACETREE_TEST_ORDER Rounds
+#endif
+inline constexpr MergeOrder kTestOrder = MergeOrder::FACETREE_TEST_ORDER;
+
 inline BuildOptions noBoxes(Metric metric = Metric::Willmott) {
   BuildOptions options;
   options.metric = metric;
+  options.order = kTestOrder;
   options.computeBoxes = false;
   return options;
 }
