@@ -7,6 +7,7 @@
 #include <bit>
 #include <chrono>
 #include <functional>
+#include <thread>
 
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
@@ -108,6 +109,14 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
   return height;
 }
 
+// BuildOptions::threads: 0 is the hardware's, and never more than 8.
+unsigned workerThreads(const BuildOptions& options) {
+  constexpr unsigned kMaxThreads = 8;
+  const unsigned threads =
+      options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  return std::min(threads, kMaxThreads);
+}
+
 void throwIfCancelled(const BuildOptions& options) {
   if (options.cancelled && options.cancelled()) throw Cancelled();
 }
@@ -158,14 +167,16 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGra
 }  // namespace
 
 Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
-  return build(mesh, options, [](const FaceGeometry& geometry) { return buildDualGraph(geometry); });
+  return build(mesh, options, [&](const FaceGeometry& geometry) {
+    return buildDualGraph(geometry, workerThreads(options));
+  });
 }
 
 Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
                          const BuildOptions& options) {
   return build(piece, options, [&](const FaceGeometry& geometry) {
     std::optional<DualGraph> graph = pieceDualGraph(geometry, adjacency, faces);
-    return graph ? std::move(*graph) : buildDualGraph(geometry);
+    return graph ? std::move(*graph) : buildDualGraph(geometry, workerThreads(options));
   });
 }
 

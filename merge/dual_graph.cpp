@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include <glm/geometric.hpp>
 
@@ -40,31 +42,24 @@ struct Candidate {
   Value value;
 };
 
-// The matching under the edge rules (dual_graph.h), shared by the dual graph and the face adjacency. For
-// each face f in increasing order it hands `policy.face(f, candidates, count)` the dual edges of f to
-// faces g > f, sorted by g (stably: a g sharing several mesh edges with f comes once per edge, in the
-// order of f's corners). A candidate's value is what the policy makes of the mesh edge: `policy.edge(a, b,
-// corner)` once per shared mesh edge (a, b) from corner `corner` of f, then `policy.pair(edge, u_f, u_g, U)`
-// per pair or `policy.chain(edge, U, K - 1)` for a chain link.
-template <class Policy>
-void matchFaces(const FaceGeometry& geometry, Policy& policy) {
-  const uint32_t n = geometry.faceCount();
-  const MeshView& mesh = geometry.mesh();
-  const size_t vertexCount = mesh.positions.size();
-
-  // Incidence table: faces of each vertex, ascending (a face is listed once per distinct vertex).
-  std::vector<size_t> offset(vertexCount + 1, 0);
-  for (uint32_t f = 0; f < n; ++f) {
-    const uint32_t a = geometry.vertex(f, 0), b = geometry.vertex(f, 1), c = geometry.vertex(f, 2);
-    ++offset[a + 1];
-    if (b != a) ++offset[b + 1];
-    if (c != a && c != b) ++offset[c + 1];
-  }
-  for (size_t v = 0; v < vertexCount; ++v) offset[v + 1] += offset[v];
+// Faces of each vertex, ascending (a face is listed once per distinct vertex): a CSR table.
+struct Incidence {
+  std::vector<size_t> offset;  // vertexCount + 1
   std::vector<uint32_t> incident;
-  reserveHugePages(incident, offset[vertexCount]);
-  incident.resize(offset[vertexCount]);
-  {
+
+  explicit Incidence(const FaceGeometry& geometry) {
+    const uint32_t n = geometry.faceCount();
+    const size_t vertexCount = geometry.mesh().positions.size();
+    offset.assign(vertexCount + 1, 0);
+    for (uint32_t f = 0; f < n; ++f) {
+      const uint32_t a = geometry.vertex(f, 0), b = geometry.vertex(f, 1), c = geometry.vertex(f, 2);
+      ++offset[a + 1];
+      if (b != a) ++offset[b + 1];
+      if (c != a && c != b) ++offset[c + 1];
+    }
+    for (size_t v = 0; v < vertexCount; ++v) offset[v + 1] += offset[v];
+    reserveHugePages(incident, offset[vertexCount]);
+    incident.resize(offset[vertexCount]);
     std::vector<size_t> fill(offset.begin(), offset.end() - 1);
     for (uint32_t f = 0; f < n; ++f) {
       const uint32_t a = geometry.vertex(f, 0), b = geometry.vertex(f, 1), c = geometry.vertex(f, 2);
@@ -73,13 +68,26 @@ void matchFaces(const FaceGeometry& geometry, Policy& policy) {
       if (c != a && c != b) incident[fill[c]++] = f;
     }
   }
+};
 
+// The matching under the edge rules (dual_graph.h), shared by the dual graph and the face adjacency. For
+// each face f of [first, last) in increasing order it hands `policy.face(f, candidates, count)` the dual
+// edges of f to faces g > f, sorted by g (stably: a g sharing several mesh edges with f comes once per
+// edge, in the order of f's corners). A candidate's value is what the policy makes of the mesh edge:
+// `policy.edge(a, b, corner)` once per shared mesh edge (a, b) from corner `corner` of f, then
+// `policy.pair(edge, u_f, u_g, U)` per pair or `policy.chain(edge, U, K - 1)` for a chain link. Each face's
+// edges depend on the incidence table only, so ranges can be matched independently.
+template <class Policy>
+void matchFaces(const FaceGeometry& geometry, const Incidence& table, uint32_t firstFace, uint32_t lastFace,
+                Policy& policy) {
+  const std::vector<size_t>& offset = table.offset;
+  const std::vector<uint32_t>& incident = table.incident;
   // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
   using Entry = Candidate<typename Policy::Value>;
   std::array<Entry, 3 * kMaxFacesJoinedPairwise> candidates;
   std::array<uint32_t, kMaxFacesJoinedPairwise> sharing;  // faces on the current mesh edge
   std::array<uint32_t, kMaxFacesJoinedPairwise> sharingUses;
-  for (uint32_t f = 0; f < n; ++f) {
+  for (uint32_t f = firstFace; f < lastFace; ++f) {
     size_t candidateCount = 0;
     const uint32_t v[3] = {geometry.vertex(f, 0), geometry.vertex(f, 1), geometry.vertex(f, 2)};
     for (int i = 0; i < 3; ++i) {
@@ -145,7 +153,7 @@ void matchFaces(const FaceGeometry& geometry, Policy& policy) {
 struct LengthPolicy {
   using Value = float;
   const FaceGeometry& geometry;
-  DualGraph& graph;
+  std::vector<DualEdge>& edges;
 
   double edge(uint32_t a, uint32_t b, int) const {
     return glm::length(geometry.position(a) - geometry.position(b));
@@ -164,7 +172,7 @@ struct LengthPolicy {
       const uint32_t g = candidates[i].face;
       float length = 0;
       for (; i < count && candidates[i].face == g; ++i) length += candidates[i].value;
-      graph.edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, length, 0.0f});
+      edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, length, 0.0f});
     }
   }
 };
@@ -216,14 +224,39 @@ void linkLists(DualGraph& graph, uint32_t faces) {
 
 }  // namespace
 
-DualGraph buildDualGraph(const FaceGeometry& geometry) {
+DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
   DualGraph graph;
-  // A closed manifold mesh has exactly 3n/2 dual edges; reserve that (growth covers the rest).
-  reserveHugePages(graph.edges, size_t{geometry.faceCount()} * 3 / 2 + 16);
-  LengthPolicy policy{geometry, graph};
-  matchFaces(geometry, policy);
-  throwIfTooManyEdges(graph.edges.size());
-  linkLists(graph, geometry.faceCount());
+  const uint32_t n = geometry.faceCount();
+  const Incidence table(geometry);
+  // Fixed blocks of faces matched on `threads` threads, their edges concatenated in block order:
+  // the same graph for every thread count.
+  constexpr uint32_t kFacesPerBlock = 1u << 16;
+  const uint32_t blocks = (n + kFacesPerBlock - 1) / kFacesPerBlock;
+  std::vector<std::vector<DualEdge>> blockEdges(blocks);
+  std::atomic<uint32_t> nextBlock{0};
+  const auto work = [&] {
+    for (uint32_t b; (b = nextBlock.fetch_add(1, std::memory_order_relaxed)) < blocks;) {
+      const uint32_t first = b * kFacesPerBlock, last = std::min(n, first + kFacesPerBlock);
+      // A closed manifold mesh has exactly 3/2 dual edges per face.
+      blockEdges[b].reserve(size_t{last - first} * 3 / 2 + 16);
+      LengthPolicy policy{geometry, blockEdges[b]};
+      matchFaces(geometry, table, first, last, policy);
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (unsigned t = 1; t < std::min<unsigned>(std::max(threads, 1u), blocks); ++t) pool.emplace_back(work);
+    work();
+  }
+  size_t edges = 0;
+  for (const std::vector<DualEdge>& e : blockEdges) edges += e.size();
+  throwIfTooManyEdges(edges);
+  reserveHugePages(graph.edges, edges);
+  for (std::vector<DualEdge>& e : blockEdges) {
+    graph.edges.insert(graph.edges.end(), e.begin(), e.end());
+    e = {};
+  }
+  linkLists(graph, n);
   return graph;
 }
 
@@ -238,7 +271,7 @@ FaceAdjacency FaceAdjacencyAccess::build(const MeshView& mesh) {
   adjacency.shareStart_.reserve(size_t{n} * 3 / 2 + 17);
   adjacency.shares_.reserve(size_t{n} * 3 / 2 + 16);
   SharePolicy policy{edgeLow, edgeHigh, adjacency.shareStart_, adjacency.shares_};
-  matchFaces(geometry, policy);
+  matchFaces(geometry, Incidence(geometry), 0, n, policy);
   throwIfTooManyEdges(edgeLow.size());
   adjacency.shareStart_.push_back(static_cast<uint32_t>(adjacency.shares_.size()));
 

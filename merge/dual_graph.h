@@ -56,7 +56,8 @@ struct DualGraph {
 // chain links share U |e| / 2). A uniform |e| per pair collapsed the perimeters of fg_hawaii's
 // clusters (874k non-manifold edges) to 0, and with them the costs. Edges are
 // numbered by (lower face, higher face), so the graph is a pure function of the input.
-DualGraph buildDualGraph(const FaceGeometry& geometry);
+// Faces are matched in fixed blocks on `threads` threads; the graph is the same for every count.
+DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);
 
 // The face adjacency's internals (merge.h FaceAdjacency): its construction, and a piece of its mesh
 // read through it.

@@ -351,7 +351,9 @@ class RoundsEngine {
     return bestOther;
   }
 
-  // New keys for the edges that touch a cluster merged last round, then every cheapest edge.
+  // New keys for the edges that touch a cluster merged last round, then every cheapest edge. An
+  // edge's key is computed once, by its lower end, and read by the higher end from the lower
+  // end's list: half the evaluations, and both halves hold the same key.
   void findCheapest() {
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
@@ -362,12 +364,28 @@ class RoundsEngine {
         for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
           Half& half = now_.halves[h];
           const uint32_t x = half.neighbour;
-          if (x == c || !(now_.merged[c] | now_.merged[x])) continue;
+          if (x <= c || !(now_.merged[c] | now_.merged[x])) continue;
           if (!have) {
             own = cluster(c, policy);
             have = true;
           }
           half.key = key(policy, own, cluster(x, policy), half.shared);
+        }
+      }
+    });
+    forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
+          Half& half = now_.halves[h];
+          const uint32_t x = half.neighbour;
+          if (x >= c || !(now_.merged[c] | now_.merged[x])) continue;
+          for (uint32_t g = now_.begin[x]; g < now_.begin[x + 1]; ++g) {
+            if (now_.halves[g].neighbour == c) {
+              half.key = now_.halves[g].key;
+              break;
+            }
+          }
         }
         best_[c] = cheapest(c);
       }
