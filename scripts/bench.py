@@ -22,6 +22,12 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
   branching  cluster file size for branching 2, 4, 8 (verified) and per truncation prefix
   flat       Figs 69-71: flat regular grids: time and maximum dual-edge degree for the default
              metric against the constant-cost and Garland metrics, and the log-log slope
+  rounds     the merge in rounds against the exact greedy order, per mesh (quick: QUICK_MESHES, full:
+             every shared mesh): `build MESH -o OUT.fch` with default threads, with --threads 1 and
+             with --order exact, and `build --method octree`, interleaved per repetition (whole
+             processes: wall, CPU, peak RSS from wait4); phases and rounds from --json; the fit of
+             cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's;
+             whether --threads 1 and the default give the same bytes; the targets as checks
   outofcore  issue 5: a generated terrain (quick 2M faces, full 10M) and its shuffled twin built
              with --memory 64M, 256M, 1G and in core (--memory 16G: the job's in-core path): time,
              peak RSS (the job's --json and wait4's ru_maxrss, what /usr/bin/time prints), temporary
@@ -638,6 +644,87 @@ def ratio(a, b):
     return a / b if a is not None and b else None
 
 
+# Targets of the merge in rounds (same-run ratios): whole `build -o` processes on the 2-core machine.
+ROUNDS_TARGETS = {
+    "dragon_vrip": {"seconds": 1.0, "seconds_one_thread": 1.8, "peak_rss_bytes": 150e6, "octree_ratio": 1.6},
+    "openfoam_buildings": {"seconds": 0.5},
+    "fg_hawaii": {"seconds": 4.0},
+}
+ROUNDS_FIT_BOUND = 1.05  # cut fits within 5% of the exact order's (or better)
+
+
+def bench_rounds(args, meshes, out):
+    """The merge in rounds against the exact greedy: time, memory, rounds, height, cut fits."""
+    tmp = out / "rounds_tmp"
+    tmp.mkdir(exist_ok=True)
+    rows = []
+    for mesh in meshes:
+        path = mesh_path(mesh)
+        files = {name: tmp / f"{mesh}.{name}.fch" for name in ("rounds", "one", "exact")}
+        variants = {"rounds": [], "one": ["--threads", "1"], "exact": ["--order", "exact"]}
+        runs = {name: [] for name in (*variants, "octree")}
+        for _ in range(args.repeat):
+            for name, options in variants.items():
+                runs[name].append(build_job(args, path, files[name], options))
+            stdout, wall, cpu, rss = run_measured([args.facetree, "build", path, "--method", "octree", "--json"])
+            runs["octree"].append({"process_wall_seconds": wall, "process_cpu_seconds": cpu,
+                                   "process_peak_rss_bytes": rss, **json.loads(stdout)})
+        fits = {name: {int(k): v["sum_area_fit"] for k, v in json.loads(run(
+            [args.facetree, "info", files[name], "--json", "--fit-cuts", ",".join(map(str, FIT_CUTS))])[0])
+            ["fit_cuts"].items()} for name in ("rounds", "exact")}
+        same_bytes = files["rounds"].read_bytes() == files["one"].read_bytes()
+        for f in files.values():
+            f.unlink()
+
+        def summary(name):
+            r = runs[name]
+            return {"wall_seconds": median(x["process_wall_seconds"] for x in r),
+                    "cpu_seconds": median(x["process_cpu_seconds"] for x in r),
+                    "peak_rss_bytes": max(x["process_peak_rss_bytes"] for x in r),
+                    "phases": {k: median(x["seconds"][k] for x in r) for k in r[0]["seconds"]}}
+
+        row = {"mesh": mesh, "triangles": runs["rounds"][0]["triangles"],
+               **{name: summary(name) for name in runs},
+               "round_count": runs["rounds"][0]["rounds"], "height": runs["rounds"][0]["height"],
+               "exact_height": runs["exact"][0]["height"],
+               "balanced_height": runs["rounds"][0]["balanced_height"],
+               "fit": fits, "fit_ratio": {c: ratio(fits["rounds"].get(c), fits["exact"].get(c))
+                                          for c in FIT_CUTS},
+               "same_bytes_threads_1_and_default": same_bytes}
+        # Same-run ratios, median of the per-repetition ratios.
+        row["ratio_to_exact"] = median(a["process_wall_seconds"] / b["process_wall_seconds"]
+                                       for a, b in zip(runs["rounds"], runs["exact"]))
+        row["ratio_to_octree"] = median(a["process_wall_seconds"] / b["process_wall_seconds"]
+                                        for a, b in zip(runs["rounds"], runs["octree"]))
+        checks = {}
+        target = ROUNDS_TARGETS.get(mesh, {})
+        if "seconds" in target:
+            checks["seconds"] = row["rounds"]["wall_seconds"] <= target["seconds"]
+        if "seconds_one_thread" in target:
+            checks["seconds_one_thread"] = row["one"]["wall_seconds"] <= target["seconds_one_thread"]
+        if "peak_rss_bytes" in target:
+            checks["peak_rss_bytes"] = row["rounds"]["peak_rss_bytes"] <= target["peak_rss_bytes"]
+        if "octree_ratio" in target:
+            checks["octree_ratio"] = row["ratio_to_octree"] <= target["octree_ratio"]
+        checks["height"] = row["height"] <= 2 * row["balanced_height"]
+        checks["fit"] = all(r is None or r <= ROUNDS_FIT_BOUND for r in row["fit_ratio"].values())
+        checks["same_bytes"] = same_bytes
+        row["targets"] = target
+        row["checks"] = checks
+        rows.append(row)
+        phases = row["rounds"]["phases"]
+        fit_text = " ".join(f"{c}:{r:.3f}" for c, r in row["fit_ratio"].items() if r is not None)
+        failed = [k for k, ok in checks.items() if not ok]
+        print(f"rounds    {mesh:24s} {row['rounds']['wall_seconds']:6.2f} s (1 thread {row['one']['wall_seconds']:.2f}, "
+              f"exact {row['exact']['wall_seconds']:.2f}, octree {row['octree']['wall_seconds']:.2f}; init "
+              f"{phases['init']:.2f} cost {phases['cost']:.2f} merge {phases['merge']:.2f} boxes {phases['boxes']:.2f} "
+              f"write {phases['write']:.2f})  {row['round_count']} rounds  peak {row['rounds']['peak_rss_bytes'] / 2**20:.0f} MiB  "
+              f"height {row['height']}/{row['balanced_height']}  fit/exact {fit_text}  "
+              f"x{row['ratio_to_exact']:.2f} of exact, x{row['ratio_to_octree']:.2f} of octree"
+              f"{'  missed: ' + ', '.join(failed) if failed else ''}", flush=True)
+    return rows
+
+
 def bench_outofcore(args, out):
     """Issue 5: the out-of-core build against the in-core one, cost and quality."""
     started, load_start = time.time(), os.getloadavg()
@@ -725,7 +812,7 @@ def bench_outofcore(args, out):
             "wall_seconds": time.time() - started}
 
 
-SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "outofcore"]
+SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore"]
 
 
 def main():
@@ -797,6 +884,9 @@ def main():
     if "flat" in sections:
         report["flat"] = bench_flat(args, out)
         section_done("flat")
+    if "rounds" in sections:
+        report["rounds"] = bench_rounds(args, meshes, out)
+        section_done("rounds")
     if "outofcore" in sections:
         report["outofcore"] = bench_outofcore(args, out)
         section_done("outofcore")
