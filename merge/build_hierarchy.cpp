@@ -125,22 +125,23 @@ void throwIfCancelled(const BuildOptions& options) {
 
 namespace {
 
-// The build with the dual graph from `makeGraph(geometry)`.
-template <class MakeGraph>
-Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGraph& makeGraph) {
+// The build with the dual graph's edges from `makeEdges(geometry)`.
+template <class MakeEdges>
+Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdges& makeEdges) {
   Hierarchy hierarchy;
   BuildStats& stats = hierarchy.stats;
   {
     // Everything of the merge is released at the end of this scope, before the boxes.
     auto start = std::chrono::steady_clock::now();
     const FaceGeometry geometry(mesh);
-    DualGraph graph = makeGraph(geometry);
+    DualEdgeBlocks edges = makeEdges(geometry);
     stats.secondsInit = secondsSince(start);
     throwIfCancelled(options);
 
-    MergeResult merged = options.order == MergeOrder::Exact
-                             ? runMerge(geometry, std::move(graph), options)
-                             : runRoundsMerge(geometry, std::move(graph), options);
+    MergeResult merged =
+        options.order == MergeOrder::Exact
+            ? runMerge(geometry, linkDualGraph(std::move(edges), geometry.faceCount()), options)
+            : runRoundsMerge(geometry, std::move(edges), options);
     start = std::chrono::steady_clock::now();
     stats.height = layOut(std::move(merged.records), hierarchy, geometry);
     stats.balancedHeight = balancedHeight(geometry.faceCount());
@@ -168,7 +169,7 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeGra
 
 Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
   return build(mesh, options, [&](const FaceGeometry& geometry) {
-    return buildDualGraph(geometry, workerThreads(options));
+    return matchDualEdges(geometry, workerThreads(options));
   });
 }
 
@@ -176,7 +177,10 @@ Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::s
                          const BuildOptions& options) {
   return build(piece, options, [&](const FaceGeometry& geometry) {
     std::optional<DualGraph> graph = pieceDualGraph(geometry, adjacency, faces);
-    return graph ? std::move(*graph) : buildDualGraph(geometry, workerThreads(options));
+    if (!graph) return matchDualEdges(geometry, workerThreads(options));
+    DualEdgeBlocks edges;
+    edges.push_back(std::move(graph->edges));
+    return edges;
   });
 }
 

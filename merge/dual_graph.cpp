@@ -224,15 +224,13 @@ void linkLists(DualGraph& graph, uint32_t faces) {
 
 }  // namespace
 
-DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
-  DualGraph graph;
+DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads) {
   const uint32_t n = geometry.faceCount();
   const Incidence table(geometry);
-  // Fixed blocks of faces matched on `threads` threads, their edges concatenated in block order:
-  // the same graph for every thread count.
+  // Fixed blocks of faces matched on `threads` threads: the same edges for every thread count.
   constexpr uint32_t kFacesPerBlock = 1u << 16;
   const uint32_t blocks = (n + kFacesPerBlock - 1) / kFacesPerBlock;
-  std::vector<std::vector<DualEdge>> blockEdges(blocks);
+  DualEdgeBlocks blockEdges(blocks);
   std::atomic<uint32_t> nextBlock{0};
   const auto work = [&] {
     for (uint32_t b; (b = nextBlock.fetch_add(1, std::memory_order_relaxed)) < blocks;) {
@@ -251,13 +249,29 @@ DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
   size_t edges = 0;
   for (const std::vector<DualEdge>& e : blockEdges) edges += e.size();
   throwIfTooManyEdges(edges);
-  reserveHugePages(graph.edges, edges);
-  for (std::vector<DualEdge>& e : blockEdges) {
-    graph.edges.insert(graph.edges.end(), e.begin(), e.end());
-    e = {};
+  return blockEdges;
+}
+
+DualGraph linkDualGraph(DualEdgeBlocks&& blocks, uint32_t faces) {
+  DualGraph graph;
+  if (blocks.size() == 1) {
+    graph.edges = std::move(blocks[0]);
+  } else {
+    size_t edges = 0;
+    for (const std::vector<DualEdge>& e : blocks) edges += e.size();
+    reserveHugePages(graph.edges, edges);
+    for (std::vector<DualEdge>& e : blocks) {
+      graph.edges.insert(graph.edges.end(), e.begin(), e.end());
+      e = {};
+    }
   }
-  linkLists(graph, n);
+  blocks = {};
+  linkLists(graph, faces);
   return graph;
+}
+
+DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
+  return linkDualGraph(matchDualEdges(geometry, threads), geometry.faceCount());
 }
 
 FaceAdjacency FaceAdjacencyAccess::build(const MeshView& mesh) {

@@ -48,6 +48,6 @@ MergeResult runMerge(const FaceGeometry& geometry, DualGraph graph, const BuildO
 
 // Rounds of reciprocal cheapest pairs (merge_rounds.cpp), on options.threads threads with the
 // same result for every count. Consumes `graph`.
-MergeResult runRoundsMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options);
+MergeResult runRoundsMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);
 
 }  // namespace facetree

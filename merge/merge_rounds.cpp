@@ -180,7 +180,7 @@ class RoundsEngine {
     uint32_t node, count, height;
   };
 
-  RoundsEngine(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options)
+  RoundsEngine(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options)
       : geometry_(geometry),
         options_(options),
         keyScale_(Policy(options, geometry).keyScale()),
@@ -189,7 +189,7 @@ class RoundsEngine {
     threads_ = std::min(threads_, kMaxThreads);
     for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, geometry);
     auto start = std::chrono::steady_clock::now();
-    initialise(std::move(graph));
+    initialise(std::move(edges));
     result_.secondsCost = secondsSince(start);
   }
 
@@ -258,27 +258,25 @@ class RoundsEngine {
 
   // Round 0: one adjacency list per face in the order of its edges (lower neighbours, then
   // higher ones, each ascending), each edge's key computed once from the two triangles.
-  void initialise(DualGraph graph) {
+  void initialise(DualEdgeBlocks edges) {
     const uint32_t n = geometry_.faceCount();
-    const uint32_t edgeCount = graph.edgeCount();
+    size_t edgeCount = 0;
+    for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
     live_ = n;
-    now_.reserve(n, size_t{2} * edgeCount);
-    next_.reserve(n, size_t{2} * edgeCount);
+    now_.reserve(n, 2 * edgeCount);
+    next_.reserve(n, 2 * edgeCount);
     reserveHugePages(best_, n);
     reserveHugePages(paired_, n);
     reserveHugePages(newId_, n);
     best_.resize(n);
     paired_.resize(n);
     now_.resize(n);
-    const uint32_t edgeBlocks = (edgeCount + kBlock - 1) / kBlock;
-    forBlocks(threads_, edgeBlocks, [&](uint32_t block, unsigned t) {
+    forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
-      const uint32_t hi = std::min(edgeCount, (block + 1) * kBlock);
       uint32_t first = kNone;
       Cluster a;
-      for (uint32_t e = block * kBlock; e < hi; ++e) {
-        DualEdge& edge = graph.edges[e];
-        if (edge.end[0] != first) {  // edges come sorted by their lower face
+      for (DualEdge& edge : edges[block]) {
+        if (edge.end[0] != first) {  // a block's edges come sorted by their lower face
           first = edge.end[0];
           a = leaf(first, policy);
         }
@@ -287,9 +285,11 @@ class RoundsEngine {
     });
     Buffer<uint32_t>& begin = now_.begin;
     std::fill(begin.begin(), begin.end(), 0u);
-    for (const DualEdge& e : graph.edges) {
-      ++begin[e.end[0] + 1];
-      ++begin[e.end[1] + 1];
+    for (const std::vector<DualEdge>& block : edges) {
+      for (const DualEdge& e : block) {
+        ++begin[e.end[0] + 1];
+        ++begin[e.end[1] + 1];
+      }
     }
     for (uint32_t f = 0; f < n; ++f) {
       begin[f + 1] += begin[f];
@@ -299,11 +299,13 @@ class RoundsEngine {
     now_.halves.resize(begin[n]);
     Buffer<uint32_t>& fill = newId_;  // scratch: the next free half of each list
     fill.assign(begin.begin(), begin.end() - 1);
-    for (const DualEdge& e : graph.edges) {
-      now_.halves[fill[e.end[0]]++] = {e.end[1], e.shared, e.key};
-      now_.halves[fill[e.end[1]]++] = {e.end[0], e.shared, e.key};
+    for (std::vector<DualEdge>& block : edges) {
+      for (const DualEdge& e : block) {
+        now_.halves[fill[e.end[0]]++] = {e.end[1], e.shared, e.key};
+        now_.halves[fill[e.end[1]]++] = {e.end[0], e.shared, e.key};
+      }
+      block = {};
     }
-    graph = DualGraph{};
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
       for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
@@ -647,15 +649,15 @@ class RoundsEngine {
 
 }  // namespace
 
-MergeResult runRoundsMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options) {
+MergeResult runRoundsMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options) {
   switch (options.metric) {
     case Metric::Garland:
-      return RoundsEngine<GarlandCost>(geometry, std::move(graph), options).run();
+      return RoundsEngine<GarlandCost>(geometry, std::move(edges), options).run();
     case Metric::Constant:
-      return RoundsEngine<ConstantCost>(geometry, std::move(graph), options).run();
+      return RoundsEngine<ConstantCost>(geometry, std::move(edges), options).run();
     case Metric::Willmott:
     default:
-      return RoundsEngine<WillmottCost>(geometry, std::move(graph), options).run();
+      return RoundsEngine<WillmottCost>(geometry, std::move(edges), options).run();
   }
 }
 
