@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <bit>
 #include <chrono>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <functional>
 #include <thread>
 
@@ -156,6 +159,11 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
     stats.secondsMerge = merged.secondsMerge + secondsSince(start);
   }
 
+  // The merge's arrays are freed; glibc keeps the pages of those it took from its heap unless
+  // asked, and the boxes would be allocated on top of them.
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
   throwIfCancelled(options);
   if (options.computeBoxes) {
     const auto start = std::chrono::steady_clock::now();

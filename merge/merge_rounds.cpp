@@ -169,6 +169,41 @@ struct StoredCentred {
   }
 };
 
+// Finds the half of the list being written, [first, out), that already leads to a cluster, so that
+// parallel edges fold into one. Lists are short: a scan, until a list passes kScanLength halves;
+// then marks per cluster id (1 + the half that leads to it). A thread takes blocks in increasing
+// order and a block's output follows the blocks before it, so a mark below a list's first half is
+// an older list's, and marks are cleared once a round, when first needed.
+struct Folder {
+  static constexpr uint32_t kScanLength = 16;
+  Buffer<uint32_t> stamp;
+  bool ready = false;  // stamp cleared this round
+  bool marking = false;
+
+  uint32_t find(const Buffer<Half>& halves, uint32_t first, uint32_t out, uint32_t x, uint32_t clusters) {
+    if (out - first < kScanLength) {
+      marking = false;
+      for (uint32_t h = first; h < out; ++h)
+        if (halves[h].neighbour == x) return h;
+      return kNone;
+    }
+    if (!marking) {  // the list just got long: mark what it holds
+      if (!ready) {
+        stamp.resize(clusters);
+        std::fill(stamp.begin(), stamp.end(), 0u);
+        ready = true;
+      }
+      for (uint32_t h = first; h < out; ++h) stamp[halves[h].neighbour] = h + 1;
+      marking = true;
+    }
+    const uint32_t seen = stamp[x];
+    return seen > first ? seen - 1 : kNone;
+  }
+  void mark(uint32_t x, uint32_t at) {
+    if (marking) stamp[x] = at + 1;
+  }
+};
+
 template <class Policy>
 class RoundsEngine {
  public:
@@ -470,23 +505,22 @@ class RoundsEngine {
       }
     });
 
+    // The spare arrays keep no more memory than this contraction writes.
+    shrinkResident(next_.ref, live);
+    shrinkResident(next_.begin, size_t{live} + 1);
+    shrinkResident(next_.merged, live);
+    shrinkResident(next_.halves, counts[blocks].halves);
     next_.resize(live);
     next_.slots.resize(counts[blocks].slots);
     next_.halves.resize(counts[blocks].halves);
     next_.begin[live] = static_cast<uint32_t>(counts[blocks].halves);
-    // Per thread, new id -> 1 + its half in the list that wrote it last. A thread takes blocks
-    // in increasing order and a block's output follows the blocks before it, so a mark at or
-    // after the current list's first half is this list's: parallel edges are folded in O(1).
-    stamps_.resize(threads_);
-    for (Buffer<uint32_t>& stamp : stamps_) {
-      stamp.resize(live);
-      std::fill(stamp.begin(), stamp.end(), 0u);
-    }
+    for (Folder& folder : folders_) folder.ready = false;
+    folders_.resize(threads_);
     std::vector<uint64_t> degreeSum(blocks, 0);
     std::vector<uint32_t> degreeMax(blocks, 0);
     forBlocks(threads_, blocks, [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
-      Buffer<uint32_t>& stamp = stamps_[t];
+      Folder& folder = folders_[t];
       uint32_t id = counts[block].clusters;
       uint32_t s = counts[block].slots;
       uint32_t r = recordBase + counts[block].records;
@@ -507,11 +541,11 @@ class RoundsEngine {
               continue;
             }
             const uint32_t x = newId_[half.neighbour];
-            const uint32_t seen = stamp[x];
-            if (seen > first) {
-              next_.halves[seen - 1].shared += half.shared;  // a parallel edge: fold it
+            const uint32_t seen = folder.find(next_.halves, first, out, x, live);
+            if (seen != kNone) {
+              next_.halves[seen].shared += half.shared;  // a parallel edge: fold it
             } else {
-              stamp[x] = out + 1;
+              folder.mark(x, out);
               next_.halves[out++] = {x, half.shared, half.key};
             }
           }
@@ -561,10 +595,6 @@ class RoundsEngine {
     live_ = live;
     std::swap(now_, next_);
     // The next contraction writes no more than this round holds: the spare arrays keep no more.
-    shrinkResident(next_.ref, live_);
-    shrinkResident(next_.begin, live_ + 1);
-    shrinkResident(next_.merged, live_);
-    shrinkResident(next_.halves, now_.halves.size());
     shrinkResident(next_.slots, std::min<size_t>(live_, next_.slots.capacity()));
     shrinkResident(best_, live_);
     shrinkResident(paired_, live_);
@@ -637,7 +667,7 @@ class RoundsEngine {
   Buffer<uint8_t> paired_;
   Buffer<uint32_t> newId_;
   std::vector<uint32_t> pairsInBlock_;
-  std::vector<Buffer<uint32_t>> stamps_;
+  std::vector<Folder> folders_;  // one per thread
   MergeResult result_ = emptyResult(geometry_.faceCount());
 
   static MergeResult emptyResult(uint32_t faces) {

@@ -109,6 +109,33 @@ TEST(MergeRounds, StalledRoundsHandTheMergeToTheGreedy) {
   expectSameNodes(h, buildHierarchy(mesh.view(), exactOrder(Metric::Constant)));
 }
 
+// A flat fan of 96 triangles, each with a steep ear on its outer edge: the fan merges first, into
+// clusters bordering dozens of ears, whose lists fold parallel edges past the short-list scan.
+// Every node's area, perimeter and S against brute force: an edge left unfolded would lose the
+// shared length of its twin.
+TEST(MergeRounds, LongAdjacencyListsFoldParallelEdges) {
+  TestMesh mesh;
+  constexpr uint32_t kSpokes = 96;
+  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);
+  for (uint32_t i = 0; i < kSpokes; ++i) {
+    const float angle = 6.2831853f * float(i) / kSpokes;
+    mesh.positions.emplace_back(std::cos(angle), std::sin(angle), 0.0f);
+  }
+  for (uint32_t i = 0; i < kSpokes; ++i) {
+    const float angle = 6.2831853f * (float(i) + 0.5f) / kSpokes;
+    mesh.positions.emplace_back(1.05f * std::cos(angle), 1.05f * std::sin(angle), 0.8f);
+  }
+  for (uint32_t i = 0; i < kSpokes; ++i) mesh.add(0, 1 + i, 1 + (i + 1) % kSpokes);
+  for (uint32_t i = 0; i < kSpokes; ++i) mesh.add(1 + (i + 1) % kSpokes, 1 + i, 1 + kSpokes + i);
+  BuildOptions options = rounds();
+  options.balanceSlack = 0;  // no piece blocked by the guard: every join is of disjoint surfaces
+  const Hierarchy h = buildHierarchy(mesh.view(), options);
+  const Layout layout = checkStructure(h, mesh.faceCount());
+  checkConnectivity(h, mesh, layout);
+  checkStats(h, mesh, 1e-5);
+  EXPECT_GE(h.stats.maxDegree, 32u);  // twice the lists the merge scans (merge_rounds.cpp Folder)
+}
+
 // Several blocks of clusters (4096 each) and every metric: the same nodes, faces and boxes,
 // bit for bit, whatever the number of threads.
 TEST(MergeRounds, SameBytesForEveryThreadCount) {
