@@ -8,16 +8,27 @@
 
 namespace facetree {
 
-void adviseHugePages(const void* data, size_t bytes) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if (data == nullptr || bytes < kHugePageMinBytes) return;
+namespace {
+
+// madvise(advice) on the whole 2 MiB pages inside [data + from, data + to); errors (a kernel
+// without THP and the like) only mean the advice is not taken, and are ignored.
+void adviseWholeHugePages([[maybe_unused]] const void* data, [[maybe_unused]] size_t from,
+                          [[maybe_unused]] size_t to, [[maybe_unused]] int advice) {
+#if defined(__linux__)
+  if (data == nullptr) return;
   constexpr uintptr_t kHugePage = uintptr_t{2} << 20;
   const auto begin = reinterpret_cast<uintptr_t>(data);
-  const uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1);
-  const uintptr_t last = (begin + bytes) & ~(kHugePage - 1);
-  if (first >= last) return;
-  // EINVAL (kernel without THP) and the like only mean "no huge pages": ignored.
-  (void)madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+  const uintptr_t first = (begin + from + kHugePage - 1) & ~(kHugePage - 1);
+  const uintptr_t last = (begin + to) & ~(kHugePage - 1);
+  if (first < last) (void)madvise(reinterpret_cast<void*>(first), last - first, advice);
+#endif
+}
+
+}  // namespace
+
+void adviseHugePages(const void* data, size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if (bytes >= kHugePageMinBytes) adviseWholeHugePages(data, 0, bytes, MADV_HUGEPAGE);
 #else
   (void)data;
   (void)bytes;
@@ -26,13 +37,7 @@ void adviseHugePages(const void* data, size_t bytes) {
 
 void releasePagesBeyond(const void* data, size_t used, size_t capacity) {
 #if defined(__linux__) && defined(MADV_DONTNEED)
-  if (data == nullptr) return;
-  constexpr uintptr_t kHugePage = uintptr_t{2} << 20;
-  const auto begin = reinterpret_cast<uintptr_t>(data);
-  const uintptr_t first = (begin + used + kHugePage - 1) & ~(kHugePage - 1);
-  const uintptr_t last = (begin + capacity) & ~(kHugePage - 1);
-  if (first >= last) return;
-  (void)madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED);
+  adviseWholeHugePages(data, used, capacity, MADV_DONTNEED);
 #else
   (void)data;
   (void)used;

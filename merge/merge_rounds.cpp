@@ -115,13 +115,13 @@ struct Centred {
 
   static Centred triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
     Centred s;
-    const glm::dvec3 cross = glm::cross(b - a, c - a);
-    s.sumNormal = 0.5 * cross;
-    s.area = 0.5 * glm::length(cross);
-    s.perimeter = glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
     s.centroid = (a + b + c) / 3.0;
-    const double w = s.area / 12.0;  // the corners' sum is 0 about the centroid
-    for (const glm::dvec3& p : {a, b, c}) s.second.addOuter(p - s.centroid, w);
+    // About its centroid a triangle's first moment is 0 and fromTriangle's moments are central.
+    const ClusterStats t = ClusterStats::fromTriangle(a - s.centroid, b - s.centroid, c - s.centroid);
+    s.area = t.area;
+    s.perimeter = t.perimeter;
+    s.sumNormal = t.sumNormal;
+    s.second = t.secondMoment;
     return s;
   }
 
