@@ -1,5 +1,5 @@
-// The merge's balance guard (BuildOptions::balanceSlack), shared by the engine (merge_engine.cpp)
-// and mergeClusters (cluster_merge.cpp).
+// The merge's balance guard (BuildOptions::balanceSlack), shared by the rounds (merge_rounds.cpp)
+// and the greedy (cluster_merge.cpp).
 #pragma once
 
 #include <algorithm>

@@ -141,10 +141,7 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
     stats.secondsInit = secondsSince(start);
     throwIfCancelled(options);
 
-    MergeResult merged =
-        options.order == MergeOrder::Exact
-            ? runMerge(geometry, linkDualGraph(std::move(edges), geometry.faceCount()), options)
-            : runRoundsMerge(geometry, std::move(edges), options);
+    MergeResult merged = runMerge(geometry, std::move(edges), options);
     start = std::chrono::steady_clock::now();
     stats.height = layOut(std::move(merged.records), hierarchy, geometry);
     stats.balancedHeight = balancedHeight(geometry.faceCount());

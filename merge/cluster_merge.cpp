@@ -3,27 +3,25 @@
 // out-of-core build: each leaf brings its statistics, subtree height and face count, and the
 // leaves' dual graph its shared boundary lengths.
 //
-// The loop is the merge engine's (merge_engine.cpp), step for step, so that a merge over
-// single faces reproduces buildHierarchy's tree exactly (tests/merge/merge_api_test.cpp):
+// The exact greedy order, the reference the rounds are measured against (merge_rounds.cpp runs
+// it over single faces for MergeOrder::Exact, and over the clusters the rounds leave):
 //  - Order: the live cluster with the lowest (cheapest edge's key, cluster id) merges along
 //    that edge (its cheapest by (key, edge id)); the edge's end[0] survives and keeps its id.
 //    Keys are float costs times 1 / diagonalSquared; the balance guard (balance_guard.h)
 //    multiplies them by kBalancePenaltyBase^excess, or blocks the edge.
-//  - Edges are numbered by (lower leaf, higher leaf) as the dual graph numbers them, kept in
-//    the same intrusive adjacency lists (dual_graph.h) with the same relinking and folding of
-//    parallel edges, so that the surviving edge ids, and with them the ties, are the same.
-//  - Shared lengths are float on the edges (keys and merged stats use them), as in the
-//    engine; a merge of two leaves uses the caller's double length, as the engine recomputes
-//    a pair of faces from its triangles.
-//  - The lazy heap (heap.h) holds a lower bound of each cluster's cheapest key; see
-//    merge_engine.cpp for why. Unlike the engine, every cluster keeps its stats in place
-//    (leaf clusters are few and large: no pair recomputation, no slot recycling), and with
-//    Metric::Garland their quadrics (GarlandStats, from the caller's GarlandQuadrics).
+//  - Edges are numbered by (lower leaf, higher leaf), kept in intrusive adjacency lists
+//    (dual_graph.h); a merge relinks the two lists and folds parallel edges into one.
+//  - Shared lengths are float on the edges (keys and merged stats use them); a merge of two
+//    leaves uses the caller's double length.
+//  - The lazy heap (heap.h) holds a lower bound of each cluster's cheapest key: a neighbour
+//    whose cheapest edge got dearer is only flagged, and rescanned if it surfaces. Every
+//    cluster keeps its stats in place, and with Metric::Garland its quadrics (GarlandStats,
+//    from the caller's GarlandQuadrics).
 //  - Roots left when the edges run out (or are blocked) are joined Huffman-style by face
-//    count, ties by the Morton rank of their centroids, flagged kNodeJoinsDisjointSurfaces.
-//    The engine ranks within the model's bounding box; here, having only the leaves'
-//    statistics, within the box of the roots' centroids (zero-area roots sit at the origin):
-//    the same joins, except possibly among roots of equal face count.
+//    count, ties by the Morton rank of their centroids within the box of the roots'
+//    centroids (zero-area roots sit at the origin), flagged kNodeJoinsDisjointSurfaces: a
+//    large component then sits directly under the root, and small nearby pieces are joined
+//    with each other first.
 // Memory: 112 B of stats (Garland: 184 more) and 32 B of record per leaf, 32 B per distinct edge (24 in the
 // graph, 8 for the double length), the heap ~9 B per leaf, and the output nodes (~144 B each).
 #include <algorithm>
@@ -166,8 +164,8 @@ class ClusterMerger {
     }
     heap_.heapify();
 
-    // The engine's loop (merge_engine.cpp, MergeEngine::run), entry for entry.
-    while (!heap_.empty()) {
+    for (uint64_t step = 1; !heap_.empty(); ++step) {
+      if (step % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled()) throw Cancelled();
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;
       Record& r = clusters_[top.id];
@@ -212,6 +210,8 @@ class ClusterMerger {
  private:
   static constexpr size_t kHeapSlackDivisor = 8;
   static constexpr size_t kHeapSlackMin = 1024;
+  // The cancellation hook is polled every this many heap steps: a few milliseconds of merging.
+  static constexpr uint64_t kCancelPollSteps = 1 << 14;
   static constexpr uint32_t kNoEdge = 0x7FFFFFFFu;
   static constexpr uint32_t kDirty = 0x80000000u;
   // Record::node: the creation index of the cluster's node, or one of these.
@@ -320,7 +320,8 @@ class ClusterMerger {
     if (joining) return;
     kill(graph_.edges[e]);
 
-    // Concatenate the two adjacency lists into a's (merge_engine.cpp, MergeEngine::merge).
+    // Concatenate the two adjacency lists into a's, folding parallel edges: stamp = the live edge
+    // already kept between a and that neighbour in this pass.
     uint32_t head = kNone, degree = 0;
     for (const uint32_t list : {a, b}) {
       uint32_t next;
@@ -381,7 +382,7 @@ class ClusterMerger {
     }
   }
 
-  // Huffman joins of the remaining roots (merge_engine.cpp, MergeEngine::joinComponents).
+  // Huffman joins of the remaining roots by face count, ties by Morton rank.
   void joinComponents() {
     const uint32_t n = static_cast<uint32_t>(clusters_.size());
     std::vector<std::pair<glm::dvec3, uint32_t>> centroids;

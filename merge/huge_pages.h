@@ -1,10 +1,11 @@
-// Transparent huge pages for the merge's large, randomly accessed arrays.
+// Transparent huge pages for the merge's large arrays.
 //
-// Why: the greedy merge pops clusters in cost order, scattered over ~100 MB of arrays on a
-// 1M-face mesh (merge_engine.cpp). With 4 KiB pages nearly every such access also misses the
-// TLB, and under virtualisation a TLB miss walks two page tables. Debian's kernels give huge
-// pages only to ranges advised with MADV_HUGEPAGE (transparent_hugepage "madvise" mode), and
-// glibc does not advise its own allocations unless a tunable asks it to.
+// Why: arrays of ~100 MB on a 1M-face mesh are read out of order (the greedy's clusters in cost
+// order, neighbours' statistics); with 4 KiB pages nearly every such access also misses the
+// TLB, and under virtualisation a TLB miss walks two page tables, and every page is faulted in
+// one at a time. Debian's kernels give huge pages only to ranges advised with MADV_HUGEPAGE
+// (transparent_hugepage "madvise" mode), and glibc does not advise its own allocations unless
+// a tunable asks it to.
 #pragma once
 
 #include <cstddef>

@@ -57,7 +57,7 @@ struct BuildOptions {
   double garlandShapeWeight = 1.0;
   // Balance guard (Willmott metric only): a merge whose subtree height h' exceeds
   // balanceSlack * (ceil(log2 n') + 1) for its n' faces gets its cost multiplied by
-  // kBalancePenaltyBase^(excess) (merge_engine.cpp). 0 disables it (pure eq. 84).
+  // kBalancePenaltyBase^(excess) (balance_guard.h). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
   bool computeBoxes = true;
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The

@@ -1,6 +1,5 @@
-// The greedy dual-edge merge (Garland et al. 2001; Willmott 2000, ch. 5): pop the cheapest
-// dual edge, merge its two clusters, combine parallel edges, re-cost the merged cluster's
-// edges; then join the remaining components into one root.
+// The dual-edge merge of a mesh's faces (Garland et al. 2001; Willmott 2000, ch. 5), in rounds of
+// reciprocal cheapest pairs or in the exact greedy order (merge_rounds.cpp), and what it records.
 #pragma once
 
 #include <cstdint>
@@ -43,11 +42,8 @@ struct MergeResult {
   size_t peakStructureBytes = 0;  // dual graph + heap + live cluster slots at their largest
 };
 
-// The exact global greedy order. Consumes `graph` (its memory is released before returning).
-MergeResult runMerge(const FaceGeometry& geometry, DualGraph graph, const BuildOptions& options);
-
-// Rounds of reciprocal cheapest pairs (merge_rounds.cpp), on options.threads threads with the
-// same result for every count. Consumes `graph`.
-MergeResult runRoundsMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);
+// The merge of BuildOptions::order over the faces of `geometry` along the matched dual edges
+// (consumed), on options.threads threads with the same result for every count.
+MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);
 
 }  // namespace facetree

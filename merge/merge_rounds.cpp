@@ -17,7 +17,8 @@
 // terrain, runs of slivers) merges only at its end, one pair a round. When a round would merge
 // fewer than 1/kStallRatio of the live clusters, or few clusters are left, the rest of the merge
 // is the exact greedy over the contracted clusters (mergeClusters), which also joins the
-// components.
+// components. MergeOrder::Exact runs no round: the greedy merges the single faces (Garland et
+// al. 2001's order, the reference the rounds are measured against).
 //
 // Parallel and deterministic: each phase runs over fixed blocks of kBlock clusters, every
 // decision is a function of the cluster's own data, and outputs are placed by prefix sums over
@@ -26,8 +27,7 @@
 // Layout per live cluster: its node (kFaceChild | face for a single face), face count, height,
 // a flag for "merged last round", and its adjacency list as [begin, end) of 12-byte half-edges
 // (neighbour, shared length, key). Single faces keep no statistics (recomputed from the
-// triangle, as the exact engine does); clusters of two or more faces keep theirs in a dense
-// array in cluster order.
+// triangle); clusters of two or more faces keep theirs in a dense array in cluster order.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -232,7 +232,7 @@ class RoundsEngine {
     auto start = std::chrono::steady_clock::now();
     uint32_t rounds = 0;
     const uint32_t tail = std::min(kTailClusters, geometry_.faceCount() / kTailFraction);
-    for (;;) {
+    while (options_.order == MergeOrder::Rounds) {
       if (options_.cancelled && options_.cancelled()) throw Cancelled();
       if (rounds > 0) findCheapest();
       const uint32_t pairs = markPairs();
@@ -306,7 +306,9 @@ class RoundsEngine {
     best_.resize(n);
     paired_.resize(n);
     now_.resize(n);
-    forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
+    // The exact order has the greedy cost every edge itself.
+    const uint32_t keyed = options_.order == MergeOrder::Rounds ? static_cast<uint32_t>(edges.size()) : 0;
+    forBlocks(threads_, keyed, [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
       uint32_t first = kNone;
       Cluster a;
@@ -341,6 +343,7 @@ class RoundsEngine {
       }
       block = {};
     }
+    if (keyed == 0) return;
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
       for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
@@ -679,7 +682,7 @@ class RoundsEngine {
 
 }  // namespace
 
-MergeResult runRoundsMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options) {
+MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options) {
   switch (options.metric) {
     case Metric::Garland:
       return RoundsEngine<GarlandCost>(geometry, std::move(edges), options).run();

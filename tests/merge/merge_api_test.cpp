@@ -23,7 +23,6 @@
 #include "merge/face_geometry.h"
 #include "merge/frame.h"
 #include "merge/hull.h"
-#include "merge/merge_engine.h"
 #include "merge/surface_stats.h"
 #include "test_meshes.h"
 
@@ -168,8 +167,8 @@ std::vector<uint32_t> spatialPieces(const TestMesh& mesh, uint32_t cells) {
   return piece;
 }
 
-// Single-face leaves about the engine's origin and the dual graph's edges with their exact
-// lengths: the input for which mergeClusters must reproduce buildHierarchy.
+// Single-face leaves about the merge's origin and the dual graph's edges with their exact
+// lengths: the exact order's input.
 struct FaceLeaves {
   std::vector<SurfaceStats> stats;
   std::vector<GarlandQuadrics> garland;
@@ -589,110 +588,6 @@ TEST(FaceComponents, AgreeWithTheJoinsOfBuildHierarchy) {
 }
 
 // --- mergeClusters ---------------------------------------------------------------------------
-
-// The exact engine's merges in creation order, children as mergeClusters references them.
-std::vector<ClusterMergeNode> creationOrder(const TestMesh& mesh, const BuildOptions& options) {
-  const FaceGeometry geometry(mesh.view());
-  const MergeResult merged = runMerge(geometry, buildDualGraph(geometry), options);
-  std::vector<ClusterMergeNode> out(merged.records.size());
-  for (size_t i = 0; i < out.size(); ++i) {
-    const MergeRecord& r = merged.records[i];
-    ClusterMergeNode& m = out[i];
-    for (int k = 0; k < 2; ++k)
-      m.child[k] = (r.child[k] & kFaceChild) ? (kLeafChild | (r.child[k] & ~kFaceChild)) : r.child[k];
-    m.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
-    m.cost = r.cost;
-    m.stats.faceCount = r.faceCount();
-  }
-  return out;
-}
-
-// Options for the exact order, which mergeClusters reproduces merge for merge.
-BuildOptions exact(BuildOptions options) {
-  options.order = MergeOrder::Exact;
-  return options;
-}
-
-void expectSameMerge(const TestMesh& mesh, const BuildOptions& given, bool equalJoinTies = true) {
-  const BuildOptions options = exact(given);
-  SCOPED_TRACE(::testing::Message() << "metric " << int(options.metric) << ", slack "
-                                    << options.balanceSlack);
-  const Hierarchy h = buildHierarchy(mesh.view(), options);
-  const FaceLeaves leaves = faceLeaves(mesh);
-  const ClusterMergeResult r =
-      mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, options, leaves.garland);
-  const std::vector<ClusterMergeNode> want = creationOrder(mesh, options);
-  ASSERT_EQ(r.nodes.size(), want.size());
-  // Edge merges come first and must be the engine's, merge for merge. The Huffman joins that
-  // follow rank roots of equal face count by the Morton code of their centroid, which the
-  // engine takes in the model's box and mergeClusters in the roots' box: the face counts of
-  // the joins are the same sequence whatever the ties, their children only without such ties.
-  size_t joins = 0;
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (!(want[i].flags & kNodeJoinsDisjointSurfaces)) continue;
-    EXPECT_TRUE(r.nodes[i].flags & kNodeJoinsDisjointSurfaces) << "merge " << i;
-    EXPECT_EQ(r.nodes[i].stats.faceCount, want[i].stats.faceCount) << "merge " << i;
-    ++joins;
-  }
-  const size_t compared = equalJoinTies ? want.size() : want.size() - joins;
-  size_t mismatches = 0;
-  for (size_t i = 0; i < compared; ++i) {
-    const ClusterMergeNode& a = r.nodes[i];
-    const ClusterMergeNode& b = want[i];
-    uint32_t costA, costB;
-    std::memcpy(&costA, &a.cost, 4);
-    std::memcpy(&costB, &b.cost, 4);
-    if (a.child[0] != b.child[0] || a.child[1] != b.child[1] || a.flags != b.flags || costA != costB) {
-      if (mismatches++ == 0) {
-        ADD_FAILURE() << "first difference at merge " << i << " of " << want.size() << ": (" << a.child[0]
-                      << ", " << a.child[1] << ", " << a.flags << ", " << a.cost << ") vs the engine's ("
-                      << b.child[0] << ", " << b.child[1] << ", " << b.flags << ", " << b.cost << ")";
-      }
-    }
-  }
-  EXPECT_EQ(mismatches, 0u);
-  EXPECT_EQ(r.components, h.stats.components);
-  EXPECT_EQ(r.maxDegree, h.stats.maxDegree);
-  EXPECT_DOUBLE_EQ(r.averageDegree, h.stats.averageDegree);
-  EXPECT_EQ(r.eigenSolves, h.stats.eigenSolves);
-  EXPECT_EQ(r.normalShortcuts, h.stats.normalShortcuts);
-  EXPECT_EQ(r.nodes.back().stats.height, h.stats.height);
-}
-
-TEST(MergeClusters, SingleFaceLeavesReproduceBuildHierarchy) {
-  // Ties everywhere (flat grid, symmetric sphere), none (bumpy grid), the guard at work
-  // (graded disc), non-flat clusters (eigen solves), constant cost.
-  for (const TestMesh& mesh :
-       {grid(16), bumpyGrid(20, 0.15f, 0.5f), icosphere(2), gradedDisc(40, 12, 1.08f), cube(), strip(50)}) {
-    SCOPED_TRACE(mesh.faceCount());
-    expectSameMerge(mesh, noBoxes());
-    expectSameMerge(mesh, noBoxes(Metric::Constant));
-    expectSameMerge(mesh, noBoxes(Metric::Garland));
-    BuildOptions tight = noBoxes();
-    tight.balanceSlack = 1.0;  // the guard blocks merges: roots of equal size to join
-    tight.k = 1e-2;
-    expectSameMerge(mesh, tight, false);
-  }
-}
-
-TEST(MergeClusters, SingleFaceLeavesOfDisjointPiecesGiveTheEnginesJoins) {
-  // Components of distinct sizes: the Huffman joins depend on face counts only, except which
-  // root becomes the left child (Morton rank, within a different box here): compared as sets.
-  TestMesh mesh = bumpyGrid(6, 0.1f);
-  mesh.append(icosphere(0), glm::vec3(3, 0, 0));
-  mesh.append(strip(5), glm::vec3(0, 3, 0));
-  const FaceLeaves leaves = faceLeaves(mesh);
-  const ClusterMergeResult r = mergeClusters(leaves.stats, leaves.edges, leaves.diagonalSquared, noBoxes());
-  const std::vector<ClusterMergeNode> want = creationOrder(mesh, exact(noBoxes()));
-  ASSERT_EQ(r.nodes.size(), want.size());
-  EXPECT_EQ(r.components, 3u);
-  for (size_t i = 0; i < want.size(); ++i) {
-    EXPECT_EQ(std::minmax(r.nodes[i].child[0], r.nodes[i].child[1]),
-              std::minmax(want[i].child[0], want[i].child[1]))
-        << "merge " << i;
-    EXPECT_EQ(r.nodes[i].flags, want[i].flags) << "merge " << i;
-  }
-}
 
 TEST(MergeClusters, AboveSpatialPiecesIsAValidConnectedHierarchy) {
   TestMesh disjoint = bumpyGrid(24, 0.1f);
