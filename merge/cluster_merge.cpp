@@ -196,11 +196,11 @@ class ClusterMerger {
         }
       }
     }
-    graph_ = DualGraph{};
     exactShared_ = {};
     heap_.release();
 
     joinComponents();
+    graph_ = DualGraph{};
     result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
     result_.eigenSolves = counters_.eigenSolves;
     result_.normalShortcuts = counters_.normalShortcuts;
@@ -289,16 +289,28 @@ class ClusterMerger {
 
   static void kill(DualEdge& edge) { edge.end[0] = edge.end[1] = kNone; }
 
+  // A live edge between clusters a and b (parallel edges are folded: at most one), or kNone.
+  uint32_t edgeBetween(uint32_t a, uint32_t b) const {
+    for (uint32_t h = graph_.head[a]; h != kNone; h = graph_.next(h)) {
+      const DualEdge& edge = graph_.edges[h >> 1];
+      if (edge.end[0] != kNone && graph_.other(h) == b) return h >> 1;
+    }
+    return kNone;
+  }
+
   // Merges cluster b into cluster a along dual edge e, or joins two roots when e == kNone.
   void merge(uint32_t a, uint32_t b, uint32_t e, float heapKey) {
     const bool joining = e == kNone;
     Record& ra = clusters_[a];
     Record& rb = clusters_[b];
-    // The merged cluster along the edge's float length, as the engine re-costs it; two leaves
-    // keep the union along the caller's double length (the engine recomputes a pair of faces
-    // from its triangles and their exact shared length whenever it reads it again).
+    // Roots joined with the edges left between them (blocked by the balance guard) share their
+    // lengths: the perimeter counts the boundary once, and only roots with no edge between them
+    // are disjoint surfaces.
+    const uint32_t between = joining ? edgeBetween(a, b) : e;
+    // The merged cluster along the edge's float length, as the keys have it; two leaves keep
+    // the union along the caller's double length.
     const ClusterStats merged =
-        ClusterStats::merged(stats_[a], stats_[b], joining ? 0.0 : graph_.edges[e].shared);
+        ClusterStats::merged(stats_[a], stats_[b], between == kNone ? 0.0 : graph_.edges[between].shared);
     const ClusterStats& kept = !joining && ra.node == kLeaf && rb.node == kLeaf
                                    ? ClusterStats::merged(stats_[a], stats_[b], exactShared_[e])
                                    : merged;
@@ -306,7 +318,7 @@ class ClusterMerger {
     ClusterMergeNode node;
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
-    node.flags = joining ? kNodeJoinsDisjointSurfaces : 0u;
+    node.flags = between == kNone ? kNodeJoinsDisjointSurfaces : 0u;
     node.cost = joining ? toKey(cost(merged, stats_[a], stats_[b], a, b))
                         : toKey(static_cast<double>(heapKey) / keyScale_);
     ra.height = std::max(ra.height, rb.height) + 1;
@@ -316,9 +328,8 @@ class ClusterMerger {
     rb.node = kDead;
     result_.nodes.push_back(node);
     stats_[a] = kept;
-    if (garland_) extras_[a] = GarlandStats::merged(extras_[a], extras_[b]);  // the engine's order
-    if (joining) return;
-    kill(graph_.edges[e]);
+    if (garland_) extras_[a] = GarlandStats::merged(extras_[a], extras_[b]);
+    if (between != kNone) kill(graph_.edges[between]);
 
     // Concatenate the two adjacency lists into a's, folding parallel edges: stamp = the live edge
     // already kept between a and that neighbour in this pass.
@@ -352,6 +363,10 @@ class ClusterMerger {
     }
     graph_.head[a] = head;
     graph_.head[b] = kNone;
+    if (joining) {  // after the heap: the lists only carry the edges to later joins
+      for (uint32_t h = head; h != kNone; h = graph_.next(h)) clusters_[graph_.other(h)].stamp = kNone;
+      return;
+    }
     degreeSum_ += degree;
     result_.maxDegree = std::max(result_.maxDegree, degree);
 

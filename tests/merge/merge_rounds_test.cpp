@@ -111,9 +111,10 @@ TEST(MergeRounds, StalledRoundsHandTheMergeToTheGreedy) {
 
 // A flat fan of 96 triangles, each with a steep ear on its outer edge: the fan merges first, into
 // clusters bordering dozens of ears, whose lists fold parallel edges past the short-list scan.
-// Every node's area, perimeter and S against brute force: an edge left unfolded would lose the
-// shared length of its twin.
-TEST(MergeRounds, LongAdjacencyListsFoldParallelEdges) {
+// The balance guard then blocks the last ears: the pieces it leaves are joined with the shared
+// length of the edges between them, and are not flagged as disjoint. Every node's area,
+// perimeter and S against brute force, both orders.
+TEST(MergeRounds, LongListsFoldAndGuardBlockedPiecesJoinAlongTheirEdges) {
   TestMesh mesh;
   constexpr uint32_t kSpokes = 96;
   mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);
@@ -127,13 +128,19 @@ TEST(MergeRounds, LongAdjacencyListsFoldParallelEdges) {
   }
   for (uint32_t i = 0; i < kSpokes; ++i) mesh.add(0, 1 + i, 1 + (i + 1) % kSpokes);
   for (uint32_t i = 0; i < kSpokes; ++i) mesh.add(1 + (i + 1) % kSpokes, 1 + i, 1 + kSpokes + i);
-  BuildOptions options = rounds();
-  options.balanceSlack = 0;  // no piece blocked by the guard: every join is of disjoint surfaces
-  const Hierarchy h = buildHierarchy(mesh.view(), options);
-  const Layout layout = checkStructure(h, mesh.faceCount());
-  checkConnectivity(h, mesh, layout);
-  checkStats(h, mesh, 1e-5);
-  EXPECT_GE(h.stats.maxDegree, 32u);  // twice the lists the merge scans (merge_rounds.cpp Folder)
+  for (const MergeOrder order : {MergeOrder::Rounds, MergeOrder::Exact}) {
+    SCOPED_TRACE(int(order));
+    BuildOptions options = rounds();
+    options.order = order;
+    const Hierarchy h = buildHierarchy(mesh.view(), options);
+    const Layout layout = checkStructure(h, mesh.faceCount());
+    checkConnectivity(h, mesh, layout);  // a node is flagged a join exactly where its children share no edge
+    checkStats(h, mesh, 1e-5);
+    EXPECT_GT(h.stats.components, 1u);  // pieces the guard blocked, in one connected mesh
+    if (order == MergeOrder::Rounds) {
+      EXPECT_GE(h.stats.maxDegree, 32u);  // twice the lists the contraction scans
+    }
+  }
 }
 
 // Several blocks of clusters (4096 each) and every metric: the same nodes, faces and boxes,
