@@ -131,9 +131,9 @@ void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, cons
 // How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
 // (out_of_core_write.cpp sorts all leaves' blocks by key). A node's key is its leaf's *level* when
 // the engine made it: the highest log cost among it and the nodes made before it in the leaf
-// (those after it in file order: a suffix maximum). The in-core file is the reverse creation
-// order of one greedy run, whose level only rises; the leaves are separate runs of the same
-// greedy, and sorting their nodes by level interleaves them as one run would. The key is
+// (those after it in file order: a suffix maximum). A leaf's nodes come by decreasing effective
+// cost (buildHierarchy), so the suffix maximum is a node's effective cost, and sorting the leaves'
+// nodes by it interleaves them as one in-core build would order them. The key is
 // non-increasing along the leaf, so sorting keeps a leaf's blocks in order. Keys are quantised
 // to bands of kKeyBand and a block is a run of nodes in one band (at most kNodeBlock long).
 // Keys tried before: each node's log cost made non-increasing by isotonic regression (pool
