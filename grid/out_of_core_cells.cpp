@@ -360,9 +360,12 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
         for (int k = 0; k < 3; ++k) subId[indices[size_t{3} * f + k]] = kNoVertex;
       return MeshView{subPositions, subIndices};
     };
+    // The cells already run on the job's threads: each builds on its own (the same hierarchy).
+    BuildOptions cellBuild = job_.build;
+    cellBuild.threads = 1;
     for (uint32_t g = 0; g < groups; ++g) {
       const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
-      Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, job_.build);
+      Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, cellBuild);
       // Its share of the allowance left: the groups' shares sum to at most `spare`.
       const auto share = static_cast<uint64_t>(double(spare) * double(members.size()) / double(faces));
       frontierOf(component, frontierFaces_, share, leafBytes, frontier);

@@ -157,9 +157,11 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
   }
 
   // The merge's arrays are freed; glibc keeps the pages of those it took from its heap unless
-  // asked, and the boxes would be allocated on top of them.
+  // asked, and the boxes would be allocated on top of them. Not for small meshes (the
+  // out-of-core cells build thousands): their pages are better reused than faulted in again.
 #if defined(__GLIBC__)
-  malloc_trim(0);
+  constexpr size_t kTrimFaces = size_t{1} << 18;
+  if (mesh.triangleCount() >= kTrimFaces) malloc_trim(0);
 #endif
   throwIfCancelled(options);
   if (options.computeBoxes) {
