@@ -112,14 +112,6 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
   return height;
 }
 
-// BuildOptions::threads: 0 is the hardware's, and never more than 8.
-unsigned workerThreads(const BuildOptions& options) {
-  constexpr unsigned kMaxThreads = 8;
-  const unsigned threads =
-      options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-  return std::min(threads, kMaxThreads);
-}
-
 void throwIfCancelled(const BuildOptions& options) {
   if (options.cancelled && options.cancelled()) throw Cancelled();
 }
@@ -173,6 +165,13 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
 }
 
 }  // namespace
+
+unsigned workerThreads(const BuildOptions& options) {
+  constexpr unsigned kMaxThreads = 8;
+  const unsigned threads =
+      options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  return std::min(threads, kMaxThreads);
+}
 
 Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
   return build(mesh, options, [&](const FaceGeometry& geometry) {

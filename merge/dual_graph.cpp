@@ -252,7 +252,8 @@ DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads) {
   return blockEdges;
 }
 
-DualGraph linkDualGraph(DualEdgeBlocks&& blocks, uint32_t faces) {
+DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
+  DualEdgeBlocks blocks = matchDualEdges(geometry, threads);
   DualGraph graph;
   if (blocks.size() == 1) {
     graph.edges = std::move(blocks[0]);
@@ -265,13 +266,8 @@ DualGraph linkDualGraph(DualEdgeBlocks&& blocks, uint32_t faces) {
       e = {};
     }
   }
-  blocks = {};
-  linkLists(graph, faces);
+  linkLists(graph, geometry.faceCount());
   return graph;
-}
-
-DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
-  return linkDualGraph(matchDualEdges(geometry, threads), geometry.faceCount());
 }
 
 FaceAdjacency FaceAdjacencyAccess::build(const MeshView& mesh) {

@@ -63,8 +63,6 @@ DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);
 // edges), without the adjacency lists: what the merge in rounds reads.
 using DualEdgeBlocks = std::vector<std::vector<DualEdge>>;
 DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads = 1);
-// The graph of matched edges: concatenated, with the adjacency lists linked.
-DualGraph linkDualGraph(DualEdgeBlocks&& blocks, uint32_t faces);
 
 // The face adjacency's internals (merge.h FaceAdjacency): its construction, and a piece of its mesh
 // read through it.

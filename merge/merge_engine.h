@@ -42,6 +42,9 @@ struct MergeResult {
   size_t peakStructureBytes = 0;  // dual graph + heap + live cluster slots at their largest
 };
 
+// BuildOptions::threads resolved: 0 is the hardware's, and never more than 8.
+unsigned workerThreads(const BuildOptions& options);
+
 // The merge of BuildOptions::order over the faces of `geometry` along the matched dual edges
 // (consumed), on options.threads threads with the same result for every count.
 MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);

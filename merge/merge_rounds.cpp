@@ -220,9 +220,12 @@ class RoundsEngine {
         options_(options),
         keyScale_(Policy(options, geometry).keyScale()),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
-    threads_ = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    threads_ = std::min(threads_, kMaxThreads);
+    threads_ = workerThreads(options);
     for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, geometry);
+    if (options.order == MergeOrder::Exact) {  // the greedy costs every edge itself
+      faceEdges_ = std::move(edges);
+      return;
+    }
     auto start = std::chrono::steady_clock::now();
     initialise(std::move(edges));
     result_.secondsCost = secondsSince(start);
@@ -241,7 +244,11 @@ class RoundsEngine {
       ++rounds;
     }
     result_.rounds = rounds;
-    finishGreedy();
+    if (options_.order == MergeOrder::Exact) {
+      greedyOverFaces();
+    } else {
+      finishGreedy();
+    }
     result_.secondsMerge = secondsSince(start);
     for (const Policy& p : policies_) {
       result_.counters.eigenSolves += p.counters.eigenSolves;
@@ -252,8 +259,6 @@ class RoundsEngine {
   }
 
  private:
-  static constexpr unsigned kMaxThreads = 8;
-
   // A cluster of two faces or more: its statistics with what a single face has implicitly.
   struct Slot {
     StoredCentred stats;
@@ -289,7 +294,6 @@ class RoundsEngine {
 
   uint32_t blockCount() const { return (live_ + kBlock - 1) / kBlock; }
   bool single(uint32_t c) const { return (now_.ref[c] & kFaceChild) != 0; }
-  uint32_t node(uint32_t c) const { return single(c) ? now_.ref[c] : now_.slots[now_.ref[c]].node; }
 
   // Round 0: one adjacency list per face in the order of its edges (lower neighbours, then
   // higher ones, each ascending), each edge's key computed once from the two triangles.
@@ -306,9 +310,7 @@ class RoundsEngine {
     best_.resize(n);
     paired_.resize(n);
     now_.resize(n);
-    // The exact order has the greedy cost every edge itself.
-    const uint32_t keyed = options_.order == MergeOrder::Rounds ? static_cast<uint32_t>(edges.size()) : 0;
-    forBlocks(threads_, keyed, [&](uint32_t block, unsigned t) {
+    forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
       uint32_t first = kNone;
       Cluster a;
@@ -343,7 +345,6 @@ class RoundsEngine {
       }
       block = {};
     }
-    if (keyed == 0) return;
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
       for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
@@ -611,19 +612,10 @@ class RoundsEngine {
       result_.components = 1;
       return;
     }
-    std::vector<SurfaceStats> leaves(live_);
-    std::vector<uint32_t> nodes(live_);
-    std::vector<GarlandQuadrics> quadrics;
-    const bool garland = options_.metric == Metric::Garland;
-    if (garland) quadrics.resize(live_);
+    Leaves leaves(live_, options_.metric == Metric::Garland);
     std::vector<ClusterEdge> edges;
     for (uint32_t c = 0; c < live_; ++c) {
-      const Cluster k = cluster(c, policies_[0]);
-      leaves[c] = toSurfaceStats(k.stats.aboutOrigin(), k.count, k.height);
-      nodes[c] = k.node;
-      if constexpr (std::is_same_v<Extra, GarlandStats>) {
-        if (garland) quadrics[c] = toGarlandQuadrics(k.extra);
-      }
+      leaves.set(c, cluster(c, policies_[0]));
       for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
         const Half& half = now_.halves[h];
         if (half.neighbour > c) edges.push_back({c, half.neighbour, half.shared});
@@ -631,14 +623,55 @@ class RoundsEngine {
     }
     now_ = {};
     next_ = {};
-    ClusterMergeResult tail = mergeClusters(leaves, edges, geometry_.diagonalSquared(), options_,
-                                            std::span<const GarlandQuadrics>(quadrics));
+    greedy(leaves, edges);
+  }
+
+  // MergeOrder::Exact: the greedy over the single faces along the dual graph's edges.
+  void greedyOverFaces() {
+    const uint32_t n = geometry_.faceCount();
+    if (n == 1) {
+      result_.components = 1;
+      return;
+    }
+    std::vector<ClusterEdge> edges;
+    size_t count = 0;
+    for (const std::vector<DualEdge>& block : faceEdges_) count += block.size();
+    edges.reserve(count);
+    for (std::vector<DualEdge>& block : faceEdges_) {
+      for (const DualEdge& e : block) edges.push_back({e.end[0], e.end[1], e.shared});
+      block = {};
+    }
+    Leaves leaves(n, options_.metric == Metric::Garland);
+    for (uint32_t f = 0; f < n; ++f) leaves.set(f, leaf(f, policies_[0]));
+    greedy(leaves, edges);
+  }
+
+  // Clusters handed to the greedy as its leaves.
+  struct Leaves {
+    std::vector<SurfaceStats> stats;
+    std::vector<uint32_t> node;
+    std::vector<GarlandQuadrics> quadrics;  // with Metric::Garland only
+
+    Leaves(uint32_t count, bool garland) : stats(count), node(count), quadrics(garland ? count : 0) {}
+    void set(uint32_t i, const Cluster& k) {
+      stats[i] = toSurfaceStats(k.stats.aboutOrigin(), k.count, k.height);
+      node[i] = k.node;
+      if constexpr (std::is_same_v<Extra, GarlandStats>) {
+        if (!quadrics.empty()) quadrics[i] = toGarlandQuadrics(k.extra);
+      }
+    }
+  };
+
+  // mergeClusters over `leaves`; its nodes become records after the rounds'.
+  void greedy(const Leaves& leaves, std::span<const ClusterEdge> edges) {
+    ClusterMergeResult tail = mergeClusters(leaves.stats, edges, geometry_.diagonalSquared(), options_,
+                                            std::span<const GarlandQuadrics>(leaves.quadrics));
     const uint32_t base = static_cast<uint32_t>(result_.records.size());
     for (const ClusterMergeNode& n : tail.nodes) {
       MergeRecord record;
       for (int i = 0; i < 2; ++i) {
         const uint32_t child = n.child[i];
-        record.child[i] = (child & kLeafChild) ? nodes[child & ~kLeafChild] : base + child;
+        record.child[i] = (child & kLeafChild) ? leaves.node[child & ~kLeafChild] : base + child;
       }
       record.count = static_cast<uint32_t>(n.stats.faceCount) |
                      ((n.flags & kNodeJoinsDisjointSurfaces) ? MergeRecord::kJoinBit : 0u);
@@ -665,7 +698,8 @@ class RoundsEngine {
   unsigned threads_ = 1;
   std::vector<Policy> policies_;  // one per thread: each counts its own solves
   uint32_t live_ = 0;
-  Clusters now_, next_;  // this round's clusters, and the arrays the contraction writes
+  Clusters now_, next_;       // this round's clusters, and the arrays the contraction writes
+  DualEdgeBlocks faceEdges_;  // MergeOrder::Exact: the dual graph, for the greedy
   Buffer<uint32_t> best_;
   Buffer<uint8_t> paired_;
   Buffer<uint32_t> newId_;
