@@ -90,50 +90,36 @@ struct Half {
 // A cluster's statistics about its own centroid (Willmott 2000, sec. 5.2.3: the moments are
 // additive, and shifting them to the centroid is the parallel-axis theorem): moments about a
 // cluster's own centroid keep their precision in float whatever the cluster's distance from the
-// origin, so a stored cluster takes 64 bytes instead of ClusterStats' 112.
+// origin, so a stored cluster takes 56 bytes instead of ClusterStats' 112.
 struct Centred {
-  double area = 0, perimeter = 0;
-  glm::dvec3 sumNormal{0.0}, centroid{0.0};
-  SymMat3 second;  // integral of (x - centroid)(x - centroid)^T dA
+  ClusterStats about;  // moments about `centroid`: firstMoment 0, what the costs read
+  glm::dvec3 centroid{0.0};
 
-  // As ClusterStats about the centroid (first moment 0): what the costs read.
-  ClusterStats view() const {
-    ClusterStats s;
-    s.area = area;
-    s.perimeter = perimeter;
-    s.sumNormal = sumNormal;
-    s.secondMoment = second;
-    return s;
-  }
   // The moments about the merge's origin (SurfaceStats, for the greedy).
   ClusterStats aboutOrigin() const {
-    ClusterStats s = view();
-    s.firstMoment = area * centroid;
-    s.secondMoment.addOuter(centroid, area);
+    ClusterStats s = about;
+    s.firstMoment = about.area * centroid;
+    s.secondMoment.addOuter(centroid, about.area);
     return s;
   }
 
   static Centred triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
-    Centred s;
-    s.centroid = (a + b + c) / 3.0;
-    // About its centroid a triangle's first moment is 0 and fromTriangle's moments are central.
-    const ClusterStats t = ClusterStats::fromTriangle(a - s.centroid, b - s.centroid, c - s.centroid);
-    s.area = t.area;
-    s.perimeter = t.perimeter;
-    s.sumNormal = t.sumNormal;
-    s.second = t.secondMoment;
+    const glm::dvec3 g = (a + b + c) / 3.0;
+    // About its centroid a triangle's first moment is 0 (up to rounding, dropped) and
+    // fromTriangle's second moment is central.
+    Centred s{ClusterStats::fromTriangle(a - g, b - g, c - g), g};
+    s.about.firstMoment = glm::dvec3(0.0);
     return s;
   }
 
+  // The additive part is ClusterStats::merged (first moments 0 + 0); the centroids' offset adds
+  // a.area * b.area / area * d d^T to the central second moment (parallel-axis theorem).
   static Centred merged(const Centred& a, const Centred& b, double shared) {
-    Centred s;
-    s.area = a.area + b.area;
-    s.perimeter = std::max(0.0, a.perimeter + b.perimeter - 2.0 * shared);
-    s.sumNormal = a.sumNormal + b.sumNormal;
-    s.second = a.second + b.second;
-    if (s.area > 0) {
-      s.centroid = (a.area * a.centroid + b.area * b.centroid) / s.area;
-      s.second.addOuter(a.centroid - b.centroid, a.area * b.area / s.area);
+    Centred s{ClusterStats::merged(a.about, b.about, shared), {}};
+    const double area = s.about.area;
+    if (area > 0) {
+      s.centroid = (a.about.area * a.centroid + b.about.area * b.centroid) / area;
+      s.about.secondMoment.addOuter(a.centroid - b.centroid, a.about.area * b.about.area / area);
     } else {
       s.centroid = 0.5 * (a.centroid + b.centroid);
     }
@@ -149,22 +135,22 @@ struct StoredCentred {
 
   static StoredCentred of(const Centred& c) {
     StoredCentred s;
-    s.area = static_cast<float>(c.area);
-    s.perimeter = static_cast<float>(c.perimeter);
+    s.area = static_cast<float>(c.about.area);
+    s.perimeter = static_cast<float>(c.about.perimeter);
     for (int i = 0; i < 3; ++i) {
-      s.sumNormal[i] = static_cast<float>(c.sumNormal[i]);
+      s.sumNormal[i] = static_cast<float>(c.about.sumNormal[i]);
       s.centroid[i] = static_cast<float>(c.centroid[i]);
     }
-    for (int i = 0; i < 6; ++i) s.second[i] = static_cast<float>(c.second.m[i]);
+    for (int i = 0; i < 6; ++i) s.second[i] = static_cast<float>(c.about.secondMoment.m[i]);
     return s;
   }
   Centred load() const {
     Centred c;
-    c.area = area;
-    c.perimeter = perimeter;
-    c.sumNormal = glm::dvec3(sumNormal[0], sumNormal[1], sumNormal[2]);
+    c.about.area = area;
+    c.about.perimeter = perimeter;
+    c.about.sumNormal = glm::dvec3(sumNormal[0], sumNormal[1], sumNormal[2]);
     c.centroid = glm::dvec3(centroid[0], centroid[1], centroid[2]);
-    for (int i = 0; i < 6; ++i) c.second.m[i] = second[i];
+    for (int i = 0; i < 6; ++i) c.about.secondMoment.m[i] = second[i];
     return c;
   }
 };
@@ -366,7 +352,7 @@ class RoundsEngine {
   // The key of merging clusters a and b along `shared` boundary.
   float key(Policy& policy, const Cluster& a, const Cluster& b, float shared) const {
     const Centred m = Centred::merged(a.stats, b.stats, shared);
-    double cost = policy(m.view(), a.stats.view(), b.stats.view(), a.extra, b.extra) * keyScale_;
+    double cost = policy(m.about, a.stats.about, b.stats.about, a.extra, b.extra) * keyScale_;
     if (guard_) {
       const double excess =
           balanceExcess(a.height, b.height, uint64_t{a.count} + b.count, options_.balanceSlack);
@@ -574,9 +560,9 @@ class RoundsEngine {
           record.child[1] = b.node;
           record.count = a.count + b.count;
           record.cost = toKey(static_cast<double>(pairKey) / keyScale_);
-          record.area = static_cast<float>(m.area);
-          record.perimeter = static_cast<float>(m.perimeter);
-          for (int i = 0; i < 3; ++i) record.sumNormal[i] = static_cast<float>(m.sumNormal[i]);
+          record.area = static_cast<float>(m.about.area);
+          record.perimeter = static_cast<float>(m.about.perimeter);
+          for (int i = 0; i < 3; ++i) record.sumNormal[i] = static_cast<float>(m.about.sumNormal[i]);
           next_.slots[s] = {StoredCentred::of(m), r++, record.count, std::max(a.height, b.height) + 1,
                             Policy::merge(a.extra, b.extra)};
           next_.ref[id] = s++;
