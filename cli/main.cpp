@@ -8,6 +8,10 @@
 #include <string>
 #include <vector>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/fch_commands.h"
@@ -132,6 +136,14 @@ int main(int argc, char** argv) {
   using namespace facetree::cli;
   int code = kExitInternal;
   int received = 0;
+#if defined(__GLIBC__)
+  // Arrays of 1 MiB and more are mapped on their own and go back to the system when freed.
+  // glibc's default threshold rises to the size of the largest such array freed so far, after
+  // which the next ones come from its heaps and stay resident after free: a build's peak
+  // memory then depends on which thread freed what first.
+  constexpr int kMmapThreshold = 1 << 20;
+  mallopt(M_MMAP_THRESHOLD, kMmapThreshold);
+#endif
   {
     // Before any other thread exists, so that every thread inherits the blocked signals.
     SignalGuard signals;

@@ -6,14 +6,12 @@
 #include <algorithm>
 #include <bit>
 #include <chrono>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 #include <functional>
 #include <thread>
 
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
+#include "merge/huge_pages.h"
 #include "merge/merge.h"
 #include "merge/merge_engine.h"
 
@@ -148,13 +146,8 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
     stats.secondsMerge = merged.secondsMerge + secondsSince(start);
   }
 
-  // The merge's arrays are freed; glibc keeps the pages of those it took from its heap unless
-  // asked, and the boxes would be allocated on top of them. Not for small meshes (the
-  // out-of-core cells build thousands): their pages are better reused than faulted in again.
-#if defined(__GLIBC__)
-  constexpr size_t kTrimFaces = size_t{1} << 18;
-  if (mesh.triangleCount() >= kTrimFaces) malloc_trim(0);
-#endif
+  // The merge's arrays are freed: the boxes are not allocated on top of their pages.
+  trimFreedHeap(mesh.triangleCount());
   throwIfCancelled(options);
   if (options.computeBoxes) {
     const auto start = std::chrono::steady_clock::now();

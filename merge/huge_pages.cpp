@@ -2,6 +2,10 @@
 
 #include <cstdint>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -36,12 +40,23 @@ void adviseHugePages(const void* data, size_t bytes) {
 }
 
 void releasePagesBeyond(const void* data, size_t used, size_t capacity) {
+  releasePages(data, used, capacity);
+}
+
+void releasePages(const void* data, size_t from, size_t to) {
 #if defined(__linux__) && defined(MADV_DONTNEED)
-  adviseWholeHugePages(data, used, capacity, MADV_DONTNEED);
+  adviseWholeHugePages(data, from, to, MADV_DONTNEED);
 #else
   (void)data;
-  (void)used;
-  (void)capacity;
+  (void)from;
+  (void)to;
+#endif
+}
+
+void trimFreedHeap([[maybe_unused]] size_t faces) {
+#if defined(__GLIBC__)
+  constexpr size_t kTrimFaces = size_t{1} << 18;
+  if (faces >= kTrimFaces) malloc_trim(0);
 #endif
 }
 

@@ -25,6 +25,16 @@ void adviseHugePages(const void* data, size_t bytes);
 // are lost; touching them again maps zeroed pages): for buffers that shrink and are reused.
 void releasePagesBeyond(const void* data, size_t used, size_t capacity);
 
+// Returns the whole 2 MiB pages of [data + from, data + to) to the system, as above: for a
+// buffer whose prefix has been read for the last time.
+void releasePages(const void* data, size_t from, size_t to);
+
+// Returns the free pages of the C library's heaps to the system (glibc keeps them, also in the
+// arenas of worker threads, unless asked), for a build of `faces` faces that has just freed
+// large arrays. Small builds keep them: the out-of-core cells build thousands one after
+// another, and their pages are better reused than faulted in again.
+void trimFreedHeap(size_t faces);
+
 // reserve() that advises the new buffer before anything touches it. Use before assign(),
 // resize() or push_back() of a large vector.
 template <class T, class Allocator>

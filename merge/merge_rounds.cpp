@@ -33,6 +33,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 #include <type_traits>
@@ -80,6 +81,28 @@ void forBlocks(unsigned threads, uint32_t blocks, F&& body) {
   for (unsigned t = 1; t <= helpers; ++t) pool.emplace_back(work, t);
   work(0);
 }
+
+// The prefix of a phase's blocks that have all finished, for returning the pages of an input
+// that no unfinished block reads any more.
+class FinishedBlocks {
+ public:
+  explicit FinishedBlocks(uint32_t blocks) : done_(blocks, 0) {}
+  // Marks `block` finished and, when that extends the prefix, calls release(prefix) under the
+  // lock (so releases are serialised and see a growing prefix).
+  template <class Release>
+  void finish(uint32_t block, const Release& release) {
+    std::lock_guard lock(mutex_);
+    done_[block] = 1;
+    const uint32_t old = prefix_;
+    while (prefix_ < done_.size() && done_[prefix_]) ++prefix_;
+    if (prefix_ > old) release(prefix_);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<uint8_t> done_;
+  uint32_t prefix_ = 0;
+};
 
 struct Half {
   uint32_t neighbour;
@@ -288,6 +311,7 @@ class RoundsEngine {
     size_t edgeCount = 0;
     for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
     live_ = n;
+    result_.records.reserve(n - 1);
     now_.reserve(n, 2 * edgeCount);
     next_.reserve(n, 2 * edgeCount);
     reserveHugePages(best_, n);
@@ -331,6 +355,7 @@ class RoundsEngine {
       }
       block = {};
     }
+    trimFreedHeap(n);  // the dual edges, freed on the workers' heaps
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
       for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
@@ -508,6 +533,23 @@ class RoundsEngine {
     folders_.resize(threads_);
     std::vector<uint64_t> degreeSum(blocks, 0);
     std::vector<uint32_t> degreeMax(blocks, 0);
+    // A block reads its own clusters and the higher members of their pairs, never a lower
+    // block's: below the finished prefix the old adjacency and slots are dead, and their pages
+    // go back as the contraction moves on, so a round holds about one copy of them, not two.
+    FinishedBlocks finished(blocks);
+    const auto releaseInput = [&](uint32_t prefix) {
+      const uint32_t c = std::min(live_, prefix * kBlock);
+      releasePages(now_.halves.data(), 0, size_t{now_.begin[c]} * sizeof(Half));
+      if (now_.slots.empty()) return;
+      const uint32_t scanEnd = std::min(live_, c + kBlock);
+      uint32_t x = c;
+      while (x < scanEnd && single(x)) ++x;
+      if (x == live_) {
+        releasePages(now_.slots.data(), 0, now_.slots.size() * sizeof(Slot));
+      } else if (x < scanEnd) {
+        releasePages(now_.slots.data(), 0, size_t{now_.ref[x]} * sizeof(Slot));
+      }
+    };
     forBlocks(threads_, blocks, [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
       Folder& folder = folders_[t];
@@ -576,6 +618,7 @@ class RoundsEngine {
       // The rest of the block's bound: blocked self-loops of its last cluster.
       const uint32_t bound = static_cast<uint32_t>(counts[block + 1].halves);
       for (; out < bound; ++out) next_.halves[out] = {id - 1, 0.0f, kBlockedKey};
+      finished.finish(block, releaseInput);
     });
     for (uint32_t b = 0; b < blocks; ++b) {
       result_.degreeSum += static_cast<double>(degreeSum[b]);
