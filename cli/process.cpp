@@ -14,8 +14,11 @@
 namespace facetree::cli {
 
 void prepareOutput(SignalGuard& signals, const std::string& path) {
-  if (path == "-") return;
   const std::filesystem::path target(path);
+  if (isStreamOutput(target)) {  // written in place: nothing to create beside it
+    signals.guardOutput(target);
+    return;
+  }
   std::error_code ignored;
   int error = 0;
   if (std::filesystem::is_directory(target, ignored)) {

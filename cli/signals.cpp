@@ -1,5 +1,6 @@
 #include "cli/signals.h"
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <unistd.h>
 
@@ -52,10 +53,23 @@ SignalGuard::~SignalGuard() {
   // Still in sigwait (no signal taken yet): wake it with a signal aimed at it alone, which it
   // takes and, seeing finished_, returns. After a signal it never waits again.
   if (signal() == 0) pthread_kill(waiter_.native_handle(), SIGINT);
+  for (const int fd : streams_) ::close(fd);
 }
 
 void SignalGuard::guardOutput(const std::filesystem::path& path) {
-  if (path == "-") return;
+  std::error_code ignored;
+  if (std::filesystem::is_fifo(path, ignored)) {
+    // A reader already waiting on the pipe is let in now (without waiting for one) and the pipe
+    // is held open until the process ends: the reader then sees end of file however the command
+    // ends, also when it fails before its writer opens the pipe.
+    const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd >= 0) {
+      std::lock_guard lock(mutex_);
+      streams_.push_back(fd);
+    }
+    return;
+  }
+  if (isStreamOutput(path)) return;
   guardTemporary(temporaryOutputPath(path));
 }
 

@@ -43,7 +43,9 @@ class SignalGuard {
   }
 
   // `path` is about to be written through the io/ writers: their temporary file
-  // (temporaryOutputPath) is removed on a forced exit.
+  // (temporaryOutputPath) is removed on a forced exit. A named pipe is written in place instead
+  // (isStreamOutput); a reader already waiting on it is let in and sees end of file when the
+  // guard ends, whether or not the command wrote anything.
   void guardOutput(const std::filesystem::path& path);
   // A temporary file or folder (spills) removed, recursively, on a forced exit; the owner still
   // removes it on every other path. Thread-safe.
@@ -60,7 +62,8 @@ class SignalGuard {
   std::condition_variable finishedChanged_;
   bool finished_ = false;
   std::vector<std::filesystem::path> temporaries_;
-  std::jthread waiter_;  // last: started once the fields above exist
+  std::vector<int> streams_;  // named pipes held open for their readers (guardOutput)
+  std::jthread waiter_;       // last: started once the fields above exist
 };
 
 // "SIGINT" for SIGINT, etc.

@@ -134,11 +134,13 @@ void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file
 // appended, the three streams in any interleaving. Node frames go straight to their place in the output (the
 // index size is known from the counts); vertex, triangle and id frames are spilled, already compressed, to
 // temporary files in `tmpDir` (default: the output's directory) and appended by finish(). Output "-" is
-// standard output (then node frames are spilled too and everything is streamed by finish(); bytes go out only
-// in finish()). The output is written to a temporary name and renamed by finish(); a writer destroyed without
-// finish() removes its temporary files and leaves no output. Memory: one frame of each section plus the zstd
-// context. Throws IoError (io/io.h) naming the file for write failures (disk full...), std::invalid_argument
-// for counts or references that do not match the declaration (checked as they come and in finish()).
+// standard output, and an existing output that is not a regular file (a named pipe, a device) is written in
+// place the same way (isStreamOutput): node frames are spilled too and everything is streamed by
+// finish(); bytes go out only in finish(). Any other output is written to a temporary name and renamed by
+// finish(); a writer destroyed without finish() removes its temporary files and leaves no output. Memory: one
+// frame of each section plus the zstd context. Throws IoError (io/io.h) naming the file for write failures
+// (disk full...), std::invalid_argument for counts or references that do not match the declaration (checked
+// as they come and in finish()).
 //
 // Details: spill files are unlinked as soon as they are created (nothing is left behind even on
 // SIGKILL; their space is freed when the writer goes); with output "-" and no tmpDir they go to

@@ -197,8 +197,9 @@ struct ClusterFileWriter::State {
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
   std::optional<BackgroundCompressor> background;  // WriteOptions::threads > 1: uses `compressor`
-  std::optional<OutputFile> output;  // file output: from the start; standard output: in finish()
-  bool toStandardOutput = false;
+  std::filesystem::path outPath;
+  std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
+  bool stream = false;               // isStreamOutput: the header cannot be written last
   Section sections[kSections];
   std::vector<FchNode> nodes;
   std::vector<glm::vec3> vertices;
@@ -290,12 +291,13 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
   if (frames > std::numeric_limits<uint32_t>::max()) reject("too many frames: " + str(frames));
   frontBytes = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
 
-  toStandardOutput = out == "-";
+  outPath = out;
+  stream = isStreamOutput(out);
   spillDir = !tmpDir.empty()         ? tmpDir
-             : toStandardOutput      ? std::filesystem::temp_directory_path()
+             : stream                ? std::filesystem::temp_directory_path()
              : out.has_parent_path() ? out.parent_path()
                                      : std::filesystem::path(".");
-  if (!toStandardOutput) {
+  if (!stream) {
     // Header and index are known last: a placeholder of their exact size, overwritten by finish().
     output.emplace(out);
     const std::string zeros(static_cast<size_t>(std::min<uint64_t>(frontBytes, kCopyBufferBytes)), '\0');
@@ -346,7 +348,7 @@ void ClusterFileWriter::State::drain() {
 void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::string_view bytes) {
   Section& sec = section(s);
   frame.offset = sec.bytes;
-  if (s == FchSection::Nodes && !toStandardOutput) {
+  if (s == FchSection::Nodes && !stream) {
     output->write(bytes);
   } else {
     if (hook) hook(static_cast<int64_t>(bytes.size()));
@@ -532,15 +534,15 @@ uint64_t ClusterFileWriter::finish() {
     layout.fileBytes = offset;
     const std::string front = fch::encodeHeaderAndIndex(layout);
     std::vector<char> buffer(kCopyBufferBytes);
-    if (s.toStandardOutput) {
-      s.output.emplace("-");
+    if (s.stream) {
+      s.output.emplace(s.outPath);
       s.output->write(front);
     }
     for (State::Section& sec : s.sections) {
       if (sec.spill) sec.spill->copyTo(*s.output, buffer);
       s.release(sec);
     }
-    if (!s.toStandardOutput) s.output->writeAt(0, front);
+    if (!s.stream) s.output->writeAt(0, front);
     if (s.output->bytesWritten() != layout.fileBytes)
       throw std::logic_error("ClusterFileWriter: wrote " + str(s.output->bytesWritten()) +
                              " bytes, expected " + str(layout.fileBytes));

@@ -30,6 +30,11 @@ class IoError : public std::runtime_error {
 // without unwinding, e.g. a command-line tool exiting on a signal.
 std::filesystem::path temporaryOutputPath(const std::filesystem::path& path);
 
+// Whether an output is written in place as a stream instead: "-" (standard output), or a
+// target that exists and is neither a regular file nor a directory (a named pipe, a device).
+// Streams take bytes in order, have no temporary name, and cannot be removed on failure.
+bool isStreamOutput(const std::filesystem::path& path);
+
 // Streaming binary little-endian PLY writer (float x,y,z; uchar-count int indices). Counts
 // are given up front so nothing is held in memory. Writes to a temporary name beside the
 // target and renames on finish(); a writer destroyed before finish() removes its file.

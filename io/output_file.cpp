@@ -23,10 +23,25 @@ void OutputFile::Closer::operator()(std::FILE* f) const {
   if (f != stdout) std::fclose(f);
 }
 
+bool isStreamOutput(const std::filesystem::path& path) {
+  if (path == "-") return true;
+  std::error_code error;
+  const std::filesystem::file_status status = std::filesystem::status(path, error);
+  return !error && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status) &&
+         !std::filesystem::is_directory(status);
+}
+
 OutputFile::OutputFile(const std::filesystem::path& path) : path_(path) {
   if (path == "-") {
-    toStandardOutput_ = true;
+    stream_ = true;
     file_.reset(stdout);
+    return;
+  }
+  if (isStreamOutput(path)) {
+    stream_ = true;
+    file_.reset(std::fopen(path.c_str(), "wb"));
+    if (!file_) fail("cannot open");
+    std::setvbuf(file_.get(), nullptr, _IOFBF, kBufferBytes);
     return;
   }
   temporary_ = temporaryOutputPath(path);
@@ -36,7 +51,7 @@ OutputFile::OutputFile(const std::filesystem::path& path) : path_(path) {
 }
 
 OutputFile::~OutputFile() {
-  if (!committed_ && !toStandardOutput_) {
+  if (!committed_ && !stream_) {
     file_.reset();
     std::error_code ignored;
     std::filesystem::remove(temporary_, ignored);
@@ -55,7 +70,7 @@ void OutputFile::write(const void* data, size_t bytes) {
 }
 
 void OutputFile::writeAt(uint64_t offset, std::string_view bytes) {
-  if (toStandardOutput_) throw std::logic_error("OutputFile::writeAt: standard output cannot seek");
+  if (stream_) throw std::logic_error("OutputFile::writeAt: a stream cannot seek");
   if (offset + bytes.size() > written_)
     throw std::logic_error("OutputFile::writeAt: beyond the bytes written");
   if (std::fflush(file_.get()) != 0 || ::fseeko(file_.get(), static_cast<off_t>(offset), SEEK_SET) != 0 ||
@@ -66,7 +81,8 @@ void OutputFile::writeAt(uint64_t offset, std::string_view bytes) {
 
 void OutputFile::commit() {
   if (std::fflush(file_.get()) != 0) fail("cannot write");
-  if (toStandardOutput_) {
+  if (stream_) {
+    if (file_.get() != stdout && std::fclose(file_.release()) != 0) fail("cannot close");
     committed_ = true;
     return;
   }

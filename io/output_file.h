@@ -1,6 +1,11 @@
 // An output file that appears under its final name only when complete: data goes to a
 // temporary name beside the target and is renamed on commit(); destroyed uncommitted, the
 // temporary file is removed. Writes are buffered; every failure throws IoError naming the file.
+//
+// A stream is written in place instead: standard output ("-"), and a target that exists and is
+// not a regular file (a named pipe, a device, a socket). Renaming a temporary over a pipe would
+// replace it with a regular file while its reader waits forever; a stream takes bytes in order
+// only, so writeAt() is refused, and a failed write fails the run as on standard output.
 #pragma once
 
 #include <cstdio>
@@ -23,11 +28,11 @@ class OutputFile {
   void write(const void* data, size_t bytes);
   void write(std::string_view text) { write(text.data(), text.size()); }
   // Overwrites bytes already written (a header whose contents are known last); the next write
-  // appends at the end again. Not for standard output (std::logic_error).
+  // appends at the end again. Not for streams (std::logic_error).
   void writeAt(uint64_t offset, std::string_view bytes);
   uint64_t bytesWritten() const { return written_; }
-  bool toStandardOutput() const { return toStandardOutput_; }
-  // Flushes, syncs and renames to the final name.
+  bool isStream() const { return stream_; }
+  // Flushes, syncs and renames to the final name (a stream: flushes and closes).
   void commit();
   const std::filesystem::path& path() const { return path_; }
 
@@ -39,7 +44,7 @@ class OutputFile {
     void operator()(std::FILE* f) const;
   };
   std::unique_ptr<std::FILE, Closer> file_;
-  bool toStandardOutput_ = false;
+  bool stream_ = false;
   bool committed_ = false;
   uint64_t written_ = 0;
 };

@@ -3,6 +3,7 @@
 // Every case checks the exit code, the exact message, and that the output folder holds neither
 // the output nor a temporary file afterwards.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -290,6 +291,74 @@ TEST_F(Faults, OutOfCoreFromStandardInputToStandardOutput) {
   EXPECT_EQ(x, y);
   const auto verified = test::runCli("verify " + piped + " " + mesh());
   EXPECT_EQ(verified.exitCode, 0) << verified.out;
+}
+
+// A named pipe as the output, as a pipeline uses one: the command waits for a reader (which is
+// started first here), then `reader` reads the pipe to its end into OUT while `command` runs.
+// Returns what the shell printed; `command`'s exit code is on its last line ("exit N").
+std::string runWithPipeReader(const std::string& fifo, const std::string& readOut,
+                              const std::string& command) {
+  // The reader is blocked opening the pipe (wchan wait_for_partner, or any wait after 5 s)
+  // before the command starts, as in `cat out.fch | consumer & facetree build MESH -o out.fch`.
+  const std::string script =
+      "cat " + fifo + " > " + readOut +
+      " & reader=$!; (sleep 60; kill $reader) >/dev/null 2>&1 & watchdog=$!; " +
+      "for i in $(seq 500); do grep -qs wait_for_partner /proc/$reader/wchan && break; sleep 0.01; done; " +
+      command + "; echo exit $?; wait $reader; echo reader $?; kill $watchdog";
+  FILE* pipe = ::popen(("sh -c '" + script + "' 2>&1").c_str(), "r");
+  std::string printed;
+  if (!pipe) return printed;
+  char buffer[4096];
+  size_t got;
+  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) printed.append(buffer, got);
+  ::pclose(pipe);
+  return printed;
+}
+
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// -o a named pipe: the cluster file is streamed into the pipe (in core and out of core), the same
+// bytes as a file; the pipe stays a pipe and nothing else appears beside it.
+TEST_F(Faults, OutputToANamedPipeIsStreamedInPlace) {
+  const std::string fifo = out("out.fch");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string extra : {"", " --cell-faces 3000"}) {
+    const std::string direct = (inputs_ / "direct.fch").string(), read = (inputs_ / "read.fch").string();
+    ASSERT_EQ(test::runCli("build " + mesh() + " -o " + direct + extra).exitCode, 0);
+    const std::string printed =
+        runWithPipeReader(fifo, read, std::string(FACETREE_CLI) + " build " + mesh() + " -o " + fifo + extra);
+    EXPECT_NE(printed.find("exit 0\nreader 0\n"), std::string::npos) << extra << ": " << printed;
+    EXPECT_EQ(fileBytes(read), fileBytes(direct)) << extra;
+    EXPECT_GT(fileBytes(read).size(), 10000u);
+    EXPECT_TRUE(fs::is_fifo(fifo));
+    EXPECT_EQ(listing(out_), std::vector<std::string>{"out.fch"});
+    fs::remove(direct);
+    fs::remove(read);
+  }
+}
+
+// A build that fails with a named pipe as its output: the one error, its exit code, and the
+// reader waiting on the pipe sees end of file instead of waiting forever.
+TEST_F(Faults, FailedBuildIntoANamedPipeLetsItsReaderFinish) {
+  const std::string fifo = out("out.fch"), bad = out("bad.ply"), read = (inputs_ / "read.fch").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::ofstream(bad)
+      << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+         "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+  const std::string printed =
+      runWithPipeReader(fifo, read, std::string(FACETREE_CLI) + " build " + bad + " -o " + fifo);
+  EXPECT_NE(
+      printed.find("facetree: " + bad + ": line 13: face 0: vertex index 7 out of range (3 vertices)\n"),
+      std::string::npos)
+      << printed;
+  EXPECT_NE(printed.find("exit 3\nreader 0\n"), std::string::npos) << printed;
+  EXPECT_EQ(fileBytes(read), "");
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  fs::remove(read);
 }
 
 class Signals : public Faults, public ::testing::WithParamInterface<int> {

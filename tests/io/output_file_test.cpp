@@ -68,5 +68,30 @@ TEST(OutputFile, MissingDirectoryIsAClearError) {
   }
 }
 
+// A device is written in place: no temporary beside it, and it stays what it is.
+TEST(OutputFile, WritesADeviceInPlace) {
+  ASSERT_TRUE(std::filesystem::is_character_file("/dev/null"));
+  EXPECT_TRUE(isStreamOutput("/dev/null"));
+  EXPECT_TRUE(isStreamOutput("-"));
+  {
+    OutputFile out("/dev/null");
+    EXPECT_TRUE(out.isStream());
+    out.write("discarded");
+    EXPECT_THROW(out.writeAt(0, "x"), std::logic_error);
+    out.commit();
+  }
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/null"));
+  EXPECT_FALSE(std::filesystem::exists(temporaryOutputPath("/dev/null")));
+}
+
+TEST(OutputFile, RegularFilesAndNewNamesAreNotStreams) {
+  const auto dir = scratchDir("streams");
+  std::ofstream(dir / "existing") << "old";
+  EXPECT_FALSE(isStreamOutput(dir / "existing"));
+  EXPECT_FALSE(isStreamOutput(dir / "new"));
+  EXPECT_FALSE(isStreamOutput(dir));  // a folder is refused when opened, not streamed into
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace facetree
