@@ -245,7 +245,7 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
 
   // The three streams go to the writer interleaved: a batch of nodes, then the geometry of the same
   // share of the faces, so that with WriteOptions::threads the node frames (zstd-bound) compress on
-  // the writer's helper while this thread walks the faces (random reads). The file's bytes do not
+  // the writer's workers while this thread walks the faces (random reads). The file's bytes do not
   // depend on the interleaving.
   std::vector<FchNode> nodeBatch;
   nodeBatch.reserve(std::min(kNodeBatch, nodes.size()));

@@ -35,6 +35,8 @@ using fch::kMaxNodesPerFrame;
 
 constexpr size_t kCopyBufferBytes = size_t{1} << 20;    // spill -> output copies
 constexpr size_t kOutputBufferBytes = size_t{1} << 20;  // OutputFile's stdio buffer
+// Compression threads at most (WriteOptions::threads): frames are small and independent.
+constexpr unsigned kMaxCompressorThreads = 8;
 constexpr size_t kSections = 4;
 
 size_t slot(FchSection section) {
@@ -96,11 +98,11 @@ class SpillFile {
   uint64_t bytes_ = 0;
 };
 
-// Compresses one frame at a time on its own thread, with the writer's compressor (which the caller
-// then leaves alone), while the caller encodes the next. The caller takes each result back (wait)
-// before it submits another and writes it where the frame goes, so frames land in submission
-// order, compressed exactly as inline (each frame is independent).
-class BackgroundCompressor {
+// Compresses frames on worker threads, each with its own compressor, while the caller encodes
+// the next ones. At most one frame per worker is queued or in flight; the caller takes them back
+// in submission order (oldest) and writes each where it goes, so frames land in order, compressed
+// exactly as inline (each frame is independent): the same bytes for any number of workers.
+class CompressorPool {
  public:
   struct Job {
     FchSection section{};
@@ -109,71 +111,84 @@ class BackgroundCompressor {
     std::string raw;
     std::string compressed;
     FchFrame frame{};
+    bool done = false;
+    std::exception_ptr failure;
   };
 
-  explicit BackgroundCompressor(fch::FrameCompressor& compressor)
-      : compressor_(compressor), thread_([this] { run(); }) {}
-  ~BackgroundCompressor() {
+  CompressorPool(int level, unsigned workers) : jobs_(workers) {
+    for (unsigned w = 0; w < workers; ++w)
+      compressors_.push_back(std::make_unique<fch::FrameCompressor>(level));
+    for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w] { run(w); });
+  }
+  ~CompressorPool() {
     {
       std::lock_guard lock(mutex_);
       stop_ = true;
     }
     wake_.notify_all();
-    thread_.join();
+    for (std::thread& t : threads_) t.join();
   }
-  BackgroundCompressor(const BackgroundCompressor&) = delete;
-  BackgroundCompressor& operator=(const BackgroundCompressor&) = delete;
+  CompressorPool(const CompressorPool&) = delete;
+  CompressorPool& operator=(const CompressorPool&) = delete;
 
-  // The frame submitted last, once compressed (its compressor's exception rethrown), or null when
-  // none is outstanding. It stays valid until the next submit.
-  const Job* wait() {
-    std::unique_lock lock(mutex_);
-    done_.wait(lock, [this] { return !busy_; });
-    if (!outstanding_) return nullptr;
-    outstanding_ = false;
-    if (failure_) std::rethrow_exception(std::exchange(failure_, nullptr));
-    return &job_;
-  }
-  // Call after wait(): nothing is in flight.
+  bool full() const { return submitted_ - taken_ == jobs_.size(); }
+  bool empty() const { return submitted_ == taken_; }
+
+  // Queues a frame; call only when not full().
   void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw) {
     {
       std::lock_guard lock(mutex_);
-      job_.section = section;
-      job_.first = first;
-      job_.count = count;
-      job_.raw = std::move(raw);
-      busy_ = outstanding_ = true;
+      Job& job = jobs_[submitted_ % jobs_.size()];
+      job.section = section;
+      job.first = first;
+      job.count = count;
+      job.raw = std::move(raw);
+      job.done = false;
+      job.failure = nullptr;
+      ++submitted_;
     }
     wake_.notify_one();
   }
+  // The oldest frame not yet taken, once compressed (its compressor's exception rethrown); call
+  // only when not empty(). It stays valid until the next submit.
+  const Job& takeOldest() {
+    std::unique_lock lock(mutex_);
+    Job& job = jobs_[taken_ % jobs_.size()];
+    done_.wait(lock, [&] { return job.done; });
+    ++taken_;
+    if (job.failure) std::rethrow_exception(std::exchange(job.failure, nullptr));
+    return job;
+  }
 
  private:
-  void run() {
+  void run(unsigned worker) {
     std::unique_lock lock(mutex_);
     for (;;) {
-      wake_.wait(lock, [this] { return busy_ || stop_; });
-      if (!busy_) return;  // stopping, nothing in flight
+      wake_.wait(lock, [this] { return started_ < submitted_ || stop_; });
+      if (started_ == submitted_) return;  // stopping, nothing queued
+      Job& job = jobs_[started_++ % jobs_.size()];
       lock.unlock();
       std::exception_ptr failure;
       try {
-        job_.frame = compressor_.compress(job_.section, job_.first, job_.count, job_.raw, job_.compressed);
+        job.frame =
+            compressors_[worker]->compress(job.section, job.first, job.count, job.raw, job.compressed);
       } catch (...) {
         failure = std::current_exception();
       }
       lock.lock();
-      failure_ = failure;
-      busy_ = false;
+      job.failure = failure;
+      job.done = true;
       done_.notify_all();
     }
   }
 
-  fch::FrameCompressor& compressor_;
-  Job job_;
+  std::vector<Job> jobs_;  // a ring: frame number i in jobs_[i % size]
+  std::vector<std::unique_ptr<fch::FrameCompressor>> compressors_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
-  bool busy_ = false, outstanding_ = false, stop_ = false;
-  std::exception_ptr failure_;
-  std::thread thread_;  // last: starts once the rest exists
+  uint64_t submitted_ = 0, started_ = 0, taken_ = 0;
+  bool stop_ = false;
+  std::vector<std::thread> threads_;  // last: start once the rest exists
 };
 
 }  // namespace
@@ -196,7 +211,7 @@ struct ClusterFileWriter::State {
   uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
-  std::optional<BackgroundCompressor> background;  // WriteOptions::threads > 1: uses `compressor`
+  std::optional<CompressorPool> pool;  // WriteOptions::threads > 1: compresses instead of `compressor`
   std::filesystem::path outPath;
   std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
   bool stream = false;               // isStreamOutput: the header cannot be written last
@@ -223,7 +238,8 @@ struct ClusterFileWriter::State {
   void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw);
   // Places a compressed frame: in the output (file-output nodes) or its section's spill.
   void placeFrame(FchSection s, FchFrame frame, std::string_view bytes);
-  // Places the frame still being compressed in the background, if any.
+  // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
+  void placeOldest();
   void drain();
   void nodeFrame(std::span<const FchNode> batch);
   void vertexFrame(std::span<const glm::vec3> batch);
@@ -249,7 +265,7 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
     : name(out.string()), compressor(options.zstdLevel) {
   const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
-  if (threads > 1) background.emplace(compressor);
+  if (threads > 1) pool.emplace(options.zstdLevel, std::min(threads, kMaxCompressorThreads));
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
@@ -329,9 +345,9 @@ void ClusterFileWriter::State::checkNode(const FchNode& node, uint64_t index) co
 }
 
 void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw) {
-  if (background) {
-    drain();
-    background->submit(s, first, count, std::move(raw));
+  if (pool) {
+    if (pool->full()) placeOldest();
+    pool->submit(s, first, count, std::move(raw));
     return;
   }
   const FchFrame frame =
@@ -339,10 +355,13 @@ void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t
   placeFrame(s, frame, compressed);
 }
 
+void ClusterFileWriter::State::placeOldest() {
+  const CompressorPool::Job& done = pool->takeOldest();
+  placeFrame(done.section, done.frame, done.compressed);
+}
+
 void ClusterFileWriter::State::drain() {
-  if (!background) return;
-  if (const BackgroundCompressor::Job* done = background->wait())
-    placeFrame(done->section, done->frame, done->compressed);
+  while (pool && !pool->empty()) placeOldest();
 }
 
 void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::string_view bytes) {
@@ -570,8 +589,12 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
-  // In the background: the frame in flight and its compressed bytes.
-  const uint64_t background = options.threads != 1 ? largestRaw + fch::compressedBound(largestRaw) : 0;
+  // In the pool: per worker a frame, its compressed bytes and a compressor.
+  const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
+  const uint64_t background = threads > 1 ? std::min(threads, kMaxCompressorThreads) *
+                                                (largestRaw + fch::compressedBound(largestRaw) +
+                                                 fch::compressorMemoryBound(options.zstdLevel, largestRaw))
+                                          : 0;
   return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
          background + kCopyBufferBytes + kOutputBufferBytes +
          64 * 1024;  // + the header, index entry vectors, names
