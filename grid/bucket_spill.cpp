@@ -9,8 +9,8 @@
 namespace facetree {
 
 BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes,
-                         size_t bufferBytes, int level)
-    : file_(space, stem),
+                         size_t bufferBytes, int level, bool discardable)
+    : file_(space, stem, discardable),
       writer_(level),
       recordBytes_(recordBytes),
       bufferBytes_(

@@ -19,8 +19,9 @@ class BucketSpill {
   // `bufferBytes` is the in-memory buffer of each bucket, rounded down to whole records (at least one); a
   // full buffer becomes one block of the SpillFile. Memory is memoryBound(): buckets * bufferBytes (touched
   // only as buckets fill) plus one compressed block of scratch in the writer's codec.
+  // `discardable`: its blocks can be given back as they are read for the last time (drainBucket).
   BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes, size_t bufferBytes,
-              int level = kSpillLevel);
+              int level = kSpillLevel, bool discardable = false);
 
   static uint64_t memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes);
 
@@ -56,6 +57,23 @@ class BucketSpill {
     }
     if (fill_[bucket] > 0)
       f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+  }
+
+  // forEachBlock for the last time: each block's disk space goes back once f has had it, and the
+  // buffered tail is dropped. The bucket is empty afterwards. Only for a discardable spill.
+  template <class F>
+  void drainBucket(size_t bucket, SpillCodec& codec, F&& f) {
+    std::vector<std::byte> raw;
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
+      file_.read(blocks_[b].block, raw, codec);
+      f(std::span<const std::byte>(raw));
+      file_.discard(blocks_[b].block);
+    }
+    if (fill_[bucket] > 0)
+      f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+    head_[bucket] = tail_[bucket] = kNoBlock;
+    fill_[bucket] = 0;
+    records_[bucket] = 0;
   }
 
   size_t buckets() const { return fill_.size(); }

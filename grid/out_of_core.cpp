@@ -66,7 +66,8 @@ bool OutOfCoreBuild::appendResolved(const uint32_t vertex[3], uint64_t face, con
 void OutOfCoreBuild::readAll(TriangleReader& reader, PendingTriangles&& pending) {
   min_ = glm::vec3(std::numeric_limits<float>::infinity());
   max_ = -min_;
-  arrival_ = std::make_unique<BucketSpill>(temp_, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes);
+  arrival_ = std::make_unique<BucketSpill>(temp_, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes,
+                                           kSpillLevel, /*discardable=*/true);
   const bool deferred = reader.positionsDeferred();
   const auto spillRef = [this](const uint32_t vertex[3], uint64_t face) {
     if (!refs_)
@@ -239,13 +240,16 @@ void OutOfCoreBuild::binAndDistribute() {
     const uint64_t bytes = std::clamp<uint64_t>(share, 64 * record, uint64_t{1} << 20);
     return static_cast<size_t>(bytes / record * record);
   };
-  cellFaces_ = std::make_unique<BucketSpill>(temp_, "cell-faces", cells, sizeof(FaceRecord),
-                                             bufferFor(sizeof(FaceRecord)));
-  ghosts_ =
-      std::make_unique<BucketSpill>(temp_, "ghosts", cells, sizeof(GhostEdge), bufferFor(sizeof(GhostEdge)));
+  // Every spill from here on is read once, and gives its disk space back as it is read: the arrival
+  // spill shrinks while the cells' grow, the cells' while the nodes and geometry grow.
+  cellFaces_ =
+      std::make_unique<BucketSpill>(temp_, "cell-faces", cells, sizeof(FaceRecord),
+                                    bufferFor(sizeof(FaceRecord)), kSpillLevel, /*discardable=*/true);
+  ghosts_ = std::make_unique<BucketSpill>(temp_, "ghosts", cells, sizeof(GhostEdge),
+                                          bufferFor(sizeof(GhostEdge)), kSpillLevel, /*discardable=*/true);
 
   uint64_t done = 0;
-  arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+  arrival_->drainBucket(0, codec_, [&](std::span<const std::byte> bytes) {
     decodeRecords(bytes, records);
     for (const FaceRecord& r : records) {
       const uint32_t cell = grid_->nextFaceCell(grid_->centroidBin(r.corner(0), r.corner(1), r.corner(2)));

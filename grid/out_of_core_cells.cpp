@@ -169,8 +169,9 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRu
 }
 
 void OutOfCoreBuild::buildCells() {
-  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
-  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry");
+  // Read once each by the write, which gives their blocks back as it goes.
+  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes", /*discardable=*/true);
+  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true);
   pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
   leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");
   borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
@@ -231,7 +232,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   std::vector<SpillBlock> geometry;
   records.clear();
   records.reserve(cellFaces_->records(cell));
-  cellFaces_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+  cellFaces_->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
     const size_t at = records.size();
     records.resize(at + bytes.size() / sizeof(FaceRecord));
     std::memcpy(records.data() + at, bytes.data(), bytes.size());
@@ -241,7 +242,7 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
   std::vector<GhostEdge> ghosts(ghosts_->records(cell));
   {
     size_t at = 0;
-    ghosts_->forEachBlock(cell, codec, [&](std::span<const std::byte> bytes) {
+    ghosts_->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
       std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
       at += bytes.size();
     });

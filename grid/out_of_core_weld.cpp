@@ -98,8 +98,8 @@ void OutOfCoreBuild::weldArrival() {
   }
   bySlot.finish();
 
-  auto rewritten =
-      std::make_unique<BucketSpill>(temp_, "arrival-welded", 1, sizeof(FaceRecord), kArrivalBufferBytes);
+  auto rewritten = std::make_unique<BucketSpill>(temp_, "arrival-welded", 1, sizeof(FaceRecord),
+                                                 kArrivalBufferBytes, kSpillLevel, /*discardable=*/true);
   std::vector<CornerId> ids(3);
   uint64_t slot = 0;
   arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {

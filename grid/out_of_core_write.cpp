@@ -415,6 +415,7 @@ void OutOfCoreBuild::write() {
     leafVertices.clear();
     for (uint32_t g = 0; g < leaf.geometryCount; ++g) {
       geometrySpill_->read(geometry_[leaf.firstGeometry + g], raw, codec_);
+      geometrySpill_->discard(geometry_[leaf.firstGeometry + g]);
       GeometryBlockHeader header;
       std::memcpy(&header, raw.data(), sizeof header);
       const std::byte* at = raw.data() + sizeof header;
@@ -481,6 +482,7 @@ void OutOfCoreBuild::write() {
     const LeafCluster& leaf = leaves_[leafId];
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
     nodeSpill_->read(blocks_[leaf.firstBlock + ref.block].spill(), raw, codec_);
+    nodeSpill_->discard(blocks_[leaf.firstBlock + ref.block].spill());
     leafNodes.resize(raw.size() / sizeof(FchNode));
     std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
     for (FchNode& n : leafNodes) {

@@ -64,7 +64,15 @@ bool SpillCodec::decompress(std::span<const std::byte> compressed, std::span<std
   return true;
 }
 
-SpillFile::SpillFile(TempSpace& space, std::string_view stem) : space_(space), path_(space.newFile(stem)) {
+namespace {
+
+// The unit discard() gives back: blocks are small (a few KiB compressed), so they share pages.
+constexpr uint64_t kPageBytes = 4096;
+
+}  // namespace
+
+SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable)
+    : space_(space), path_(space.newFile(stem)), discardable_(discardable) {
   fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd_ < 0) throwTempSpaceError(path_, "cannot create", errno);
   // Anonymous from here on: the kernel frees the blocks when the descriptor closes, on any exit.
@@ -77,7 +85,7 @@ SpillFile::SpillFile(TempSpace& space, std::string_view stem) : space_(space), p
 
 SpillFile::~SpillFile() {
   ::close(fd_);
-  space_.release(bytes());
+  space_.release(held_);
 }
 
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
@@ -86,7 +94,8 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
   const std::span<const std::byte> compressed = codec.compress(raw);
   std::lock_guard lock(writeMutex_);
   const uint64_t offset = bytes_.load(std::memory_order_relaxed);
-  space_.reserve(compressed.size());
+  const uint64_t footprint = compressed.size();
+  space_.reserve(footprint);
   size_t done = 0;
   while (done < compressed.size()) {
     const ssize_t got =
@@ -98,13 +107,52 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
     if (got < 0 && errno == EINTR) continue;
     // ENOSPC, EDQUOT, EFBIG (RLIMIT_FSIZE with SIGXFSZ ignored), EIO...; a zero-byte write counts as full.
     const int error = got < 0 ? errno : ENOSPC;
-    space_.release(compressed.size());
+    space_.release(footprint);
     // Drop the partial block so the file stays exactly its blocks (best effort: it is deleted anyway).
     [[maybe_unused]] const int ignored = ::ftruncate(fd_, static_cast<off_t>(offset));
     throwTempSpaceError(path_, "write failed", error);
   }
+  held_ += footprint;
+  if (discardable_ && footprint > 0) {
+    const uint64_t last = (offset + footprint - 1) / kPageBytes;
+    if (live_.size() <= last) live_.resize(last + 1, 0);
+    for (uint64_t page = offset / kPageBytes; page <= last; ++page) ++live_[page];
+  }
   bytes_.store(offset + compressed.size(), std::memory_order_release);
   return {offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
+}
+
+void SpillFile::discard(const SpillBlock& block) {
+  if (!discardable_) throw std::logic_error("SpillFile::discard: the file was not made discardable");
+  if (block.compressedBytes == 0) return;
+  std::lock_guard lock(writeMutex_);
+  if (block.offset + block.compressedBytes > bytes_.load(std::memory_order_relaxed))
+    throw std::invalid_argument("SpillFile::discard: not a block of this file");
+  // Every page before the one holding the end of the file is covered by blocks end to end, so a
+  // page none of whose blocks is live holds exactly kPageBytes of accounted bytes.
+  const uint64_t tail = bytes_.load(std::memory_order_relaxed) / kPageBytes;
+  const uint64_t first = block.offset / kPageBytes;
+  const uint64_t last = (block.offset + block.compressedBytes - 1) / kPageBytes;
+  uint64_t runStart = 0, runPages = 0;
+  const auto punch = [&] {
+    if (runPages == 0) return;
+    if (::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                    static_cast<off_t>(runStart * kPageBytes),
+                    static_cast<off_t>(runPages * kPageBytes)) == 0) {
+      held_ -= runPages * kPageBytes;
+      space_.release(runPages * kPageBytes);
+    }  // else (EOPNOTSUPP and the like) the pages keep their space, still accounted
+    runPages = 0;
+  };
+  for (uint64_t page = first; page <= last; ++page) {
+    if (--live_[page] != 0 || page >= tail) {
+      punch();
+      continue;
+    }
+    if (runPages == 0) runStart = page;
+    ++runPages;
+  }
+  punch();
 }
 
 void SpillFile::read(const SpillBlock& block, std::vector<std::byte>& raw, SpillCodec& codec) const {

@@ -75,7 +75,9 @@ struct SpillBlock {
 // when the process is killed; path() is the name it had, for messages.
 class SpillFile {
  public:
-  SpillFile(TempSpace& space, std::string_view stem);
+  // `discardable`: the file counts the blocks on each of its pages (2 bytes a page, 4 KiB), so that
+  // discard() can give back every page whose blocks are all discarded.
+  SpillFile(TempSpace& space, std::string_view stem, bool discardable = false);
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
@@ -88,7 +90,14 @@ class SpillFile {
   // Fills `raw`, whose size must be block.rawBytes (decompresses in place, e.g. into a larger array).
   void read(const SpillBlock& block, std::span<std::byte> raw, SpillCodec& codec) const;
 
-  // On disk (compressed), as accounted in the TempSpace.
+  // Marks a block of a discardable file read for the last time: the pages that hold only discarded
+  // blocks are punched out and their bytes released from the TempSpace (the page at the end of the
+  // file stays until the file is complete past it). Reading the block again fails its checksum.
+  // Thread-safe, also against append() and read() of other blocks. Where the file system cannot
+  // punch holes the pages keep their space, still accounted.
+  void discard(const SpillBlock& block);
+
+  // On disk (compressed), the end of the last block.
   uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }
   const std::filesystem::path& path() const { return path_; }
 
@@ -98,8 +107,11 @@ class SpillFile {
   TempSpace& space_;
   std::filesystem::path path_;
   int fd_ = -1;
+  bool discardable_ = false;
   mutable std::mutex writeMutex_;
   std::atomic<uint64_t> bytes_{0};  // written under writeMutex_, read by read() without it
+  uint64_t held_ = 0;               // accounted in the TempSpace, under writeMutex_
+  std::vector<uint16_t> live_;      // discardable: blocks not yet discarded on each page
 };
 
 }  // namespace facetree

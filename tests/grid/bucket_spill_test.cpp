@@ -139,6 +139,35 @@ TEST(BucketSpill, bytesAreReleasedAndNoFileIsLeftWhenDestroyed) {
   EXPECT_TRUE(parent.empty());
 }
 
+// drainBucket: the bucket's records once more in order (blocks, then the buffered tail), its disk
+// space given back, the bucket empty afterwards; the other buckets untouched.
+TEST(BucketSpill, drainBucketReadsOnceAndGivesTheSpaceBack) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBuckets = 6;
+  BucketSpill spill(space, "cells", kBuckets, sizeof(Record), 1000, kSpillLevel, /*discardable=*/true);
+  const auto expected = fill(spill, 30000, 7);
+  SpillCodec codec;
+  const uint64_t before = space.currentBytes();
+  ASSERT_GT(before, 8u * 4096);
+  for (size_t b = 0; b + 1 < kBuckets; ++b) {
+    std::vector<std::byte> bytes;
+    spill.drainBucket(b, codec, [&](std::span<const std::byte> block) {
+      bytes.insert(bytes.end(), block.begin(), block.end());
+    });
+    EXPECT_EQ(asRecords(bytes), expected[b]) << "bucket " << b;
+    EXPECT_EQ(spill.records(b), 0u);
+    for (size_t other = b + 1; other < kBuckets; ++other) {
+      std::vector<std::byte> rest;
+      spill.readBucket(other, rest, codec);
+      EXPECT_EQ(asRecords(rest), expected[other]) << "bucket " << other << " after draining " << b;
+    }
+  }
+  // The last bucket got nothing (fill's skew): everything on disk was drained, all but a page or
+  // two given back (pages shared with no other block, the last page of the file kept).
+  EXPECT_LE(space.currentBytes(), 2u * 4096) << "of " << before;
+}
+
 TEST(BucketSpill, memoryBoundCoversTheBuffers) {
   EXPECT_GE(BucketSpill::memoryBound(1000, 12, 65536), 1000u * (65536 / 12) * 12);
   EXPECT_LT(BucketSpill::memoryBound(1000, 12, 65536), 1000u * 65536 + 1000u * 64 + 70000);

@@ -252,6 +252,79 @@ TEST(SpillFile, leavesNoNameInTheDirectoryAndReleasesItsBytesWhenDestroyed) {
   EXPECT_GT(space.peakBytes(), 0u);
 }
 
+// Bytes the file system holds for the (unlinked) spill, found through this process's descriptors.
+uint64_t allocatedBytes(const SpillFile& file) {
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code error;
+    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
+    if (error || target.string().rfind(file.path().string(), 0) != 0) continue;
+    struct stat st {};
+    if (::stat(entry.path().c_str(), &st) == 0) return static_cast<uint64_t>(st.st_blocks) * 512;
+  }
+  ADD_FAILURE() << "no descriptor for " << file.path();
+  return 0;
+}
+
+// Blocks of a discardable file given back in random order: a page goes back (accounted and on disk)
+// once every block on it is discarded, never before; the blocks still live read back intact.
+TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  SpillFile file(space, "nodes", /*discardable=*/true);
+  std::mt19937_64 rng(11);
+  std::vector<std::vector<std::byte>> raws;
+  std::vector<SpillBlock> blocks;
+  for (int i = 0; i < 300; ++i) {
+    raws.push_back(randomBlock(rng, 200 + rng() % 9000, false));  // incompressible: 0.05 to 2.2 pages
+    blocks.push_back(file.append(raws.back(), codec));
+  }
+  const uint64_t total = file.bytes();
+  ASSERT_EQ(space.currentBytes(), total);
+  constexpr uint64_t kPage = 4096;
+  std::vector<size_t> order(blocks.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::shuffle(order.begin(), order.end(), rng);
+  std::vector<bool> live(blocks.size(), true);
+  std::vector<std::byte> back;
+  for (size_t n = 0; n < order.size(); ++n) {
+    file.discard(blocks[order[n]]);
+    live[order[n]] = false;
+    if (n % 30 != 29 && n + 1 != order.size()) continue;
+    // Expected: every page but the file's last that no live block touches is given back.
+    std::vector<bool> held((total + kPage - 1) / kPage, false);
+    held.back() = true;
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      if (!live[b]) continue;
+      for (uint64_t p = blocks[b].offset / kPage;
+           p <= (blocks[b].offset + blocks[b].compressedBytes - 1) / kPage; ++p)
+        held[p] = true;
+    }
+    const uint64_t given = kPage * static_cast<uint64_t>(std::count(held.begin(), held.end(), false));
+    EXPECT_EQ(space.currentBytes(), total - given) << "after " << n + 1 << " discards";
+    EXPECT_LE(allocatedBytes(file), space.currentBytes() + kPage) << "after " << n + 1 << " discards";
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      if (!live[b]) continue;
+      file.read(blocks[b], back, codec);
+      ASSERT_EQ(back, raws[b]) << "block " << b << " after " << n + 1 << " discards";
+    }
+  }
+  EXPECT_LE(space.currentBytes(), kPage);
+  EXPECT_LE(allocatedBytes(file), 2 * kPage);
+  // A discarded block reads as zeros: a corrupt block, never stale records.
+  const std::string message = errorOf([&] { file.read(blocks[order[0]], back, codec); });
+  EXPECT_NE(message.find(": corrupt block at byte "), std::string::npos) << message;
+}
+
+TEST(SpillFile, onlyADiscardableFileDiscards) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  SpillFile file(space, "edges");
+  const SpillBlock block = file.append(std::vector<std::byte>(100, std::byte{7}), codec);
+  EXPECT_THROW(file.discard(block), std::logic_error);
+}
+
 TEST(SpillFile, aHandleThatDoesNotMatchTheDataIsATempSpaceError) {
   ScratchDir parent;
   TempSpace space(parent.path());
