@@ -28,12 +28,15 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              processes: wall, CPU, peak RSS from wait4); phases and rounds from --json; the fit of
              cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's;
              whether --threads 1 and the default give the same bytes; the targets as checks
-  outofcore  issue 5: a generated terrain (quick 2M faces, full 10M) and its shuffled twin built
+  outofcore  a generated terrain (quick 2M faces, full 10M) and its shuffled twin built
              with --memory 64M, 256M, 1G and in core (--memory 16G: the job's in-core path): time,
              peak RSS (the job's --json and wait4's ru_maxrss, what /usr/bin/time prints), temporary
              and file bytes, cells, leaves, height, ratios to in core; and the quality of forced
              out-of-core builds (--cell-faces) of meshes that fit against the in-core one: eFit
-             summed over cuts of 1,000 and 100,000 clusters (`info --fit-cuts`), heights, ratios
+             summed over cuts of 1,000 and 100,000 clusters (`info --fit-cuts`), heights, ratios;
+             and the subdivided dragon (`gen subdivide dragon_vrip --levels L`), coherent and
+             shuffled: 14M faces at --memory 64M (quick and full) and 55.8M at 256M (full), with
+             the pipeline's targets as checks (time, faces/s, cap, temporary peak against the file)
 
 The per-mesh builds (default metric, Garland metric, octree) run interleaved, once per
 repetition, and are shared by build, profile, balance, scaling and octree.
@@ -95,6 +98,17 @@ OUT_OF_CORE_FACES_FULL = 10_000_000
 QUALITY_MESHES = [("dragon_vrip", None), ("terrain 1M", 1_000_000)]  # (name, generated faces or shared)
 QUALITY_CELL_FACES = [20_000, 100_000]
 FIT_CUTS = [1000, 100_000]
+# The subdivided dragon out of core: (subdivision levels of dragon_vrip, --memory), coherent and with
+# vertices and faces shuffled. The quick run takes the 14M-face one only (about two minutes).
+DRAGON_CASES_QUICK = [(2, "64M")]
+DRAGON_CASES_FULL = [(2, "64M"), (3, "256M")]
+# Targets of the out-of-core pipeline on 2 cores (checks in the JSON).
+DRAGON_TARGETS = {
+    # 55.8M faces: seconds, peak RSS under the cap, temporary peak at most the file it writes.
+    3: {"seconds": 80.0, "temporary_over_file": 1.0, "faces_per_second": 0.7e6},
+    2: {"faces_per_second": 0.6e6},  # 14M faces, coherent
+}
+DRAGON_SHUFFLED_RATIO = 2.0  # shuffled time at most twice the coherent one
 
 
 def run(command):
@@ -725,6 +739,53 @@ def bench_rounds(args, meshes, out):
     return rows
 
 
+def bench_dragons(args, out, tmp, fch):
+    """The subdivided dragon built out of core, coherent and shuffled, against the pipeline's targets:
+    one run per case (the largest takes minutes), each its own process (wall, CPU and peak RSS from
+    wait4), the job's phases, temporary peak and file size."""
+    rows = []
+    for levels, cap in DRAGON_CASES_QUICK if args.quick else DRAGON_CASES_FULL:
+        for order in ("coherent", "shuffled"):
+            mesh = out / f"outofcore_dragon{levels}_{order}.ply"
+            shuffle = ["--shuffle-vertices", "--shuffle-faces"] if order == "shuffled" else []
+            run([args.facetree, "gen", "subdivide", mesh_path("dragon_vrip"), "--levels", str(levels), "-o", mesh,
+                 *shuffle])
+            report = build_job(args, mesh, fch, ["--memory", cap, "--tmp", tmp])
+            mesh.unlink()
+            fch.unlink(missing_ok=True)
+            row = {"levels": levels, "input": order, "memory": cap, "triangles": report["triangles"],
+                   "seconds": report["process_wall_seconds"], "process_cpu_seconds": report["process_cpu_seconds"],
+                   "cpu_use": report["process_cpu_seconds"] / report["process_wall_seconds"],
+                   "phases": report["seconds"], "peak_rss_bytes": report["process_peak_rss_bytes"],
+                   "temporary_bytes_peak": report["temporary_bytes_peak"], "file_bytes": report["file_bytes"],
+                   "cells": report["cells"], "height": report["height"],
+                   "balanced_height": report["balanced_height"]}
+            row["faces_per_second"] = row["triangles"] / row["seconds"]
+            row["temporary_over_file"] = row["temporary_bytes_peak"] / row["file_bytes"]
+            target = DRAGON_TARGETS.get(levels, {})
+            checks = {"under_cap": row["peak_rss_bytes"] <= cap_bytes(cap)}
+            if order == "coherent":
+                if "seconds" in target:
+                    checks["seconds"] = row["seconds"] <= target["seconds"]
+                if "faces_per_second" in target:
+                    checks["faces_per_second"] = row["faces_per_second"] >= target["faces_per_second"]
+                if "temporary_over_file" in target:
+                    checks["temporary_over_file"] = row["temporary_over_file"] <= target["temporary_over_file"]
+            else:
+                coherent = next(r for r in rows if r["levels"] == levels and r["input"] == "coherent")
+                row["over_coherent"] = row["seconds"] / coherent["seconds"]
+                checks["over_coherent"] = row["over_coherent"] <= DRAGON_SHUFFLED_RATIO
+            row["checks"] = checks
+            rows.append(row)
+            phases = " ".join(f"{k} {v:.1f}" for k, v in row["phases"].items() if k != "total")
+            print(f"outofcore dragon {row['triangles'] / 1e6:.1f}M {order:8s} --memory {cap:5s} {row['seconds']:7.1f} s "
+                  f"({row['faces_per_second'] / 1e6:.2f}M faces/s, CPU {row['cpu_use'] * 100:.0f}%; {phases})  peak "
+                  f"{row['peak_rss_bytes'] / 2**20:.1f} MiB  tmp {row['temporary_bytes_peak'] / 1e6:.0f} MB "
+                  f"({row['temporary_over_file']:.2f}x the file, {row['file_bytes'] / 1e6:.0f} MB)  checks " +
+                  " ".join(f"{k}:{'ok' if v else 'MISSED'}" for k, v in checks.items()), flush=True)
+    return rows
+
+
 def bench_outofcore(args, out):
     """Issue 5: the out-of-core build against the in-core one, cost and quality."""
     started, load_start = time.time(), os.getloadavg()
@@ -770,6 +831,8 @@ def bench_outofcore(args, out):
         row["ratio"] = {key: ratio(row[key], base[key]) for key in
                         ("seconds", "process_cpu_seconds", "process_peak_rss_bytes", "file_bytes", "height")}
 
+    dragons = bench_dragons(args, out, tmp, fch)
+
     quality = []
     for name, generated in QUALITY_MESHES:
         if generated:
@@ -806,7 +869,8 @@ def bench_outofcore(args, out):
                       f"{n}: sum eFit {row['ratio']['sum_fit'][n]:.3f} sum A*eFit {row['ratio']['sum_area_fit'][n]:.3f}"
                       for n in row["cuts"]), flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
-    return {"faces": faces, "in_core_cap": IN_CORE_CAP, "repeat": repeat, "rows": rows, "quality": quality,
+    return {"faces": faces, "in_core_cap": IN_CORE_CAP, "repeat": repeat, "rows": rows, "dragons": dragons,
+            "quality": quality,
             "fit_cuts": FIT_CUTS, "date": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(started)),
             "load_average_start": load_start, "load_average_end": os.getloadavg(),
             "wall_seconds": time.time() - started}

@@ -665,7 +665,7 @@ def outofcore_markdown(o, rel):
     ooc = [r for r in rows if r["out_of_core"]]
     quality_ooc = [r for r in quality if r["cell_faces"] is not None]
     worst_fit = {n: max(r["ratio"]["sum_fit"][n] for r in quality_ooc) for n in cuts} if quality_ooc else {}
-    out = ["## Out of core (issue 5)", "",
+    out = ["## Out of core", "",
            f"`facetree build MESH -o OUT.fch --memory CAP --tmp DIR --json` on `facetree gen terrain -n "
            f"{o['faces']:,}` ({first['triangles']:,} faces) and its shuffled twin (`--shuffle-vertices "
            f"--shuffle-faces`). In core is `--memory {o['in_core_cap']}`: the job's in-core path (without "
@@ -700,6 +700,21 @@ def outofcore_markdown(o, rel):
                 table(["input", "--memory"] + phases + ["total"],
                       [[r["input"], cap_label(r["memory"])] + [f"{r['phases'][k]:.2f}" for k in phases + ["total"]]
                        for r in ooc]), ""]
+    if o.get("dragons"):
+        out += ["### The subdivided dragon", "",
+                "`facetree gen subdivide dragon_vrip.ply.zst --levels L` (coherent, and with `--shuffle-vertices "
+                "--shuffle-faces`), then `facetree build MESH -o OUT.fch --memory CAP --tmp DIR --json`, one run "
+                "each. Checks: the targets of `DRAGON_TARGETS` in scripts/bench.py.", "",
+                table(["faces", "input", "--memory", "s (wall)", "M faces/s", "CPU use"] +
+                      [k for k in ("read", "bin", "cells", "merge", "write")] +
+                      ["peak RSS MiB", "temporary MB", "file MB", "temporary / file", "checks"],
+                      [[f"{r['triangles']:,}", r["input"], r["memory"], f"{r['seconds']:.1f}",
+                        f"{r['faces_per_second'] / 1e6:.2f}", f"{r['cpu_use'] * 100:.0f}%"] +
+                       [f"{r['phases'].get(k, 0):.1f}" for k in ("read", "bin", "cells", "merge", "write")] +
+                       [mib(r["peak_rss_bytes"]), f"{r['temporary_bytes_peak'] / 1e6:.0f}",
+                        f"{r['file_bytes'] / 1e6:.0f}", f"{r['temporary_over_file']:.2f}",
+                        " ".join(f"{k} {'ok' if v else '**missed**'}" for k, v in r["checks"].items())]
+                       for r in o["dragons"]]), ""]
     out += ["### Quality: out of core against in core on meshes that fit", "",
             "Each mesh built in core and out of core forced with cells of at most N faces (`--cell-faces N`), "
             f"then `facetree info OUT.fch --fit-cuts {','.join(cuts)}`: the cut is the shortest prefix of the "
