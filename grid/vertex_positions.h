@@ -1,4 +1,4 @@
-// Vertex positions of an indexed input (PLY, OBJ) with bounded memory (issue 5, item 5): the
+// Vertex positions of an indexed input (PLY, OBJ) with bounded memory: the
 // reader hands them over in index order (ReadOptions::vertexSink); they stay in memory while they
 // fit the budget, else they are spilled in blocks of kBlockVertices and served by an LRU block
 // cache, which is fast for the usual coherent face order. For an incoherent order (a shuffled

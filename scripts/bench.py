@@ -36,7 +36,9 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              summed over cuts of 1,000 and 100,000 clusters (`info --fit-cuts`), heights, ratios;
              and the subdivided dragon (`gen subdivide dragon_vrip --levels L`), coherent and
              shuffled: 14M faces at --memory 64M (quick and full) and 55.8M at 256M (full), with
-             the pipeline's targets as checks (time, faces/s, cap, temporary peak against the file)
+             the pipeline's targets as checks (time, faces/s, cap, temporary peak against the file);
+             and every shared mesh of 1M faces or more at --memory 64M against in core (cut fits
+             within 10%, heights within 1.25x, as checks)
 
 The per-mesh builds (default metric, Garland metric, octree) run interleaved, once per
 repetition, and are shared by build, profile, balance, scaling and octree.
@@ -109,6 +111,12 @@ DRAGON_TARGETS = {
     2: {"faces_per_second": 0.6e6},  # 14M faces, coherent
 }
 DRAGON_SHUFFLED_RATIO = 2.0  # shuffled time at most twice the coherent one
+# Every shared mesh of 1M faces or more, out of core under a small cap against in core: cut fits
+# (sum of area x eFit) within 10%, heights within 1.25x.
+CAP_QUALITY_MESHES = ["matterport_cedar_creek", "fg_hawaii"]
+CAP_QUALITY_CAP = "64M"
+CAP_QUALITY_FIT_BOUND = 1.10
+CAP_QUALITY_HEIGHT_BOUND = 1.25
 
 
 def run(command):
@@ -786,8 +794,35 @@ def bench_dragons(args, out, tmp, fch):
     return rows
 
 
+def bench_cap_quality(args, tmp, fch):
+    """Every shared mesh of 1M faces or more built in core and out of core under CAP_QUALITY_CAP: cut
+    fits (sum of area x eFit at FIT_CUTS clusters) and heights, out of core over in core."""
+    rows = []
+    for name in CAP_QUALITY_MESHES:
+        results = {}
+        for label, cap in (("in core", IN_CORE_CAP), ("out of core", CAP_QUALITY_CAP)):
+            report = build_job(args, mesh_path(name), fch, ["--memory", cap, "--tmp", tmp])
+            results[label] = {"out_of_core": report["out_of_core"], "seconds": report["process_wall_seconds"],
+                              **fit_cuts(args, fch)}
+        fch.unlink(missing_ok=True)
+        inside, outside = results["in core"], results["out of core"]
+        row = {"mesh": name, "memory": CAP_QUALITY_CAP, "in_core": inside, "out_of_core": outside,
+               "height_ratio": outside["height"] / inside["height"],
+               "fit_ratio": {n: ratio(outside["cuts"][n]["sum_area_fit"], inside["cuts"][n]["sum_area_fit"])
+                             for n in inside["cuts"]}}
+        row["checks"] = {"forced_out_of_core": outside["out_of_core"] and not inside["out_of_core"],
+                         "fit": all(r is not None and r <= CAP_QUALITY_FIT_BOUND for r in row["fit_ratio"].values()),
+                         "height": row["height_ratio"] <= CAP_QUALITY_HEIGHT_BOUND}
+        rows.append(row)
+        print(f"outofcore quality {name:24s} --memory {CAP_QUALITY_CAP} / in core: height "
+              f"{outside['height']}/{inside['height']} ({row['height_ratio']:.3f})  sum area x eFit " +
+              "  ".join(f"{n}: {r:.3f}" for n, r in row["fit_ratio"].items()) + "  checks " +
+              " ".join(f"{k}:{'ok' if v else 'MISSED'}" for k, v in row["checks"].items()), flush=True)
+    return rows
+
+
 def bench_outofcore(args, out):
-    """Issue 5: the out-of-core build against the in-core one, cost and quality."""
+    """The out-of-core build against the in-core one, cost and quality."""
     started, load_start = time.time(), os.getloadavg()
     # One run per case, in the full run too: the trees are deterministic, times carry the machine's
     # load (process CPU times less so), and the 8 builds of 10M faces take 70-180 CPU seconds each
@@ -832,6 +867,7 @@ def bench_outofcore(args, out):
                         ("seconds", "process_cpu_seconds", "process_peak_rss_bytes", "file_bytes", "height")}
 
     dragons = bench_dragons(args, out, tmp, fch)
+    cap_quality = bench_cap_quality(args, tmp, fch)
 
     quality = []
     for name, generated in QUALITY_MESHES:
@@ -870,7 +906,7 @@ def bench_outofcore(args, out):
                       for n in row["cuts"]), flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
     return {"faces": faces, "in_core_cap": IN_CORE_CAP, "repeat": repeat, "rows": rows, "dragons": dragons,
-            "quality": quality,
+            "cap_quality": cap_quality, "quality": quality,
             "fit_cuts": FIT_CUTS, "date": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(started)),
             "load_average_start": load_start, "load_average_end": os.getloadavg(),
             "wall_seconds": time.time() - started}

@@ -715,6 +715,17 @@ def outofcore_markdown(o, rel):
                         f"{r['file_bytes'] / 1e6:.0f}", f"{r['temporary_over_file']:.2f}",
                         " ".join(f"{k} {'ok' if v else '**missed**'}" for k, v in r["checks"].items())]
                        for r in o["dragons"]]), ""]
+    if o.get("cap_quality"):
+        cuts_cap = list(o["cap_quality"][0]["fit_ratio"])
+        out += ["### Shared meshes of 1M faces or more under a small cap", "",
+                "Built in core and at the cap, then `facetree info OUT.fch --fit-cuts`: sum of area x eFit over "
+                "the cut and heights, out of core / in core (checks: fits within 10%, heights within 1.25x).", "",
+                table(["mesh", "--memory", "height (in core / out of core)", "height ratio"] +
+                      [f"fit ratio, {int(n):,}" for n in cuts_cap] + ["checks"],
+                      [[r["mesh"], r["memory"], f"{r['in_core']['height']} / {r['out_of_core']['height']}",
+                        f"{r['height_ratio']:.3f}"] + [f"{r['fit_ratio'][n]:.3f}" for n in cuts_cap] +
+                       [" ".join(f"{k} {'ok' if v else '**missed**'}" for k, v in r["checks"].items())]
+                       for r in o["cap_quality"]]), ""]
     out += ["### Quality: out of core against in core on meshes that fit", "",
             "Each mesh built in core and out of core forced with cells of at most N faces (`--cell-faces N`), "
             f"then `facetree info OUT.fch --fit-cuts {','.join(cuts)}`: the cut is the shortest prefix of the "

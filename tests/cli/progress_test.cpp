@@ -1,4 +1,4 @@
-// The progress display of `facetree build -o` (issue 5): drawn on stderr when stderr is a
+// The progress display of `facetree build -o`: drawn on stderr when stderr is a
 // terminal (each phase with its share done, its rate and an ETA, redrawn in place on one line,
 // cleared at the end), and absent when it is not, so logs and pipes stay clean.
 #include <gtest/gtest.h>

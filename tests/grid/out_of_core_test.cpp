@@ -212,7 +212,7 @@ TEST(OutOfCore, ByteIdenticalAcrossThreadsUnderACap) {
   EXPECT_EQ(a, bytesOf(dir / "b.fch"));
 }
 
-// Issue 5: a prefix of the out-of-core file fits the surface about as well as the same prefix of
+// A prefix of the out-of-core file fits the surface about as well as the same prefix of
 // the in-core one. A closed surface is the hard case for the node order: its last merges have
 // almost no perimeter and cost ~0; when an upper node's key was capped by its parent's, every
 // leaf was held at the root's band and the file went leaf by leaf (cut at 1,000 clusters 2.6x the
@@ -403,7 +403,7 @@ fs::path dracoTerrain(const ScratchDir& dir, uint64_t triangles) {
   return path;
 }
 
-// Issue 5 for Draco, which has no streaming decoder: a mesh whose decoding alone would pass the
+// Draco has no streaming decoder: a mesh whose decoding alone would pass the
 // cap is refused from its header's counts, before it is decoded (a 1M-face terrain: the
 // process peaks at ~60 MiB decoding it; refused, at its base of ~16 MiB).
 TEST(OutOfCore, DracoThatCannotFitIsRefusedBeforeDecoding) {
@@ -510,7 +510,7 @@ fs::path writeGridWithSpecks(const ScratchDir& dir, uint32_t side, uint32_t spec
   return path;
 }
 
-// Issue 5: what grows with the input besides the faces (cross-cell pairs, one leaf per speck,
+// What grows with the input besides the faces (cross-cell pairs, one leaf per speck,
 // node runs) used to stay in memory until the write: fg_hawaii (445k cross-cell pairs, 21k leaves)
 // peaked at 78 MiB under 64, and this mesh (small cells: many borders; 100k specks: ~95 components
 // per cell, 35k leaves) at 76 MiB. The spills and the leaf budget keep it at ~36 MiB.
@@ -551,7 +551,7 @@ IndexedMesh load(const fs::path& path) {
   return loadMesh(*reader);
 }
 
-// Issue 5 for STL: its reader welds corners with a table as large as the distinct positions
+// STL: its reader welds corners with a table as large as the distinct positions
 // (a 10M-triangle STL took 174 MiB under --memory 64M); out of core the welding is an external
 // sort, so an STL costs no more memory than the same mesh indexed, and gives the same tree.
 TEST(OutOfCore, StlIsWeldedWithBoundedMemory) {
