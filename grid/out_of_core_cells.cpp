@@ -169,8 +169,11 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRu
 }
 
 void OutOfCoreBuild::buildCells() {
-  // Read once each by the write, which gives their blocks back as it goes.
-  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes", /*discardable=*/true);
+  // The write reads the geometry once, in large blocks, and gives them back as it goes, while the
+  // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
+  // scattered over the file: punching them out one by one made the 55.8M-face dragon's write wait
+  // on the file system (108.5 s against 39.9 s), for no lower peak (the peak is the end of the cells).
+  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
   geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true);
   pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
   leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");

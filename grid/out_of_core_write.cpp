@@ -482,7 +482,6 @@ void OutOfCoreBuild::write() {
     const LeafCluster& leaf = leaves_[leafId];
     const auto faceOffset = static_cast<uint32_t>(faceBase[leafId]);
     nodeSpill_->read(blocks_[leaf.firstBlock + ref.block].spill(), raw, codec_);
-    nodeSpill_->discard(blocks_[leaf.firstBlock + ref.block].spill());
     leafNodes.resize(raw.size() / sizeof(FchNode));
     std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
     for (FchNode& n : leafNodes) {

@@ -55,8 +55,7 @@ void releasePages(const void* data, size_t from, size_t to) {
 
 void trimFreedHeap([[maybe_unused]] size_t faces) {
 #if defined(__GLIBC__)
-  constexpr size_t kTrimFaces = size_t{1} << 18;
-  if (faces >= kTrimFaces) malloc_trim(0);
+  if (faces >= kReturnMemoryFaces) malloc_trim(0);
 #endif
 }
 

@@ -29,10 +29,15 @@ void releasePagesBeyond(const void* data, size_t used, size_t capacity);
 // buffer whose prefix has been read for the last time.
 void releasePages(const void* data, size_t from, size_t to);
 
+// Builds of at least this many faces give memory back to the system as they go (trimFreedHeap,
+// the rounds' contraction). Smaller ones keep their pages: the out-of-core cells build thousands
+// one after another, each within its budget, and their pages are better reused than faulted in
+// again (4 KiB at a time: their arrays are too small for huge pages).
+inline constexpr size_t kReturnMemoryFaces = size_t{1} << 18;
+
 // Returns the free pages of the C library's heaps to the system (glibc keeps them, also in the
 // arenas of worker threads, unless asked), for a build of `faces` faces that has just freed
-// large arrays. Small builds keep them: the out-of-core cells build thousands one after
-// another, and their pages are better reused than faulted in again.
+// large arrays; nothing below kReturnMemoryFaces.
 void trimFreedHeap(size_t faces);
 
 // reserve() that advises the new buffer before anything touches it. Use before assign(),

@@ -535,9 +535,11 @@ class RoundsEngine {
     std::vector<uint32_t> degreeMax(blocks, 0);
     // A block reads its own clusters and the higher members of their pairs, never a lower
     // block's: below the finished prefix the old adjacency and slots are dead, and their pages
-    // go back as the contraction moves on, so a round holds about one copy of them, not two.
+    // go back as the contraction moves on, so a round holds about one copy of them, not two
+    // (large builds only: kReturnMemoryFaces).
     FinishedBlocks finished(blocks);
     const auto releaseInput = [&](uint32_t prefix) {
+      if (geometry_.faceCount() < kReturnMemoryFaces) return;
       const uint32_t c = std::min(live_, prefix * kBlock);
       releasePages(now_.halves.data(), 0, size_t{now_.begin[c]} * sizeof(Half));
       if (now_.slots.empty()) return;
