@@ -173,7 +173,11 @@ void OutOfCoreBuild::buildCells() {
   // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
   // scattered over the file: punching them out one by one made the 55.8M-face dragon's write wait
   // on the file system (108.5 s against 39.9 s), for no lower peak (the peak is the end of the cells).
-  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes");
+  // Node runs are floats and small integers in 132-byte records: shuffled by byte place they
+  // take 19% less (14M-face dragon: 999 MB against 1,234). Face records are not: consecutive
+  // faces repeat whole corner positions, which zstd matches only while the bytes stay together
+  // (the cells' spill: 439 MB shuffled against 402).
+  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes", /*discardable=*/false, sizeof(FchNode));
   geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true);
   pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
   leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");

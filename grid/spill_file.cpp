@@ -6,6 +6,7 @@
 #include <unistd.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <stdexcept>
 #include <string>
@@ -30,7 +31,31 @@ SpillCodec::~SpillCodec() = default;
 SpillCodec::SpillCodec(SpillCodec&&) noexcept = default;
 SpillCodec& SpillCodec::operator=(SpillCodec&&) noexcept = default;
 
-std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw) {
+namespace {
+
+// Byte k of record i goes to k * records + i; the bytes past the last whole record stay last.
+void shuffleRecords(std::span<const std::byte> in, std::byte* out, size_t recordBytes) {
+  const size_t records = in.size() / recordBytes;
+  for (size_t i = 0; i < records; ++i)
+    for (size_t k = 0; k < recordBytes; ++k) out[k * records + i] = in[i * recordBytes + k];
+  std::copy(in.begin() + records * recordBytes, in.end(), out + records * recordBytes);
+}
+
+void unshuffleRecords(std::span<const std::byte> in, std::byte* out, size_t recordBytes) {
+  const size_t records = in.size() / recordBytes;
+  for (size_t i = 0; i < records; ++i)
+    for (size_t k = 0; k < recordBytes; ++k) out[i * recordBytes + k] = in[k * records + i];
+  std::copy(in.begin() + records * recordBytes, in.end(), out + records * recordBytes);
+}
+
+}  // namespace
+
+std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw, size_t recordBytes) {
+  if (recordBytes > 1) {
+    shuffled_.resize(raw.size());
+    shuffleRecords(raw, shuffled_.data(), recordBytes);
+    raw = shuffled_;
+  }
   scratch_.resize(ZSTD_compressBound(raw.size()));
   const size_t got =
       ZSTD_compress2(compressor_.get(), scratch_.data(), scratch_.size(), raw.data(), raw.size());
@@ -46,7 +71,13 @@ std::span<std::byte> SpillCodec::compressedScratch(size_t bytes) {
 }
 
 bool SpillCodec::decompress(std::span<const std::byte> compressed, std::span<std::byte> raw,
-                            const char*& reason) {
+                            const char*& reason, size_t recordBytes) {
+  if (recordBytes > 1) {
+    shuffled_.resize(raw.size());
+    if (!decompress(compressed, shuffled_, reason)) return false;
+    unshuffleRecords(shuffled_, raw.data(), recordBytes);
+    return true;
+  }
   if (ZSTD_getFrameContentSize(compressed.data(), compressed.size()) != raw.size()) {
     reason = "frame size disagrees with the block";
     return false;
@@ -71,8 +102,8 @@ constexpr uint64_t kPageBytes = 4096;
 
 }  // namespace
 
-SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable)
-    : space_(space), path_(space.newFile(stem)), discardable_(discardable) {
+SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable, size_t recordBytes)
+    : space_(space), path_(space.newFile(stem)), discardable_(discardable), recordBytes_(recordBytes) {
   fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd_ < 0) throwTempSpaceError(path_, "cannot create", errno);
   // Anonymous from here on: the kernel frees the blocks when the descriptor closes, on any exit.
@@ -91,7 +122,7 @@ SpillFile::~SpillFile() {
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
   if (raw.size() > kMaxSpillBlockBytes) throw std::invalid_argument("spill block larger than 256 MiB");
   // Compress outside the lock: each thread has its own codec.
-  const std::span<const std::byte> compressed = codec.compress(raw);
+  const std::span<const std::byte> compressed = codec.compress(raw, recordBytes_);
   std::lock_guard lock(writeMutex_);
   const uint64_t offset = bytes_.load(std::memory_order_relaxed);
   const uint64_t footprint = compressed.size();
@@ -178,7 +209,7 @@ void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCod
     }
   }
   const char* reason = nullptr;
-  if (!codec.decompress(compressed, raw, reason)) corrupt(block, reason);
+  if (!codec.decompress(compressed, raw, reason, recordBytes_)) corrupt(block, reason);
 }
 
 void SpillFile::corrupt(const SpillBlock& block, std::string_view reason) const {

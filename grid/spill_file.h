@@ -41,12 +41,18 @@ class SpillCodec {
   SpillCodec& operator=(SpillCodec&&) noexcept;
 
   // One zstd frame with content size and checksum; the view lives until the next call on this codec.
-  std::span<const std::byte> compress(std::span<const std::byte> raw);
+  // With `recordBytes` > 1 the bytes are first grouped by their place in records of that size
+  // (byte 0 of every record, then byte 1, ...; a partial record at the end stays as it is): the
+  // bytes of floats and small integers that vary alike end up together, which zstd finds (the
+  // shuffle filter of Blosc, Alted 2010).
+  std::span<const std::byte> compress(std::span<const std::byte> raw, size_t recordBytes = 1);
   // Scratch for a compressed block of `bytes`, as read() fills it.
   std::span<std::byte> compressedScratch(size_t bytes);
   // Decompresses `compressed` into exactly raw.size() bytes; false (with `reason`) if it is not a whole
   // valid frame of that size.
-  bool decompress(std::span<const std::byte> compressed, std::span<std::byte> raw, const char*& reason);
+  // `recordBytes` as the block was compressed with.
+  bool decompress(std::span<const std::byte> compressed, std::span<std::byte> raw, const char*& reason,
+                  size_t recordBytes = 1);
 
  private:
   struct CCtxDeleter {
@@ -58,6 +64,7 @@ class SpillCodec {
   std::unique_ptr<ZSTD_CCtx_s, CCtxDeleter> compressor_;
   std::unique_ptr<ZSTD_DCtx_s, DCtxDeleter> decompressor_;
   std::vector<std::byte> scratch_;
+  std::vector<std::byte> shuffled_;  // a block's bytes by record place (recordBytes > 1)
 };
 
 // Where a block lives in its SpillFile: the handle append() returns and read() takes.
@@ -77,7 +84,8 @@ class SpillFile {
  public:
   // `discardable`: the file counts the blocks on each of its pages (2 bytes a page, 4 KiB), so that
   // discard() can give back every page whose blocks are all discarded.
-  SpillFile(TempSpace& space, std::string_view stem, bool discardable = false);
+  // `recordBytes`: the size of the records its blocks hold, for SpillCodec's shuffle (1: none).
+  SpillFile(TempSpace& space, std::string_view stem, bool discardable = false, size_t recordBytes = 1);
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
@@ -108,6 +116,7 @@ class SpillFile {
   std::filesystem::path path_;
   int fd_ = -1;
   bool discardable_ = false;
+  size_t recordBytes_ = 1;
   mutable std::mutex writeMutex_;
   std::atomic<uint64_t> bytes_{0};  // written under writeMutex_, read by read() without it
   uint64_t held_ = 0;               // accounted in the TempSpace, under writeMutex_
