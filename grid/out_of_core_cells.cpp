@@ -178,7 +178,9 @@ void OutOfCoreBuild::buildCells() {
   // faces repeat whole corner positions, which zstd matches only while the bytes stay together
   // (the cells' spill: 439 MB shuffled against 402).
   nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes", /*discardable=*/false, sizeof(FchNode));
-  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true);
+  // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte: 31%
+  // fewer bytes (14M-face dragon: 142 MB against 207).
+  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true, 4);
   pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
   leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");
   borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
