@@ -50,27 +50,14 @@ class BucketSpill {
   // buffered tail last. Holds one decompressed block.
   template <class F>
   void forEachBlock(size_t bucket, SpillCodec& codec, F&& f) const {
-    std::vector<std::byte> raw;
-    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
-      file_.read(blocks_[b].block, raw, codec);
-      f(std::span<const std::byte>(raw));
-    }
-    if (fill_[bucket] > 0)
-      f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+    visitBlocks(bucket, codec, f, [](const SpillBlock&) {});
   }
 
   // forEachBlock for the last time: each block's disk space goes back once f has had it, and the
   // buffered tail is dropped. The bucket is empty afterwards. Only for a discardable spill.
   template <class F>
   void drainBucket(size_t bucket, SpillCodec& codec, F&& f) {
-    std::vector<std::byte> raw;
-    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
-      file_.read(blocks_[b].block, raw, codec);
-      f(std::span<const std::byte>(raw));
-      file_.discard(blocks_[b].block);
-    }
-    if (fill_[bucket] > 0)
-      f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+    visitBlocks(bucket, codec, f, [this](const SpillBlock& block) { file_.discard(block); });
     head_[bucket] = tail_[bucket] = kNoBlock;
     fill_[bucket] = 0;
     records_[bucket] = 0;
@@ -81,6 +68,19 @@ class BucketSpill {
 
  private:
   static constexpr uint32_t kNoBlock = UINT32_MAX;
+
+  // f per block in order, then after(block) once f has had it; the buffered tail last.
+  template <class F, class After>
+  void visitBlocks(size_t bucket, SpillCodec& codec, F& f, const After& after) const {
+    std::vector<std::byte> raw;
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
+      file_.read(blocks_[b].block, raw, codec);
+      f(std::span<const std::byte>(raw));
+      after(blocks_[b].block);
+    }
+    if (fill_[bucket] > 0)
+      f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
+  }
   // The blocks of all buckets in one array, each bucket's chained in append order.
   struct ChainedBlock {
     SpillBlock block;

@@ -37,6 +37,13 @@ constexpr size_t kCopyBufferBytes = size_t{1} << 20;    // spill -> output copie
 constexpr size_t kOutputBufferBytes = size_t{1} << 20;  // OutputFile's stdio buffer
 // Compression threads at most (WriteOptions::threads): frames are small and independent.
 constexpr unsigned kMaxCompressorThreads = 8;
+
+// The compressor pool's workers for WriteOptions::threads (0: the hardware's); none for one thread,
+// which compresses inline.
+unsigned compressorThreads(const WriteOptions& options) {
+  const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
+  return threads > 1 ? std::min(threads, kMaxCompressorThreads) : 0;
+}
 constexpr size_t kSections = 4;
 
 size_t slot(FchSection section) {
@@ -212,9 +219,8 @@ struct ClusterFileWriter::State {
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
   std::optional<CompressorPool> pool;  // WriteOptions::threads > 1: compresses instead of `compressor`
-  std::filesystem::path outPath;
-  std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
-  bool stream = false;               // isStreamOutput: the header cannot be written last
+  std::optional<OutputFile> output;    // file output: from the start; a stream: in finish()
+  bool stream = false;                 // isStreamOutput: the header cannot be written last
   Section sections[kSections];
   std::vector<FchNode> nodes;
   std::vector<glm::vec3> vertices;
@@ -264,8 +270,7 @@ struct ClusterFileWriter::State {
 ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFileInfo& info,
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
     : name(out.string()), compressor(options.zstdLevel) {
-  const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
-  if (threads > 1) pool.emplace(options.zstdLevel, std::min(threads, kMaxCompressorThreads));
+  if (const unsigned workers = compressorThreads(options)) pool.emplace(options.zstdLevel, workers);
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
@@ -307,7 +312,6 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
   if (frames > std::numeric_limits<uint32_t>::max()) reject("too many frames: " + str(frames));
   frontBytes = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
 
-  outPath = out;
   stream = isStreamOutput(out);
   spillDir = !tmpDir.empty()         ? tmpDir
              : stream                ? std::filesystem::temp_directory_path()
@@ -554,7 +558,7 @@ uint64_t ClusterFileWriter::finish() {
     const std::string front = fch::encodeHeaderAndIndex(layout);
     std::vector<char> buffer(kCopyBufferBytes);
     if (s.stream) {
-      s.output.emplace(s.outPath);
+      s.output.emplace(s.name);
       s.output->write(front);
     }
     for (State::Section& sec : s.sections) {
@@ -590,11 +594,9 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
   // In the pool: per worker a frame, its compressed bytes and a compressor.
-  const unsigned threads = options.threads ? options.threads : std::thread::hardware_concurrency();
-  const uint64_t background = threads > 1 ? std::min(threads, kMaxCompressorThreads) *
-                                                (largestRaw + fch::compressedBound(largestRaw) +
-                                                 fch::compressorMemoryBound(options.zstdLevel, largestRaw))
-                                          : 0;
+  const uint64_t background =
+      compressorThreads(options) * (largestRaw + fch::compressedBound(largestRaw) +
+                                    fch::compressorMemoryBound(options.zstdLevel, largestRaw));
   return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
          background + kCopyBufferBytes + kOutputBufferBytes +
          64 * 1024;  // + the header, index entry vectors, names

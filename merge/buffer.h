@@ -45,7 +45,7 @@ Buffer<T> hugeBuffer(size_t n) {
 template <class T>
 void shrinkResident(Buffer<T>& b, size_t n) {
   if (n < b.size()) b.resize(n);
-  releasePagesBeyond(b.data(), n * sizeof(T), b.capacity() * sizeof(T));
+  releasePages(b.data(), n * sizeof(T), b.capacity() * sizeof(T));
 }
 
 }  // namespace facetree

@@ -39,10 +39,6 @@ void adviseHugePages(const void* data, size_t bytes) {
 #endif
 }
 
-void releasePagesBeyond(const void* data, size_t used, size_t capacity) {
-  releasePages(data, used, capacity);
-}
-
 void releasePages(const void* data, size_t from, size_t to) {
 #if defined(__linux__) && defined(MADV_DONTNEED)
   adviseWholeHugePages(data, from, to, MADV_DONTNEED);

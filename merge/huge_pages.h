@@ -21,12 +21,9 @@ namespace facetree {
 inline constexpr size_t kHugePageMinBytes = size_t{8} << 20;
 void adviseHugePages(const void* data, size_t bytes);
 
-// Returns the whole 2 MiB pages of [data + used, data + capacity) to the system (their contents
-// are lost; touching them again maps zeroed pages): for buffers that shrink and are reused.
-void releasePagesBeyond(const void* data, size_t used, size_t capacity);
-
-// Returns the whole 2 MiB pages of [data + from, data + to) to the system, as above: for a
-// buffer whose prefix has been read for the last time.
+// Returns the whole 2 MiB pages of [data + from, data + to) to the system (their contents are
+// lost; touching them again maps zeroed pages): for buffers that shrink and are reused, or whose
+// prefix has been read for the last time.
 void releasePages(const void* data, size_t from, size_t to);
 
 // Builds of at least this many faces give memory back to the system as they go (trimFreedHeap,

@@ -355,7 +355,6 @@ class RoundsEngine {
       }
       block = {};
     }
-    trimFreedHeap(n);  // the dual edges, freed on the workers' heaps
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
       for (uint32_t c = block * kBlock; c < hi; ++c) best_[c] = cheapest(c);
@@ -537,9 +536,9 @@ class RoundsEngine {
     // block's: below the finished prefix the old adjacency and slots are dead, and their pages
     // go back as the contraction moves on, so a round holds about one copy of them, not two
     // (large builds only: kReturnMemoryFaces).
-    FinishedBlocks finished(blocks);
+    const bool releasing = geometry_.faceCount() >= kReturnMemoryFaces;
+    FinishedBlocks finished(releasing ? blocks : 0);
     const auto releaseInput = [&](uint32_t prefix) {
-      if (geometry_.faceCount() < kReturnMemoryFaces) return;
       const uint32_t c = std::min(live_, prefix * kBlock);
       releasePages(now_.halves.data(), 0, size_t{now_.begin[c]} * sizeof(Half));
       if (now_.slots.empty()) return;
@@ -620,7 +619,7 @@ class RoundsEngine {
       // The rest of the block's bound: blocked self-loops of its last cluster.
       const uint32_t bound = static_cast<uint32_t>(counts[block + 1].halves);
       for (; out < bound; ++out) next_.halves[out] = {id - 1, 0.0f, kBlockedKey};
-      finished.finish(block, releaseInput);
+      if (releasing) finished.finish(block, releaseInput);
     });
     for (uint32_t b = 0; b < blocks; ++b) {
       result_.degreeSum += static_cast<double>(degreeSum[b]);

@@ -305,14 +305,7 @@ std::string runWithPipeReader(const std::string& fifo, const std::string& readOu
       " & reader=$!; (sleep 60; kill $reader) >/dev/null 2>&1 & watchdog=$!; " +
       "for i in $(seq 500); do grep -qs wait_for_partner /proc/$reader/wchan && break; sleep 0.01; done; " +
       command + "; echo exit $?; wait $reader; echo reader $?; kill $watchdog";
-  FILE* pipe = ::popen(("sh -c '" + script + "' 2>&1").c_str(), "r");
-  std::string printed;
-  if (!pipe) return printed;
-  char buffer[4096];
-  size_t got;
-  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) printed.append(buffer, got);
-  ::pclose(pipe);
-  return printed;
+  return test::runShell("sh -c '" + script + "'").out;
 }
 
 std::string fileBytes(const std::string& path) {

@@ -14,10 +14,10 @@ struct CliResult {
   std::string out;  // stdout and stderr, merged
 };
 
-inline CliResult runCli(const std::string& arguments) {
+// Runs `command` in the shell, stdout and stderr merged.
+inline CliResult runShell(const std::string& command) {
   CliResult result;
-  const std::string command = std::string(FACETREE_CLI) + " " + arguments + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
   if (!pipe) return result;
   std::array<char, 4096> buffer;
   size_t got;
@@ -25,6 +25,10 @@ inline CliResult runCli(const std::string& arguments) {
   const int status = ::pclose(pipe);
   result.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+inline CliResult runCli(const std::string& arguments) {
+  return runShell(std::string(FACETREE_CLI) + " " + arguments);
 }
 
 }  // namespace facetree::test
