@@ -88,6 +88,7 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   progress.clear();
   const uint64_t peak = peakResidentBytes();
   const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;
+  const BuildStats& s = r.inCore;  // in-core jobs only
   // Reports go to stderr when the cluster file goes to standard output.
   std::FILE* out = output == "-" ? stderr : stdout;
   if (args.flag("json")) {
@@ -96,22 +97,40 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     json.field("out_of_core", r.outOfCore);
     json.field("triangles", r.triangles);
     json.field("vertices", r.stats.vertices);
-    if (args.flag("weld")) json.field("welded_vertices", r.weldedVertices);
+    json.field("welded_vertices", r.weldedVertices);
     json.field("nodes", r.nodes);
     json.field("height", r.height);
     json.field("balanced_height", r.balancedHeight);
     json.field("height_ratio", ratio);
     json.field("components", r.components);
+    json.field("order", job.build.order == MergeOrder::Exact ? "exact" : "rounds");
+    if (!r.outOfCore) {
+      json.field("rounds", s.rounds);
+      json.field("average_degree", s.averageDegree);
+      json.field("max_degree", s.maxDegree);
+      json.field("eigen_solves", s.eigenSolves);
+      json.field("normal_shortcuts", s.normalShortcuts);
+    }
     json.field("cells", r.cells);
     json.field("leaves", r.leaves);
     json.field("cross_edges", r.crossEdges);
     json.field("upper_components", r.upperComponents);
     json.field("cell_face_limit", r.cellFaceLimit);
+    // "build" is the time from the start to the finished hierarchy; the others are phases.
     json.beginObject("seconds");
     json.field("read", r.secondsRead);
-    json.field("bin", r.secondsBin);
-    json.field("cells", r.secondsCells);
-    json.field("merge", r.secondsMerge);
+    if (r.outOfCore) {
+      json.field("bin", r.secondsBin);
+      json.field("cells", r.secondsCells);
+      json.field("merge", r.secondsMerge);
+    } else {
+      json.field("init", s.secondsInit);
+      json.field("cost", s.secondsCost);
+      json.field("eigen", s.secondsEigen);
+      json.field("merge", s.secondsMerge);
+      json.field("boxes", s.secondsBoxes);
+    }
+    json.field("build", r.secondsBuilt);
     json.field("write", r.secondsWrite);
     json.field("total", r.seconds);
     json.endObject();
@@ -121,7 +140,7 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
     json.field("memory_cap_bytes", r.memoryCap);
     json.field("peak_rss_bytes", peak);
     json.field("temporary_bytes_peak", r.temporaryBytesPeak);
-    json.field("file_bytes", r.fileBytes);
+    if (!output.empty()) json.field("file_bytes", r.fileBytes);
     std::fputs(json.finish().c_str(), out);
     return kExitOk;
   }
@@ -140,14 +159,34 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
                  static_cast<unsigned long long>(r.cells), static_cast<unsigned long long>(r.cellFaceLimit),
                  static_cast<unsigned long long>(r.leaves), static_cast<unsigned long long>(r.crossEdges),
                  static_cast<unsigned long long>(r.upperComponents));
-  std::fprintf(out, "hierarchy     %llu nodes, height %u (balanced %u, ratio %.2f)\n",
-               static_cast<unsigned long long>(r.nodes), r.height, r.balancedHeight, ratio);
-  std::fprintf(
-      out, "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",
-      r.secondsRead, r.secondsBin, r.secondsCells, r.secondsMerge, r.secondsWrite, r.seconds);
-  std::fprintf(out, "output        %s: %.2f MB\n", output.c_str(), r.fileBytes / 1e6);
-  std::fprintf(out, "peak memory   %.1f MiB, temporary files %.1f MiB at most\n", peak / 1048576.0,
-               r.temporaryBytesPeak / 1048576.0);
+  std::fprintf(out, "hierarchy     %llu nodes, height %u (balanced %u, ratio %.2f), %llu components joined\n",
+               static_cast<unsigned long long>(r.nodes), r.height, r.balancedHeight, ratio,
+               static_cast<unsigned long long>(r.components));
+  if (r.outOfCore) {
+    std::fprintf(
+        out,
+        "time          read %.3f s, bin %.3f s, cells %.3f s, merge %.3f s, write %.3f s, total %.3f s\n",
+        r.secondsRead, r.secondsBin, r.secondsCells, r.secondsMerge, r.secondsWrite, r.seconds);
+  } else {
+    std::fprintf(
+        out, "merge         %u rounds, degree average %.2f, max %u; %llu PCA solves, %llu normals from S\n",
+        s.rounds, s.averageDegree, s.maxDegree, static_cast<unsigned long long>(s.eigenSolves),
+        static_cast<unsigned long long>(s.normalShortcuts));
+    std::fprintf(
+        out,
+        "time          read %.3f s, init %.3f s, merge %.3f s (cost %.3f, eigen %.3f), boxes %.3f s, write "
+        "%.3f s, total %.3f s\n",
+        r.secondsRead, s.secondsInit, s.secondsMerge, s.secondsCost, s.secondsEigen, s.secondsBoxes,
+        r.secondsWrite, r.seconds);
+  }
+  if (!output.empty())
+    std::fprintf(out, "output        %s: %.2f MB (%.1f bytes per node), branching %u\n", output.c_str(),
+                 r.fileBytes / 1e6, r.nodes ? double(r.fileBytes) / r.nodes : 0.0, job.file.branching);
+  if (!job.meshOut.empty()) std::fprintf(out, "mesh out      %s\n", job.meshOut.c_str());
+  std::fprintf(out, "peak memory   %.1f MiB", peak / 1048576.0);
+  if (r.outOfCore || r.temporaryBytesPeak > 0)
+    std::fprintf(out, ", temporary files %.1f MiB at most", r.temporaryBytesPeak / 1048576.0);
+  std::fputc('\n', out);
   return kExitOk;
 }
 

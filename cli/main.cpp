@@ -38,9 +38,9 @@ commands:
         [--threads N]            threads of the merge rounds, the box phase and the out-of-core cells
                                  (default 0: all cores, at most 8); the output does not depend on it
         [--memory SIZE] [--tmp DIR] [--max-tmp SIZE]
-                                 with -o: the whole job under a memory cap (e.g. 256M): in core
-                                 when it fits, else out of core with temporary files under --tmp;
-                                 OUT.fch may be - (standard output)
+                                 the whole job under a memory cap (e.g. 256M; default half the
+                                 RAM): in core when it fits, else (with -o, no --mesh-out) out of
+                                 core with temporary files under --tmp; OUT.fch may be - (stdout)
   build MESH --method octree [--leaf-size N] [--json]
                                  baseline: tightest-fit octree volume clustering (time, nodes,
                                  height); writes no cluster file (-o is a usage error)

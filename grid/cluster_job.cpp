@@ -48,8 +48,7 @@ JobReport runClusterJob(const ClusterJob& job) {
 
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
   // of the cap (the reader would hold them all).
-  TempSpace temp(job.tmpDir, job.maxTemporaryBytes);
-  if (job.temporaryDirectory) job.temporaryDirectory(temp.path());
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   VertexPositions positions(temp, cap / 4);
   ReadOptions readOptions;
   readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };
@@ -61,6 +60,12 @@ JobReport runClusterJob(const ClusterJob& job) {
   PendingTriangles pending;
   bool outOfCore = job.forceCellFaces > 0;
   if (!outOfCore) {
+    // The header's count, where the cap would hold that many: a hint, never trusted further.
+    const uint64_t declared = reader->info().declaredFaces;
+    if (declared > 0 && kBaseBytes + kInCoreBytesPerTriangle * declared <= cap) {
+      pending.indices.reserve(3 * declared);
+      pending.originalFace.reserve(declared);
+    }
     std::vector<Triangle> batch(kBatchTriangles);
     for (size_t got; (got = reader->read(batch)) > 0;) {
       for (size_t i = 0; i < got; ++i) {
@@ -78,6 +83,14 @@ JobReport runClusterJob(const ClusterJob& job) {
     }
   }
   if (outOfCore) {
+    if (job.output.empty() || !job.meshOut.empty()) {
+      constexpr uint64_t kMiB = uint64_t{1} << 20;
+      throw MemoryCapError(
+          reader->info().name + ": the mesh does not fit --memory " + std::to_string(cap / kMiB) +
+          " MiB in core, and " +
+          (job.output.empty() ? "without -o it cannot be built out of core" : "--mesh-out needs it in core") +
+          ": raise --memory" + (job.output.empty() ? " or give -o" : " or drop --mesh-out"));
+    }
     // A reader that holds the whole mesh (Draco) keeps it through the out-of-core read and bin
     // passes: the build gets the rest of the cap (its cells are sized from that).
     const uint64_t held = reader->heldBytes();
@@ -94,6 +107,7 @@ JobReport runClusterJob(const ClusterJob& job) {
     runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending),
                  left, report);
     report.seconds = secondsSince(start);
+    report.secondsBuilt = report.seconds - report.secondsWrite;
     return report;
   }
 
@@ -102,8 +116,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   mesh.info = reader->info();
   mesh.stats = reader->stats();
   if (deferred) {
-    mesh.positions.assign(positions.memory().begin(), positions.memory().end());
-    positions.release();
+    mesh.positions = positions.take();
     // The reader left non-finite vertices to us: drop the triangles touching them.
     size_t kept = 0;
     const size_t n = pending.originalFace.size();
@@ -148,12 +161,15 @@ JobReport runClusterJob(const ClusterJob& job) {
   report.components = hierarchy.stats.components;
   report.cells = 1;
   report.leaves = 1;
+  report.secondsBuilt = secondsSince(start);
   check("write", 0, report.triangles);
 
   phase = std::chrono::steady_clock::now();
-  report.fileBytes =
-      writeClusterFile(job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
-                       WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3, .threads = job.threads});
+  if (!job.output.empty())
+    report.fileBytes = writeClusterFile(
+        job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
+        WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3, .threads = job.threads});
+  if (!job.meshOut.empty()) writeReorderedMesh(mesh.view(), hierarchy, job.meshOut, job.meshOutOptions);
   report.secondsWrite = secondsSince(phase);
   report.seconds = secondsSince(start);
   return report;

@@ -69,7 +69,11 @@ struct JobProgress {
 
 struct ClusterJob {
   std::filesystem::path input;   // "-" = standard input (format detected from the content)
-  std::filesystem::path output;  // "-" = standard output
+  std::filesystem::path output;  // "-" = standard output; empty = none (then the mesh must fit in core)
+  // The reordered mesh (writeReorderedMesh: PLY or Draco by extension); empty = none. It needs the
+  // mesh in memory: a job that has to go out of core with it throws MemoryCapError.
+  std::filesystem::path meshOut;
+  MeshOutOptions meshOutOptions;
   BuildOptions build;
   FileOptions file;                // branching, recast rule (file.build and memoryCapBytes are filled in)
   LoadOptions load;                // weldPositions: also out of core (an external sort)
@@ -110,7 +114,10 @@ struct JobReport {
   uint64_t temporaryBytesPeak = 0;
   uint64_t memoryCap = 0;
   std::vector<std::pair<const char*, uint64_t>> peakRssAfter;  // process peak RSS after each phase
+  // Per pass; secondsMerge is the whole in-core build (buildHierarchy) for in-core jobs, the merge
+  // above the cells out of core. secondsBuilt: from the start to the finished hierarchy.
   double secondsRead = 0, secondsBin = 0, secondsCells = 0, secondsMerge = 0, secondsWrite = 0, seconds = 0;
+  double secondsBuilt = 0;
   BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
 };
 

@@ -18,8 +18,15 @@ void throwTempSpaceError(const std::filesystem::path& path, std::string_view rea
   throw TempSpaceError(message);
 }
 
-TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes) : maxBytes_(maxBytes) {
-  std::filesystem::path base = parent;
+TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes,
+                     std::function<void(const std::filesystem::path&)> created)
+    : parent_(parent), onCreated_(std::move(created)), maxBytes_(maxBytes) {}
+
+const std::filesystem::path& TempSpace::path() {
+  if (created_.load(std::memory_order_acquire)) return path_;
+  const std::lock_guard lock(createMutex_);
+  if (created_.load(std::memory_order_relaxed)) return path_;
+  std::filesystem::path base = parent_;
   if (base.empty()) {
     std::error_code ec;
     base = std::filesystem::temp_directory_path(ec);
@@ -30,9 +37,13 @@ TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes) : m
   std::string pattern = (base / "facetree-XXXXXX").string();
   if (!mkdtemp(pattern.data())) throwTempSpaceError(base, "cannot create temporary directory", errno);
   path_ = pattern;
+  created_.store(true, std::memory_order_release);
+  if (onCreated_) onCreated_(path_);
+  return path_;
 }
 
 TempSpace::~TempSpace() {
+  if (!created()) return;
   std::error_code ignored;  // a destructor cannot report; the files were the run's scratch only
   std::filesystem::remove_all(path_, ignored);
 }
@@ -43,7 +54,7 @@ std::filesystem::path TempSpace::newFile(std::string_view stem) {
   name += '-';
   name += std::to_string(n);
   name += ".spill";
-  return path_ / name;
+  return path() / name;
 }
 
 void TempSpace::reserve(uint64_t bytes) {
@@ -52,8 +63,9 @@ void TempSpace::reserve(uint64_t bytes) {
   do {
     next = current + bytes;
     if (maxBytes_ != 0 && (next > maxBytes_ || next < current))
-      throw TempSpaceError(path_.string() + ": temporary files would exceed --max-tmp " +
-                           std::to_string(maxBytes_) + " bytes");
+      throw TempSpaceError((created() ? path_ : parent_).string() +
+                           ": temporary files would exceed --max-tmp " + std::to_string(maxBytes_) +
+                           " bytes");
   } while (!current_.compare_exchange_weak(current, next, std::memory_order_relaxed));
   uint64_t peak = peak_.load(std::memory_order_relaxed);
   while (peak < next && !peak_.compare_exchange_weak(peak, next, std::memory_order_relaxed)) {

@@ -5,6 +5,8 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -25,18 +27,24 @@ class TempSpaceError : public TemporaryFileError {
 [[noreturn]] void throwTempSpaceError(const std::filesystem::path& path, std::string_view reason, int error);
 
 // The temporary directory of one run: created (mkdtemp) as `parent`/facetree-XXXXXX, parent defaulting to
-// std::filesystem::temp_directory_path(); the destructor removes it with everything inside. Accounts the
-// bytes its files hold (current and peak) and enforces maxBytes (0 = no limit). Thread-safe accounting.
+// std::filesystem::temp_directory_path(), when the first file is named in it, so a run that fits in
+// memory touches no disk; the destructor removes it with everything inside. Accounts the bytes its
+// files hold (current and peak) and enforces maxBytes (0 = no limit). Thread-safe.
 // It must outlive the SpillFiles made in it (they release their bytes to it when destroyed).
 class TempSpace {
  public:
-  // Throws TempSpaceError "PARENT: cannot create temporary directory: <strerror>".
-  explicit TempSpace(const std::filesystem::path& parent = {}, uint64_t maxBytes = 0);
+  // `created` is called with the directory once it exists (e.g. to register it for a signal
+  // handler's last-resort cleanup).
+  explicit TempSpace(const std::filesystem::path& parent = {}, uint64_t maxBytes = 0,
+                     std::function<void(const std::filesystem::path&)> created = {});
   ~TempSpace();
   TempSpace(const TempSpace&) = delete;
   TempSpace& operator=(const TempSpace&) = delete;
 
-  const std::filesystem::path& path() const { return path_; }
+  // The directory, created on the first call. Throws TempSpaceError "PARENT: cannot create
+  // temporary directory: <strerror>".
+  const std::filesystem::path& path();
+  bool created() const { return created_.load(std::memory_order_acquire); }
   uint64_t maxBytes() const { return maxBytes_; }
 
   // A unique path inside the directory, `stem`-N.spill; the file is not created. Thread-safe.
@@ -50,6 +58,10 @@ class TempSpace {
   uint64_t peakBytes() const { return peak_.load(std::memory_order_relaxed); }
 
  private:
+  std::filesystem::path parent_;
+  std::function<void(const std::filesystem::path&)> onCreated_;
+  std::mutex createMutex_;
+  std::atomic<bool> created_{false};
   std::filesystem::path path_;
   uint64_t maxBytes_;
   std::atomic<uint64_t> current_{0};

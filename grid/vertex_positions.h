@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -38,6 +39,8 @@ class VertexPositions {
   void finish();
   // Frees the in-memory positions (once copied).
   void release() { positions_ = {}; }  // (blocks stay readable while spilled)
+  // Hands over the in-memory positions (when inMemory()), leaving none.
+  std::vector<glm::vec3> take() { return std::exchange(positions_, {}); }
 
  private:
   void spillFull();

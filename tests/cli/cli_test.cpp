@@ -141,6 +141,38 @@ TEST(Cli, BuildIsByteIdenticalAcrossRuns) {
   for (const auto& path : {mesh, a, b}) std::filesystem::remove(path);
 }
 
+// One pipeline with and without --memory: a mesh that fits touches no temporary directory, and
+// what only an in-core build can give (no -o, --mesh-out) is refused with its reason when the cap
+// sends the job out of core, leaving nothing behind.
+TEST(Cli, BuildInCoreNeedsNoTemporaryDirectoryAndNamesWhatOutOfCoreCannotGive) {
+  const std::string mesh = scratch("fit.ply"), out = scratch("fit.fch"), meshOut = scratch("fit_out.ply");
+  ASSERT_EQ(runCli("gen terrain -n 30000 -o " + mesh).exitCode, 0);
+  const std::string missing = scratch("no-such-dir");
+  auto inCore = runCli("build " + mesh + " -o " + out + " --mesh-out " + meshOut + " --tmp " + missing);
+  ASSERT_EQ(inCore.exitCode, 0) << inCore.out;
+  EXPECT_NE(inCore.out.find("mode          in core"), std::string::npos) << inCore.out;
+  EXPECT_TRUE(std::filesystem::is_regular_file(out));
+  EXPECT_TRUE(std::filesystem::is_regular_file(meshOut));
+  EXPECT_FALSE(std::filesystem::exists(missing));
+  std::filesystem::remove(out);
+  std::filesystem::remove(meshOut);
+
+  auto noOutput = runCli("build " + mesh + " --memory 16M");
+  EXPECT_EQ(noOutput.exitCode, 5) << noOutput.out;
+  EXPECT_EQ(noOutput.out, "facetree: " + mesh +
+                              ": the mesh does not fit --memory 16 MiB in core, and without -o it cannot be "
+                              "built out of core: raise --memory or give -o\n");
+  auto withMeshOut = runCli("build " + mesh + " -o " + out + " --mesh-out " + meshOut + " --memory 16M");
+  EXPECT_EQ(withMeshOut.exitCode, 5) << withMeshOut.out;
+  EXPECT_EQ(withMeshOut.out,
+            "facetree: " + mesh +
+                ": the mesh does not fit --memory 16 MiB in core, and --mesh-out needs it in "
+                "core: raise --memory or drop --mesh-out\n");
+  EXPECT_FALSE(std::filesystem::exists(out));
+  EXPECT_FALSE(std::filesystem::exists(meshOut));
+  std::filesystem::remove(mesh);
+}
+
 TEST(Cli, RenderAndExportACut) {
   const std::string mesh = scratch("sphere_r.ply"), fch = scratch("sphere_r.fch"), png = scratch("cut.png"),
                     ply = scratch("cut.ply");

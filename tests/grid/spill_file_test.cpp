@@ -100,9 +100,33 @@ TEST(TempSpace, newFileGivesDistinctNamesInsideTheDirectoryWithoutCreatingThem) 
   EXPECT_FALSE(std::filesystem::exists(a));
 }
 
+TEST(TempSpace, createsNothingUntilAFileIsNamedAndReportsTheDirectoryOnce) {
+  ScratchDir parent;
+  std::vector<std::filesystem::path> reported;
+  {
+    TempSpace space(parent.path(), 0, [&](const std::filesystem::path& dir) { reported.push_back(dir); });
+    space.reserve(10);
+    space.release(10);
+    EXPECT_FALSE(space.created());
+    EXPECT_TRUE(parent.empty());
+    EXPECT_TRUE(reported.empty());
+    const auto file = space.newFile("faces");
+    EXPECT_TRUE(space.created());
+    ASSERT_EQ(reported.size(), 1u);
+    EXPECT_EQ(file.parent_path(), reported[0]);
+    EXPECT_TRUE(std::filesystem::is_directory(reported[0]));
+    space.newFile("edges");
+    EXPECT_EQ(space.path(), reported[0]);
+    EXPECT_EQ(reported.size(), 1u);
+  }
+  EXPECT_TRUE(parent.empty());
+  TempSpace unused(parent.path() / "missing");  // never created: no error, nothing to remove
+}
+
 TEST(TempSpace, reservePastMaxTmpThrowsTheExactMessageAndAccountsNothing) {
   ScratchDir parent;
   TempSpace space(parent.path(), 1000000);
+  space.path();
   space.reserve(600000);
   space.reserve(400000);  // exactly at the limit is allowed
   EXPECT_EQ(space.currentBytes(), 1000000u);
@@ -140,7 +164,7 @@ TEST(TempSpace, accountingFromTwoThreadsAddsUp) {
 TEST(TempSpace, missingParentNamesTheParentAndTheReason) {
   ScratchDir scratch;
   const auto parent = scratch.path() / "missing";
-  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
+  EXPECT_EQ(errorOf([&] { TempSpace(parent).path(); }),
             parent.string() + ": cannot create temporary directory: No such file or directory");
 }
 
@@ -148,9 +172,9 @@ TEST(TempSpace, parentUnderARegularFileNamesTheParentAndTheReason) {
   ScratchDir scratch;
   std::ofstream(scratch.path() / "file") << "not a directory";
   const auto parent = scratch.path() / "file";
-  EXPECT_EQ(errorOf([&] { TempSpace space(parent); }),
+  EXPECT_EQ(errorOf([&] { TempSpace(parent).newFile("faces"); }),
             parent.string() + ": cannot create temporary directory: Not a directory");
-  EXPECT_EQ(errorOf([&] { TempSpace space(parent / "below"); }),
+  EXPECT_EQ(errorOf([&] { TempSpace(parent / "below").path(); }),
             (parent / "below").string() + ": cannot create temporary directory: Not a directory");
 }
 
@@ -170,7 +194,7 @@ TEST(TempSpace, unwritableParentNamesTheParentAndTheReason) {
     constexpr uid_t kNobody = 65534;
     if (geteuid() == 0 && (setgroups(0, nullptr) != 0 || setgid(kNobody) != 0 || setuid(kNobody) != 0))
       std::_Exit(2);
-    const std::string error = errorOf([&] { TempSpace space(parent); });
+    const std::string error = errorOf([&] { TempSpace(parent).path(); });
     std::fprintf(stderr, "error: %s\n", error.c_str());
     std::_Exit(error == expected ? 0 : 1);
   };
