@@ -1,4 +1,4 @@
-// Records the out-of-core build spills (grid/out_of_core.cpp). Plain bytes, host order: they
+// Records the out-of-core build spills (grid/out_of_core.h). Plain bytes, host order: they
 // never leave the run's temporary directory.
 #pragma once
 
@@ -62,7 +62,7 @@ inline void forEachEdge(const FaceRecord& r, F&& f) {
 }
 
 // A face edge whose owner cell (the cell of its lower-id endpoint's position) is not the face's
-// own cell: sent to the owner, which alone sees every face on the edge (out_of_core.cpp).
+// own cell: sent to the owner, which alone sees every face on the edge (out_of_core_bin.cpp).
 struct GhostEdge {
   uint32_t low, high;  // vertex ids, low < high
   uint32_t cell;       // the face's cell

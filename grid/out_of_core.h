@@ -1,15 +1,22 @@
-// Internal to grid/: the out-of-core build (out_of_core.cpp and the files it is split into).
+// Internal to grid/: the out-of-core build as a list of stages over explicit data. runOutOfCore
+// (out_of_core.cpp) runs them in this order; each stage is one function in its own file, taking
+// what the stage before it made and handing on what the next one needs:
 //
-// Passes (DESIGN.md "Out of core"):
-//  1. read: triangles -> arrival spill (FaceRecord), bounding box;
-//  2. bin: centroid histogram -> CellGrid; distribution of the arrival spill into per-cell
-//     face spills, and of the edges whose owner cell is another cell into that cell's ghost spill;
-//  3. cells (2 threads): each cell in memory -> edge-connected components -> one in-core
-//     hierarchy per component (a leaf cluster), spilled as nodes and geometry; the cell also
-//     matches the ghosts of the edges it owns with its own faces: cross-cell dual edges;
-//  4. merge: mergeClusters above the leaf clusters, frames of the upper nodes;
-//  5. write: geometry in leaf order (exact boxes and side areas of the upper nodes accumulated
-//     on the way), then the nodes: upper nodes first, then each leaf's subtree.
+//   readArrival    out_of_core_read.cpp   reader -> ArrivalFaces (FaceRecords in arrival order;
+//                  out_of_core_weld.cpp   STL and --weld: corners welded by an external sort)
+//   binFaces       out_of_core_bin.cpp    ArrivalFaces -> BinnedFaces (a CellGrid, each cell's
+//                                         faces, and ghosts of the edges other cells own)
+//   buildCells     out_of_core_cells.cpp  BinnedFaces -> CellsOutput (each cell's leaf clusters:
+//                                         subtrees and geometry spilled, records and cross pairs)
+//   resolveLeafGraph out_of_core_edges.cpp  CellRecords -> LeafGraph (the leaves and the dual edges
+//                                         between them, cross-cell pairs resolved by sort joins)
+//   mergeAbove     out_of_core_upper.cpp  LeafGraph -> ClusterMergeResult (the engine above the
+//                                         leaves, Willmott 2000 sec. 5.5.2 on given clusters)
+//   writeOutOfCore out_of_core_write.cpp  everything -> the cluster file (geometry in leaf order,
+//                                         the upper nodes' exact boxes on the way, then the nodes)
+//
+// What each stage holds in memory is bounded by the plan (out_of_core_plan.h); whatever grows
+// with the input lives in spills (spill_file.h, bucket_spill.h).
 #pragma once
 
 #include <array>
@@ -24,11 +31,22 @@
 #include "grid/cell_grid.h"
 #include "grid/face_record.h"
 #include "grid/grid.h"
+#include "grid/out_of_core_plan.h"
 #include "grid/spill_file.h"
 #include "grid/temp_space.h"
 #include "grid/vertex_positions.h"
 
 namespace facetree {
+
+// What every stage shares: the job, its temporary space, the cap, the report it fills.
+struct StageContext {
+  const ClusterJob& job;
+  TempSpace& temp;
+  uint64_t memoryCap;
+  JobReport& report;
+  // Reports progress; throws Cancelled when the job's callback or hook asks to stop.
+  void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
+};
 
 // Triangles already read into memory when the job found the cap too small for in-core (the
 // reader continues from where they stop).
@@ -37,9 +55,38 @@ struct PendingTriangles {
   std::vector<uint64_t> originalFace;
 };
 
-// A run of a leaf's nodes as the file interleaves them (nodeBlocks, out_of_core_cells.cpp). One of
-// these lives per run from the cells pass to the write: 24 B, the spill handle without its raw size
-// (count FchNodes).
+// What the read learns of the whole mesh.
+struct MeshExtent {
+  glm::vec3 min{0.0f}, max{0.0f};
+  uint64_t triangles = 0;
+  uint64_t maxFace = 0;    // the largest input face index
+  glm::dvec3 origin{0.0};  // the box's centre: statistics are taken about it
+  double diagonalSquared = 1.0;
+};
+
+// read: every finite triangle as a FaceRecord, in arrival order.
+inline constexpr size_t kArrivalBufferBytes = size_t{1} << 20;  // its buffer (and the weld's)
+struct ArrivalFaces {
+  std::unique_ptr<BucketSpill> spill;  // one bucket
+  MeshExtent extent;
+};
+// `positions`: the reader's deferred vertex positions (ReadOptions::vertexSink), or null when the
+// reader fills in positions itself. The reader is released before the positions are resolved.
+ArrivalFaces readArrival(const StageContext& context, std::unique_ptr<TriangleReader> reader,
+                         VertexPositions* positions, PendingTriangles&& pending);
+// Rewrites the arrival spill's vertex ids: one per distinct position (out_of_core_weld.cpp).
+void weldArrival(const StageContext& context, ArrivalFaces& arrival);
+
+// bin: the cells, and each cell's faces and ghosts (edges it owns, seen from other cells' faces).
+struct BinnedFaces {
+  std::unique_ptr<CellGrid> grid;
+  std::unique_ptr<BucketSpill> faces;   // FaceRecord, bucket per cell
+  std::unique_ptr<BucketSpill> ghosts;  // GhostEdge, bucket per owner cell
+};
+BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit);
+
+// A run of a leaf's nodes as the file interleaves them (nodeBlocks). One lives per run from the
+// cells to the write: 24 B, the spill handle without its raw size (count FchNodes).
 struct NodeBlock {
   float key;       // the sort key (a band of log cost), non-increasing along the leaf
   uint32_t first;  // its first node, leaf-local
@@ -50,21 +97,23 @@ struct NodeBlock {
     return {offset, compressedBytes, static_cast<uint32_t>(count * sizeof(FchNode))};
   }
 };
+// How a leaf's nodes (file order, root first) are cut into runs. `minRun`: kMinNodeBlock, or more
+// when the input's nodes would make more runs than the budget holds (planLeaves); runs are at most
+// max(kNodeBlock, minRun) long.
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun = kMinNodeBlock);
 
 // One leaf cluster of the upper merge: a frontier cluster of a cell's component (or of the cell's
-// remaining small components together), with its spilled subtree and geometry. Its statistics and
-// box corners are kept apart (OutOfCoreBuild::leafStats_, leafCorners_): the stats go after the
-// merge, the corners are sorted into the write's leaf order in place. Plain data: a cell spills
-// its leaves' records as it ends (the cells pass holds none of them).
+// remaining small components together), with its spilled subtree and geometry. Plain data: a cell
+// spills its leaves' records as it ends.
 struct LeafCluster {
   uint32_t faceCount = 0;  // at most a cell's
   uint32_t nodeCount = 0;
   uint32_t vertexCount = 0;
   uint32_t height = 1;
-  uint32_t firstBlock = 0;  // its runs, blocks_[firstBlock, + blockCount), in file order
+  uint32_t firstBlock = 0;  // its runs, LeafGraph::runs[firstBlock, + blockCount), in file order
   uint32_t blockCount = 0;
-  uint32_t firstGeometry = 0;  // its geometry, geometry_[firstGeometry, + geometryCount): GeometryBlock
-  uint32_t geometryCount = 0;  // layout (out_of_core_cells.cpp)
+  uint32_t firstGeometry = 0;  // its geometry, LeafGraph::geometry[firstGeometry, + geometryCount)
+  uint32_t geometryCount = 0;
 };
 using BoxCorners = std::array<glm::vec3, 8>;  // of a leaf's root box: points for the upper frames
 
@@ -76,69 +125,6 @@ struct CrossPair {
   uint32_t ref[2];
   double shared;
 };
-
-// Memory model of the out-of-core passes (bytes), measured (see DESIGN.md "Out of core").
-inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;  // process, libraries, reader, codecs, writer
-// One cell's build at its peak: records 56 B, cell mesh and labels ~30, the group's copy ~30, the
-// in-core build of the group (the job's in-core model: 240 B per face and 24 per vertex), frontier
-// pieces and edge tables. Added up from those upper bounds: ~360 B for a manifold mesh, ~500 B for
-// specks (3 vertices per face). Measured with the metadata spilled, at 64 MiB and two workers
-// (cells pass peaks, the rest of the run below), a cell grows by ~200-260 B per face: fg_hawaii
-// (874k non-manifold edges) 44.4 / 49.8 / 55.9 / 61.9 MiB with cells of 21k / 32k / 48k / 64k
-// faces; matterport_cedar_creek 34.3 / 37.0 / 42.3 / 50.9; 400k two-triangle specks on a 700^2
-// grid 38.4 / 49.7 / 57.5 with 31k / 48k / 64k. 400 keeps 1.5x over the measured growth. It was 1200 while
-// the cells pass held the leaves' metadata and cross-cell pairs (a 55.8M scan peaked at ~1140 B per face
-// then, at 103 MiB with cells of 94k faces after the spills). Larger cells cut fewer clusters at their
-// borders: fg_hawaii at 64 MiB cut at 100,000 clusters fits 1.19 / 1.11 / 1.08 / 1.06x in core with cells
-// of 10.5k / 21k / 32k / 48k faces.
-inline constexpr uint64_t kCellBytesPerFace = 400;
-// With --metric garland: its clusters carry Garland's quadrics (184 B per stats slot) and its trees
-// are deep (the boxes' hull stacks grow with the height). fg_hawaii at 64 MiB in cells of 31k faces
-// peaked 7 MiB above the default metric's 52.8 MiB in the cells pass (~110 B per face of the two
-// cells at once) and passed the cap in the write.
-inline constexpr uint64_t kGarlandCellBytesPerFace = 560;
-// Cells are sized for this many at once whatever --threads says, so the output does not depend
-// on it: more threads build more cells at once only where the cap holds them (kMaxCellFaces).
-inline constexpr uint64_t kCellWorkers = 2;
-// Cells of at most this many faces (52 MiB by kCellBytesPerFace): enough for the quality
-// (fg_hawaii cut at 100,000 clusters: 1.035x in core in cells of 100k faces, 1.02x in cells of
-// 2M), small enough that large caps build several at once.
-inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
-inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
-// The least cap an out-of-core build accepts: the fixed part and one cell of kMinCellFaces.
-uint64_t outOfCoreMinimumBytes();
-// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
-// faces (and at least kMinFrontierFaces; larger when the leaf budget pays for fewer): enough pieces
-// per cell that the upper merge can balance the top of the tree across cell borders and that cuts
-// of a few leaves' size find pieces of that size. 32 with cells of 31k faces at 64 MiB (leaves of
-// ~1k faces) made cuts at 1,000 clusters fit 1.12x in core on a 1M terrain and 1.09x on
-// dragon_vrip; 128 (~250 faces): 1.04x and 0.97x (cuts at 100,000 unchanged or better).
-inline constexpr uint64_t kFrontiersPerCell = 128;
-inline constexpr uint64_t kMinFrontierFaces = 64;
-inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget (planMetadata)
-// The leaves' metadata is in memory from the merge to the write (planMetadata, out_of_core.cpp).
-// Per leaf at most (x86-64 sizes), the write's peak: record 32 B and its geometry handle 16, box
-// corners 96, its upper merge node (ClusterMergeNode) 144 and BoxAccumulator 176, the write's
-// tables ~70 (leaf order, parents, depths, positions, keys, the upper node's entry in the block
-// order), the hull points its upper node carries on for the frames (384). During the
-// merge instead: stats 128 twice (the input and mergeClusters' copy), its record 32 and heap 9,
-// and its leaf edges (~2 per leaf, 32 B + 16 B). Measured on fg_hawaii at 64 MiB: ~1.1 KB per
-// leaf with its runs (9 on average).
-inline constexpr uint64_t kLeafBytes = 1024;
-// With --metric garland a leaf also brings Garland's quadrics (GarlandQuadrics) to the upper merge,
-// which keeps its own copy (GarlandStats, the same 23 doubles).
-inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
-// Per node run: its NodeBlock 24 B, its entry in the write's block order 16 and position 4.
-inline constexpr uint64_t kRunBytes = 48;
-// resolveCrossEdges sorts the cells' pairs with up to three ExternalSorters holding memory at once,
-// each with this fraction of the cap (together an eighth: the cells pass has released far more).
-inline constexpr uint64_t kEdgeSortShare = 24;
-// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
-// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
-inline constexpr uint32_t kNodeBlock = 256;
-inline constexpr uint32_t kMinNodeBlock = 256;
-inline constexpr double kKeyBand = 0.25;
-
 // A face of a cell with an edge owned by another cell (it sent ghosts there), and its leaf: what
 // a CrossPair's face reference resolves through.
 struct BorderFace {
@@ -146,123 +132,66 @@ struct BorderFace {
   uint32_t leaf;  // cell-local leaf
 };
 
-// The state of one out-of-core run; the passes are its member functions, in
-// out_of_core.cpp (read, bin), out_of_core_cells.cpp (cells) and out_of_core_write.cpp (merge, write).
-class OutOfCoreBuild {
- public:
-  // `positions`: the reader's deferred vertex positions (ReadOptions::vertexSink), or null when
-  // the reader fills in positions itself.
-  OutOfCoreBuild(const ClusterJob& job, TempSpace& temp, VertexPositions* positions, uint64_t memoryCap,
-                 JobReport& report);
-  ~OutOfCoreBuild();
-  void run(std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending);
-
- private:
-  // Buffer of the arrival (and triangle reference) spills.
-  static constexpr size_t kArrivalBufferBytes = size_t{1} << 20;
-  void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
-  void readAll(TriangleReader& reader, PendingTriangles&& pending);
-  void appendArrival(const FaceRecord& record);
-  // FaceRecord from vertex ids, face id and corner positions; false (counted) if non-finite.
-  bool appendResolved(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3]);
-  void resolveSpilledPositions();
-  // Rewrites the arrival spill's vertex ids: one per distinct position (out_of_core_weld.cpp).
-  void weldArrival();
-  void binAndDistribute();
-  void buildCells();
-  void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
-  void planMetadata();
-  // The most a leaf of `faces` faces costs from the merge to the write (kLeafBytes, kRunBytes).
-  uint64_t leafBytes(uint64_t faces) const;
-  // The part of it that does not depend on the faces (kLeafBytes, kGarlandLeafBytes).
-  uint64_t leafFixedBytes() const;
-  // kCellBytesPerFace, or kGarlandCellBytesPerFace for --metric garland.
-  uint64_t cellBytesPerFace() const;
-  // The leaf metadata a cell of `faces` faces may make: its share of leafBudget_.
-  uint64_t cellLeafAllowance(uint64_t faces) const;
-  // The upper tree recast to the file's branching factor (identity for 2), per binary node in
-  // creation order: whether it stays, and its children (kLeafChild | leaf, or a kept node).
-  struct UpperRecast {
-    std::vector<uint8_t> kept;
-    std::vector<std::array<uint32_t, kMaxBranching>> children;
-    std::vector<uint8_t> childCount;
-    std::vector<uint8_t> joined;  // joins disjoint surfaces (itself or a node folded into it)
-  };
-  UpperRecast recastUpper(std::span<const uint32_t> leafOrder, std::span<const uint32_t> firstLeaf,
-                          std::span<const uint32_t> leavesUnder) const;
-  void resolveCrossEdges();
-  void mergeAbove();
-  void write();
-
-  const ClusterJob& job_;
-  uint64_t memoryCap_;
-  JobReport& report_;
-  TempSpace& temp_;
-  VertexPositions* positions_;
-  SpillCodec codec_;
-  std::unique_ptr<BucketSpill> refs_;  // triangles waiting for spilled positions (TriangleRef)
-  uint64_t skipped_ = 0;               // triangles dropped for a non-finite vertex
-  bool soup_ = false;                  // the reader stopped welding (STL): weldArrival() does it
-  // read
-  std::unique_ptr<BucketSpill> arrival_;
-  glm::vec3 min_{0.0f}, max_{0.0f};
-  uint64_t triangles_ = 0;
-  uint64_t maxFace_ = 0;
-  glm::dvec3 origin_{0.0};
-  double diagonalSquared_ = 1.0;
-  // bin
-  std::unique_ptr<CellGrid> grid_;
-  uint64_t cellFaceLimit_ = 0;
-  unsigned cellWorkers_ = 1;    // cells built at once (run(): as many as the cap holds, up to --threads)
-  uint64_t frontierFaces_ = 0;  // leaf clusters: the frontier of each component's hierarchy at this size
-  uint64_t leafBudget_ = 0;     // bytes of leaf metadata, all cells together (cellLeafAllowance)
-  uint32_t minNodeRun_ = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs
-  uint64_t topRuns_ = 0;                 // runs at the top of a leaf (topRunsPerLeaf)
-  std::unique_ptr<BucketSpill> cellFaces_;
-  std::unique_ptr<BucketSpill> ghosts_;
-  // cells
-  std::unique_ptr<SpillFile> nodeSpill_;
-  std::unique_ptr<SpillFile> geometrySpill_;
-  // The dual edges a cell finds and its table of border faces grow with the input (fg_hawaii: 445k
-  // cross-cell pairs, 24 B each, and their faces): they go to disk as the cell ends, and
-  // resolveCrossEdges reads them back through external sorts (out_of_core_edges.cpp). In memory
-  // only their handles: O(cells).
-  std::unique_ptr<SpillFile> pairSpill_;    // CrossPair blocks
-  std::unique_ptr<SpillFile> borderSpill_;  // BorderFace blocks, one per cell
-  // What a cell made, spilled as it ends (leafSpill_): its leaves (firstBlock, firstGeometry
-  // index its own arrays), their stats and corners, their runs and geometry handles. In memory
-  // from resolveCrossEdges on, when the cells' share of the cap is free (planMetadata).
-  std::unique_ptr<SpillFile> leafSpill_;
-  struct CellResult {
-    uint32_t leafCount = 0;
-    SpillBlock leaves{}, stats{}, garland{}, corners{}, blocks{}, geometry{};  // rawBytes 0: empty
-    std::vector<SpillBlock> pairs;  // its CrossPairs (leaf-to-leaf ones within the cell summed)
-    SpillBlock border{};            // its BorderFaces by face (rawBytes 0: none)
-    uint64_t components = 0;
-  };
-  std::vector<CellResult> cells_;
-  // merge
-  std::vector<LeafCluster> leaves_;  // global leaf ids: cells in order, their leaves in order
-  std::vector<SurfaceStats> leafStats_;
-  std::vector<GarlandQuadrics> leafGarland_;  // --metric garland only
-  std::vector<BoxCorners> leafCorners_;
-  std::vector<NodeBlock> blocks_;     // every leaf's runs
-  std::vector<SpillBlock> geometry_;  // every leaf's geometry blocks
-  std::vector<ClusterEdge> edges_;
-  ClusterMergeResult upper_;
+// The geometry block layout of the geometry spill: the header, then newVertices positions, then
+// 3 * triangles leaf-local indices, then triangles input face ids (uint64).
+struct GeometryBlockHeader {
+  uint32_t triangles;
+  uint32_t newVertices;
 };
 
-// Returns the heap's free pages to the system between passes (malloc_trim on glibc).
+// cells: what the write reads back (each leaf's nodes in runs, its geometry in blocks) ...
+struct LeafSubtrees {
+  std::unique_ptr<SpillFile> nodes;     // NodeBlock runs of FchNode, leaf-local references
+  std::unique_ptr<SpillFile> geometry;  // GeometryBlockHeader blocks
+};
+// ... and what the leaf graph is made of, spilled per cell.
+struct CellResult {
+  uint32_t leafCount = 0;
+  SpillBlock leaves{}, stats{}, garland{}, corners{}, blocks{}, geometry{};  // rawBytes 0: empty
+  std::vector<SpillBlock> pairs;  // its CrossPairs (leaf-to-leaf ones within the cell summed)
+  SpillBlock border{};            // its BorderFaces by face (rawBytes 0: none)
+  uint64_t components = 0;
+};
+struct CellRecords {
+  std::unique_ptr<SpillFile> leaves;  // per cell: LeafCluster, stats, quadrics, corners, runs, geometry
+  std::unique_ptr<SpillFile> pairs;   // CrossPair blocks
+  std::unique_ptr<SpillFile> border;  // BorderFace blocks, one per cell
+  std::vector<CellResult> cells;
+};
+struct CellsOutput {
+  LeafSubtrees subtrees;
+  CellRecords records;
+};
+CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                       BinnedFaces&& binned);
+
+// The leaves of every cell in one array each (global leaf ids: cells in order, their leaves in
+// order) and one summed dual edge per pair of neighbouring leaves.
+struct LeafGraph {
+  std::vector<LeafCluster> leaves;
+  std::vector<SurfaceStats> stats;
+  std::vector<GarlandQuadrics> garland;  // --metric garland only
+  std::vector<BoxCorners> corners;
+  std::vector<NodeBlock> runs;       // every leaf's node runs
+  std::vector<SpillBlock> geometry;  // every leaf's geometry blocks
+  std::vector<ClusterEdge> edges;
+};
+LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records);
+
+// The engine's merge above the leaf clusters; takes the graph's stats, quadrics and edges.
+ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& extent, LeafGraph& graph);
+
+// The cluster file (context.job.output).
+void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
+                    const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
+
+// Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();
 
-// Runs the out-of-core build from `reader` (released after the read pass), `pending` holding the
-// triangles the job had already read into memory; fills `report`.
+// Runs the out-of-core build from `reader`, `pending` holding the triangles the job had already
+// read into memory; fills `report`.
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report);
-
-// `minRun`: kMinNodeBlock, or more when the input's nodes would make more runs than the budget
-// holds (planned in run()); runs are at most max(kNodeBlock, minRun) long.
-std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun = kMinNodeBlock);
 
 }  // namespace facetree

@@ -1,6 +1,8 @@
-// The out-of-core build, cells pass: each cell's faces in memory, split into edge-connected
-// components, one in-core hierarchy per component (a leaf cluster of the upper merge), spilled;
-// and the cross-cell dual edges of the edges the cell owns (out_of_core.h).
+// The out-of-core build, cells stage: each cell's faces in memory, split into edge-connected
+// components, one in-core hierarchy per group of components cut at its frontier (the leaf
+// clusters of the merge above the cells), spilled; and the cross-cell dual edges of the edges the
+// cell owns (out_of_core.h). Cells run on as many workers as the plan allows, each building its
+// hierarchies on one thread, so the output does not depend on --threads.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -70,11 +72,6 @@ struct Incidence {
     if (cell != o.cell) return cell < o.cell;
     return ref < o.ref;
   }
-};
-
-struct GeometryBlockHeader {
-  uint32_t triangles;
-  uint32_t newVertices;
 };
 
 template <class T>
@@ -168,24 +165,154 @@ std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRu
   return blocks;
 }
 
-void OutOfCoreBuild::buildCells() {
+namespace {
+
+// Dual edges between two of a cell's leaves, summed per pair of leaves before they are spilled.
+struct LocalPair {
+  uint32_t a, b;  // a < b, cell-local leaves
+  double shared;
+  bool operator<(const LocalPair& o) const {
+    return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
+  }
+};
+
+// A cell as an indexed mesh: the input's vertex ids made local.
+struct CellMesh {
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  MeshView view() const { return {positions, indices}; }
+};
+
+// What one cell makes, spilled as the cell ends.
+struct CellLeaves {
+  std::vector<LeafCluster> leaves;
+  std::vector<SurfaceStats> stats;
+  std::vector<GarlandQuadrics> garland;  // --metric garland only
+  std::vector<BoxCorners> corners;
+  std::vector<NodeBlock> runs;
+  std::vector<SpillBlock> geometry;
+  std::vector<uint32_t> leafOf;  // per face of the cell
+};
+
+// The faces of a cell grouped for its hierarchies: groupFaces[start[g], start[g + 1]) is group g.
+struct FaceGroups {
+  std::vector<uint32_t> start;
+  std::vector<uint32_t> groupFaces;
+  uint64_t spare = 0;  // the cell's leaf allowance left for the groups' frontiers
+};
+
+// The subtree of `ref` (a node of `component`, or a face) as a hierarchy of its own over the faces
+// component.faceOrder[first, + count).
+Hierarchy subtreeOf(const Hierarchy& component, uint32_t ref, uint32_t first, uint32_t count,
+                    std::vector<uint32_t>& stack, std::vector<uint32_t>& collected,
+                    std::vector<uint32_t>& remap) {
+  Hierarchy sub;
+  sub.stats.height = 1;
+  if (!(ref & kFaceChild)) {
+    collected.clear();
+    stack.assign(1, ref);
+    while (!stack.empty()) {
+      const uint32_t i = stack.back();
+      stack.pop_back();
+      collected.push_back(i);
+      for (const uint32_t c : component.nodes[i].child)
+        if (!(c & kFaceChild)) stack.push_back(c);
+    }
+    std::sort(collected.begin(), collected.end());  // parents before children, as stored
+    remap.resize(component.nodes.size());
+    for (uint32_t k = 0; k < collected.size(); ++k) remap[collected[k]] = k;
+    sub.nodes.reserve(collected.size());
+    sub.boxes.reserve(collected.size());
+    for (const uint32_t i : collected) {
+      Node node = component.nodes[i];
+      node.first -= first;
+      for (uint32_t& c : node.child)
+        c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
+      sub.nodes.push_back(node);
+      sub.boxes.push_back(component.boxes[i]);
+    }
+    std::vector<uint32_t> depth(sub.nodes.size(), 1);
+    for (uint32_t i = 0; i < sub.nodes.size(); ++i)
+      for (const uint32_t c : sub.nodes[i].child) {
+        if (c & kFaceChild)
+          sub.stats.height = std::max(sub.stats.height, depth[i] + 1);
+        else
+          depth[c] = depth[i] + 1;
+      }
+  }
+  sub.faceOrder.resize(count);
+  for (uint32_t k = 0; k < count; ++k) sub.faceOrder[k] = k;
+  return sub;
+}
+
+// The 8 corners of a leaf's root box (its single triangle's corners, repeated, for a lone face).
+BoxCorners rootCorners(const ClusterFile& file) {
+  BoxCorners corners;
+  if (file.nodes.empty()) {
+    for (int c = 0; c < 8; ++c) corners[c] = file.vertices[file.indices[c % 3]];
+    return corners;
+  }
+  const NodeBox& box = file.nodes[0].box;
+  const glm::mat3 axes = glm::mat3_cast(box.orientation);
+  for (int c = 0; c < 8; ++c) {
+    glm::vec3 p = box.center;
+    for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
+    corners[c] = p;
+  }
+  return corners;
+}
+
+class CellsStage {
+ public:
+  CellsStage(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+             BinnedFaces&& in)
+      : context_(context), plan_(plan), extent_(extent), in_(std::move(in)) {}
+  CellsOutput run();
+
+ private:
+  void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  void loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  std::vector<GhostEdge> loadGhosts(uint32_t cell, SpillCodec& codec);
+  // Components alone while the cell's leaf allowance pays for them, the rest as one group.
+  FaceGroups groupComponents(uint32_t components, std::vector<uint32_t>& label) const;
+  // One hierarchy per group, cut at its frontier: the cell's leaf clusters, spilled.
+  void buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
+                   std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out);
+  // The dual edges between two leaves of the cell (FaceAdjacency::Share of each shared edge).
+  static void pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
+                         std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs);
+  // The cross-cell dual edges of the edges this cell owns (its ghosts against its own faces), and
+  // the faces that sent ghosts elsewhere.
+  void crossPairs(uint32_t cell, std::span<const FaceRecord> records, std::vector<GhostEdge>&& ghosts,
+                  std::span<const uint32_t> leafOf, std::vector<CrossPair>& pairs,
+                  std::vector<BorderFace>& border) const;
+
+  const StageContext& context_;
+  const OutOfCorePlan& plan_;
+  const MeshExtent& extent_;
+  BinnedFaces in_;
+  CellsOutput out_;
+};
+
+}  // namespace
+
+CellsOutput CellsStage::run() {
   // The write reads the geometry once, in large blocks, and gives them back as it goes, while the
   // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
-  // scattered over the file: punching them out one by one made the 55.8M-face dragon's write wait
-  // on the file system (108.5 s against 39.9 s), for no lower peak (the peak is the end of the cells).
-  // Node runs are floats and small integers in 132-byte records: shuffled by byte place they
-  // take 19% less (14M-face dragon: 999 MB against 1,234). Face records are not: consecutive
-  // faces repeat whole corner positions, which zstd matches only while the bytes stay together
-  // (the cells' spill: 439 MB shuffled against 402).
-  nodeSpill_ = std::make_unique<SpillFile>(temp_, "nodes", /*discardable=*/false, sizeof(FchNode));
-  // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte: 31%
-  // fewer bytes (14M-face dragon: 142 MB against 207).
-  geometrySpill_ = std::make_unique<SpillFile>(temp_, "geometry", /*discardable=*/true, 4);
-  pairSpill_ = std::make_unique<SpillFile>(temp_, "pairs");
-  leafSpill_ = std::make_unique<SpillFile>(temp_, "leaves");
-  borderSpill_ = std::make_unique<SpillFile>(temp_, "border");
-  const uint32_t cells = grid_->cellCount();
-  cells_.assign(cells, {});
+  // scattered over the file, so they are not given back one by one (the file system's hole
+  // punching would dominate the write, for no lower peak: the peak is the end of the cells).
+  // Node runs are floats and small integers in 132-byte records, which shuffled by byte place
+  // (SpillCodec) compress better; face records are not (consecutive faces repeat whole corner
+  // positions, which zstd matches only while the bytes stay together).
+  out_.subtrees.nodes =
+      std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/false, sizeof(FchNode));
+  // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
+  out_.subtrees.geometry = std::make_unique<SpillFile>(context_.temp, "geometry", /*discardable=*/true, 4);
+  out_.records.pairs = std::make_unique<SpillFile>(context_.temp, "pairs");
+  out_.records.leaves = std::make_unique<SpillFile>(context_.temp, "leaves");
+  out_.records.border = std::make_unique<SpillFile>(context_.temp, "border");
+  const uint32_t cells = in_.grid->cellCount();
+  out_.records.cells.assign(cells, {});
   std::atomic<uint32_t> next{0};
   std::atomic<uint64_t> facesDone{0};
   std::atomic<bool> stop{false};
@@ -200,7 +327,7 @@ void OutOfCoreBuild::buildCells() {
         facesDone += records.size();
         // Progress (and cancellation) from the calling thread only: the callback need not be
         // thread-safe. The other worker notices `stop`.
-        if (reportProgress) checkCancel("cells", facesDone, triangles_);
+        if (reportProgress) context_.checkCancel("cells", facesDone, extent_.triangles);
       }
     } catch (...) {
       std::lock_guard lock(failureMutex);
@@ -208,312 +335,300 @@ void OutOfCoreBuild::buildCells() {
       stop = true;
     }
   };
-  const unsigned threads = std::clamp(cellWorkers_, 1u, std::max(1u, cells));
+  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, cells));
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
   worker(true);
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
-  cellFaces_.reset();
-  grid_.reset();  // its 8 MiB table serves the owner-cell lookups of the cells pass only
-  ghosts_.reset();
+  in_ = {};  // the grid's 8 MiB table serves the owner-cell lookups of this stage only
+  return std::move(out_);
 }
 
-void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
-  CellResult& result = cells_[cell];
-  // Dual edges between two of this cell's leaves (summed below), and the cross-cell ones.
-  struct LocalPair {
-    uint32_t a, b;  // a < b, cell-local leaves
-    double shared;
-    bool operator<(const LocalPair& o) const {
-      return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
-    }
-  };
-  std::vector<LocalPair> localPairs;
-  std::vector<CrossPair> pairs;
-  std::vector<BorderFace> border;
-  // Its leaves (spilled at the end).
-  std::vector<LeafCluster> leaves;
-  std::vector<SurfaceStats> leafStats;
-  std::vector<GarlandQuadrics> leafGarland;  // --metric garland only
-  std::vector<BoxCorners> leafCorners;
-  std::vector<NodeBlock> runs;
-  std::vector<SpillBlock> geometry;
+void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
   records.clear();
-  records.reserve(cellFaces_->records(cell));
-  cellFaces_->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+  records.reserve(in_.faces->records(cell));
+  in_.faces->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
     const size_t at = records.size();
     records.resize(at + bytes.size() / sizeof(FaceRecord));
     std::memcpy(records.data() + at, bytes.data(), bytes.size());
   });
-  const auto faces = static_cast<uint32_t>(records.size());
-  // The ghosts of the edges this cell owns (other cells' faces on them), and their edges' keys.
-  std::vector<GhostEdge> ghosts(ghosts_->records(cell));
-  {
-    size_t at = 0;
-    ghosts_->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
-      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
-      at += bytes.size();
-    });
-  }
-  std::vector<uint64_t> ghostKeys(ghosts.size());
-  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
-  std::sort(ghostKeys.begin(), ghostKeys.end());
-  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
+}
 
-  std::vector<uint32_t> leafOf(faces, 0);
+std::vector<GhostEdge> CellsStage::loadGhosts(uint32_t cell, SpillCodec& codec) {
+  std::vector<GhostEdge> ghosts(in_.ghosts->records(cell));
+  size_t at = 0;
+  in_.ghosts->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+    std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
+    at += bytes.size();
+  });
+  return ghosts;
+}
+
+void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
+  CellResult& result = out_.records.cells[cell];
+  loadFaces(cell, codec, records);
+  const auto faces = static_cast<uint32_t>(records.size());
+
+  CellLeaves leaves;
+  leaves.leafOf.assign(faces, 0);
+  std::vector<LocalPair> localPairs;
   if (faces > 0) {
-    // The cell as an indexed mesh (vertex ids of the input made local).
-    std::vector<glm::vec3> positions;
-    std::vector<uint32_t> indices(size_t{3} * faces);
+    CellMesh mesh;
+    mesh.indices.resize(size_t{3} * faces);
     {
       VertexMap map(size_t{3} * faces);
       for (uint32_t f = 0; f < faces; ++f) {
         for (int k = 0; k < 3; ++k) {
           bool inserted = false;
           const uint32_t id =
-              map.find(records[f].vertex[k], static_cast<uint32_t>(positions.size()), inserted);
-          if (inserted) positions.push_back(records[f].corner(k));
-          indices[size_t{3} * f + k] = id;
+              map.find(records[f].vertex[k], static_cast<uint32_t>(mesh.positions.size()), inserted);
+          if (inserted) mesh.positions.push_back(records[f].corner(k));
+          mesh.indices[size_t{3} * f + k] = id;
         }
       }
     }
     // Which faces share which edges, found once: for the components, each group's hierarchy, each
     // leaf's statistics and the pairs of leaves.
-    FaceAdjacency adjacency = buildFaceAdjacency(MeshView{positions, indices});
+    FaceAdjacency adjacency = buildFaceAdjacency(mesh.view());
     std::vector<uint32_t> label;
     const uint32_t components = faceComponents(adjacency, label);
     result.components = components;
-
-    // The cell's leaves cost at most its allowance of metadata (its faces' share, planMetadata;
-    // leafBytes bounds a leaf's cost by its faces). Groups: every component its own, or the largest
-    // ones (fewer than kMaxLeavesPerCell) and the rest together, as many as the allowance pays for;
-    // what is left is shared among the groups by faces, for their frontiers (frontierOf).
-    const auto leafBytes = [this](uint64_t n) { return this->leafBytes(n); };
-    const uint64_t allowance = cellLeafAllowance(faces);
-    std::vector<uint32_t> groupOf(components);
-    uint32_t groups = components;
-    uint64_t groupBytes = 0;  // the groups' leaves before their frontiers split them
-    std::vector<uint32_t> size(components, 0);
-    for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
-    std::vector<uint32_t> order(components);
-    for (uint32_t c = 0; c < components; ++c) order[c] = c;
-    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
-    // kept: the largest that stay alone (all of them, if so many fit); the rest is one group.
-    uint32_t kept = 0;
-    {
-      uint64_t keptBytes = 0, keptFaces = 0;
-      const uint32_t most = components <= kMaxLeavesPerCell ? components : kMaxLeavesPerCell - 1;
-      for (uint32_t k = 0;; ++k) {
-        const uint64_t cost = keptBytes + (k < components ? leafBytes(faces - keptFaces) : 0);
-        if (k > 0 && cost > allowance) break;  // k = 0 (one leaf) is always taken
-        kept = k, groupBytes = cost;
-        if (k == most) break;
-        keptBytes += leafBytes(size[order[k]]);
-        keptFaces += size[order[k]];
-      }
-    }
-    if (kept < components) {
-      std::vector<bool> alone(components, false);
-      for (uint32_t i = 0; i < kept; ++i) alone[order[i]] = true;
-      groups = 0;
-      for (uint32_t c = 0; c < components; ++c)
-        if (alone[c]) groupOf[c] = groups++;
-      for (uint32_t c = 0; c < components; ++c)
-        if (!alone[c]) groupOf[c] = groups;
-      ++groups;
-    } else {
-      for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
-    }
-    std::vector<uint32_t> start(groups + 1, 0);
-    for (uint32_t f = 0; f < faces; ++f) ++start[groupOf[label[f]] + 1];
-    for (uint32_t g = 0; g < groups; ++g) start[g + 1] += start[g];
-    std::vector<uint32_t> groupFaces(faces);
-    {
-      std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-      for (uint32_t f = 0; f < faces; ++f) {
-        const uint32_t g = groupOf[label[f]];
-        leafOf[f] = g;
-        groupFaces[fill[g]++] = f;
-      }
-    }
+    const FaceGroups groups = groupComponents(components, label);
+    for (uint32_t f = 0; f < faces; ++f) leaves.leafOf[f] = label[f];
     label = {};
-    size = {};
-    order = {};
-    const uint64_t spare = allowance > groupBytes ? allowance - groupBytes : 0;
+    buildLeaves(mesh, adjacency, groups, records, codec, leaves);
+    pairLeaves(mesh, adjacency, leaves.leafOf, localPairs);
+  }
 
-    // Each component's hierarchy is cut at its frontier of clusters of at most frontierFaces_
-    // faces: those are the leaf clusters (the upper merge redoes what lies above them, with
-    // the neighbours across the cell's borders in view, and with pieces of similar sizes).
-    std::vector<uint32_t> subId(positions.size(), kNoVertex);
-    std::vector<glm::vec3> subPositions;
-    std::vector<uint32_t> subIndices, leafFaces, frontier, remap, stack, collected;
-    std::vector<uint64_t> subFaces;
-    std::vector<std::byte> block;
-    // A mesh of the given cell faces, in that order.
-    const auto makeMesh = [&](std::span<const uint32_t> cellFaces) {
-      subPositions.clear();
-      subIndices.clear();
-      subFaces.clear();
-      for (const uint32_t f : cellFaces) {
-        for (int k = 0; k < 3; ++k) {
-          uint32_t& id = subId[indices[size_t{3} * f + k]];
-          if (id == kNoVertex) {
-            id = static_cast<uint32_t>(subPositions.size());
-            subPositions.push_back(positions[indices[size_t{3} * f + k]]);
-          }
-          subIndices.push_back(id);
-        }
-        subFaces.push_back(records[f].face);
-      }
-      for (const uint32_t f : cellFaces)
-        for (int k = 0; k < 3; ++k) subId[indices[size_t{3} * f + k]] = kNoVertex;
-      return MeshView{subPositions, subIndices};
-    };
-    // The cells already run on the job's threads: each builds on its own (the same hierarchy).
-    BuildOptions cellBuild = job_.build;
-    cellBuild.threads = 1;
-    for (uint32_t g = 0; g < groups; ++g) {
-      const std::span<const uint32_t> members(groupFaces.data() + start[g], start[g + 1] - start[g]);
-      Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, cellBuild);
-      // Its share of the allowance left: the groups' shares sum to at most `spare`.
-      const auto share = static_cast<uint64_t>(double(spare) * double(members.size()) / double(faces));
-      frontierOf(component, frontierFaces_, share, leafBytes, frontier);
-      const auto firstOf = [&](uint32_t ref) {
-        return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
-      };
-      std::sort(frontier.begin(), frontier.end(),
-                [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
+  std::vector<CrossPair> pairs;
+  std::vector<BorderFace> border;
+  crossPairs(cell, records, loadGhosts(cell, codec), leaves.leafOf, pairs, border);
 
-      for (const uint32_t ref : frontier) {
-        // The frontier cluster's subtree as a hierarchy of its own.
-        Hierarchy sub;
-        uint32_t first = firstOf(ref), count = 1;
-        if (!(ref & kFaceChild)) {
-          count = component.nodes[ref].count;
-          collected.clear();
-          stack.assign(1, ref);
-          while (!stack.empty()) {
-            const uint32_t i = stack.back();
-            stack.pop_back();
-            collected.push_back(i);
-            for (const uint32_t c : component.nodes[i].child)
-              if (!(c & kFaceChild)) stack.push_back(c);
-          }
-          std::sort(collected.begin(), collected.end());  // parents before children, as stored
-          remap.resize(component.nodes.size());
-          for (uint32_t k = 0; k < collected.size(); ++k) remap[collected[k]] = k;
-          sub.nodes.reserve(collected.size());
-          sub.boxes.reserve(collected.size());
-          for (const uint32_t i : collected) {
-            Node node = component.nodes[i];
-            node.first -= first;
-            for (uint32_t& c : node.child)
-              c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
-            sub.nodes.push_back(node);
-            sub.boxes.push_back(component.boxes[i]);
-          }
-          std::vector<uint32_t> depth(sub.nodes.size(), 1);
-          uint32_t height = 1;
-          for (uint32_t i = 0; i < sub.nodes.size(); ++i)
-            for (const uint32_t c : sub.nodes[i].child) {
-              if (c & kFaceChild)
-                height = std::max(height, depth[i] + 1);
-              else
-                depth[c] = depth[i] + 1;
-            }
-          sub.stats.height = height;
-        } else {
-          sub.stats.height = 1;
-        }
-        sub.faceOrder.resize(count);
-        for (uint32_t k = 0; k < count; ++k) sub.faceOrder[k] = k;
-        leafFaces.resize(count);
-        for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
+  const auto spill = [&](const auto& items) {
+    return items.empty() ? SpillBlock{} : out_.records.leaves->append(std::as_bytes(std::span(items)), codec);
+  };
+  result.leafCount = static_cast<uint32_t>(leaves.leaves.size());
+  result.leaves = spill(leaves.leaves);
+  result.stats = spill(leaves.stats);
+  result.garland = spill(leaves.garland);
+  result.corners = spill(leaves.corners);
+  result.blocks = spill(leaves.runs);
+  result.geometry = spill(leaves.geometry);
 
-        const auto leafIndex = static_cast<uint32_t>(leaves.size());
-        for (const uint32_t f : leafFaces) leafOf[f] = leafIndex;
-        const MeshView leafMesh = makeMesh(leafFaces);
-        LeafCluster& leaf = leaves.emplace_back();
-        leaf.faceCount = count;
-        leaf.height = sub.stats.height;
-        SurfaceStats& stats = leafStats.emplace_back(surfaceStats(leafMesh, adjacency, leafFaces, origin_));
-        stats.height = leaf.height;
-        if (job_.build.metric == Metric::Garland) leafGarland.push_back(garlandQuadrics(leafMesh, origin_));
-        BoxCorners& corners = leafCorners.emplace_back();
-        const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, job_.file);
-        leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
-        leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
-        if (!file.nodes.empty()) {
-          const NodeBox& box = file.nodes[0].box;
-          const glm::mat3 axes = glm::mat3_cast(box.orientation);
-          for (int c = 0; c < 8; ++c) {
-            glm::vec3 p = box.center;
-            for (int a = 0; a < 3; ++a)
-              p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
-            corners[c] = p;
-          }
-        } else {
-          for (int c = 0; c < 8; ++c) corners[c] = file.vertices[file.indices[c % 3]];
-        }
-        leaf.firstBlock = static_cast<uint32_t>(runs.size());
-        for (NodeBlock b : nodeBlocks(file.nodes, minNodeRun_)) {
-          block.clear();
-          appendBytes(block, file.nodes.data() + b.first, b.count);
-          const SpillBlock spill = nodeSpill_->append(block, codec);
-          b.offset = spill.offset;
-          b.compressedBytes = spill.compressedBytes;
-          runs.push_back(b);
-          ++leaf.blockCount;
-        }
-        leaf.firstGeometry = static_cast<uint32_t>(geometry.size());
-        const size_t triangles = file.originalFace.size();
-        uint32_t verticesSeen = 0;
-        for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
-          const size_t n = std::min(kTrianglesPerBlock, triangles - at);
-          uint32_t end = verticesSeen;
-          for (size_t i = 3 * at; i < 3 * (at + n); ++i) end = std::max(end, file.indices[i] + 1);
-          const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
-          block.clear();
-          appendBytes(block, &header, 1);
-          appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
-          appendBytes(block, file.indices.data() + 3 * at, 3 * n);
-          appendBytes(block, file.originalFace.data() + at, n);
-          geometry.push_back(geometrySpill_->append(block, codec));
-          ++leaf.geometryCount;
-          verticesSeen = end;
-        }
-      }
+  // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
+  // instead of one per mesh edge between them (most of a cell's pairs).
+  std::sort(localPairs.begin(), localPairs.end());
+  for (size_t i = 0; i < localPairs.size();) {
+    const uint32_t a = localPairs[i].a, b = localPairs[i].b;
+    double shared = 0;
+    for (; i < localPairs.size() && localPairs[i].a == a && localPairs[i].b == b; ++i)
+      shared += localPairs[i].shared;
+    pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
+  }
+  localPairs = {};
+  for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
+    const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
+    result.pairs.push_back(out_.records.pairs->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
+  }
+  if (!border.empty()) result.border = out_.records.border->append(std::as_bytes(std::span(border)), codec);
+}
+
+// The cell's leaves cost at most its allowance of metadata (its faces' share, planLeaves;
+// leafBytes bounds a leaf's cost by its faces). Groups: every component its own, or the largest
+// ones (fewer than kMaxLeavesPerCell) and the rest together, as many as the allowance pays for;
+// what is left is shared among the groups by faces, for their frontiers (frontierOf). On return
+// `label` holds each face's group.
+FaceGroups CellsStage::groupComponents(uint32_t components, std::vector<uint32_t>& label) const {
+  const auto faces = static_cast<uint32_t>(label.size());
+  const auto leafBytes = [this](uint64_t n) { return plan_.leafBytes(n); };
+  const uint64_t allowance = plan_.cellLeafAllowance(faces);
+  std::vector<uint32_t> groupOf(components);
+  uint32_t groups = components;
+  uint64_t groupBytes = 0;  // the groups' leaves before their frontiers split them
+  std::vector<uint32_t> size(components, 0);
+  for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
+  std::vector<uint32_t> order(components);
+  for (uint32_t c = 0; c < components; ++c) order[c] = c;
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
+  // kept: the largest that stay alone (all of them, if so many fit); the rest is one group.
+  uint32_t kept = 0;
+  {
+    uint64_t keptBytes = 0, keptFaces = 0;
+    const uint32_t most = components <= kMaxLeavesPerCell ? components : kMaxLeavesPerCell - 1;
+    for (uint32_t k = 0;; ++k) {
+      const uint64_t cost = keptBytes + (k < components ? leafBytes(faces - keptFaces) : 0);
+      if (k > 0 && cost > allowance) break;  // k = 0 (one leaf) is always taken
+      kept = k, groupBytes = cost;
+      if (k == most) break;
+      keptBytes += leafBytes(size[order[k]]);
+      keptFaces += size[order[k]];
     }
+  }
+  if (kept < components) {
+    std::vector<bool> alone(components, false);
+    for (uint32_t i = 0; i < kept; ++i) alone[order[i]] = true;
+    groups = 0;
+    for (uint32_t c = 0; c < components; ++c)
+      if (alone[c]) groupOf[c] = groups++;
+    for (uint32_t c = 0; c < components; ++c)
+      if (!alone[c]) groupOf[c] = groups;
+    ++groups;
+  } else {
+    for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
+  }
+  FaceGroups out;
+  out.start.assign(groups + 1, 0);
+  for (uint32_t f = 0; f < faces; ++f) ++out.start[groupOf[label[f]] + 1];
+  for (uint32_t g = 0; g < groups; ++g) out.start[g + 1] += out.start[g];
+  out.groupFaces.resize(faces);
+  std::vector<uint32_t> fill(out.start.begin(), out.start.end() - 1);
+  for (uint32_t f = 0; f < faces; ++f) {
+    const uint32_t g = groupOf[label[f]];
+    label[f] = g;
+    out.groupFaces[fill[g]++] = f;
+  }
+  out.spare = allowance > groupBytes ? allowance - groupBytes : 0;
+  return out;
+}
 
-    // Dual edges between leaf clusters of this cell: one pair per mesh edge two faces of different
-    // leaves share, with its factor of the edge's length (FaceAdjacency::Share).
-    for (uint32_t f = 0; f < faces; ++f) {
-      for (const FaceAdjacency::Link& link : adjacency.links(f)) {
-        const uint32_t lf = leafOf[f], lg = leafOf[link.face];
-        if (link.face < f || lf == lg) continue;  // each edge once, from its lower face
-        for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
-          const glm::vec3 a = positions[indices[size_t{3} * f + share.corner]];
-          const glm::vec3 b = positions[indices[size_t{3} * f + (share.corner + 1) % 3]];
-          const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
-          localPairs.push_back(
-              {std::min(lf, lg), std::max(lf, lg), length * share.numerator / share.denominator});
+// Each component's hierarchy is cut at its frontier of clusters of at most plan.frontierFaces
+// faces: those are the leaf clusters (the upper merge redoes what lies above them, with the
+// neighbours across the cell's borders in view, and with pieces of similar sizes).
+void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
+                             std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out) {
+  const auto faces = static_cast<uint32_t>(records.size());
+  const auto leafBytes = [this](uint64_t n) { return plan_.leafBytes(n); };
+  std::vector<uint32_t> subId(mesh.positions.size(), kNoVertex);
+  std::vector<glm::vec3> subPositions;
+  std::vector<uint32_t> subIndices, leafFaces, frontier, remap, stack, collected;
+  std::vector<uint64_t> subFaces;
+  std::vector<std::byte> block;
+  // A mesh of the given cell faces, in that order.
+  const auto makeMesh = [&](std::span<const uint32_t> cellFaces) {
+    subPositions.clear();
+    subIndices.clear();
+    subFaces.clear();
+    for (const uint32_t f : cellFaces) {
+      for (int k = 0; k < 3; ++k) {
+        uint32_t& id = subId[mesh.indices[size_t{3} * f + k]];
+        if (id == kNoVertex) {
+          id = static_cast<uint32_t>(subPositions.size());
+          subPositions.push_back(mesh.positions[mesh.indices[size_t{3} * f + k]]);
         }
+        subIndices.push_back(id);
+      }
+      subFaces.push_back(records[f].face);
+    }
+    for (const uint32_t f : cellFaces)
+      for (int k = 0; k < 3; ++k) subId[mesh.indices[size_t{3} * f + k]] = kNoVertex;
+    return MeshView{subPositions, subIndices};
+  };
+  // The cells already run on the job's threads: each builds on its own (the same hierarchy).
+  BuildOptions cellBuild = context_.job.build;
+  cellBuild.threads = 1;
+  const auto groupCount = static_cast<uint32_t>(groups.start.size() - 1);
+  for (uint32_t g = 0; g < groupCount; ++g) {
+    const std::span<const uint32_t> members(groups.groupFaces.data() + groups.start[g],
+                                            groups.start[g + 1] - groups.start[g]);
+    const Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, cellBuild);
+    // Its share of the allowance left: the groups' shares sum to at most `spare`.
+    const auto share = static_cast<uint64_t>(double(groups.spare) * double(members.size()) / double(faces));
+    frontierOf(component, plan_.frontierFaces, share, leafBytes, frontier);
+    const auto firstOf = [&](uint32_t ref) {
+      return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
+    };
+    std::sort(frontier.begin(), frontier.end(),
+              [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
+
+    for (const uint32_t ref : frontier) {
+      const uint32_t first = firstOf(ref), count = (ref & kFaceChild) ? 1 : component.nodes[ref].count;
+      const Hierarchy sub = subtreeOf(component, ref, first, count, stack, collected, remap);
+      leafFaces.resize(count);
+      for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
+
+      const auto leafIndex = static_cast<uint32_t>(out.leaves.size());
+      for (const uint32_t f : leafFaces) out.leafOf[f] = leafIndex;
+      const MeshView leafMesh = makeMesh(leafFaces);
+      LeafCluster& leaf = out.leaves.emplace_back();
+      leaf.faceCount = count;
+      leaf.height = sub.stats.height;
+      SurfaceStats& stats =
+          out.stats.emplace_back(surfaceStats(leafMesh, adjacency, leafFaces, extent_.origin));
+      stats.height = leaf.height;
+      if (context_.job.build.metric == Metric::Garland)
+        out.garland.push_back(garlandQuadrics(leafMesh, extent_.origin));
+      const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, context_.job.file);
+      leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
+      leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
+      out.corners.push_back(rootCorners(file));
+      leaf.firstBlock = static_cast<uint32_t>(out.runs.size());
+      for (NodeBlock b : nodeBlocks(file.nodes, plan_.minNodeRun)) {
+        block.clear();
+        appendBytes(block, file.nodes.data() + b.first, b.count);
+        const SpillBlock spill = out_.subtrees.nodes->append(block, codec);
+        b.offset = spill.offset;
+        b.compressedBytes = spill.compressedBytes;
+        out.runs.push_back(b);
+        ++leaf.blockCount;
+      }
+      leaf.firstGeometry = static_cast<uint32_t>(out.geometry.size());
+      const size_t triangles = file.originalFace.size();
+      uint32_t verticesSeen = 0;
+      for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
+        const size_t n = std::min(kTrianglesPerBlock, triangles - at);
+        uint32_t end = verticesSeen;
+        for (size_t i = 3 * at; i < 3 * (at + n); ++i) end = std::max(end, file.indices[i] + 1);
+        const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
+        block.clear();
+        appendBytes(block, &header, 1);
+        appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
+        appendBytes(block, file.indices.data() + 3 * at, 3 * n);
+        appendBytes(block, file.originalFace.data() + at, n);
+        out.geometry.push_back(out_.subtrees.geometry->append(block, codec));
+        ++leaf.geometryCount;
+        verticesSeen = end;
       }
     }
   }
+}
 
-  // Cross-cell dual edges: the ghosts of the edges this cell owns against its own faces.
+void CellsStage::pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
+                            std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs) {
+  const auto faces = static_cast<uint32_t>(leafOf.size());
+  for (uint32_t f = 0; f < faces; ++f) {
+    for (const FaceAdjacency::Link& link : adjacency.links(f)) {
+      const uint32_t lf = leafOf[f], lg = leafOf[link.face];
+      if (link.face < f || lf == lg) continue;  // each edge once, from its lower face
+      for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
+        const glm::vec3 a = mesh.positions[mesh.indices[size_t{3} * f + share.corner]];
+        const glm::vec3 b = mesh.positions[mesh.indices[size_t{3} * f + (share.corner + 1) % 3]];
+        const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
+        localPairs.push_back(
+            {std::min(lf, lg), std::max(lf, lg), length * share.numerator / share.denominator});
+      }
+    }
+  }
+}
+
+void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
+                            std::vector<GhostEdge>&& ghosts, std::span<const uint32_t> leafOf,
+                            std::vector<CrossPair>& pairs, std::vector<BorderFace>& border) const {
+  std::vector<uint64_t> ghostKeys(ghosts.size());
+  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
+  std::sort(ghostKeys.begin(), ghostKeys.end());
+  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
   std::vector<Incidence> incidences;
   incidences.reserve(ghosts.size() * 2);
   for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
   ghosts = {};
+  const auto faces = static_cast<uint32_t>(records.size());
   for (uint32_t f = 0; f < faces; ++f) {
     const FaceRecord& r = records[f];
     bool sentGhosts = false;
     forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
       const glm::vec3 pLow = r.corner(lowCorner);
-      if (grid_->ownerCell(grid_->bin(pLow)) != cell) {
+      if (in_.grid->ownerCell(in_.grid->bin(pLow)) != cell) {
         sentGhosts = true;
         return;
       }
@@ -525,6 +640,8 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     if (sentGhosts) border.push_back({f, leafOf[f]});
   }
   std::sort(incidences.begin(), incidences.end());
+  // Shared lengths as the dual graph gives them: |e| u_f u_g / (U - 1) per pair of sides, and a
+  // chain past kMaxFacesJoinedPairwise faces.
   for (size_t i = 0; i < incidences.size();) {
     size_t j = i;
     uint32_t totalSides = 0;
@@ -556,34 +673,11 @@ void OutOfCoreBuild::buildCell(uint32_t cell, SpillCodec& codec, std::vector<Fac
     }
     i = j;
   }
-  incidences = {};
-  const auto spill = [&](const auto& items) {
-    return items.empty() ? SpillBlock{} : leafSpill_->append(std::as_bytes(std::span(items)), codec);
-  };
-  result.leafCount = static_cast<uint32_t>(leaves.size());
-  result.leaves = spill(leaves);
-  result.stats = spill(leafStats);
-  result.garland = spill(leafGarland);
-  result.corners = spill(leafCorners);
-  result.blocks = spill(runs);
-  result.geometry = spill(geometry);
+}
 
-  // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
-  // instead of one per mesh edge between them (most of a cell's pairs).
-  std::sort(localPairs.begin(), localPairs.end());
-  for (size_t i = 0; i < localPairs.size();) {
-    const uint32_t a = localPairs[i].a, b = localPairs[i].b;
-    double shared = 0;
-    for (; i < localPairs.size() && localPairs[i].a == a && localPairs[i].b == b; ++i)
-      shared += localPairs[i].shared;
-    pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
-  }
-  localPairs = {};
-  for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
-    const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
-    result.pairs.push_back(pairSpill_->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
-  }
-  if (!border.empty()) result.border = borderSpill_->append(std::as_bytes(std::span(border)), codec);
+CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                       BinnedFaces&& binned) {
+  return CellsStage(context, plan, extent, std::move(binned)).run();
 }
 
 }  // namespace facetree

@@ -1,5 +1,5 @@
-// The out-of-core build, end of the cells pass: the cells' spilled dual edges (CrossPair) become
-// the leaf graph of the upper merge (out_of_core.h).
+// The out-of-core build, leaf graph stage: the cells' spilled leaves and dual edges (CrossPair)
+// become the leaves and the leaf graph of the merge above the cells (out_of_core.h).
 //
 // A pair's end is a leaf of the cell that found it, or a face of another cell (the owner cell of an
 // edge sees the other cells' faces as ghosts); a face resolves to its leaf through its cell's table
@@ -56,23 +56,25 @@ void pushEdge(EdgeSorter& edges, uint32_t a, uint32_t b, double shared) {
 
 }  // namespace
 
-void OutOfCoreBuild::resolveCrossEdges() {
-  const auto cells = static_cast<uint32_t>(cells_.size());
+LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
+  SpillCodec codec;
+  LeafGraph graph;
+  const auto cells = static_cast<uint32_t>(records.cells.size());
   std::vector<uint32_t> leafBase(cells + 1, 0);
-  for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + cells_[c].leafCount;
+  for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + records.cells[c].leafCount;
   // Three sorters may hold memory at once (one merging, two filling): a share of the cap the
   // cells pass has just released.
-  const uint64_t budget = std::max<uint64_t>(memoryCap_ / kEdgeSortShare, uint64_t{1} << 20);
-  EdgeSorter edges(temp_, "leaf-edges", budget);
-  auto pending = std::make_unique<PendingSorter>(temp_, "pairs-by-face", budget);
+  const uint64_t budget = std::max<uint64_t>(context.memoryCap / kEdgeSortShare, uint64_t{1} << 20);
+  EdgeSorter edges(context.temp, "leaf-edges", budget);
+  auto pending = std::make_unique<PendingSorter>(context.temp, "pairs-by-face", budget);
 
   // Every pair: ends that are leaves resolve at once; the rest wait for their border faces.
   {
     std::vector<std::byte> raw;
     std::vector<CrossPair> pairs;
     for (uint32_t c = 0; c < cells; ++c) {
-      for (const SpillBlock& block : cells_[c].pairs) {
-        pairSpill_->read(block, raw, codec_);
+      for (const SpillBlock& block : records.cells[c].pairs) {
+        records.pairs->read(block, raw, codec);
         pairs.resize(raw.size() / sizeof(CrossPair));
         std::memcpy(pairs.data(), raw.data(), pairs.size() * sizeof(CrossPair));
         for (const CrossPair& p : pairs) {
@@ -88,9 +90,9 @@ void OutOfCoreBuild::resolveCrossEdges() {
             pending->push({p.cell[1], p.ref[1], kResolved, a, p.shared});
         }
       }
-      cells_[c].pairs = {};
+      records.cells[c].pairs = {};
     }
-    pairSpill_.reset();
+    records.pairs.reset();
   }
 
   // Rounds of the sort join: the second takes the pairs whose both ends were foreign faces.
@@ -99,16 +101,16 @@ void OutOfCoreBuild::resolveCrossEdges() {
   std::vector<PendingPair> batch(kReadBatch);
   while (pending->size() > 0) {
     pending->finish();
-    auto next = std::make_unique<PendingSorter>(temp_, "pairs-by-face", budget);
+    auto next = std::make_unique<PendingSorter>(context.temp, "pairs-by-face", budget);
     uint32_t loaded = kResolved;
     for (size_t got; (got = pending->read(batch)) > 0;) {
       for (size_t i = 0; i < got; ++i) {
         const PendingPair& p = batch[i];
         if (p.cell != loaded) {
           border.clear();
-          const SpillBlock& block = cells_[p.cell].border;
+          const SpillBlock& block = records.cells[p.cell].border;
           if (block.rawBytes > 0) {
-            borderSpill_->read(block, raw, codec_);
+            records.border->read(block, raw, codec);
             border.resize(raw.size() / sizeof(BorderFace));
             std::memcpy(border.data(), raw.data(), border.size() * sizeof(BorderFace));
           }
@@ -131,7 +133,7 @@ void OutOfCoreBuild::resolveCrossEdges() {
   }
   pending.reset();
   border = {};
-  borderSpill_.reset();
+  records.border.reset();
 
   // One edge per pair of leaves: the sum of its pairs, in (leaves, length) order.
   edges.finish();
@@ -139,48 +141,49 @@ void OutOfCoreBuild::resolveCrossEdges() {
   for (size_t got; (got = edges.read(sorted)) > 0;) {
     for (size_t i = 0; i < got; ++i) {
       const ClusterEdge& e = sorted[i];
-      if (!edges_.empty() && edges_.back().a == e.a && edges_.back().b == e.b)
-        edges_.back().shared += e.shared;
+      if (!graph.edges.empty() && graph.edges.back().a == e.a && graph.edges.back().b == e.b)
+        graph.edges.back().shared += e.shared;
       else
-        edges_.push_back(e);
+        graph.edges.push_back(e);
     }
   }
-  edges_.shrink_to_fit();
+  graph.edges.shrink_to_fit();
 
   // The cells' leaves in one array each, read back cell by cell.
   const auto append = [&](auto& out, const SpillBlock& block) {
     using T = typename std::remove_reference_t<decltype(out)>::value_type;
     if (block.rawBytes == 0) return;
-    leafSpill_->read(block, raw, codec_);
+    records.leaves->read(block, raw, codec);
     const size_t at = out.size();
     out.resize(at + raw.size() / sizeof(T));
     std::memcpy(static_cast<void*>(out.data() + at), raw.data(), raw.size());
   };
-  leaves_.reserve(leafBase[cells]);
-  leafStats_.reserve(leafBase[cells]);
-  if (job_.build.metric == Metric::Garland) leafGarland_.reserve(leafBase[cells]);
-  leafCorners_.reserve(leafBase[cells]);
-  for (CellResult& cell : cells_) {
-    report_.components += cell.components;
-    const size_t first = leaves_.size();
-    const auto blockBase = static_cast<uint32_t>(blocks_.size());
-    const auto geometryBase = static_cast<uint32_t>(geometry_.size());
-    append(leaves_, cell.leaves);
-    append(leafStats_, cell.stats);
-    append(leafGarland_, cell.garland);
-    append(leafCorners_, cell.corners);
-    append(blocks_, cell.blocks);
-    append(geometry_, cell.geometry);
-    for (size_t i = first; i < leaves_.size(); ++i) {
-      leaves_[i].firstBlock += blockBase;
-      leaves_[i].firstGeometry += geometryBase;
+  graph.leaves.reserve(leafBase[cells]);
+  graph.stats.reserve(leafBase[cells]);
+  if (context.job.build.metric == Metric::Garland) graph.garland.reserve(leafBase[cells]);
+  graph.corners.reserve(leafBase[cells]);
+  for (CellResult& cell : records.cells) {
+    context.report.components += cell.components;
+    const size_t first = graph.leaves.size();
+    const auto blockBase = static_cast<uint32_t>(graph.runs.size());
+    const auto geometryBase = static_cast<uint32_t>(graph.geometry.size());
+    append(graph.leaves, cell.leaves);
+    append(graph.stats, cell.stats);
+    append(graph.garland, cell.garland);
+    append(graph.corners, cell.corners);
+    append(graph.runs, cell.blocks);
+    append(graph.geometry, cell.geometry);
+    for (size_t i = first; i < graph.leaves.size(); ++i) {
+      graph.leaves[i].firstBlock += blockBase;
+      graph.leaves[i].firstGeometry += geometryBase;
     }
-    if (blocks_.size() > UINT32_MAX || geometry_.size() > UINT32_MAX)
+    if (graph.runs.size() > UINT32_MAX || graph.geometry.size() > UINT32_MAX)
       throw std::logic_error("out-of-core build: more than 2^32 node runs");
   }
-  leafSpill_.reset();
-  cells_ = {};
-  report_.leaves = leaves_.size();
+  records.leaves.reset();
+  records.cells = {};
+  context.report.leaves = graph.leaves.size();
+  return graph;
 }
 
 }  // namespace facetree

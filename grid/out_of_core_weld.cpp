@@ -1,4 +1,4 @@
-// The out-of-core build: welding corners at bit-identical positions with bounded memory.
+// The out-of-core build, read stage: welding corners at bit-identical positions with bounded memory.
 //
 // Why: STL has no vertex indices (its reader welds with a hash table as large as the mesh's
 // distinct positions: a 10M-triangle STL took 174 MiB under --memory 64M), and --weld asks the
@@ -6,7 +6,7 @@
 // (ExternalSorter), each distinct position gets the next vertex id in that order, the ids are
 // sorted back to arrival order, and the arrival spill is rewritten with them: two sorts of
 // 24- and 16-byte records, each under a sixth of the cap, the same pattern as the position
-// join of out_of_core.cpp.
+// join of out_of_core_read.cpp.
 #include <bit>
 #include <cstring>
 #include <stdexcept>
@@ -50,17 +50,18 @@ struct SlotOrder {
 
 }  // namespace
 
-void OutOfCoreBuild::weldArrival() {
-  arrival_->flushAll();
-  const uint64_t sortBudget = std::max<uint64_t>(memoryCap_ / 6, uint64_t{4} << 20);
+void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
+  SpillCodec codec;
+  arrival.spill->flushAll();
+  const uint64_t sortBudget = std::max<uint64_t>(context.memoryCap / 6, uint64_t{4} << 20);
   std::vector<FaceRecord> records;
 
-  ExternalSorter<CornerId, SlotOrder> bySlot(temp_, "weld-slot", sortBudget);
+  ExternalSorter<CornerId, SlotOrder> bySlot(context.temp, "weld-slot", sortBudget);
   uint64_t vertices = 0, welded = 0;
   {
-    ExternalSorter<CornerByPosition, PositionOrder> byPosition(temp_, "weld-position", sortBudget);
+    ExternalSorter<CornerByPosition, PositionOrder> byPosition(context.temp, "weld-position", sortBudget);
     uint64_t slot = 0;
-    arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+    arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {
       decodeRecords(bytes, records);
       for (const FaceRecord& r : records) {
         for (int k = 0; k < 3; ++k, ++slot) {
@@ -70,7 +71,7 @@ void OutOfCoreBuild::weldArrival() {
                            slot});
         }
       }
-      checkCancel("weld", slot / 3, triangles_);
+      context.checkCancel("weld", slot / 3, arrival.extent.triangles);
     });
     byPosition.finish();
     // One id per distinct position; input vertices sharing a position beyond the first are the
@@ -84,7 +85,7 @@ void OutOfCoreBuild::weldArrival() {
         const bool samePosition = !first && std::memcmp(c.bits, previous.bits, sizeof c.bits) == 0;
         if (!samePosition) {
           if (vertices == kNoVertex)
-            throw ReadError(report_.info.name + ": more than " + std::to_string(kNoVertex) +
+            throw ReadError(context.report.info.name + ": more than " + std::to_string(kNoVertex) +
                             " distinct vertex positions");
           ++vertices;
         } else if (c.input != previous.input && c.input != kNoVertex) {
@@ -98,11 +99,11 @@ void OutOfCoreBuild::weldArrival() {
   }
   bySlot.finish();
 
-  auto rewritten = std::make_unique<BucketSpill>(temp_, "arrival-welded", 1, sizeof(FaceRecord),
+  auto rewritten = std::make_unique<BucketSpill>(context.temp, "arrival-welded", 1, sizeof(FaceRecord),
                                                  kArrivalBufferBytes, kSpillLevel, /*discardable=*/true);
   std::vector<CornerId> ids(3);
   uint64_t slot = 0;
-  arrival_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
+  arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {
     decodeRecords(bytes, records);
     for (FaceRecord& r : records) {
       if (bySlot.read(ids) != 3 || ids[0].slot != slot || ids[2].slot != slot + 2)
@@ -111,12 +112,12 @@ void OutOfCoreBuild::weldArrival() {
       slot += 3;
       rewritten->append(0, &r);
     }
-    checkCancel("weld", slot / 3, triangles_);
+    context.checkCancel("weld", slot / 3, arrival.extent.triangles);
   });
-  arrival_ = std::move(rewritten);
-  arrival_->releaseBuffers();
-  report_.stats.vertices = vertices;
-  report_.weldedVertices = welded;
+  arrival.spill = std::move(rewritten);
+  arrival.spill->releaseBuffers();
+  context.report.stats.vertices = vertices;
+  context.report.weldedVertices = welded;
 }
 
 }  // namespace facetree

@@ -1,5 +1,5 @@
 // The temporary directory of one out-of-core run, and the accounting of the bytes its files hold
-// against --max-tmp (DESIGN.md, invariant 5: temporary files are bounded and removed). Internal to grid/.
+// against --max-tmp: temporary files are bounded and removed. Internal to grid/.
 #pragma once
 
 #include <atomic>

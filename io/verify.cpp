@@ -1,5 +1,6 @@
 // verifyClusterFile / verifyAgainstMesh: every invariant of docs/FORMAT.md "Semantics"
-// (DESIGN.md invariants 1, 3, 4), reporting the first violation by node and check.
+// (the nodes partition and nest the faces, children follow parents, boxes contain their faces),
+// reporting the first violation by node and check.
 #include "io/verify.h"
 
 #include <algorithm>

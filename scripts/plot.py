@@ -732,7 +732,7 @@ def outofcore_markdown(o, rel):
             "file giving at least that many clusters (what a truncated file or `render --cut` shows), and its "
             "fit error the sum over its clusters of eq. 84's eFit (the variance of the surface along the "
             "cluster's normal) and of area x eFit (the squared distance to the cluster's plane integrated over "
-            "the surface). Lower is better. The issue's aim: within 10% of in core." +
+            "the surface). Lower is better. The target: within 10% of in core." +
             (" **Largest ratio of sum eFit: " + ", ".join(f"{worst_fit[n]:.2f} at {int(n):,} clusters" for n in cuts)
              + ".**" if worst_fit else ""), "",
             table(["mesh", "faces", "build", "cells / leaves", "height / balanced"] +

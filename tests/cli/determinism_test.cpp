@@ -1,4 +1,4 @@
-// DESIGN.md invariant 6: the same input and options give byte-identical cluster files, run
+// Determinism: the same input and options give byte-identical cluster files, run
 // after run and whatever the thread count (build --threads sets the box phase's workers).
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,0 +1,64 @@
+// The out-of-core build, bin stage: the cells from a histogram of the face centroids, then every
+// face into its cell's spill, and every edge whose owner cell is another cell to that cell as a
+// ghost, so that the owner sees every face on each edge it owns (out_of_core.h, cell_grid.h).
+#include <algorithm>
+
+#include "grid/out_of_core.h"
+
+namespace facetree {
+
+BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit) {
+  SpillCodec codec;
+  BinnedFaces out;
+  out.grid = std::make_unique<CellGrid>(arrival.extent.min, arrival.extent.max);
+  std::vector<FaceRecord> records;
+  arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {
+    decodeRecords(bytes, records);
+    for (const FaceRecord& r : records)
+      out.grid->count(out.grid->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
+  });
+  out.grid->partition(cellFaceLimit);
+  const uint32_t cells = out.grid->cellCount();
+  context.report.cells = cells;
+
+  // Per-cell buffers share a quarter of the cap (at least one block's worth each).
+  const uint64_t share = std::max<uint64_t>(context.memoryCap / 4, uint64_t{4} << 20) / (2 * uint64_t{cells});
+  const auto bufferFor = [share](size_t record) {
+    const uint64_t bytes = std::clamp<uint64_t>(share, 64 * record, uint64_t{1} << 20);
+    return static_cast<size_t>(bytes / record * record);
+  };
+  // Every spill from here on is read once, and gives its disk space back as it is read: the arrival
+  // spill shrinks while the cells' grow, the cells' while the nodes and geometry grow.
+  out.faces = std::make_unique<BucketSpill>(context.temp, "cell-faces", cells, sizeof(FaceRecord),
+                                            bufferFor(sizeof(FaceRecord)), kSpillLevel, /*discardable=*/true);
+  out.ghosts = std::make_unique<BucketSpill>(context.temp, "ghosts", cells, sizeof(GhostEdge),
+                                             bufferFor(sizeof(GhostEdge)), kSpillLevel, /*discardable=*/true);
+
+  uint64_t done = 0;
+  arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {
+    decodeRecords(bytes, records);
+    for (const FaceRecord& r : records) {
+      const uint32_t cell =
+          out.grid->nextFaceCell(out.grid->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
+      const auto local = static_cast<uint32_t>(out.faces->records(cell));
+      out.faces->append(cell, &r);
+      forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
+        const glm::vec3 pLow = r.corner(lowCorner);
+        const uint32_t owner = out.grid->ownerCell(out.grid->bin(pLow));
+        if (owner == cell) return;
+        const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
+        const GhostEdge ghost{low, high, cell, local, sides, static_cast<float>(length)};
+        out.ghosts->append(owner, &ghost);
+      });
+    }
+    done += records.size();
+    context.checkCancel("bin", done, arrival.extent.triangles);
+  });
+  arrival.spill.reset();  // its disk space is released before the cells are spilled again
+  // Read-only from here: their buffers (a quarter of the cap) go back before the cells pass.
+  out.faces->releaseBuffers();
+  out.ghosts->releaseBuffers();
+  return out;
+}
+
+}  // namespace facetree

@@ -1,0 +1,87 @@
+// Internal to grid/: the memory model of the out-of-core build and the plan drawn from it: how
+// large a cell is, how many are built at once, how large a leaf cluster is and how much metadata
+// the leaves may hold from the cells to the write. Everything here follows from the cap, the
+// metric and the triangle count, never from --threads, so the output does not depend on it.
+#pragma once
+
+#include <cstdint>
+
+#include "grid/cell_grid.h"
+#include "grid/grid.h"
+#include "merge/merge.h"
+
+namespace facetree {
+
+// Process, libraries, reader, codecs and writer: what a run holds besides its stages' data.
+inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;
+// One cell's build at its peak, per face: its records (56 B), the cell mesh and labels (~30), the
+// group's copy (~30), the group's in-core build (240 B per face, 24 per vertex), frontier pieces
+// and edge tables: ~360 B for a manifold mesh, ~500 B for specks (three vertices a face). The
+// measured growth is 200-260 B (docs/out_of_core.md); 400 keeps 1.5x over it.
+inline constexpr uint64_t kCellBytesPerFace = 400;
+// With --metric garland its clusters carry Garland's quadrics (184 B per stats slot) and its
+// trees are deep (the boxes' hull stacks grow with the height).
+inline constexpr uint64_t kGarlandCellBytesPerFace = 560;
+// Cells are sized for this many at once whatever --threads says: more threads build more cells at
+// once only where the cap holds them.
+inline constexpr uint64_t kCellWorkers = 2;
+// Large enough that cell borders cost little of the cuts' fit, small enough that large caps build
+// several cells at once.
+inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
+inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
+// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
+// faces (and at least kMinFrontierFaces; larger when the leaf budget pays for fewer), so that the
+// upper merge can balance the top of the tree across cell borders and cuts of a few leaves' size
+// find pieces of that size.
+inline constexpr uint64_t kFrontiersPerCell = 128;
+inline constexpr uint64_t kMinFrontierFaces = 64;
+inline constexpr uint64_t kFrontierShare = 4;  // of the leaf budget, for frontier pieces
+// Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 32 B
+// and geometry handle 16, box corners 96, its upper merge node 144 and box accumulator 176, the
+// write's tables ~70, the hull points its upper node carries for the frames (384); during the
+// merge its statistics twice (128 B each), its heap entry and its edges (~2 a leaf, 48 B).
+inline constexpr uint64_t kLeafBytes = 1024;
+// With --metric garland a leaf also brings Garland's quadrics, which the upper merge copies.
+inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
+// Per node run: its NodeBlock 24 B, its entry in the write's run order 16 and position 4.
+inline constexpr uint64_t kRunBytes = 48;
+// The cross-edge join runs up to three external sorts at once, each with this fraction of the cap.
+inline constexpr uint64_t kEdgeSortShare = 24;
+// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
+// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
+inline constexpr uint32_t kNodeBlock = 256;
+inline constexpr uint32_t kMinNodeBlock = 256;
+inline constexpr double kKeyBand = 0.25;
+
+// The least cap an out-of-core build accepts: the fixed part and one cell of kMinCellFaces.
+uint64_t outOfCoreMinimumBytes();
+
+struct OutOfCorePlan {
+  Metric metric = Metric::Willmott;
+  uint64_t memoryCap = 0;
+  uint64_t triangles = 0;               // known after the read (planLeaves)
+  uint64_t cellFaceLimit = 0;           // faces of a cell at most
+  unsigned cellWorkers = 1;             // cells built at once: as many as the cap holds, up to --threads
+  uint64_t frontierFaces = 0;           // leaf clusters: each component's frontier at this size
+  uint64_t leafBudget = 0;              // bytes of leaf metadata, all cells together (cellLeafAllowance)
+  uint32_t minNodeRun = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs
+  uint64_t topRuns = 0;                 // runs at the top of a leaf (before they reach minNodeRun)
+
+  // kCellBytesPerFace, or kGarlandCellBytesPerFace for --metric garland.
+  uint64_t cellBytesPerFace() const;
+  // The most a leaf of `faces` faces costs from the merge to the write (kLeafBytes, kRunBytes).
+  uint64_t leafBytes(uint64_t faces) const;
+  // The part of it that does not depend on the faces.
+  uint64_t leafFixedBytes() const;
+  // The leaf metadata a cell of `faces` faces may make: its share of leafBudget.
+  uint64_t cellLeafAllowance(uint64_t faces) const;
+};
+
+// The cells' size and workers from the cap (or job.forceCellFaces); throws MemoryCapError when the
+// cap cannot hold one cell of kMinCellFaces.
+OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap);
+// The leaves' share of the cap once the triangle count is known: their budget, the node runs'
+// length and the frontier size.
+void planLeaves(OutOfCorePlan& plan, uint64_t triangles);
+
+}  // namespace facetree

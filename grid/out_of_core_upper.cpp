@@ -1,0 +1,116 @@
+// The out-of-core build, merge above the cells: the engine continues the greedy merge over the leaf
+// clusters with their statistics (Willmott 2000, sec. 5.5.2: the same cost, balance guard and
+// component joins as in a cell); then the upper tree's recast to the file's branching factor and
+// the frames of its nodes (out_of_core.h).
+#include <algorithm>
+
+#include "grid/out_of_core.h"
+#include "grid/upper_tree.h"
+#include "io/io.h"
+
+namespace facetree {
+
+ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& extent, LeafGraph& graph) {
+  context.checkCancel("merge", 0, graph.leaves.size());
+  ClusterMergeResult upper =
+      mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, context.job.build, graph.garland);
+  context.report.crossEdges = graph.edges.size();
+  context.report.upperComponents = upper.components;
+  graph.edges = {};
+  graph.stats = {};  // the upper nodes carry what the write needs
+  graph.garland = {};
+  return upper;
+}
+
+UpperRecast recastUpper(const ClusterMergeResult& merged, const FileOptions& file,
+                        std::span<const uint32_t> leafOrder, std::span<const uint32_t> firstLeaf,
+                        std::span<const uint32_t> leavesUnder) {
+  const auto& upper = merged.nodes;
+  const auto upperCount = static_cast<uint32_t>(upper.size());
+  UpperRecast r;
+  r.kept.assign(upperCount, 1);
+  r.children.resize(upperCount);
+  r.childCount.assign(upperCount, 2);
+  r.joined.resize(upperCount);
+  for (uint32_t i = 0; i < upperCount; ++i) {
+    r.children[i][0] = upper[i].child[0];
+    r.children[i][1] = upper[i].child[1];
+    r.joined[i] = (upper[i].flags & kNodeJoinsDisjointSurfaces) != 0;
+  }
+  if (file.branching <= 2 || upperCount == 0) return r;
+
+  // The same recast as a leaf's subtree gets (io's recastHierarchy, Willmott 2000, sec. 5.5.1), on
+  // the upper tree with the leaf clusters as its atoms (their subtrees are recast on their own):
+  // a binary Hierarchy in reverse creation order whose "faces" are the leaves in depth-first rank.
+  std::vector<uint32_t> rank(leafOrder.size());
+  for (uint32_t k = 0; k < leafOrder.size(); ++k) rank[leafOrder[k]] = k;
+  Hierarchy binary;
+  binary.faceOrder.resize(leafOrder.size());
+  binary.nodes.resize(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j) {
+    const uint32_t i = upperCount - 1 - j;
+    Node& node = binary.nodes[j];
+    for (int k = 0; k < 2; ++k) {
+      const uint32_t c = upper[i].child[k];
+      node.child[k] = (c & kLeafChild) ? kFaceChild | rank[c & ~kLeafChild] : upperCount - 1 - c;
+    }
+    node.first = firstLeaf[i];
+    node.count = leavesUnder[i];
+    node.flags = upper[i].flags & kNodeJoinsDisjointSurfaces;
+    node.area = static_cast<float>(upper[i].stats.area);
+  }
+  const RecastTree tree = recastHierarchy(binary, file.branching, file.rule);
+  std::fill(r.kept.begin(), r.kept.end(), uint8_t{0});
+  for (size_t t = 0; t < tree.binaryNode.size(); ++t) {
+    const uint32_t i = upperCount - 1 - tree.binaryNode[t];
+    r.kept[i] = 1;
+    r.childCount[i] = tree.childCount[t];
+    r.joined[i] = tree.joinFlag[t] != 0;
+    for (uint32_t k = 0; k < tree.childCount[t]; ++k) {
+      const uint32_t c = tree.child[t][k];
+      r.children[i][k] =
+          (c & kFaceChild) ? kLeafChild | leafOrder[c & ~kFaceChild] : upperCount - 1 - tree.binaryNode[c];
+    }
+  }
+  return r;
+}
+
+// Bottom-up (creation order): each upper node is oriented from its children's carried hull points
+// (a leaf's: its root box's 8 corners) and carries at most kMaxCarried on (ClusterOrienter), so the
+// frames cost O(upper nodes), not O(leaves x height).
+UpperFrames frameUpper(const ClusterMergeResult& merged, std::span<const BoxCorners> leafCorners,
+                       double flatThreshold) {
+  const auto& upper = merged.nodes;
+  const auto upperCount = static_cast<uint32_t>(upper.size());
+  UpperFrames frames;
+  frames.flat.assign(upperCount, 0);
+  frames.boxes.reserve(upperCount);
+  constexpr size_t kCap = ClusterOrienter::kMaxCarried;
+  std::vector<glm::vec3> carried(size_t{upperCount} * kCap);
+  std::vector<uint8_t> carriedCount(upperCount, 0);
+  std::vector<glm::vec3> points;
+  points.reserve(2 * kCap);
+  ClusterOrienter orienter;
+  for (uint32_t i = 0; i < upperCount; ++i) {
+    points.clear();
+    for (const uint32_t c : upper[i].child) {
+      if (c & kLeafChild) {
+        const BoxCorners& corners = leafCorners[c & ~kLeafChild];
+        points.insert(points.end(), corners.begin(), corners.end());
+      } else {
+        const auto from = carried.begin() + static_cast<ptrdiff_t>(size_t{c} * kCap);
+        points.insert(points.end(), from, from + carriedCount[c]);
+      }
+    }
+    bool isFlat = false;
+    size_t keep = 0;
+    frames.boxes.emplace_back(orienter.orient(upper[i].stats, points, flatThreshold, isFlat, keep));
+    frames.flat[i] = isFlat;
+    std::copy(points.begin(), points.begin() + static_cast<ptrdiff_t>(keep),
+              carried.begin() + static_cast<ptrdiff_t>(size_t{i} * kCap));
+    carriedCount[i] = static_cast<uint8_t>(keep);
+  }
+  return frames;
+}
+
+}  // namespace facetree
