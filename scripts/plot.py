@@ -752,6 +752,9 @@ def outofcore_markdown(o, rel):
     return out
 
 
+HISTORY_MARKER = "<!-- history: written by hand, kept by scripts/plot -->"
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--json", required=True)
@@ -780,7 +783,13 @@ def main():
         plot_outofcore(report["outofcore"], figures / "outofcore.png")
     md = pathlib.Path(args.markdown)
     rel = os.path.relpath(figures, md.parent)
-    md.write_text(markdown(report, figures, rel))
+    # The hand-written history below HISTORY_MARKER stays as it is.
+    kept = ""
+    if md.exists():
+        old = md.read_text()
+        if HISTORY_MARKER in old:
+            kept = "\n" + old[old.index(HISTORY_MARKER):]
+    md.write_text(markdown(report, figures, rel) + kept)
     print(f"plot: {md}")
 
 
