@@ -8,8 +8,94 @@
 
 namespace facetree {
 
+class BucketSpill::Writer {
+ public:
+  static constexpr size_t kSpares = 2;  // buffers in flight: one being written, one waiting
+
+  Writer(SpillFile& file, int level, size_t bufferBytes) : file_(file), codec_(level) {
+    for (size_t i = 0; i < kSpares; ++i) {
+      owned_.push_back(std::make_unique_for_overwrite<std::byte[]>(bufferBytes));
+      free_.push_back(owned_.back().get());
+    }
+    thread_ = std::thread([this] { run(); });
+  }
+  ~Writer() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+
+  // Copies `bytes` into a free buffer (waiting for one) and queues its write into `*target`.
+  void submit(std::span<const std::byte> bytes, SpillBlock* target) {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return !free_.empty() || failure_; });
+    rethrow();
+    std::byte* buffer = free_.back();
+    free_.pop_back();
+    lock.unlock();
+    std::memcpy(buffer, bytes.data(), bytes.size());
+    lock.lock();
+    queue_.push_back({buffer, bytes.size(), target});
+    lock.unlock();
+    changed_.notify_all();
+  }
+  // Waits until every queued write is done; rethrows the first failure.
+  void settle() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return (queue_.empty() && !busy_) || failure_; });
+    rethrow();
+  }
+
+ private:
+  struct Job {
+    std::byte* buffer;
+    size_t bytes;
+    SpillBlock* target;
+  };
+  void rethrow() {
+    if (failure_) std::rethrow_exception(failure_);
+  }
+  void run() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      changed_.wait(lock, [&] { return !queue_.empty() || stop_; });
+      if (queue_.empty()) return;
+      const Job job = queue_.front();
+      queue_.pop_front();
+      busy_ = true;
+      const bool failed = failure_ != nullptr;
+      lock.unlock();
+      std::exception_ptr failure;
+      try {
+        if (!failed) *job.target = file_.append({job.buffer, job.bytes}, codec_);
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      lock.lock();
+      if (failure && !failure_) failure_ = failure;
+      busy_ = false;
+      free_.push_back(job.buffer);
+      changed_.notify_all();
+    }
+  }
+
+  SpillFile& file_;
+  SpillCodec codec_;
+  std::vector<std::unique_ptr<std::byte[]>> owned_;
+  std::vector<std::byte*> free_;
+  std::deque<Job> queue_;
+  bool busy_ = false, stop_ = false;
+  std::exception_ptr failure_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::thread thread_;
+};
+
 BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes,
-                         size_t bufferBytes, int level, bool discardable)
+                         size_t bufferBytes, int level, bool discardable, bool background)
     : file_(space, stem, discardable),
       writer_(level),
       recordBytes_(recordBytes),
@@ -24,6 +110,36 @@ BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets
       tail_(buckets, kNoBlock) {
   if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes)
     throw std::invalid_argument("BucketSpill: record size must be 1 byte to 256 MiB");
+  if (background) background_ = std::make_unique<Writer>(file_, level, bufferBytes_);
+}
+
+BucketSpill::~BucketSpill() = default;
+
+uint64_t BucketSpill::backgroundBytes(size_t bufferBytes) {
+  // The spare buffers, and the helper's codec: its contexts and one compressed block of scratch.
+  return Writer::kSpares * bufferBytes + ZSTD_compressBound(bufferBytes) + (uint64_t{512} << 10);
+}
+
+void BucketSpill::settle() const {
+  if (background_) background_->settle();
+}
+
+void BucketSpill::releaseBuffers() {
+  flushAll();
+  background_.reset();
+  buffer_.reset();
+}
+
+uint32_t BucketSpill::reserveBlock(size_t bucket) {
+  if (blocks_.size() >= kNoBlock) throw std::length_error("BucketSpill: more than 2^32 blocks");
+  const uint32_t index = static_cast<uint32_t>(blocks_.size());
+  blocks_.push_back({SpillBlock{}, kNoBlock});
+  if (tail_[bucket] == kNoBlock)
+    head_[bucket] = index;
+  else
+    blocks_[tail_[bucket]].next = index;
+  tail_[bucket] = index;
+  return index;
 }
 
 uint64_t BucketSpill::memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes) {
@@ -50,23 +166,24 @@ void BucketSpill::appendMany(size_t bucket, const void* records, size_t n) {
 
 void BucketSpill::flush(size_t bucket) {
   if (fill_[bucket] == 0) return;
-  const SpillBlock block = file_.append({buffer_.get() + bucket * bufferBytes_, fill_[bucket]}, writer_);
-  if (blocks_.size() >= kNoBlock) throw std::length_error("BucketSpill: more than 2^32 blocks");
-  const uint32_t index = static_cast<uint32_t>(blocks_.size());
-  blocks_.push_back({block, kNoBlock});
-  if (tail_[bucket] == kNoBlock)
-    head_[bucket] = index;
-  else
-    blocks_[tail_[bucket]].next = index;
-  tail_[bucket] = index;
+  const std::span<const std::byte> bytes(buffer_.get() + bucket * bufferBytes_, fill_[bucket]);
+  if (background_) {
+    const uint32_t index = reserveBlock(bucket);
+    background_->submit(bytes, &blocks_[index].block);
+  } else {
+    const SpillBlock block = file_.append(bytes, writer_);
+    blocks_[reserveBlock(bucket)].block = block;
+  }
   fill_[bucket] = 0;
 }
 
 void BucketSpill::flushAll() {
   for (size_t bucket = 0; bucket < buckets(); ++bucket) flush(bucket);
+  settle();
 }
 
 void BucketSpill::readBucket(size_t bucket, std::vector<std::byte>& out, SpillCodec& codec) const {
+  settle();
   size_t at = out.size();
   out.resize(at + records_[bucket] * recordBytes_);
   // Straight into `out`: no block of scratch beyond the codec's compressed one.

@@ -2,12 +2,17 @@
 // edge records per cell, per-leaf node and face spills of the out-of-core build. Internal to grid/.
 #pragma once
 
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <deque>
+#include <exception>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include "grid/spill_file.h"
@@ -20,10 +25,18 @@ class BucketSpill {
   // full buffer becomes one block of the SpillFile. Memory is memoryBound(): buckets * bufferBytes (touched
   // only as buckets fill) plus one compressed block of scratch in the writer's codec.
   // `discardable`: its blocks can be given back as they are read for the last time (drainBucket).
+  // `background`: full buffers are compressed and written on a helper thread while the caller goes on
+  // filling (zstd takes most of a pass that only reads, bins and spills records); the blocks, their
+  // order and the bytes read back are the same either way.
   BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes, size_t bufferBytes,
-              int level = kSpillLevel, bool discardable = false);
+              int level = kSpillLevel, bool discardable = false, bool background = false);
+  ~BucketSpill();
+  BucketSpill(const BucketSpill&) = delete;
+  BucketSpill& operator=(const BucketSpill&) = delete;
 
+  // With `background`, add backgroundBytes(bufferBytes).
   static uint64_t memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes);
+  static uint64_t backgroundBytes(size_t bufferBytes);
 
   void append(size_t bucket, const void* record) {
     std::byte* buffer = buffer_.get() + bucket * bufferBytes_;
@@ -34,12 +47,11 @@ class BucketSpill {
   }
   void appendMany(size_t bucket, const void* records, size_t n);  // n records
   void flush(size_t bucket);                                      // its buffer becomes a block
+  // Every buffer becomes a block, written before it returns (rethrows a failed background write).
   void flushAll();
-  // flushAll(), then frees the buffers (buckets * bufferBytes): the spill is read-only afterwards.
-  void releaseBuffers() {
-    flushAll();
-    buffer_.reset();
-  }
+  // flushAll(), then frees the buffers (buckets * bufferBytes) and the helper: the spill is read-only
+  // afterwards.
+  void releaseBuffers();
 
   uint64_t records(size_t bucket) const { return records_[bucket]; }
   size_t recordBytes() const { return recordBytes_; }
@@ -64,7 +76,10 @@ class BucketSpill {
   }
 
   size_t buckets() const { return fill_.size(); }
-  uint64_t bytesOnDisk() const { return file_.bytes(); }
+  uint64_t bytesOnDisk() const {
+    settle();
+    return file_.bytes();
+  }
 
  private:
   static constexpr uint32_t kNoBlock = UINT32_MAX;
@@ -72,6 +87,7 @@ class BucketSpill {
   // f per block in order, then after(block) once f has had it; the buffered tail last.
   template <class F, class After>
   void visitBlocks(size_t bucket, SpillCodec& codec, F& f, const After& after) const {
+    settle();
     std::vector<std::byte> raw;
     for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
       file_.read(blocks_[b].block, raw, codec);
@@ -81,21 +97,29 @@ class BucketSpill {
     if (fill_[bucket] > 0)
       f(std::span<const std::byte>(buffer_.get() + bucket * bufferBytes_, fill_[bucket]));
   }
-  // The blocks of all buckets in one array, each bucket's chained in append order.
+  // The blocks of all buckets in one array, each bucket's chained in append order. A deque: the helper
+  // fills in a block's handle through a pointer while the caller appends more.
   struct ChainedBlock {
     SpillBlock block;
     uint32_t next = kNoBlock;
   };
+  // The helper thread of a background spill: buffers handed over in flush order, written in that
+  // order, each into the handle reserved for it.
+  class Writer;
+  // Waits for the helper's writes, rethrowing the first that failed.
+  void settle() const;
+  uint32_t reserveBlock(size_t bucket);
 
   SpillFile file_;
   SpillCodec writer_;
+  std::unique_ptr<Writer> background_;
   size_t recordBytes_;
   size_t bufferBytes_;
   std::unique_ptr<std::byte[]> buffer_;  // bucket b at [b * bufferBytes_, (b + 1) * bufferBytes_)
   std::vector<size_t> fill_;             // bytes buffered per bucket
   std::vector<uint64_t> records_;
   std::vector<uint32_t> head_, tail_;
-  std::vector<ChainedBlock> blocks_;
+  std::deque<ChainedBlock> blocks_;
 };
 
 }  // namespace facetree

@@ -46,6 +46,9 @@ struct StageContext {
   JobReport& report;
   // Reports progress; throws Cancelled when the job's callback or hook asks to stop.
   void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
+  // Whether the stages that read, bin and spill records on one thread compress on a helper
+  // (BucketSpill's background): with more than one thread.
+  bool spillInBackground() const { return job.threads > 1; }
 };
 
 // Triangles already read into memory when the job found the cap too small for in-core (the

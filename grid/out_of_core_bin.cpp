@@ -30,9 +30,11 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   // Every spill from here on is read once, and gives its disk space back as it is read: the arrival
   // spill shrinks while the cells' grow, the cells' while the nodes and geometry grow.
   out.faces = std::make_unique<BucketSpill>(context.temp, "cell-faces", cells, sizeof(FaceRecord),
-                                            bufferFor(sizeof(FaceRecord)), kSpillLevel, /*discardable=*/true);
+                                            bufferFor(sizeof(FaceRecord)), kSpillLevel, /*discardable=*/true,
+                                            context.spillInBackground());
   out.ghosts = std::make_unique<BucketSpill>(context.temp, "ghosts", cells, sizeof(GhostEdge),
-                                             bufferFor(sizeof(GhostEdge)), kSpillLevel, /*discardable=*/true);
+                                             bufferFor(sizeof(GhostEdge)), kSpillLevel, /*discardable=*/true,
+                                             context.spillInBackground());
 
   uint64_t done = 0;
   arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {

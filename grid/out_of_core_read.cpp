@@ -73,13 +73,15 @@ bool ArrivalReader::appendResolved(const uint32_t vertex[3], uint64_t face, cons
 void ArrivalReader::readAll(TriangleReader& reader, PendingTriangles&& pending) {
   out_.extent.min = glm::vec3(std::numeric_limits<float>::infinity());
   out_.extent.max = -out_.extent.min;
-  out_.spill = std::make_unique<BucketSpill>(context_.temp, "arrival", 1, sizeof(FaceRecord),
-                                             kArrivalBufferBytes, kSpillLevel, /*discardable=*/true);
+  out_.spill =
+      std::make_unique<BucketSpill>(context_.temp, "arrival", 1, sizeof(FaceRecord), kArrivalBufferBytes,
+                                    kSpillLevel, /*discardable=*/true, context_.spillInBackground());
   const bool deferred = reader.positionsDeferred();
   const auto spillRef = [this](const uint32_t vertex[3], uint64_t face) {
     if (!refs_)
       refs_ =
-          std::make_unique<BucketSpill>(context_.temp, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes);
+          std::make_unique<BucketSpill>(context_.temp, "refs", 1, sizeof(TriangleRef), kArrivalBufferBytes,
+                                        kSpillLevel, /*discardable=*/false, context_.spillInBackground());
     const TriangleRef ref{{vertex[0], vertex[1], vertex[2]}, 0, face};
     refs_->append(0, &ref);
   };

@@ -100,7 +100,8 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
   bySlot.finish();
 
   auto rewritten = std::make_unique<BucketSpill>(context.temp, "arrival-welded", 1, sizeof(FaceRecord),
-                                                 kArrivalBufferBytes, kSpillLevel, /*discardable=*/true);
+                                                 kArrivalBufferBytes, kSpillLevel, /*discardable=*/true,
+                                                 context.spillInBackground());
   std::vector<CornerId> ids(3);
   uint64_t slot = 0;
   arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {

@@ -2,6 +2,7 @@
 // flushed to blocks or still buffered, read whole or block by block, from one thread or two.
 #include <cstring>
 #include <random>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -85,6 +86,64 @@ TEST(BucketSpill, interleavedAppendsReadBackPerBucketInAppendOrder) {
     EXPECT_EQ(streamed, bytes);
     EXPECT_EQ(calls, (expected[b].size() * sizeof(Record) + 995) / 996);
   }
+}
+
+// Background writes: the same blocks in the same order, the same bytes on disk and read back, as the
+// spill that compresses on the caller's thread; readers see every block the moment they ask.
+TEST(BucketSpill, backgroundWritesGiveTheSameBlocksAsInline) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBuckets = 23;
+  BucketSpill inline_(space, "inline", kBuckets, sizeof(Record), 1000);
+  BucketSpill background(space, "background", kBuckets, sizeof(Record), 1000, kSpillLevel,
+                         /*discardable=*/true,
+                         /*background=*/true);
+  const auto expected = fill(inline_, 40000, 7);
+  ASSERT_EQ(fill(background, 40000, 7), expected);
+  SpillCodec codec;
+  // Read while the helper may still be writing: readBucket waits for it.
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<std::byte> bytes;
+    background.readBucket(b, bytes, codec);
+    EXPECT_EQ(asRecords(bytes), expected[b]) << "bucket " << b;
+  }
+  inline_.flushAll();
+  background.releaseBuffers();  // flushes, waits, and stops the helper: read-only from here
+  EXPECT_EQ(background.bytesOnDisk(), inline_.bytesOnDisk());
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<std::byte> a, c;
+    size_t blocksA = 0, blocksC = 0;
+    inline_.forEachBlock(b, codec, [&](std::span<const std::byte> block) {
+      a.insert(a.end(), block.begin(), block.end());
+      ++blocksA;
+    });
+    background.drainBucket(b, codec, [&](std::span<const std::byte> block) {
+      c.insert(c.end(), block.begin(), block.end());
+      ++blocksC;
+    });
+    EXPECT_EQ(c, a) << "bucket " << b;
+    EXPECT_EQ(blocksC, blocksA) << "bucket " << b;
+  }
+}
+
+// A write the helper cannot make (past --max-tmp) fails the caller's next flush with the file's error.
+TEST(BucketSpill, aFailedBackgroundWriteIsThrownToTheCaller) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path(), 20000);
+  BucketSpill spill(space, "cells", 4, sizeof(Record), 4096, kSpillLevel, false, /*background=*/true);
+  std::mt19937_64 rng(3);
+  std::string message;
+  try {
+    for (uint32_t i = 0; i < 200000; ++i) {
+      const Record r{i % 4, i, static_cast<uint32_t>(rng())};
+      spill.append(i % 4, &r);
+    }
+    spill.flushAll();
+  } catch (const TempSpaceError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, space.path().string() + ": temporary files would exceed --max-tmp 20000 bytes");
+  EXPECT_LE(space.peakBytes(), 20000u);
 }
 
 TEST(BucketSpill, readBucketAppendsAfterWhatOutAlreadyHolds) {
