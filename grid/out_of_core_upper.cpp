@@ -1,7 +1,8 @@
-// The out-of-core build, merge above the cells: the engine continues the greedy merge over the leaf
-// clusters with their statistics (Willmott 2000, sec. 5.5.2: the same cost, balance guard and
-// component joins as in a cell); then the upper tree's recast to the file's branching factor and
-// the frames of its nodes (out_of_core.h).
+// The out-of-core build, merge above the cells: the engine's second entry point (mergeClusters)
+// continues the merge over the leaf clusters with their statistics, in the job's order (rounds of
+// reciprocal cheapest pairs by default), with the same cost, balance guard and component joins as in
+// a cell; then the upper tree's recast to the file's branching factor and the frames of its nodes
+// (out_of_core.h).
 #include <algorithm>
 
 #include "grid/out_of_core.h"

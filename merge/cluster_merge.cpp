@@ -1,10 +1,10 @@
-// mergeClusters: the greedy dual-edge merge (Garland, Willmott & Heckbert 2001; Willmott 2000,
-// ch. 5, eq. 84) continued above separately built pieces, the "leaf clusters" of the
-// out-of-core build: each leaf brings its statistics, subtree height and face count, and the
-// leaves' dual graph its shared boundary lengths.
+// greedyMergeClusters: the greedy dual-edge merge (Garland, Willmott & Heckbert 2001; Willmott
+// 2000, ch. 5, eq. 84) over given clusters: each leaf brings its statistics, subtree height and
+// face count, and the leaves' dual graph its shared boundary lengths.
 //
 // The exact greedy order, the reference the rounds are measured against (merge_rounds.cpp runs
-// it over single faces for MergeOrder::Exact, and over the clusters the rounds leave):
+// it over single faces and given clusters for MergeOrder::Exact, and over the clusters the rounds
+// leave):
 //  - Order: the live cluster with the lowest (cheapest edge's key, cluster id) merges along
 //    that edge (its cheapest by (key, edge id)); the edge's end[0] survives and keeps its id.
 //    Keys are float costs times 1 / diagonalSquared; the balance guard (balance_guard.h)
@@ -38,6 +38,7 @@
 #include "merge/dual_graph.h"
 #include "merge/heap.h"
 #include "merge/merge.h"
+#include "merge/merge_engine.h"
 #include "merge/surface_stats.h"
 
 namespace facetree {
@@ -455,13 +456,28 @@ class ClusterMerger {
 
 }  // namespace
 
-ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                                 double diagonalSquared, const BuildOptions& options,
-                                 std::span<const GarlandQuadrics> garland) {
+void checkClusterInput(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                       const BuildOptions& options, std::span<const GarlandQuadrics> garland) {
   if (options.metric == Metric::Garland && garland.size() != leaves.size()) {
     throw std::invalid_argument("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf");
   }
   if (leaves.size() > kMaxLeaves) throw std::invalid_argument("mergeClusters: more than 2^31-1 leaves");
+  if (edges.size() > kMaxEdges) throw std::invalid_argument("mergeClusters: more than 2^31-1 edges");
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const ClusterEdge& e = edges[i];
+    if (e.a >= leaves.size() || e.b >= leaves.size() || e.a == e.b) {
+      throw std::invalid_argument("mergeClusters: edge " + std::to_string(i) + " (" + std::to_string(e.a) +
+                                  ", " + std::to_string(e.b) +
+                                  ") is out of range or joins a leaf to itself (" +
+                                  std::to_string(leaves.size()) + " leaves)");
+    }
+  }
+}
+
+ClusterMergeResult greedyMergeClusters(std::span<const SurfaceStats> leaves,
+                                       std::span<const ClusterEdge> edges, double diagonalSquared,
+                                       const BuildOptions& options,
+                                       std::span<const GarlandQuadrics> garland) {
   if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
   return ClusterMerger(leaves, edges, diagonalSquared, options, garland).run();
 }

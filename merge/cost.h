@@ -57,7 +57,10 @@ class WillmottCost {
   static constexpr bool kBalanceGuard = true;  // the engine's height guard applies (merge.h)
 
   WillmottCost(const BuildOptions& options, const FaceGeometry& geometry)
-      : k_(options.k), flatThreshold_(options.flatThreshold), keyScale_(1.0 / geometry.diagonalSquared()) {}
+      : WillmottCost(options, geometry.diagonalSquared()) {}
+  // Over given clusters (no faces): the model's squared diagonal alone.
+  WillmottCost(const BuildOptions& options, double diagonalSquared)
+      : k_(options.k), flatThreshold_(options.flatThreshold), keyScale_(1.0 / diagonalSquared) {}
 
   Extra leafExtra(uint32_t) const { return {}; }
   static Extra merge(const Extra&, const Extra&) { return {}; }
@@ -107,11 +110,13 @@ class GarlandCost {
   static constexpr bool kBalanceGuard = false;  // faithful to its definition
 
   GarlandCost(const BuildOptions& options, const FaceGeometry& geometry)
-      : options_(options), geometry_(geometry) {}
+      : options_(options), geometry_(&geometry) {}
+  // Over given clusters, which bring their own quadrics: leafExtra is not called.
+  GarlandCost(const BuildOptions& options, double) : options_(options) {}
 
   Extra leafExtra(uint32_t face) const {
-    return GarlandStats::fromTriangle(geometry_.corner(face, 0), geometry_.corner(face, 1),
-                                      geometry_.corner(face, 2));
+    return GarlandStats::fromTriangle(geometry_->corner(face, 0), geometry_->corner(face, 1),
+                                      geometry_->corner(face, 2));
   }
   static Extra merge(const Extra& x, const Extra& y) { return GarlandStats::merged(x, y); }
   double operator()(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b, const Extra& xa,
@@ -124,7 +129,7 @@ class GarlandCost {
 
  private:
   BuildOptions options_;
-  const FaceGeometry& geometry_;
+  const FaceGeometry* geometry_ = nullptr;
 };
 
 // Every merge costs the same; ties break by edge id: the unbalanced worst case of Willmott's
@@ -135,6 +140,7 @@ class ConstantCost {
   static constexpr bool kBalanceGuard = false;  // the unbalanced worst case, by design
 
   ConstantCost(const BuildOptions&, const FaceGeometry&) {}
+  ConstantCost(const BuildOptions&, double) {}
   Extra leafExtra(uint32_t) const { return {}; }
   static Extra merge(const Extra&, const Extra&) { return {}; }
   double operator()(const ClusterStats&, const ClusterStats&, const ClusterStats&, const Extra&,

@@ -277,19 +277,24 @@ struct ClusterMergeResult {
   double averageDegree = 0;             // dual-edge degree of merged clusters, sampled at each edge merge
   uint32_t maxDegree = 0;
   uint64_t eigenSolves = 0, normalShortcuts = 0;
+  uint32_t rounds = 0;  // rounds of reciprocal pairs before the greedy (0 under MergeOrder::Exact)
 };
 
-// The greedy dual-edge merge over given leaf clusters (their stats, heights and face counts from their own
-// hierarchies): eq. 84 with options.k / flatThreshold, the balance guard with options.balanceSlack using the
-// leaves' heights and face counts, Huffman component joins by face count as the engine does, deterministic
-// ties (cost, then ids). `diagonalSquared` is the squared bounding-box diagonal of the whole model (the key
-// scale the engine uses). Metric::Constant supported; Metric::Garland with `garland`, the leaves' quadrics
-// (one per leaf, about the origin of their stats; ignored by the other metrics), without the balance guard as
-// the engine runs it. Cost O((L + E) log L); memory O(L + E). With one leaf per face (the faces' surfaceStats
-// and garlandQuadrics about the engine's origin, the dual graph's edges with their exact shared lengths) the
-// nodes are buildHierarchy's, in creation order. Throws std::invalid_argument for an edge with an endpoint
-// out of range or equal ends, for 2^31 leaves or more, and for Metric::Garland without one quadric per leaf
-// ("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf").
+// The engine's dual-edge merge over given leaf clusters (their stats, heights and face counts from their own
+// hierarchies), its second entry point beside buildHierarchy: in options.order, rounds of reciprocal
+// cheapest pairs then the greedy over the last clusters (MergeOrder::Rounds), or the exact greedy
+// (MergeOrder::Exact). Eq. 84 with options.k / flatThreshold, the balance guard with options.balanceSlack
+// using the leaves' heights and face counts, Huffman component joins by face count as the engine does,
+// deterministic ties (cost, then ids), the same result for every options.threads. Parallel edges are summed.
+// `diagonalSquared` is the squared bounding-box diagonal of the whole model (the key scale the engine uses).
+// Metric::Constant supported; Metric::Garland with `garland`, the leaves' quadrics (one per leaf, about the
+// origin of their stats; ignored by the other metrics), without the balance guard as the engine runs it.
+// Nodes carry their statistics (summed from the leaves'). The exact order costs O((L + E) log L); memory
+// O(L + E). Under MergeOrder::Exact with one leaf per face (the faces' surfaceStats and garlandQuadrics
+// about the engine's origin, the dual graph's edges with their exact shared lengths) the nodes are
+// buildHierarchy's under that order, in creation order. Throws std::invalid_argument for an edge with an
+// endpoint out of range or equal ends, for 2^31 leaves or more, and for Metric::Garland without one quadric
+// per leaf ("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf").
 ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
                                  double diagonalSquared, const BuildOptions& options = {},
                                  std::span<const GarlandQuadrics> garland = {});

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "merge/cost.h"
@@ -48,5 +49,14 @@ unsigned workerThreads(const BuildOptions& options);
 // The merge of BuildOptions::order over the faces of `geometry` along the matched dual edges
 // (consumed), on options.threads threads with the same result for every count.
 MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);
+
+// mergeClusters' checks of its input (merge.h), with its messages.
+void checkClusterInput(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                       const BuildOptions& options, std::span<const GarlandQuadrics> garland);
+// The exact greedy over given clusters (cluster_merge.cpp): MergeOrder::Exact's mergeClusters, and the
+// tail of the rounds.
+ClusterMergeResult greedyMergeClusters(std::span<const SurfaceStats> leaves,
+                                       std::span<const ClusterEdge> edges, double diagonalSquared,
+                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland);
 
 }  // namespace facetree

@@ -225,12 +225,15 @@ class RoundsEngine {
   };
 
   RoundsEngine(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options)
-      : geometry_(geometry),
+      : geometry_(&geometry),
+        leafCount_(geometry.faceCount()),
+        diagonalSquared_(geometry.diagonalSquared()),
         options_(options),
-        keyScale_(Policy(options, geometry).keyScale()),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
     threads_ = workerThreads(options);
     for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, geometry);
+    keyScale_ = policies_[0].keyScale();
+    result_ = emptyResult(leafCount_);
     if (options.order == MergeOrder::Exact) {  // the greedy costs every edge itself
       faceEdges_ = std::move(edges);
       return;
@@ -240,10 +243,27 @@ class RoundsEngine {
     result_.secondsCost = secondsSince(start);
   }
 
+  // Over given clusters (mergeClusters): each starts as a cluster with its statistics, height and
+  // face count, its node kFaceChild | leaf index; `edges` are checked (checkClusterInput).
+  RoundsEngine(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+               double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland)
+      : leafCount_(static_cast<uint32_t>(leaves.size())),
+        diagonalSquared_(diagonalSquared),
+        options_(options),
+        guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
+    threads_ = workerThreads(options);
+    for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, diagonalSquared);
+    keyScale_ = policies_[0].keyScale();
+    result_ = emptyResult(leafCount_);
+    auto start = std::chrono::steady_clock::now();
+    initialiseClusters(leaves, edges, garland);
+    result_.secondsCost = secondsSince(start);
+  }
+
   MergeResult run() {
     auto start = std::chrono::steady_clock::now();
     uint32_t rounds = 0;
-    const uint32_t tail = std::min(kTailClusters, geometry_.faceCount() / kTailFraction);
+    const uint32_t tail = std::min(kTailClusters, leafCount_ / kTailFraction);
     while (options_.order == MergeOrder::Rounds) {
       if (options_.cancelled && options_.cancelled()) throw Cancelled();
       if (rounds > 0) findCheapest();
@@ -287,11 +307,12 @@ class RoundsEngine {
     Buffer<Slot> slots;      // in cluster order
     Buffer<Half> halves;
 
-    void reserve(size_t clusters, size_t halfCount) {
+    // Faces: at most half the clusters have two faces or more, and a slot.
+    void reserve(size_t clusters, size_t halfCount, size_t slotCount) {
       reserveHugePages(ref, clusters);
       reserveHugePages(begin, clusters + 1);
       reserveHugePages(merged, clusters);
-      reserveHugePages(slots, clusters / 2 + 1);  // at most half the clusters have two faces or more
+      reserveHugePages(slots, slotCount);
       reserveHugePages(halves, halfCount);
     }
     void resize(uint32_t clusters) {
@@ -307,13 +328,13 @@ class RoundsEngine {
   // Round 0: one adjacency list per face in the order of its edges (lower neighbours, then
   // higher ones, each ascending), each edge's key computed once from the two triangles.
   void initialise(DualEdgeBlocks edges) {
-    const uint32_t n = geometry_.faceCount();
+    const uint32_t n = leafCount_;
     size_t edgeCount = 0;
     for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
     live_ = n;
     result_.records.reserve(n - 1);
-    now_.reserve(n, 2 * edgeCount);
-    next_.reserve(n, 2 * edgeCount);
+    now_.reserve(n, 2 * edgeCount, n / 2 + 1);
+    next_.reserve(n, 2 * edgeCount, n / 2 + 1);
     reserveHugePages(best_, n);
     reserveHugePages(paired_, n);
     reserveHugePages(newId_, n);
@@ -361,9 +382,72 @@ class RoundsEngine {
     });
   }
 
+  // Round 0 over given clusters: every cluster in a slot (its statistics about its centroid, as a
+  // merged cluster keeps them), parallel edges summed, each edge's key computed once.
+  void initialiseClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> input,
+                          std::span<const GarlandQuadrics> garland) {
+    const uint32_t n = leafCount_;
+    std::vector<ClusterEdge> edges;
+    edges.reserve(input.size());
+    for (const ClusterEdge& e : input) edges.push_back({std::min(e.a, e.b), std::max(e.a, e.b), e.shared});
+    std::sort(edges.begin(), edges.end(),
+              [](const ClusterEdge& x, const ClusterEdge& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
+    size_t kept = 0;
+    for (size_t i = 0; i < edges.size();) {
+      ClusterEdge sum = edges[i];
+      for (++i; i < edges.size() && edges[i].a == sum.a && edges[i].b == sum.b; ++i)
+        sum.shared += edges[i].shared;
+      edges[kept++] = sum;
+    }
+    edges.resize(kept);
+    live_ = n;
+    now_.reserve(n, 2 * edges.size(), n);
+    next_.reserve(n, 2 * edges.size(), n);
+    reserveHugePages(best_, n);
+    reserveHugePages(paired_, n);
+    reserveHugePages(newId_, n);
+    best_.resize(n);
+    paired_.resize(n);
+    now_.resize(n);
+    now_.slots.resize(n);
+    for (uint32_t c = 0; c < n; ++c) {
+      const SurfaceStats& s = leaves[c];
+      Centred centred;
+      centred.about = toClusterStats(s);
+      centred.about.firstMoment = glm::dvec3(0.0);
+      if (s.area > 0) {
+        centred.centroid = s.firstMoment / s.area;
+        centred.about.secondMoment.addOuter(centred.centroid, -s.area);  // parallel-axis theorem
+      }
+      Slot& slot = now_.slots[c];
+      slot = {StoredCentred::of(centred), kFaceChild | c, static_cast<uint32_t>(s.faceCount), s.height, {}};
+      if constexpr (std::is_same_v<Extra, GarlandStats>) slot.extra = toGarlandStats(garland[c]);
+      now_.ref[c] = c;
+      now_.merged[c] = 0;
+    }
+    Buffer<uint32_t>& begin = now_.begin;
+    std::fill(begin.begin(), begin.end(), 0u);
+    for (const ClusterEdge& e : edges) {
+      ++begin[e.a + 1];
+      ++begin[e.b + 1];
+    }
+    for (uint32_t c = 0; c < n; ++c) begin[c + 1] += begin[c];
+    now_.halves.resize(begin[n]);
+    Buffer<uint32_t>& fill = newId_;  // scratch: the next free half of each list
+    fill.assign(begin.begin(), begin.end() - 1);
+    Policy& policy = policies_[0];
+    for (const ClusterEdge& e : edges) {
+      const auto shared = static_cast<float>(e.shared);
+      const float k = key(policy, cluster(e.a, policy), cluster(e.b, policy), shared);
+      now_.halves[fill[e.a]++] = {e.b, shared, k};
+      now_.halves[fill[e.b]++] = {e.a, shared, k};
+    }
+    for (uint32_t c = 0; c < n; ++c) best_[c] = cheapest(c);
+  }
+
   Cluster leaf(uint32_t face, const Policy& policy) const {
     return {
-        Centred::triangle(geometry_.corner(face, 0), geometry_.corner(face, 1), geometry_.corner(face, 2)),
+        Centred::triangle(geometry_->corner(face, 0), geometry_->corner(face, 1), geometry_->corner(face, 2)),
         policy.leafExtra(face), kFaceChild | face, 1, 1};
   }
   Cluster cluster(uint32_t c, const Policy& policy) const {
@@ -536,7 +620,7 @@ class RoundsEngine {
     // block's: below the finished prefix the old adjacency and slots are dead, and their pages
     // go back as the contraction moves on, so a round holds about one copy of them, not two
     // (large builds only: kReturnMemoryFaces).
-    const bool releasing = geometry_.faceCount() >= kReturnMemoryFaces;
+    const bool releasing = leafCount_ >= kReturnMemoryFaces;
     FinishedBlocks finished(releasing ? blocks : 0);
     const auto releaseInput = [&](uint32_t prefix) {
       const uint32_t c = std::min(live_, prefix * kBlock);
@@ -658,7 +742,7 @@ class RoundsEngine {
 
   // MergeOrder::Exact: the greedy over the single faces along the dual graph's edges.
   void greedyOverFaces() {
-    const uint32_t n = geometry_.faceCount();
+    const uint32_t n = leafCount_;
     if (n == 1) {
       result_.components = 1;
       return;
@@ -694,8 +778,8 @@ class RoundsEngine {
 
   // mergeClusters over `leaves`; its nodes become records after the rounds'.
   void greedy(const Leaves& leaves, std::span<const ClusterEdge> edges) {
-    ClusterMergeResult tail = mergeClusters(leaves.stats, edges, geometry_.diagonalSquared(), options_,
-                                            std::span<const GarlandQuadrics>(leaves.quadrics));
+    ClusterMergeResult tail = greedyMergeClusters(leaves.stats, edges, diagonalSquared_, options_,
+                                                  std::span<const GarlandQuadrics>(leaves.quadrics));
     const uint32_t base = static_cast<uint32_t>(result_.records.size());
     for (const ClusterMergeNode& n : tail.nodes) {
       MergeRecord record;
@@ -721,9 +805,11 @@ class RoundsEngine {
     result_.counters.normalShortcuts += tail.normalShortcuts;
   }
 
-  const FaceGeometry& geometry_;
+  const FaceGeometry* geometry_ = nullptr;  // null over given clusters
+  uint32_t leafCount_;                      // faces, or given clusters
+  double diagonalSquared_;
   const BuildOptions& options_;
-  double keyScale_;
+  double keyScale_ = 1.0;
   bool guard_;
   unsigned threads_ = 1;
   std::vector<Policy> policies_;  // one per thread: each counts its own solves
@@ -735,11 +821,11 @@ class RoundsEngine {
   Buffer<uint32_t> newId_;
   std::vector<uint32_t> pairsInBlock_;
   std::vector<Folder> folders_;  // one per thread
-  MergeResult result_ = emptyResult(geometry_.faceCount());
+  MergeResult result_;
 
-  static MergeResult emptyResult(uint32_t faces) {
+  static MergeResult emptyResult(uint32_t leaves) {
     MergeResult result;
-    reserveHugePages(result.records, faces - 1);  // every record is written once, in order
+    reserveHugePages(result.records, leaves > 0 ? leaves - 1 : 0);  // every record is written once, in order
     return result;
   }
 };
@@ -755,6 +841,66 @@ MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const B
     case Metric::Willmott:
     default:
       return RoundsEngine<WillmottCost>(geometry, std::move(edges), options).run();
+  }
+}
+
+namespace {
+
+// Every cluster's statistics from its leaves' and the record's perimeter (the moments are additive,
+// Willmott 2000, sec. 5.2.3), for the callers of mergeClusters, which frame the nodes from them.
+ClusterMergeResult clusterResult(MergeResult&& merged, std::span<const SurfaceStats> leaves) {
+  ClusterMergeResult out;
+  out.nodes.resize(merged.records.size());
+  for (size_t i = 0; i < merged.records.size(); ++i) {
+    const MergeRecord& record = merged.records[i];
+    ClusterMergeNode& node = out.nodes[i];
+    SurfaceStats& stats = node.stats;
+    stats.height = 0;
+    for (int k = 0; k < 2; ++k) {
+      const uint32_t c = record.child[k];
+      const bool leaf = (c & kFaceChild) != 0;
+      node.child[k] = leaf ? kLeafChild | (c & ~kFaceChild) : c;
+      const SurfaceStats& child = leaf ? leaves[c & ~kFaceChild] : out.nodes[c].stats;
+      stats.area += child.area;
+      stats.sumNormal += child.sumNormal;
+      stats.firstMoment += child.firstMoment;
+      for (int m = 0; m < 6; ++m) stats.secondMoment[m] += child.secondMoment[m];
+      stats.height = std::max(stats.height, child.height + 1);
+    }
+    stats.perimeter = record.perimeter;
+    stats.faceCount = record.faceCount();
+    node.flags = (record.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
+    node.cost = record.cost;
+  }
+  out.components = merged.components;
+  out.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
+  out.maxDegree = merged.maxDegree;
+  out.eigenSolves = merged.counters.eigenSolves;
+  out.normalShortcuts = merged.counters.normalShortcuts;
+  out.rounds = merged.rounds;
+  return out;
+}
+
+}  // namespace
+
+ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
+                                 double diagonalSquared, const BuildOptions& options,
+                                 std::span<const GarlandQuadrics> garland) {
+  checkClusterInput(leaves, edges, options, garland);
+  if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
+  if (options.order == MergeOrder::Exact || leaves.size() < 2)
+    return greedyMergeClusters(leaves, edges, diagonalSquared, options, garland);
+  switch (options.metric) {
+    case Metric::Garland:
+      return clusterResult(RoundsEngine<GarlandCost>(leaves, edges, diagonalSquared, options, garland).run(),
+                           leaves);
+    case Metric::Constant:
+      return clusterResult(RoundsEngine<ConstantCost>(leaves, edges, diagonalSquared, options, garland).run(),
+                           leaves);
+    case Metric::Willmott:
+    default:
+      return clusterResult(RoundsEngine<WillmottCost>(leaves, edges, diagonalSquared, options, garland).run(),
+                           leaves);
   }
 }
 

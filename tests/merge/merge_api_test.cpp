@@ -625,6 +625,54 @@ TEST(MergeClusters, AboveSpatialPiecesIsAValidConnectedHierarchy) {
   }
 }
 
+// The rounds over given clusters (the default order) and the exact greedy: both valid, connected
+// hierarchies with the leaves' statistics summed; the rounds ran, the greedy did not; the same nodes,
+// bit for bit, for 1, 2 and 3 threads.
+TEST(MergeClusters, RoundsAboveLeavesAreDeterministicAndValidLikeTheExactOrder) {
+  const TestMesh mesh = bumpyGrid(96, 0.15f, 0.2f);
+  const FaceGeometry geometry(mesh.view());
+  const Leaves leaves = makeLeaves(mesh, spatialPieces(mesh, 16), geometry.origin(), noBoxes());
+  ASSERT_GT(leaves.stats.size(), 200u);
+  BuildOptions exact = noBoxes();
+  exact.order = MergeOrder::Exact;
+  const ClusterMergeResult greedy =
+      mergeClusters(leaves.stats, leaves.edges, geometry.diagonalSquared(), exact);
+  EXPECT_EQ(greedy.rounds, 0u);
+  std::vector<ClusterMergeResult> byThreads;
+  for (const unsigned threads : {1u, 2u, 3u}) {
+    BuildOptions options = noBoxes();
+    options.threads = threads;
+    byThreads.push_back(mergeClusters(leaves.stats, leaves.edges, geometry.diagonalSquared(), options));
+  }
+  const ClusterMergeResult& rounds = byThreads[0];
+  EXPECT_GT(rounds.rounds, 0u);
+  for (const ClusterMergeResult* r : {&rounds, &greedy}) {
+    const auto members = checkTree(*r, leaves.stats);
+    if (::testing::Test::HasFailure()) return;
+    checkConnected(*r, leaves.edges, members, uint32_t(leaves.stats.size()));
+    EXPECT_EQ(r->components, 1u);
+  }
+  for (size_t t = 1; t < byThreads.size(); ++t) {
+    ASSERT_EQ(byThreads[t].nodes.size(), rounds.nodes.size());
+    for (size_t i = 0; i < rounds.nodes.size(); ++i) {
+      const ClusterMergeNode &a = rounds.nodes[i], &b = byThreads[t].nodes[i];
+      EXPECT_EQ(a.child[0], b.child[0]) << "node " << i;
+      EXPECT_EQ(a.child[1], b.child[1]) << "node " << i;
+      EXPECT_EQ(std::memcmp(&a.cost, &b.cost, sizeof a.cost), 0) << "node " << i;
+      EXPECT_EQ(a.stats.area, b.stats.area) << "node " << i;
+      EXPECT_EQ(a.stats.perimeter, b.stats.perimeter) << "node " << i;
+      EXPECT_EQ(a.stats.sumNormal, b.stats.sumNormal) << "node " << i;
+      EXPECT_EQ(a.stats.firstMoment, b.stats.firstMoment) << "node " << i;
+      for (int m = 0; m < 6; ++m) EXPECT_EQ(a.stats.secondMoment[m], b.stats.secondMoment[m]) << "node " << i;
+      EXPECT_EQ(a.stats.faceCount, b.stats.faceCount) << "node " << i;
+      EXPECT_EQ(a.stats.height, b.stats.height) << "node " << i;
+    }
+  }
+  // Rounds and greedy differ in their order, not in what the root holds.
+  expectStatsNear(rounds.nodes.back().stats, greedy.nodes.back().stats, 1e-9, sumOfTrianglePerimeters(mesh),
+                  1e-6);
+}
+
 // A node over n faces made by an edge merge is never taller than the guard lets it be.
 void expectGuardBound(const ClusterMergeResult& r, double slack) {
   for (uint32_t i = 0; i < r.nodes.size(); ++i) {
