@@ -323,17 +323,11 @@ void WriteStage::run() {
   const ClusterJob& job = context_.job;
   StreamFileInfo info;
   FileHeader& h = info.header;
+  h = optionsHeader(job.file);
+  h.memoryCapBytes = context_.memoryCap;  // the cap the build held, given or not
   h.nodeCount = h.originalNodeCount = fileLayout.nodes;
   h.triangleCount = fileLayout.faces;
   h.vertexCount = fileLayout.vertices;
-  h.branching = job.file.branching;
-  h.metric = job.build.metric;
-  h.k = job.build.k;
-  h.flatThreshold = job.build.flatThreshold;
-  h.garlandWeights[0] = job.build.garlandFitWeight;
-  h.garlandWeights[1] = job.build.garlandDirWeight;
-  h.garlandWeights[2] = job.build.garlandShapeWeight;
-  h.memoryCapBytes = context_.memoryCap;
   info.maxOriginalFace = extent_.maxFace;
   WriteOptions writeOptions;
   writeOptions.zstdLevel = job.zstdLevel ? job.zstdLevel : 3;

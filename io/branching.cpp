@@ -88,7 +88,8 @@ void checkFileInputs(const MeshView& mesh, std::span<const uint64_t> originalFac
                                 ": the hierarchy has no boxes (BuildOptions::computeBoxes)");
 }
 
-// The header fields that record the build's options (counts are filled in by the callers).
+}  // namespace
+
 FileHeader optionsHeader(const FileOptions& options) {
   FileHeader h;
   h.branching = options.branching;
@@ -101,8 +102,6 @@ FileHeader optionsHeader(const FileOptions& options) {
   h.memoryCapBytes = options.memoryCapBytes;
   return h;
 }
-
-}  // namespace
 
 RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching, RecastRule rule) {
   checkHierarchy(hierarchy, branching);

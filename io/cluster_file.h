@@ -93,6 +93,9 @@ struct FileOptions {
   uint64_t memoryCapBytes = 0;  // recorded in the header
 };
 
+// The header fields that record the build's options (the counts are the writer's to fill in).
+FileHeader optionsHeader(const FileOptions& options);
+
 // Recast statistics (sec. 5.5.1).
 struct BranchingStats {
   uint32_t branching = 2;

@@ -230,10 +230,7 @@ class RoundsEngine {
         diagonalSquared_(geometry.diagonalSquared()),
         options_(options),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
-    threads_ = workerThreads(options);
-    for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, geometry);
-    keyScale_ = policies_[0].keyScale();
-    result_ = emptyResult(leafCount_);
+    setUp(geometry);
     if (options.order == MergeOrder::Exact) {  // the greedy costs every edge itself
       faceEdges_ = std::move(edges);
       return;
@@ -251,10 +248,7 @@ class RoundsEngine {
         diagonalSquared_(diagonalSquared),
         options_(options),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
-    threads_ = workerThreads(options);
-    for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options, diagonalSquared);
-    keyScale_ = policies_[0].keyScale();
-    result_ = emptyResult(leafCount_);
+    setUp(diagonalSquared);
     auto start = std::chrono::steady_clock::now();
     initialiseClusters(leaves, edges, garland);
     result_.secondsCost = secondsSince(start);
@@ -322,8 +316,33 @@ class RoundsEngine {
     }
   };
 
+  // What both entry points set up: a cost policy per thread (the geometry, or the model's squared
+  // diagonal), the key scale, the records.
+  template <class PolicyArgument>
+  void setUp(const PolicyArgument& argument) {
+    threads_ = workerThreads(options_);
+    for (unsigned t = 0; t < threads_; ++t) policies_.emplace_back(options_, argument);
+    keyScale_ = policies_[0].keyScale();
+    result_ = emptyResult(leafCount_);
+  }
+
   uint32_t blockCount() const { return (live_ + kBlock - 1) / kBlock; }
   bool single(uint32_t c) const { return (now_.ref[c] & kFaceChild) != 0; }
+
+  // Every cluster live, and the arrays of the rounds reserved once: `halves` adjacency entries,
+  // `slots` clusters with statistics at most.
+  void reserveRounds(size_t halves, size_t slots) {
+    const uint32_t n = leafCount_;
+    live_ = n;
+    now_.reserve(n, halves, slots);
+    next_.reserve(n, halves, slots);
+    reserveHugePages(best_, n);
+    reserveHugePages(paired_, n);
+    reserveHugePages(newId_, n);
+    best_.resize(n);
+    paired_.resize(n);
+    now_.resize(n);
+  }
 
   // Round 0: one adjacency list per face in the order of its edges (lower neighbours, then
   // higher ones, each ascending), each edge's key computed once from the two triangles.
@@ -331,16 +350,8 @@ class RoundsEngine {
     const uint32_t n = leafCount_;
     size_t edgeCount = 0;
     for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
-    live_ = n;
     result_.records.reserve(n - 1);
-    now_.reserve(n, 2 * edgeCount, n / 2 + 1);
-    next_.reserve(n, 2 * edgeCount, n / 2 + 1);
-    reserveHugePages(best_, n);
-    reserveHugePages(paired_, n);
-    reserveHugePages(newId_, n);
-    best_.resize(n);
-    paired_.resize(n);
-    now_.resize(n);
+    reserveRounds(2 * edgeCount, n / 2 + 1);
     forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
       uint32_t first = kNone;
@@ -400,15 +411,7 @@ class RoundsEngine {
       edges[kept++] = sum;
     }
     edges.resize(kept);
-    live_ = n;
-    now_.reserve(n, 2 * edges.size(), n);
-    next_.reserve(n, 2 * edges.size(), n);
-    reserveHugePages(best_, n);
-    reserveHugePages(paired_, n);
-    reserveHugePages(newId_, n);
-    best_.resize(n);
-    paired_.resize(n);
-    now_.resize(n);
+    reserveRounds(2 * edges.size(), n);
     now_.slots.resize(n);
     for (uint32_t c = 0; c < n; ++c) {
       const SurfaceStats& s = leaves[c];
