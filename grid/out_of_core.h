@@ -91,7 +91,7 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
 // A run of a leaf's nodes as the file interleaves them (nodeBlocks). One lives per run from the
 // cells to the write: 24 B, the spill handle without its raw size (count FchNodes).
 struct NodeBlock {
-  float key;       // the sort key (a band of log cost), non-increasing along the leaf
+  float key;       // its first node's log effective cost: non-increasing along the leaf
   uint32_t first;  // its first node, leaf-local
   uint32_t count;
   uint32_t compressedBytes = 0;  // the FchNodes in the node spill

@@ -125,41 +125,32 @@ void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, cons
 
 }  // namespace
 
-// How a leaf's nodes (file order, root first) are cut into the blocks the file interleaves
-// (out_of_core_write.cpp sorts all leaves' blocks by key). A node's key is its leaf's *level* when
-// the engine made it: the highest log cost among it and the nodes made before it in the leaf
-// (those after it in file order: a suffix maximum). A leaf's nodes come by decreasing effective
-// cost (buildHierarchy), so the suffix maximum is a node's effective cost, and sorting the leaves'
-// nodes by it interleaves them as one in-core build would order them. The key is
-// non-increasing along the leaf, so sorting keeps a leaf's blocks in order. Keys are quantised
-// to bands of kKeyBand and a block is a run of nodes in one band (at most kNodeBlock long).
-// Keys tried before: each node's log cost made non-increasing by isotonic regression (pool
-// adjacent violators: fg_hawaii at 64 MiB cut at 100,000 clusters 1.84x in core, 1.19x with the
-// level; a leaf of specks joined by the engine holds expensive joins under cheap ones, and the
-// pools averaged them down), the running minimum from the root (11x: one cheap early node held
-// back a whole leaf), fixed 64-node blocks of mean cost (4x: a block's costs spread too widely).
+// How a leaf's nodes (file order, root first) are cut into the runs the file interleaves
+// (out_of_core_write.cpp merges all leaves' runs by key). A leaf's nodes come by decreasing
+// effective cost (buildHierarchy; Willmott 2000, sec. 5.5.3), so a node's effective cost is the
+// highest cost among it and the nodes after it in the leaf (a suffix maximum), non-increasing
+// along the leaf. A run's key is the log effective cost of its first node, exactly: merging the
+// leaves' runs by it orders every run head as one in-core build orders its nodes. A run holds nodes
+// whose keys fall in one band of kKeyBand (28%), so no node of a run is more than that out of
+// place, and at most max(kNodeBlock, minRun) of them; a run from node f holds at least
+// min(f / 2, minRun) (a shorter one joins the next, under the earlier, higher key), so the top of
+// a leaf, which cuts of a few clusters per leaf take, is cut finest, and the run table (48 B a run
+// from the cells to the write) stays within the plan's budget.
 std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
   const uint32_t maxRun = std::max(kNodeBlock, minRun);
-  std::vector<float> band(nodes.size());
+  std::vector<float> key(nodes.size());
   double level = -std::numeric_limits<double>::infinity();
   for (size_t i = nodes.size(); i-- > 0;) {
     level = std::max(level, std::log(std::max(double(nodes[i].cost), 1e-30)));
-    band[i] = static_cast<float>(std::floor(level / kKeyBand));
+    key[i] = static_cast<float>(level);
   }
-  // Runs of one band, at least min(f / 2, kMinNodeBlock) long for a run from node f (a shorter
-  // run joins the next, under the earlier, higher key): the block table costs ~50 bytes per block
-  // in memory until the write (one block per node made fg_hawaii's table 166 MB; runs of >= 32
-  // made a 55.8M scan's 56 MB). Dragon in 20k cells, cut at 100,000 clusters, fits 1.035x in
-  // core with kMinNodeBlock 32 and with 256; fixed runs of >= 64 from the top of a leaf: 2.5x.
+  const auto band = [](float k) { return std::floor(k / static_cast<float>(kKeyBand)); };
   std::vector<NodeBlock> blocks;
-  uint32_t at = 0;
-  for (; at < nodes.size(); ++at) {
-    // The top of a leaf is cut finer (a block starting at node f holds at least f / 2 nodes):
-    // cuts of a few clusters per leaf take its first nodes, not a whole block of 32.
+  for (uint32_t at = 0; at < nodes.size(); ++at) {
     const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
     if (blocks.empty() || blocks.back().count == maxRun ||
-        (blocks.back().key != band[at] && blocks.back().count >= minimum))
-      blocks.push_back({band[at], at, 0, 0, 0});
+        (band(blocks.back().key) != band(key[at]) && blocks.back().count >= minimum))
+      blocks.push_back({key[at], at, 0, 0, 0});
     ++blocks.back().count;
   }
   return blocks;

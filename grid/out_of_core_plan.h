@@ -47,8 +47,8 @@ inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
 inline constexpr uint64_t kRunBytes = 48;
 // The cross-edge join runs up to three external sorts at once, each with this fraction of the cap.
 inline constexpr uint64_t kEdgeSortShare = 24;
-// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose keys fall in
-// one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
+// The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose effective
+// costs fall in one band of kKeyBand (natural log of the cost: 0.25 = 28%), see nodeBlocks.
 inline constexpr uint32_t kNodeBlock = 256;
 inline constexpr uint32_t kMinNodeBlock = 256;
 inline constexpr double kKeyBand = 0.25;

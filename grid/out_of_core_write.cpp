@@ -139,17 +139,18 @@ FileLayout WriteStage::layout() const {
   return l;
 }
 
-// Node order: upper nodes and the leaves' runs by decreasing key, upper nodes first at equal keys,
-// then by leaf rank and run. A leaf run's key is the band of its nodes' effective cost (nodeBlocks);
-// an upper node's is the highest band in its subtree: its own, its upper children's, its leaf
-// children's first runs'. Keys never increase from parent to child, so children follow their
-// parents and a prefix refines the leaves as the in-core order refines the mesh.
+// Node order: one merge of the leaves' runs and the upper nodes by decreasing key, upper nodes first
+// at equal keys, then by leaf rank and run. A leaf run's key is its first node's log effective cost
+// (nodeBlocks); an upper node's is its own log effective cost: the highest of its own cost and its
+// children's keys (its upper children's, its leaf children's first runs'). Keys never increase from
+// parent to child, so children follow their parents and a prefix refines the leaves as the in-core
+// order refines the mesh.
 std::vector<NodeRef> WriteStage::nodeOrder(const FileLayout& layout) const {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   std::vector<float> upperKey(upperCount);
   for (uint32_t i = 0; i < upperCount; ++i) {  // children (created earlier) first
-    float key = static_cast<float>(std::floor(std::log(std::max(double(upper[i].cost), 1e-30)) / kKeyBand));
+    float key = static_cast<float>(std::log(std::max(double(upper[i].cost), 1e-30)));
     for (const uint32_t c : upper[i].child) {
       if (!(c & kLeafChild)) {
         key = std::max(key, upperKey[c]);
