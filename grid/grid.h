@@ -1,4 +1,5 @@
-// facetree/grid: drives the passes from a mesh file to a hierarchy (stream -> merge).
+// facetree/grid: the job from a mesh file to a cluster file (stream -> merge -> io), in core or out of
+// core in stages.
 // Public header of the module.
 //
 // Errors: throws facetree::ReadError for unreadable input (see stream.h),

@@ -57,7 +57,7 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
     context.checkCancel("bin", done, arrival.extent.triangles);
   });
   arrival.spill.reset();  // its disk space is released before the cells are spilled again
-  // Read-only from here: their buffers (a quarter of the cap) go back before the cells pass.
+  // Read-only from here: their buffers (a quarter of the cap) go back before the cells stage.
   out.faces->releaseBuffers();
   out.ghosts->releaseBuffers();
   return out;

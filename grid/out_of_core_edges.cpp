@@ -63,7 +63,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
   std::vector<uint32_t> leafBase(cells + 1, 0);
   for (uint32_t c = 0; c < cells; ++c) leafBase[c + 1] = leafBase[c] + records.cells[c].leafCount;
   // Three sorters may hold memory at once (one merging, two filling): a share of the cap the
-  // cells pass has just released.
+  // cells stage has just released.
   const uint64_t budget = std::max<uint64_t>(context.memoryCap / kEdgeSortShare, uint64_t{1} << 20);
   EdgeSorter edges(context.temp, "leaf-edges", budget);
   auto pending = std::make_unique<PendingSorter>(context.temp, "pairs-by-face", budget);

@@ -250,13 +250,21 @@ TEST(OutOfCore, TemporaryFilesRemovedOnSuccessAndFailure) {
   EXPECT_THROW(runClusterJob(job), TemporaryFileError);
   EXPECT_TRUE(fs::is_empty(dir / "tmp"));
   EXPECT_FALSE(fs::exists(dir / "fail.fch"));
-  // Cancelled from the progress callback: the same.
+  // Cancelled from the progress callback in each stage, with its helper threads running (two
+  // threads: spills compressed on helpers) and without: the same.
   job.maxTemporaryBytes = 0;
-  int calls = 0;
-  job.progress = [&calls](const JobProgress& p) { return std::string(p.phase) != "cells" || ++calls < 2; };
-  EXPECT_THROW(runClusterJob(job), JobCancelled);
-  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
-  EXPECT_FALSE(fs::exists(dir / "fail.fch"));
+  for (const unsigned threads : {1u, 2u}) {
+    for (const std::string stage : {"read", "bin", "cells", "write"}) {
+      SCOPED_TRACE(stage + ", " + std::to_string(threads) + " threads");
+      int calls = 0;
+      job.threads = threads;
+      job.progress = [&](const JobProgress& p) { return p.phase != stage || ++calls < 2; };
+      EXPECT_THROW(runClusterJob(job), JobCancelled);
+      EXPECT_EQ(calls, 2);
+      EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+      EXPECT_FALSE(fs::exists(dir / "fail.fch"));
+    }
+  }
   for (const auto& entry : fs::directory_iterator(dir.path()))
     EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
 }
