@@ -4,7 +4,11 @@
 #include <zstd.h>
 
 #include <algorithm>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 namespace facetree {
 

@@ -2,17 +2,13 @@
 // edge records per cell, per-leaf node and face spills of the out-of-core build. Internal to grid/.
 #pragma once
 
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <deque>
-#include <exception>
 #include <memory>
-#include <mutex>
 #include <span>
 #include <string_view>
-#include <thread>
 #include <vector>
 
 #include "grid/spill_file.h"

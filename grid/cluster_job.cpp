@@ -41,9 +41,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   effective.file.build = job.build;
   effective.file.memoryCapBytes = job.memoryCap;
   const auto check = [&](const char* phase, uint64_t done, uint64_t total) {
-    if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
-        (job.build.cancelled && job.build.cancelled()))
-      throw Cancelled();
+    checkJobProgress(job, phase, done, total);
   };
 
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
@@ -62,7 +60,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   if (!outOfCore) {
     // The header's count, where the cap would hold that many: a hint, never trusted further.
     const uint64_t declared = reader->info().declaredFaces;
-    if (declared > 0 && kBaseBytes + kInCoreBytesPerTriangle * declared <= cap) {
+    if (declared > 0 && cap > kBaseBytes && declared <= (cap - kBaseBytes) / kInCoreBytesPerTriangle) {
       pending.indices.reserve(3 * declared);
       pending.originalFace.reserve(declared);
     }

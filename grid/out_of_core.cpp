@@ -24,7 +24,7 @@ uint64_t peakRss() {
 
 }  // namespace
 
-void StageContext::checkCancel(const char* phase, uint64_t done, uint64_t total) const {
+void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total) {
   if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
       (job.build.cancelled && job.build.cancelled()))
     throw Cancelled();

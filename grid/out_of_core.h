@@ -38,14 +38,18 @@
 
 namespace facetree {
 
+// Reports progress to job.progress; throws Cancelled when it or job.build.cancelled asks to stop.
+void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total);
+
 // What every stage shares: the job, its temporary space, the cap, the report it fills.
 struct StageContext {
   const ClusterJob& job;
   TempSpace& temp;
   uint64_t memoryCap;
   JobReport& report;
-  // Reports progress; throws Cancelled when the job's callback or hook asks to stop.
-  void checkCancel(const char* phase, uint64_t done, uint64_t total) const;
+  void checkCancel(const char* phase, uint64_t done, uint64_t total) const {
+    checkJobProgress(job, phase, done, total);
+  }
   // Whether the stages that read, bin and spill records on one thread compress on a helper
   // (BucketSpill's background): with more than one thread.
   bool spillInBackground() const { return job.threads > 1; }

@@ -182,7 +182,7 @@ struct CellLeaves {
   std::vector<BoxCorners> corners;
   std::vector<NodeBlock> runs;
   std::vector<SpillBlock> geometry;
-  std::vector<uint32_t> leafOf;  // per face of the cell
+  std::vector<uint32_t> leafOf;  // per face of the cell (its component, then group, while they are made)
 };
 
 // The faces of a cell grouped for its hierarchies: groupFaces[start[g], start[g + 1]) is group g.
@@ -362,7 +362,6 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
   const auto faces = static_cast<uint32_t>(records.size());
 
   CellLeaves leaves;
-  leaves.leafOf.assign(faces, 0);
   std::vector<LocalPair> localPairs;
   if (faces > 0) {
     CellMesh mesh;
@@ -382,12 +381,10 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
     // Which faces share which edges, found once: for the components, each group's hierarchy, each
     // leaf's statistics and the pairs of leaves.
     FaceAdjacency adjacency = buildFaceAdjacency(mesh.view());
-    std::vector<uint32_t> label;
-    const uint32_t components = faceComponents(adjacency, label);
+    // Each face's component, then its group, then (buildLeaves) its leaf.
+    const uint32_t components = faceComponents(adjacency, leaves.leafOf);
     result.components = components;
-    const FaceGroups groups = groupComponents(components, label);
-    for (uint32_t f = 0; f < faces; ++f) leaves.leafOf[f] = label[f];
-    label = {};
+    const FaceGroups groups = groupComponents(components, leaves.leafOf);
     buildLeaves(mesh, adjacency, groups, records, codec, leaves);
     pairLeaves(mesh, adjacency, leaves.leafOf, localPairs);
   }

@@ -75,7 +75,8 @@ uint64_t mortonCode(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3&
 }
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
-// summed (in double; `exact` keeps the sums, the graph their float values).
+// summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
+// (checkClusterInput, or the rounds' own).
 DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input, std::vector<double>& exact) {
   struct Canonical {
     uint32_t a, b;
@@ -83,16 +84,7 @@ DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input,
   };
   std::vector<Canonical> sorted;
   sorted.reserve(input.size());
-  for (size_t i = 0; i < input.size(); ++i) {
-    const ClusterEdge& e = input[i];
-    if (e.a >= leafCount || e.b >= leafCount || e.a == e.b) {
-      throw std::invalid_argument("mergeClusters: edge " + std::to_string(i) + " (" + std::to_string(e.a) +
-                                  ", " + std::to_string(e.b) +
-                                  ") is out of range or joins a leaf to itself (" +
-                                  std::to_string(leafCount) + " leaves)");
-    }
-    sorted.push_back({std::min(e.a, e.b), std::max(e.a, e.b), e.shared});
-  }
+  for (const ClusterEdge& e : input) sorted.push_back({std::min(e.a, e.b), std::max(e.a, e.b), e.shared});
   std::sort(sorted.begin(), sorted.end(),
             [](const Canonical& x, const Canonical& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
   DualGraph graph;
@@ -104,7 +96,6 @@ DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input,
     graph.edges.push_back({{a, b}, {kNone, kNone}, static_cast<float>(shared), 0.0f});
     exact.push_back(shared);
   }
-  if (graph.edges.size() > kMaxEdges) throw std::invalid_argument("mergeClusters: more than 2^31-1 edges");
   sorted = {};
   // Adjacency lists as buildDualGraph links them: pushed to the front, in edge order.
   graph.head.assign(leafCount, kNone);

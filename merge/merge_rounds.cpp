@@ -350,7 +350,6 @@ class RoundsEngine {
     const uint32_t n = leafCount_;
     size_t edgeCount = 0;
     for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
-    result_.records.reserve(n - 1);
     reserveRounds(2 * edgeCount, n / 2 + 1);
     forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];

@@ -60,6 +60,26 @@ TEST(Cli, UnwritableOutputExitsWithFour) {
             "facetree: /nonexistent-facetree/out.ply: cannot create: No such file or directory\n");
 }
 
+// A header on standard input (no file size to hold it against) declaring more faces than any cap
+// holds, by a count whose bytes at the in-core estimate overflow 64 bits: the job reserves nothing
+// from it, and the reader's error names the place; no output.
+TEST(Cli, LyingFaceCountOnStandardInputIsAReadErrorNotAnAllocation) {
+  const std::string path = scratch("lying_count.ply"), out = scratch("lying_count.fch");
+  const uint64_t faces = ~uint64_t{0} / 240 + 1;  // 240 * faces wraps to 224
+  {
+    std::ofstream ply(path);
+    ply << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        << "element face " << faces << "\nproperty list uchar int vertex_indices\nend_header\n"
+        << "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  }
+  auto result = runCli("build - -o " + out + " < " + path);
+  EXPECT_EQ(result.exitCode, 3) << result.out;
+  EXPECT_EQ(result.out,
+            "facetree: -: line 14: unexpected end of data in face 1 of " + std::to_string(faces) + "\n");
+  EXPECT_FALSE(std::filesystem::exists(out));
+  std::filesystem::remove(path);
+}
+
 TEST(Cli, GeneratedGridReadsBackWithItsCounts) {
   const std::string path = scratch("grid.ply");
   auto gen = runCli("gen grid -n 2k --shuffle-faces -o " + path);
