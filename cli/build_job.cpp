@@ -7,7 +7,7 @@
 #include <thread>
 
 #include "cli/commands.h"
-#include "cli/json.h"
+#include "cli/job_report.h"
 #include "cli/signals.h"
 
 namespace facetree::cli {
@@ -92,56 +92,7 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   // Reports go to stderr when the cluster file goes to standard output.
   std::FILE* out = output == "-" ? stderr : stdout;
   if (args.flag("json")) {
-    JsonWriter json;
-    json.field("mesh", input);
-    json.field("out_of_core", r.outOfCore);
-    json.field("triangles", r.triangles);
-    json.field("vertices", r.stats.vertices);
-    json.field("welded_vertices", r.weldedVertices);
-    json.field("nodes", r.nodes);
-    json.field("height", r.height);
-    json.field("balanced_height", r.balancedHeight);
-    json.field("height_ratio", ratio);
-    json.field("components", r.components);
-    json.field("order", job.build.order == MergeOrder::Exact ? "exact" : "rounds");
-    if (!r.outOfCore) {
-      json.field("rounds", s.rounds);
-      json.field("average_degree", s.averageDegree);
-      json.field("max_degree", s.maxDegree);
-      json.field("eigen_solves", s.eigenSolves);
-      json.field("normal_shortcuts", s.normalShortcuts);
-    }
-    json.field("cells", r.cells);
-    json.field("leaves", r.leaves);
-    json.field("cross_edges", r.crossEdges);
-    json.field("upper_components", r.upperComponents);
-    json.field("cell_face_limit", r.cellFaceLimit);
-    // "build" is the time from the start to the finished hierarchy; the others are phases.
-    json.beginObject("seconds");
-    json.field("read", r.secondsRead);
-    if (r.outOfCore) {
-      json.field("bin", r.secondsBin);
-      json.field("cells", r.secondsCells);
-      json.field("merge", r.secondsMerge);
-    } else {
-      json.field("init", s.secondsInit);
-      json.field("cost", s.secondsCost);
-      json.field("eigen", s.secondsEigen);
-      json.field("merge", s.secondsMerge);
-      json.field("boxes", s.secondsBoxes);
-    }
-    json.field("build", r.secondsBuilt);
-    json.field("write", r.secondsWrite);
-    json.field("total", r.seconds);
-    json.endObject();
-    json.beginObject("peak_rss_after");
-    for (const auto& [phase, bytes] : r.peakRssAfter) json.field(phase, bytes);
-    json.endObject();
-    json.field("memory_cap_bytes", r.memoryCap);
-    json.field("peak_rss_bytes", peak);
-    json.field("temporary_bytes_peak", r.temporaryBytesPeak);
-    if (!output.empty()) json.field("file_bytes", r.fileBytes);
-    std::fputs(json.finish().c_str(), out);
+    std::fputs(jobReportJson(r, {input, job.build.order, !output.empty(), peak}).c_str(), out);
     return kExitOk;
   }
   std::fprintf(out, "mesh          %s: %llu triangles, %llu vertices", input.c_str(),

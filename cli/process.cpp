@@ -14,22 +14,8 @@
 namespace facetree::cli {
 
 void prepareOutput(SignalGuard& signals, const std::string& path) {
-  const std::filesystem::path target(path);
-  if (isStreamOutput(target)) {  // written in place: nothing to create beside it
-    signals.guardOutput(target);
-    return;
-  }
-  std::error_code ignored;
-  int error = 0;
-  if (std::filesystem::is_directory(target, ignored)) {
-    error = EISDIR;
-  } else {
-    const std::filesystem::path parent = target.has_parent_path() ? target.parent_path() : ".";
-    if (::access(parent.c_str(), W_OK | X_OK) != 0) error = errno;
-  }
-  // The message OutputFile gives when it cannot create the file.
-  if (error != 0) throw IoError(path + ": cannot create: " + std::strerror(error));
-  signals.guardOutput(target);
+  checkOutputWritable(path);
+  signals.guardOutput(path);
 }
 
 uint64_t peakResidentBytes() {

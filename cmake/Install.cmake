@@ -10,7 +10,9 @@ endif()
 install(TARGETS facetree facetree_zstd EXPORT facetreeTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
-install(TARGETS facetree_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+if(TARGET facetree_cli)
+  install(TARGETS facetree_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
 foreach(module stream merge grid io)
   install(FILES ${PROJECT_SOURCE_DIR}/${module}/${module}.h
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})

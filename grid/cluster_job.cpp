@@ -43,6 +43,9 @@ JobReport runClusterJob(const ClusterJob& job) {
   const auto check = [&](const char* phase, uint64_t done, uint64_t total) {
     checkJobProgress(job, phase, done, total);
   };
+  // Outputs that cannot be created fail now, not after the build.
+  if (!job.output.empty()) checkOutputWritable(job.output);
+  if (!job.meshOut.empty()) checkOutputWritable(job.meshOut);
 
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
   // of the cap (the reader would hold them all).

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include <glm/ext/vector_uint3_sized.hpp>
 #include <glm/vec3.hpp>
 
 #include "io/branching.h"
@@ -34,6 +35,10 @@ std::filesystem::path temporaryOutputPath(const std::filesystem::path& path);
 // target that exists and is neither a regular file nor a directory (a named pipe, a device).
 // Streams take bytes in order, have no temporary name, and cannot be removed on failure.
 bool isStreamOutput(const std::filesystem::path& path);
+// Throws IoError ("PATH: cannot create: REASON") when `path` is a directory or its directory is
+// missing or not writable: checked before long work, so that it does not fail at its end.
+// Stream outputs pass.
+void checkOutputWritable(const std::filesystem::path& path);
 
 // Streaming binary little-endian PLY writer (float x,y,z; uchar-count int indices). Counts
 // are given up front so nothing is held in memory. Writes to a temporary name beside the
@@ -87,6 +92,12 @@ struct RenderOptions {
   glm::vec3 viewDirection{0.0f};
   glm::vec3 up{0.0f, 0.0f, 1.0f};
 };
+// Deterministic colour of a cluster id, as the pictures and exports below colour it. Hue advances
+// by the golden angle (137.5 degrees) from one id to the next, so consecutive ids always differ
+// strongly; saturation and value come from a mixed hash of the id, so ids whose hues happen to be
+// close still differ in lightness.
+glm::u8vec3 clusterColour(uint32_t cluster);
+
 // Flat-shaded software rendering to PNG (written atomically).
 void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                        const RenderOptions& options, const std::filesystem::path& path);

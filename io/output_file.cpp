@@ -92,10 +92,25 @@ void OutputFile::commit() {
   std::error_code error;
   std::filesystem::rename(temporary_, path_, error);
   if (error) {
+    const std::string reason = error.message();
     std::filesystem::remove(temporary_, error);
-    throw IoError(path_.string() + ": cannot rename temporary file: " + error.message());
+    throw IoError(path_.string() + ": cannot rename temporary file: " + reason);
   }
   committed_ = true;
+}
+
+void checkOutputWritable(const std::filesystem::path& path) {
+  if (isStreamOutput(path)) return;  // written in place: nothing to create beside it
+  std::error_code ignored;
+  int error = 0;
+  if (std::filesystem::is_directory(path, ignored)) {
+    error = EISDIR;
+  } else {
+    const std::filesystem::path parent = path.has_parent_path() ? path.parent_path() : ".";
+    if (::access(parent.c_str(), W_OK | X_OK) != 0) error = errno;
+  }
+  // The message OutputFile gives when it cannot create the file.
+  if (error != 0) throw IoError(path.string() + ": cannot create: " + std::strerror(error));
 }
 
 }  // namespace facetree

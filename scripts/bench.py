@@ -28,6 +28,11 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              processes: wall, CPU, peak RSS from wait4); phases and rounds from --json; the fit of
              cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's;
              whether --threads 1 and the default give the same bytes; the targets as checks
+  python     the Python binding's overhead on dragon_vrip: facetree.build from the arrays read_mesh gives
+             (float32, uint32: used in place) against the same library calls from C++ on the same mesh
+             (tests/python/library_build.cpp), interleaved, whole processes; time and the resident set
+             the build adds (its peak over the resident set before it); and the same from float64 /
+             int64 arrays, which are converted (copied); with the issue's targets as checks
   outofcore  a generated terrain (quick 2M faces, full 10M) and its shuffled twin built
              with --memory 64M, 256M, 1G and in core (--memory 16G: the job's in-core path): time,
              peak RSS (the job's --json and wait4's ru_maxrss, what /usr/bin/time prints), temporary
@@ -912,7 +917,86 @@ def bench_outofcore(args, out):
             "wall_seconds": time.time() - started}
 
 
-SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore"]
+SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore",
+            "python"]
+
+
+PYTHON_BUILD = r"""
+import json, sys, time
+import numpy as np
+import facetree
+
+def status(field):
+    with open("/proc/self/status") as lines:
+        return next(int(line.split()[1]) * 1024 for line in lines if line.startswith(field))
+
+path, runs, dtypes = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+vertices, faces, _ = facetree.read_mesh(path)
+if dtypes == "wide":
+    vertices, faces = vertices.astype(np.float64), faces.astype(np.int64)
+for _ in range(runs):
+    with open("/proc/self/clear_refs", "w") as clear:
+        clear.write("5")  # resets VmHWM, the peak resident set
+    base = status("VmRSS:")
+    start, cpu_start = time.perf_counter(), time.process_time()
+    h = facetree.build(vertices, faces)
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+    print(json.dumps({"seconds": seconds, "cpu_seconds": cpu, "rss_base": base, "rss_peak": status("VmHWM:"), "nodes": len(h),
+                      "copied": h.report["input_copied"]}), flush=True)
+    del h
+"""
+
+
+def bench_python(args):
+    build_dir = pathlib.Path(args.facetree).resolve().parent.parent
+    library = build_dir / "tests" / "library_build"
+    if not (build_dir / "python" / "facetree").is_dir() or not library.is_file():
+        sys.exit(f"bench: python needs a build with -DFACETREE_PYTHON=ON ({build_dir})")
+    mesh = mesh_path("dragon_vrip")
+    env = dict(os.environ, PYTHONPATH=str(build_dir / "python"))
+    repeat = max(args.repeat, 9)
+
+    def runs(command):
+        result = subprocess.run(command, capture_output=True, text=True, env=env, check=True)
+        return [json.loads(line) for line in result.stdout.splitlines()]
+
+    samples = {"library": [], "python": [], "python_converted": []}
+    for _ in range(repeat):  # interleaved: one process of each per repetition
+        samples["library"] += runs([str(library), str(mesh), "1"])
+        samples["python"] += runs([sys.executable, "-c", PYTHON_BUILD, str(mesh), "1", "native"])
+        samples["python_converted"] += runs([sys.executable, "-c", PYTHON_BUILD, str(mesh), "1", "wide"])
+    summary = {}
+    for name, values in samples.items():
+        summary[name] = {"seconds": median([v["seconds"] for v in values]),
+                         "cpu_seconds": median([v["cpu_seconds"] for v in values]),
+                         "seconds_all": [v["seconds"] for v in values],
+                         "rss_added_bytes": median([v["rss_peak"] - v["rss_base"] for v in values]),
+                         "nodes": values[0]["nodes"]}
+    summary["input_copied"] = samples["python"][0]["copied"]
+    summary["converted_input_copied"] = samples["python_converted"][0]["copied"]
+    # Each repetition ran the library and the binding back to back: the median of their ratios.
+    time_ratio = median([p["seconds"] / c["seconds"] for p, c in zip(samples["python"], samples["library"])])
+    cpu_ratio = median([p["cpu_seconds"] / c["cpu_seconds"] for p, c in zip(samples["python"], samples["library"])])
+    added = summary["python"]["rss_added_bytes"] - summary["library"]["rss_added_bytes"]
+    vertices, faces = 437645, 871414
+    input_bytes = 12 * vertices + 12 * faces  # float32 positions and uint32 indices
+    summary["ratios"] = {"python_over_library_seconds": time_ratio, "python_over_library_cpu_seconds": cpu_ratio,
+                         "python_minus_library_rss_added_bytes": added,
+                         "input_bytes": input_bytes}
+    summary["checks"] = {
+        "python within 5% of the library call (wall)": time_ratio <= 1.05,
+        "python within 5% of the library call (CPU)": cpu_ratio <= 1.05,
+        "no copy of the input (flags)": summary["input_copied"] == {"vertices": False, "faces": False},
+        "no copy of the input (resident set: the build adds at most 1 MiB more than in C++)": added <= 2**20,
+    }
+    print(f"python: library {summary['library']['seconds']:.3f} s, python {summary['python']['seconds']:.3f} s "
+          f"(x{time_ratio:.3f} wall, x{cpu_ratio:.3f} CPU, medians of paired runs), converted {summary['python_converted']['seconds']:.3f} s; resident set added: "
+          f"library {summary['library']['rss_added_bytes'] / 2**20:.1f} MiB, python "
+          f"{summary['python']['rss_added_bytes'] / 2**20:.1f} MiB, converted "
+          f"{summary['python_converted']['rss_added_bytes'] / 2**20:.1f} MiB (input {input_bytes / 2**20:.1f} MiB)")
+    for check, ok in summary["checks"].items():
+        print(f"  {'ok  ' if ok else 'MISS'} {check}")
+    return summary
 
 
 def main():
@@ -990,6 +1074,9 @@ def main():
     if "outofcore" in sections:
         report["outofcore"] = bench_outofcore(args, out)
         section_done("outofcore")
+    if "python" in sections:
+        report["python"] = bench_python(args)
+        section_done("python")
     report["load_average_end"] = os.getloadavg()
     report["wall_seconds"] = time.time() - started
     if args.keep_from:

@@ -1,0 +1,148 @@
+"""Face cluster hierarchies of large triangle meshes.
+
+facetree groups a mesh's faces into a hierarchy of clusters by greedy dual-edge merging with
+Willmott's cost (Willmott 2000, ch. 5): each node has an oriented box with exact extents and
+projected side areas, and nodes are ordered so that any prefix is a coarser hierarchy.
+
+    import facetree
+    vertices, faces, face_ids = facetree.read_mesh("scan.ply")
+    h = facetree.build(vertices, faces)
+    labels = h.cut(1000)          # a cluster per input face
+    h.save("scan.fch")
+    report = facetree.build_file("big.ply", "big.fch", memory="256M", progress=print)
+
+Errors raise facetree.Error subclasses: InputError (bad input or options), OutputError,
+ResourceError (memory or temporary-space limits) and Cancelled; their `exit_code` is the
+command-line tool's for the same failure.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from typing import IO, Callable, Optional, Union
+
+from ._facetree import (
+    Cancelled,
+    Error,
+    Hierarchy,
+    InputError,
+    OutputError,
+    ResourceError,
+    __version__,
+    build,
+    cluster_colours,
+    load,
+    read_mesh,
+)
+from . import _facetree
+
+__all__ = [
+    "Cancelled", "Error", "Hierarchy", "InputError", "OutputError", "ResourceError", "__version__",
+    "build", "build_file", "cluster_colours", "load", "read_mesh", "parse_size",
+]
+
+Path = Union[str, "os.PathLike[str]"]
+Progress = Callable[[str, Optional[float]], Optional[bool]]
+
+_SUFFIXES = {"": 1, "k": 1 << 10, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30}
+_COPY_BYTES = 1 << 20
+
+
+def parse_size(size: Union[int, str, None]) -> int:
+    """Bytes from an int or a string with an optional k, M or G suffix (binary: "256M" is 256 MiB),
+    as the command line's --memory takes them; None is 0."""
+    if size is None:
+        return 0
+    if isinstance(size, bool):
+        raise InputError(f"a size must be a whole number of bytes, got {size!r}")
+    if isinstance(size, int):
+        if size < 0:
+            raise InputError(f"a size must not be negative, got {size}")
+        return size
+    text = str(size).strip()
+    number, suffix = (text[:-1], text[-1]) if text and text[-1] in _SUFFIXES else (text, "")
+    if not number.isdigit():
+        raise InputError(f"a size must be a whole number with an optional suffix k, M or G, got {size!r}")
+    return int(number) * _SUFFIXES[suffix]
+
+
+def _is_file_object(value: object) -> bool:
+    return hasattr(value, "read") or hasattr(value, "write")
+
+
+def build_file(
+    input: Union[Path, IO[bytes]],
+    output: Union[Path, IO[bytes], None] = None,
+    *,
+    memory: Union[int, str, None] = None,
+    tmp: Optional[Path] = None,
+    max_tmp: Union[int, str, None] = None,
+    progress: Optional[Progress] = None,
+    zstd_level: int = 0,
+    metric: str = "willmott",
+    order: str = "rounds",
+    k: float = 1e-4,
+    balance_slack: float = 1.5,
+    flat_threshold: float = 0.5,
+    branching: int = 2,
+    recast: str = "largest-area",
+    threads: int = 0,
+    weld: bool = False,
+    cell_faces: int = 0,
+) -> dict:
+    """Runs the whole job of `facetree build`: a mesh file to a cluster file (.fch).
+
+    In core when the build fits `memory`, else out of core: faces are binned into spatial cells
+    spilled to temporary files under `tmp`, and the merge continues above the cells. Returns the
+    report, the fields of `facetree build --json`.
+
+    input: a path, or a binary file object (read to its end; one without a file descriptor is
+      first copied to a temporary file under `tmp`).
+    output: a path (written atomically), a binary file object (the file is written under `tmp`,
+      then copied into it), or None to build without writing (the mesh must then fit in core).
+    memory: the cap, bytes or a string like "256M" (default: half the physical memory).
+    tmp: directory for temporary files (default: the system's); max_tmp: their limit.
+    progress: called as progress(stage, fraction) with stage "read", "bin", "cells", "merge" or
+      "write" and the fraction done (None when unknown), a few times a second; returning False
+      cancels the job (Cancelled). Ctrl-C cancels it as well (KeyboardInterrupt). Either way the
+      temporary files and any partial output are removed.
+    cell_faces: force an out-of-core build with cells of at most this many faces (for tests).
+    zstd_level: compression level of the file's frames, 1 to 19 (0: 3).
+
+    The other options are build()'s. Raises InputError, OutputError, ResourceError or Cancelled.
+    """
+    with tempfile.TemporaryDirectory(prefix="facetree-py-", dir=tmp) as scratch:
+        input_path = _input_path(input, scratch)
+        output_path = ""
+        if output is not None:
+            output_path = os.path.join(scratch, "out.fch") if _is_file_object(output) else os.fspath(output)
+        report = _facetree._build_file(
+            input_path, output_path, parse_size(memory), os.fspath(tmp) if tmp is not None else "",
+            parse_size(max_tmp), zstd_level, progress, cell_faces, metric, order, k, balance_slack,
+            flat_threshold, branching, recast, threads, weld)
+        if output is not None and _is_file_object(output):
+            with open(output_path, "rb") as built:
+                shutil.copyfileobj(built, output, _COPY_BYTES)
+    if not isinstance(input, (str, os.PathLike)):
+        report["mesh"] = getattr(input, "name", "<file object>")
+    return report
+
+
+def _input_path(input: Union[Path, IO[bytes]], scratch: str) -> str:
+    if isinstance(input, (str, os.PathLike)):
+        return os.fspath(input)
+    if not hasattr(input, "read"):
+        raise InputError(f"input: expected a path or a binary file object, got {type(input).__name__}")
+    try:
+        descriptor = input.fileno()
+    except (AttributeError, OSError, ValueError):
+        descriptor = None
+    # The reader opens /dev/fd/N afresh: from the start of a regular file, or where a pipe stands.
+    if descriptor is not None and (not input.seekable() or input.tell() == 0):
+        return f"/dev/fd/{descriptor}"
+    copy = os.path.join(scratch, "input")
+    with open(copy, "wb") as spooled:
+        shutil.copyfileobj(input, spooled, _COPY_BYTES)
+    return copy

@@ -1,0 +1,311 @@
+// The functions that build: facetree.build (NumPy arrays, in core), build_file (the CLI's whole
+// job, in core or out of core under a memory cap), read_mesh and load. The GIL is released while
+// the library works; the library's cancellation hooks take it back briefly to run Python's signal
+// handlers (Ctrl-C) and the caller's progress callback, and an exception raised there cancels the
+// job (the library removes its temporary files and partial output) and is raised once it unwound.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <initializer_list>
+#include <optional>
+#include <thread>
+#include <utility>
+
+#include "bindings.h"
+#include "cli/job_report.h"
+
+namespace facetree::python {
+namespace {
+
+constexpr unsigned kMaxThreads = 8;  // as the CLI's --threads
+constexpr double kProgressSeconds = 0.05;
+
+uint64_t peakResidentBytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<uint64_t>(usage.ru_maxrss) * 1024;
+}
+
+// Polled by the library with the GIL released: runs pending signal handlers and the progress
+// callback under the GIL; keeps the first Python exception they raise and asks the job to stop.
+class Interrupts {
+ public:
+  explicit Interrupts(py::object progress = py::none()) : progress_(std::move(progress)) {}
+  bool cancelled() {
+    if (raised_) return true;
+    py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() != 0) {
+      raised_.emplace();
+      return true;
+    }
+    return false;
+  }
+  bool progress(const JobProgress& p) {
+    if (cancelled()) return false;
+    if (progress_.is_none()) return true;
+    const auto now = std::chrono::steady_clock::now();
+    const bool newPhase = phase_ != p.phase;
+    if (!newPhase && std::chrono::duration<double>(now - last_).count() < kProgressSeconds) return true;
+    phase_ = p.phase;
+    last_ = now;
+    py::gil_scoped_acquire gil;
+    try {
+      const py::object fraction =
+          p.total > 0 ? py::object(py::float_(std::min(1.0, double(p.done) / double(p.total)))) : py::none();
+      const py::object answer = progress_(p.phase, fraction);
+      if (!answer.is_none() && !answer.cast<bool>()) return false;
+    } catch (py::error_already_set& e) {
+      raised_.emplace(std::move(e));
+      return false;
+    }
+    return true;
+  }
+  // After the library returned or threw (GIL held): raises what a hook caught, if anything.
+  void raiseCaught() {
+    if (!raised_) return;
+    if (raised_->has_value()) throw std::move(**raised_);
+    throw py::error_already_set();  // from PyErr_CheckSignals: still the current Python error
+  }
+
+ private:
+  py::object progress_;
+  std::string phase_;
+  std::chrono::steady_clock::time_point last_{};
+  // Set once a hook asked to stop: the callback's exception, or empty for a signal handler's
+  // (which stays the pending Python error).
+  std::optional<std::optional<py::error_already_set>> raised_;
+};
+
+template <typename Work>
+auto runReleased(Interrupts& interrupts, Work&& work) {
+  try {
+    py::gil_scoped_release release;
+    return work();
+  } catch (const Cancelled&) {
+    interrupts.raiseCaught();
+    throw;
+  }
+}
+
+py::object reportDict(const JobReport& report, const std::string& mesh, MergeOrder order, bool hasOutput) {
+  const std::string json = cli::jobReportJson(report, {mesh, order, hasOutput, peakResidentBytes()});
+  return py::module_::import("json").attr("loads")(json);
+}
+
+// (F,) non-negative integers, distinct: the input face of each triangle.
+std::vector<uint64_t> faceIdsFrom(const py::object& object, size_t triangles) {
+  const auto ids = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(object);
+  if (!ids || ids.ndim() != 1 || static_cast<size_t>(ids.shape(0)) != triangles)
+    throw ArgumentError("face_ids: expected shape (" + std::to_string(triangles) +
+                        ",), one id per row of faces");
+  std::vector<uint64_t> out(triangles);
+  for (size_t i = 0; i < triangles; ++i) {
+    // Labels of cut() take 8 bytes per input face: ids are bounded as a file's face count is.
+    if (ids.data()[i] < 0 || ids.data()[i] > int64_t{kFaceChild - 1})
+      throw ArgumentError("face_ids: row " + std::to_string(i) + ": id " + std::to_string(ids.data()[i]) +
+                          " is out of range (0 to 2^31 - 2)");
+    out[i] = static_cast<uint64_t>(ids.data()[i]);
+  }
+  std::vector<uint64_t> sorted = out;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+    throw ArgumentError("face_ids: ids must be distinct");
+  return out;
+}
+
+constexpr const char* kOptionsDoc = R"(
+Options, as the command line's `facetree build`:
+  metric: "willmott" (Willmott 2000, eq. 84), "garland" or "constant".
+  order: "rounds" (reciprocal cheapest pairs, parallel) or "exact" (the global greedy).
+  k: balance weight of eq. 80.  balance_slack: the balance guard (0: off).
+  flat_threshold: |S|/A above it takes S as a cluster's normal (eq. 78).
+  branching: 2, 4 or 8 children per node.  recast: "largest-area" or "fewest-nodes".
+  threads: worker threads (0: the machine's, at most 8); the result is the same for any count.
+  weld: make faces meeting at bit-identical positions neighbours.)";
+
+// The value called `name` among `values`; ArgumentError "unknown WHAT 'NAME' (a, b, c)" otherwise,
+// as the CLI words it.
+template <typename T>
+T named(const char* what, const std::string& name, std::initializer_list<std::pair<const char*, T>> values) {
+  std::string known;
+  for (const auto& [text, value] : values) {
+    if (name == text) return value;
+    known += (known.empty() ? "" : ", ") + std::string(text);
+  }
+  throw ArgumentError("unknown " + std::string(what) + " '" + name + "' (" + known + ")");
+}
+
+}  // namespace
+
+Settings settingsFrom(const std::string& metric, const std::string& order, double k, double balanceSlack,
+                      double flatThreshold, unsigned branching, const std::string& recast, unsigned threads,
+                      bool weld) {
+  Settings s;
+  s.build.metric = named<Metric>(
+      "metric", metric,
+      {{"willmott", Metric::Willmott}, {"garland", Metric::Garland}, {"constant", Metric::Constant}});
+  s.build.order =
+      named<MergeOrder>("merge order", order, {{"rounds", MergeOrder::Rounds}, {"exact", MergeOrder::Exact}});
+  s.file.rule = named<RecastRule>(
+      "recast rule", recast,
+      {{"largest-area", RecastRule::LargestArea}, {"fewest-nodes", RecastRule::FewestNodes}});
+  if (!(k >= 0)) throw ArgumentError("k must not be negative");
+  if (!(balanceSlack >= 0)) throw ArgumentError("balance_slack must be 0 (off) or positive");
+  if (branching != 2 && branching != 4 && branching != 8) throw ArgumentError("branching must be 2, 4 or 8");
+  if (threads > kMaxThreads)
+    throw ArgumentError("threads must be 0 (all cores) to " + std::to_string(kMaxThreads));
+  s.build.k = k;
+  s.build.balanceSlack = balanceSlack;
+  s.build.flatThreshold = flatThreshold;
+  s.build.threads = threads;
+  s.file.branching = branching;
+  s.file.build = s.build;
+  s.weld = weld;
+  return s;
+}
+
+void registerJob(py::module_& m) {
+  m.def(
+      "build",
+      [](const py::handle& vertices, const py::handle& faces, const py::object& faceIds,
+         const std::string& metric, const std::string& order, double k, double balanceSlack,
+         double flatThreshold, unsigned branching, const std::string& recast, unsigned threads, bool weld) {
+        Settings s =
+            settingsFrom(metric, order, k, balanceSlack, flatThreshold, branching, recast, threads, weld);
+        const auto start = std::chrono::steady_clock::now();
+        const MeshArrays mesh = meshFromArrays(vertices, faces);
+        Interrupts interrupts;
+        s.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
+        PyHierarchy out;
+        out.inputFaces = mesh.view.triangleCount();
+        std::vector<uint64_t> originalFace;
+        if (!faceIds.is_none()) {
+          originalFace = faceIdsFrom(faceIds, mesh.view.triangleCount());
+          out.inputFaces = 0;
+          for (const uint64_t f : originalFace) out.inputFaces = std::max(out.inputFaces, f + 1);
+        }
+        JobReport report;
+        runReleased(interrupts, [&] {
+          MeshView view = mesh.view;
+          std::vector<uint32_t> welded;
+          if (s.weld) {
+            welded.assign(view.indices.begin(), view.indices.end());
+            report.weldedVertices = weldPositions(view.positions, welded);
+            view.indices = welded;
+          }
+          const Hierarchy hierarchy = buildHierarchy(view, s.build);
+          report.secondsBuilt =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+          out.file = makeClusterFile(view, originalFace, hierarchy, s.file);
+          report.inCore = hierarchy.stats;
+          report.nodes = out.file.nodes.size();
+          report.height = hierarchy.stats.height;
+          report.balancedHeight = hierarchy.stats.balancedHeight;
+          report.components = hierarchy.stats.components;
+        });
+        report.triangles = mesh.view.triangleCount();
+        report.stats.vertices = mesh.view.positions.size();
+        report.cells = report.leaves = 1;
+        report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        out.report = reportDict(report, "<arrays>", s.build.order, false);
+        out.report["input_copied"] =
+            py::dict(py::arg("vertices") = mesh.copiedPositions, py::arg("faces") = mesh.copiedIndices);
+        return out;
+      },
+      py::arg("vertices"), py::arg("faces"), py::kw_only(), py::arg("face_ids") = py::none(),
+      py::arg("metric") = "willmott", py::arg("order") = "rounds", py::arg("k") = BuildOptions{}.k,
+      py::arg("balance_slack") = BuildOptions{}.balanceSlack,
+      py::arg("flat_threshold") = BuildOptions{}.flatThreshold, py::arg("branching") = 2,
+      py::arg("recast") = "largest-area", py::arg("threads") = 0, py::arg("weld") = false,
+      (std::string(R"(Builds the face cluster hierarchy of a triangle mesh held in arrays.
+
+vertices: (V, 3) floats; float32 in C order is used in place, other dtypes are converted.
+faces: (F, 3) vertex indices; int32 or uint32 in C order is used in place, other integer dtypes
+  are converted. Every index must address a vertex and every vertex be finite.
+face_ids: (F,) the input face of each triangle, as read_mesh returns them (default: row numbers),
+  kept in the hierarchy's face_order and the labels of cut().
+Returns a Hierarchy; Ctrl-C stops the build (KeyboardInterrupt). Raises InputError for bad
+arrays or options.)") +
+       kOptionsDoc)
+          .c_str());
+
+  m.def(
+      "_build_file",
+      [](const std::string& input, const std::string& output, uint64_t memory, const std::string& tmp,
+         uint64_t maxTmp, int zstdLevel, const py::object& progress, uint64_t cellFaces,
+         const std::string& metric, const std::string& order, double k, double balanceSlack,
+         double flatThreshold, unsigned branching, const std::string& recast, unsigned threads, bool weld) {
+        Settings s =
+            settingsFrom(metric, order, k, balanceSlack, flatThreshold, branching, recast, threads, weld);
+        if (memory != 0 && memory < (uint64_t{16} << 20)) throw ArgumentError("memory must be at least 16M");
+        if (zstdLevel < 0 || zstdLevel > 19) throw ArgumentError("zstd_level must be 1 to 19 (default 3)");
+        ClusterJob job;
+        job.input = input;
+        job.output = output;
+        job.memoryCap = memory;
+        job.tmpDir = tmp;
+        job.maxTemporaryBytes = maxTmp;
+        job.zstdLevel = zstdLevel;
+        job.forceCellFaces = cellFaces;
+        job.threads = threads ? threads : std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
+        job.build = s.build;
+        job.file = s.file;
+        job.load.weldPositions = s.weld;
+        Interrupts interrupts(progress);
+        job.progress = [&interrupts](const JobProgress& p) { return interrupts.progress(p); };
+        job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
+        const JobReport report = runReleased(interrupts, [&] { return runClusterJob(job); });
+        return reportDict(report, input, s.build.order, !output.empty());
+      },
+      py::arg("input"), py::arg("output"), py::arg("memory"), py::arg("tmp"), py::arg("max_tmp"),
+      py::arg("zstd_level"), py::arg("progress"), py::arg("cell_faces"), py::arg("metric"), py::arg("order"),
+      py::arg("k"), py::arg("balance_slack"), py::arg("flat_threshold"), py::arg("branching"),
+      py::arg("recast"), py::arg("threads"), py::arg("weld"),
+      "The job behind facetree.build_file (paths only).");
+
+  m.def(
+      "read_mesh",
+      [](const std::filesystem::path& path, bool weld) {
+        Interrupts interrupts;
+        IndexedMesh mesh = runReleased(interrupts, [&] {
+          LoadOptions options{.weldPositions = weld,
+                              .cancelled = [&interrupts] { return interrupts.cancelled(); }};
+          const std::unique_ptr<TriangleReader> reader = openMesh(path);
+          return loadMesh(*reader, options);
+        });
+        const auto vertices = static_cast<py::ssize_t>(mesh.positions.size());
+        const auto triangles = static_cast<py::ssize_t>(mesh.originalFace.size());
+        std::vector<float> positions(3 * mesh.positions.size());
+        std::memcpy(positions.data(), mesh.positions.data(), positions.size() * sizeof(float));
+        return py::make_tuple(arrayOwning(std::move(positions), {vertices, 3}),
+                              arrayOwning(std::move(mesh.indices), {triangles, 3}),
+                              arrayOwning(std::move(mesh.originalFace), {triangles}));
+      },
+      py::arg("path"), py::kw_only(), py::arg("weld") = false,
+      R"(Reads a mesh file (PLY, OBJ, STL or Draco, any of them zstd-compressed) as the command line does.
+
+Returns (vertices, faces, face_ids): (V, 3) float32, (F, 3) uint32 and (F,) uint64, the file's face of each
+triangle (polygons are split into triangles; triangles touching a non-finite vertex are left out).
+weld: point every index at the first vertex with the same position. Raises InputError naming the
+file, the place and the reason for a bad file.)");
+
+  m.def(
+      "load",
+      [](const std::filesystem::path& path) {
+        PyHierarchy out;
+        {
+          py::gil_scoped_release release;
+          out.file = readClusterFile(path);
+        }
+        uint64_t faces = 0;
+        for (const uint64_t f : out.file.originalFace) faces = std::max(faces, f + 1);
+        out.inputFaces = faces;
+        return out;
+      },
+      py::arg("path"),
+      "Reads a cluster file (.fch), whole or truncated, checking its checksums. Raises InputError for a "
+      "file that is unreadable or corrupt.");
+}
+
+}  // namespace facetree::python
