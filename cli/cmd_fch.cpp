@@ -32,15 +32,6 @@ int invalid(const std::string& message) {
   return kExitInput;
 }
 
-template <class F>
-int guarded(F&& body) {
-  try {
-    return body();
-  } catch (const ClusterFileError& e) {
-    return invalid(e.what());
-  }
-}
-
 // --fit-cuts 1000,100000: cluster counts of the cuts whose fit error info reports.
 std::vector<uint64_t> fitCutCounts(const Args& args) {
   std::vector<uint64_t> counts;
@@ -70,7 +61,7 @@ int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
     throw UsageError("truncate needs exactly one of --nodes N and --max-bytes B");
   const std::string& input = args.positional()[0];
   prepareOutput(signals, *output);
-  return guarded([&] {
+  return [&] {
     TruncateResult result;
     try {
       if (args.value("nodes")) {
@@ -96,7 +87,7 @@ int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
                   static_cast<unsigned long long>(result.bytes));
     }
     return int{kExitOk};
-  });
+  }();
 }
 
 int runInfo(const std::vector<std::string>& argv) {
@@ -104,7 +95,7 @@ int runInfo(const std::vector<std::string>& argv) {
   if (args.positional().size() != 1) throw UsageError("info takes exactly one cluster file");
   const std::string& name = args.positional()[0];
   const std::vector<uint64_t> fitCuts = fitCutCounts(args);
-  return guarded([&] {
+  return [&] {
     const FchLayout layout = readClusterFileLayout(name);
     ClusterFile file = readClusterFile(name, /*geometry=*/!fitCuts.empty());
     std::vector<CutFit> fits;
@@ -208,7 +199,7 @@ int runInfo(const std::vector<std::string>& argv) {
                   static_cast<unsigned long long>(fitCuts[i]),
                   static_cast<unsigned long long>(fits[i].clusters), fits[i].sumFit, fits[i].sumAreaFit);
     return int{kExitOk};
-  });
+  }();
 }
 
 int runVerify(const std::vector<std::string>& argv) {
@@ -216,7 +207,7 @@ int runVerify(const std::vector<std::string>& argv) {
   if (args.positional().empty() || args.positional().size() > 2)
     throw UsageError("verify takes a cluster file and optionally the mesh it was built from");
   const std::string& name = args.positional()[0];
-  return guarded([&] {
+  return [&] {
     const ClusterFile file = readClusterFile(name);
     VerifyResult result = verifyClusterFile(file);
     if (result.ok && args.positional().size() == 2) {
@@ -240,7 +231,7 @@ int runVerify(const std::vector<std::string>& argv) {
                   file.originalFace.size(),
                   args.positional().size() == 2 ? ", geometry matches the mesh" : "");
     return int{kExitOk};
-  });
+  }();
 }
 
 }  // namespace facetree::cli

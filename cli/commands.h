@@ -1,5 +1,5 @@
 // The facetree subcommands; each returns an exit code (cli/args.h) and throws UsageError,
-// ReadError, IoError or std::invalid_argument for main() to report.
+// Error (Input), Error (Output) or std::invalid_argument for main() to report.
 #pragma once
 
 #include <cstdint>
@@ -20,7 +20,7 @@ int runGenerate(const std::vector<std::string>& args, SignalGuard& signals);
 int runRender(const std::vector<std::string>& args, SignalGuard& signals);
 int runExport(const std::vector<std::string>& args, SignalGuard& signals);
 
-// Before the work starts: fails with IoError ("PATH: cannot create: REASON", exit 4) when
+// Before the work starts: fails with Error (Output) ("PATH: cannot create: REASON", exit 4) when
 // `path` is a directory or its directory is missing or not writable, so that a long run does
 // not fail at its end; then registers it with `signals`. "-" (standard output) passes.
 void prepareOutput(SignalGuard& signals, const std::string& path);

@@ -93,31 +93,35 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
   throw UsageError("unknown command '" + command + "'");
 }
 
+// The exit code of each category of facetree::Error (the README's table).
+int exitCode(facetree::ErrorCategory category) {
+  using facetree::ErrorCategory;
+  using namespace facetree::cli;
+  switch (category) {
+    case ErrorCategory::Input:
+      return kExitInput;
+    case ErrorCategory::Output:
+      return kExitOutput;
+    case ErrorCategory::Resource:
+      return kExitResource;
+    case ErrorCategory::Cancelled:
+      break;
+  }
+  return kExitInternal;
+}
+
 // Runs the command; failures become one line on stderr and an exit code.
 int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
   using namespace facetree::cli;
   try {
     return dispatch(args, signals);
-  } catch (const facetree::Cancelled&) {
-    return -1;  // main() reports the signal
   } catch (const UsageError& e) {
     std::fprintf(stderr, "facetree: %s (see facetree --help)\n", e.what());
     return kExitUsage;
-  } catch (const facetree::ReadError& e) {
+  } catch (const facetree::Error& e) {
+    if (e.category() == facetree::ErrorCategory::Cancelled) return -1;  // main() reports the signal
     std::fprintf(stderr, "facetree: %s\n", e.what());
-    return kExitInput;
-  } catch (const facetree::ClusterFileError& e) {
-    std::fprintf(stderr, "facetree: %s\n", e.what());
-    return kExitInput;
-  } catch (const facetree::IoError& e) {
-    std::fprintf(stderr, "facetree: %s\n", e.what());
-    return kExitOutput;
-  } catch (const facetree::MemoryCapError& e) {
-    std::fprintf(stderr, "facetree: %s\n", e.what());
-    return kExitResource;
-  } catch (const facetree::TemporaryFileError& e) {
-    std::fprintf(stderr, "facetree: %s\n", e.what());
-    return kExitResource;
+    return exitCode(e.category());
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "facetree: %s\n", e.what());
     return kExitInput;

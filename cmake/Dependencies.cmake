@@ -1,4 +1,5 @@
-# Third-party dependencies, all from Debian packages (libdraco-dev libglm-dev libzstd-dev libstb-dev).
+# Third-party dependencies, all from Debian packages (libdraco-dev libglm-dev libzstd-dev libxxhash-dev
+# libstb-dev).
 include(GNUInstallDirs)
 find_package(Threads REQUIRED)
 find_package(glm REQUIRED)
@@ -22,3 +23,9 @@ endif()
 find_path(STB_INCLUDE_DIR stb_image_write.h PATH_SUFFIXES stb REQUIRED)
 add_library(facetree_stb INTERFACE)
 target_include_directories(facetree_stb SYSTEM INTERFACE ${STB_INCLUDE_DIR})
+
+# XXH64, the cluster file's checksum (libxxhash-dev: pkg-config only).
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(XXHASH REQUIRED IMPORTED_TARGET libxxhash)
+add_library(facetree_xxhash INTERFACE)
+target_link_libraries(facetree_xxhash INTERFACE PkgConfig::XXHASH)

@@ -7,7 +7,7 @@ if(FACETREE_SANITIZE)
   target_link_options(facetree INTERFACE -fsanitize=address,undefined)
 endif()
 
-install(TARGETS facetree facetree_zstd EXPORT facetreeTargets
+install(TARGETS facetree facetree_zstd facetree_xxhash EXPORT facetreeTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
 if(TARGET facetree_cli)
@@ -19,7 +19,7 @@ foreach(module stream merge grid io)
 endforeach()
 install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h ${PROJECT_SOURCE_DIR}/io/branching.h
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
-install(FILES ${PROJECT_SOURCE_DIR}/grid/temporary_file_error.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/grid)
+install(FILES ${PROJECT_SOURCE_DIR}/include/facetree/error.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/facetree)
 install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
 
 install(EXPORT facetreeTargets NAMESPACE facetree:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)

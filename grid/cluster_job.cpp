@@ -86,7 +86,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   if (outOfCore) {
     if (job.output.empty() || !job.meshOut.empty()) {
       constexpr uint64_t kMiB = uint64_t{1} << 20;
-      throw MemoryCapError(
+      throw Error(ErrorCategory::Resource, 
           reader->info().name + ": the mesh does not fit --memory " + std::to_string(cap / kMiB) +
           " MiB in core, and " +
           (job.output.empty() ? "without -o it cannot be built out of core" : "--mesh-out needs it in core") +
@@ -98,7 +98,7 @@ JobReport runClusterJob(const ClusterJob& job) {
     const uint64_t left = cap > held ? cap - held : 0;
     if (held > 0 && left < outOfCoreMinimumBytes()) {
       constexpr uint64_t kMiB = uint64_t{1} << 20;
-      throw MemoryCapError(reader->info().name + ": the " + formatName(reader->info().format) +
+      throw Error(ErrorCategory::Resource, reader->info().name + ": the " + formatName(reader->info().format) +
                            " mesh is decoded whole (the format cannot be streamed) and holds " +
                            std::to_string((held + kMiB - 1) / kMiB) + " MiB of --memory " +
                            std::to_string(cap / kMiB) + " MiB; the out-of-core build needs " +
@@ -149,7 +149,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   report.stats = mesh.stats;
   report.triangles = mesh.originalFace.size();
   report.secondsRead = secondsSince(start);
-  if (report.triangles == 0) throw ReadError(mesh.info.name + ": no triangles to cluster");
+  if (report.triangles == 0) throw Error(ErrorCategory::Input, mesh.info.name + ": no triangles to cluster");
   check("merge", 0, report.triangles);
 
   auto phase = std::chrono::steady_clock::now();

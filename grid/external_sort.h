@@ -81,7 +81,7 @@ class RunCursor {
       file_->read(blocks_[nextBlock_++], raw_, codec);
       position_ = 0;
       if (raw_.size() % recordBytes != 0 || raw_.empty())
-        throw TempSpaceError(file_->path().string() + ": corrupt run block");
+        throw Error(ErrorCategory::Resource, file_->path().string() + ": corrupt run block");
     }
     const std::byte* record = raw_.data() + position_;
     position_ += recordBytes;

@@ -2,9 +2,8 @@
 // core in stages.
 // Public header of the module.
 //
-// Errors: throws facetree::ReadError for unreadable input (see stream.h),
-// std::invalid_argument from the merge and Cancelled (merge.h) when a cancellation hook says
-// so; nothing else except std::bad_alloc.
+// Errors: throws facetree::Error (facetree/error.h) as runClusterJob says, std::invalid_argument
+// for invalid options, and nothing else except std::bad_alloc.
 #pragma once
 
 #include <cstdint>
@@ -17,7 +16,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "grid/temporary_file_error.h"
+#include "facetree/error.h"
 #include "io/cluster_file.h"
 #include "merge/merge.h"
 #include "stream/stream.h"
@@ -72,7 +71,7 @@ struct ClusterJob {
   std::filesystem::path input;   // "-" = standard input (format detected from the content)
   std::filesystem::path output;  // "-" = standard output; empty = none (then the mesh must fit in core)
   // The reordered mesh (writeReorderedMesh: PLY or Draco by extension); empty = none. It needs the
-  // mesh in memory: a job that has to go out of core with it throws MemoryCapError.
+  // mesh in memory: a job that has to go out of core with it throws Error (Resource).
   std::filesystem::path meshOut;
   MeshOutOptions meshOutOptions;
   BuildOptions build;
@@ -88,7 +87,7 @@ struct ClusterJob {
   int zstdLevel = 0;
   // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
   uint64_t forceCellFaces = 0;
-  // Called between steps; returning false cancels the job (JobCancelled is thrown after the
+  // Called between steps; returning false cancels the job (an Error of category Cancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;
   // Called with the run's temporary directory once created (it is removed, with everything in
@@ -122,17 +121,11 @@ struct JobReport {
   BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
 };
 
-// Cancelling (a progress callback returning false, or build.cancelled) throws merge.h's Cancelled.
-using JobCancelled = Cancelled;
-
-// Thrown when the cap cannot hold even the smallest working set; what() says how much is needed.
-class MemoryCapError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-// Runs the job. Throws ReadError (input), IoError (output), MemoryCapError, TemporaryFileError,
-// JobCancelled, std::invalid_argument (options); nothing is left behind on any of them.
+// Runs the job. Throws Error (facetree/error.h): Input for unreadable input, Output for an output
+// that cannot be written, Resource when the cap cannot hold even the smallest working set (what()
+// says how much is needed) or the temporary files fail or pass their limit, Cancelled when the
+// progress callback or build.cancelled asks to stop; std::invalid_argument for invalid options.
+// Nothing is left behind on any of them.
 JobReport runClusterJob(const ClusterJob& job);
 
 }  // namespace facetree

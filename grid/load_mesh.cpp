@@ -19,7 +19,7 @@ IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options) {
     mesh.originalFace.reserve(hint);
   }
   for (size_t got; (got = reader.read(batch)) > 0;) {
-    if (options.cancelled && options.cancelled()) throw Cancelled();
+    if (options.cancelled && options.cancelled()) throw cancelledError();
     for (size_t i = 0; i < got; ++i) {
       const Triangle& t = batch[i];
       mesh.indices.insert(mesh.indices.end(), {t.vertex[0], t.vertex[1], t.vertex[2]});

@@ -27,7 +27,7 @@ uint64_t peakRss() {
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total) {
   if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
       (job.build.cancelled && job.build.cancelled()))
-    throw Cancelled();
+    throw cancelledError();
 }
 
 // The cells stage frees its memory in the worker threads' malloc arenas, which the main thread's

@@ -55,7 +55,7 @@ OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap) {
     if (plan.cellFaceLimit < kMinCellFaces) plan.cellFaceLimit = spare / plan.cellBytesPerFace();
     if (plan.cellFaceLimit < kMinCellFaces) {
       const uint64_t need = outOfCoreMinimumBytes();
-      throw MemoryCapError("--memory " + std::to_string(memoryCap >> 20) +
+      throw Error(ErrorCategory::Resource, "--memory " + std::to_string(memoryCap >> 20) +
                            " MiB is too small: an out-of-core build needs at least " +
                            std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
     }

@@ -77,7 +77,7 @@ struct OutOfCorePlan {
   uint64_t cellLeafAllowance(uint64_t faces) const;
 };
 
-// The cells' size and workers from the cap (or job.forceCellFaces); throws MemoryCapError when the
+// The cells' size and workers from the cap (or job.forceCellFaces); throws Error (Resource) when the
 // cap cannot hold one cell of kMinCellFaces.
 OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap);
 // The leaves' share of the cap once the triangle count is known: their budget, the node runs'

@@ -85,7 +85,7 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
         const bool samePosition = !first && std::memcmp(c.bits, previous.bits, sizeof c.bits) == 0;
         if (!samePosition) {
           if (vertices == kNoVertex)
-            throw ReadError(context.report.info.name + ": more than " + std::to_string(kNoVertex) +
+            throw Error(ErrorCategory::Input, context.report.info.name + ": more than " + std::to_string(kNoVertex) +
                             " distinct vertex positions");
           ++vertices;
         } else if (c.input != previous.input && c.input != kNoVertex) {

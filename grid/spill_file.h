@@ -90,7 +90,7 @@ class SpillFile {
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
 
-  // raw.size() <= kMaxSpillBlockBytes. Throws TempSpaceError "PATH: write failed: <strerror>" when the
+  // raw.size() <= kMaxSpillBlockBytes. Throws Error (Resource) "PATH: write failed: <strerror>" when the
   // disk refuses the bytes (or past --max-tmp); the file then holds exactly the blocks appended before.
   SpillBlock append(std::span<const std::byte> raw, SpillCodec& codec);
   // Resizes `raw` to block.rawBytes and fills it.

@@ -15,7 +15,7 @@ void throwTempSpaceError(const std::filesystem::path& path, std::string_view rea
   message += reason;
   message += ": ";
   message += std::strerror(error);
-  throw TempSpaceError(message);
+  throw Error(ErrorCategory::Resource, message);
 }
 
 TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes,
@@ -63,7 +63,7 @@ void TempSpace::reserve(uint64_t bytes) {
   do {
     next = current + bytes;
     if (maxBytes_ != 0 && (next > maxBytes_ || next < current))
-      throw TempSpaceError((created() ? path_ : parent_).string() +
+      throw Error(ErrorCategory::Resource, (created() ? path_ : parent_).string() +
                            ": temporary files would exceed --max-tmp " + std::to_string(maxBytes_) +
                            " bytes");
   } while (!current_.compare_exchange_weak(current, next, std::memory_order_relaxed));

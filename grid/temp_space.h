@@ -11,19 +11,11 @@
 #include <string>
 #include <string_view>
 
-#include "grid/temporary_file_error.h"
+#include "facetree/error.h"
 
 namespace facetree {
 
-// Thrown for temporary-file failures; what() is one line "PATH: reason", e.g.
-// "/tmp/facetree-k2F9/faces-3.spill: write failed: No space left on device" or
-// "/tmp/facetree-k2F9: temporary files would exceed --max-tmp 1000000 bytes".
-class TempSpaceError : public TemporaryFileError {
- public:
-  using TemporaryFileError::TemporaryFileError;
-};
-
-// "PATH: reason: strerror(error)" as a TempSpaceError.
+// "PATH: reason: strerror(error)" as a Error (Resource).
 [[noreturn]] void throwTempSpaceError(const std::filesystem::path& path, std::string_view reason, int error);
 
 // The temporary directory of one run: created (mkdtemp) as `parent`/facetree-XXXXXX, parent defaulting to
@@ -41,7 +33,7 @@ class TempSpace {
   TempSpace(const TempSpace&) = delete;
   TempSpace& operator=(const TempSpace&) = delete;
 
-  // The directory, created on the first call. Throws TempSpaceError "PARENT: cannot create
+  // The directory, created on the first call. Throws Error (Resource) "PARENT: cannot create
   // temporary directory: <strerror>".
   const std::filesystem::path& path();
   bool created() const { return created_.load(std::memory_order_acquire); }
@@ -50,7 +42,7 @@ class TempSpace {
   // A unique path inside the directory, `stem`-N.spill; the file is not created. Thread-safe.
   std::filesystem::path newFile(std::string_view stem);
 
-  // Accounts `bytes` before they are written; throws TempSpaceError past maxBytes (and accounts nothing).
+  // Accounts `bytes` before they are written; throws Error (Resource) past maxBytes (and accounts nothing).
   void reserve(uint64_t bytes);
   void release(uint64_t bytes);
 

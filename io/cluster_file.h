@@ -3,8 +3,8 @@
 // cluster cuts for pictures and the reordered mesh as PLY or Draco. Public header: std, glm
 // and merge/merge.h only. The byte layout is documented in docs/FORMAT.md.
 //
-// Errors: functions reading a cluster file throw ClusterFileError ("FILE: REASON") for a file
-// that is unreadable, corrupt or of an unsupported version; writers throw IoError naming the
+// Errors: functions reading a cluster file throw Error (Input) ("FILE: REASON") for a file
+// that is unreadable, corrupt or of an unsupported version; writers throw Error (Output) naming the
 // file; std::invalid_argument for inconsistent arguments; nothing else except std::bad_alloc.
 #pragma once
 
@@ -20,6 +20,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "facetree/error.h"
 #include "merge/merge.h"
 
 namespace facetree {
@@ -141,7 +142,7 @@ void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file
 // place the same way (isStreamOutput): node frames are spilled too and everything is streamed by
 // finish(); bytes go out only in finish(). Any other output is written to a temporary name and renamed by
 // finish(); a writer destroyed without finish() removes its temporary files and leaves no output. Memory: one
-// frame of each section plus the zstd context. Throws IoError (io/io.h) naming the file for write failures
+// frame of each section plus the zstd context. Throws Error (Output) (io/io.h) naming the file for write failures
 // (disk full...), std::invalid_argument for counts or references that do not match the declaration (checked
 // as they come and in finish()).
 //
@@ -191,13 +192,6 @@ uint64_t writerMemoryBound(const WriteOptions& options = {});
 uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mesh,
                           std::span<const uint64_t> originalFace, const Hierarchy& hierarchy,
                           const FileOptions& options, const WriteOptions& writeOptions = {});
-
-// Thrown for an unreadable, corrupt or unsupported cluster file: what() is "FILE: REASON".
-// (Not an IoError, which io/io.h defines for write failures: the CLI maps this one to exit 3.)
-class ClusterFileError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Reads and checks (checksums, sizes, index ranges) a whole file; `geometry` false skips the
 // vertex, triangle and id frames (their checksums are not checked then).

@@ -3,6 +3,7 @@
 #include "io/fch_format.h"
 
 #define ZSTD_STATIC_LINKING_ONLY  // ZSTD_estimateCCtxSize_usingCParams, for the memory bound
+#include <xxhash.h>
 #include <zstd.h>
 
 #include <bit>
@@ -14,6 +15,9 @@
 #include "io/output_file.h"
 
 namespace facetree::fch {
+
+uint64_t xxh64(const void* data, size_t bytes, uint64_t seed) { return XXH64(data, bytes, seed); }
+
 namespace {
 
 static_assert(std::endian::native == std::endian::little,
@@ -288,7 +292,7 @@ SourceFile::SourceFile(const std::filesystem::path& path) : name_(path.string())
 SourceFile::~SourceFile() = default;
 
 void SourceFile::fail(const std::string& reason) const {
-  throw ClusterFileError(name_ + ": " + reason);
+  throw Error(ErrorCategory::Input, name_ + ": " + reason);
 }
 
 std::string SourceFile::readAt(uint64_t offset, uint64_t bytes) const {

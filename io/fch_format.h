@@ -27,7 +27,7 @@ inline constexpr uint8_t kStoredFlagMask = kFchJoinsDisjointSurfaces | kFchFlatF
 // Face positions share 32 bits with kFaceChild, so a file holds fewer than 2^31 triangles.
 inline constexpr uint64_t kMaxTriangles = kFaceChild - 1;
 
-// XXH64 (Collet), seed 0 unless given: the checksum of headers, index and frames.
+// XXH64 (Collet; libxxhash), seed 0 unless given: the checksum of headers, index and frames.
 uint64_t xxh64(const void* data, size_t bytes, uint64_t seed = 0);
 
 // One frame as assembled for writing: its index entry (offset filled in by writeFrames) and

@@ -96,7 +96,7 @@ class SpillFile {
  private:
   [[noreturn]] void fail(const char* what) const {
     const int error = errno;
-    throw IoError(owner_ + ": " + what + " in " + dir_.string() + ": " +
+    throw Error(ErrorCategory::Output, owner_ + ": " + what + " in " + dir_.string() + ": " +
                   (error ? std::strerror(error) : "short write"));
   }
   std::string owner_;

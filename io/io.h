@@ -1,7 +1,7 @@
 // facetree/io: writes and reads what the merge produced: the cluster file, mesh writers,
 // exports and pictures. Public header of the module.
 //
-// Errors: throws facetree::IoError (a std::runtime_error) naming the file and the reason.
+// Errors: throws facetree::Error of category Output (facetree/error.h) naming the file and the reason.
 #pragma once
 
 #include <cstdint>
@@ -14,16 +14,12 @@
 #include <glm/ext/vector_uint3_sized.hpp>
 #include <glm/vec3.hpp>
 
+#include "facetree/error.h"
 #include "io/branching.h"
 #include "io/cluster_file.h"
 #include "merge/merge.h"
 
 namespace facetree {
-
-class IoError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Every output of this module (cluster files, meshes, pictures) is written under this
 // temporary name beside `path` (unique per process) and renamed to `path` when complete; a
@@ -35,7 +31,7 @@ std::filesystem::path temporaryOutputPath(const std::filesystem::path& path);
 // target that exists and is neither a regular file nor a directory (a named pipe, a device).
 // Streams take bytes in order, have no temporary name, and cannot be removed on failure.
 bool isStreamOutput(const std::filesystem::path& path);
-// Throws IoError ("PATH: cannot create: REASON") when `path` is a directory or its directory is
+// Throws Error (Output) ("PATH: cannot create: REASON") when `path` is a directory or its directory is
 // missing or not writable: checked before long work, so that it does not fail at its end.
 // Stream outputs pass.
 void checkOutputWritable(const std::filesystem::path& path);

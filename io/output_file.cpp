@@ -60,7 +60,7 @@ OutputFile::~OutputFile() {
 
 void OutputFile::fail(const char* what) const {
   const int error = errno;
-  throw IoError(path_.string() + ": " + what + ": " + (error ? std::strerror(error) : "write error"));
+  throw Error(ErrorCategory::Output, path_.string() + ": " + what + ": " + (error ? std::strerror(error) : "write error"));
 }
 
 void OutputFile::write(const void* data, size_t bytes) {
@@ -94,7 +94,7 @@ void OutputFile::commit() {
   if (error) {
     const std::string reason = error.message();
     std::filesystem::remove(temporary_, error);
-    throw IoError(path_.string() + ": cannot rename temporary file: " + reason);
+    throw Error(ErrorCategory::Output, path_.string() + ": cannot rename temporary file: " + reason);
   }
   committed_ = true;
 }
@@ -110,7 +110,7 @@ void checkOutputWritable(const std::filesystem::path& path) {
     if (::access(parent.c_str(), W_OK | X_OK) != 0) error = errno;
   }
   // The message OutputFile gives when it cannot create the file.
-  if (error != 0) throw IoError(path.string() + ": cannot create: " + std::strerror(error));
+  if (error != 0) throw Error(ErrorCategory::Output, path.string() + ": cannot create: " + std::strerror(error));
 }
 
 }  // namespace facetree

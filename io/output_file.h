@@ -1,6 +1,6 @@
 // An output file that appears under its final name only when complete: data goes to a
 // temporary name beside the target and is renamed on commit(); destroyed uncommitted, the
-// temporary file is removed. Writes are buffered; every failure throws IoError naming the file.
+// temporary file is removed. Writes are buffered; every failure throws Error (Output) naming the file.
 //
 // A stream is written in place instead: standard output ("-"), and a target that exists and is
 // not a regular file (a named pipe, a device, a socket). Renaming a temporary over a pipe would

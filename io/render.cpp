@@ -123,7 +123,7 @@ std::vector<unsigned char> encodePng(const std::vector<unsigned char>& pixels, i
         static_cast<std::vector<unsigned char>*>(context)->end(), bytes, bytes + size);
   };
   if (stbi_write_png_to_func(append, &png, width, height, kChannels, pixels.data(), width * kChannels) == 0)
-    throw IoError(path.string() + ": cannot encode PNG");
+    throw Error(ErrorCategory::Output, path.string() + ": cannot encode PNG");
   return png;
 }
 }  // namespace

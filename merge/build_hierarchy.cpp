@@ -111,7 +111,7 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
 }
 
 void throwIfCancelled(const BuildOptions& options) {
-  if (options.cancelled && options.cancelled()) throw Cancelled();
+  if (options.cancelled && options.cancelled()) throw cancelledError();
 }
 
 }  // namespace

@@ -157,7 +157,7 @@ class ClusterMerger {
     heap_.heapify();
 
     for (uint64_t step = 1; !heap_.empty(); ++step) {
-      if (step % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled()) throw Cancelled();
+      if (step % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled()) throw cancelledError();
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;
       Record& r = clusters_[top.id];

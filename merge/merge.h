@@ -22,6 +22,8 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
+#include "facetree/error.h"
+
 namespace facetree {
 
 // An indexed triangle mesh the caller owns: `indices` holds three vertex indices per triangle.
@@ -68,12 +70,6 @@ struct BuildOptions {
   // Cancelled. Empty: never cancelled. The library keeps no state of its own for this; a
   // caller typically returns an atomic flag set by its signal handling.
   std::function<bool()> cancelled;
-};
-
-// Thrown by a build whose cancellation hook returned true; everything it allocated is freed.
-class Cancelled : public std::runtime_error {
- public:
-  Cancelled() : std::runtime_error("cancelled") {}
 };
 
 // A child reference is a node index, or a face (its position in faceOrder) with this bit set.

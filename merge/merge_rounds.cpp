@@ -259,7 +259,7 @@ class RoundsEngine {
     uint32_t rounds = 0;
     const uint32_t tail = std::min(kTailClusters, leafCount_ / kTailFraction);
     while (options_.order == MergeOrder::Rounds) {
-      if (options_.cancelled && options_.cancelled()) throw Cancelled();
+      if (options_.cancelled && options_.cancelled()) throw cancelledError();
       if (rounds > 0) findCheapest();
       const uint32_t pairs = markPairs();
       if (pairs == 0 || live_ <= tail || uint64_t{pairs} * kStallRatio < live_) break;

@@ -11,7 +11,7 @@
 
 namespace facetree::stream_detail {
 
-// A forward-only stream of bytes. read() returns 0 only at the end; failures throw ReadError.
+// A forward-only stream of bytes. read() returns 0 only at the end; failures throw Error (Input).
 class ByteSource {
  public:
   virtual ~ByteSource() = default;
@@ -29,7 +29,7 @@ class ByteSource {
 // Reads a file descriptor with read(2). Owns (closes) it unless it is standard input.
 class FdSource final : public ByteSource {
  public:
-  // Opens `path` read-only; throws ReadError "NAME: byte 0: cannot open: ..." on failure.
+  // Opens `path` read-only; throws Error (Input) "NAME: byte 0: cannot open: ..." on failure.
   static std::unique_ptr<FdSource> open(const std::string& path, const std::string& name);
   // Wraps an already open descriptor; the size is never used (treated like a pipe).
   FdSource(int fd, std::string name, bool owned);

@@ -45,7 +45,7 @@ struct PlyHeader {
 
 // Parses the header from the start of `input` (which begins with "ply") through end_header and
 // checks that it describes a mesh: a vertex element with scalar x, y, z and a face or tristrips
-// element with an integer vertex_indices (or vertex_index) list. Throws ReadError "line N: ...".
+// element with an integer vertex_indices (or vertex_index) list. Throws Error (Input) "line N: ...".
 PlyHeader parsePlyHeader(InputBuffer& input, const std::string& name);
 
 }  // namespace facetree::stream_detail

@@ -18,7 +18,7 @@ std::string formatReadError(std::string_view name, Place place, std::string_view
 }
 
 void throwReadError(std::string_view name, Place place, std::string_view reason) {
-  throw ReadError(formatReadError(name, place, reason));
+  throw Error(ErrorCategory::Input, formatReadError(name, place, reason));
 }
 
 std::string quoteToken(std::string_view token) {

@@ -1,4 +1,4 @@
-// Internal: building the one-line ReadError messages "NAME: PLACE: REASON".
+// Internal: building the one-line Error (Input) messages "NAME: PLACE: REASON".
 #pragma once
 
 #include <cstdint>

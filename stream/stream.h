@@ -6,7 +6,7 @@
 // face index. Vertex positions of indexed formats are served through VertexSource (held in
 // memory for now; a bounded cache can be put behind the same interface).
 //
-// Errors: functions of this header throw facetree::ReadError (a std::runtime_error) for
+// Errors: functions of this header throw facetree::Error of category Input (facetree/error.h) for
 // malformed or unreadable input; what() is one line "FILE: PLACE: REASON", where PLACE is
 // "byte N" or "line N". Nothing else is thrown except std::bad_alloc.
 #pragma once
@@ -20,6 +20,8 @@
 #include <string>
 
 #include <glm/vec3.hpp>
+
+#include "facetree/error.h"
 
 namespace facetree {
 
@@ -72,11 +74,6 @@ class VertexSource {
   virtual glm::vec3 position(uint64_t index) const = 0;
 };
 
-class ReadError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
 class TriangleReader {
  public:
   virtual ~TriangleReader() = default;
@@ -116,7 +113,7 @@ struct ReadOptions {
   std::function<void(std::span<const glm::vec3>)> vertexSink = {};
   // Draco has no streaming decoder: its reader decodes the whole mesh at open. With a limit, it
   // first estimates the decoding's peak from the counts in the file's header (and the encoded
-  // bytes as they are read) and fails with a ReadError, before decoding, when it is over the
+  // bytes as they are read) and fails with a Error (Input), before decoding, when it is over the
   // limit; after decoding it checks the decoded mesh's actual size again (attributes the
   // header does not count). 0: no limit. The streaming formats ignore it.
   uint64_t wholeMeshLimitBytes = 0;

@@ -34,7 +34,7 @@ bool isFinite(const glm::vec3& p) {
 }
 
 size_t ReaderBase::read(std::span<Triangle> out) {
-  if (!error_.empty()) throw ReadError(error_);
+  if (!error_.empty()) throw Error(ErrorCategory::Input, error_);
   size_t count = 0;
   try {
     while (count < out.size() && !ended_) {
@@ -46,7 +46,7 @@ size_t ReaderBase::read(std::span<Triangle> out) {
       }
       count += completeTriangles(out.data() + count, produced);
     }
-  } catch (const ReadError& error) {
+  } catch (const Error& error) {
     // The parsers stop mid-record: their state is not resumable, so the reader stays failed.
     error_ = error.what();
     throw;

@@ -81,7 +81,7 @@ class ReaderBase : public TriangleReader {
 
  protected:
   // Writes up to `capacity` triangles (vertex indices and face ids; positions are filled in
-  // later); returns 0 only at the end of the mesh. May throw ReadError.
+  // later); returns 0 only at the end of the mesh. May throw Error (Input).
   virtual size_t produce(Triangle* out, size_t capacity) = 0;
   // Called once after produce() returned 0 (e.g. to reject a mesh without faces).
   virtual void finishReading() {}
@@ -108,7 +108,7 @@ class ReaderBase : public TriangleReader {
 
   bool sawNonFinite_ = false;
   bool ended_ = false;
-  std::string error_;  // a ReadError thrown once is thrown again by every later read()
+  std::string error_;  // a Error thrown once is thrown again by every later read()
 };
 
 // Welds bit-identical positions (with -0.0 equal to 0.0) into one vertex index: STL has no

@@ -62,18 +62,21 @@ void registerErrors(py::module_& module) {
   py::register_exception_translator([](std::exception_ptr thrown) {
     try {
       if (thrown) std::rethrow_exception(thrown);
-    } catch (const Cancelled&) {
-      raise("Cancelled", "cancelled");
-    } catch (const ReadError& e) {
-      raise("InputError", e.what());
-    } catch (const ClusterFileError& e) {
-      raise("InputError", e.what());
-    } catch (const IoError& e) {
-      raise("OutputError", e.what());
-    } catch (const MemoryCapError& e) {
-      raise("ResourceError", e.what());
-    } catch (const TemporaryFileError& e) {
-      raise("ResourceError", e.what());
+    } catch (const Error& e) {
+      switch (e.category()) {
+        case ErrorCategory::Input:
+          raise("InputError", e.what());
+          break;
+        case ErrorCategory::Output:
+          raise("OutputError", e.what());
+          break;
+        case ErrorCategory::Resource:
+          raise("ResourceError", e.what());
+          break;
+        case ErrorCategory::Cancelled:
+          raise("Cancelled", e.what());
+          break;
+      }
     } catch (const std::invalid_argument& e) {
       raise("InputError", e.what());
     } catch (const std::bad_alloc&) {

@@ -82,8 +82,8 @@ auto runReleased(Interrupts& interrupts, Work&& work) {
   try {
     py::gil_scoped_release release;
     return work();
-  } catch (const Cancelled&) {
-    interrupts.raiseCaught();
+  } catch (const Error& e) {
+    if (e.category() == ErrorCategory::Cancelled) interrupts.raiseCaught();
     throw;
   }
 }

@@ -3,7 +3,7 @@
 // /proc/self/fd. Every input is read twice: as given, and with its checksums recomputed
 // (header, index, frames) so that mutations reach the field checks and the frame decoders
 // instead of stopping at a checksum mismatch (make_fch_seeds.py writes seeds whose frames are
-// stored zstd blocks, so mutated payloads stay decompressible). ClusterFileError and
+// stored zstd blocks, so mutated payloads stay decompressible). Error (Input) and
 // std::invalid_argument are the documented errors; anything else crashes. A file that reads
 // and verifies must also give its statistics and cuts.
 #include <sys/mman.h>
@@ -91,20 +91,20 @@ void checkMessage(const char* what) {
 void readAndVerify(const std::string& path) {
   try {
     (void)readClusterFileLayout(path);
-  } catch (const ClusterFileError& e) {
+  } catch (const Error& e) {
     checkMessage(e.what());
     return;  // the whole-file reads fail the same way
   }
   try {
     const ClusterFile nodesOnly = readClusterFile(path, /*geometry=*/false);
     (void)verifyClusterFile(nodesOnly);
-  } catch (const ClusterFileError& e) {
+  } catch (const Error& e) {
     checkMessage(e.what());
   }
   ClusterFile file;
   try {
     file = readClusterFile(path);
-  } catch (const ClusterFileError& e) {
+  } catch (const Error& e) {
     checkMessage(e.what());
     return;
   }

@@ -1,7 +1,7 @@
 // Shared by the stream fuzz targets: the input bytes as an in-memory ByteSource, and a driver
 // that opens a reader on them, reads every triangle in batches and checks what the stream
 // API promises (stream/stream.h, stream/README.md):
-//   - only facetree::ReadError is thrown (std::bad_alloc aside), its what() one line;
+//   - only Error (Input) is thrown (std::bad_alloc aside), its what() one line;
 //   - a reader that threw keeps throwing the same error;
 //   - every triangle's vertex indices are valid and its positions are those of vertices();
 //   - stats().triangles counts what was handed on;
@@ -153,7 +153,7 @@ inline Outcome drain(const Opener& open, size_t bufferBytes) {
       }
     }
     out.stats = reader->stats();
-  } catch (const ReadError& e) {
+  } catch (const Error& e) {
     out.failed = true;
     out.error = e.what();
     if (out.error.find('\n') != std::string::npos) fail("ReadError message spans lines: " + out.error);
@@ -162,7 +162,7 @@ inline Outcome drain(const Opener& open, size_t bufferBytes) {
       std::string again;
       try {
         reader->read(batch);
-      } catch (const ReadError& e2) {
+      } catch (const Error& e2) {
         again = e2.what();
       }
       if (again != out.error) fail("read() after \"" + out.error + "\" gave \"" + again + "\"");

@@ -25,8 +25,8 @@ std::unique_ptr<TriangleReader> openZstd(const uint8_t* data, size_t size, size_
   const DetectedFormat format = detectFormat(*input, std::nullopt);
   if (auto reader = makeReader(format, std::move(input), std::move(info), fuzz::kWholeMeshLimitBytes))
     return reader;
-  // openInput rejects Empty, Unknown and zstd-in-zstd with a ReadError too.
-  throw ReadError("fuzz: byte 0: no mesh format inside zstd");
+  // openInput rejects Empty, Unknown and zstd-in-zstd with a Error (Input) too.
+  throw Error(ErrorCategory::Input, "fuzz: byte 0: no mesh format inside zstd");
 }
 
 }  // namespace

@@ -139,7 +139,7 @@ TEST(BucketSpill, aFailedBackgroundWriteIsThrownToTheCaller) {
       spill.append(i % 4, &r);
     }
     spill.flushAll();
-  } catch (const TempSpaceError& e) {
+  } catch (const Error& e) {
     message = e.what();
   }
   EXPECT_EQ(message, space.path().string() + ": temporary files would exceed --max-tmp 20000 bytes");

@@ -19,6 +19,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "error_expect.h"
 #include "grid/grid.h"
 #include "grid/out_of_core.h"
 #include "io/io.h"
@@ -247,7 +248,7 @@ TEST(OutOfCore, TemporaryFilesRemovedOnSuccessAndFailure) {
   job.forceCellFaces = 2000;
   job.tmpDir = dir / "tmp";
   job.maxTemporaryBytes = 4096;
-  EXPECT_THROW(runClusterJob(job), TemporaryFileError);
+  EXPECT_FACETREE_ERROR(runClusterJob(job), Resource);
   EXPECT_TRUE(fs::is_empty(dir / "tmp"));
   EXPECT_FALSE(fs::exists(dir / "fail.fch"));
   // Cancelled from the progress callback in each stage, with its helper threads running (two
@@ -259,7 +260,7 @@ TEST(OutOfCore, TemporaryFilesRemovedOnSuccessAndFailure) {
       int calls = 0;
       job.threads = threads;
       job.progress = [&](const JobProgress& p) { return p.phase != stage || ++calls < 2; };
-      EXPECT_THROW(runClusterJob(job), JobCancelled);
+      EXPECT_FACETREE_ERROR(runClusterJob(job), Cancelled);
       EXPECT_EQ(calls, 2);
       EXPECT_TRUE(fs::is_empty(dir / "tmp"));
       EXPECT_FALSE(fs::exists(dir / "fail.fch"));
@@ -275,7 +276,7 @@ TEST(OutOfCore, SmallCapIsRefusedWithWhatItNeeds) {
   try {
     build(mesh, dir / "out.fch", 0, 2, {}, uint64_t{20} << 20);
     FAIL() << "a 20 MiB cap was accepted";
-  } catch (const MemoryCapError& e) {
+  } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("is too small: an out-of-core build needs at least"),
               std::string::npos)
         << e.what();
@@ -463,7 +464,7 @@ TEST(OutOfCore, DracoLeavingTooLittleForTheBuildIsRefused) {
   try {
     build(mesh, dir / "out.fch", 0, 2, {}, cap);
     FAIL() << "accepted";
-  } catch (const MemoryCapError& e) {
+  } catch (const Error& e) {
     const std::string expected =
         mesh.string() + ": the Draco mesh is decoded whole (the format cannot be streamed) and holds ";
     EXPECT_EQ(std::string(e.what()).rfind(expected, 0), 0u) << e.what();

@@ -18,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include "error_expect.h"
 #include "grid/spill_file.h"
 #include "grid/temp_space.h"
 #include "spill_test_util.h"
@@ -30,7 +31,7 @@ using test::ScratchDir;
 std::string errorOf(const std::function<void()>& f) {
   try {
     f();
-  } catch (const TempSpaceError& e) {
+  } catch (const Error& e) {
     return e.what();
   }
   return "(no TempSpaceError)";
@@ -139,7 +140,7 @@ TEST(TempSpace, reservePastMaxTmpThrowsTheExactMessageAndAccountsNothing) {
   space.reserve(500000);
   EXPECT_EQ(space.peakBytes(), 1000000u);
   // An overflowing request is past any limit, not a wrap-around.
-  EXPECT_THROW(space.reserve(UINT64_MAX), TempSpaceError);
+  EXPECT_FACETREE_ERROR(space.reserve(UINT64_MAX), Resource);
 }
 
 TEST(TempSpace, accountingFromTwoThreadsAddsUp) {
@@ -422,7 +423,7 @@ TEST(SpillFile, maxTmpStopsAppendsWithTheExactMessage) {
     message = [&]() -> std::string {
       try {
         file.append(randomBlock(rng, 65536, false), codec);
-      } catch (const TempSpaceError& e) {
+      } catch (const Error& e) {
         return e.what();
       }
       return {};
@@ -447,7 +448,7 @@ TEST(SpillFile, fullDiskIsATempSpaceErrorNamingTheFileAndLeavesNoFiles) {
     for (int i = 0; i < 100; ++i) {
       try {
         file.append(randomBlock(rng, 65536, false), codec);
-      } catch (const TempSpaceError& e) {
+      } catch (const Error& e) {
         // The failed block is neither accounted nor left in the file.
         const bool consistent = file.bytes() == space.currentBytes() && file.bytes() <= limit.rlim_cur;
         return std::string(e.what()) + "\n" + file.path().string() + "\n" +

@@ -28,7 +28,7 @@ ClusterFile sampleFile(unsigned branching, int w = 20, int h = 13) {
 std::string errorOf(const std::filesystem::path& path) {
   try {
     readClusterFile(path);
-  } catch (const ClusterFileError& e) {
+  } catch (const Error& e) {
     return e.what();
   }
   return "";

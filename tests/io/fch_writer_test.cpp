@@ -434,7 +434,7 @@ TEST(ClusterFileWriter, DiskFullIsAnIoErrorNamingTheFileAndLeavesNothing) {
                 writer, source, [&, n = 0]() mutable { return n++ < 100 ? (spillFirst ? 1 : 0) : n % 3; },
                 [] { return size_t{1000}; });
             writer.finish();
-          } catch (const IoError& e) {
+          } catch (const Error& e) {
             say(out, e.what());
             return 0;
           }

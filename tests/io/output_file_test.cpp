@@ -63,7 +63,7 @@ TEST(OutputFile, MissingDirectoryIsAClearError) {
   try {
     OutputFile out(target);
     FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+  } catch (const Error& e) {
     EXPECT_STREQ(e.what(), "/nonexistent-facetree-dir/out.bin: cannot create: No such file or directory");
   }
 }

@@ -17,6 +17,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "error_expect.h"
 #include "io/camera.h"
 #include "io/io.h"
 #include "io/palette.h"
@@ -384,11 +385,11 @@ TEST(RenderClustersPng, RejectsBadInput) {
 TEST(RenderClustersPng, UnwritablePathThrowsIoErrorAndLeavesNothing) {
   Scratch scratch("unwritable");
   const TestMesh mesh = square();
-  EXPECT_THROW(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "missing" / "out.png"), IoError);
+  EXPECT_FACETREE_ERROR(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "missing" / "out.png"), Output);
   EXPECT_FALSE(std::filesystem::exists(scratch / "missing"));
   // The target is a directory: the rename fails and the temporary is removed.
   std::filesystem::create_directories(scratch / "taken.png" / "child");
-  EXPECT_THROW(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "taken.png"), IoError);
+  EXPECT_FACETREE_ERROR(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "taken.png"), Output);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(scratch.dir()), {}), 1);
 }
 
@@ -490,7 +491,7 @@ TEST(WriteClusterColouredPly, RejectsBadInputAndUnwritablePaths) {
   const auto path = scratch / "bad.ply";
   const std::vector<uint32_t> tooMany(13, 0);
   EXPECT_THROW(writeClusterColouredPly(mesh.view(), tooMany, path), std::invalid_argument);
-  EXPECT_THROW(writeClusterColouredPly(mesh.view(), mesh.clusters, scratch / "missing" / "x.ply"), IoError);
+  EXPECT_FACETREE_ERROR(writeClusterColouredPly(mesh.view(), mesh.clusters, scratch / "missing" / "x.ply"), Output);
   mesh.indices[7] = 8;
   EXPECT_THROW(writeClusterColouredPly(mesh.view(), mesh.clusters, path), std::invalid_argument);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(scratch.dir()), {}), 0);

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "error_expect.h"
 #include "merge/merge.h"
 #include "test_meshes.h"
 
@@ -327,7 +328,7 @@ TEST(BuildHierarchy, CancellationHookStopsTheBuild) {
   options.order = kTestOrder;
   uint64_t polls = 0;
   options.cancelled = [&polls] { return ++polls >= 2; };  // the second poll: inside the merge
-  EXPECT_THROW(buildHierarchy(mesh.view(), options), Cancelled);
+  EXPECT_FACETREE_ERROR(buildHierarchy(mesh.view(), options), Cancelled);
   EXPECT_EQ(polls, 2u);
 
   polls = 0;

@@ -1,5 +1,5 @@
 // The malformed corpus (tests/data/malformed, written by make_corpus.py): every file gives
-// exactly one ReadError whose message is "PATH: PLACE: REASON" with the path as given.
+// exactly one Error (Input) whose message is "PATH: PLACE: REASON" with the path as given.
 #include <gtest/gtest.h>
 
 #include <set>

@@ -40,7 +40,7 @@ TEST(StreamOpen, DetectionUsesTheContentNotTheName) {
 }
 
 // Random byte flips, insertions and cuts of valid files: every outcome is a mesh or one
-// ReadError; nothing else may escape (and sanitizer builds check memory safety).
+// Error (Input); nothing else may escape (and sanitizer builds check memory safety).
 TEST(StreamRobustness, CorruptedFilesGiveTrianglesOrOneReadError) {
   const std::vector<std::string> seeds = {
       test::writePly(test::pyramid(), {.encoding = "ascii", .extraProperties = true, .extraElement = true}),
@@ -86,7 +86,7 @@ TEST(StreamRobustness, CorruptedFilesGiveTrianglesOrOneReadError) {
         for (const Triangle& t : triangles)
           for (int c = 0; c < 3; ++c) ASSERT_LT(t.vertex[c], reader->vertices().size());
         ++meshes;
-      } catch (const ReadError& error) {
+      } catch (const Error& error) {
         const std::string message = error.what();
         ASSERT_EQ(message.rfind(path.string() + ": ", 0), 0u) << message;
         ASSERT_EQ(message.find('\n'), std::string::npos) << message;

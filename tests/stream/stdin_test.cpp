@@ -33,12 +33,12 @@ std::vector<Triangle> readThroughPipe(const std::string& bytes, MeshFormat* form
     auto reader = stream_detail::openFileDescriptor(fds[0], "-");
     if (format) *format = reader->info().format;
     triangles = test::readAll(*reader);
-  } catch (const ReadError& e) {
+  } catch (const Error& e) {
     error = e.what();
   }
   ::close(fds[0]);  // unblocks a writer stuck on a full pipe
   writer.join();
-  if (!error.empty()) throw ReadError(error);
+  if (!error.empty()) throw Error(ErrorCategory::Input, error);
   return triangles;
 }
 

@@ -1,7 +1,7 @@
 // Reads mesh files with the stream readers and reports throughput; not a test.
 //   stream_bench [--batch N] FILE...
 // Prints per file: format, faces, triangles, decompressed MB, seconds, MB/s, faces/s.
-// A ReadError is printed as-is (handy to inspect the malformed corpus).
+// A Error (Input) is printed as-is (handy to inspect the malformed corpus).
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -42,7 +42,7 @@ int main(int argc, char** argv) {
           static_cast<unsigned long long>(s.skippedTriangles), s.inputBytes / kMega, seconds, cpuSeconds,
           s.inputBytes / kMega / seconds, s.faces / kMega / seconds, s.inputBytes / kMega / cpuSeconds,
           s.faces / kMega / cpuSeconds, checksum);
-    } catch (const facetree::ReadError& error) {
+    } catch (const facetree::Error& error) {
       std::printf("%s\n", error.what());
       status = 1;
     }

@@ -232,7 +232,7 @@ std::vector<Triangle> readFile(const std::filesystem::path& path, size_t batch) 
 std::string errorOf(const std::function<void()>& action) {
   try {
     action();
-  } catch (const ReadError& error) {
+  } catch (const Error& error) {
     return error.what();
   }
   ADD_FAILURE() << "no ReadError thrown";

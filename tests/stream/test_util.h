@@ -66,7 +66,7 @@ std::string zstdCompress(const std::string& bytes, int level = 3);
 std::vector<Triangle> readAll(TriangleReader& reader, size_t batch = 7);
 std::vector<Triangle> readFile(const std::filesystem::path& path, size_t batch = 7);
 
-// Runs `action` and returns the ReadError message, or "" (with a test failure) if none.
+// Runs `action` and returns the Error (Input) message, or "" (with a test failure) if none.
 std::string errorOf(const std::function<void()>& action);
 
 // Compares positions, vertex indices and face ids.

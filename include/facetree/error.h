@@ -1,0 +1,39 @@
+// facetree::Error: every failure the library reports, with its category.
+//
+// The library throws Error for what a caller can meet in normal use: unreadable or invalid input
+// (a mesh file, a cluster file, out-of-range data), an output that cannot be written, a memory
+// cap or temporary-space limit that cannot hold the work, and a cancellation asked for through
+// a hook. what() is one line naming the file, the place and the reason. Calls made against their
+// documented preconditions throw std::invalid_argument instead, and allocation failures
+// std::bad_alloc. The command-line tool maps each category to its exit code.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+namespace facetree {
+
+enum class ErrorCategory : uint8_t {
+  Input,      // a mesh or cluster file that cannot be read or is invalid, or data out of range
+  Output,     // an output that cannot be created or written
+  Resource,   // over the memory cap, over the temporary-space limit, or the disk full
+  Cancelled,  // a progress or cancellation hook asked to stop; nothing was left behind
+};
+
+class Error : public std::runtime_error {
+ public:
+  Error(ErrorCategory category, const std::string& message)
+      : std::runtime_error(message), category_(category) {}
+  ErrorCategory category() const noexcept { return category_; }
+
+ private:
+  ErrorCategory category_;
+};
+
+// The error a cancelled call throws.
+inline Error cancelledError() {
+  return Error(ErrorCategory::Cancelled, "cancelled");
+}
+
+}  // namespace facetree
