@@ -1,4 +1,4 @@
-#include "cli/build_job.h"
+#include "build_job.h"
 
 #include <unistd.h>
 
@@ -6,9 +6,9 @@
 #include <cstdio>
 #include <thread>
 
-#include "cli/commands.h"
-#include "cli/job_report.h"
-#include "cli/signals.h"
+#include "commands.h"
+#include "job_report.h"
+#include "signals.h"
 
 namespace facetree::cli {
 namespace {

@@ -2,8 +2,8 @@
 // core under --memory), with a progress line on a terminal and the report.
 #pragma once
 
-#include "cli/args.h"
-#include "grid/grid.h"
+#include "args.h"
+#include "facetree/grid.h"
 
 namespace facetree::cli {
 

@@ -3,14 +3,14 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "cli/args.h"
-#include "cli/build_job.h"
-#include "cli/commands.h"
-#include "cli/json.h"
-#include "cli/signals.h"
-#include "grid/grid.h"
-#include "io/io.h"
-#include "merge/merge.h"
+#include "args.h"
+#include "build_job.h"
+#include "commands.h"
+#include "json.h"
+#include "signals.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/merge.h"
 
 namespace facetree::cli {
 namespace {

@@ -3,14 +3,14 @@
 #include <cstdio>
 #include <sstream>
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/fch_commands.h"
-#include "cli/json.h"
-#include "cli/signals.h"
-#include "grid/grid.h"
-#include "io/cluster_file.h"
-#include "stream/stream.h"
+#include "args.h"
+#include "commands.h"
+#include "fch_commands.h"
+#include "json.h"
+#include "signals.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/stream.h"
 
 namespace facetree::cli {
 namespace {

@@ -1,11 +1,11 @@
 // facetree gen grid|sphere|terrain|subdivide: synthetic meshes for tests and benchmarks.
 #include <cstdio>
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/signals.h"
-#include "grid/grid.h"
-#include "io/io.h"
+#include "args.h"
+#include "commands.h"
+#include "signals.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
 
 namespace facetree::cli {
 

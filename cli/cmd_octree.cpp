@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <string>
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/json.h"
-#include "grid/grid.h"
-#include "merge/merge.h"
+#include "args.h"
+#include "commands.h"
+#include "json.h"
+#include "facetree/grid.h"
+#include "facetree/merge.h"
 
 namespace facetree::cli {
 namespace {

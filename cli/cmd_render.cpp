@@ -2,10 +2,10 @@
 #include <cstdio>
 #include <sstream>
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/signals.h"
-#include "io/io.h"
+#include "args.h"
+#include "commands.h"
+#include "signals.h"
+#include "facetree/io.h"
 
 namespace facetree::cli {
 namespace {

@@ -4,10 +4,10 @@
 
 #include <glm/common.hpp>
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/json.h"
-#include "stream/stream.h"
+#include "args.h"
+#include "commands.h"
+#include "json.h"
+#include "facetree/stream.h"
 
 namespace facetree::cli {
 namespace {

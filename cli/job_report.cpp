@@ -1,6 +1,6 @@
-#include "cli/job_report.h"
+#include "job_report.h"
 
-#include "cli/json.h"
+#include "json.h"
 
 namespace facetree::cli {
 

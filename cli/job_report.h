@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "grid/grid.h"
+#include "facetree/grid.h"
 
 namespace facetree::cli {
 

@@ -12,13 +12,13 @@
 #include <malloc.h>
 #endif
 
-#include "cli/args.h"
-#include "cli/commands.h"
-#include "cli/fch_commands.h"
-#include "cli/signals.h"
-#include "grid/grid.h"
-#include "io/io.h"
-#include "stream/stream.h"
+#include "args.h"
+#include "commands.h"
+#include "fch_commands.h"
+#include "signals.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/stream.h"
 
 namespace {
 

@@ -7,9 +7,9 @@
 #include <cstring>
 #include <filesystem>
 
-#include "cli/commands.h"
-#include "cli/signals.h"
-#include "io/io.h"
+#include "commands.h"
+#include "signals.h"
+#include "facetree/io.h"
 
 namespace facetree::cli {
 

@@ -1,4 +1,4 @@
-#include "cli/signals.h"
+#include "signals.h"
 
 #include <fcntl.h>
 #include <pthread.h>
@@ -9,7 +9,7 @@
 #include <string>
 #include <system_error>
 
-#include "io/io.h"
+#include "facetree/io.h"
 
 namespace facetree::cli {
 namespace {

@@ -9,18 +9,12 @@ endif()
 
 install(TARGETS facetree facetree_zstd facetree_xxhash EXPORT facetreeTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 if(TARGET facetree_cli)
   install(TARGETS facetree_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
-foreach(module stream merge grid io)
-  install(FILES ${PROJECT_SOURCE_DIR}/${module}/${module}.h
-    DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/${module})
-endforeach()
-install(FILES ${PROJECT_SOURCE_DIR}/io/cluster_file.h ${PROJECT_SOURCE_DIR}/io/branching.h
-  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/io)
-install(FILES ${PROJECT_SOURCE_DIR}/include/facetree/error.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree/facetree)
-install(FILES ${PROJECT_SOURCE_DIR}/cmake/facetree.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/facetree)
+# The public include tree as it is: <facetree.h> and <facetree/{error,stream,merge,grid,io}.h>.
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 
 install(EXPORT facetreeTargets NAMESPACE facetree:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/facetree)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/facetreeConfig.cmake.in

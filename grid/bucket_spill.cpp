@@ -1,5 +1,5 @@
 // Buffered fixed-size record streams over one compressed SpillFile (see bucket_spill.h).
-#include "grid/bucket_spill.h"
+#include "bucket_spill.h"
 
 #include <zstd.h>
 

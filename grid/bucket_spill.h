@@ -11,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-#include "grid/spill_file.h"
+#include "spill_file.h"
 
 namespace facetree {
 

@@ -1,4 +1,4 @@
-#include "grid/cell_grid.h"
+#include "cell_grid.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,9 +7,9 @@
 #include <cmath>
 #include <limits>
 
-#include "grid/grid.h"
-#include "grid/out_of_core.h"
-#include "io/io.h"
+#include "facetree/grid.h"
+#include "out_of_core.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -1,6 +1,6 @@
 // The non-template parts of the external sort (see external_sort.h): how a budget is split, and the
 // storage of runs.
-#include "grid/external_sort.h"
+#include "external_sort.h"
 
 namespace facetree {
 namespace {

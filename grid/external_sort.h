@@ -34,8 +34,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "grid/spill_file.h"
-#include "grid/temp_space.h"
+#include "spill_file.h"
+#include "temp_space.h"
 
 namespace facetree {
 

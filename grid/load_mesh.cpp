@@ -1,5 +1,5 @@
 // Reads a whole mesh into memory for the in-core path.
-#include "grid/grid.h"
+#include "facetree/grid.h"
 
 #include <limits>
 #include <stdexcept>

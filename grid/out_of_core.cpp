@@ -1,5 +1,5 @@
 // The out-of-core build: its stages in order (out_of_core.h), each timed into the report.
-#include "grid/out_of_core.h"
+#include "out_of_core.h"
 
 #include <sys/resource.h>
 #if defined(__GLIBC__)

@@ -27,14 +27,14 @@
 
 #include <glm/vec3.hpp>
 
-#include "grid/bucket_spill.h"
-#include "grid/cell_grid.h"
-#include "grid/face_record.h"
-#include "grid/grid.h"
-#include "grid/out_of_core_plan.h"
-#include "grid/spill_file.h"
-#include "grid/temp_space.h"
-#include "grid/vertex_positions.h"
+#include "bucket_spill.h"
+#include "cell_grid.h"
+#include "face_record.h"
+#include "facetree/grid.h"
+#include "out_of_core_plan.h"
+#include "spill_file.h"
+#include "temp_space.h"
+#include "vertex_positions.h"
 
 namespace facetree {
 

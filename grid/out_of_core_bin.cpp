@@ -3,7 +3,7 @@
 // ghost, so that the owner sees every face on each edge it owns (out_of_core.h, cell_grid.h).
 #include <algorithm>
 
-#include "grid/out_of_core.h"
+#include "out_of_core.h"
 
 namespace facetree {
 

@@ -12,7 +12,7 @@
 #include <mutex>
 #include <thread>
 
-#include "grid/out_of_core.h"
+#include "out_of_core.h"
 
 namespace facetree {
 namespace {

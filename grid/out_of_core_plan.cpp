@@ -1,5 +1,5 @@
 // The out-of-core plan: cell sizes and the leaves' metadata budget from the cap (out_of_core_plan.h).
-#include "grid/out_of_core_plan.h"
+#include "out_of_core_plan.h"
 
 #include <algorithm>
 #include <string>

@@ -6,9 +6,9 @@
 
 #include <cstdint>
 
-#include "grid/cell_grid.h"
-#include "grid/grid.h"
-#include "merge/merge.h"
+#include "cell_grid.h"
+#include "facetree/grid.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

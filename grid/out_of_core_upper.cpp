@@ -5,9 +5,9 @@
 // (out_of_core.h).
 #include <algorithm>
 
-#include "grid/out_of_core.h"
-#include "grid/upper_tree.h"
-#include "io/io.h"
+#include "out_of_core.h"
+#include "upper_tree.h"
+#include "facetree/io.h"
 
 namespace facetree {
 

@@ -12,8 +12,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "grid/external_sort.h"
-#include "grid/out_of_core.h"
+#include "external_sort.h"
+#include "out_of_core.h"
 
 namespace facetree {
 namespace {

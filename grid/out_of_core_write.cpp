@@ -8,10 +8,10 @@
 #include <cmath>
 #include <cstring>
 
-#include "grid/out_of_core.h"
-#include "grid/upper_boxes.h"
-#include "grid/upper_tree.h"
-#include "io/io.h"
+#include "out_of_core.h"
+#include "upper_boxes.h"
+#include "upper_tree.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -1,6 +1,6 @@
 // Compressed block files for the out-of-core spills (see spill_file.h). Each block is one zstd frame with
 // its content size and checksum, so a block damaged on disk is an error, never garbage records.
-#include "grid/spill_file.h"
+#include "spill_file.h"
 
 #include <fcntl.h>
 #include <unistd.h>

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "grid/temp_space.h"
+#include "temp_space.h"
 
 struct ZSTD_CCtx_s;
 struct ZSTD_DCtx_s;

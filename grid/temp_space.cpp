@@ -1,5 +1,5 @@
 // The run's temporary directory and its byte accounting (see temp_space.h).
-#include "grid/temp_space.h"
+#include "temp_space.h"
 
 #include <stdlib.h>  // mkdtemp
 

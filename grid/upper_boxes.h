@@ -13,7 +13,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "merge/merge.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "grid/out_of_core.h"
+#include "out_of_core.h"
 
 namespace facetree {
 

@@ -1,4 +1,4 @@
-#include "grid/vertex_positions.h"
+#include "vertex_positions.h"
 
 #include <algorithm>
 #include <cstring>

@@ -15,8 +15,8 @@
 
 #include <glm/vec3.hpp>
 
-#include "grid/spill_file.h"
-#include "grid/temp_space.h"
+#include "spill_file.h"
+#include "temp_space.h"
 
 namespace facetree {
 

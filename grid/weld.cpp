@@ -3,8 +3,8 @@
 #include <bit>
 #include <numeric>
 
-#include "grid/face_record.h"
-#include "grid/grid.h"
+#include "face_record.h"
+#include "facetree/grid.h"
 
 namespace facetree {
 namespace {

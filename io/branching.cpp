@@ -1,12 +1,12 @@
 // Branching-factor recast (Willmott 2000, sec. 5.5.1) and the cluster file of a hierarchy.
-#include "io/branching.h"
+#include "facetree/io.h"
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
 #include <stdexcept>
 
-#include "io/mesh_out.h"
+#include "mesh_out.h"
 
 namespace facetree {
 namespace {

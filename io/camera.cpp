@@ -1,4 +1,4 @@
-#include "io/camera.h"
+#include "camera.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "io/io.h"
-#include "io/output_file.h"
-#include "io/palette.h"
+#include "facetree/io.h"
+#include "output_file.h"
+#include "palette.h"
 
 namespace facetree {
 namespace {

@@ -10,7 +10,7 @@
 
 #include <glm/common.hpp>
 
-#include "io/cluster_file.h"
+#include "facetree/io.h"
 
 namespace facetree {
 

@@ -1,6 +1,6 @@
 // The cluster file's byte layout: header, frame index, column payloads, zstd frames
 // (docs/FORMAT.md). Shared by fch_writer.cpp, fch_reader.cpp and fch_truncate.cpp.
-#include "io/fch_format.h"
+#include "fch_format.h"
 
 #define ZSTD_STATIC_LINKING_ONLY  // ZSTD_estimateCCtxSize_usingCParams, for the memory bound
 #include <xxhash.h>
@@ -11,8 +11,8 @@
 #include <new>
 #include <stdexcept>
 
-#include "io/io.h"
-#include "io/output_file.h"
+#include "facetree/io.h"
+#include "output_file.h"
 
 namespace facetree::fch {
 

@@ -11,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-#include "io/cluster_file.h"
+#include "facetree/io.h"
 
 namespace facetree::fch {
 

@@ -1,6 +1,6 @@
 // readClusterFile / readClusterFileLayout: the .fch layout of docs/FORMAT.md back in memory.
 // Arrays grow frame by frame, by what each checksummed frame holds, never from a header count.
-#include "io/fch_format.h"
+#include "fch_format.h"
 
 namespace facetree {
 

@@ -4,7 +4,7 @@
 // decoded and recompressed. Kept records are unchanged: a child index >= K reads as cut off.
 #include <stdexcept>
 
-#include "io/fch_format.h"
+#include "fch_format.h"
 
 namespace facetree {
 namespace {

@@ -23,9 +23,9 @@
 
 #include <glm/common.hpp>
 
-#include "io/fch_format.h"
-#include "io/io.h"
-#include "io/output_file.h"
+#include "fch_format.h"
+#include "facetree/io.h"
+#include "output_file.h"
 
 namespace facetree {
 namespace {

@@ -9,8 +9,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "io/io.h"
-#include "io/permutation.h"
+#include "facetree/io.h"
+#include "permutation.h"
 
 namespace facetree {
 namespace {

@@ -1,14 +1,14 @@
 // The reordered mesh: faces in hierarchy order, vertices by first use, as binary PLY or Draco.
 // Draco uses sequential connectivity coding: edgebreaker would reorder faces and points.
-#include "io/mesh_out.h"
+#include "mesh_out.h"
 
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
 #include <stdexcept>
 
-#include "io/io.h"
-#include "io/output_file.h"
+#include "facetree/io.h"
+#include "output_file.h"
 
 namespace facetree {
 namespace {

@@ -1,4 +1,4 @@
-#include "io/output_file.h"
+#include "output_file.h"
 
 #include <unistd.h>
 
@@ -6,7 +6,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "io/io.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -1,4 +1,4 @@
-#include "io/palette.h"
+#include "palette.h"
 
 #include <array>
 #include <cmath>

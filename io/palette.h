@@ -7,7 +7,7 @@
 
 #include <glm/ext/vector_uint3_sized.hpp>
 
-#include "io/io.h"
+#include "facetree/io.h"
 
 namespace facetree {
 

@@ -3,8 +3,8 @@
 #include <cstring>
 #include <string>
 
-#include "io/io.h"
-#include "io/output_file.h"
+#include "facetree/io.h"
+#include "output_file.h"
 
 namespace facetree {
 namespace {

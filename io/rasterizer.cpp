@@ -1,4 +1,4 @@
-#include "io/rasterizer.h"
+#include "rasterizer.h"
 
 #include <algorithm>
 #include <cmath>

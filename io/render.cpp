@@ -8,11 +8,11 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
-#include "io/camera.h"
-#include "io/io.h"
-#include "io/output_file.h"
-#include "io/palette.h"
-#include "io/rasterizer.h"
+#include "camera.h"
+#include "facetree/io.h"
+#include "output_file.h"
+#include "palette.h"
+#include "rasterizer.h"
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmissing-field-initializers"

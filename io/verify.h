@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "io/cluster_file.h"
+#include "facetree/io.h"
 
 namespace facetree {
 

@@ -22,7 +22,7 @@
 // block (positions aligned to kSideBlock) and then block by block, and every node's frame
 // depends only on its subtree in a fixed child order, so the output is bit-identical for any
 // thread count.
-#include "merge/box.h"
+#include "box.h"
 
 #include <algorithm>
 #include <atomic>
@@ -40,8 +40,8 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
-#include "merge/box_extent.h"
-#include "merge/frame.h"
+#include "box_extent.h"
+#include "frame.h"
 
 namespace facetree {
 namespace {

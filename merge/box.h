@@ -1,9 +1,9 @@
 // Exact oriented boxes and side areas of every node of a hierarchy (Willmott 2000, sec. 5.3).
-// computeBoxes (declared in merge/merge.h) is defined in box.cpp; this header adds the variant
+// computeBoxes (declared in facetree/merge.h) is defined in box.cpp; this header adds the variant
 // with an explicit thread count, for tests of thread-count independence and for benchmarks.
 #pragma once
 
-#include "merge/merge.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

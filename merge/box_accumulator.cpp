@@ -15,7 +15,7 @@
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 
-#include "merge/box_extent.h"
+#include "box_extent.h"
 
 namespace facetree {
 

@@ -10,8 +10,8 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
-#include "merge/frame.h"
-#include "merge/merge.h"
+#include "frame.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

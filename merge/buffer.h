@@ -5,7 +5,7 @@
 #include <memory>
 #include <vector>
 
-#include "merge/huge_pages.h"
+#include "huge_pages.h"
 
 namespace facetree {
 

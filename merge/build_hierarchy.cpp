@@ -9,11 +9,11 @@
 #include <functional>
 #include <thread>
 
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
-#include "merge/huge_pages.h"
-#include "merge/merge.h"
-#include "merge/merge_engine.h"
+#include "dual_graph.h"
+#include "face_geometry.h"
+#include "huge_pages.h"
+#include "facetree/merge.h"
+#include "merge_engine.h"
 
 namespace facetree {
 

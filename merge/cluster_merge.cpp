@@ -33,13 +33,13 @@
 #include <string>
 #include <tuple>
 
-#include "merge/balance_guard.h"
-#include "merge/cost.h"
-#include "merge/dual_graph.h"
-#include "merge/heap.h"
-#include "merge/merge.h"
-#include "merge/merge_engine.h"
-#include "merge/surface_stats.h"
+#include "balance_guard.h"
+#include "cost.h"
+#include "dual_graph.h"
+#include "heap.h"
+#include "facetree/merge.h"
+#include "merge_engine.h"
+#include "surface_stats.h"
 
 namespace facetree {
 

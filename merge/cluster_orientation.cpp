@@ -5,9 +5,9 @@
 // extents come from BoxAccumulator.
 #include <vector>
 
-#include "merge/box_extent.h"
-#include "merge/frame.h"
-#include "merge/surface_stats.h"
+#include "box_extent.h"
+#include "frame.h"
+#include "surface_stats.h"
 
 namespace facetree {
 

@@ -5,8 +5,8 @@
 // from each unlabelled triangle in increasing order numbers them by their lowest triangle.
 // O(n + E) time; memory: the dual graph and a stack of at most n face ids. With a FaceAdjacency built
 // once for the mesh, its links instead of a dual graph.
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
+#include "dual_graph.h"
+#include "face_geometry.h"
 
 namespace facetree {
 

@@ -1,12 +1,12 @@
 // Willmott's and Garland's merge costs (see cost.h for the formulas and guards).
-#include "merge/cost.h"
+#include "cost.h"
 
 #include <algorithm>
 #include <chrono>
 
 #include <glm/geometric.hpp>
 
-#include "merge/eigen.h"
+#include "eigen.h"
 
 namespace facetree {
 

@@ -15,9 +15,9 @@
 
 #include <glm/vec3.hpp>
 
-#include "merge/cluster_stats.h"
-#include "merge/face_geometry.h"
-#include "merge/merge.h"
+#include "cluster_stats.h"
+#include "face_geometry.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

@@ -4,7 +4,7 @@
 // per vertex (~14 bytes per face) against ~24 bytes per face for (key, face) pairs and their
 // radix-sort buffer, and the lookups are local for meshes in file order. For a mesh edge
 // (a, b) we scan the shorter incidence list of a and b, so the work is O(sum of min degrees).
-#include "merge/dual_graph.h"
+#include "dual_graph.h"
 
 #include <algorithm>
 #include <array>
@@ -15,7 +15,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "merge/huge_pages.h"
+#include "huge_pages.h"
 
 namespace facetree {
 

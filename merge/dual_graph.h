@@ -19,7 +19,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "merge/face_geometry.h"
+#include "face_geometry.h"
 
 namespace facetree {
 

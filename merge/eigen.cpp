@@ -3,7 +3,7 @@
 // eigenvectors (Eberly 2014).
 //
 // smallestEigenvector forwards to the faster of the two accurate solvers (PERFORMANCE below).
-#include "merge/eigen.h"
+#include "eigen.h"
 
 #include <algorithm>
 #include <cmath>

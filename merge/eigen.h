@@ -16,7 +16,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "merge/cluster_stats.h"
+#include "cluster_stats.h"
 
 namespace facetree {
 

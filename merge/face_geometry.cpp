@@ -1,5 +1,5 @@
 // Input validation and the mesh-wide origin of the merge.
-#include "merge/face_geometry.h"
+#include "face_geometry.h"
 
 #include <algorithm>
 #include <cmath>

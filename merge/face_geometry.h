@@ -8,8 +8,8 @@
 
 #include <glm/vec3.hpp>
 
-#include "merge/cluster_stats.h"
-#include "merge/merge.h"
+#include "cluster_stats.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

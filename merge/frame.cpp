@@ -1,13 +1,13 @@
 // Box frames of face clusters: Willmott 2000, sec. 5.2.3 (S as the normal of flat clusters,
 // eq. 78) and sec. 5.3.2 (minimum-area enclosing rectangle in the plane, PCA otherwise).
-#include "merge/frame.h"
+#include "frame.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
 
-#include "merge/eigen.h"
+#include "eigen.h"
 
 namespace facetree {
 namespace {

@@ -11,8 +11,8 @@
 
 #include <glm/vec3.hpp>
 
-#include "merge/cluster_stats.h"
-#include "merge/hull.h"
+#include "cluster_stats.h"
+#include "hull.h"
 
 namespace facetree {
 

@@ -31,7 +31,7 @@
 #include <new>
 #include <vector>
 
-#include "merge/huge_pages.h"
+#include "huge_pages.h"
 
 namespace facetree {
 

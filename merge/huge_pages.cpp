@@ -1,4 +1,4 @@
-#include "merge/huge_pages.h"
+#include "huge_pages.h"
 
 #include <cstdint>
 

@@ -1,7 +1,7 @@
 // Andrew's monotone chain (Andrew 1979) and rotating calipers for the minimum-area enclosing
 // rectangle (Toussaint 1983; Freeman & Shapira 1975 for the hull-edge property), as used by
 // Willmott 2000, sec. 5.3.2 for the in-plane axes of flat clusters.
-#include "merge/hull.h"
+#include "hull.h"
 
 #include <algorithm>
 #include <cmath>

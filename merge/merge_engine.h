@@ -6,10 +6,10 @@
 #include <span>
 #include <vector>
 
-#include "merge/cost.h"
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
-#include "merge/merge.h"
+#include "cost.h"
+#include "dual_graph.h"
+#include "face_geometry.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

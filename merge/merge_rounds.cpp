@@ -40,10 +40,10 @@
 
 #include <glm/geometric.hpp>
 
-#include "merge/balance_guard.h"
-#include "merge/buffer.h"
-#include "merge/merge_engine.h"
-#include "merge/surface_stats.h"
+#include "balance_guard.h"
+#include "buffer.h"
+#include "merge_engine.h"
+#include "surface_stats.h"
 
 namespace facetree {
 

@@ -28,7 +28,7 @@
 
 #include <glm/common.hpp>
 
-#include "merge/merge.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

@@ -10,10 +10,10 @@
 // surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
 
-#include "merge/cost.h"
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
-#include "merge/surface_stats.h"
+#include "cost.h"
+#include "dual_graph.h"
+#include "face_geometry.h"
+#include "surface_stats.h"
 
 namespace facetree {
 

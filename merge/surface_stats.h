@@ -4,9 +4,9 @@
 
 #include <cstdint>
 
-#include "merge/cluster_stats.h"
-#include "merge/cost.h"
-#include "merge/merge.h"
+#include "cluster_stats.h"
+#include "cost.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 

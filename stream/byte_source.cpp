@@ -1,4 +1,4 @@
-#include "stream/byte_source.h"
+#include "byte_source.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -8,7 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "stream/read_error.h"
+#include "read_error.h"
 
 namespace facetree::stream_detail {
 namespace {

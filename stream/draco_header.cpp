@@ -1,7 +1,7 @@
 // Draco's container, as far as the face and point counts (Draco bitstream specification,
 // sections "Draco header", "Metadata", "Sequential/EdgeBreaker connectivity"; older layouts from
 // draco's decoders: before 2.2 fixed-size counts, before 2.0 no varints).
-#include "stream/draco_header.h"
+#include "draco_header.h"
 
 #include <cstring>
 #include <string_view>

@@ -17,10 +17,10 @@
 #include <optional>
 #include <vector>
 
-#include "stream/draco_header.h"
-#include "stream/read_error.h"
-#include "stream/readers.h"
-#include "stream/vertex_store.h"
+#include "draco_header.h"
+#include "read_error.h"
+#include "readers.h"
+#include "vertex_store.h"
 
 namespace facetree::stream_detail {
 namespace {

@@ -1,10 +1,10 @@
-#include "stream/format_detect.h"
+#include "format_detect.h"
 
 #include <array>
 #include <cstring>
 #include <string_view>
 
-#include "stream/text_tokens.h"
+#include "text_tokens.h"
 
 namespace facetree::stream_detail {
 namespace {

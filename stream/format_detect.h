@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <optional>
 
-#include "stream/byte_source.h"
+#include "byte_source.h"
 
 namespace facetree::stream_detail {
 

@@ -1,12 +1,12 @@
-#include "stream/ply_header.h"
+#include "ply_header.h"
 
 #include <array>
 #include <charconv>
 #include <string_view>
 
-#include "stream/read_error.h"
-#include "stream/text_tokens.h"
-#include "stream/vertex_store.h"
+#include "read_error.h"
+#include "text_tokens.h"
+#include "vertex_store.h"
 
 namespace facetree::stream_detail {
 namespace {

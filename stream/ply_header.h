@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "stream/byte_source.h"
+#include "byte_source.h"
 
 namespace facetree::stream_detail {
 

@@ -15,11 +15,11 @@
 #include <type_traits>
 #include <vector>
 
-#include "stream/ply_header.h"
-#include "stream/read_error.h"
-#include "stream/readers.h"
-#include "stream/text_tokens.h"
-#include "stream/vertex_store.h"
+#include "ply_header.h"
+#include "read_error.h"
+#include "readers.h"
+#include "text_tokens.h"
+#include "vertex_store.h"
 
 namespace facetree::stream_detail {
 namespace {

@@ -1,4 +1,4 @@
-#include "stream/read_error.h"
+#include "read_error.h"
 
 #include <cctype>
 #include <cstring>

@@ -5,7 +5,7 @@
 #include <string>
 #include <string_view>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 namespace facetree::stream_detail {
 

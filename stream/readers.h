@@ -5,9 +5,9 @@
 #include <memory>
 #include <string>
 
-#include "stream/byte_source.h"
-#include "stream/format_detect.h"
-#include "stream/stream.h"
+#include "byte_source.h"
+#include "format_detect.h"
+#include "facetree/stream.h"
 
 namespace facetree::stream_detail {
 

@@ -10,10 +10,10 @@
 #include <cstring>
 #include <string>
 
-#include "stream/read_error.h"
-#include "stream/readers.h"
-#include "stream/text_tokens.h"
-#include "stream/vertex_store.h"
+#include "read_error.h"
+#include "readers.h"
+#include "text_tokens.h"
+#include "vertex_store.h"
 
 namespace facetree::stream_detail {
 namespace {

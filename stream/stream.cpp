@@ -1,14 +1,14 @@
 // Entry points: open a file or descriptor, detect the format (unwrapping zstd), and hand the
 // buffered input to the matching reader.
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 #include <unistd.h>
 
-#include "stream/byte_source.h"
-#include "stream/format_detect.h"
-#include "stream/read_error.h"
-#include "stream/readers.h"
-#include "stream/vertex_store.h"
+#include "byte_source.h"
+#include "format_detect.h"
+#include "read_error.h"
+#include "readers.h"
+#include "vertex_store.h"
 
 namespace facetree {
 

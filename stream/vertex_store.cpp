@@ -1,4 +1,4 @@
-#include "stream/vertex_store.h"
+#include "vertex_store.h"
 
 #include <bit>
 #include <cmath>

@@ -5,8 +5,8 @@
 
 #include <cstring>
 
-#include "stream/byte_source.h"
-#include "stream/read_error.h"
+#include "byte_source.h"
+#include "read_error.h"
 
 namespace facetree::stream_detail {
 namespace {

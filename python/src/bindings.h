@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "grid/grid.h"
-#include "io/io.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
 
 namespace facetree::python {
 

@@ -13,7 +13,7 @@
 #include <utility>
 
 #include "bindings.h"
-#include "cli/job_report.h"
+#include "job_report.h"
 
 namespace facetree::python {
 namespace {

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "io/cluster_file.h"
+#include "facetree/io.h"
 #include "io/fch_format.h"
 
 using namespace facetree;

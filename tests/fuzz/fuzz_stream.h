@@ -1,6 +1,6 @@
 // Shared by the stream fuzz targets: the input bytes as an in-memory ByteSource, and a driver
 // that opens a reader on them, reads every triangle in batches and checks what the stream
-// API promises (stream/stream.h, stream/README.md):
+// API promises (include/facetree/stream.h, stream/README.md):
 //   - only Error (Input) is thrown (std::bad_alloc aside), its what() one line;
 //   - a reader that threw keeps throwing the same error;
 //   - every triangle's vertex indices are valid and its positions are those of vertices();
@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "stream/byte_source.h"
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 namespace facetree::fuzz {
 

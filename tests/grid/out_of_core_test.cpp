@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "error_expect.h"
-#include "grid/grid.h"
+#include "facetree/grid.h"
 #include "grid/out_of_core.h"
-#include "io/io.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

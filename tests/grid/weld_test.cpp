@@ -2,8 +2,8 @@
 
 #include <vector>
 
-#include "grid/grid.h"
-#include "merge/merge.h"
+#include "facetree/grid.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 namespace {

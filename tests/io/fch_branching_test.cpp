@@ -4,7 +4,7 @@
 #include <map>
 
 #include "fch_test_util.h"
-#include "io/branching.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -5,7 +5,7 @@
 
 #include "fch_test_util.h"
 #include "io/fch_format.h"
-#include "io/io.h"
+#include "facetree/io.h"
 #include "io/mesh_out.h"
 
 namespace facetree {

@@ -6,9 +6,9 @@
 #include <cstdio>
 
 #include "fch_test_util.h"
-#include "grid/grid.h"
-#include "io/io.h"
-#include "stream/stream.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/stream.h"
 
 namespace facetree {
 namespace {

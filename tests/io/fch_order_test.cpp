@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "fch_test_util.h"
-#include "grid/grid.h"
-#include "stream/stream.h"
+#include "facetree/grid.h"
+#include "facetree/stream.h"
 
 namespace facetree {
 namespace {

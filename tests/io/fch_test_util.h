@@ -17,7 +17,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "../merge/test_meshes.h"
-#include "io/cluster_file.h"
+#include "facetree/io.h"
 
 namespace facetree::test {
 

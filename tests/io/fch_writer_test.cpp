@@ -14,8 +14,8 @@
 
 #include "../cli/run_cli.h"
 #include "fch_test_util.h"
-#include "io/io.h"
-#include "merge/merge.h"
+#include "facetree/io.h"
+#include "facetree/merge.h"
 
 namespace facetree {
 namespace {

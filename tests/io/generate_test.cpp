@@ -11,9 +11,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "grid/grid.h"
-#include "io/io.h"
-#include "stream/stream.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/stream.h"
 
 namespace facetree {
 namespace {

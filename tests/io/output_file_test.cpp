@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "io/io.h"
+#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -19,7 +19,7 @@
 
 #include "error_expect.h"
 #include "io/camera.h"
-#include "io/io.h"
+#include "facetree/io.h"
 #include "io/palette.h"
 #include "io/rasterizer.h"
 

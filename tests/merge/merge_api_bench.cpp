@@ -17,7 +17,7 @@
 
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
-#include "merge/merge.h"
+#include "facetree/merge.h"
 #include "test_meshes.h"
 
 namespace {

@@ -20,7 +20,7 @@
 
 #include "merge/cost.h"
 #include "merge/face_geometry.h"
-#include "merge/merge.h"
+#include "facetree/merge.h"
 #include "test_meshes.h"
 
 namespace {

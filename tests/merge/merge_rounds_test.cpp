@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/merge.h"
+#include "facetree/merge.h"
 #include "test_meshes.h"
 
 namespace facetree::test {

@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "error_expect.h"
-#include "merge/merge.h"
+#include "facetree/merge.h"
 #include "test_meshes.h"
 
 namespace facetree::test {

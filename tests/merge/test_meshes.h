@@ -14,7 +14,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
-#include "merge/merge.h"
+#include "facetree/merge.h"
 
 namespace facetree::test {
 

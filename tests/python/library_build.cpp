@@ -10,8 +10,8 @@
 #include <fstream>
 #include <string>
 
-#include "grid/grid.h"
-#include "io/io.h"
+#include "facetree/grid.h"
+#include "facetree/io.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "stream/draco_header.h"
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

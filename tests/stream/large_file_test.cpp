@@ -5,7 +5,7 @@
 
 #include <fstream>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

@@ -1,7 +1,7 @@
 // OBJ reader: vertex/face forms, negative indices, n-gons, continuation lines.
 #include <gtest/gtest.h>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

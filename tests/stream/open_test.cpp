@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

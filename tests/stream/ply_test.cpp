@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

@@ -3,7 +3,7 @@
 
 #include <map>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 namespace facetree {
 namespace {

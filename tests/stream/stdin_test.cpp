@@ -7,7 +7,7 @@
 #include <thread>
 
 #include "stream/readers.h"
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

@@ -5,7 +5,7 @@
 #include <limits>
 
 #include "stream/readers.h"
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

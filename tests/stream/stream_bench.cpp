@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 int main(int argc, char** argv) {
   constexpr size_t kDefaultBatch = size_t{1} << 16;

@@ -9,7 +9,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 
 namespace facetree::test {
 

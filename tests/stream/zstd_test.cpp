@@ -1,7 +1,7 @@
 // zstd: every format compressed reads identically; frames; truncation; trailing garbage.
 #include <gtest/gtest.h>
 
-#include "stream/stream.h"
+#include "facetree/stream.h"
 #include "test_util.h"
 
 namespace facetree {

@@ -177,7 +177,7 @@ GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin);
 // |S|/A > flatThreshold (eq. 78), else the smallest eigenvector of the covariance (PCA), exactly as
 // the merge cost evaluates it. Units of length^2, independent of the origin of the moments (up to
 // rounding: take one near the surface); 0 for zero area. Measures how well a cut approximates the
-// surface (io/cluster_file.h cutFit).
+// surface (facetree/io.h cutFit).
 double surfaceFitError(const SurfaceStats& stats, double flatThreshold = 0.5);
 
 // Edge-connected components under the dual graph's edge rules (dual_graph.h): label[f] for each triangle,

@@ -1,10 +1,14 @@
-// facetree/io: the cluster file (.fch) — a face cluster hierarchy with its reordered geometry —
-// branching-factor recast (Willmott 2000, sec. 5.5.1), truncation (sec. 5.5.3), verification,
-// cluster cuts for pictures and the reordered mesh as PLY or Draco. Public header: std, glm
-// and merge/merge.h only. The byte layout is documented in docs/FORMAT.md.
+// facetree/io: writes and reads what the merge produced. Public header of the module: std, glm
+// and the merge's header only.
 //
-// Errors: functions reading a cluster file throw Error (Input) ("FILE: REASON") for a file
-// that is unreadable, corrupt or of an unsupported version; writers throw Error (Output) naming the
+// - The cluster file (.fch): a face cluster hierarchy with its reordered geometry; writing it
+//   whole or piece by piece, reading it back, truncation (Willmott 2000, sec. 5.5.3),
+//   verification, cuts and their fit. The byte layout is documented in docs/FORMAT.md.
+// - Recasting a binary hierarchy to a larger branching factor (sec. 5.5.1).
+// - Mesh writers (PLY, Draco), synthetic meshes, pictures and coloured exports of a cut.
+//
+// Errors: reading a cluster file that is unreadable, corrupt or of an unsupported version throws
+// facetree::Error of category Input ("FILE: REASON"); writers throw category Output naming the
 // file; std::invalid_argument for inconsistent arguments; nothing else except std::bad_alloc.
 #pragma once
 
@@ -18,12 +22,15 @@
 #include <string>
 #include <vector>
 
+#include <glm/ext/vector_uint3_sized.hpp>
 #include <glm/vec3.hpp>
 
 #include "facetree/error.h"
-#include "merge/merge.h"
+#include "facetree/merge.h"
 
 namespace facetree {
+
+// --- The cluster file ----------------------------------------------------------------------
 
 inline constexpr uint32_t kFchVersion = 1;
 inline constexpr unsigned kMaxBranching = 8;
@@ -142,7 +149,7 @@ void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file
 // place the same way (isStreamOutput): node frames are spilled too and everything is streamed by
 // finish(); bytes go out only in finish(). Any other output is written to a temporary name and renamed by
 // finish(); a writer destroyed without finish() removes its temporary files and leaves no output. Memory: one
-// frame of each section plus the zstd context. Throws Error (Output) (io/io.h) naming the file for write failures
+// frame of each section plus the zstd context. Throws Error (Output) naming the file for write failures
 // (disk full...), std::invalid_argument for counts or references that do not match the declaration (checked
 // as they come and in finish()).
 //
@@ -290,5 +297,111 @@ void writeReorderedMesh(const ClusterFile& file, const std::filesystem::path& pa
 // An indexed mesh as it is (binary PLY or Draco, by the name's extension, as above).
 void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices,
                const std::filesystem::path& path, const MeshOutOptions& options = {});
+
+// --- Recasting to a larger branching factor (Willmott 2000, sec. 5.5.1) ---------------------
+
+// The b-ary tree over a binary Hierarchy: node j of the result is binary node binaryNode[j]
+// (same face range, box and statistics); its children are the leaves of a subtree of the
+// binary hierarchy rooted there, as node refs in the new numbering or kFaceChild | position.
+struct RecastTree {
+  std::vector<uint32_t> binaryNode;                        // ascending: creation order descending
+  std::vector<std::array<uint32_t, kMaxBranching>> child;  // parallel to binaryNode
+  std::vector<uint8_t> childCount;
+  std::vector<uint8_t> joinFlag;  // some collapsed binary merge joined disjoint surfaces
+};
+
+// Rule: start from the two children of the kept binary node and repeatedly expand the frontier
+// node of largest area (ties: the later-created one, i.e. the smaller index) until b children or
+// only faces remain. Expanding the largest region first keeps the children of a b-ary node
+// similar in size, which is what a balanced b-ary tree asks for. Throws std::invalid_argument
+// for references out of range or children stored before their parent.
+// RecastRule::FewestNodes instead partitions the binary internal nodes into the fewest
+// connected groups of at most b - 1 (a group of c binary nodes has c + 1 leaves): Kundu and
+// Misra's bottom-up greedy, optimal for this partition problem, cuts off the heaviest child
+// group while a node's group is too large.
+RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching,
+                           RecastRule rule = RecastRule::LargestArea);
+
+// --- Outputs: mesh writers, synthetic meshes, pictures ------------------------------------
+
+// Every output of this module (cluster files, meshes, pictures) is written under this
+// temporary name beside `path` (unique per process) and renamed to `path` when complete; a
+// writer that fails or is destroyed first removes it. Exposed for a caller that must clean up
+// without unwinding, e.g. a command-line tool exiting on a signal.
+std::filesystem::path temporaryOutputPath(const std::filesystem::path& path);
+
+// Whether an output is written in place as a stream instead: "-" (standard output), or a
+// target that exists and is neither a regular file nor a directory (a named pipe, a device).
+// Streams take bytes in order, have no temporary name, and cannot be removed on failure.
+bool isStreamOutput(const std::filesystem::path& path);
+// Throws Error (Output) ("PATH: cannot create: REASON") when `path` is a directory or its directory is
+// missing or not writable: checked before long work, so that it does not fail at its end.
+// Stream outputs pass.
+void checkOutputWritable(const std::filesystem::path& path);
+
+// Streaming binary little-endian PLY writer (float x,y,z; uchar-count int indices). Counts
+// are given up front so nothing is held in memory. Writes to a temporary name beside the
+// target and renames on finish(); a writer destroyed before finish() removes its file.
+class PlyWriter {
+ public:
+  PlyWriter(const std::filesystem::path& path, uint64_t vertexCount, uint64_t triangleCount);
+  ~PlyWriter();
+  PlyWriter(const PlyWriter&) = delete;
+  PlyWriter& operator=(const PlyWriter&) = delete;
+  void addVertex(const glm::vec3& position);
+  void addTriangle(uint32_t a, uint32_t b, uint32_t c);
+  void finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
+// memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
+// a keyed bijection so any size can be shuffled while streaming.
+enum class SyntheticKind { Grid, Sphere, Terrain, Strip };
+struct GenerateOptions {
+  uint64_t triangles = 20000;  // approximate target; the shape rounds it
+  bool shuffleVertices = false;
+  bool shuffleFaces = false;
+  uint64_t seed = 1;
+};
+struct GeneratedCounts {
+  uint64_t vertices = 0;
+  uint64_t triangles = 0;
+};
+// Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
+// radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square
+// cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long).
+GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
+                                   const std::filesystem::path& path);
+// Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;
+// points on shared edges are shared so the result stays connected.
+GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const GenerateOptions& options,
+                                    const std::filesystem::path& path);
+
+// Pictures and coloured exports of a clustering. `faceCluster[i]` is the cluster of triangle i
+// of `mesh`; colours are a deterministic function of the cluster id.
+struct RenderOptions {
+  int width = 1024;
+  int height = 768;
+  // Viewing direction (from the camera towards the model) and up vector; the camera frames the
+  // bounding box. Zero means the default three-quarter view.
+  glm::vec3 viewDirection{0.0f};
+  glm::vec3 up{0.0f, 0.0f, 1.0f};
+};
+// Deterministic colour of a cluster id, as the pictures and exports below colour it. Hue advances
+// by the golden angle (137.5 degrees) from one id to the next, so consecutive ids always differ
+// strongly; saturation and value come from a mixed hash of the id, so ids whose hues happen to be
+// close still differ in lightness.
+glm::u8vec3 clusterColour(uint32_t cluster);
+
+// Flat-shaded software rendering to PNG (written atomically).
+void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
+                       const RenderOptions& options, const std::filesystem::path& path);
+// Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
+void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
+                             const std::filesystem::path& path);
 
 }  // namespace facetree

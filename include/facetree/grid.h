@@ -17,9 +17,9 @@
 #include <glm/vec3.hpp>
 
 #include "facetree/error.h"
-#include "io/cluster_file.h"
-#include "merge/merge.h"
-#include "stream/stream.h"
+#include "facetree/io.h"
+#include "facetree/merge.h"
+#include "facetree/stream.h"
 
 namespace facetree {
 

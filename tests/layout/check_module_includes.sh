@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The modules' dependencies run one way: cli on grid (and what grid exposes), grid on io, merge and
+# stream, io on merge, merge and stream on nothing. The compiler already refuses another module's
+# internal header (a module sees only include/ and its own folder); this checks which public
+# headers each module includes, and that no source reaches outside its folder by a relative path.
+#   check_module_includes.sh SOURCE_DIR
+set -euo pipefail
+cd "$1"
+declare -A allowed=(
+  [stream]="error stream"
+  [merge]="error merge"
+  [io]="error merge io"
+  [grid]="error stream merge io grid"
+  [cli]="error stream merge io grid"
+  [python/src]="error stream merge io grid"
+)
+failed=0
+for module in "${!allowed[@]}"; do
+  while IFS= read -r line; do
+    file="${line%%:*}"
+    header="$(sed -n 's/.*#include [<"]facetree\/\([a-z_]*\)\.h[>"].*/\1/p' <<<"$line")"
+    case " ${allowed[$module]} " in
+      *" $header "*) ;;
+      *) echo "$file: includes facetree/$header.h, which $module must not depend on" >&2; failed=1 ;;
+    esac
+  done < <(grep -rn --include='*.cpp' --include='*.h' '#include [<"]facetree/' "$module" || true)
+  if grep -rn --include='*.cpp' --include='*.h' '#include "\.\./' "$module"; then
+    echo "$module: includes by a relative path outside its folder" >&2
+    failed=1
+  fi
+done
+# The public headers themselves: each includes only the modules below it.
+declare -A below=([error]="" [stream]="error" [merge]="error" [io]="error merge" [grid]="error stream merge io")
+for header in "${!below[@]}"; do
+  while IFS= read -r included; do
+    case " ${below[$header]} " in
+      *" $included "*) ;;
+      *) echo "include/facetree/$header.h: includes facetree/$included.h" >&2; failed=1 ;;
+    esac
+  done < <(sed -n 's/.*#include [<"]facetree\/\([a-z_]*\)\.h[>"].*/\1/p' "include/facetree/$header.h")
+done
+[ "$failed" -eq 0 ] && echo "module includes: one way (stream, merge <- io <- grid <- cli, python)"
+exit "$failed"
