@@ -7,8 +7,7 @@ namespace facetree {
 namespace {
 
 // Spreads the low 7 bits of v to every third bit (bit i to bit 3i), by the usual shift-and-mask
-// steps (called three times per corner of every face, twice over: the loop it replaces was 2.7%
-// of an out-of-core build's instructions).
+// steps: it runs three times per corner of every face, twice over, so a bit loop would show.
 uint32_t spread(uint32_t v) {
   static_assert(CellGrid::kLevel <= 8, "the masks spread 8 bits");
   v &= (1u << CellGrid::kLevel) - 1;

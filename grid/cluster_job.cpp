@@ -8,21 +8,17 @@
 #include <limits>
 
 #include "facetree/grid.h"
-#include "out_of_core.h"
 #include "facetree/io.h"
+#include "out_of_core.h"
 
 namespace facetree {
 namespace {
 
 constexpr size_t kBatchTriangles = 4096;
-// In-core peak per triangle (build + streamed cluster file; dragon_vrip: 175 MB for 871k
-// triangles with -o, boxes phase) and per vertex (the reader's store and the mesh's copy).
+// In-core peak per triangle (the build at its boxes phase and the streamed cluster file) and per
+// vertex (the reader's store and the mesh's copy); docs/out_of_core.md has the measurement.
 constexpr uint64_t kInCoreBytesPerTriangle = 240;
 constexpr uint64_t kInCoreBytesPerVertex = 24;
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 uint64_t defaultMemoryCap() {
   const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
@@ -86,11 +82,12 @@ JobReport runClusterJob(const ClusterJob& job) {
   if (outOfCore) {
     if (job.output.empty() || !job.meshOut.empty()) {
       constexpr uint64_t kMiB = uint64_t{1} << 20;
-      throw Error(ErrorCategory::Resource, 
-          reader->info().name + ": the mesh does not fit --memory " + std::to_string(cap / kMiB) +
-          " MiB in core, and " +
-          (job.output.empty() ? "without -o it cannot be built out of core" : "--mesh-out needs it in core") +
-          ": raise --memory" + (job.output.empty() ? " or give -o" : " or drop --mesh-out"));
+      throw Error(ErrorCategory::Resource,
+                  reader->info().name + ": the mesh does not fit --memory " + std::to_string(cap / kMiB) +
+                      " MiB in core, and " +
+                      (job.output.empty() ? "without -o it cannot be built out of core"
+                                          : "--mesh-out needs it in core") +
+                      ": raise --memory" + (job.output.empty() ? " or give -o" : " or drop --mesh-out"));
     }
     // A reader that holds the whole mesh (Draco) keeps it through the out-of-core read and bin
     // passes: the build gets the rest of the cap (its cells are sized from that).
@@ -98,12 +95,13 @@ JobReport runClusterJob(const ClusterJob& job) {
     const uint64_t left = cap > held ? cap - held : 0;
     if (held > 0 && left < outOfCoreMinimumBytes()) {
       constexpr uint64_t kMiB = uint64_t{1} << 20;
-      throw Error(ErrorCategory::Resource, reader->info().name + ": the " + formatName(reader->info().format) +
-                           " mesh is decoded whole (the format cannot be streamed) and holds " +
-                           std::to_string((held + kMiB - 1) / kMiB) + " MiB of --memory " +
-                           std::to_string(cap / kMiB) + " MiB; the out-of-core build needs " +
-                           std::to_string((outOfCoreMinimumBytes() + kMiB - 1) / kMiB) +
-                           " MiB beside it: raise --memory or convert the mesh to PLY, which streams");
+      throw Error(ErrorCategory::Resource,
+                  reader->info().name + ": the " + formatName(reader->info().format) +
+                      " mesh is decoded whole (the format cannot be streamed) and holds " +
+                      std::to_string((held + kMiB - 1) / kMiB) + " MiB of --memory " +
+                      std::to_string(cap / kMiB) + " MiB; the out-of-core build needs " +
+                      std::to_string((outOfCoreMinimumBytes() + kMiB - 1) / kMiB) +
+                      " MiB beside it: raise --memory or convert the mesh to PLY, which streams");
     }
     runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending),
                  left, report);

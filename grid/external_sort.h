@@ -15,8 +15,7 @@
 //                  + the zstd contexts (kSpillLevel, 64 KiB blocks: CCtx 281 KiB, DCtx 94 KiB)
 //                  + 16 bytes per spilled block (the run index, 0.025% of the raw data)
 //                  + (sizeof(Record) + 8) * fanIn of merge heap.
-// Measured (sort_memory_probe, 20M 16-byte records): peak RSS grows by 2.3 MiB for a 1 MiB budget, 9.0 MiB
-// for 8 MiB, 64.9 MiB for 64 MiB: the budget plus 1.0-1.3 MiB.
+// The spill tests check the peak with sort_memory_probe (the budget plus about 1 MiB).
 // Temporary disk: the compressed records (about half the raw bytes for half-edge records), twice over
 // during an intermediate merge pass.
 #pragma once

@@ -11,10 +11,6 @@
 namespace facetree {
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 // Peak resident set so far (getrusage), for the per-stage figures of the report.
 uint64_t peakRss() {
   rusage usage{};

@@ -20,6 +20,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -37,6 +38,11 @@
 #include "vertex_positions.h"
 
 namespace facetree {
+
+// Seconds since a point of the monotonic clock: the job's and the stages' times.
+inline double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 // Reports progress to job.progress; throws Cancelled when it or job.build.cancelled asks to stop.
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total);

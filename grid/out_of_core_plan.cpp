@@ -56,8 +56,8 @@ OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap) {
     if (plan.cellFaceLimit < kMinCellFaces) {
       const uint64_t need = outOfCoreMinimumBytes();
       throw Error(ErrorCategory::Resource, "--memory " + std::to_string(memoryCap >> 20) +
-                           " MiB is too small: an out-of-core build needs at least " +
-                           std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
+                                               " MiB is too small: an out-of-core build needs at least " +
+                                               std::to_string((need + (1 << 20) - 1) >> 20) + " MiB");
     }
     plan.cellWorkers = static_cast<unsigned>(std::clamp<uint64_t>(
         spare / (plan.cellFaceLimit * plan.cellBytesPerFace()), 1, std::max(1u, job.threads)));

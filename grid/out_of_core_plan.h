@@ -16,8 +16,8 @@ namespace facetree {
 inline constexpr uint64_t kBaseBytes = uint64_t{32} << 20;
 // One cell's build at its peak, per face: its records (56 B), the cell mesh and labels (~30), the
 // group's copy (~30), the group's in-core build (240 B per face, 24 per vertex), frontier pieces
-// and edge tables: ~360 B for a manifold mesh, ~500 B for specks (three vertices a face). The
-// measured growth is 200-260 B (docs/out_of_core.md); 400 keeps 1.5x over it.
+// and edge tables: ~360 B for a manifold mesh, ~500 B for specks (three vertices a face). 400 is
+// 1.5x over the growth docs/out_of_core.md reports.
 inline constexpr uint64_t kCellBytesPerFace = 400;
 // With --metric garland its clusters carry Garland's quadrics (184 B per stats slot) and its
 // trees are deep (the boxes' hull stacks grow with the height).

@@ -223,7 +223,8 @@ void ArrivalReader::resolveSpilledPositions() {
   context_.report.stats.skippedTriangles += skipped_;
   context_.report.stats.triangles -= std::min(context_.report.stats.triangles, skipped_);
   context_.report.triangles = out_.extent.triangles;
-  if (out_.extent.triangles == 0) throw Error(ErrorCategory::Input, context_.report.info.name + ": no triangles to cluster");
+  if (out_.extent.triangles == 0)
+    throw Error(ErrorCategory::Input, context_.report.info.name + ": no triangles to cluster");
   if (out_.extent.triangles > kFaceChild - 1)
     throw std::invalid_argument(context_.report.info.name +
                                 ": more than 2^31-1 triangles do not fit a cluster file");

@@ -5,9 +5,9 @@
 // (out_of_core.h).
 #include <algorithm>
 
+#include "facetree/io.h"
 #include "out_of_core.h"
 #include "upper_tree.h"
-#include "facetree/io.h"
 
 namespace facetree {
 

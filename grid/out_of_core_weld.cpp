@@ -1,7 +1,7 @@
 // The out-of-core build, read stage: welding corners at bit-identical positions with bounded memory.
 //
 // Why: STL has no vertex indices (its reader welds with a hash table as large as the mesh's
-// distinct positions: a 10M-triangle STL took 174 MiB under --memory 64M), and --weld asks the
+// distinct positions, past any cap on a large mesh), and --weld asks the
 // same of indexed inputs. Here every corner of the arrival spill is sorted by position
 // (ExternalSorter), each distinct position gets the next vertex id in that order, the ids are
 // sorted back to arrival order, and the arrival spill is rewritten with them: two sorts of
@@ -85,8 +85,8 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
         const bool samePosition = !first && std::memcmp(c.bits, previous.bits, sizeof c.bits) == 0;
         if (!samePosition) {
           if (vertices == kNoVertex)
-            throw Error(ErrorCategory::Input, context.report.info.name + ": more than " + std::to_string(kNoVertex) +
-                            " distinct vertex positions");
+            throw Error(ErrorCategory::Input, context.report.info.name + ": more than " +
+                                                  std::to_string(kNoVertex) + " distinct vertex positions");
           ++vertices;
         } else if (c.input != previous.input && c.input != kNoVertex) {
           ++welded;

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <cstring>
 
+#include "facetree/io.h"
 #include "out_of_core.h"
 #include "upper_boxes.h"
 #include "upper_tree.h"
-#include "facetree/io.h"
 
 namespace facetree {
 namespace {

@@ -213,8 +213,8 @@ void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCod
 }
 
 void SpillFile::corrupt(const SpillBlock& block, std::string_view reason) const {
-  throw Error(ErrorCategory::Resource, path_.string() + ": corrupt block at byte " + std::to_string(block.offset) + ": " +
-                       std::string(reason));
+  throw Error(ErrorCategory::Resource, path_.string() + ": corrupt block at byte " +
+                                           std::to_string(block.offset) + ": " + std::string(reason));
 }
 
 }  // namespace facetree

@@ -23,11 +23,8 @@ namespace facetree {
 inline constexpr size_t kMaxSpillBlockBytes = size_t{256} << 20;
 
 // zstd level of every spill. Negative levels are zstd's fast mode (the match search skips ahead, literals
-// stay raw): measured on turbine_blade_200k and dragon_vrip forced out of core (64 MiB, 1 thread, callgrind),
-// against level 1: -1 12% / 12% fewer instructions for the whole build, 6% / 5% more temporary bytes at the
-// peak; -3 17% / 17% fewer, 12% / 13% more; -5 19% / 19% fewer, 13% / 15% more. Tuning level 1 or -1
-// instead (minMatch 4 or 6, hashLog 12 or 16, raw literals) moved instructions by 1% at most. The node
-// runs (over half the raw bytes, floats: 72% of their size at level 1, 76% at -3) gain most.
+// stay raw): spills are written once and read once, so compression time counts more than a few percent
+// of temporary bytes; -3 is where faster levels stop paying (docs/benchmarks.md has the trade-off).
 inline constexpr int kSpillLevel = -3;
 
 // Per-thread zstd state for spills (a CCtx and a DCtx, created once, reused): pass one per thread.

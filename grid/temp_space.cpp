@@ -64,8 +64,8 @@ void TempSpace::reserve(uint64_t bytes) {
     next = current + bytes;
     if (maxBytes_ != 0 && (next > maxBytes_ || next < current))
       throw Error(ErrorCategory::Resource, (created() ? path_ : parent_).string() +
-                           ": temporary files would exceed --max-tmp " + std::to_string(maxBytes_) +
-                           " bytes");
+                                               ": temporary files would exceed --max-tmp " +
+                                               std::to_string(maxBytes_) + " bytes");
   } while (!current_.compare_exchange_weak(current, next, std::memory_order_relaxed));
   uint64_t peak = peak_.load(std::memory_order_relaxed);
   while (peak < next && !peak_.compare_exchange_weak(peak, next, std::memory_order_relaxed)) {

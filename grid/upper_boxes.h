@@ -25,8 +25,8 @@ namespace facetree {
 // computed once for all its ancestors, BoxAccumulator::addRun). Memory: two batches of at most
 // kBatchTriangles triangles and kBatchAncestors ancestor entries, or one leaf block's if larger (a
 // block holds at most kTrianglesPerBlock, its ancestors at most the upper tree's height), and one
-// run's scratch. (The ancestors need their own bound: --metric garland's upper trees are thousands
-// of levels deep, and openfoam_buildings' batches of small leaves under them grew to 14 MB each.)
+// run's scratch. (The ancestors need their own bound: --metric garland's upper trees can be
+// thousands of levels deep, and a batch of small leaves under them lists every level per leaf.)
 class UpperBoxes {
  public:
   static constexpr size_t kBatchTriangles = 8192;

@@ -10,7 +10,7 @@ VertexPositions::VertexPositions(TempSpace& space, uint64_t memoryBudget)
 
 void VertexPositions::append(std::span<const glm::vec3> positions) {
   // The whole budget at once (untouched pages cost nothing): grown by doubling, the vector would
-  // hold 1.5x the budget while it moves (fg_hawaii at 64 MiB: 36 MiB for a 16 MiB budget).
+  // hold up to 1.5x the budget while it moves.
   if (!spill_ && positions_.capacity() == 0) positions_.reserve(budget_ / sizeof(glm::vec3));
   for (const glm::vec3& p : positions) {
     if (!spill_ && (positions_.size() + 1) * sizeof(glm::vec3) > budget_) {

@@ -10,17 +10,16 @@ namespace facetree {
 
 // Balance guard (BuildOptions::balanceSlack): a merge of height h' over n' faces with
 // h' > H = slack * (ceil(log2 n') + 1) costs eq. 84 times kBalancePenaltyBase^(h' - H).
-// Graded meshes (openfoam_buildings: triangle sizes grow geometrically away from the
-// buildings) otherwise grow one compact cluster by absorbing its ever larger neighbours one at
-// a time, since perim^2/projArea favours the compact growing cluster: heights 6x balanced.
-// Base 4: one level over the allowance must outweigh the spread of eq. 84 between a chain
-// step and the best balanced alternative; measured over the 18 shared meshes (see the report
-// in the commit log). Keys stay finite: toKey clamps to the float range.
+// Graded meshes (triangle sizes growing geometrically away from a feature) otherwise grow one
+// compact cluster by absorbing its ever larger neighbours one at a time, since perim^2/projArea
+// favours the compact growing cluster, and the tree becomes a chain. Base 4: one level over the
+// allowance must outweigh the spread of eq. 84 between a chain step and the best balanced
+// alternative. Keys stay finite: toKey clamps to the float range.
 inline constexpr double kBalancePenaltyBase = 4.0;
 // Past this many levels over the allowance an edge is not merged at all (its key is +inf,
 // which toKey never produces): the penalty cannot help where a cluster's last neighbours are
-// slivers adjacent to it only (matterport_cedar_creek: a cluster of 8.7k faces absorbed 28
-// slivers one at a time, forced). Such clusters stay roots and are joined by joinComponents,
+// slivers adjacent to it only (it would absorb them one at a time, each merge forced). Such
+// clusters stay roots and are joined by joinComponents,
 // balanced by face count, like disconnected pieces.
 inline constexpr double kBalanceBlockExcess = 3.0;
 

@@ -14,8 +14,8 @@
 // arrays), so each node's scan is one contiguous sweep, and a parent's range is the union of
 // the ranges its children have just swept (depth-first: cache hot). They are packed one
 // subtree (and above the subtrees, one side block) at a time, not all at once: the phase's
-// peak memory is then the nodes and boxes plus a window per thread, not 48 bytes more per face
-// (dragon_vrip: 42 MB less, at the cost of packing each face twice).
+// peak memory is then the nodes and boxes plus a window per thread, not 48 bytes more per face,
+// at the cost of packing each face twice.
 //
 // Threads: the tree is cut into disjoint subtrees processed in parallel, then the few nodes
 // above them, whose scans are split into fixed blocks. Side areas are always summed per fixed
@@ -183,11 +183,11 @@ V4f vmax(V4f a, V4f b) {
 // distance from the world origin (finishBox pads by the bound). PackedFaces arrays have 3
 // floats of padding, so the last, partial step loads past `end`: its extra lanes repeat lane
 // 0's vertices (no effect on min/max) and have zero area.
-// The main loop takes whole steps of four without masks (the masking blends were 5% of all
-// instructions); the partial last step, if any, is the same code with the lanes masked.
-// On x86-64 an AVX2 clone is chosen at load time where available: the same 4-lane operations
-// in the same order (no FMA, so no contraction), hence the same bits, with three-operand VEX
-// forms and the double accumulators in single ymm registers instead of spilled xmm pairs.
+// The main loop takes whole steps of four without masks (masking blends on every step cost more
+// than the one masked step at the end); the partial last step, if any, is the same code with the lanes
+// masked. On x86-64 an AVX2 clone is chosen at load time where available: the same 4-lane operations in the
+// same order (no FMA, so no contraction), hence the same bits, with three-operand VEX forms and the double
+// accumulators in single ymm registers instead of spilled xmm pairs.
 SCAN_CLONES Extent scanBlock(const PackedFaces& f, const ScanFrame& frame, uint32_t begin, uint32_t end) {
   const V4f a0x = splat(frame.axis[0].x), a0y = splat(frame.axis[0].y), a0z = splat(frame.axis[0].z);
   const V4f a1x = splat(frame.axis[1].x), a1y = splat(frame.axis[1].y), a1z = splat(frame.axis[1].z);

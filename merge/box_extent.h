@@ -10,8 +10,8 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
-#include "frame.h"
 #include "facetree/merge.h"
+#include "frame.h"
 
 namespace facetree {
 

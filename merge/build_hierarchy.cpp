@@ -11,17 +11,14 @@
 
 #include "dual_graph.h"
 #include "face_geometry.h"
-#include "huge_pages.h"
 #include "facetree/merge.h"
+#include "huge_pages.h"
 #include "merge_engine.h"
+#include "stopwatch.h"
 
 namespace facetree {
 
 namespace {
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // ceil(log2 n) + 1: the height of a balanced binary tree over n faces, faces included.
 uint32_t balancedHeight(uint32_t n) {

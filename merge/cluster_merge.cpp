@@ -36,9 +36,10 @@
 #include "balance_guard.h"
 #include "cost.h"
 #include "dual_graph.h"
-#include "heap.h"
 #include "facetree/merge.h"
+#include "heap.h"
 #include "merge_engine.h"
+#include "morton.h"
 #include "surface_stats.h"
 
 namespace facetree {
@@ -50,29 +51,6 @@ constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 // Leaf and half-edge ids share 32 bits with a flag (kLeafChild, 2e + side).
 constexpr size_t kMaxLeaves = size_t{0x7FFFFFFF};
 constexpr size_t kMaxEdges = size_t{0x7FFFFFFF};
-constexpr int kMortonBits = 21;  // per axis, as FaceGeometry::mortonCode
-
-uint64_t spreadBits(uint64_t x) {
-  x &= 0x1FFFFF;
-  x = (x | x << 32) & 0x1F00000000FFFFull;
-  x = (x | x << 16) & 0x1F0000FF0000FFull;
-  x = (x | x << 8) & 0x100F00F00F00F00Full;
-  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
-  x = (x | x << 2) & 0x1249249249249249ull;
-  return x;
-}
-
-// 63-bit Morton code of p within [lo, hi] (degenerate or non-finite coordinates centred).
-uint64_t mortonCode(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
-  uint64_t code = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    const double extent = hi[axis] - lo[axis];
-    double t = extent > 0 ? (p[axis] - lo[axis]) / extent : 0.5;
-    t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.5;
-    code |= spreadBits(static_cast<uint64_t>(t * ((1u << kMortonBits) - 1))) << axis;
-  }
-  return code;
-}
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid

@@ -42,8 +42,8 @@ inline float toKey(double cost) {
 // variance of the surface along its normal n (C the area-weighted covariance), n = S/|S| when
 // |S|/A > flatThreshold (eq. 78), else the smallest eigenvector of C.
 // Guards: a cluster of zero area costs k * perim^2, the limit of eq. 84 for a flat cluster
-// (eFit = 0, projArea = area) as its area vanishes. (A cost of 0 tied every group of
-// degenerate faces, and fg_hawaii, with 1.2M of them, grew chains 25,000 deep in id order.)
+// (eFit = 0, projArea = area) as its area vanishes. (A cost of 0 would tie every group of
+// degenerate faces, and ties taken in id order grow chains as long as the group.)
 // projArea is clamped to max(|S|, kMinProjectedAreaFraction * area), which bounds the fold
 // penalty area/projArea of eq. 81 by 1/kMinProjectedAreaFraction for closed surfaces.
 inline constexpr double kMinProjectedAreaFraction = 1e-3;

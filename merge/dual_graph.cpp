@@ -21,8 +21,8 @@ namespace facetree {
 
 namespace {
 
-// A non-manifold edge shared by more faces than this is joined as a chain, not all pairs
-// (the worst shared mesh, fg_hawaii, has at most 8 faces on an edge).
+// A non-manifold edge shared by more faces than this is joined as a chain, not all pairs: pairs
+// grow as the square of the faces on the edge, and real meshes put a handful on one.
 constexpr size_t kMaxFacesJoinedPairwise = 16;
 
 // How many of the face's three sides lie on the mesh edge (a, b): 1, or 2 for a face with a

@@ -53,8 +53,9 @@ struct DualGraph {
 // with a repeated index can lie on e with two sides): s_fg = |e| u_f u_g / (U - 1), so that
 // perim(A u B) = perim(A) + perim(B) - 2 s never goes below zero and merging every face of e
 // removes the U |e| their perimeters counted (|e| / (k - 1) per pair for k plain faces; the
-// chain links share U |e| / 2). A uniform |e| per pair collapsed the perimeters of fg_hawaii's
-// clusters (874k non-manifold edges) to 0, and with them the costs. Edges are
+// chain links share U |e| / 2). A uniform |e| per pair would subtract more than the faces'
+// perimeters hold on meshes with many non-manifold edges, collapsing perimeters, and with them
+// the costs, to 0. Edges are
 // numbered by (lower face, higher face), so the graph is a pure function of the input.
 // Faces are matched in fixed blocks on `threads` threads; the graph is the same for every count.
 DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);

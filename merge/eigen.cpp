@@ -2,7 +2,7 @@
 // sec. 11.1) and the trigonometric closed form (Smith 1961) with robust cross-product
 // eigenvectors (Eberly 2014).
 //
-// smallestEigenvector forwards to the faster of the two accurate solvers (PERFORMANCE below).
+// smallestEigenvector forwards to the closed form (below: why).
 #include "eigen.h"
 
 #include <algorithm>
@@ -21,18 +21,11 @@ constexpr int kJacobiMaxSweeps = 32;
 // Above this |theta| the rotation angle is taken as 1/(2 theta) (theta^2 would overflow).
 constexpr double kJacobiHugeTheta = 1e150;
 
-// PERFORMANCE: tests/merge/eigen_bench.cpp, Release, gcc 12, 2.4 GHz build box (shared, so
-// +-10%), ns per solve on random R diag(l) R^T; spectra generic / flat (l0 ~ 1e-9) / isotropic /
-// two equal / mixed:
-//   eigenJacobi                442 / 492 /  67 / 193 / 284
-//   eigenAnalytic              239 / 249 / 231 / 235 / 243
-//   smallestEigenvectorJacobi  430 / 433 /  65 / 195 / 286
-//   smallestEigenvectorAnalytic 186 / 173 / 166 / 135 / 159
-// Both pass the same accuracy tests (residual |Mv - lambda v| <= 1e-12 |M|, orthonormal,
-// right-handed; eigen_test.cpp). The closed form is ~2x faster on the spectra clusters have
-// (Jacobi needs 4-5 sweeps of 3 rotations, each with a sqrt and two divisions; Jacobi only wins
-// on already-diagonal matrices), so smallestEigenvector uses it. Willmott's Table 7 compared
-// Jacobi with QR-shift, not with the closed form.
+// Both solvers meet the same accuracy (residual |Mv - lambda v| <= 1e-12 |M|, orthonormal,
+// right-handed; eigen_test.cpp). The closed form costs a fixed handful of square roots and one
+// acos, where Jacobi needs 4-5 sweeps of 3 rotations, each with a sqrt and two divisions, on the
+// spectra clusters have (it is cheaper only on matrices already diagonal): smallestEigenvector
+// uses the closed form. Willmott's Table 7 compares Jacobi with QR-shift, not with the closed form.
 
 bool allFinite(const SymMat3& m) {
   for (double v : m.m)

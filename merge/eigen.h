@@ -6,8 +6,8 @@
 //  - eigenAnalytic: the trigonometric closed form for symmetric 3x3 (Smith 1961) with
 //    eigenvectors from cross products of the rows of M - lambda I (Eberly 2014, "A Robust
 //    Eigensolver for 3x3 Symmetric Matrices").
-// smallestEigenvector uses whichever measured faster while passing the accuracy tests
-// (see eigen.cpp for the numbers).
+// Both pass the same accuracy tests; smallestEigenvector uses the closed form, which needs no
+// iteration (eigen.cpp says why it is the faster one; the timings are in docs/benchmarks.md).
 //
 // All functions are total: any finite input gives finite eigenvalues and unit eigenvectors;
 // degenerate inputs (zero matrix, repeated eigenvalues) give a deterministic orthonormal basis

@@ -9,23 +9,14 @@
 
 #include <glm/geometric.hpp>
 
+#include "morton.h"
+
 namespace facetree {
 
 namespace {
 
 // Node ids and face positions share 31 bits with the kFaceChild flag (merge.h).
 constexpr size_t kMaxTriangles = size_t{0x7FFFFFFF};
-constexpr int kMortonBits = 21;  // per axis: 63 bits in all
-
-uint64_t spreadBits(uint64_t x) {
-  x &= 0x1FFFFF;
-  x = (x | x << 32) & 0x1F00000000FFFFull;
-  x = (x | x << 16) & 0x1F0000FF0000FFull;
-  x = (x | x << 8) & 0x100F00F00F00F00Full;
-  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
-  x = (x | x << 2) & 0x1249249249249249ull;
-  return x;
-}
 
 }  // namespace
 
@@ -88,15 +79,10 @@ double FaceGeometry::sharedLength(uint32_t f, uint32_t g) const {
   return length;
 }
 
+// The box is centred on the origin: [-halfExtent, halfExtent], whose width 2 * halfExtent and
+// offsets p + halfExtent are exact, as mortonCode computes them.
 uint64_t FaceGeometry::mortonCode(const glm::dvec3& p) const {
-  uint64_t code = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    const double extent = halfExtent_[axis];
-    double t = extent > 0 ? (p[axis] + extent) / (2 * extent) : 0.5;
-    t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.5;
-    code |= spreadBits(static_cast<uint64_t>(t * ((1u << kMortonBits) - 1))) << axis;
-  }
-  return code;
+  return facetree::mortonCode(p, -halfExtent_, halfExtent_);
 }
 
 }  // namespace facetree

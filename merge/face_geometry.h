@@ -29,8 +29,8 @@ class FaceGeometry {
   glm::dvec3 corner(uint32_t face, int corner) const { return position(vertex(face, corner)); }
 
   // ClusterStats::fromTriangle, written out in scalars: the merge evaluates it ~14 times per
-  // face (leaves and pairs have no stored stats), and glm's vector code was 29% of the
-  // instructions of a dragon_vrip build (callgrind).
+  // face (leaves and pairs have no stored stats), so it is on the hot path, where glm's
+  // vector code costs several times the scalar arithmetic.
   ClusterStats leafStats(uint32_t face) const;
 
   // Total length of the distinct mesh edges two faces share (by vertex index, (v, v) skipped):

@@ -9,9 +9,8 @@
 // The engine compacts the queue when pushes would outgrow the reserved capacity.
 //
 // Why two levels: a single heap over every live cluster (8 MB for a 1M-face merge) does not
-// stay in cache next to the engine's other arrays, and each pop walked ~10 levels of it with a
-// dependent miss per level: its sifts were 23% of dragon_vrip's build (perf, cpu-clock
-// samples). Here only the cheapest entries are a heap (`hot_`, at most kMaxBatch of them
+// stay in cache next to the engine's other arrays, and each pop walks ~10 levels of it with a
+// dependent miss per level. Here only the cheapest entries are a heap (`hot_`, at most kMaxBatch of them
 // after a refill: 1 MB, the L2's size); all others wait unsorted in `cold_`, where a push is
 // a sequential append. Every entry of hot_ is <= threshold_ <= every entry of cold_, so the
 // top of hot_ is the minimum. When hot_ runs empty, one branch-free pass over cold_ moves the

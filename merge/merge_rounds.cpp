@@ -43,6 +43,7 @@
 #include "balance_guard.h"
 #include "buffer.h"
 #include "merge_engine.h"
+#include "stopwatch.h"
 #include "surface_stats.h"
 
 namespace facetree {
@@ -59,10 +60,6 @@ constexpr uint32_t kStallRatio = 64;
 // the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
 constexpr uint32_t kTailClusters = 1024;
 constexpr uint32_t kTailFraction = 8;
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Runs body(block, thread) for blocks [0, blocks) on `threads` threads; which thread runs a
 // block never changes what it computes.

@@ -10,8 +10,8 @@
 // own triangles first. A triangle goes down to the child octant holding the centre of its
 // bounding box when it is no larger than that octant on every axis, else it stays: the seed's
 // "polygons larger than the size of an octant are kept at the same level". (Keeping every
-// triangle that straddles a split plane instead keeps ~75% of dragon_vrip above the leaves,
-// most of them in nodes of thousands.) A child's box may thus reach beyond its octant, by at
+// triangle that straddles a split plane instead would keep most of a fine scan above the
+// leaves, in nodes of thousands.) A child's box may thus reach beyond its octant, by at
 // most half the octant's size: that is what the tight box per node is for.
 //
 // Boxes are axis-aligned and exact: a triangle's box is the min/max of its vertices, and the
@@ -29,6 +29,7 @@
 #include <glm/common.hpp>
 
 #include "facetree/merge.h"
+#include "stopwatch.h"
 
 namespace facetree {
 
@@ -38,10 +39,6 @@ namespace {
 constexpr size_t kMaxTriangles = size_t{0x7FFFFFFF};
 constexpr size_t kMaxNodes = size_t{0xFFFFFFFF};
 constexpr uint8_t kStays = 8;  // bucket code of a triangle that fits no child octant
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // The partition moves these records rather than triangle ids: classification at every level
 // then reads contiguous memory instead of gathering vertices through the index buffer.

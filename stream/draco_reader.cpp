@@ -6,8 +6,8 @@
 // mesh's actual size is checked again after decoding (attributes other than positions, which
 // the header does not count, are decoded too). Draco sizes its tables from those counts before
 // it reads the data they describe, so counts no encoding of the file's size could hold are
-// refused first, whatever the limit (found by fuzz_draco: 151 bytes declaring 202M faces made
-// draco allocate 2.4 GB).
+// refused first, whatever the limit (a file of a few bytes can declare hundreds of millions of
+// faces, which draco would allocate for).
 // Vertex indices are Draco point indices (one position per point).
 #include <draco/compression/decode.h>
 #include <draco/mesh/mesh.h>

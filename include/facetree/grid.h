@@ -37,8 +37,8 @@ struct IndexedMesh {
 };
 
 struct LoadOptions {
-  // Scans often repeat vertices along cracks and patch borders (dragon_vrip: 151 index
-  // components, 1 after welding). Welding makes faces meeting at bit-identical positions
+  // Scans often repeat vertices along cracks and patch borders, so one surface reads as many
+  // index components. Welding makes faces meeting at bit-identical positions
   // (-0 equal to +0) neighbours, so the merge sees one surface instead of loose patches.
   bool weldPositions = false;
   // Cancellation hook polled between batches of triangles (see BuildOptions::cancelled):
@@ -81,9 +81,8 @@ struct ClusterJob {
   std::filesystem::path tmpDir;    // parent of the run's temporary directory; empty = system default
   uint64_t maxTemporaryBytes = 0;  // 0 = no limit
   unsigned threads = 2;
-  // zstd level of the cluster file's frames; 0 = 3, in core and out of core. Level 9 costs 3x
-  // the write time for 4% smaller files: dragon_vrip 2.5 s and 69.6 MB against 0.85 s and
-  // 72.4 MB (level 1: 0.53 s, 74.8 MB).
+  // zstd level of the cluster file's frames; 0 = 3, in core and out of core. Higher levels buy a
+  // few percent smaller files for several times the write time (docs/benchmarks.md).
   int zstdLevel = 0;
   // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
   uint64_t forceCellFaces = 0;

@@ -129,7 +129,7 @@ BranchingStats branchingStats(const ClusterFile& file);
 struct WriteOptions {
   uint32_t nodesPerFrame = 4096;      // truncation recompresses at most this many nodes
   uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
-  int zstdLevel = 3;                  // 9: 4% smaller, 3x slower (grid.h)
+  int zstdLevel = 3;                  // higher: a few percent smaller, several times slower
   // 2 or more (0: the hardware's count): each frame is compressed on a helper thread while the
   // caller encodes the next one (zstd is ~60% of a write); 1: on the calling thread. The bytes are
   // the same either way.
