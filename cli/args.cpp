@@ -1,3 +1,4 @@
+// The command-line parser (args.h): options by name, values with k/M/G suffixes, usage errors.
 #include "args.h"
 
 #include <charconv>

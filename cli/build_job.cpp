@@ -1,3 +1,5 @@
+// `facetree build`: runs the job (runClusterJob) with a progress line on a terminal and prints
+// its report, as text or --json.
 #include "build_job.h"
 
 #include <unistd.h>

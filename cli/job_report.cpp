@@ -1,3 +1,4 @@
+// The job report as one JSON object (job_report.h).
 #include "job_report.h"
 
 #include "json.h"

@@ -1,3 +1,5 @@
+// What the commands share about the process: checking an output before the work starts, the
+// peak resident set, a monotonic clock.
 #include <sys/resource.h>
 #include <unistd.h>
 

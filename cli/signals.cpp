@@ -1,3 +1,5 @@
+// SignalGuard (signals.h): the sigwait thread, the flag the work polls, and the last-resort
+// removal of outputs and temporary files when a signal ends the process.
 #include "signals.h"
 
 #include <fcntl.h>

@@ -1,3 +1,5 @@
+// CellGrid (cell_grid.h): Morton bins of the bounding box, the octree descent that packs them into
+// cells of at most a given number of faces, and the bins split among several cells.
 #include "cell_grid.h"
 
 #include <algorithm>

@@ -133,7 +133,7 @@ using BoxCorners = std::array<glm::vec3, 8>;  // of a leaf's root box: points fo
 // A cross-cell dual edge as the owner cell finds it: each end is a local leaf (kLeafRef) or a
 // face of another cell (index within that cell), resolved after every cell is done.
 struct CrossPair {
-  static constexpr uint32_t kLeafRef = 0x80000000u;
+  static constexpr uint32_t kLeafRef = kLeafChild;
   uint32_t cell[2];
   uint32_t ref[2];
   double shared;

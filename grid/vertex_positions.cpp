@@ -1,3 +1,5 @@
+// VertexPositions (vertex_positions.h): positions in memory up to a budget, then in compressed
+// blocks on disk, read back through a block cache or in order.
 #include "vertex_positions.h"
 
 #include <algorithm>

@@ -1,3 +1,5 @@
+// The orthographic camera of the pictures (camera.h): framing the bounding box from a viewing
+// direction.
 #include "camera.h"
 
 #include <algorithm>

@@ -1,3 +1,5 @@
+// OutputFile (output_file.h): writing under a temporary name, syncing and renaming into place;
+// and the checks every output shares (stream outputs, an output that cannot be created).
 #include "output_file.h"
 
 #include <unistd.h>

@@ -1,3 +1,5 @@
+// Cluster colours (golden-angle hues, hashed saturation and value) and the checks of a
+// (mesh, faceCluster) pair.
 #include "palette.h"
 
 #include <array>

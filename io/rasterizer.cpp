@@ -1,3 +1,4 @@
+// The z-buffered rasterizer of the pictures (rasterizer.h): edge functions over a sample grid.
 #include "rasterizer.h"
 
 #include <algorithm>

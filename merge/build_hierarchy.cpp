@@ -12,6 +12,7 @@
 #include "dual_graph.h"
 #include "face_geometry.h"
 #include "facetree/merge.h"
+#include "heap.h"
 #include "huge_pages.h"
 #include "merge_engine.h"
 #include "stopwatch.h"
@@ -23,12 +24,6 @@ namespace {
 // ceil(log2 n) + 1: the height of a balanced binary tree over n faces, faces included.
 uint32_t balancedHeight(uint32_t n) {
   return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
-}
-
-// A float's bits as an unsigned key of the same order (-0 is normalised to +0 by the caller).
-uint32_t orderedBits(float f) {
-  const uint32_t bits = std::bit_cast<uint32_t>(f);
-  return (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
 }
 
 // Output position of each record: by decreasing effective cost, the maximum of the node's own

@@ -24,6 +24,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -33,6 +34,13 @@
 #include "huge_pages.h"
 
 namespace facetree {
+
+// A float's bits as an unsigned key of the same order (negative values flipped; -0 and +0 differ,
+// so callers normalise -0 first where they must tie).
+inline uint32_t orderedBits(float f) {
+  const uint32_t bits = std::bit_cast<uint32_t>(f);
+  return (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
+}
 
 // std::allocator with cache-line alignment (the hot heap's child groups are aligned).
 template <class T>
@@ -130,12 +138,7 @@ class EdgeHeap {
 
   // (key, id) as one integer whose unsigned order is (key, then id): the float's bits made
   // monotone (negative keys flipped) in the high half. One compare per pair, no branches on ties.
-  static uint64_t pack(Entry e) {
-    uint32_t bits;
-    std::memcpy(&bits, &e.key, sizeof bits);
-    bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
-    return (uint64_t{bits} << 32) | e.id;
-  }
+  static uint64_t pack(Entry e) { return (uint64_t{orderedBits(e.key)} << 32) | e.id; }
   static Entry unpack(uint64_t v) {
     uint32_t bits = static_cast<uint32_t>(v >> 32);
     bits = (bits & 0x80000000u) ? (bits & 0x7FFFFFFFu) : ~bits;

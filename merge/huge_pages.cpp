@@ -1,3 +1,5 @@
+// Huge-page advice and release for the merge's large arrays (huge_pages.h); a no-op where the
+// kernel does not offer madvise.
 #include "huge_pages.h"
 
 #include <cstdint>

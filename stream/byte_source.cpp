@@ -1,3 +1,5 @@
+// The byte sources of the readers (byte_source.h): a file descriptor, standard input and zstd
+// decompression, behind one buffered reader.
 #include "byte_source.h"
 
 #include <fcntl.h>

@@ -1,3 +1,5 @@
+// Mesh format detection from the first bytes of a stream (format_detect.h): zstd framing, then
+// the PLY, OBJ, STL and Draco signatures.
 #include "format_detect.h"
 
 #include <array>

@@ -1,3 +1,5 @@
+// The PLY header parser (ply_header.h): elements, properties and the checks that a header
+// describes a triangle mesh this reader can stream.
 #include "ply_header.h"
 
 #include <array>

@@ -1,3 +1,4 @@
+// The readers' one-line error messages, "NAME: PLACE: REASON" (read_error.h).
 #include "read_error.h"
 
 #include <cctype>

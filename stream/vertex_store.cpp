@@ -1,3 +1,4 @@
+// VertexStore and the triangle post-processing every reader shares (vertex_store.h).
 #include "vertex_store.h"
 
 #include <bit>

@@ -258,7 +258,9 @@ struct ClusterEdge {
   double shared = 0;
 };
 
-inline constexpr uint32_t kLeafChild = 0x80000000u;  // child reference to a leaf cluster index
+// A child reference to a leaf cluster: its index with kFaceChild's bit (a leaf stands where a face
+// stands in buildHierarchy's nodes).
+inline constexpr uint32_t kLeafChild = kFaceChild;
 
 struct ClusterMergeNode {
   uint32_t child[2];   // kLeafChild | leaf index, or the creation index of an earlier node
