@@ -1,7 +1,7 @@
 // Cuts of a cluster file for pictures and exports, and the owner map verify uses.
 #include <algorithm>
 
-#include "verify.h"
+#include "fch_cut.h"
 
 namespace facetree {
 

@@ -16,7 +16,9 @@
 
 namespace facetree::fch {
 
-uint64_t xxh64(const void* data, size_t bytes, uint64_t seed) { return XXH64(data, bytes, seed); }
+uint64_t xxh64(const void* data, size_t bytes, uint64_t seed) {
+  return XXH64(data, bytes, seed);
+}
 
 namespace {
 

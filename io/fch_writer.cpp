@@ -23,8 +23,8 @@
 
 #include <glm/common.hpp>
 
-#include "fch_format.h"
 #include "facetree/io.h"
+#include "fch_format.h"
 #include "output_file.h"
 
 namespace facetree {
@@ -58,19 +58,19 @@ std::string str(uint64_t v) {
 
 // A temporary file of compressed frames, unlinked as soon as it exists: the descriptor keeps it
 // alive, and the kernel frees it when the writer goes, however the process ends.
-class SpillFile {
+class FrameSpill {
  public:
-  SpillFile(const std::filesystem::path& dir, const std::string& owner) : owner_(owner), dir_(dir) {
+  FrameSpill(const std::filesystem::path& dir, const std::string& owner) : owner_(owner), dir_(dir) {
     std::string name = (dir / ".facetree-spill-XXXXXX").string();
     fd_ = ::mkstemp(name.data());
     if (fd_ < 0) fail("cannot create a temporary file");
     ::unlink(name.c_str());
   }
-  ~SpillFile() {
+  ~FrameSpill() {
     if (fd_ >= 0) ::close(fd_);
   }
-  SpillFile(const SpillFile&) = delete;
-  SpillFile& operator=(const SpillFile&) = delete;
+  FrameSpill(const FrameSpill&) = delete;
+  FrameSpill& operator=(const FrameSpill&) = delete;
 
   void append(std::string_view bytes) {
     for (size_t done = 0; done < bytes.size();) {
@@ -97,7 +97,7 @@ class SpillFile {
   [[noreturn]] void fail(const char* what) const {
     const int error = errno;
     throw Error(ErrorCategory::Output, owner_ + ": " + what + " in " + dir_.string() + ": " +
-                  (error ? std::strerror(error) : "short write"));
+                                           (error ? std::strerror(error) : "short write"));
   }
   std::string owner_;
   std::filesystem::path dir_;
@@ -208,7 +208,7 @@ struct ClusterFileWriter::State {
     uint64_t arrived = 0;
     uint64_t bytes = 0;
     std::vector<FchFrame> frames;
-    std::optional<SpillFile> spill;
+    std::optional<FrameSpill> spill;
   };
 
   std::string name;  // the output as named in messages

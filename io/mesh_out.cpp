@@ -55,7 +55,9 @@ void writeDraco(std::span<const glm::vec3> vertices, std::span<const uint32_t> i
     encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.dracoPositionBits);
   draco::EncoderBuffer buffer;
   const draco::Status status = encoder.EncodeMeshToBuffer(mesh, &buffer);
-  if (!status.ok()) throw Error(ErrorCategory::Output, path.string() + ": Draco encoding failed: " + status.error_msg_string());
+  if (!status.ok())
+    throw Error(ErrorCategory::Output,
+                path.string() + ": Draco encoding failed: " + status.error_msg_string());
   OutputFile out(path);
   out.write(buffer.data(), buffer.size());
   out.commit();

@@ -62,7 +62,8 @@ OutputFile::~OutputFile() {
 
 void OutputFile::fail(const char* what) const {
   const int error = errno;
-  throw Error(ErrorCategory::Output, path_.string() + ": " + what + ": " + (error ? std::strerror(error) : "write error"));
+  throw Error(ErrorCategory::Output,
+              path_.string() + ": " + what + ": " + (error ? std::strerror(error) : "write error"));
 }
 
 void OutputFile::write(const void* data, size_t bytes) {
@@ -112,7 +113,8 @@ void checkOutputWritable(const std::filesystem::path& path) {
     if (::access(parent.c_str(), W_OK | X_OK) != 0) error = errno;
   }
   // The message OutputFile gives when it cannot create the file.
-  if (error != 0) throw Error(ErrorCategory::Output, path.string() + ": cannot create: " + std::strerror(error));
+  if (error != 0)
+    throw Error(ErrorCategory::Output, path.string() + ": cannot create: " + std::strerror(error));
 }
 
 }  // namespace facetree

@@ -41,7 +41,8 @@ PlyWriter::~PlyWriter() = default;
 
 void PlyWriter::addVertex(const glm::vec3& position) {
   if (state_->trianglesWritten != 0 || state_->verticesWritten == state_->vertexCount)
-    throw Error(ErrorCategory::Output, state_->out.path().string() + ": vertex written out of order or beyond the declared count");
+    throw Error(ErrorCategory::Output,
+                state_->out.path().string() + ": vertex written out of order or beyond the declared count");
   char record[12];
   std::memcpy(record, &position.x, 4);
   std::memcpy(record + 4, &position.y, 4);
@@ -53,8 +54,9 @@ void PlyWriter::addVertex(const glm::vec3& position) {
 
 void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
   if (state_->verticesWritten != state_->vertexCount || state_->trianglesWritten == state_->triangleCount)
-    throw Error(ErrorCategory::Output, state_->out.path().string() +
-                  ": triangle written before all vertices or beyond the declared count");
+    throw Error(
+        ErrorCategory::Output,
+        state_->out.path().string() + ": triangle written before all vertices or beyond the declared count");
   char record[13];
   record[0] = 3;
   const int32_t index[3] = {static_cast<int32_t>(a), static_cast<int32_t>(b), static_cast<int32_t>(c)};
@@ -66,10 +68,11 @@ void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
 
 void PlyWriter::finish() {
   if (state_->verticesWritten != state_->vertexCount || state_->trianglesWritten != state_->triangleCount)
-    throw Error(ErrorCategory::Output, state_->out.path().string() + ": wrote " + std::to_string(state_->verticesWritten) +
-                  " of " + std::to_string(state_->vertexCount) + " vertices and " +
-                  std::to_string(state_->trianglesWritten) + " of " + std::to_string(state_->triangleCount) +
-                  " triangles");
+    throw Error(ErrorCategory::Output, state_->out.path().string() + ": wrote " +
+                                           std::to_string(state_->verticesWritten) + " of " +
+                                           std::to_string(state_->vertexCount) + " vertices and " +
+                                           std::to_string(state_->trianglesWritten) + " of " +
+                                           std::to_string(state_->triangleCount) + " triangles");
   state_->flush();
   state_->out.commit();
 }

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "fch_test_util.h"
-#include "io/verify.h"
+#include "io/fch_cut.h"
 
 namespace facetree {
 namespace {

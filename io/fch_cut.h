@@ -1,4 +1,5 @@
-// Internal to io/: the face owners of a cut of a cluster file, shared by verify and the cuts.
+// The face owners of a cut of a cluster file (fch_cut.cpp), shared by the cuts and the
+// verification (fch_verify.cpp). Internal to facetree/io.
 #pragma once
 
 #include <cstdint>

@@ -1,7 +1,7 @@
 // verifyClusterFile / verifyAgainstMesh: every invariant of docs/FORMAT.md "Semantics"
 // (the nodes partition and nest the faces, children follow parents, boxes contain their faces),
 // reporting the first violation by node and check.
-#include "verify.h"
+#include "fch_cut.h"
 
 #include <algorithm>
 #include <array>
