@@ -14,6 +14,7 @@
 
 namespace facetree {
 
+// What kind of failure an Error is; the CLI exits 3, 4, 5 for the first three.
 enum class ErrorCategory : uint8_t {
   Input,      // a mesh or cluster file that cannot be read or is invalid, or data out of range
   Output,     // an output that cannot be created or written
@@ -21,6 +22,7 @@ enum class ErrorCategory : uint8_t {
   Cancelled,  // a progress or cancellation hook asked to stop; nothing was left behind
 };
 
+// The one exception type of the library: a category and a one-line message.
 class Error : public std::runtime_error {
  public:
   Error(ErrorCategory category, const std::string& message)

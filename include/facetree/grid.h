@@ -36,6 +36,7 @@ struct IndexedMesh {
   MeshView view() const { return {positions, indices}; }
 };
 
+// How loadMesh and the job read a mesh into memory.
 struct LoadOptions {
   // Scans often repeat vertices along cracks and patch borders, so one surface reads as many
   // index components. Welding makes faces meeting at bit-identical positions
@@ -61,12 +62,14 @@ uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t>
 // faces, and the greedy merge continues above them on their dual graph (exact adjacency across
 // cells). docs/out_of_core.md describes the stages.
 
+// What the job reports to ClusterJob::progress: the stage and how far it is.
 struct JobProgress {
   const char* phase = "";  // "read", "bin", "cells", "merge", "write"
   uint64_t done = 0;
   uint64_t total = 0;  // 0 = unknown
 };
 
+// A whole build: input, outputs, options, cap and temporary space, hooks (runClusterJob).
 struct ClusterJob {
   std::filesystem::path input;   // "-" = standard input (format detected from the content)
   std::filesystem::path output;  // "-" = standard output; empty = none (then the mesh must fit in core)
@@ -94,6 +97,7 @@ struct ClusterJob {
   std::function<void(const std::filesystem::path&)> temporaryDirectory;
 };
 
+// What runClusterJob measured and built: counts, per-stage times and peaks, bytes.
 struct JobReport {
   bool outOfCore = false;
   MeshInfo info;

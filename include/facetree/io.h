@@ -32,7 +32,9 @@ namespace facetree {
 
 // --- The cluster file ----------------------------------------------------------------------
 
+// The format version this library writes and reads (docs/FORMAT.md).
 inline constexpr uint32_t kFchVersion = 1;
+// The largest branching factor a cluster file holds.
 inline constexpr unsigned kMaxBranching = 8;
 
 // Node flags as stored (bits 0, 1 = merge.h NodeFlag) and derived on read (bit 2).
@@ -74,6 +76,7 @@ struct FchNode {
   NodeBox box{};
 };
 
+// A whole cluster file in memory: header, nodes in file order and the reordered mesh.
 struct ClusterFile {
   FileHeader header;
   std::vector<FchNode> nodes;          // root first; every child after its parent
@@ -94,6 +97,7 @@ enum class RecastRule : uint8_t {
   FewestNodes,
 };
 
+// How a hierarchy becomes a cluster file: branching, recast rule, options recorded.
 struct FileOptions {
   uint32_t branching = 2;  // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
   RecastRule rule = RecastRule::LargestArea;
@@ -126,6 +130,7 @@ ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> orig
 // Statistics of the tree in `file` (children histogram, height, eq. 85/86).
 BranchingStats branchingStats(const ClusterFile& file);
 
+// How a cluster file is written: frame sizes, zstd level, compression threads.
 struct WriteOptions {
   uint32_t nodesPerFrame = 4096;      // truncation recompresses at most this many nodes
   uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
@@ -163,6 +168,7 @@ struct StreamFileInfo {
                       // computed from the vertices); originalNodeCount = nodeCount
   uint64_t maxOriginalFace = 0;  // largest original face id to come: decides 4- or 8-byte ids
 };
+// Writes a cluster file piece by piece (see above).
 class ClusterFileWriter {
  public:
   ClusterFileWriter(const std::filesystem::path& out, const StreamFileInfo& info,
@@ -204,8 +210,10 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
 // vertex, triangle and id frames (their checksums are not checked then).
 ClusterFile readClusterFile(const std::filesystem::path& path, bool geometry = true);
 
+// The sections a cluster file's frames belong to, and their names.
 enum class FchSection : uint32_t { Nodes = 1, Vertices = 2, Triangles = 3, OriginalFaces = 4 };
 const char* sectionName(FchSection section);
+// One compressed frame of the frame index: its section, its elements and where its bytes are.
 struct FchFrame {
   FchSection section{};
   uint32_t count = 0;
@@ -215,6 +223,7 @@ struct FchFrame {
   uint32_t rawBytes = 0;
   uint64_t checksum = 0;
 };
+// A cluster file's header and frame index, as readClusterFileLayout reads them.
 struct FchLayout {
   FileHeader header;
   uint64_t fileBytes = 0;
@@ -234,6 +243,7 @@ struct TruncateResult {
   uint64_t nodes = 0;
   uint64_t bytes = 0;
 };
+// Writes the first `nodes` nodes of `in` to `out`.
 TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
                                    uint64_t nodes);
 // The largest prefix whose whole output file (geometry included) fits in `maxBytes`; throws
@@ -250,10 +260,12 @@ struct VerifyResult {
   std::string message;
   uint64_t nodesChecked = 0;
 };
+// Which invariants verifyClusterFile checks besides the tree and the face ranges.
 struct VerifyOptions {
   bool boxes = true;       // containment + tightness
   bool statistics = true;  // area, S, side areas
 };
+// Checks the file against every invariant; the first violation in `message`.
 VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& options = {});
 // The geometry against the mesh it was built from: same triangles (by corner positions, corner
 // order kept) under the same original face ids. `meshOriginalFace` empty means the identity.
@@ -268,6 +280,7 @@ VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
 // giving at least `clusters` clusters (all of them if there are fewer); clusterDepthCut keeps the
 // nodes above `depth` (depth 0: the root alone is the one cluster).
 std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters);
+// The cut of the nodes above `depth`, numbered as clusterCut numbers them.
 std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth);
 
 // How well a cut approximates the surface (Willmott 2000, eq. 84): for the clusters of
@@ -282,6 +295,7 @@ struct CutFit {
   double sumFit = 0;      // sum of eFit (length^2)
   double sumAreaFit = 0;  // sum of area * eFit (length^4)
 };
+// The fit of the cut of `clusters` clusters.
 CutFit cutFit(const ClusterFile& file, uint64_t clusters);
 
 // The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
@@ -290,6 +304,7 @@ struct MeshOutOptions {
   int dracoPositionBits = 0;  // 0 = lossless float positions; else quantization bits (1 ... 30)
   int dracoSpeed = 5;         // encoder speed 0 (best) ... 10 (fastest)
 };
+// The reordered mesh of a hierarchy just built, or of a cluster file read back.
 void writeReorderedMesh(const MeshView& mesh, const Hierarchy& hierarchy, const std::filesystem::path& path,
                         const MeshOutOptions& options = {});
 void writeReorderedMesh(const ClusterFile& file, const std::filesystem::path& path,
@@ -361,12 +376,14 @@ class PlyWriter {
 // memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
 // a keyed bijection so any size can be shuffled while streaming.
 enum class SyntheticKind { Grid, Sphere, Terrain, Strip };
+// Size, shuffling and seed of a synthetic mesh.
 struct GenerateOptions {
   uint64_t triangles = 20000;  // approximate target; the shape rounds it
   bool shuffleVertices = false;
   bool shuffleFaces = false;
   uint64_t seed = 1;
 };
+// What a generator wrote.
 struct GeneratedCounts {
   uint64_t vertices = 0;
   uint64_t triangles = 0;

@@ -33,6 +33,7 @@ struct MeshView {
   size_t triangleCount() const { return indices.size() / 3; }
 };
 
+// The merge cost.
 enum class Metric : uint8_t {
   Willmott,  // (eFit + k*area) * perim^2 / projArea  (Willmott 2000, eq. 84)
   Garland,   // w_fit*E_fit + w_dir*E_dir + w_shape*E_shape (Garland et al. 2001), scale dependent
@@ -49,6 +50,7 @@ enum class MergeOrder : uint8_t {
   Exact,
 };
 
+// Options of buildHierarchy and mergeClusters.
 struct BuildOptions {
   Metric metric = Metric::Willmott;
   MergeOrder order = MergeOrder::Rounds;
@@ -75,6 +77,7 @@ struct BuildOptions {
 // A child reference is a node index, or a face (its position in faceOrder) with this bit set.
 inline constexpr uint32_t kFaceChild = 0x80000000u;
 
+// Node::flags bits.
 enum NodeFlag : uint32_t {
   kNodeJoinsDisjointSurfaces = 1u << 0,  // children share no mesh edge (components joined)
   kNodeFlatFrame = 1u << 1,              // box frame from S + min-area rectangle, else PCA
@@ -101,6 +104,7 @@ struct NodeBox {
   float sideArea[6];  // projected area facing +axis0, -axis0, +axis1, -axis1, +axis2, -axis2
 };
 
+// What a build measured: height, degrees, solver counts, rounds and per-phase times.
 struct BuildStats {
   uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
   uint32_t balancedHeight = 0;  // ceil(log2 n) + 1
@@ -113,6 +117,7 @@ struct BuildStats {
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
 };
 
+// A binary face cluster hierarchy: nodes, their boxes and the face order.
 struct Hierarchy {
   // By decreasing effective cost (max of a node's cost and its children's), nodes[0] the root:
   // parents precede children, and a prefix drops the cheapest merges first.
@@ -249,6 +254,7 @@ uint32_t faceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& l
 // piece's. The adjacency's scratch is used: one call at a time per adjacency.
 Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
                          const BuildOptions& options = {});
+// surfaceStats of a piece of the adjacency's mesh (see above).
 SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
                           const glm::dvec3& origin);
 
@@ -262,6 +268,7 @@ struct ClusterEdge {
 // stands in buildHierarchy's nodes).
 inline constexpr uint32_t kLeafChild = kFaceChild;
 
+// A node mergeClusters creates.
 struct ClusterMergeNode {
   uint32_t child[2];   // kLeafChild | leaf index, or the creation index of an earlier node
   uint32_t flags;      // NodeFlag (kNodeJoinsDisjointSurfaces for component joins)
@@ -269,6 +276,7 @@ struct ClusterMergeNode {
   SurfaceStats stats;  // of the merged cluster; height and faceCount include the leaves' subtrees
 };
 
+// What mergeClusters built and measured.
 struct ClusterMergeResult {
   std::vector<ClusterMergeNode> nodes;  // creation order; the last one is the root (leaves.size()-1 nodes)
   uint64_t components = 0;              // roots left when the edges ran out (then joined)
@@ -310,6 +318,7 @@ glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec
 // subsampled) to its parent. O(1) per cluster whatever the tree's height, where orienting every cluster from
 // all its leaves' points is O(leaves * height). Keeps its scratch between calls (no allocation once warm).
 class FrameBuilder;
+// Orients the clusters of a tree bottom-up (see above).
 class ClusterOrienter {
  public:
   static constexpr size_t kMaxCarried = 32;
@@ -331,6 +340,7 @@ class ClusterOrienter {
 // NodeBox computeBoxes would give for that orientation and those triangles (every vertex inside, each face
 // touching a vertex, side areas = sum a_f max(0, +-n_f . axis)), with the arithmetic of box.cpp.
 class TriangleRun;
+// Exact box extents and side areas accumulated triangle by triangle (see above).
 class BoxAccumulator {
  public:
   explicit BoxAccumulator(const glm::quat& orientation);
@@ -386,11 +396,13 @@ class TriangleRun {
 // of its subtree's triangles, which may reach past its octant by half the octant's size. Used
 // to measure the face clustering's cost against the simplest volume clustering.
 
+// When the octree stops subdividing.
 struct OctreeOptions {
   uint32_t leafSize = 8;   // a node of at most this many triangles is not subdivided
   uint32_t maxDepth = 24;  // root 0; the float mantissa separates no finer octants (duplicates)
 };
 
+// One octree node: its tight box, its octant and its triangles.
 struct OctreeNode {
   glm::vec3 boxMin, boxMax;  // tight box of every finite triangle of the subtree
   glm::vec3 cubeMin;         // the node's octant: [cubeMin, cubeMin + cubeSize] per axis
@@ -403,6 +415,7 @@ struct OctreeNode {
   uint32_t depth;       // root 0
 };
 
+// What buildOctree measured.
 struct OctreeStats {
   uint32_t height = 0;  // nodes on the longest root-to-triangle path, the triangle included
   uint64_t leaves = 0;
@@ -412,6 +425,7 @@ struct OctreeStats {
   double secondsBoxes = 0;      // bottom-up tight boxes
 };
 
+// The octree baseline: nodes breadth first and the triangle order.
 struct Octree {
   std::vector<OctreeNode> nodes;        // breadth first: nodes[0] is the root, children after parents
   std::vector<uint32_t> triangleOrder;  // triangleOrder[i] = input triangle at position i

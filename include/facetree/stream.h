@@ -25,6 +25,7 @@
 
 namespace facetree {
 
+// A vertex id that names no vertex.
 inline constexpr uint32_t kNoVertex = 0xFFFFFFFFu;
 
 // One triangle as the reader hands it on. `face` is the index of the face in the file
@@ -35,6 +36,7 @@ struct Triangle {
   uint64_t face;
 };
 
+// The formats the readers detect from a stream's content.
 enum class MeshFormat {
   PlyAscii,
   PlyBinaryLittleEndian,
@@ -44,8 +46,10 @@ enum class MeshFormat {
   StlBinary,
   Draco
 };
+// The format's name as messages and reports give it ("PLY", "OBJ", ...).
 const char* formatName(MeshFormat format);
 
+// What a reader knows of its input before and while reading.
 struct MeshInfo {
   std::string name;  // file name as given, "-" for standard input
   MeshFormat format{};
@@ -74,6 +78,7 @@ class VertexSource {
   virtual glm::vec3 position(uint64_t index) const = 0;
 };
 
+// A streaming reader of one mesh: triangles in batches, vertices, statistics.
 class TriangleReader {
  public:
   virtual ~TriangleReader() = default;
@@ -99,6 +104,7 @@ class TriangleReader {
   virtual uint64_t heldBytes() const { return 0; }
 };
 
+// How a reader reads: buffer size, the vertex sink, the whole-mesh limit.
 struct ReadOptions {
   // Bytes of input buffered at once (decompressed and raw).
   size_t bufferBytes = size_t{1} << 20;
