@@ -33,7 +33,11 @@ float loadLittleEndianFloat(const char* bytes) {
 // Base of both: welding.
 class StlReaderBase : public ReaderBase {
  protected:
-  explicit StlReaderBase(std::unique_ptr<InputBuffer> input) : input_(std::move(input)) {}
+  StlReaderBase(std::unique_ptr<InputBuffer> input, MeshInfo info, MeshFormat format)
+      : input_(std::move(input)) {
+    info_ = std::move(info);
+    info_.format = format;
+  }
 
   bool stopWelding() override {
     soup_ = true;
@@ -62,9 +66,8 @@ class StlReaderBase : public ReaderBase {
 
 class BinaryStlReader final : public StlReaderBase {
  public:
-  BinaryStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info) : StlReaderBase(std::move(input)) {
-    info_ = std::move(info);
-    info_.format = MeshFormat::StlBinary;
+  BinaryStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info)
+      : StlReaderBase(std::move(input), std::move(info), MeshFormat::StlBinary) {
     if (input_->fill(kBinaryPreambleBytes) < kBinaryPreambleBytes)
       fail(input_->offset() + input_->available(), "truncated binary stl header");
     uint32_t count;
@@ -135,9 +138,8 @@ bool equalsNoCase(std::string_view token, std::string_view keyword) {
 
 class AsciiStlReader final : public StlReaderBase {
  public:
-  AsciiStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info) : StlReaderBase(std::move(input)) {
-    info_ = std::move(info);
-    info_.format = MeshFormat::StlAscii;
+  AsciiStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info)
+      : StlReaderBase(std::move(input), std::move(info), MeshFormat::StlAscii) {
     expectKeyword("solid", "");
     skipRestOfLine();  // the solid's name
   }

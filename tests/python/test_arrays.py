@@ -6,12 +6,11 @@ import pytest
 import facetree
 from conftest import grid_mesh, run_cli
 
-# Every shared mesh the in-core build takes in a few seconds (fg_hawaii, 3.2M faces, is left to
-# the C++ tests and the benchmarks).
+# Every shared mesh.
 SHARED = ["bunny_npm_lowres", "openfoam_flange", "fandisk", "gears_cad", "rocker_arm", "pepper_scan",
           "tigerfighter_31k", "grey_nurse_shark", "bunny_zipper", "horse_97k", "nefertiti_100k",
           "openfoam_dtc_hull", "cura_ultimaker_robot", "turbine_blade_200k", "openfoam_buildings",
-          "dragon_vrip", "matterport_cedar_creek"]
+          "dragon_vrip", "matterport_cedar_creek", "fg_hawaii"]
 
 
 @pytest.mark.parametrize("name", SHARED)
