@@ -43,30 +43,6 @@ TestMesh bumpyGrid(uint32_t m, float amplitude, float tilt = 0.0f) {
   return mesh;
 }
 
-// merge_test.cpp's graded disc: eq. 84 alone grows one cluster by absorbing ever larger rings.
-TestMesh gradedDisc(uint32_t rings, uint32_t sectors, float growth) {
-  TestMesh mesh;
-  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);
-  constexpr float kTwoPi = 6.2831853f;
-  float radius = 1.0f;
-  for (uint32_t r = 0; r < rings; ++r, radius *= growth) {
-    const float offset = (r % 2) * 0.5f;
-    for (uint32_t s = 0; s < sectors; ++s) {
-      const float angle = kTwoPi * (float(s) + offset) / float(sectors);
-      mesh.positions.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 0.0f);
-    }
-  }
-  const auto vertex = [&](uint32_t r, uint32_t s) { return 1 + r * sectors + s % sectors; };
-  for (uint32_t s = 0; s < sectors; ++s) mesh.add(0, vertex(0, s), vertex(0, s + 1));
-  for (uint32_t r = 0; r + 1 < rings; ++r) {
-    for (uint32_t s = 0; s < sectors; ++s) {
-      mesh.add(vertex(r, s), vertex(r + 1, s), vertex(r, s + 1));
-      mesh.add(vertex(r, s + 1), vertex(r + 1, s), vertex(r + 1, s + 1));
-    }
-  }
-  return mesh;
-}
-
 // The faces `faces` of `mesh` as a mesh of their own (vertices renumbered by first use).
 TestMesh subMesh(const TestMesh& mesh, const std::vector<uint32_t>& faces) {
   TestMesh out;

@@ -121,6 +121,34 @@ inline TestMesh icosphere(int levels) {
   return mesh;
 }
 
+// A flat disc of `rings` rings of `sectors` quads (two triangles each) around a fan, whose
+// radii grow by `growth` per ring: triangle sizes grade geometrically outward, like the
+// meshes around a building's footprint in an architectural model. Eq. 84 alone grows the central cluster by
+// absorbing one ever larger neighbour at a time (perim^2/projArea favours the compact one).
+inline TestMesh gradedDisc(uint32_t rings, uint32_t sectors, float growth) {
+  TestMesh mesh;
+  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);
+  constexpr float kTwoPi = 6.2831853f;
+  float radius = 1.0f;
+  for (uint32_t r = 0; r < rings; ++r, radius *= growth) {
+    // Alternate rings are rotated by half a sector so the triangles stay well shaped.
+    const float offset = (r % 2) * 0.5f;
+    for (uint32_t s = 0; s < sectors; ++s) {
+      const float angle = kTwoPi * (float(s) + offset) / float(sectors);
+      mesh.positions.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 0.0f);
+    }
+  }
+  const auto vertex = [&](uint32_t r, uint32_t s) { return 1 + r * sectors + s % sectors; };
+  for (uint32_t s = 0; s < sectors; ++s) mesh.add(0, vertex(0, s), vertex(0, s + 1));
+  for (uint32_t r = 0; r + 1 < rings; ++r) {
+    for (uint32_t s = 0; s < sectors; ++s) {
+      mesh.add(vertex(r, s), vertex(r + 1, s), vertex(r, s + 1));
+      mesh.add(vertex(r, s + 1), vertex(r + 1, s), vertex(r + 1, s + 1));
+    }
+  }
+  return mesh;
+}
+
 // --- checks -------------------------------------------------------------------------------
 
 struct Layout {
