@@ -42,6 +42,26 @@ struct ChildResult {
   std::string output;  // what the child's function returned
 };
 
+// The parent's side of a forked child writing to fds[1]: reads everything it writes, then waits
+// for its exit code.
+inline ChildResult collectChild(pid_t pid, int fds[2]) {
+  close(fds[1]);
+  ChildResult result;
+  char buffer[4096];
+  for (ssize_t got; (got = read(fds[0], buffer, sizeof buffer)) != 0;) {
+    if (got > 0)
+      result.output.append(buffer, static_cast<size_t>(got));
+    else if (errno != EINTR)
+      break;
+  }
+  close(fds[0]);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status)) result.exitCode = WEXITSTATUS(status);
+  return result;
+}
+
 // Runs `body` in a forked child (for process-wide limits: RLIMIT_FSIZE, peak RSS) and returns what it
 // returned. An exception in the child becomes exit code 2 with its what() as output.
 inline ChildResult runInChild(const std::function<std::string()>& body) {
@@ -66,21 +86,7 @@ inline ChildResult runInChild(const std::function<std::string()>& body) {
     }
     _exit(code);  // no gtest teardown, no atexit handlers of the parent's state
   }
-  close(fds[1]);
-  ChildResult result;
-  char buffer[4096];
-  for (ssize_t got; (got = read(fds[0], buffer, sizeof buffer)) != 0;) {
-    if (got > 0)
-      result.output.append(buffer, static_cast<size_t>(got));
-    else if (errno != EINTR)
-      break;
-  }
-  close(fds[0]);
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (WIFEXITED(status)) result.exitCode = WEXITSTATUS(status);
-  return result;
+  return collectChild(pid, fds);
 }
 
 // Runs the program argv[0] with its arguments and returns its exit code and standard output.
@@ -98,21 +104,7 @@ inline ChildResult runProgram(const std::vector<std::string>& argv) {
     execv(args[0], args.data());
     _exit(127);
   }
-  close(fds[1]);
-  ChildResult result;
-  char buffer[4096];
-  for (ssize_t got; (got = read(fds[0], buffer, sizeof buffer)) != 0;) {
-    if (got > 0)
-      result.output.append(buffer, static_cast<size_t>(got));
-    else if (errno != EINTR)
-      break;
-  }
-  close(fds[0]);
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (WIFEXITED(status)) result.exitCode = WEXITSTATUS(status);
-  return result;
+  return collectChild(pid, fds);
 }
 
 }  // namespace facetree::test
