@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "job_options.h"
 #include "job_report.h"
 #include "signals.h"
 
@@ -64,13 +65,14 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   if (const auto tmp = args.value("tmp")) job.tmpDir = *tmp;
   job.maxTemporaryBytes = args.count("max-tmp", 0, true);
   // --threads (job.build.threads, 0 = all cores up to 8) also runs the cells in parallel.
-  job.threads =
-      job.build.threads ? job.build.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
+  job.threads = jobThreads(job.build.threads);
   job.forceCellFaces = args.count("cell-faces", 0);
-  job.zstdLevel = static_cast<int>(args.count("zstd-level", 0));
-  if (job.zstdLevel > 19) throw UsageError("--zstd-level must be 1 to 19 (default 3)");
-  if (job.memoryCap != 0 && job.memoryCap < (uint64_t{16} << 20))
-    throw UsageError("--memory must be at least 16M");
+  job.zstdLevel = static_cast<int>(std::min<uint64_t>(args.count("zstd-level", 0), 1000));
+  try {
+    checkJobLimits(job.memoryCap, job.zstdLevel, OptionSpelling::Cli);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
   ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
   job.progress = [&progress](const JobProgress& p) { return progress.update(p); };
 

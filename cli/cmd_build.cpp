@@ -6,38 +6,15 @@
 #include "args.h"
 #include "build_job.h"
 #include "commands.h"
-#include "json.h"
-#include "signals.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
+#include "job_options.h"
+#include "json.h"
+#include "signals.h"
 
 namespace facetree::cli {
-namespace {
-
-// --threads: at most this many (the box phase uses no more, merge/box.cpp).
-constexpr uint64_t kMaxThreads = 8;
-
-Metric parseMetric(const std::string& name) {
-  if (name == "willmott") return Metric::Willmott;
-  if (name == "garland") return Metric::Garland;
-  if (name == "constant") return Metric::Constant;
-  throw UsageError("unknown metric '" + name + "' (willmott, garland, constant)");
-}
-
-MergeOrder parseOrder(const std::string& name) {
-  if (name == "rounds") return MergeOrder::Rounds;
-  if (name == "exact") return MergeOrder::Exact;
-  throw UsageError("unknown merge order '" + name + "' (rounds, exact)");
-}
-
-RecastRule parseRecastRule(const std::string& name) {
-  if (name == "largest-area") return RecastRule::LargestArea;
-  if (name == "fewest-nodes") return RecastRule::FewestNodes;
-  throw UsageError("unknown recast rule '" + name + "' (largest-area, fewest-nodes)");
-}
-
-}  // namespace
+namespace {}  // namespace
 
 int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(
@@ -53,28 +30,27 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   if (method != "cluster") throw UsageError("unknown method '" + method + "' (cluster, octree)");
   if (args.value("leaf-size")) throw UsageError("--leaf-size is an option of --method octree");
 
+  BuildSettings settings;
+  settings.metric = args.valueOr("metric", settings.metric);
+  settings.order = args.valueOr("order", settings.order);
+  settings.recast = args.valueOr("recast", settings.recast);
+  settings.k = args.number("k", settings.k);
+  settings.flatThreshold = args.number("flat-threshold", settings.flatThreshold);
+  settings.garlandWeights[0] = args.number("w-fit", settings.garlandWeights[0]);
+  settings.garlandWeights[1] = args.number("w-dir", settings.garlandWeights[1]);
+  settings.garlandWeights[2] = args.number("w-shape", settings.garlandWeights[2]);
+  settings.balanceSlack = args.number("balance-slack", settings.balanceSlack);
+  settings.threads = static_cast<unsigned>(args.count("threads", settings.threads));
+  settings.branching = static_cast<unsigned>(args.count("branching", settings.branching));
   BuildOptions options;
-  options.metric = parseMetric(args.valueOr("metric", "willmott"));
-  options.order = parseOrder(args.valueOr("order", "rounds"));
-  options.k = args.number("k", options.k);
-  options.flatThreshold = args.number("flat-threshold", options.flatThreshold);
-  options.garlandFitWeight = args.number("w-fit", options.garlandFitWeight);
-  options.garlandDirWeight = args.number("w-dir", options.garlandDirWeight);
-  options.garlandShapeWeight = args.number("w-shape", options.garlandShapeWeight);
-  options.balanceSlack = args.number("balance-slack", options.balanceSlack);
-  options.computeBoxes = !args.flag("no-boxes");
-  options.threads = static_cast<unsigned>(args.count("threads", options.threads));
-  if (options.threads > kMaxThreads)
-    throw UsageError("--threads must be 0 (all cores) to " + std::to_string(kMaxThreads));
-  options.cancelled = signals.cancelHook();
-  if (!(options.balanceSlack >= 0)) throw UsageError("--balance-slack must be 0 (off) or positive");
-  if (options.k < 0) throw UsageError("--k must not be negative");
   FileOptions fileOptions;
-  fileOptions.branching = static_cast<uint32_t>(args.count("branching", 2));
-  if (fileOptions.branching != 2 && fileOptions.branching != 4 && fileOptions.branching != 8)
-    throw UsageError("--branching must be 2, 4 or 8");
-  fileOptions.rule = parseRecastRule(args.valueOr("recast", "largest-area"));
-  fileOptions.build = options;
+  try {
+    applyBuildSettings(settings, OptionSpelling::Cli, options, fileOptions);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  options.computeBoxes = !args.flag("no-boxes");
+  options.cancelled = signals.cancelHook();
   MeshOutOptions meshOutOptions;
   meshOutOptions.dracoPositionBits = static_cast<int>(args.count("draco-bits", 0));
   if (meshOutOptions.dracoPositionBits > 30) throw UsageError("--draco-bits must be 0 (lossless) to 30");

@@ -5,12 +5,12 @@
 
 #include "args.h"
 #include "commands.h"
-#include "fch_commands.h"
-#include "json.h"
-#include "signals.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/stream.h"
+#include "fch_commands.h"
+#include "json.h"
+#include "signals.h"
 
 namespace facetree::cli {
 namespace {

@@ -3,9 +3,9 @@
 
 #include "args.h"
 #include "commands.h"
-#include "signals.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
+#include "signals.h"
 
 namespace facetree::cli {
 

@@ -9,9 +9,10 @@
 
 #include "args.h"
 #include "commands.h"
-#include "json.h"
 #include "facetree/grid.h"
 #include "facetree/merge.h"
+#include "job_options.h"
+#include "json.h"
 
 namespace facetree::cli {
 namespace {

@@ -4,8 +4,8 @@
 
 #include "args.h"
 #include "commands.h"
-#include "signals.h"
 #include "facetree/io.h"
+#include "signals.h"
 
 namespace facetree::cli {
 namespace {

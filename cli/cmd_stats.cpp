@@ -6,8 +6,9 @@
 
 #include "args.h"
 #include "commands.h"
-#include "json.h"
 #include "facetree/stream.h"
+#include "job_options.h"
+#include "json.h"
 
 namespace facetree::cli {
 namespace {

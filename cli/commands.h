@@ -25,8 +25,6 @@ int runExport(const std::vector<std::string>& args, SignalGuard& signals);
 // not fail at its end; then registers it with `signals`. "-" (standard output) passes.
 void prepareOutput(SignalGuard& signals, const std::string& path);
 
-// Peak resident set size of this process, in bytes (getrusage).
-uint64_t peakResidentBytes();
 // Seconds on a monotonic clock since an arbitrary origin.
 double nowSeconds();
 

@@ -14,11 +14,11 @@
 
 #include "args.h"
 #include "commands.h"
-#include "fch_commands.h"
-#include "signals.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/stream.h"
+#include "fch_commands.h"
+#include "signals.h"
 
 namespace {
 

@@ -1,6 +1,5 @@
-// What the commands share about the process: checking an output before the work starts, the
-// peak resident set, a monotonic clock.
-#include <sys/resource.h>
+// What the commands share about the process: checking an output before the work starts and a
+// monotonic clock.
 #include <unistd.h>
 
 #include <cerrno>
@@ -10,20 +9,14 @@
 #include <filesystem>
 
 #include "commands.h"
-#include "signals.h"
 #include "facetree/io.h"
+#include "signals.h"
 
 namespace facetree::cli {
 
 void prepareOutput(SignalGuard& signals, const std::string& path) {
   checkOutputWritable(path);
   signals.guardOutput(path);
-}
-
-uint64_t peakResidentBytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<uint64_t>(usage.ru_maxrss) * 1024;  // Linux reports KiB
 }
 
 double nowSeconds() {

@@ -28,6 +28,16 @@ uint64_t defaultMemoryCap() {
 
 }  // namespace
 
+void JobReport::recordInCoreBuild(const Hierarchy& hierarchy) {
+  inCore = hierarchy.stats;
+  nodes = hierarchy.nodes.size();
+  height = hierarchy.stats.height;
+  balancedHeight = hierarchy.stats.balancedHeight;
+  components = hierarchy.stats.components;
+  cells = 1;
+  leaves = 1;
+}
+
 JobReport runClusterJob(const ClusterJob& job) {
   const auto start = std::chrono::steady_clock::now();
   JobReport report;
@@ -153,13 +163,7 @@ JobReport runClusterJob(const ClusterJob& job) {
   auto phase = std::chrono::steady_clock::now();
   const Hierarchy hierarchy = buildHierarchy(mesh.view(), effective.build);
   report.secondsMerge = secondsSince(phase);
-  report.inCore = hierarchy.stats;
-  report.nodes = hierarchy.nodes.size();
-  report.height = hierarchy.stats.height;
-  report.balancedHeight = hierarchy.stats.balancedHeight;
-  report.components = hierarchy.stats.components;
-  report.cells = 1;
-  report.leaves = 1;
+  report.recordInCoreBuild(hierarchy);
   report.secondsBuilt = secondsSince(start);
   check("write", 0, report.triangles);
 

@@ -122,6 +122,10 @@ struct JobReport {
   double secondsRead = 0, secondsBin = 0, secondsCells = 0, secondsMerge = 0, secondsWrite = 0, seconds = 0;
   double secondsBuilt = 0;
   BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
+
+  // Records an in-core build of `hierarchy` (one cell, one leaf): its statistics, node count and
+  // heights, as the job reports them.
+  void recordInCoreBuild(const Hierarchy& hierarchy);
 };
 
 // Runs the job. Throws Error (facetree/error.h): Input for unreadable input, Output for an output

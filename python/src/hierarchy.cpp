@@ -27,6 +27,11 @@ PyHierarchy& self(const py::object& object) {
   return object.cast<PyHierarchy&>();
 }
 
+// Whether a child reference is a node the file holds (not a face, not cut off by truncation).
+bool isNodeChild(const ClusterFile& file, uint32_t ref) {
+  return !(ref & kFaceChild) && !file.isCutOff(ref);
+}
+
 // A property viewing one field of every node: `width` values of T per node (0: one).
 template <typename T, typename Field>
 auto nodeColumn(Field field, py::ssize_t width = 0) {
@@ -119,8 +124,7 @@ face_order[first:first + count] of its face range; its children partition that r
             for (size_t i = 0; i < h.file.nodes.size(); ++i) {
               const FchNode& node = h.file.nodes[i];
               for (uint32_t k = 0; k < node.childCount && k < b; ++k)
-                if (!(node.child[k] & kFaceChild) && !h.file.isCutOff(node.child[k]))
-                  out[i * b + k] = node.child[k];
+                if (isNodeChild(h.file, node.child[k])) out[i * b + k] = node.child[k];
             }
             return arrayOwning(std::move(out), {static_cast<py::ssize_t>(h.file.nodes.size()), b});
           },
@@ -133,8 +137,7 @@ face_order[first:first + count] of its face range; its children partition that r
             for (size_t i = 0; i < h.file.nodes.size(); ++i) {
               const FchNode& node = h.file.nodes[i];
               for (uint32_t k = 0; k < node.childCount; ++k)
-                if (!(node.child[k] & kFaceChild) && !h.file.isCutOff(node.child[k]))
-                  out[node.child[k]] = int64_t(i);
+                if (isNodeChild(h.file, node.child[k])) out[node.child[k]] = int64_t(i);
             }
             return arrayOwning(std::move(out), {static_cast<py::ssize_t>(h.file.nodes.size())});
           },
@@ -158,8 +161,7 @@ face_order[first:first + count] of its face range; its children partition that r
             for (size_t i = n.size(); i-- > 0;) {
               out[i] = n[i].cost;
               for (uint32_t k = 0; k < n[i].childCount; ++k)
-                if (!(n[i].child[k] & kFaceChild) && !h.file.isCutOff(n[i].child[k]))
-                  out[i] = std::max(out[i], out[n[i].child[k]]);
+                if (isNodeChild(h.file, n[i].child[k])) out[i] = std::max(out[i], out[n[i].child[k]]);
             }
             return arrayOwning(std::move(out), {static_cast<py::ssize_t>(n.size())});
           },

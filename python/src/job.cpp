@@ -13,19 +13,13 @@
 #include <utility>
 
 #include "bindings.h"
+#include "job_options.h"
 #include "job_report.h"
 
 namespace facetree::python {
 namespace {
 
-constexpr unsigned kMaxThreads = 8;  // as the CLI's --threads
 constexpr double kProgressSeconds = 0.05;
-
-uint64_t peakResidentBytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<uint64_t>(usage.ru_maxrss) * 1024;
-}
 
 // Polled by the library with the GIL released: runs pending signal handlers and the progress
 // callback under the GIL; keeps the first Python exception they raise and asks the job to stop.
@@ -35,21 +29,19 @@ class Interrupts {
   bool cancelled() {
     if (raised_) return true;
     py::gil_scoped_acquire gil;
-    if (PyErr_CheckSignals() != 0) {
-      raised_.emplace();
-      return true;
-    }
-    return false;
+    return signalled();
   }
   bool progress(const JobProgress& p) {
-    if (cancelled()) return false;
-    if (progress_.is_none()) return true;
+    if (raised_) return false;
     const auto now = std::chrono::steady_clock::now();
-    const bool newPhase = phase_ != p.phase;
-    if (!newPhase && std::chrono::duration<double>(now - last_).count() < kProgressSeconds) return true;
+    const bool due =
+        !progress_.is_none() &&
+        (phase_ != p.phase || std::chrono::duration<double>(now - last_).count() >= kProgressSeconds);
+    py::gil_scoped_acquire gil;
+    if (signalled()) return false;
+    if (!due) return true;
     phase_ = p.phase;
     last_ = now;
-    py::gil_scoped_acquire gil;
     try {
       const py::object fraction =
           p.total > 0 ? py::object(py::float_(std::min(1.0, double(p.done) / double(p.total)))) : py::none();
@@ -69,6 +61,13 @@ class Interrupts {
   }
 
  private:
+  // With the GIL held: runs pending signal handlers; true (and remembered) when one raised.
+  bool signalled() {
+    if (PyErr_CheckSignals() == 0) return false;
+    raised_.emplace();
+    return true;
+  }
+
   py::object progress_;
   std::string phase_;
   std::chrono::steady_clock::time_point last_{};
@@ -89,7 +88,7 @@ auto runReleased(Interrupts& interrupts, Work&& work) {
 }
 
 py::object reportDict(const JobReport& report, const std::string& mesh, MergeOrder order, bool hasOutput) {
-  const std::string json = cli::jobReportJson(report, {mesh, order, hasOutput, peakResidentBytes()});
+  const std::string json = cli::jobReportJson(report, {mesh, order, hasOutput, cli::peakResidentBytes()});
   return py::module_::import("json").attr("loads")(json);
 }
 
@@ -124,43 +123,22 @@ Options, as the command line's `facetree build`:
   threads: worker threads (0: the machine's, at most 8); the result is the same for any count.
   weld: make faces meeting at bit-identical positions neighbours.)";
 
-// The value called `name` among `values`; ArgumentError "unknown WHAT 'NAME' (a, b, c)" otherwise,
-// as the CLI words it.
-template <typename T>
-T named(const char* what, const std::string& name, std::initializer_list<std::pair<const char*, T>> values) {
-  std::string known;
-  for (const auto& [text, value] : values) {
-    if (name == text) return value;
-    known += (known.empty() ? "" : ", ") + std::string(text);
-  }
-  throw ArgumentError("unknown " + std::string(what) + " '" + name + "' (" + known + ")");
-}
-
 }  // namespace
 
 Settings settingsFrom(const std::string& metric, const std::string& order, double k, double balanceSlack,
                       double flatThreshold, unsigned branching, const std::string& recast, unsigned threads,
                       bool weld) {
-  Settings s;
-  s.build.metric = named<Metric>(
-      "metric", metric,
-      {{"willmott", Metric::Willmott}, {"garland", Metric::Garland}, {"constant", Metric::Constant}});
-  s.build.order =
-      named<MergeOrder>("merge order", order, {{"rounds", MergeOrder::Rounds}, {"exact", MergeOrder::Exact}});
-  s.file.rule = named<RecastRule>(
-      "recast rule", recast,
-      {{"largest-area", RecastRule::LargestArea}, {"fewest-nodes", RecastRule::FewestNodes}});
-  if (!(k >= 0)) throw ArgumentError("k must not be negative");
-  if (!(balanceSlack >= 0)) throw ArgumentError("balance_slack must be 0 (off) or positive");
-  if (branching != 2 && branching != 4 && branching != 8) throw ArgumentError("branching must be 2, 4 or 8");
-  if (threads > kMaxThreads)
-    throw ArgumentError("threads must be 0 (all cores) to " + std::to_string(kMaxThreads));
-  s.build.k = k;
-  s.build.balanceSlack = balanceSlack;
-  s.build.flatThreshold = flatThreshold;
-  s.build.threads = threads;
-  s.file.branching = branching;
-  s.file.build = s.build;
+  cli::BuildSettings named;
+  named.metric = metric;
+  named.order = order;
+  named.recast = recast;
+  named.k = k;
+  named.balanceSlack = balanceSlack;
+  named.flatThreshold = flatThreshold;
+  named.branching = branching;
+  named.threads = threads;
+  Settings s;  // std::invalid_argument for a bad option: an InputError in Python (errors.cpp)
+  cli::applyBuildSettings(named, cli::OptionSpelling::Python, s.build, s.file);
   s.weld = weld;
   return s;
 }
@@ -198,15 +176,10 @@ void registerJob(py::module_& m) {
           report.secondsBuilt =
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
           out.file = makeClusterFile(view, originalFace, hierarchy, s.file);
-          report.inCore = hierarchy.stats;
-          report.nodes = out.file.nodes.size();
-          report.height = hierarchy.stats.height;
-          report.balancedHeight = hierarchy.stats.balancedHeight;
-          report.components = hierarchy.stats.components;
+          report.recordInCoreBuild(hierarchy);
         });
         report.triangles = mesh.view.triangleCount();
         report.stats.vertices = mesh.view.positions.size();
-        report.cells = report.leaves = 1;
         report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         out.report = reportDict(report, "<arrays>", s.build.order, false);
         out.report["input_copied"] =
@@ -238,8 +211,7 @@ arrays or options.)") +
          double flatThreshold, unsigned branching, const std::string& recast, unsigned threads, bool weld) {
         Settings s =
             settingsFrom(metric, order, k, balanceSlack, flatThreshold, branching, recast, threads, weld);
-        if (memory != 0 && memory < (uint64_t{16} << 20)) throw ArgumentError("memory must be at least 16M");
-        if (zstdLevel < 0 || zstdLevel > 19) throw ArgumentError("zstd_level must be 1 to 19 (default 3)");
+        cli::checkJobLimits(memory, zstdLevel, cli::OptionSpelling::Python);
         ClusterJob job;
         job.input = input;
         job.output = output;
@@ -248,7 +220,7 @@ arrays or options.)") +
         job.maxTemporaryBytes = maxTmp;
         job.zstdLevel = zstdLevel;
         job.forceCellFaces = cellFaces;
-        job.threads = threads ? threads : std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
+        job.threads = cli::jobThreads(threads);
         job.build = s.build;
         job.file = s.file;
         job.load.weldPositions = s.weld;
