@@ -22,8 +22,6 @@ namespace {
 // specks, and every leaf costs the upper merge and the writer a little.
 constexpr uint32_t kMaxLeavesPerCell = 256;
 constexpr size_t kTrianglesPerBlock = 65536;
-// Non-manifold edges with more faces than this are joined as a chain (as dual_graph.cpp).
-constexpr size_t kMaxFacesJoinedPairwise = 16;
 // A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
 constexpr size_t kPairsPerBlock = 16384;
 
@@ -61,10 +59,12 @@ class VertexMap {
   size_t mask_ = 0;
 };
 
+// A face on a mesh edge that the cells share: the edge (its two vertex ids, lower first), the
+// face's cell and its CrossPair reference, its sides on the edge (u_f of EdgeShare) and the
+// edge's length.
 struct Incidence {
   uint64_t key;
-  uint32_t cell;
-  uint32_t ref;
+  uint32_t cell, ref;
   uint32_t sides;
   float length;
   bool operator<(const Incidence& o) const {
@@ -592,8 +592,7 @@ void CellsStage::pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency
         const glm::vec3 a = mesh.positions[mesh.indices[size_t{3} * f + share.corner]];
         const glm::vec3 b = mesh.positions[mesh.indices[size_t{3} * f + (share.corner + 1) % 3]];
         const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
-        localPairs.push_back(
-            {std::min(lf, lg), std::max(lf, lg), length * share.numerator / share.denominator});
+        localPairs.push_back({std::min(lf, lg), std::max(lf, lg), share.of(length)});
       }
     }
   }
@@ -628,8 +627,8 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
     if (sentGhosts) border.push_back({f, leafOf[f]});
   }
   std::sort(incidences.begin(), incidences.end());
-  // Shared lengths as the dual graph gives them: |e| u_f u_g / (U - 1) per pair of sides, and a
-  // chain past kMaxFacesJoinedPairwise faces.
+  // Shared lengths under the dual graph's edge rules (EdgeShare), which the whole mesh's graph
+  // would give these faces.
   for (size_t i = 0; i < incidences.size();) {
     size_t j = i;
     uint32_t totalSides = 0;
@@ -645,12 +644,13 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
         for (size_t a = i; a < j; ++a)
           for (size_t b = a + 1; b < j; ++b) {
             if (incidences[a].cell == incidences[b].cell) continue;
-            const double shared = length * incidences[a].sides * incidences[b].sides / (totalSides - 1);
+            const double shared =
+                EdgeShare::pair(incidences[a].sides, incidences[b].sides, totalSides).of(length);
             pairs.push_back(
                 {{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
           }
       } else {
-        const double shared = length * totalSides / (2.0 * double(k - 1));
+        const double shared = EdgeShare::chain(totalSides, k - 1).of(length);
         for (size_t a = i; a + 1 < j; ++a) {
           if (incidences[a].cell == incidences[a + 1].cell) continue;
           pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},

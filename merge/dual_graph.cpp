@@ -21,10 +21,6 @@ namespace facetree {
 
 namespace {
 
-// A non-manifold edge shared by more faces than this is joined as a chain, not all pairs: pairs
-// grow as the square of the faces on the edge, and real meshes put a handful on one.
-constexpr size_t kMaxFacesJoinedPairwise = 16;
-
 // How many of the face's three sides lie on the mesh edge (a, b): 1, or 2 for a face with a
 // repeated index such as (a, a, b).
 uint32_t uses(const FaceGeometry& geometry, uint32_t face, uint32_t a, uint32_t b) {
@@ -158,13 +154,11 @@ struct LengthPolicy {
   double edge(uint32_t a, uint32_t b, int) const {
     return glm::length(geometry.position(a) - geometry.position(b));
   }
-  // s_fg = |e| u_f u_g / (U - 1): |e| on a manifold edge; on a non-manifold one, merging all its
-  // faces removes exactly the U |e| their perimeters count, never more.
   static float pair(double length, uint32_t usesF, uint32_t usesG, uint32_t totalUses) {
-    return float(length * usesF * usesG / (totalUses - 1));
+    return float(EdgeShare::pair(usesF, usesG, totalUses).of(length));
   }
   static float chain(double length, uint32_t totalUses, size_t links) {
-    return float(length * totalUses / (2.0 * links));
+    return float(EdgeShare::chain(totalUses, links).of(length));
   }
   // One dual edge per distinct face, its mesh edges' lengths summed.
   void face(uint32_t f, const Candidate<float>* candidates, size_t count) {
@@ -186,12 +180,11 @@ struct SharePolicy {
   std::vector<FaceAdjacency::Share>& shares;
 
   static uint8_t edge(uint32_t, uint32_t, int corner) { return static_cast<uint8_t>(corner); }
-  // u_f u_g is 1, 2 or 4, and |e| u_f u_g in double is exactly (|e| u_f) u_g: the same number.
   static Value pair(uint8_t corner, uint32_t usesF, uint32_t usesG, uint32_t totalUses) {
-    return {usesF * usesG, totalUses - 1, corner, false};
+    return {EdgeShare::pair(usesF, usesG, totalUses), corner, false};
   }
   static Value chain(uint8_t corner, uint32_t totalUses, size_t links) {
-    return {totalUses, static_cast<uint32_t>(2 * links), corner, true};
+    return {EdgeShare::chain(totalUses, links), corner, true};
   }
   void face(uint32_t f, const Candidate<Value>* candidates, size_t count) {
     for (size_t i = 0; i < count; ++i) {

@@ -45,19 +45,11 @@ struct DualGraph {
   }
 };
 
-// Edge rules: edges (v, v) of faces with a repeated index are skipped; a mesh edge used by
-// k >= 3 faces (non-manifold) joins every pair of them, unless k > kMaxFacesJoinedPairwise
-// where it joins them as a chain in face order (keeps the graph linear in size); two faces
-// sharing two or three mesh edges get one dual edge carrying the summed length.
-// Shared length on a mesh edge e used by faces with U sides in all (U = 2 when manifold; a face
-// with a repeated index can lie on e with two sides): s_fg = |e| u_f u_g / (U - 1), so that
-// perim(A u B) = perim(A) + perim(B) - 2 s never goes below zero and merging every face of e
-// removes the U |e| their perimeters counted (|e| / (k - 1) per pair for k plain faces; the
-// chain links share U |e| / 2). A uniform |e| per pair would subtract more than the faces'
-// perimeters hold on meshes with many non-manifold edges, collapsing perimeters, and with them
-// the costs, to 0. Edges are
-// numbered by (lower face, higher face), so the graph is a pure function of the input.
-// Faces are matched in fixed blocks on `threads` threads; the graph is the same for every count.
+// The dual graph of `geometry` under the edge rules of EdgeShare (facetree/merge.h). Its shares, not a
+// uniform |e| per pair, keep perimeters from collapsing to 0 on meshes with many non-manifold edges,
+// where |e| per pair would subtract more than the faces' perimeters hold. Edges are numbered by
+// (lower face, higher face), so the graph is a pure function of the input. Faces are matched in
+// fixed blocks on `threads` threads; the graph is the same for every count.
 DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);
 
 // The dual graph's edges as matched, block by block (concatenated, they are buildDualGraph's
@@ -140,7 +132,7 @@ bool FaceAdjacencyAccess::Piece::forEachEdge(const FaceGeometry& piece, Emit&& e
       for (const FaceAdjacency::Share& s : a.shares(x.edge)) {
         const uint32_t va = piece.vertex(low, s.corner), vb = piece.vertex(low, (s.corner + 1) % 3);
         const double length = glm::length(piece.position(va) - piece.position(vb));
-        shared += float(length * s.numerator / s.denominator);
+        shared += float(s.of(length));
       }
       emit(k, x.position, shared);
     }

@@ -101,10 +101,11 @@ class FinishedBlocks {
   uint32_t prefix_ = 0;
 };
 
+// A dual edge as one of its ends lists it: the other end, the length the two share and the
+// edge's merge key (kBlockedKey when blocked); both ends hold the same key.
 struct Half {
   uint32_t neighbour;
-  float shared;
-  float key;
+  float shared, key;
 };
 
 // A cluster's statistics about its own centroid (Willmott 2000, sec. 5.2.3: the moments are

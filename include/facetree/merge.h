@@ -29,7 +29,7 @@ namespace facetree {
 // An indexed triangle mesh the caller owns: `indices` holds three vertex indices per triangle.
 struct MeshView {
   std::span<const glm::vec3> positions;
-  std::span<const uint32_t> indices;
+  std::span<const uint32_t> indices;  // 3 per triangle, into positions
   size_t triangleCount() const { return indices.size() / 3; }
 };
 
@@ -52,18 +52,18 @@ enum class MergeOrder : uint8_t {
 
 // Options of buildHierarchy and mergeClusters.
 struct BuildOptions {
-  Metric metric = Metric::Willmott;
-  MergeOrder order = MergeOrder::Rounds;
-  double k = 1e-4;             // balance weight of eq. 80
-  double flatThreshold = 0.5;  // eq. 78: |S|/A above it takes S as the cluster normal
-  double garlandFitWeight = 1.0;
-  double garlandDirWeight = 1.0;
-  double garlandShapeWeight = 1.0;
+  Metric metric = Metric::Willmott;       // the merge cost
+  MergeOrder order = MergeOrder::Rounds;  // how the merges are chosen (MergeOrder)
+  double k = 1e-4;                        // balance weight of eq. 80
+  double flatThreshold = 0.5;             // eq. 78: |S|/A above it takes S as the cluster normal
+  // Metric::Garland's cost: the weights of its fit, orientation and shape errors (Garland,
+  // Willmott & Heckbert 2001).
+  double garlandFitWeight = 1.0, garlandDirWeight = 1.0, garlandShapeWeight = 1.0;
   // Balance guard (Willmott metric only): a merge whose subtree height h' exceeds
   // balanceSlack * (ceil(log2 n') + 1) for its n' faces gets its cost multiplied by
   // kBalancePenaltyBase^(excess) (balance_guard.h). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
-  bool computeBoxes = true;
+  bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.
   unsigned threads = 0;
@@ -85,35 +85,35 @@ enum NodeFlag : uint32_t {
 
 // Topology and merge statistics of one internal node.
 struct Node {
-  uint32_t child[2];
-  uint32_t first;  // faces [first, first + count) of faceOrder
+  uint32_t child[2];  // node indices, or kFaceChild | face position
+  uint32_t first;     // faces [first, first + count) of faceOrder
   uint32_t count;
-  uint32_t flags;
-  float cost;  // merge cost when the node was created (with the balance guard's penalty)
-  float area;
-  float perimeter;
-  glm::vec3 sumNormal;  // S = sum of area-weighted face normals; projArea = |S|
+  uint32_t flags;         // NodeFlag bits
+  float cost;             // merge cost when the node was created (with the balance guard's penalty)
+  float area, perimeter;  // of the cluster's surface and its boundary (shared edges removed)
+  glm::vec3 sumNormal;    // S = sum of area-weighted face normals; projArea = |S|
 };
 
 // Oriented box: axes are the columns of mat3_cast(orientation); every vertex of the node's
 // faces lies in center +- halfExtent along them, and each of the six faces touches a vertex.
 struct NodeBox {
   glm::vec3 center;
-  glm::quat orientation;
-  glm::vec3 halfExtent;
-  float sideArea[6];  // projected area facing +axis0, -axis0, +axis1, -axis1, +axis2, -axis2
+  glm::quat orientation;  // the box's axes
+  glm::vec3 halfExtent;   // along each axis
+  float sideArea[6];      // projected area facing +axis0, -axis0, +axis1, -axis1, +axis2, -axis2
 };
 
 // What a build measured: height, degrees, solver counts, rounds and per-phase times.
 struct BuildStats {
-  uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
-  uint32_t balancedHeight = 0;  // ceil(log2 n) + 1
-  double averageDegree = 0;     // dual-edge degree of merged clusters, sampled at each merge
-  uint32_t maxDegree = 0;
+  uint32_t height = 0;           // nodes on the longest root-to-face path, faces included
+  uint32_t balancedHeight = 0;   // ceil(log2 n) + 1
+  double averageDegree = 0;      // dual-edge degree of merged clusters, sampled at each merge
+  uint32_t maxDegree = 0;        // the largest of those degrees
   uint64_t eigenSolves = 0;      // PCA solves for non-flat clusters
   uint64_t normalShortcuts = 0;  // clusters whose normal came from S (eq. 78)
   uint64_t components = 0;       // roots joined at the top: components, and pieces the balance guard blocked
   uint32_t rounds = 0;           // rounds of reciprocal pairs before the greedy finished (MergeOrder::Rounds)
+  // Per phase: the dual graph, the merge (the cost and eigen solves within it), the boxes.
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
 };
 
@@ -124,7 +124,7 @@ struct Hierarchy {
   std::vector<Node> nodes;
   std::vector<NodeBox> boxes;       // parallel to nodes (empty without computeBoxes)
   std::vector<uint32_t> faceOrder;  // faceOrder[i] = input triangle of the i-th face in hierarchy order
-  BuildStats stats;
+  BuildStats stats;                 // what the build measured
 };
 
 // Builds the binary face cluster hierarchy of `mesh` down to single triangles.
@@ -146,13 +146,13 @@ void computeBoxes(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions
 // about a caller-chosen origin (use one origin for all pieces that will be merged together, e.g. the centre
 // of the model's bounding box, so the variance does not cancel).
 struct SurfaceStats {
-  double area = 0;
+  double area = 0;              // A
   double perimeter = 0;         // boundary length, as the engine counts it (dual-edge shared lengths removed)
   glm::dvec3 sumNormal{0.0};    // S
   glm::dvec3 firstMoment{0.0};  // integral of x dA
   double secondMoment[6] = {};  // integral of x x^T dA: xx xy xz yy yz zz
-  uint64_t faceCount = 0;
-  uint32_t height = 1;  // nodes on the longest root-to-face path, the face included
+  uint64_t faceCount = 0;       // faces in the set
+  uint32_t height = 1;          // nodes on the longest root-to-face path, the face included
 };
 
 // Garland's per-cluster quadrics for Metric::Garland (Garland, Willmott & Heckbert 2001, as MixKit's
@@ -161,13 +161,15 @@ struct SurfaceStats {
 // weighted by sqrt(area) (W = sum sqrt(a_f), sum sqrt(a_f) n_f, sum sqrt(a_f) n_f n_f^T), with the plain sum
 // of unit normals. Degenerate faces add their corners only.
 struct GarlandQuadrics {
-  double cornerSecond[6] = {};  // xx xy xz yy yz zz
+  // Corner quadric: sum of v v^T (xx xy xz yy yz zz), sum of v, and the number of corners.
+  double cornerSecond[6] = {};
   glm::dvec3 cornerFirst{0.0};
   double cornerCount = 0;
+  // Orientation quadric: W, sum of sqrt(a_f) n_f, and sum of sqrt(a_f) n_f n_f^T (xx ... zz).
   double dirWeight = 0;
   glm::dvec3 dirFirst{0.0};
-  double dirSecond[6] = {};  // xx xy xz yy yz zz
-  glm::dvec3 normalSum{0.0};
+  double dirSecond[6] = {};
+  glm::dvec3 normalSum{0.0};  // sum of unit face normals
 };
 
 // Statistics of all triangles of `mesh` about `origin` (perimeter = sum of triangle perimeters minus twice
@@ -185,13 +187,38 @@ GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin);
 // surface (facetree/io.h cutFit).
 double surfaceFitError(const SurfaceStats& stats, double flatThreshold = 0.5);
 
-// Edge-connected components under the dual graph's edge rules (dual_graph.h): label[f] for each triangle,
+// The dual graph's edge rules, which every builder of dual edges follows, the pieces' as the whole mesh's:
+// a face with a repeated index skips its edge (v, v); a mesh edge joins every pair of the faces on it, or,
+// with more than kMaxFacesJoinedPairwise faces, joins them as a chain in face order (pairs would grow as
+// the square of the faces on an edge); two faces sharing two or three mesh edges get one dual edge carrying
+// the summed shared length.
+inline constexpr size_t kMaxFacesJoinedPairwise = 16;
+// The part of a mesh edge's length |e| that two faces joined across it share: u_f u_g / (U - 1) for a
+// pair, U / (2 (K - 1)) for a link of a chain of K faces, where u_f counts the sides face f has on the edge
+// (2 for a face such as (a, a, b)) and U the sides of all its faces. Merging every face of the edge then
+// removes exactly the U |e| their perimeters count (|e| for a manifold edge), so perim(A u B) =
+// perim(A) + perim(B) - 2 s never goes below zero.
+struct EdgeShare {
+  uint32_t numerator = 1, denominator = 1;  // the share is numerator / denominator of |e|
+
+  static EdgeShare pair(uint32_t usesF, uint32_t usesG, uint32_t totalUses) {
+    return {usesF * usesG, totalUses - 1};
+  }
+  static EdgeShare chain(uint32_t totalUses, size_t links) {
+    return {totalUses, static_cast<uint32_t>(2 * links)};
+  }
+  // The shared length for an edge of length `length`; u_f u_g is 1, 2 or 4, so this is the same number
+  // as |e| u_f u_g / (U - 1) evaluated left to right.
+  double of(double length) const { return length * numerator / denominator; }
+};
+
+// Edge-connected components under the dual graph's edge rules (EdgeShare): label[f] for each triangle,
 // components numbered 0, 1, ... in order of their lowest triangle. Returns the number of components.
 // Throws std::invalid_argument as buildHierarchy does for invalid indices.
 uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& label);
 
 // The dual graph's matching of a mesh without its lengths: which faces share which mesh edges under the
-// edge rules (dual_graph.h), and which factor of each edge's length they share. Built once for a mesh (an
+// edge rules (EdgeShare), and which factor of each edge's length they share. Built once for a mesh (an
 // out-of-core cell), it stands in for the dual graph that faceComponents, buildHierarchy and surfaceStats
 // would each build again for the pieces of it; lengths are evaluated per piece about the piece's own
 // origin, so every result is bit-identical to the call on the piece's own MeshView.
@@ -204,11 +231,8 @@ class FaceAdjacency {
     uint32_t edge;
   };
   // One mesh edge's part in a dual edge: the edge from corner `corner` to corner (corner + 1) % 3 of the
-  // dual edge's lower face, of which the two faces share length * numerator / denominator (dual_graph.h:
-  // u_f u_g / (U - 1) pairwise, U / (2 (K - 1)) along a chain of K faces).
-  struct Share {
-    uint32_t numerator = 1;
-    uint32_t denominator = 1;
+  // dual edge's lower face, and the share of its length the two faces have.
+  struct Share : EdgeShare {
     uint8_t corner = 0;
     bool chain = false;
   };
@@ -260,8 +284,8 @@ SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::
 
 // A dual edge between two leaf clusters (a != b): shared boundary length. Parallel edges are summed.
 struct ClusterEdge {
-  uint32_t a = 0, b = 0;
-  double shared = 0;
+  uint32_t a = 0, b = 0;  // the two leaf clusters, by index
+  double shared = 0;      // the boundary length they share
 };
 
 // A child reference to a leaf cluster: its index with kFaceChild's bit (a leaf stands where a face
@@ -281,8 +305,8 @@ struct ClusterMergeResult {
   std::vector<ClusterMergeNode> nodes;  // creation order; the last one is the root (leaves.size()-1 nodes)
   uint64_t components = 0;              // roots left when the edges ran out (then joined)
   double averageDegree = 0;             // dual-edge degree of merged clusters, sampled at each edge merge
-  uint32_t maxDegree = 0;
-  uint64_t eigenSolves = 0, normalShortcuts = 0;
+  uint32_t maxDegree = 0;               // as BuildStats
+  uint64_t eigenSolves = 0, normalShortcuts = 0;  // as BuildStats
   uint32_t rounds = 0;  // rounds of reciprocal pairs before the greedy (0 under MergeOrder::Exact)
 };
 
@@ -406,19 +430,19 @@ struct OctreeOptions {
 struct OctreeNode {
   glm::vec3 boxMin, boxMax;  // tight box of every finite triangle of the subtree
   glm::vec3 cubeMin;         // the node's octant: [cubeMin, cubeMin + cubeSize] per axis
-  float cubeSize;
-  uint32_t first;       // subtree triangles [first, first + count) of triangleOrder,
-  uint32_t count;       //   the node's own ones first, then each child's range in turn
-  uint32_t ownCount;    // triangles larger than a child octant (all of them at a leaf)
-  uint32_t firstChild;  // children are nodes [firstChild, firstChild + childCount)
-  uint32_t childCount;  // 0 to 8, in octant order (bit 0 x, bit 1 y, bit 2 z: upper half)
-  uint32_t depth;       // root 0
+  float cubeSize;            // the octant's edge length
+  uint32_t first;            // subtree triangles [first, first + count) of triangleOrder,
+  uint32_t count;            //   the node's own ones first, then each child's range in turn
+  uint32_t ownCount;         // triangles larger than a child octant (all of them at a leaf)
+  uint32_t firstChild;       // children are nodes [firstChild, firstChild + childCount)
+  uint32_t childCount;       // 0 to 8, in octant order (bit 0 x, bit 1 y, bit 2 z: upper half)
+  uint32_t depth;            // root 0
 };
 
 // What buildOctree measured.
 struct OctreeStats {
-  uint32_t height = 0;  // nodes on the longest root-to-triangle path, the triangle included
-  uint64_t leaves = 0;
+  uint32_t height = 0;          // nodes on the longest root-to-triangle path, the triangle included
+  uint64_t leaves = 0;          // nodes without children
   uint32_t maxOwnCount = 0;     // the most triangles kept at one node
   uint64_t keptAbove = 0;       // triangles kept at an internal node (larger than a child octant)
   double secondsPartition = 0;  // triangle bounds and the top-down partition
@@ -429,7 +453,7 @@ struct OctreeStats {
 struct Octree {
   std::vector<OctreeNode> nodes;        // breadth first: nodes[0] is the root, children after parents
   std::vector<uint32_t> triangleOrder;  // triangleOrder[i] = input triangle at position i
-  OctreeStats stats;
+  OctreeStats stats;                    // what the build measured
 };
 
 // Builds the octree of `mesh`, iteratively (no recursion). Throws std::invalid_argument as
