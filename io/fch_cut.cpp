@@ -5,10 +5,35 @@
 
 namespace facetree {
 
+namespace {
+
+// Calls visit(first, end, ref) with the face range [first, end) of each child of `node` that has a
+// record, in order: a face child is one position, a node child its range. Children cut off by
+// truncation have none and are skipped; the ranges of the others partition the node's in order,
+// with gaps where skipped children lie.
+template <class Visit>
+void forEachChildRange(const ClusterFile& file, const FchNode& node, Visit&& visit) {
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t ref = node.child[c];
+    if (ref & kFaceChild) {
+      const uint64_t position = ref & ~kFaceChild;
+      visit(position, position + 1, ref);
+    } else if (ref < file.nodes.size()) {
+      const FchNode& child = file.nodes[ref];
+      visit(uint64_t{child.first}, uint64_t{child.first} + child.count, ref);
+    }
+  }
+}
+
+uint64_t rangeEnd(const FchNode& node) {
+  return uint64_t{node.first} + node.count;
+}
+
+}  // namespace
+
 std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector<uint8_t>& kept) {
   const size_t faces = file.indices.size() / 3;
   std::vector<uint32_t> owner(faces, kNoOwner);
-  auto isKept = [&](uint32_t ref) { return !(ref & kFaceChild) && ref < file.nodes.size() && kept[ref]; };
   auto paint = [&](uint64_t begin, uint64_t end, uint32_t node) {
     for (uint64_t p = begin; p < std::min<uint64_t>(end, faces); ++p) owner[p] = node;
   };
@@ -17,13 +42,12 @@ std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector
     const FchNode& node = file.nodes[j];
     // Children partition the range in order: paint the gaps between kept node children.
     uint64_t cursor = node.first;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      if (!isKept(ref)) continue;
-      paint(cursor, file.nodes[ref].first, static_cast<uint32_t>(j));
-      cursor = uint64_t{file.nodes[ref].first} + file.nodes[ref].count;
-    }
-    paint(cursor, uint64_t{node.first} + node.count, static_cast<uint32_t>(j));
+    forEachChildRange(file, node, [&](uint64_t first, uint64_t end, uint32_t ref) {
+      if ((ref & kFaceChild) || !kept[ref]) return;
+      paint(cursor, first, static_cast<uint32_t>(j));
+      cursor = end;
+    });
+    paint(cursor, rangeEnd(node), static_cast<uint32_t>(j));
   }
   return owner;
 }
@@ -46,23 +70,14 @@ std::vector<uint32_t> frontierClusters(const ClusterFile& file, const std::vecto
     if (!kept[j]) continue;
     const FchNode& node = file.nodes[j];
     uint64_t cursor = node.first;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      if (ref & kFaceChild) {
-        const uint64_t position = ref & ~kFaceChild;
-        if (position > cursor) mark(cursor);  // a gap left by cut-off children
-        mark(position);
-        cursor = position + 1;
-      } else if (ref < file.nodes.size()) {
-        const FchNode& child = file.nodes[ref];
-        if (child.first > cursor) mark(cursor);
-        mark(child.first);
-        cursor = uint64_t{child.first} + child.count;
-      }
-    }
-    if (cursor < uint64_t{node.first} + node.count) mark(cursor);
+    forEachChildRange(file, node, [&](uint64_t first, uint64_t end, uint32_t) {
+      if (first > cursor) mark(cursor);  // a gap left by cut-off children
+      mark(first);
+      cursor = end;
+    });
+    if (cursor < rangeEnd(node)) mark(cursor);
     // The end of a node is the start of whatever follows it.
-    mark(uint64_t{node.first} + node.count);
+    mark(rangeEnd(node));
   }
   std::vector<uint32_t> cluster(faces);
   uint32_t next = 0;

@@ -240,6 +240,14 @@ struct ClusterFileWriter::State {
   [[noreturn]] void reject(const std::string& what) const {
     throw std::invalid_argument("ClusterFileWriter " + name + ": " + what);
   }
+  // Section `s`, about to take `count` more of its elements (`what`): refuses more than declared.
+  Section& arriving(FchSection s, const char* what, size_t count) {
+    Section& sec = section(s);
+    if (count > sec.declared - sec.arrived)
+      reject(std::string(what) + " " + str(sec.arrived) + " ... " + str(sec.arrived + count - 1) +
+             " beyond the declared " + str(sec.declared));
+    return sec;
+  }
   void checkNode(const FchNode& node, uint64_t index) const;
   void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw);
   // Places a compressed frame: in the output (file-output nodes) or its section's spill.
@@ -453,10 +461,7 @@ ClusterFileWriter::~ClusterFileWriter() {
 void ClusterFileWriter::addNodes(std::span<const FchNode> nodes) {
   State& s = *state_;
   s.guarded("addNodes", [&] {
-    State::Section& sec = s.section(FchSection::Nodes);
-    if (nodes.size() > sec.declared - sec.arrived)
-      s.reject("nodes " + str(sec.arrived) + " ... " + str(sec.arrived + nodes.size() - 1) +
-               " beyond the declared " + str(sec.declared));
+    State::Section& sec = s.arriving(FchSection::Nodes, "nodes", nodes.size());
     for (size_t i = 0; i < nodes.size(); ++i) s.checkNode(nodes[i], sec.arrived + i);
     if (s.nodes.capacity() == 0) s.nodes.reserve(std::min<uint64_t>(s.layout.nodesPerFrame, sec.declared));
     appendFrames(nodes, s.nodes, sec.arrived, sec.declared, s.layout.nodesPerFrame,
@@ -467,10 +472,7 @@ void ClusterFileWriter::addNodes(std::span<const FchNode> nodes) {
 void ClusterFileWriter::addVertices(std::span<const glm::vec3> vertices) {
   State& s = *state_;
   s.guarded("addVertices", [&] {
-    State::Section& sec = s.section(FchSection::Vertices);
-    if (vertices.size() > sec.declared - sec.arrived)
-      s.reject("vertices " + str(sec.arrived) + " ... " + str(sec.arrived + vertices.size() - 1) +
-               " beyond the declared " + str(sec.declared));
+    State::Section& sec = s.arriving(FchSection::Vertices, "vertices", vertices.size());
     FileHeader& h = s.layout.header;
     for (const glm::vec3& p : vertices)
       h.boundsMin = glm::min(h.boundsMin, p), h.boundsMax = glm::max(h.boundsMax, p);
@@ -485,13 +487,10 @@ void ClusterFileWriter::addTriangles(std::span<const uint32_t> indices,
                                      std::span<const uint64_t> originalFace) {
   State& s = *state_;
   s.guarded("addTriangles", [&] {
-    State::Section& sec = s.section(FchSection::Triangles);
     if (indices.size() != 3 * originalFace.size())
       s.reject(str(indices.size()) + " vertex indices for " + str(originalFace.size()) +
                " original face ids (3 per triangle)");
-    if (originalFace.size() > sec.declared - sec.arrived)
-      s.reject("triangles " + str(sec.arrived) + " ... " + str(sec.arrived + originalFace.size() - 1) +
-               " beyond the declared " + str(sec.declared));
+    State::Section& sec = s.arriving(FchSection::Triangles, "triangles", originalFace.size());
     const uint64_t vertexCount = s.layout.header.vertexCount;
     for (size_t i = 0; i < indices.size(); ++i)
       if (indices[i] >= vertexCount)

@@ -46,39 +46,36 @@ enum FchNodeFlag : uint8_t {
 
 // Header fields other than the layout (counts of what the file holds and the options used).
 struct FileHeader {
-  uint32_t version = kFchVersion;
-  uint64_t nodeCount = 0;
+  uint32_t version = kFchVersion;  // of the format (docs/FORMAT.md)
+  uint64_t nodeCount = 0;          // nodes in the file
   uint64_t originalNodeCount = 0;  // before truncation
   uint64_t triangleCount = 0;
   uint64_t vertexCount = 0;
-  uint32_t branching = 2;
-  Metric metric = Metric::Willmott;
+  uint32_t branching = 2;            // most children a node has: 2, 4 or 8
+  Metric metric = Metric::Willmott;  // the build's options, recorded
   double k = 0;
   double flatThreshold = 0;
-  double garlandWeights[3] = {1, 1, 1};  // fit, dir, shape
-  uint64_t memoryCapBytes = 0;           // 0 = not given
-  glm::vec3 boundsMin{0.0f};
-  glm::vec3 boundsMax{0.0f};
+  double garlandWeights[3] = {1, 1, 1};        // fit, dir, shape
+  uint64_t memoryCapBytes = 0;                 // 0 = not given
+  glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // of the vertices
 };
 
 // One node. A child reference is a node index (>= nodes.size() means cut off by truncation) or
 // kFaceChild | face position; children are in face-range order and partition [first, first+count).
 struct FchNode {
-  uint32_t first = 0;
-  uint32_t count = 0;
+  uint32_t first = 0, count = 0;  // its faces: positions [first, first + count) of the face order
   uint8_t childCount = 0;
-  uint8_t flags = 0;
-  uint32_t child[kMaxBranching] = {};
-  float cost = 0;
-  float area = 0;
-  float perimeter = 0;
-  glm::vec3 sumNormal{0.0f};
+  uint8_t flags = 0;                   // FchNodeFlag bits
+  uint32_t child[kMaxBranching] = {};  // childCount references, in face-range order
+  float cost = 0;                      // as Node::cost
+  float area = 0, perimeter = 0;       // of the cluster's surface and its boundary
+  glm::vec3 sumNormal{0.0f};           // S = sum of area-weighted face normals; projArea = |S|
   NodeBox box{};
 };
 
 // A whole cluster file in memory: header, nodes in file order and the reordered mesh.
 struct ClusterFile {
-  FileHeader header;
+  FileHeader header;                   // counts and the build's options
   std::vector<FchNode> nodes;          // root first; every child after its parent
   std::vector<glm::vec3> vertices;     // numbered by first use along `indices`
   std::vector<uint32_t> indices;       // 3 per triangle, triangles in hierarchy order
@@ -99,10 +96,10 @@ enum class RecastRule : uint8_t {
 
 // How a hierarchy becomes a cluster file: branching, recast rule, options recorded.
 struct FileOptions {
-  uint32_t branching = 2;  // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
-  RecastRule rule = RecastRule::LargestArea;
-  BuildOptions build;           // recorded in the header
-  uint64_t memoryCapBytes = 0;  // recorded in the header
+  uint32_t branching = 2;                     // 2 ... kMaxBranching (sec. 5.5.1: 4 and 8 are the useful ones)
+  RecastRule rule = RecastRule::LargestArea;  // how binary nodes are grouped into b-ary ones
+  BuildOptions build;                         // recorded in the header
+  uint64_t memoryCapBytes = 0;                // recorded in the header
 };
 
 // The header fields that record the build's options (the counts are the writer's to fill in).
@@ -111,8 +108,8 @@ FileHeader optionsHeader(const FileOptions& options);
 // Recast statistics (sec. 5.5.1).
 struct BranchingStats {
   uint32_t branching = 2;
-  uint64_t triangles = 0;
-  uint64_t internalNodes = 0;
+  uint64_t triangles = 0;                                    // faces, the tree's leaves
+  uint64_t internalNodes = 0;                                // nodes of the file
   double eq85Nodes = 0;                                      // (n - 1) / (b - 1), the full-b-ary count
   std::array<uint64_t, kMaxBranching + 1> childHistogram{};  // nodes by number of children
   uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
@@ -215,24 +212,23 @@ enum class FchSection : uint32_t { Nodes = 1, Vertices = 2, Triangles = 3, Origi
 const char* sectionName(FchSection section);
 // One compressed frame of the frame index: its section, its elements and where its bytes are.
 struct FchFrame {
-  FchSection section{};
-  uint32_t count = 0;
-  uint64_t first = 0;
-  uint64_t offset = 0;
-  uint32_t compressedBytes = 0;
-  uint32_t rawBytes = 0;
-  uint64_t checksum = 0;
+  FchSection section{};                        // what the frame holds
+  uint32_t count = 0;                          // elements (nodes, vertices, triangles or ids) in the frame
+  uint64_t first = 0;                          // index in its section of the frame's first element
+  uint64_t offset = 0;                         // where its compressed bytes start in the file
+  uint32_t compressedBytes = 0, rawBytes = 0;  // its size in the file, and decompressed
+  uint64_t checksum = 0;                       // XXH64 of the raw (decompressed) bytes
 };
 // A cluster file's header and frame index, as readClusterFileLayout reads them.
 struct FchLayout {
   FileHeader header;
-  uint64_t fileBytes = 0;
-  uint32_t headerBytes = 0;
-  uint32_t nodesPerFrame = 0;
-  uint32_t geometryPerFrame = 0;
-  uint32_t originalIdBytes = 0;
-  int zstdLevel = 0;
-  std::vector<FchFrame> frames;
+  uint64_t fileBytes = 0;    // the file's size
+  uint32_t headerBytes = 0;  // the header and frame index, before the first frame
+  // Elements per frame: nodes in a node frame; vertices, triangles or ids in the others.
+  uint32_t nodesPerFrame = 0, geometryPerFrame = 0;
+  uint32_t originalIdBytes = 0;  // 4, or 8 when an input face id exceeds 32 bits
+  int zstdLevel = 0;             // the level the frames were compressed at
+  std::vector<FchFrame> frames;  // in file order
 };
 // Header and frame index only (validated; frame contents are not read).
 FchLayout readClusterFileLayout(const std::filesystem::path& path);
@@ -240,8 +236,8 @@ FchLayout readClusterFileLayout(const std::filesystem::path& path);
 // Keeps the first `nodes` nodes (1 <= nodes; more than the file has keeps all): whole node frames
 // and the geometry are copied, only the last partial node frame is recompressed.
 struct TruncateResult {
-  uint64_t nodes = 0;
-  uint64_t bytes = 0;
+  uint64_t nodes = 0;  // nodes kept
+  uint64_t bytes = 0;  // the truncated file's size
 };
 // Writes the first `nodes` nodes of `in` to `out`.
 TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
@@ -257,7 +253,7 @@ void truncateInMemory(ClusterFile& file, uint64_t nodes);
 // areas); `message` names the first violation: "node N: CHECK: detail".
 struct VerifyResult {
   bool ok = true;
-  std::string message;
+  std::string message;  // the first invariant broken, where and how; empty when ok
   uint64_t nodesChecked = 0;
 };
 // Which invariants verifyClusterFile checks besides the tree and the face ranges.
@@ -321,7 +317,7 @@ void writeMesh(std::span<const glm::vec3> vertices, std::span<const uint32_t> in
 struct RecastTree {
   std::vector<uint32_t> binaryNode;                        // ascending: creation order descending
   std::vector<std::array<uint32_t, kMaxBranching>> child;  // parallel to binaryNode
-  std::vector<uint8_t> childCount;
+  std::vector<uint8_t> childCount;                         // parallel to binaryNode
   std::vector<uint8_t> joinFlag;  // some collapsed binary merge joined disjoint surfaces
 };
 
@@ -379,8 +375,8 @@ enum class SyntheticKind { Grid, Sphere, Terrain, Strip };
 // Size, shuffling and seed of a synthetic mesh.
 struct GenerateOptions {
   uint64_t triangles = 20000;  // approximate target; the shape rounds it
-  bool shuffleVertices = false;
-  bool shuffleFaces = false;
+  // Shuffled orders, as scans written in no spatial order have them (seeded: reproducible).
+  bool shuffleVertices = false, shuffleFaces = false;
   uint64_t seed = 1;
 };
 // What a generator wrote.
@@ -401,8 +397,7 @@ GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const
 // Pictures and coloured exports of a clustering. `faceCluster[i]` is the cluster of triangle i
 // of `mesh`; colours are a deterministic function of the cluster id.
 struct RenderOptions {
-  int width = 1024;
-  int height = 768;
+  int width = 1024, height = 768;  // of the picture, in pixels
   // Viewing direction (from the camera towards the model) and up vector; the camera frames the
   // bounding box. Zero means the default three-quarter view.
   glm::vec3 viewDirection{0.0f};
