@@ -27,12 +27,12 @@ namespace facetree {
 // non-finite vertex are dropped by the reader; originalFace maps each triangle back to the
 // face index of the file.
 struct IndexedMesh {
-  MeshInfo info;
-  ReadStats stats;
+  MeshInfo info;    // the file's format and declared counts
+  ReadStats stats;  // what the reader read
   std::vector<glm::vec3> positions;
-  std::vector<uint32_t> indices;
-  std::vector<uint64_t> originalFace;
-  uint64_t weldedVertices = 0;  // vertices replaced by an earlier one at the same position
+  std::vector<uint32_t> indices;       // 3 per triangle, into positions
+  std::vector<uint64_t> originalFace;  // per triangle: its face in the file
+  uint64_t weldedVertices = 0;         // vertices replaced by an earlier one at the same position
   MeshView view() const { return {positions, indices}; }
 };
 
@@ -65,8 +65,8 @@ uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t>
 // What the job reports to ClusterJob::progress: the stage and how far it is.
 struct JobProgress {
   const char* phase = "";  // "read", "bin", "cells", "merge", "write"
-  uint64_t done = 0;
-  uint64_t total = 0;  // 0 = unknown
+  uint64_t done = 0;       // how much of the stage is done, in its units (bytes read, faces)
+  uint64_t total = 0;      // of as many units; 0 = unknown
 };
 
 // A whole build: input, outputs, options, cap and temporary space, hooks (runClusterJob).
@@ -76,14 +76,14 @@ struct ClusterJob {
   // The reordered mesh (writeReorderedMesh: PLY or Draco by extension); empty = none. It needs the
   // mesh in memory: a job that has to go out of core with it throws Error (Resource).
   std::filesystem::path meshOut;
-  MeshOutOptions meshOutOptions;
-  BuildOptions build;
+  MeshOutOptions meshOutOptions;   // how meshOut is written
+  BuildOptions build;              // the merge's options (cost, order, threads, cancellation)
   FileOptions file;                // branching, recast rule (file.build and memoryCapBytes are filled in)
   LoadOptions load;                // weldPositions: also out of core (an external sort)
   uint64_t memoryCap = 0;          // bytes; 0 = half the physical memory
   std::filesystem::path tmpDir;    // parent of the run's temporary directory; empty = system default
   uint64_t maxTemporaryBytes = 0;  // 0 = no limit
-  unsigned threads = 2;
+  unsigned threads = 2;            // of the out-of-core stages (the cells build in parallel)
   // zstd level of the cluster file's frames; 0 = 3, in core and out of core. Higher levels buy a
   // few percent smaller files for several times the write time (docs/benchmarks.md).
   int zstdLevel = 0;
@@ -99,29 +99,28 @@ struct ClusterJob {
 
 // What runClusterJob measured and built: counts, per-stage times and peaks, bytes.
 struct JobReport {
-  bool outOfCore = false;
-  MeshInfo info;
-  ReadStats stats;
-  uint64_t triangles = 0;
+  bool outOfCore = false;       // the job went out of core
+  MeshInfo info;                // the input's format and declared counts
+  ReadStats stats;              // what the reader read
+  uint64_t triangles = 0;       // triangles clustered
   uint64_t weldedVertices = 0;  // LoadOptions::weldPositions (out of core: of the vertices used)
-  uint64_t nodes = 0;
-  uint64_t cells = 0;
-  uint64_t leaves = 0;           // leaf clusters the upper merge started from (out of core)
-  uint64_t crossEdges = 0;       // dual edges between leaf clusters (out of core)
-  uint64_t upperComponents = 0;  // roots the upper merge joined (flagged) for want of edges
-  uint64_t cellFaceLimit = 0;
-  uint32_t height = 0;
-  uint32_t balancedHeight = 0;
-  uint64_t components = 0;
-  uint64_t fileBytes = 0;
-  uint64_t temporaryBytesPeak = 0;
-  uint64_t memoryCap = 0;
+  uint64_t nodes = 0;           // in core the binary hierarchy's nodes, out of core the file's
+  uint64_t components = 0;      // edge-connected components, joined under flagged nodes
+  // The tree's height, and that of a balanced binary tree over as many faces.
+  uint32_t height = 0, balancedHeight = 0;
+  // Out of core: the cells and their face limit; the leaf clusters the upper merge started from,
+  // the dual edges between them, and the roots it joined (flagged) for want of edges.
+  uint64_t cells = 0, cellFaceLimit = 0;
+  uint64_t leaves = 0, crossEdges = 0, upperComponents = 0;    // of the upper merge
+  uint64_t fileBytes = 0;                                      // the cluster file's size
+  uint64_t temporaryBytesPeak = 0;                             // the most the temporary files held at once
+  uint64_t memoryCap = 0;                                      // the cap the job ran under
   std::vector<std::pair<const char*, uint64_t>> peakRssAfter;  // process peak RSS after each phase
   // Per pass; secondsMerge is the whole in-core build (buildHierarchy) for in-core jobs, the merge
-  // above the cells out of core. secondsBuilt: from the start to the finished hierarchy.
+  // above the cells out of core; seconds, the whole job.
   double secondsRead = 0, secondsBin = 0, secondsCells = 0, secondsMerge = 0, secondsWrite = 0, seconds = 0;
-  double secondsBuilt = 0;
-  BuildStats inCore;  // the in-core build's statistics (in-core jobs only)
+  double secondsBuilt = 0;  // from the start to the finished hierarchy
+  BuildStats inCore;        // the in-core build's statistics (in-core jobs only)
 
   // Records an in-core build of `hierarchy` (one cell, one leaf): its statistics, node count and
   // heights, as the job reports them.

@@ -31,9 +31,9 @@ inline constexpr uint32_t kNoVertex = 0xFFFFFFFFu;
 // One triangle as the reader hands it on. `face` is the index of the face in the file
 // (before fan triangulation); `vertex` are indices into the reader's VertexSource.
 struct Triangle {
-  glm::vec3 position[3];
-  uint32_t vertex[3];
-  uint64_t face;
+  glm::vec3 position[3];  // of its corners
+  uint32_t vertex[3];     // the corners' indices in the reader's VertexSource
+  uint64_t face;          // the file's face it comes from
 };
 
 // The formats the readers detect from a stream's content.
@@ -51,11 +51,11 @@ const char* formatName(MeshFormat format);
 
 // What a reader knows of its input before and while reading.
 struct MeshInfo {
-  std::string name;  // file name as given, "-" for standard input
-  MeshFormat format{};
-  bool zstdCompressed = false;
+  std::string name;               // file name as given, "-" for standard input
+  MeshFormat format{};            // as detected from the content
+  bool zstdCompressed = false;    // read through zstd
   uint64_t declaredVertices = 0;  // from the header where the format has one, else 0
-  uint64_t declaredFaces = 0;
+  uint64_t declaredFaces = 0;     // likewise
 };
 
 // Counts gathered while reading; final once read() returned 0.
@@ -65,9 +65,9 @@ struct ReadStats {
   uint64_t triangles = 0;            // triangles handed on
   uint64_t degenerateTriangles = 0;  // repeated vertex index or zero area: handed on, counted
   uint64_t skippedTriangles = 0;     // touching a NaN/Inf vertex: not handed on
-  uint64_t nonFiniteVertices = 0;
-  uint64_t inputBytes = 0;       // bytes of the (decompressed) mesh file consumed
-  uint64_t compressedBytes = 0;  // bytes read from disk when zstd-compressed, else 0
+  uint64_t nonFiniteVertices = 0;    // vertices with a NaN or infinite coordinate
+  uint64_t inputBytes = 0;           // bytes of the (decompressed) mesh file consumed
+  uint64_t compressedBytes = 0;      // bytes read from disk when zstd-compressed, else 0
 };
 
 // Positions of an indexed mesh, by vertex index.
