@@ -21,7 +21,12 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from typing import IO, Callable, Optional, Union
+from typing import IO, TYPE_CHECKING, Callable, Optional, Union
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
+    from ._facetree import BuildOptions
 
 from ._facetree import (
     Cancelled,
@@ -81,16 +86,8 @@ def build_file(
     max_tmp: Union[int, str, None] = None,
     progress: Optional[Progress] = None,
     zstd_level: int = 0,
-    metric: str = "willmott",
-    order: str = "rounds",
-    k: float = 1e-4,
-    balance_slack: float = 1.5,
-    flat_threshold: float = 0.5,
-    branching: int = 2,
-    recast: str = "largest-area",
-    threads: int = 0,
-    weld: bool = False,
     cell_faces: int = 0,
+    **options: Unpack[BuildOptions],
 ) -> dict:
     """Runs the whole job of `facetree build`: a mesh file to a cluster file (.fch).
 
@@ -111,7 +108,7 @@ def build_file(
     cell_faces: force an out-of-core build with cells of at most this many faces (for tests).
     zstd_level: compression level of the file's frames, 1 to 19 (0: 3).
 
-    The other options are build()'s. Raises InputError, OutputError, ResourceError or Cancelled.
+    options: build()'s, by keyword (BuildOptions). Raises InputError, OutputError, ResourceError or Cancelled.
     """
     with tempfile.TemporaryDirectory(prefix="facetree-py-", dir=tmp) as scratch:
         input_path = _input_path(input, scratch)
@@ -120,8 +117,7 @@ def build_file(
             output_path = os.path.join(scratch, "out.fch") if _is_file_object(output) else os.fspath(output)
         report = _facetree._build_file(
             input_path, output_path, parse_size(memory), os.fspath(tmp) if tmp is not None else "",
-            parse_size(max_tmp), zstd_level, progress, cell_faces, metric, order, k, balance_slack,
-            flat_threshold, branching, recast, threads, weld)
+            parse_size(max_tmp), zstd_level, progress, cell_faces, **options)
         if output is not None and _is_file_object(output):
             with open(output_path, "rb") as built:
                 shutil.copyfileobj(built, output, _COPY_BYTES)

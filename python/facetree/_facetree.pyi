@@ -1,6 +1,8 @@
 # Types of the extension module facetree._facetree (C++, pybind11); see facetree/__init__.py.
 import os
-from typing import Any, Callable, Optional, Union
+from typing import Any, Callable, Optional, TypedDict, Union
+
+from typing_extensions import Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -77,21 +79,37 @@ class Hierarchy:
     def verify(self) -> None: ...
     def save(self, path: _Path, zstd_level: int = 3) -> None: ...
 
+class BuildOptions(TypedDict, total=False):
+    """The build options of build() and build_file(), by keyword; see help(facetree.build)."""
+
+    metric: str
+    order: str
+    k: float
+    balance_slack: float
+    flat_threshold: float
+    branching: int
+    recast: str
+    threads: int
+    weld: bool
+
 def build(
     vertices: npt.ArrayLike,
     faces: npt.ArrayLike,
     *,
     face_ids: Optional[npt.ArrayLike] = None,
-    metric: str = "willmott",
-    order: str = "rounds",
-    k: float = 1e-4,
-    balance_slack: float = 1.5,
-    flat_threshold: float = 0.5,
-    branching: int = 2,
-    recast: str = "largest-area",
-    threads: int = 0,
-    weld: bool = False,
+    **options: Unpack[BuildOptions],
 ) -> Hierarchy: ...
+def _build_file(
+    input: str,
+    output: str,
+    memory: int,
+    tmp: str,
+    max_tmp: int,
+    zstd_level: int,
+    progress: Optional[Callable[[str, Optional[float]], Optional[bool]]],
+    cell_faces: int,
+    **options: Unpack[BuildOptions],
+) -> dict[str, Any]: ...
 def read_mesh(
     path: _Path, *, weld: bool = False
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32], npt.NDArray[np.uint64]]: ...

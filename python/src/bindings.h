@@ -47,16 +47,6 @@ py::array_t<T> arrayOwning(std::vector<T>&& values, std::vector<py::ssize_t> sha
   return py::array_t<T>(shape, owned->data(), free);
 }
 
-// The build options the Python functions share with the CLI's (`facetree build --help`).
-struct Settings {
-  BuildOptions build;
-  FileOptions file;
-  bool weld = false;
-};
-Settings settingsFrom(const std::string& metric, const std::string& order, double k, double balanceSlack,
-                      double flatThreshold, unsigned branching, const std::string& recast, unsigned threads,
-                      bool weld);
-
 // hierarchy.cpp: facetree.Hierarchy over a ClusterFile.
 struct PyHierarchy {
   ClusterFile file;

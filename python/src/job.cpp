@@ -113,44 +113,97 @@ std::vector<uint64_t> faceIdsFrom(const py::object& object, size_t triangles) {
   return out;
 }
 
-constexpr const char* kOptionsDoc = R"(
-Options, as the command line's `facetree build`:
-  metric: "willmott" (Willmott 2000, eq. 84), "garland" or "constant".
-  order: "rounds" (reciprocal cheapest pairs, parallel) or "exact" (the global greedy).
-  k: balance weight of eq. 80.  balance_slack: the balance guard (0: off).
-  flat_threshold: |S|/A above it takes S as a cluster's normal (eq. 78).
-  branching: 2, 4 or 8 children per node.  recast: "largest-area" or "fewest-nodes".
-  threads: worker threads (0: the machine's, at most 8); the result is the same for any count.
-  weld: make faces meeting at bit-identical positions neighbours.)";
+// The options' part of build()'s and build_file()'s docstrings, with the defaults they have.
+std::string optionsDoc() {
+  const cli::BuildSettings d;
+  const auto number = [](double v) { return py::cast<std::string>(py::str(py::float_(v))); };
+  return "\n\nOptions, by keyword, as the command line's `facetree build` takes them [default]:\n"
+         "  metric: \"willmott\" (Willmott 2000, eq. 84), \"garland\" or \"constant\" [\"" +
+         d.metric +
+         "\"].\n"
+         "  order: \"rounds\" (reciprocal cheapest pairs, parallel) or \"exact\" (the global greedy) [\"" +
+         d.order +
+         "\"].\n"
+         "  k: balance weight of eq. 80 [" +
+         number(d.k) +
+         "].\n"
+         "  balance_slack: the balance guard, 0 for none [" +
+         number(d.balanceSlack) +
+         "].\n"
+         "  flat_threshold: |S|/A above it takes S as a cluster's normal, eq. 78 [" +
+         number(d.flatThreshold) +
+         "].\n"
+         "  branching: 2, 4 or 8 children per node [" +
+         std::to_string(d.branching) +
+         "].\n"
+         "  recast: \"largest-area\" or \"fewest-nodes\" [\"" +
+         d.recast +
+         "\"].\n"
+         "  threads: worker threads, 0 for the machine's (at most 8); the result is the same for any\n"
+         "    count [" +
+         std::to_string(d.threads) +
+         "].\n"
+         "  weld: make faces meeting at bit-identical positions neighbours [False].";
+}
 
-}  // namespace
+// The build options, converted.
+struct Settings {
+  BuildOptions build;
+  FileOptions file;
+  bool weld = false;
+};
 
-Settings settingsFrom(const std::string& metric, const std::string& order, double k, double balanceSlack,
-                      double flatThreshold, unsigned branching, const std::string& recast, unsigned threads,
-                      bool weld) {
+// The build options of build() and build_file(), taken by keyword (BuildOptions in _facetree.pyi)
+// and checked as the command line checks them. A name that is no option raises TypeError, as
+// Python does for a misspelt keyword; a value of the wrong type too.
+Settings settingsFrom(const py::kwargs& options, const char* function) {
   cli::BuildSettings named;
-  named.metric = metric;
-  named.order = order;
-  named.recast = recast;
-  named.k = k;
-  named.balanceSlack = balanceSlack;
-  named.flatThreshold = flatThreshold;
-  named.branching = branching;
-  named.threads = threads;
+  bool weld = false;
+  for (const auto& [key, value] : options) {
+    const std::string name = py::cast<std::string>(key);
+    const auto take = [&](auto& field, const char* kind) {
+      try {
+        field = py::cast<std::remove_reference_t<decltype(field)>>(value);
+      } catch (const py::cast_error&) {
+        throw py::type_error(std::string(function) + "(): " + name + " must be " + kind + ", not " +
+                             py::cast<std::string>(py::type::of(value).attr("__name__")));
+      }
+    };
+    if (name == "metric")
+      take(named.metric, "a str");
+    else if (name == "order")
+      take(named.order, "a str");
+    else if (name == "recast")
+      take(named.recast, "a str");
+    else if (name == "k")
+      take(named.k, "a float");
+    else if (name == "balance_slack")
+      take(named.balanceSlack, "a float");
+    else if (name == "flat_threshold")
+      take(named.flatThreshold, "a float");
+    else if (name == "branching")
+      take(named.branching, "an int (2, 4 or 8)");
+    else if (name == "threads")
+      take(named.threads, "a non-negative int");
+    else if (name == "weld")
+      take(weld, "a bool");
+    else
+      throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "'");
+  }
   Settings s;  // std::invalid_argument for a bad option: an InputError in Python (errors.cpp)
   cli::applyBuildSettings(named, cli::OptionSpelling::Python, s.build, s.file);
   s.weld = weld;
   return s;
 }
 
+}  // namespace
+
 void registerJob(py::module_& m) {
   m.def(
       "build",
       [](const py::handle& vertices, const py::handle& faces, const py::object& faceIds,
-         const std::string& metric, const std::string& order, double k, double balanceSlack,
-         double flatThreshold, unsigned branching, const std::string& recast, unsigned threads, bool weld) {
-        Settings s =
-            settingsFrom(metric, order, k, balanceSlack, flatThreshold, branching, recast, threads, weld);
+         const py::kwargs& options) {
+        Settings s = settingsFrom(options, "build");
         const auto start = std::chrono::steady_clock::now();
         const MeshArrays mesh = meshFromArrays(vertices, faces);
         Interrupts interrupts;
@@ -187,10 +240,6 @@ void registerJob(py::module_& m) {
         return out;
       },
       py::arg("vertices"), py::arg("faces"), py::kw_only(), py::arg("face_ids") = py::none(),
-      py::arg("metric") = "willmott", py::arg("order") = "rounds", py::arg("k") = BuildOptions{}.k,
-      py::arg("balance_slack") = BuildOptions{}.balanceSlack,
-      py::arg("flat_threshold") = BuildOptions{}.flatThreshold, py::arg("branching") = 2,
-      py::arg("recast") = "largest-area", py::arg("threads") = 0, py::arg("weld") = false,
       (std::string(R"(Builds the face cluster hierarchy of a triangle mesh held in arrays.
 
 vertices: (V, 3) floats; float32 in C order is used in place, other dtypes are converted.
@@ -200,30 +249,28 @@ face_ids: (F,) the input face of each triangle, as read_mesh returns them (defau
   kept in the hierarchy's face_order and the labels of cut().
 Returns a Hierarchy; Ctrl-C stops the build (KeyboardInterrupt). Raises InputError for bad
 arrays or options.)") +
-       kOptionsDoc)
+       optionsDoc())
           .c_str());
 
   m.def(
       "_build_file",
       [](const std::string& input, const std::string& output, uint64_t memory, const std::string& tmp,
          uint64_t maxTmp, int zstdLevel, const py::object& progress, uint64_t cellFaces,
-         const std::string& metric, const std::string& order, double k, double balanceSlack,
-         double flatThreshold, unsigned branching, const std::string& recast, unsigned threads, bool weld) {
-        Settings s =
-            settingsFrom(metric, order, k, balanceSlack, flatThreshold, branching, recast, threads, weld);
+         const py::kwargs& options) {
+        const Settings s = settingsFrom(options, "build_file");
         cli::checkJobLimits(memory, zstdLevel, cli::OptionSpelling::Python);
         ClusterJob job;
         job.input = input;
         job.output = output;
-        job.memoryCap = memory;
-        job.tmpDir = tmp;
-        job.maxTemporaryBytes = maxTmp;
-        job.zstdLevel = zstdLevel;
-        job.forceCellFaces = cellFaces;
-        job.threads = cli::jobThreads(threads);
         job.build = s.build;
         job.file = s.file;
         job.load.weldPositions = s.weld;
+        job.memoryCap = memory;
+        job.tmpDir = tmp;
+        job.maxTemporaryBytes = maxTmp;
+        job.threads = cli::jobThreads(s.build.threads);
+        job.zstdLevel = zstdLevel;
+        job.forceCellFaces = cellFaces;
         Interrupts interrupts(progress);
         job.progress = [&interrupts](const JobProgress& p) { return interrupts.progress(p); };
         job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
@@ -231,9 +278,7 @@ arrays or options.)") +
         return reportDict(report, input, s.build.order, !output.empty());
       },
       py::arg("input"), py::arg("output"), py::arg("memory"), py::arg("tmp"), py::arg("max_tmp"),
-      py::arg("zstd_level"), py::arg("progress"), py::arg("cell_faces"), py::arg("metric"), py::arg("order"),
-      py::arg("k"), py::arg("balance_slack"), py::arg("flat_threshold"), py::arg("branching"),
-      py::arg("recast"), py::arg("threads"), py::arg("weld"),
+      py::arg("zstd_level"), py::arg("progress"), py::arg("cell_faces"),
       "The job behind facetree.build_file (paths only).");
 
   m.def(

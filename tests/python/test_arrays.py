@@ -73,6 +73,31 @@ def bad(vertices, faces, message, **options):
     assert isinstance(raised.value, ValueError)
 
 
+def test_options_are_keywords_checked_by_name_and_type():
+    vertices, faces = grid_mesh(4)
+    with pytest.raises(TypeError) as raised:
+        facetree.build(vertices, faces, metirc="garland")
+    assert str(raised.value) == "build() got an unexpected keyword argument 'metirc'"
+    with pytest.raises(TypeError) as raised:
+        facetree.build(vertices, faces, k="small")
+    assert str(raised.value) == "build(): k must be a float, not str"
+    with pytest.raises(TypeError) as raised:
+        facetree.build(vertices, faces, branching=4.0)
+    assert str(raised.value) == "build(): branching must be an int (2, 4 or 8), not float"
+    with pytest.raises(TypeError) as raised:
+        facetree.build(vertices, faces, 2)
+    # The defaults the docstring names are the ones a call without options gets.
+    doc = facetree.build.__doc__
+    for default in ('metric: "willmott"', '["willmott"]', '["rounds"]', "[0.0001]", "[1.5]", "[0.5]", "[2]",
+                    '["largest-area"]', "[False]"):
+        assert default in doc, default
+    plain = facetree.build(vertices, faces)
+    named = facetree.build(vertices, faces, metric="willmott", order="rounds", k=1e-4, balance_slack=1.5,
+                           flat_threshold=0.5, branching=2, recast="largest-area", threads=0, weld=False)
+    assert np.array_equal(plain.cost, named.cost) and np.array_equal(plain.face_ranges, named.face_ranges)
+    assert plain.header == named.header
+
+
 def test_bad_arrays_raise_one_clear_input_error():
     vertices, faces = grid_mesh(4)
     bad(vertices[:, :2], faces, "vertices: expected shape (N, 3), got (25, 2)")

@@ -177,3 +177,6 @@ def test_errors_carry_the_cli_categories_and_messages(cli, test_data, shared_dat
         facetree.build_file(dragon, tmp_path / "x.fch", memory="lots")
     with pytest.raises(facetree.InputError, match="memory must be at least 16M"):
         facetree.build_file(dragon, tmp_path / "x.fch", memory="1M")
+    with pytest.raises(TypeError) as raised:
+        facetree.build_file(dragon, tmp_path / "x.fch", brnaching=4)
+    assert str(raised.value) == "build_file() got an unexpected keyword argument 'brnaching'"
