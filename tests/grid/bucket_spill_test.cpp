@@ -167,20 +167,17 @@ TEST(BucketSpill, twoThreadsReadDifferentBucketsAfterFlushAll) {
   BucketSpill spill(space, "ghosts", kBuckets, sizeof(Record), 4096);
   const auto expected = fill(spill, 40000, 3);
   spill.flushAll();
-  auto check = [&](size_t first, int& mismatches) {
+  const auto check = [&](unsigned first) {
     SpillCodec codec;  // one per thread
+    int mismatches = 0;
     for (size_t b = first; b < kBuckets; b += 2) {
       std::vector<std::byte> bytes;
       spill.readBucket(b, bytes, codec);
       mismatches += asRecords(bytes) != expected[b];
     }
+    return mismatches;
   };
-  int mismatchesA = 0, mismatchesB = 0;
-  std::thread other(check, 1, std::ref(mismatchesA));
-  check(0, mismatchesB);
-  other.join();
-  EXPECT_EQ(mismatchesA, 0);
-  EXPECT_EQ(mismatchesB, 0);
+  EXPECT_EQ(test::mismatchesOnTwoThreads(check), std::make_pair(0, 0));
 }
 
 TEST(BucketSpill, bytesAreReleasedAndNoFileIsLeftWhenDestroyed) {

@@ -21,8 +21,8 @@
 
 #include "error_expect.h"
 #include "facetree/grid.h"
-#include "grid/out_of_core.h"
 #include "facetree/io.h"
+#include "grid/out_of_core.h"
 
 namespace facetree {
 namespace {
@@ -299,23 +299,39 @@ TEST(OutOfCore, ShuffledInputWithSpilledPositions) {
   EXPECT_TRUE(same.ok) << same.message;
 }
 
-// The cap as a promise: peak RSS of the facetree executable running the whole job (a fresh
-// process: a forked test process would count the pages it inherited).
-uint64_t cliPeakRss(const std::vector<std::string>& arguments) {
+// A run of the facetree executable in a fresh process: exit code, peak RSS, standard error.
+struct CliRun {
+  int exitCode = -1;
+  uint64_t peakRss = 0;
+  std::string standardError;
+};
+
+CliRun runCli(const std::vector<std::string>& arguments, const fs::path& errorFile) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     std::vector<char*> argv{const_cast<char*>(FACETREE_CLI)};
     for (const std::string& a : arguments) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     ::freopen("/dev/null", "w", stdout);
+    ::freopen(errorFile.c_str(), "w", stderr);
     ::execv(FACETREE_CLI, argv.data());
     ::_exit(127);
   }
   int status = 0;
   rusage usage{};
   ::wait4(pid, &status, 0, &usage);
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return ~uint64_t{0};
-  return uint64_t(usage.ru_maxrss) * 1024;
+  CliRun run;
+  run.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.peakRss = uint64_t(usage.ru_maxrss) * 1024;
+  run.standardError = bytesOf(errorFile);
+  return run;
+}
+
+// The cap as a promise: peak RSS of the facetree executable running the whole job (a fresh
+// process: a forked test process would count the pages it inherited); all ones if it failed.
+uint64_t cliPeakRss(const std::vector<std::string>& arguments) {
+  const CliRun run = runCli(arguments, "/dev/null");
+  return run.exitCode == 0 ? run.peakRss : ~uint64_t{0};
 }
 
 TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
@@ -371,34 +387,6 @@ TEST(OutOfCore, GarlandMetricUnderACap) {
   job.build.metric = Metric::Willmott;
   job.output = dir / "willmott.fch";
   EXPECT_GT(report.height, runClusterJob(job).height);
-}
-
-// A run of the facetree executable in a fresh process: exit code, peak RSS, standard error.
-struct CliRun {
-  int exitCode = -1;
-  uint64_t peakRss = 0;
-  std::string standardError;
-};
-
-CliRun runCli(const std::vector<std::string>& arguments, const fs::path& errorFile) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    std::vector<char*> argv{const_cast<char*>(FACETREE_CLI)};
-    for (const std::string& a : arguments) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::freopen("/dev/null", "w", stdout);
-    ::freopen(errorFile.c_str(), "w", stderr);
-    ::execv(FACETREE_CLI, argv.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  rusage usage{};
-  ::wait4(pid, &status, 0, &usage);
-  CliRun run;
-  run.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  run.peakRss = uint64_t(usage.ru_maxrss) * 1024;
-  run.standardError = bytesOf(errorFile);
-  return run;
 }
 
 // A generated terrain as a Draco file (sequential encoding, lossless positions).

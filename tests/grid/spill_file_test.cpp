@@ -239,23 +239,20 @@ TEST(SpillFile, randomBlocksAppendedAndReadInRandomOrderFromTwoThreadsRoundTrip)
     EXPECT_LT(end, rawTotal);
 
     // Two readers, each every block in its own random order.
-    auto readAll = [&](uint64_t seed, int& mismatches) {
+    const auto readAll = [&](unsigned seed) {
       SpillCodec codec;
       std::vector<size_t> order(kBlocks);
       std::iota(order.begin(), order.end(), size_t{0});
-      std::shuffle(order.begin(), order.end(), std::mt19937_64(seed));
+      std::shuffle(order.begin(), order.end(), std::mt19937_64(seed + 1));
       std::vector<std::byte> back;
+      int mismatches = 0;
       for (size_t i : order) {
         file.read(handles[i], back, codec);
         mismatches += back != raw[i];
       }
+      return mismatches;
     };
-    int mismatchesA = 0, mismatchesB = 0;
-    std::thread reader(readAll, 1, std::ref(mismatchesA));
-    readAll(2, mismatchesB);
-    reader.join();
-    EXPECT_EQ(mismatchesA, 0);
-    EXPECT_EQ(mismatchesB, 0);
+    EXPECT_EQ(test::mismatchesOnTwoThreads(readAll), std::make_pair(0, 0));
   }
   EXPECT_EQ(space.currentBytes(), 0u);
   EXPECT_TRUE(std::filesystem::is_empty(space.path()));

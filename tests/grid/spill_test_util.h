@@ -11,6 +11,8 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 namespace facetree::test {
@@ -37,6 +39,16 @@ class ScratchDir {
   std::filesystem::path path_;
 };
 
+// Runs body(0) on another thread while body(1) runs on this one (readers of one spill at the same
+// time) and returns the mismatches each counted.
+inline std::pair<int, int> mismatchesOnTwoThreads(const std::function<int(unsigned)>& body) {
+  int other = 0;
+  std::thread thread([&] { other = body(0); });
+  const int here = body(1);
+  thread.join();
+  return {other, here};
+}
+
 struct ChildResult {
   int exitCode = -1;   // -1 when the child did not exit normally
   std::string output;  // what the child's function returned
@@ -62,15 +74,22 @@ inline ChildResult collectChild(pid_t pid, int fds[2]) {
   return result;
 }
 
+// Forks with a pipe from the child (writing fds[1]) to the parent (reading fds[0], through
+// collectChild); returns fork()'s result, with the parent's end already closed in the child.
+inline pid_t forkWithPipe(int fds[2]) {
+  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) close(fds[0]);
+  return pid;
+}
+
 // Runs `body` in a forked child (for process-wide limits: RLIMIT_FSIZE, peak RSS) and returns what it
 // returned. An exception in the child becomes exit code 2 with its what() as output.
 inline ChildResult runInChild(const std::function<std::string()>& body) {
   int fds[2];
-  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
-  const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
+  const pid_t pid = forkWithPipe(fds);
   if (pid == 0) {
-    close(fds[0]);
     std::string output;
     int code = 0;
     try {
@@ -95,11 +114,8 @@ inline ChildResult runProgram(const std::vector<std::string>& argv) {
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   int fds[2];
-  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
-  const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
+  const pid_t pid = forkWithPipe(fds);
   if (pid == 0) {
-    close(fds[0]);
     dup2(fds[1], STDOUT_FILENO);
     execv(args[0], args.data());
     _exit(127);

@@ -18,8 +18,8 @@
 #include <glm/geometric.hpp>
 
 #include "error_expect.h"
-#include "io/camera.h"
 #include "facetree/io.h"
+#include "io/camera.h"
 #include "io/palette.h"
 #include "io/rasterizer.h"
 
@@ -385,7 +385,8 @@ TEST(RenderClustersPng, RejectsBadInput) {
 TEST(RenderClustersPng, UnwritablePathThrowsIoErrorAndLeavesNothing) {
   Scratch scratch("unwritable");
   const TestMesh mesh = square();
-  EXPECT_FACETREE_ERROR(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "missing" / "out.png"), Output);
+  EXPECT_FACETREE_ERROR(renderClustersPng(mesh.view(), mesh.clusters, {}, scratch / "missing" / "out.png"),
+                        Output);
   EXPECT_FALSE(std::filesystem::exists(scratch / "missing"));
   // The target is a directory: the rename fails and the temporary is removed.
   std::filesystem::create_directories(scratch / "taken.png" / "child");
@@ -400,22 +401,20 @@ TEST(RenderClustersPng, MillionTrianglesRenderCentred) {
   Scratch scratch("large");
   const char* keep = std::getenv("FACETREE_RENDER_CHECK_DIR");
   const std::filesystem::path dir = keep ? std::filesystem::path(keep) : scratch.dir();
+  // The picture of `mesh` has background corners and the model's centroid within `tolerance`
+  // pixels of the centre of the 1024 x 768 picture.
+  const auto expectCentred = [&](const TestMesh& mesh, const char* name, float tolerance) {
+    renderClustersPng(mesh.view(), mesh.clusters, {}, dir / name);
+    const Image image = loadPng(dir / name);
+    expectBackgroundCorners(image);
+    const glm::vec2 centroid = modelCentroid(image);
+    EXPECT_NEAR(centroid.x, 512.0f, tolerance) << name;
+    EXPECT_NEAR(centroid.y, 384.0f, tolerance) << name;
+  };
   const TestMesh land = terrain(708);
   ASSERT_GE(land.clusters.size(), 1000000u);
-  renderClustersPng(land.view(), land.clusters, {}, dir / "terrain.png");
-  const Image image = loadPng(dir / "terrain.png");
-  expectBackgroundCorners(image);
-  const glm::vec2 centroid = modelCentroid(image);
-  EXPECT_NEAR(centroid.x, 512.0f, 60.0f);
-  EXPECT_NEAR(centroid.y, 384.0f, 60.0f);
-
-  const TestMesh ball = sphere(200, 400);
-  renderClustersPng(ball.view(), ball.clusters, {}, dir / "sphere.png");
-  const Image round = loadPng(dir / "sphere.png");
-  expectBackgroundCorners(round);
-  const glm::vec2 middle = modelCentroid(round);
-  EXPECT_NEAR(middle.x, 512.0f, 2.0f);
-  EXPECT_NEAR(middle.y, 384.0f, 2.0f);
+  expectCentred(land, "terrain.png", 60.0f);
+  expectCentred(sphere(200, 400), "sphere.png", 2.0f);
   const TestMesh box = cube();
   renderClustersPng(box.view(), box.clusters, {}, dir / "cube.png");
   writeClusterColouredPly(land.view(), land.clusters, dir / "terrain.ply");
@@ -491,7 +490,8 @@ TEST(WriteClusterColouredPly, RejectsBadInputAndUnwritablePaths) {
   const auto path = scratch / "bad.ply";
   const std::vector<uint32_t> tooMany(13, 0);
   EXPECT_THROW(writeClusterColouredPly(mesh.view(), tooMany, path), std::invalid_argument);
-  EXPECT_FACETREE_ERROR(writeClusterColouredPly(mesh.view(), mesh.clusters, scratch / "missing" / "x.ply"), Output);
+  EXPECT_FACETREE_ERROR(writeClusterColouredPly(mesh.view(), mesh.clusters, scratch / "missing" / "x.ply"),
+                        Output);
   mesh.indices[7] = 8;
   EXPECT_THROW(writeClusterColouredPly(mesh.view(), mesh.clusters, path), std::invalid_argument);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(scratch.dir()), {}), 0);

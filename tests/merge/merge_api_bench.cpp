@@ -1,11 +1,11 @@
 // The out-of-core merge API on real meshes, by hand (not a ctest test):
-//   merge_api_bench exact FILE.ply[.zst]        mergeClusters over single faces vs buildHierarchy:
-//                                               identical merges, seconds of each
-//   merge_api_bench pieces FILE.ply[.zst] C     C x C spatial cells (xy), split into components, built
-//                                               in core, merged above with mergeClusters: height vs in core
-//   merge_api_bench boxes FILE.ply[.zst] [R]    BoxAccumulator::addTriangles over all triangles, R times
-//                                               (run under callgrind for instructions per triangle)
-// PLY: binary little-endian (float xyz, uchar/int list), decompressed through `zstd -dc`.
+//   merge_api_bench exact FILE      mergeClusters over single faces vs buildHierarchy: identical
+//                                   merges, seconds of each
+//   merge_api_bench pieces FILE C   C x C spatial cells (xy), split into components, built in
+//                                   core, merged above with mergeClusters: height vs in core
+//   merge_api_bench boxes FILE [R]  BoxAccumulator::addTriangles over all triangles, R times (run
+//                                   under callgrind for instructions per triangle)
+// FILE: a mesh file the readers take (PLY, OBJ, STL or Draco, any of them zstd-compressed).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -15,41 +15,16 @@
 #include <string>
 #include <vector>
 
+#include "facetree/merge.h"
 #include "merge/dual_graph.h"
 #include "merge/face_geometry.h"
-#include "facetree/merge.h"
+#include "mesh_file.h"
 #include "test_meshes.h"
 
 namespace {
 
 using facetree::test::TestMesh;
 using namespace facetree;
-
-TestMesh readPly(const std::string& path) {
-  const std::string command = (path.ends_with(".zst") ? "zstd -dc '" : "cat '") + path + "'";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) throw std::runtime_error("cannot run " + command);
-  char line[512];
-  size_t vertices = 0, faces = 0;
-  while (std::fgets(line, sizeof line, pipe)) {
-    std::sscanf(line, "element vertex %zu", &vertices);
-    std::sscanf(line, "element face %zu", &faces);
-    if (std::strncmp(line, "end_header", 10) == 0) break;
-  }
-  TestMesh mesh;
-  mesh.positions.resize(vertices);
-  if (std::fread(mesh.positions.data(), 12, vertices, pipe) != vertices)
-    throw std::runtime_error("short read");
-  for (size_t f = 0; f < faces; ++f) {
-    unsigned char n = 0;
-    int32_t idx[256];
-    if (std::fread(&n, 1, 1, pipe) != 1 || std::fread(idx, 4, n, pipe) != n)
-      throw std::runtime_error("short read");
-    for (int j = 1; j + 1 < n; ++j) mesh.add(idx[0], idx[j], idx[j + 1]);
-  }
-  pclose(pipe);
-  return mesh;
-}
 
 double since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -198,7 +173,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string mode = argv[1];
-  const TestMesh mesh = readPly(argv[2]);
+  const TestMesh mesh = facetree::test::readMeshFile(argv[2]);
   if (mode == "exact") {
     exact(mesh);
   } else if (mode == "pieces") {

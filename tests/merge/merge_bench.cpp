@@ -1,7 +1,7 @@
 // buildHierarchy timing and memory, by hand (not a ctest test):
 //   merge_bench grid M [metric]          flat grid of 2 M^2 triangles (bumpy with "bumpy")
-//   merge_bench FILE.ply[.zst] [metric]  binary little-endian PLY (float xyz, uchar/int list),
-//                                        decompressed through `zstd -dc`
+//   merge_bench FILE [metric]            a mesh file (PLY, OBJ, STL or Draco, any of them
+//                                        zstd-compressed)
 // Prints seconds, height/balanced, degrees, eigen counts and the peak RSS growth of the build.
 // Environment: MERGE_BENCH_SLACK=A sets BuildOptions::balanceSlack; MERGE_BENCH_CUTS=K1,K2,...
 // prints the summed eFit (the variance along the normal that eq. 84 uses) over the clusters of
@@ -18,9 +18,10 @@
 #include <string>
 #include <vector>
 
+#include "facetree/merge.h"
 #include "merge/cost.h"
 #include "merge/face_geometry.h"
-#include "facetree/merge.h"
+#include "mesh_file.h"
 #include "test_meshes.h"
 
 namespace {
@@ -50,35 +51,6 @@ long peakRssKb() {
   return usage.ru_maxrss;
 }
 
-TestMesh readPly(const std::string& path) {
-  const std::string command = (path.ends_with(".zst") ? "zstd -dc '" : "cat '") + path + "'";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) throw std::runtime_error("cannot run " + command);
-  std::string header;
-  char line[512];
-  size_t vertices = 0, faces = 0;
-  while (std::fgets(line, sizeof line, pipe)) {
-    header = line;
-    std::sscanf(line, "element vertex %zu", &vertices);
-    std::sscanf(line, "element face %zu", &faces);
-    if (header.starts_with("end_header")) break;
-  }
-  TestMesh mesh;
-  mesh.positions.resize(vertices);
-  if (std::fread(mesh.positions.data(), 12, vertices, pipe) != vertices)
-    throw std::runtime_error("short read");
-  mesh.indices.reserve(faces * 3);
-  for (size_t f = 0; f < faces; ++f) {
-    unsigned char n = 0;
-    int32_t idx[256];
-    if (std::fread(&n, 1, 1, pipe) != 1 || std::fread(idx, 4, n, pipe) != n)
-      throw std::runtime_error("short read");
-    for (int j = 1; j + 1 < n; ++j) mesh.add(idx[0], idx[j], idx[j + 1]);
-  }
-  pclose(pipe);
-  return mesh;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -101,7 +73,7 @@ int main(int argc, char** argv) {
       ++next;
     }
   } else {
-    mesh = readPly(name);
+    mesh = facetree::test::readMeshFile(name);
   }
   BuildOptions options;
   options.computeBoxes = false;

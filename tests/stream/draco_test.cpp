@@ -5,26 +5,16 @@
 
 #include <gtest/gtest.h>
 
-#include "stream/draco_header.h"
 #include "facetree/stream.h"
+#include "stream/draco_header.h"
 #include "test_util.h"
 
 namespace facetree {
 namespace {
 
-// A side x side grid of unit squares, two triangles each.
+// A side x side grid of unit squares, two triangles each, on a bumpy height field.
 test::SimpleMesh squareGrid(int side) {
-  test::SimpleMesh mesh;
-  for (int j = 0; j <= side; ++j)
-    for (int i = 0; i <= side; ++i)
-      mesh.vertices.emplace_back(float(i), float(j), 0.25f * float((i * j) % 3));
-  for (int j = 0; j < side; ++j)
-    for (int i = 0; i < side; ++i) {
-      const int64_t v = j * (side + 1) + i;
-      mesh.faces.push_back({v, v + 1, v + side + 2});
-      mesh.faces.push_back({v, v + side + 2, v + side + 1});
-    }
-  return mesh;
+  return test::squareGrid(side, 1.0f, [](int i, int j) { return 0.25f * float((i * j) % 3); });
 }
 
 // `mesh` encoded by either method, with nested metadata when asked (which sits between the

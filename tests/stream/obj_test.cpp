@@ -35,11 +35,9 @@ TEST(StreamObj, AllVertexReferenceFormsNegativeIndicesAndNgons) {
       "v 2 0 0\nv 2 1 0\n"
       "f 2 5 6 3 # pentagon? no, a quad with a comment\n"
       "f -1 -2 -3 -4 -5 -6\n";  // hexagon over vertices 6..1
-  TempDir dir;
-  auto reader = openMesh(dir.write("forms.obj", obj));
-  const auto t = readAll(*reader);
+  const auto [reader, t] = test::readBytes("forms.obj", obj);
   ASSERT_EQ(t.size(), 1u + 1 + 1 + 2 + 2 + 4);
-  auto corners = [&](size_t i) { return std::array{t[i].vertex[0], t[i].vertex[1], t[i].vertex[2]}; };
+  const auto corners = [&](size_t i) { return test::cornersOf(t)[i]; };
   EXPECT_EQ(corners(0), (std::array<uint32_t, 3>{0, 1, 2}));
   EXPECT_EQ(corners(1), (std::array<uint32_t, 3>{0, 2, 3}));
   EXPECT_EQ(corners(3), (std::array<uint32_t, 3>{0, 1, 2}));
@@ -64,9 +62,8 @@ TEST(StreamObj, BackslashJoinsLinesAndCrlfIsAccepted) {
 
 TEST(StreamObj, DegenerateAndNonFiniteAreCounted) {
   const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n";
-  TempDir dir;
-  auto reader = openMesh(dir.write("n.obj", obj));
-  EXPECT_EQ(readAll(*reader).size(), 2u);
+  const auto [reader, triangles] = test::readBytes("n.obj", obj);
+  EXPECT_EQ(triangles.size(), 2u);
   EXPECT_EQ(reader->stats().degenerateTriangles, 1u);
   EXPECT_EQ(reader->stats().skippedTriangles, 1u);
   EXPECT_EQ(reader->stats().nonFiniteVertices, 1u);

@@ -50,10 +50,8 @@ TEST(StreamPly, QuadIsFanTriangulatedAndKeepsItsFaceIndex) {
   ASSERT_EQ(triangles.size(), 6u);
   EXPECT_EQ(triangles[0].face, 0u);
   EXPECT_EQ(triangles[1].face, 0u);
-  EXPECT_EQ((std::array{triangles[0].vertex[0], triangles[0].vertex[1], triangles[0].vertex[2]}),
-            (std::array<uint32_t, 3>{0, 3, 2}));
-  EXPECT_EQ((std::array{triangles[1].vertex[0], triangles[1].vertex[1], triangles[1].vertex[2]}),
-            (std::array<uint32_t, 3>{0, 2, 1}));
+  EXPECT_EQ(test::cornersOf(triangles)[0], (std::array<uint32_t, 3>{0, 3, 2}));
+  EXPECT_EQ(test::cornersOf(triangles)[1], (std::array<uint32_t, 3>{0, 2, 1}));
   EXPECT_EQ(triangles[2].face, 1u);
   EXPECT_EQ(triangles[5].face, 4u);
 }
@@ -141,15 +139,9 @@ TEST(StreamPly, TristripsWithRestartAlternateWindingAndCountAsOneFaceEach) {
       "element tristrips 2\nproperty list int int vertex_indices\nend_header\n"
       "0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 2 1\n"
       "8 0 1 2 3 -1 4 0 1\n3 2 3 4\n";
-  TempDir dir;
-  auto reader = openMesh(dir.write("strips.ply", ply));
-  const auto triangles = readAll(*reader);
+  const auto [reader, triangles] = test::readBytes("strips.ply", ply);
   const std::vector<std::array<uint32_t, 3>> expected = {{0, 1, 2}, {2, 1, 3}, {4, 0, 1}, {2, 3, 4}};
-  ASSERT_EQ(triangles.size(), expected.size());
-  for (size_t i = 0; i < expected.size(); ++i)
-    EXPECT_EQ((std::array{triangles[i].vertex[0], triangles[i].vertex[1], triangles[i].vertex[2]}),
-              expected[i])
-        << i;
+  EXPECT_EQ(test::cornersOf(triangles), expected);
   EXPECT_EQ(triangles[0].face, 0u);
   EXPECT_EQ(triangles[2].face, 0u);
   EXPECT_EQ(triangles[3].face, 1u);
@@ -167,15 +159,11 @@ TEST(StreamPly, TristripsInBinaryAfterFaces) {
   for (int i : {0, 1, 2}) test::appendBinary(ply, "int", i, false);
   test::appendBinary(ply, "int", 4, false);
   for (int i : {0, 1, 2, 3}) test::appendBinary(ply, "int", i, false);
-  TempDir dir;
-  auto reader = openMesh(dir.write("t.ply", ply));
-  const auto triangles = readAll(*reader);
+  const auto [reader, triangles] = test::readBytes("t.ply", ply);
   ASSERT_EQ(triangles.size(), 3u);
   EXPECT_EQ(triangles[1].face, 1u);
   EXPECT_EQ(triangles[2].face, 1u);
-  EXPECT_EQ(triangles[2].vertex[0], 2u);
-  EXPECT_EQ(triangles[2].vertex[1], 1u);
-  EXPECT_EQ(triangles[2].vertex[2], 3u);
+  EXPECT_EQ(test::cornersOf(triangles)[2], (std::array<uint32_t, 3>{2, 1, 3}));
   EXPECT_EQ(reader->stats().faces, 2u);
 }
 
@@ -185,9 +173,7 @@ TEST(StreamPly, NonFiniteVerticesSkipTrianglesAndDegeneratesAreCounted) {
       "element face 5\nproperty list uchar int vertex_indices\nend_header\n"
       "0 0 0\n1 0 0\n0 1 0\nnan 0 0\n2 0 0\n0 inf 0\n"
       "3 0 1 2\n3 0 1 3\n3 0 0 1\n3 0 1 4\n4 0 1 2 5\n";
-  TempDir dir;
-  auto reader = openMesh(dir.write("t.ply", ply));
-  const auto triangles = readAll(*reader);
+  const auto [reader, triangles] = test::readBytes("t.ply", ply);
   const ReadStats& stats = reader->stats();
   EXPECT_EQ(stats.nonFiniteVertices, 2u);
   EXPECT_EQ(stats.skippedTriangles, 2u);     // face 1, and the second fan triangle of face 4

@@ -4,8 +4,8 @@
 
 #include <limits>
 
-#include "stream/readers.h"
 #include "facetree/stream.h"
+#include "stream/readers.h"
 #include "test_util.h"
 
 namespace facetree {
@@ -107,12 +107,11 @@ TEST(StreamStl, OtherFormatsKeepTheirIndices) {
 TEST(StreamStl, MinusZeroWeldsWithZero) {
   test::SimpleMesh mesh{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {-0.0f, 0, -0.0f}, {0, 0, 1}},
                         {{0, 1, 2}, {3, 2, 4}}};
-  TempDir dir;
-  auto reader = openMesh(dir.write("z.stl", test::writeBinaryStl(mesh)));
-  const auto triangles = readAll(*reader);
+  const auto [reader, triangles] = test::readBytes("z.stl", test::writeBinaryStl(mesh));
   ASSERT_EQ(triangles.size(), 2u);
-  EXPECT_EQ(triangles[1].vertex[0], triangles[0].vertex[0]);
-  EXPECT_EQ(triangles[1].vertex[1], triangles[0].vertex[2]);
+  const auto corners = test::cornersOf(triangles);
+  EXPECT_EQ(corners[1][0], corners[0][0]);
+  EXPECT_EQ(corners[1][1], corners[0][2]);
   EXPECT_EQ(reader->stats().vertices, 4u);
 }
 
@@ -122,30 +121,15 @@ TEST(StreamStl, AsciiKeywordsAreCaseInsensitiveAndSeveralSolidsAreRead) {
       "endsolid a\nsolid b\nfacet normal 0 0 1 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 1 0 endloop "
       "endfacet\n"
       "endsolid b\n";
-  TempDir dir;
-  auto reader = openMesh(dir.write("two.stl", stl));
-  const auto triangles = readAll(*reader);
+  const auto [reader, triangles] = test::readBytes("two.stl", stl);
   ASSERT_EQ(triangles.size(), 2u);
-  EXPECT_EQ(triangles[1].vertex[0], 0u);
-  EXPECT_EQ(triangles[1].vertex[1], 2u);
-  EXPECT_EQ(triangles[1].vertex[2], 3u);
+  EXPECT_EQ(test::cornersOf(triangles)[1], (std::array<uint32_t, 3>{0, 2, 3}));
 }
 
 TEST(StreamStl, ManyTrianglesWeldLikeAnIndexedMesh) {
   // A 100x100 grid: every interior position is shared by up to six triangles.
-  test::SimpleMesh grid;
-  constexpr int kSide = 100;
-  for (int y = 0; y <= kSide; ++y)
-    for (int x = 0; x <= kSide; ++x) grid.vertices.emplace_back(x * 0.01f, y * 0.01f, float((x * y) % 7));
-  for (int y = 0; y < kSide; ++y)
-    for (int x = 0; x < kSide; ++x) {
-      const int64_t v = y * (kSide + 1) + x;
-      grid.faces.push_back({v, v + 1, v + kSide + 2});
-      grid.faces.push_back({v, v + kSide + 2, v + kSide + 1});
-    }
-  TempDir dir;
-  auto reader = openMesh(dir.write("grid.stl", test::writeBinaryStl(grid)));
-  const auto triangles = readAll(*reader, 1000);
+  const test::SimpleMesh grid = test::squareGrid(100, 0.01f, [](int x, int y) { return float((x * y) % 7); });
+  const auto [reader, triangles] = test::readBytes("grid.stl", test::writeBinaryStl(grid), 1000);
   EXPECT_EQ(triangles.size(), grid.faces.size());
   EXPECT_EQ(reader->stats().vertices, grid.vertices.size());
   for (const Triangle& t : triangles)

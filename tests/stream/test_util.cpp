@@ -40,6 +40,20 @@ SimpleMesh pyramid() {
                     {{0, 3, 2, 1}, {0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}}};
 }
 
+SimpleMesh squareGrid(int side, float cell, const std::function<float(int, int)>& height) {
+  SimpleMesh mesh;
+  for (int j = 0; j <= side; ++j)
+    for (int i = 0; i <= side; ++i)
+      mesh.vertices.emplace_back(float(i) * cell, float(j) * cell, height(i, j));
+  for (int j = 0; j < side; ++j)
+    for (int i = 0; i < side; ++i) {
+      const int64_t v = j * (side + 1) + i;
+      mesh.faces.push_back({v, v + 1, v + side + 2});
+      mesh.faces.push_back({v, v + side + 2, v + side + 1});
+    }
+  return mesh;
+}
+
 std::vector<Triangle> expectedTriangles(const SimpleMesh& mesh) {
   std::vector<Triangle> triangles;
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
@@ -214,6 +228,21 @@ std::string zstdCompress(const std::string& bytes, int level) {
   if (ZSTD_isError(size)) throw std::runtime_error("ZSTD_compress failed");
   out.resize(size);
   return out;
+}
+
+ReadBack readBytes(const std::string& name, const std::string& bytes, size_t batch) {
+  const TempDir dir;
+  ReadBack back;
+  back.reader = openMesh(dir.write(name, bytes));
+  back.triangles = readAll(*back.reader, batch);
+  return back;
+}
+
+std::vector<std::array<uint32_t, 3>> cornersOf(const std::vector<Triangle>& triangles) {
+  std::vector<std::array<uint32_t, 3>> corners;
+  corners.reserve(triangles.size());
+  for (const Triangle& t : triangles) corners.push_back({t.vertex[0], t.vertex[1], t.vertex[2]});
+  return corners;
 }
 
 std::vector<Triangle> readAll(TriangleReader& reader, size_t batch) {

@@ -1,9 +1,11 @@
 // Helpers shared by the stream tests: temporary files, mesh writers, whole-mesh reads.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -37,6 +39,8 @@ struct SimpleMesh {
 
 // Square pyramid: quad base (face 0, two triangles) and four triangular sides.
 SimpleMesh pyramid();
+// A side x side grid of squares of size `cell`, two triangles each, at heights height(i, j).
+SimpleMesh squareGrid(int side, float cell, const std::function<float(int, int)>& height);
 // Fan triangulation of `mesh` with positions, as every reader should hand it on.
 std::vector<Triangle> expectedTriangles(const SimpleMesh& mesh);
 
@@ -65,6 +69,15 @@ std::string zstdCompress(const std::string& bytes, int level = 3);
 
 std::vector<Triangle> readAll(TriangleReader& reader, size_t batch = 7);
 std::vector<Triangle> readFile(const std::filesystem::path& path, size_t batch = 7);
+// `bytes` written as `name` in a fresh directory, opened and read to the end; the reader stays
+// open for its stats and info (the file itself is gone).
+struct ReadBack {
+  std::unique_ptr<TriangleReader> reader;
+  std::vector<Triangle> triangles;
+};
+ReadBack readBytes(const std::string& name, const std::string& bytes, size_t batch = 7);
+// The vertex indices of each triangle, for comparing with a list of expected corners.
+std::vector<std::array<uint32_t, 3>> cornersOf(const std::vector<Triangle>& triangles);
 
 // Runs `action` and returns the Error (Input) message, or "" (with a test failure) if none.
 std::string errorOf(const std::function<void()>& action);
