@@ -1043,40 +1043,25 @@ def main():
         section_seconds[name], lap = time.time() - lap, time.time()
         section_load[name] = os.getloadavg()[0]
 
-    if "read" in sections:
-        report["read"] = bench_read(args, ["dragon_vrip", "fg_hawaii"] if args.quick else all_meshes)
-        section_done("read")
-    if "build" in sections:
-        report["build"] = bench_build(args, meshes, runs)
-        section_done("build")
-    if "profile" in sections:
-        report["profile"] = bench_profile(args, runs)
-        section_done("profile")
-    if "balance" in sections:
-        report["balance"] = bench_balance(args, meshes, runs, out)
-        section_done("balance")
-    if "scaling" in sections:
-        report["scaling"] = bench_scaling(args, meshes, runs, out)
-        section_done("scaling")
-    if "octree" in sections:
-        report["octree"] = bench_octree(args, meshes, runs, out)
-        section_done("octree")
-    if "branching" in sections:
-        report["branching"] = bench_branching(
-            args, ["bunny_zipper", "turbine_blade_200k"] if args.quick else QUICK_MESHES, out)
-        section_done("branching")
-    if "flat" in sections:
-        report["flat"] = bench_flat(args, out)
-        section_done("flat")
-    if "rounds" in sections:
-        report["rounds"] = bench_rounds(args, meshes, out)
-        section_done("rounds")
-    if "outofcore" in sections:
-        report["outofcore"] = bench_outofcore(args, out)
-        section_done("outofcore")
-    if "python" in sections:
-        report["python"] = bench_python(args)
-        section_done("python")
+    # Each section's runner, in the order the sections run.
+    runners = {
+        "read": lambda: bench_read(args, ["dragon_vrip", "fg_hawaii"] if args.quick else all_meshes),
+        "build": lambda: bench_build(args, meshes, runs),
+        "profile": lambda: bench_profile(args, runs),
+        "balance": lambda: bench_balance(args, meshes, runs, out),
+        "scaling": lambda: bench_scaling(args, meshes, runs, out),
+        "octree": lambda: bench_octree(args, meshes, runs, out),
+        "branching": lambda: bench_branching(
+            args, ["bunny_zipper", "turbine_blade_200k"] if args.quick else QUICK_MESHES, out),
+        "flat": lambda: bench_flat(args, out),
+        "rounds": lambda: bench_rounds(args, meshes, out),
+        "outofcore": lambda: bench_outofcore(args, out),
+        "python": lambda: bench_python(args),
+    }
+    for name, run in runners.items():
+        if name in sections:
+            report[name] = run()
+            section_done(name)
     report["load_average_end"] = os.getloadavg()
     report["wall_seconds"] = time.time() - started
     if args.keep_from:

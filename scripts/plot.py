@@ -26,6 +26,16 @@ def save(fig, path):
     print(f"plot: {path} ({path.stat().st_size // 1024} KB)")
 
 
+def describe(ax, title, xlabel=None, ylabel=None, legend_size=7):
+    """An axes' labels, legend and title, the same way in every figure."""
+    if xlabel is not None:
+        ax.set_xlabel(xlabel)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel)
+    ax.legend(fontsize=legend_size)
+    ax.set_title(title, fontsize=10)
+
+
 def short(mesh):
     return mesh.replace("_", " ")
 
@@ -125,10 +135,7 @@ def plot_k(k_rows, path):
         ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
             lambda v, _: f"{v:g}" if f"{v:.1e}"[0] in "125" else ""))
     ax.set_xticks([1e-6, 1e-5, 1e-4, 1e-3], ["0", "1e-5", "1e-4\n(default)", "1e-3"])
-    ax.set_xlabel("k (balance weight, eq. 80)")
-    ax.set_ylabel("height / balanced height")
-    ax.legend(fontsize=7)
-    ax.set_title("Height against k (cf. Fig. 73)", fontsize=10)
+    describe(ax, "Height against k (cf. Fig. 73)", "k (balance weight, eq. 80)", "height / balanced height")
     save(fig, path)
 
 
@@ -249,10 +256,7 @@ def plot_octree(octree, path):
     faces = [r["triangles"] for r in rows]
     ax.loglog(faces, [r["cluster_seconds"] for r in rows], "o-", label="face clustering (hierarchy + boxes)")
     ax.loglog(faces, [r["octree_seconds"] for r in rows], "s-", label="tightest-fit octree")
-    ax.set_xlabel("faces")
-    ax.set_ylabel("seconds (wall, median)")
-    ax.legend(fontsize=8)
-    ax.set_title("Face clustering against octree (cf. Fig. 80)", fontsize=10)
+    describe(ax, "Face clustering against octree (cf. Fig. 80)", "faces", "seconds (wall, median)", legend_size=8)
     # One point per mesh (not a series: no lines); the medians are over the meshes of 50k faces and
     # more, as in the text (below that the octree takes a millisecond or less: timer noise).
     bx.semilogx(faces, [r["ratio"] for r in rows], "o", color="tab:blue", label="wall-time ratio")
@@ -267,11 +271,8 @@ def plot_octree(octree, path):
     bx.axhline(2.5, color="black", linestyle="--", linewidth=0.8, label="seed: about 2.5")
     bx.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
     ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: count_label(v)))
-    bx.set_xlabel("faces")
-    bx.set_ylabel("clustering time / octree time")
     bx.set_ylim(bottom=0)
-    bx.legend(fontsize=7)
-    bx.set_title("Ratio per mesh", fontsize=10)
+    describe(bx, "Ratio per mesh", "faces", "clustering time / octree time")
     save(fig, path)
 
 
@@ -286,17 +287,12 @@ def plot_branching(branching, path):
         ax.bar([j + (i - (len(meshes) - 1) / 2) * width for j in range(len(rows))], [r["bytes"] / base for r in rows],
                width, label=short(mesh))
     ax.set_xticks(range(3), ["b = 2", "b = 4", "b = 8"])
-    ax.set_ylabel("file size / size at b = 2")
     ax.set_ylim(0, 1.1)
-    ax.legend(fontsize=7)
-    ax.set_title("Cluster file size against branching", fontsize=10)
+    describe(ax, "Cluster file size against branching", ylabel="file size / size at b = 2")
     for mesh in meshes:
         rows = sorted((p for p in branching["prefixes"] if p["mesh"] == mesh), key=lambda p: p["nodes"])
         bx.loglog([p["nodes"] for p in rows], [p["bytes"] / 1e6 for p in rows], "o-", label=short(mesh))
-    bx.set_xlabel("nodes kept (truncate --nodes)")
-    bx.set_ylabel("file size, MB")
-    bx.legend(fontsize=7)
-    bx.set_title("Truncated prefixes (b = 2)", fontsize=10)
+    describe(bx, "Truncated prefixes (b = 2)", "nodes kept (truncate --nodes)", "file size, MB")
     save(fig, path)
 
 
@@ -313,14 +309,8 @@ def plot_flat(flat, path):
         fit_line(ax, [(r["triangles"], r["seconds"]) for r in sel], color, "")
         bx.loglog([r["triangles"] for r in sel], [r["max_degree"] for r in sel], "o-", color=color,
                   label=METRIC_LABEL[metric])
-    ax.set_xlabel("triangles")
-    ax.set_ylabel("seconds (wall, median, no boxes)")
-    ax.legend(fontsize=7)
-    ax.set_title("Flat grids: time (cf. Fig. 69)", fontsize=10)
-    bx.set_xlabel("triangles")
-    bx.set_ylabel("maximum dual-edge degree")
-    bx.legend(fontsize=7)
-    bx.set_title("Flat grids: maximum degree (cf. Fig. 71)", fontsize=10)
+    describe(ax, "Flat grids: time (cf. Fig. 69)", "triangles", "seconds (wall, median, no boxes)")
+    describe(bx, "Flat grids: maximum degree (cf. Fig. 71)", "triangles", "maximum dual-edge degree")
     save(fig, path)
 
 
