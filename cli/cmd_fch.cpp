@@ -9,23 +9,12 @@
 #include "facetree/io.h"
 #include "facetree/stream.h"
 #include "fch_commands.h"
+#include "job_options.h"
 #include "json.h"
 #include "signals.h"
 
 namespace facetree::cli {
 namespace {
-
-const char* metricName(Metric metric) {
-  switch (metric) {
-    case Metric::Willmott:
-      return "willmott";
-    case Metric::Garland:
-      return "garland";
-    case Metric::Constant:
-      return "constant";
-  }
-  return "unknown";
-}
 
 int invalid(const std::string& message) {
   std::fprintf(stderr, "facetree: %s\n", message.c_str());

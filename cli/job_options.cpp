@@ -19,15 +19,32 @@ std::string optionName(std::string name, OptionSpelling spelling) {
   return "--" + name;
 }
 
+// The names of the options' values, as both directions use them.
+template <typename T>
+using Names = std::initializer_list<std::pair<const char*, T>>;
+const Names<Metric> kMetricNames = {
+    {"willmott", Metric::Willmott}, {"garland", Metric::Garland}, {"constant", Metric::Constant}};
+const Names<MergeOrder> kOrderNames = {{"rounds", MergeOrder::Rounds}, {"exact", MergeOrder::Exact}};
+const Names<RecastRule> kRecastNames = {{"largest-area", RecastRule::LargestArea},
+                                        {"fewest-nodes", RecastRule::FewestNodes}};
+
 // The value called `name` among `values`; "unknown WHAT 'NAME' (a, b, c)" otherwise.
 template <typename T>
-T named(const char* what, const std::string& name, std::initializer_list<std::pair<const char*, T>> values) {
+T named(const char* what, const std::string& name, Names<T> values) {
   std::string known;
   for (const auto& [text, value] : values) {
     if (name == text) return value;
     known += (known.empty() ? "" : ", ") + std::string(text);
   }
   throw std::invalid_argument("unknown " + std::string(what) + " '" + name + "' (" + known + ")");
+}
+
+// The name of `value` among `values`.
+template <typename T>
+const char* nameOf(T value, Names<T> values) {
+  for (const auto& [text, known] : values)
+    if (known == value) return text;
+  return "unknown";
 }
 
 }  // namespace
@@ -37,19 +54,14 @@ void applyBuildSettings(const BuildSettings& s, OptionSpelling spelling, BuildOp
   const auto fail = [spelling](const char* option, const std::string& rule) {
     throw std::invalid_argument(optionName(option, spelling) + " " + rule);
   };
-  build.metric = named<Metric>(
-      "metric", s.metric,
-      {{"willmott", Metric::Willmott}, {"garland", Metric::Garland}, {"constant", Metric::Constant}});
-  build.order = named<MergeOrder>("merge order", s.order,
-                                  {{"rounds", MergeOrder::Rounds}, {"exact", MergeOrder::Exact}});
+  build.metric = named("metric", s.metric, kMetricNames);
+  build.order = named("merge order", s.order, kOrderNames);
   if (s.threads > kMaxJobThreads)
     fail("threads", "must be 0 (all cores) to " + std::to_string(kMaxJobThreads));
   if (!(s.balanceSlack >= 0)) fail("balance_slack", "must be 0 (off) or positive");
   if (!(s.k >= 0)) fail("k", "must not be negative");
   if (s.branching != 2 && s.branching != 4 && s.branching != 8) fail("branching", "must be 2, 4 or 8");
-  file.rule = named<RecastRule>(
-      "recast rule", s.recast,
-      {{"largest-area", RecastRule::LargestArea}, {"fewest-nodes", RecastRule::FewestNodes}});
+  file.rule = named("recast rule", s.recast, kRecastNames);
   build.k = s.k;
   build.flatThreshold = s.flatThreshold;
   build.balanceSlack = s.balanceSlack;
@@ -59,6 +71,13 @@ void applyBuildSettings(const BuildSettings& s, OptionSpelling spelling, BuildOp
   build.threads = s.threads;
   file.branching = s.branching;
   file.build = build;
+}
+
+const char* metricName(Metric metric) {
+  return nameOf(metric, kMetricNames);
+}
+const char* orderName(MergeOrder order) {
+  return nameOf(order, kOrderNames);
 }
 
 void checkJobLimits(uint64_t memoryCap, int zstdLevel, OptionSpelling spelling) {

@@ -31,6 +31,10 @@ struct BuildSettings {
 void applyBuildSettings(const BuildSettings& settings, OptionSpelling spelling, BuildOptions& build,
                         FileOptions& file);
 
+// The names applyBuildSettings takes, for a value (as reports and headers print it).
+const char* metricName(Metric metric);
+const char* orderName(MergeOrder order);
+
 // Throws std::invalid_argument unless the cap is 0 (half the memory) or at least 16 MiB and the
 // zstd level is 0 (the default) to 19.
 void checkJobLimits(uint64_t memoryCap, int zstdLevel, OptionSpelling spelling);

@@ -1,6 +1,7 @@
 // The job report as one JSON object (job_report.h).
 #include "job_report.h"
 
+#include "job_options.h"
 #include "json.h"
 
 namespace facetree::cli {
@@ -19,7 +20,7 @@ std::string jobReportJson(const JobReport& r, const JobReportContext& context) {
   json.field("balanced_height", r.balancedHeight);
   json.field("height_ratio", ratio);
   json.field("components", r.components);
-  json.field("order", context.order == MergeOrder::Exact ? "exact" : "rounds");
+  json.field("order", orderName(context.order));
   if (!r.outOfCore) {
     json.field("rounds", s.rounds);
     json.field("average_degree", s.averageDegree);

@@ -83,6 +83,20 @@ glm::dvec3 eigenvectorFromRows(const double a[3][3], double lambda, const glm::d
   return fallback;
 }
 
+// Scales (x, y), not both zero, to unit length, dividing by the larger of the two first so that
+// the square cannot overflow (Eberly 2014).
+void scaleToUnit(double& x, double& y) {
+  if (std::abs(x) >= std::abs(y)) {
+    y /= x;
+    x = 1.0 / std::sqrt(1.0 + y * y);
+    y *= x;
+  } else {
+    x /= y;
+    y = 1.0 / std::sqrt(1.0 + x * x);
+    x *= y;
+  }
+}
+
 // Unit eigenvector for `lambda` orthogonal to the unit eigenvector `w` (Eberly 2014): the
 // 2x2 problem on the plane of w. Robust for a repeated lambda (then any vector of the plane).
 glm::dvec3 eigenvectorInComplement(const double a[3][3], const glm::dvec3& w, double lambda) {
@@ -99,33 +113,13 @@ glm::dvec3 eigenvectorInComplement(const double a[3][3], const glm::dvec3& w, do
   double m11 = glm::dot(v, av) - lambda;
   const double abs00 = std::abs(m00), abs01 = std::abs(m01), abs11 = std::abs(m11);
   if (abs00 >= abs11) {
-    if (std::max(abs00, abs01) > 0) {
-      if (abs00 >= abs01) {
-        m01 /= m00;
-        m00 = 1.0 / std::sqrt(1.0 + m01 * m01);
-        m01 *= m00;
-      } else {
-        m00 /= m01;
-        m01 = 1.0 / std::sqrt(1.0 + m00 * m00);
-        m00 *= m01;
-      }
-      return glm::normalize(m01 * u - m00 * v);
-    }
-    return u;
+    if (!(std::max(abs00, abs01) > 0)) return u;  // also NaN
+    scaleToUnit(m00, m01);
+    return glm::normalize(m01 * u - m00 * v);
   }
-  if (std::max(abs11, abs01) > 0) {
-    if (abs11 >= abs01) {
-      m01 /= m11;
-      m11 = 1.0 / std::sqrt(1.0 + m01 * m01);
-      m01 *= m11;
-    } else {
-      m11 /= m01;
-      m01 = 1.0 / std::sqrt(1.0 + m11 * m11);
-      m11 *= m01;
-    }
-    return glm::normalize(m11 * u - m01 * v);
-  }
-  return u;
+  if (!(std::max(abs11, abs01) > 0)) return u;
+  scaleToUnit(m11, m01);
+  return glm::normalize(m11 * u - m01 * v);
 }
 
 // Copy of m as a full matrix scaled by a power of two (exact, no overflow even for subnormal

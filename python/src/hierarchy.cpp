@@ -7,6 +7,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "bindings.h"
+#include "job_options.h"
 
 namespace facetree::python {
 namespace {
@@ -99,9 +100,7 @@ face_order[first:first + count] of its face range; its children partition that r
             d["triangle_count"] = f.triangleCount;
             d["vertex_count"] = f.vertexCount;
             d["branching"] = f.branching;
-            d["metric"] = f.metric == Metric::Garland    ? "garland"
-                          : f.metric == Metric::Constant ? "constant"
-                                                         : "willmott";
+            d["metric"] = cli::metricName(f.metric);
             d["k"] = f.k;
             d["flat_threshold"] = f.flatThreshold;
             d["memory_cap_bytes"] = f.memoryCapBytes;
