@@ -42,6 +42,7 @@
 
 #include "box_extent.h"
 #include "frame.h"
+#include "parallel_blocks.h"
 
 namespace facetree {
 namespace {
@@ -483,17 +484,6 @@ void validate(const MeshView& mesh, const Hierarchy& h) {
   }
 }
 
-template <class F>
-void parallelFor(unsigned threads, F&& body) {
-  if (threads <= 1) {
-    body(0u);
-    return;
-  }
-  std::vector<std::jthread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back([&body, t] { body(t); });
-  body(0u);
-}
-
 float roundUp(double v) {
   float f = float(v);
   // v >= 0 here (a half extent), so the next float up is the next bit pattern (nextafterf is
@@ -606,7 +596,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
     ctx.subtreeOf.assign(nodes.size(), 0);
     for (size_t i = 0; i < cut.size(); ++i) ctx.subtreeOf[cut[i]] = uint32_t(i + 1);
     std::atomic<size_t> nextSubtree{0};
-    parallelFor(threads, [&](unsigned) {
+    onThreads(threads, [&](unsigned) {
       Worker worker(ctx);
       for (size_t i; (i = nextSubtree.fetch_add(1)) < cut.size();)
         ctx.subtrees[i] = worker.run(cut[i], true, false, nullptr);
@@ -640,7 +630,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
     groups.push_back(byBlock.size());
     std::vector<Extent> partial(items.size());
     std::atomic<size_t> nextGroup{0};
-    parallelFor(threads, [&](unsigned) {
+    onThreads(threads, [&](unsigned) {
       PackedFaces window;
       for (size_t g; (g = nextGroup.fetch_add(1)) + 1 < groups.size();) {
         uint32_t begin = items[byBlock[groups[g]]].begin, end = begin;

@@ -8,14 +8,13 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
 #include <glm/geometric.hpp>
 
 #include "huge_pages.h"
+#include "parallel_blocks.h"
 
 namespace facetree {
 
@@ -224,21 +223,13 @@ DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads) {
   constexpr uint32_t kFacesPerBlock = 1u << 16;
   const uint32_t blocks = (n + kFacesPerBlock - 1) / kFacesPerBlock;
   DualEdgeBlocks blockEdges(blocks);
-  std::atomic<uint32_t> nextBlock{0};
-  const auto work = [&] {
-    for (uint32_t b; (b = nextBlock.fetch_add(1, std::memory_order_relaxed)) < blocks;) {
-      const uint32_t first = b * kFacesPerBlock, last = std::min(n, first + kFacesPerBlock);
-      // A closed manifold mesh has exactly 3/2 dual edges per face.
-      blockEdges[b].reserve(size_t{last - first} * 3 / 2 + 16);
-      LengthPolicy policy{geometry, blockEdges[b]};
-      matchFaces(geometry, table, first, last, policy);
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    for (unsigned t = 1; t < std::min<unsigned>(std::max(threads, 1u), blocks); ++t) pool.emplace_back(work);
-    work();
-  }
+  forBlocks(threads, blocks, [&](uint32_t b, unsigned) {
+    const uint32_t first = b * kFacesPerBlock, last = std::min(n, first + kFacesPerBlock);
+    // A closed manifold mesh has exactly 3/2 dual edges per face.
+    blockEdges[b].reserve(size_t{last - first} * 3 / 2 + 16);
+    LengthPolicy policy{geometry, blockEdges[b]};
+    matchFaces(geometry, table, first, last, policy);
+  });
   size_t edges = 0;
   for (const std::vector<DualEdge>& e : blockEdges) edges += e.size();
   throwIfTooManyEdges(edges);

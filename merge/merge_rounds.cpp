@@ -29,13 +29,11 @@
 // (neighbour, shared length, key). Single faces keep no statistics (recomputed from the
 // triangle); clusters of two or more faces keep theirs in a dense array in cluster order.
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
-#include <thread>
 #include <type_traits>
 
 #include <glm/geometric.hpp>
@@ -43,6 +41,7 @@
 #include "balance_guard.h"
 #include "buffer.h"
 #include "merge_engine.h"
+#include "parallel_blocks.h"
 #include "stopwatch.h"
 #include "surface_stats.h"
 
@@ -60,24 +59,6 @@ constexpr uint32_t kStallRatio = 64;
 // the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
 constexpr uint32_t kTailClusters = 1024;
 constexpr uint32_t kTailFraction = 8;
-
-// Runs body(block, thread) for blocks [0, blocks) on `threads` threads; which thread runs a
-// block never changes what it computes.
-template <class F>
-void forBlocks(unsigned threads, uint32_t blocks, F&& body) {
-  if (threads <= 1 || blocks <= 1) {
-    for (uint32_t b = 0; b < blocks; ++b) body(b, 0u);
-    return;
-  }
-  std::atomic<uint32_t> nextBlock{0};
-  const auto work = [&](unsigned t) {
-    for (uint32_t b; (b = nextBlock.fetch_add(1, std::memory_order_relaxed)) < blocks;) body(b, t);
-  };
-  std::vector<std::jthread> pool;
-  const unsigned helpers = std::min<unsigned>(threads, blocks) - 1;
-  for (unsigned t = 1; t <= helpers; ++t) pool.emplace_back(work, t);
-  work(0);
-}
 
 // The prefix of a phase's blocks that have all finished, for returning the pages of an input
 // that no unfinished block reads any more.
