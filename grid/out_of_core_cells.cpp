@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "out_of_core.h"
+#include "vertex_map.h"
 
 namespace facetree {
 namespace {
@@ -24,40 +25,6 @@ constexpr uint32_t kMaxLeavesPerCell = 256;
 constexpr size_t kTrianglesPerBlock = 65536;
 // A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
 constexpr size_t kPairsPerBlock = 16384;
-
-// Open-addressing map from input vertex ids (never kNoVertex) to cell-local ids, for at most
-// `capacity` distinct ids (load factor <= 3/4). A cell of n faces can have 3n vertices (a
-// triangle soup): sized for 2n, such a cell filled the table and the probe never ended.
-class VertexMap {
- public:
-  explicit VertexMap(size_t capacity) {
-    size_t size = 16;
-    while (3 * size < 4 * capacity) size *= 2;
-    slots_.assign(size, kEmpty);
-    mask_ = size - 1;
-  }
-  // The local id of `vertex`, inserting `next` if it is new (then `inserted` is set).
-  uint32_t find(uint32_t vertex, uint32_t next, bool& inserted) {
-    size_t i = (uint64_t{vertex} * 0x9E3779B97F4A7C15ull) >> 20 & mask_;
-    for (;; i = (i + 1) & mask_) {
-      const uint64_t slot = slots_[i];
-      if (slot == kEmpty) {
-        slots_[i] = (uint64_t{vertex} << 32) | next;
-        inserted = true;
-        return next;
-      }
-      if (static_cast<uint32_t>(slot >> 32) == vertex) {
-        inserted = false;
-        return static_cast<uint32_t>(slot);
-      }
-    }
-  }
-
- private:
-  static constexpr uint64_t kEmpty = ~uint64_t{0};
-  std::vector<uint64_t> slots_;
-  size_t mask_ = 0;
-};
 
 // A face on a mesh edge that the cells share: the edge (its two vertex ids, lower first), the
 // face's cell and its CrossPair reference, its sides on the edge (u_f of EdgeShare) and the

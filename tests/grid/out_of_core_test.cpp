@@ -327,8 +327,9 @@ CliRun runCli(const std::vector<std::string>& arguments, const fs::path& errorFi
   return run;
 }
 
-// The cap as a promise: peak RSS of the facetree executable running the whole job (a fresh
-// process: a forked test process would count the pages it inherited); all ones if it failed.
+// The cap as a promise: peak RSS of the facetree executable running the whole job, all ones if
+// it failed. wait4's peak also counts what the forked child held before its exec, a copy of this
+// test process: small when ctest runs each test in a process of its own, as scripts/test does.
 uint64_t cliPeakRss(const std::vector<std::string>& arguments) {
   const CliRun run = runCli(arguments, "/dev/null");
   return run.exitCode == 0 ? run.peakRss : ~uint64_t{0};
