@@ -27,9 +27,9 @@ namespace facetree {
 // non-finite vertex are dropped by the reader; originalFace maps each triangle back to the
 // face index of the file.
 struct IndexedMesh {
-  MeshInfo info;    // the file's format and declared counts
-  ReadStats stats;  // what the reader read
-  std::vector<glm::vec3> positions;
+  MeshInfo info;                       // the file's format and declared counts
+  ReadStats stats;                     // what the reader read
+  std::vector<glm::vec3> positions;    // by vertex index, as the file numbers them
   std::vector<uint32_t> indices;       // 3 per triangle, into positions
   std::vector<uint64_t> originalFace;  // per triangle: its face in the file
   uint64_t weldedVertices = 0;         // vertices replaced by an earlier one at the same position

@@ -46,15 +46,15 @@ enum FchNodeFlag : uint8_t {
 
 // Header fields other than the layout (counts of what the file holds and the options used).
 struct FileHeader {
-  uint32_t version = kFchVersion;  // of the format (docs/FORMAT.md)
-  uint64_t nodeCount = 0;          // nodes in the file
-  uint64_t originalNodeCount = 0;  // before truncation
-  uint64_t triangleCount = 0;
-  uint64_t vertexCount = 0;
-  uint32_t branching = 2;            // most children a node has: 2, 4 or 8
-  Metric metric = Metric::Willmott;  // the build's options, recorded
-  double k = 0;
-  double flatThreshold = 0;
+  uint32_t version = kFchVersion;              // of the format (docs/FORMAT.md)
+  uint64_t nodeCount = 0;                      // nodes in the file
+  uint64_t originalNodeCount = 0;              // before truncation
+  uint64_t triangleCount = 0;                  // triangles (faces) in the file
+  uint64_t vertexCount = 0;                    // vertices in the file
+  uint32_t branching = 2;                      // most children a node has: 2, 4 or 8
+  Metric metric = Metric::Willmott;            // the build's options, recorded
+  double k = 0;                                // BuildOptions::k
+  double flatThreshold = 0;                    // BuildOptions::flatThreshold
   double garlandWeights[3] = {1, 1, 1};        // fit, dir, shape
   uint64_t memoryCapBytes = 0;                 // 0 = not given
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // of the vertices
@@ -63,14 +63,14 @@ struct FileHeader {
 // One node. A child reference is a node index (>= nodes.size() means cut off by truncation) or
 // kFaceChild | face position; children are in face-range order and partition [first, first+count).
 struct FchNode {
-  uint32_t first = 0, count = 0;  // its faces: positions [first, first + count) of the face order
-  uint8_t childCount = 0;
+  uint32_t first = 0, count = 0;       // its faces: positions [first, first + count) of the face order
+  uint8_t childCount = 0;              // 2 to the file's branching
   uint8_t flags = 0;                   // FchNodeFlag bits
   uint32_t child[kMaxBranching] = {};  // childCount references, in face-range order
   float cost = 0;                      // as Node::cost
   float area = 0, perimeter = 0;       // of the cluster's surface and its boundary
   glm::vec3 sumNormal{0.0f};           // S = sum of area-weighted face normals; projArea = |S|
-  NodeBox box{};
+  NodeBox box{};  // the oriented box of the node's faces, with their projected side areas
 };
 
 // A whole cluster file in memory: header, nodes in file order and the reordered mesh.
@@ -107,7 +107,7 @@ FileHeader optionsHeader(const FileOptions& options);
 
 // Recast statistics (sec. 5.5.1).
 struct BranchingStats {
-  uint32_t branching = 2;
+  uint32_t branching = 2;                                    // b
   uint64_t triangles = 0;                                    // faces, the tree's leaves
   uint64_t internalNodes = 0;                                // nodes of the file
   double eq85Nodes = 0;                                      // (n - 1) / (b - 1), the full-b-ary count
@@ -221,7 +221,7 @@ struct FchFrame {
 };
 // A cluster file's header and frame index, as readClusterFileLayout reads them.
 struct FchLayout {
-  FileHeader header;
+  FileHeader header;         // as readClusterFile reads it
   uint64_t fileBytes = 0;    // the file's size
   uint32_t headerBytes = 0;  // the header and frame index, before the first frame
   // Elements per frame: nodes in a node frame; vertices, triangles or ids in the others.
@@ -252,9 +252,9 @@ void truncateInMemory(ClusterFile& file, uint64_t nodes);
 // Checks every invariant of docs/FORMAT.md "Semantics" (ranges, parents, boxes, areas, side
 // areas); `message` names the first violation: "node N: CHECK: detail".
 struct VerifyResult {
-  bool ok = true;
-  std::string message;  // the first invariant broken, where and how; empty when ok
-  uint64_t nodesChecked = 0;
+  bool ok = true;             // every invariant holds
+  std::string message;        // the first invariant broken, where and how; empty when ok
+  uint64_t nodesChecked = 0;  // nodes whose invariants were checked
 };
 // Which invariants verifyClusterFile checks besides the tree and the face ranges.
 struct VerifyOptions {
@@ -381,8 +381,8 @@ struct GenerateOptions {
 };
 // What a generator wrote.
 struct GeneratedCounts {
-  uint64_t vertices = 0;
-  uint64_t triangles = 0;
+  uint64_t vertices = 0;   // vertices written
+  uint64_t triangles = 0;  // triangles written
 };
 // Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
 // radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square

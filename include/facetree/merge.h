@@ -28,8 +28,8 @@ namespace facetree {
 
 // An indexed triangle mesh the caller owns: `indices` holds three vertex indices per triangle.
 struct MeshView {
-  std::span<const glm::vec3> positions;
-  std::span<const uint32_t> indices;  // 3 per triangle, into positions
+  std::span<const glm::vec3> positions;  // by vertex index
+  std::span<const uint32_t> indices;     // 3 per triangle, into positions
   size_t triangleCount() const { return indices.size() / 3; }
 };
 
@@ -85,9 +85,9 @@ enum NodeFlag : uint32_t {
 
 // Topology and merge statistics of one internal node.
 struct Node {
-  uint32_t child[2];  // node indices, or kFaceChild | face position
-  uint32_t first;     // faces [first, first + count) of faceOrder
-  uint32_t count;
+  uint32_t child[2];      // node indices, or kFaceChild | face position
+  uint32_t first;         // faces [first, first + count) of faceOrder
+  uint32_t count;         // faces in the cluster
   uint32_t flags;         // NodeFlag bits
   float cost;             // merge cost when the node was created (with the balance guard's penalty)
   float area, perimeter;  // of the cluster's surface and its boundary (shared edges removed)
@@ -97,7 +97,7 @@ struct Node {
 // Oriented box: axes are the columns of mat3_cast(orientation); every vertex of the node's
 // faces lies in center +- halfExtent along them, and each of the six faces touches a vertex.
 struct NodeBox {
-  glm::vec3 center;
+  glm::vec3 center;       // of the box
   glm::quat orientation;  // the box's axes
   glm::vec3 halfExtent;   // along each axis
   float sideArea[6];      // projected area facing +axis0, -axis0, +axis1, -axis1, +axis2, -axis2
