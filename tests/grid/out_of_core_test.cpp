@@ -74,6 +74,19 @@ JobReport build(const fs::path& in, const fs::path& out, uint64_t cellFaces, uns
   return runClusterJob(job);
 }
 
+// The cluster file `out` holds a valid hierarchy (VerifyOptions says which invariants are
+// checked) over exactly the faces of `mesh`; returns it for further checks.
+ClusterFile expectHierarchyOf(const fs::path& out, const fs::path& mesh, const VerifyOptions& options = {}) {
+  ClusterFile file = readClusterFile(out);
+  const VerifyResult verified = verifyClusterFile(file, options);
+  EXPECT_TRUE(verified.ok) << verified.message;
+  const IndexedMesh input = loadMesh(*openMesh(mesh));
+  EXPECT_EQ(file.indices.size(), input.indices.size());
+  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
+  EXPECT_TRUE(same.ok) << same.message;
+  return file;
+}
+
 std::string bytesOf(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), {}};
@@ -118,16 +131,9 @@ TEST(OutOfCore, TerrainVerifiesAndKeepsEveryTriangle) {
   EXPECT_GT(report.cells, 8u);
   EXPECT_GE(report.leaves, report.cells);
 
-  const ClusterFile file = readClusterFile(dir / "out.fch");
-  const VerifyResult verified = verifyClusterFile(file);
-  EXPECT_TRUE(verified.ok) << verified.message;
-  auto reader = openMesh(mesh);
-  const IndexedMesh input = loadMesh(*reader);
-  EXPECT_EQ(file.indices.size(), input.indices.size());
-  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
-  EXPECT_TRUE(same.ok) << same.message;
+  const ClusterFile file = expectHierarchyOf(dir / "out.fch", mesh);
   EXPECT_EQ(report.nodes, file.nodes.size());
-  EXPECT_EQ(file.nodes.size(), input.originalFace.size() - 1);
+  EXPECT_EQ(file.nodes.size(), file.originalFace.size() - 1);
   // A terrain is one surface: only nodes flagged as joins may be disconnected, and there are none.
   for (size_t j = 0; j < file.nodes.size(); ++j) {
     const FchNode& node = file.nodes[j];
@@ -290,13 +296,7 @@ TEST(OutOfCore, ShuffledInputWithSpilledPositions) {
   const fs::path mesh = generate(dir, "shuffled.ply", SyntheticKind::Terrain, 300000, true);
   const JobReport report = build(mesh, dir / "out.fch", 20000, 2, {}, uint64_t{64} << 20);
   EXPECT_TRUE(report.outOfCore);
-  const ClusterFile file = readClusterFile(dir / "out.fch");
-  const VerifyResult verified = verifyClusterFile(file);
-  EXPECT_TRUE(verified.ok) << verified.message;
-  auto reader = openMesh(mesh);
-  const IndexedMesh input = loadMesh(*reader);
-  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
-  EXPECT_TRUE(same.ok) << same.message;
+  expectHierarchyOf(dir / "out.fch", mesh);
 }
 
 // A run of the facetree executable in a fresh process: exit code, peak RSS, standard error.
@@ -435,13 +435,7 @@ TEST(OutOfCore, DracoHoldsTheCapBesideItsDecodedMesh) {
       runCli({"build", mesh.string(), "-o", out.string(), "--memory", "64M", "--json"}, dir / "stderr.txt");
   ASSERT_EQ(run.exitCode, 0) << run.standardError;
   EXPECT_LE(run.peakRss, uint64_t{64} << 20) << run.peakRss / 1048576.0 << " MiB";
-  const ClusterFile file = readClusterFile(out);
-  const VerifyResult verified = verifyClusterFile(file, {.boxes = false, .statistics = false});
-  EXPECT_TRUE(verified.ok) << verified.message;
-  auto reader = openMesh(mesh);
-  const IndexedMesh input = loadMesh(*reader);
-  const VerifyResult same = verifyAgainstMesh(file, input.view(), input.originalFace);
-  EXPECT_TRUE(same.ok) << same.message;
+  expectHierarchyOf(out, mesh, {.boxes = false, .statistics = false});
 }
 
 // When the decoded mesh fits the reader's share but leaves the out-of-core build less than it
