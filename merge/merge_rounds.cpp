@@ -32,7 +32,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <mutex>
 #include <stdexcept>
 #include <type_traits>
 
@@ -59,28 +58,6 @@ constexpr uint32_t kStallRatio = 64;
 // the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
 constexpr uint32_t kTailClusters = 1024;
 constexpr uint32_t kTailFraction = 8;
-
-// The prefix of a phase's blocks that have all finished, for returning the pages of an input
-// that no unfinished block reads any more.
-class FinishedBlocks {
- public:
-  explicit FinishedBlocks(uint32_t blocks) : done_(blocks, 0) {}
-  // Marks `block` finished and, when that extends the prefix, calls release(prefix) under the
-  // lock (so releases are serialised and see a growing prefix).
-  template <class Release>
-  void finish(uint32_t block, const Release& release) {
-    std::lock_guard lock(mutex_);
-    done_[block] = 1;
-    const uint32_t old = prefix_;
-    while (prefix_ < done_.size() && done_[prefix_]) ++prefix_;
-    if (prefix_ > old) release(prefix_);
-  }
-
- private:
-  std::mutex mutex_;
-  std::vector<uint8_t> done_;
-  uint32_t prefix_ = 0;
-};
 
 // A dual edge as one of its ends lists it: the other end, the length the two share and the
 // edge's merge key (kBlockedKey when blocked); both ends hold the same key.

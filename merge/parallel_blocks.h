@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -41,5 +42,27 @@ void onThreads(unsigned threads, F&& body) {
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back([&body, t] { body(t); });
   body(0u);
 }
+
+// The prefix of a phase's blocks that have all finished, for returning the pages of an input
+// that no unfinished block reads any more.
+class FinishedBlocks {
+ public:
+  explicit FinishedBlocks(uint32_t blocks) : done_(blocks, 0) {}
+  // Marks `block` finished and, when that extends the prefix, calls release(prefix) under the
+  // lock (so releases are serialised and see a growing prefix).
+  template <class Release>
+  void finish(uint32_t block, const Release& release) {
+    std::lock_guard lock(mutex_);
+    done_[block] = 1;
+    const uint32_t old = prefix_;
+    while (prefix_ < done_.size() && done_[prefix_]) ++prefix_;
+    if (prefix_ > old) release(prefix_);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<uint8_t> done_;
+  uint32_t prefix_ = 0;
+};
 
 }  // namespace facetree
