@@ -351,7 +351,7 @@ TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
   }
 }
 
-// --metric garland out of core (it used to need an in-core build): the cells build with Garland's
+// --metric garland out of core: the cells build with Garland's
 // cost, the upper merge continues with the leaves' quadrics (mergeClusters), the cap holds although
 // its trees are deep (the upper frames carry a bounded set of hull points instead of every leaf's
 // corners), the file verifies in full and does not depend on the threads.
@@ -502,10 +502,9 @@ fs::path writeGridWithSpecks(const ScratchDir& dir, uint32_t side, uint32_t spec
   return path;
 }
 
-// What grows with the input besides the faces (cross-cell pairs, one leaf per speck,
-// node runs) used to stay in memory until the write: fg_hawaii (445k cross-cell pairs, 21k leaves)
-// peaked at 78 MiB under 64, and this mesh (small cells: many borders; 100k specks: ~95 components
-// per cell, 35k leaves) at 76 MiB. The spills and the leaf budget keep it at ~36 MiB.
+// What grows with the input besides the faces (cross-cell pairs, one leaf per speck, node runs)
+// is spilled, and a cell keeps at most a budget of leaves, so the cap holds on a mesh with many
+// of both: small cells (many borders) and 100k specks (about 95 components per cell).
 TEST(OutOfCore, MemoryCapHeldWithManyLeavesAndCrossCellEdges) {
   SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
   ScratchDir dir;

@@ -213,7 +213,7 @@ TEST(StreamDraco, CountsTheFileCannotHoldAreRefusedBeforeDecoding) {
   limited.wholeMeshLimitBytes = uint64_t{64} << 20;
   EXPECT_EQ(test::errorOf([&] { openMesh(path, limited); }), expected);
   // So is a stream of unknown size (zstd here, standard input alike): it ends before its bytes
-  // could hold the counts (it used to be refused as too large for the cap).
+  // could hold the counts, so it is called corrupt too, not too large for the cap.
   EXPECT_EQ(test::errorOf([&] { openMesh(zst, limited); }),
             zst.string() + expected.substr(path.string().size()));
 }

@@ -1,4 +1,4 @@
-// The shared real meshes (../shared/data/*.ply.zst): counts match the README table.
+// The shared real meshes (FACETREE_SHARED_DATA/*.ply.zst): counts match the README table.
 #include <gtest/gtest.h>
 
 #include <map>
