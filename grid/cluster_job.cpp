@@ -28,11 +28,11 @@ uint64_t defaultMemoryCap() {
 
 }  // namespace
 
-void JobReport::recordInCoreBuild(const Hierarchy& hierarchy) {
+void JobReport::recordInCoreBuild(const Hierarchy& hierarchy, const BranchingStats& file) {
   inCore = hierarchy.stats;
-  nodes = hierarchy.nodes.size();
-  height = hierarchy.stats.height;
-  balancedHeight = hierarchy.stats.balancedHeight;
+  nodes = file.internalNodes;
+  height = file.height;
+  balancedHeight = file.balancedHeight;
   components = hierarchy.stats.components;
   cells = 1;
   leaves = 1;
@@ -163,15 +163,18 @@ JobReport runClusterJob(const ClusterJob& job) {
   auto phase = std::chrono::steady_clock::now();
   const Hierarchy hierarchy = buildHierarchy(mesh.view(), effective.build);
   report.secondsMerge = secondsSince(phase);
-  report.recordInCoreBuild(hierarchy);
   report.secondsBuilt = secondsSince(start);
   check("write", 0, report.triangles);
 
   phase = std::chrono::steady_clock::now();
+  BranchingStats shape;
   if (!job.output.empty())
     report.fileBytes = writeClusterFile(
         job.output, mesh.view(), mesh.originalFace, hierarchy, effective.file,
-        WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3, .threads = job.threads});
+        WriteOptions{.zstdLevel = job.zstdLevel ? job.zstdLevel : 3, .threads = job.threads}, &shape);
+  else
+    shape = branchingStats(hierarchy, effective.file);
+  report.recordInCoreBuild(hierarchy, shape);
   if (!job.meshOut.empty()) writeReorderedMesh(mesh.view(), hierarchy, job.meshOut, job.meshOutOptions);
   report.secondsWrite = secondsSince(phase);
   report.seconds = secondsSince(start);

@@ -122,7 +122,8 @@ struct LeafCluster {
   uint32_t faceCount = 0;  // at most a cell's
   uint32_t nodeCount = 0;
   uint32_t vertexCount = 0;
-  uint32_t height = 1;
+  uint32_t height = 1;      // of its binary hierarchy, faces included (the upper merge's guard)
+  uint32_t fileHeight = 1;  // of its subtree in the file, recast to the file's branching
   uint32_t firstBlock = 0;  // its runs, LeafGraph::runs[firstBlock, + blockCount), in file order
   uint32_t blockCount = 0;
   uint32_t firstGeometry = 0;  // its geometry, LeafGraph::geometry[firstGeometry, + geometryCount)

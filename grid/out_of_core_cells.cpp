@@ -515,7 +515,9 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
       stats.height = leaf.height;
       if (context_.job.build.metric == Metric::Garland)
         out.garland.push_back(garlandQuadrics(leafMesh, extent_.origin));
-      const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, context_.job.file);
+      BranchingStats shape;
+      const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, context_.job.file, &shape);
+      leaf.fileHeight = shape.height;
       leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
       leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
       out.corners.push_back(rootCorners(file));

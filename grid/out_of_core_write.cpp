@@ -18,12 +18,6 @@ namespace {
 
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
-uint32_t balancedHeight(uint64_t n) {
-  uint32_t h = 1;
-  for (uint64_t span = 1; span < n; span *= 2) ++h;
-  return h;
-}
-
 // Where everything goes in the file: the leaves' order and face and vertex bases, the upper
 // nodes' ranges, parents and depths over the kept (recast) nodes.
 struct FileLayout {
@@ -134,7 +128,7 @@ FileLayout WriteStage::layout() const {
     l.nodes += c.nodeCount;
     l.vertices += c.vertexCount;
     const uint32_t above = l.leafParent[leaf] == kNone ? 0 : l.depth[l.leafParent[leaf]];
-    l.height = std::max(l.height, above + c.height);
+    l.height = std::max(l.height, above + c.fileHeight);
   }
   return l;
 }
@@ -316,7 +310,7 @@ void WriteStage::run() {
   JobReport& report = context_.report;
   report.nodes = fileLayout.nodes;
   report.height = fileLayout.height;
-  report.balancedHeight = balancedHeight(fileLayout.faces);
+  report.balancedHeight = balancedHeight(fileLayout.faces, context_.job.file.branching);
 
   UpperFrames frames = frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold);
   graph_.corners = {};

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "file_shape.h"
 #include "hierarchy_check.h"
 
 namespace facetree {
@@ -122,32 +123,16 @@ RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching, Recas
   return tree;
 }
 
+uint32_t balancedHeight(uint64_t faces, uint32_t branching) {
+  uint32_t height = 1;
+  for (double reach = 1; reach < double(faces); reach *= branching) ++height;  // eq. 86
+  return height;
+}
+
 BranchingStats branchingStats(const ClusterFile& file) {
-  BranchingStats s;
-  s.branching = file.header.branching;
-  s.triangles = file.indices.size() / 3;
-  s.internalNodes = file.nodes.size();
-  s.eq85Nodes = s.triangles > 0 ? double(s.triangles - 1) / double(s.branching - 1) : 0.0;
-  // Depth in nodes of every node (root 1); a face below node j is at depth[j] + 1.
-  std::vector<uint32_t> depth(file.nodes.size(), 1);
-  s.height = s.triangles > 0 ? 1 : 0;
-  for (size_t j = 0; j < file.nodes.size(); ++j) {
-    const FchNode& node = file.nodes[j];
-    ++s.childHistogram[std::min<unsigned>(node.childCount, kMaxBranching)];
-    uint32_t kept = 0;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      if (!(ref & kFaceChild) && ref < file.nodes.size()) {
-        depth[ref] = depth[j] + 1;
-        kept += file.nodes[ref].count;
-      }
-    }
-    if (kept < node.count) s.height = std::max(s.height, depth[j] + 1);  // faces directly below
-  }
-  uint32_t balanced = 1;
-  for (double reach = 1; reach < double(s.triangles); reach *= s.branching) ++balanced;  // eq. 86
-  s.balancedHeight = s.triangles > 0 ? balanced : 0;
-  return s;
+  FileShape shape(file.header.branching, file.indices.size() / 3, file.nodes.size());
+  for (size_t j = 0; j < file.nodes.size(); ++j) shape.add(j, file.nodes[j]);
+  return shape.stats();
 }
 
 }  // namespace facetree

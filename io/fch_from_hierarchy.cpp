@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "facetree/io.h"
+#include "file_shape.h"
 #include "hierarchy_check.h"
 #include "mesh_out.h"
 
@@ -51,7 +52,9 @@ class FileNodes {
     node.area = b.area;
     node.perimeter = b.perimeter;
     node.sumNormal = b.sumNormal;
-    node.box = hierarchy_.boxes[binary];  // same face range: the exact box of the b-ary node
+    // Same face range: the exact box of the b-ary node. The writers require boxes
+    // (checkFileInputs); branchingStats of a hierarchy built without them needs none.
+    if (binary < hierarchy_.boxes.size()) node.box = hierarchy_.boxes[binary];
     return node;
   }
 
@@ -117,9 +120,12 @@ ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> orig
 
 uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mesh,
                           std::span<const uint64_t> originalFace, const Hierarchy& hierarchy,
-                          const FileOptions& options, const WriteOptions& writeOptions) {
+                          const FileOptions& options, const WriteOptions& writeOptions,
+                          BranchingStats* stats) {
   checkFileInputs(mesh, originalFace, hierarchy, "writeClusterFile");
   const FileNodes nodes(hierarchy, options);
+  std::optional<FileShape> shape;
+  if (stats) shape.emplace(options.branching, mesh.triangleCount(), nodes.size());
   const FirstUseNumbering numbering = numberByFirstUse(mesh, hierarchy.faceOrder);
   const size_t triangles = mesh.triangleCount();
   StreamFileInfo info;
@@ -150,8 +156,10 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
   size_t node = 0, face = 0;
   const size_t steps = std::max<size_t>(1, (nodes.size() + kNodeBatch - 1) / kNodeBatch);
   for (size_t step = 1; step <= steps; ++step) {
-    for (const size_t end = std::min(nodes.size(), step * kNodeBatch); node < end; ++node)
+    for (const size_t end = std::min(nodes.size(), step * kNodeBatch); node < end; ++node) {
       nodeBatch.push_back(nodes[node]);
+      if (shape) shape->add(node, nodeBatch.back());
+    }
     if (!nodeBatch.empty()) writer.addNodes(nodeBatch), nodeBatch.clear();
     for (const size_t end = step == steps ? triangles : triangles / steps * step; face < end; ++face) {
       const uint32_t t = order[face];
@@ -169,7 +177,17 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
         writer.addTriangles(indexBatch, idBatch), indexBatch.clear(), idBatch.clear();
     }
   }
-  return writer.finish();
+  const uint64_t bytes = writer.finish();
+  if (stats) *stats = shape->stats();
+  return bytes;
+}
+
+BranchingStats branchingStats(const Hierarchy& hierarchy, const FileOptions& options) {
+  const FileNodes nodes(hierarchy, options);
+  const uint64_t triangles = hierarchy.faceOrder.size();
+  FileShape shape(options.branching, triangles, nodes.size());
+  for (size_t j = 0; j < nodes.size(); ++j) shape.add(j, nodes[j]);
+  return shape.stats();
 }
 
 }  // namespace facetree

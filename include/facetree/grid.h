@@ -122,9 +122,10 @@ struct JobReport {
   double secondsBuilt = 0;  // from the start to the finished hierarchy
   BuildStats inCore;        // the in-core build's statistics (in-core jobs only)
 
-  // Records an in-core build of `hierarchy` (one cell, one leaf): its statistics, node count and
-  // heights, as the job reports them.
-  void recordInCoreBuild(const Hierarchy& hierarchy);
+  // Records an in-core build of `hierarchy` (one cell, one leaf) whose file has the shape `file`
+  // (branchingStats): the build's statistics, and the file's node count and heights, as an
+  // out-of-core job reports its file's.
+  void recordInCoreBuild(const Hierarchy& hierarchy, const BranchingStats& file);
 };
 
 // Runs the job. Throws Error (facetree/error.h): Input for unreadable input, Output for an output

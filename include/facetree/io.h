@@ -126,6 +126,11 @@ ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> orig
                             BranchingStats* stats = nullptr);
 // Statistics of the tree in `file` (children histogram, height, eq. 85/86).
 BranchingStats branchingStats(const ClusterFile& file);
+// The same statistics of the file `hierarchy` makes under `options`, without making it.
+BranchingStats branchingStats(const Hierarchy& hierarchy, const FileOptions& options);
+// Eq. 86: the height, in nodes with the faces included, of a balanced b-ary tree over `faces`
+// faces: ceil(log_b faces) + 1.
+uint32_t balancedHeight(uint64_t faces, uint32_t branching);
 
 // How a cluster file is written: frame sizes, zstd level, compression threads.
 struct WriteOptions {
@@ -198,10 +203,12 @@ uint64_t writerMemoryBound(const WriteOptions& options = {});
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
 // nodes are produced in batches, vertices numbered by first use on the fly (one index per input
 // vertex is held). For b = 2 the recast is the identity and no tree is built. Same bytes as
-// writeClusterFile(path, makeClusterFile(...), writeOptions). Returns the file size.
+// writeClusterFile(path, makeClusterFile(...), writeOptions). Returns the file size; `stats`, when
+// given, gets the file's branchingStats.
 uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mesh,
                           std::span<const uint64_t> originalFace, const Hierarchy& hierarchy,
-                          const FileOptions& options, const WriteOptions& writeOptions = {});
+                          const FileOptions& options, const WriteOptions& writeOptions = {},
+                          BranchingStats* stats = nullptr);
 
 // Reads and checks (checksums, sizes, index ranges) a whole file; `geometry` false skips the
 // vertex, triangle and id frames (their checksums are not checked then).

@@ -228,8 +228,9 @@ void registerJob(py::module_& m) {
           const Hierarchy hierarchy = buildHierarchy(view, s.build);
           report.secondsBuilt =
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-          out.file = makeClusterFile(view, originalFace, hierarchy, s.file);
-          report.recordInCoreBuild(hierarchy);
+          BranchingStats shape;
+          out.file = makeClusterFile(view, originalFace, hierarchy, s.file, &shape);
+          report.recordInCoreBuild(hierarchy, shape);
         });
         report.triangles = mesh.view.triangleCount();
         report.stats.vertices = mesh.view.positions.size();

@@ -291,6 +291,33 @@ TEST(OutOfCore, SmallCapIsRefusedWithWhatItNeeds) {
 }
 
 // Shuffled vertices and faces with positions spilled: the sort join serves them.
+// The report describes the file the job wrote, in core and out of core alike: its node count,
+// its height and eq. 86's balanced height for its branching. Without -o, the file it would write.
+TEST(OutOfCore, ReportDescribesTheFileForEveryBranching) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 30000);
+  for (const uint32_t b : {2u, 4u, 8u}) {
+    for (const uint64_t cellFaces : {uint64_t{0}, uint64_t{4000}}) {
+      ClusterJob job;
+      job.input = mesh;
+      job.output = dir / "out.fch";
+      job.forceCellFaces = cellFaces;
+      job.file.branching = b;
+      const JobReport report = runClusterJob(job);
+      EXPECT_EQ(report.outOfCore, cellFaces > 0);
+      const BranchingStats shape = branchingStats(readClusterFile(job.output));
+      EXPECT_EQ(report.nodes, shape.internalNodes) << "b = " << b << ", cells " << cellFaces;
+      EXPECT_EQ(report.height, shape.height) << "b = " << b << ", cells " << cellFaces;
+      EXPECT_EQ(report.balancedHeight, shape.balancedHeight) << "b = " << b << ", cells " << cellFaces;
+      if (cellFaces > 0) continue;
+      job.output.clear();
+      const JobReport unwritten = runClusterJob(job);
+      EXPECT_EQ(unwritten.nodes, shape.internalNodes) << "b = " << b;
+      EXPECT_EQ(unwritten.height, shape.height) << "b = " << b;
+    }
+  }
+}
+
 TEST(OutOfCore, ShuffledInputWithSpilledPositions) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "shuffled.ply", SyntheticKind::Terrain, 300000, true);
