@@ -114,6 +114,8 @@ struct BranchingStats {
   std::array<uint64_t, kMaxBranching + 1> childHistogram{};  // nodes by number of children
   uint32_t height = 0;          // nodes on the longest root-to-face path, faces included
   uint32_t balancedHeight = 0;  // eq. 86: ceil(log n / log b) + 1
+
+  bool operator==(const BranchingStats&) const = default;
 };
 
 // The cluster file of a binary hierarchy of `mesh` recast to options.branching. `originalFace`
