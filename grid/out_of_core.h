@@ -139,6 +139,8 @@ struct CrossPair {
   uint32_t ref[2];
   double shared;
 };
+// A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
+inline constexpr size_t kPairsPerBlock = 16384;
 // A face of a cell with an edge owned by another cell (it sent ghosts there), and its leaf: what
 // a CrossPair's face reference resolves through.
 struct BorderFace {
@@ -152,6 +154,9 @@ struct GeometryBlockHeader {
   uint32_t triangles;
   uint32_t newVertices;
 };
+// A leaf's geometry is spilled in blocks of at most this many triangles, the unit the write reads
+// back.
+inline constexpr size_t kTrianglesPerBlock = 65536;
 
 // cells: what the write reads back (each leaf's nodes in runs, its geometry in blocks) ...
 struct LeafSubtrees {

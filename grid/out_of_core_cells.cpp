@@ -22,11 +22,6 @@ namespace {
 // as one more leaf (its components joined by the engine, flagged): scans carry thousands of
 // specks, and every leaf costs the upper merge and the writer a little.
 constexpr uint32_t kMaxLeavesPerCell = 256;
-// A leaf's geometry is spilled in blocks of at most this many triangles (GeometryBlockHeader),
-// the unit the write reads back.
-constexpr size_t kTrianglesPerBlock = 65536;
-// A cell's CrossPairs are spilled in blocks of this many (384 KiB raw).
-constexpr size_t kPairsPerBlock = 16384;
 
 // A face on a mesh edge that the cells share: the edge (its two vertex ids, lower first), the
 // face's cell and its CrossPair reference, its sides on the edge (u_f of EdgeShare) and the
