@@ -8,9 +8,12 @@
 #include <algorithm>
 #include <chrono>
 #include <initializer_list>
+#include <iterator>
 #include <optional>
 #include <thread>
+#include <type_traits>
 #include <utility>
+#include <variant>
 
 #include "bindings.h"
 #include "job_options.h"
@@ -159,36 +162,36 @@ struct Settings {
 Settings settingsFrom(const py::kwargs& options, const char* function) {
   cli::BuildSettings named;
   bool weld = false;
+  using Field = std::variant<std::string*, double*, unsigned*, bool*>;
+  const std::pair<const char*, Field> fields[] = {{"metric", &named.metric},
+                                                  {"order", &named.order},
+                                                  {"recast", &named.recast},
+                                                  {"k", &named.k},
+                                                  {"balance_slack", &named.balanceSlack},
+                                                  {"flat_threshold", &named.flatThreshold},
+                                                  {"branching", &named.branching},
+                                                  {"threads", &named.threads},
+                                                  {"weld", &weld}};
   for (const auto& [key, value] : options) {
     const std::string name = py::cast<std::string>(key);
-    const auto take = [&](auto& field, const char* kind) {
-      try {
-        field = py::cast<std::remove_reference_t<decltype(field)>>(value);
-      } catch (const py::cast_error&) {
-        throw py::type_error(std::string(function) + "(): " + name + " must be " + kind + ", not " +
-                             py::cast<std::string>(py::type::of(value).attr("__name__")));
-      }
-    };
-    if (name == "metric")
-      take(named.metric, "a str");
-    else if (name == "order")
-      take(named.order, "a str");
-    else if (name == "recast")
-      take(named.recast, "a str");
-    else if (name == "k")
-      take(named.k, "a float");
-    else if (name == "balance_slack")
-      take(named.balanceSlack, "a float");
-    else if (name == "flat_threshold")
-      take(named.flatThreshold, "a float");
-    else if (name == "branching")
-      take(named.branching, "an int (2, 4 or 8)");
-    else if (name == "threads")
-      take(named.threads, "a non-negative int");
-    else if (name == "weld")
-      take(weld, "a bool");
-    else
+    const auto field =
+        std::find_if(std::begin(fields), std::end(fields), [&](const auto& f) { return name == f.first; });
+    if (field == std::end(fields))
       throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "'");
+    std::visit(
+        [&]<typename T>(T* target) {
+          try {
+            *target = py::cast<T>(value);
+          } catch (const py::cast_error&) {
+            const char* kind = std::is_same_v<T, std::string> ? "a str"
+                               : std::is_same_v<T, double>    ? "a float"
+                               : std::is_same_v<T, bool>      ? "a bool"
+                                                              : "a non-negative int";
+            throw py::type_error(std::string(function) + "(): " + name + " must be " + kind + ", not " +
+                                 py::cast<std::string>(py::type::of(value).attr("__name__")));
+          }
+        },
+        field->second);
   }
   Settings s;  // std::invalid_argument for a bad option: an InputError in Python (errors.cpp)
   cli::applyBuildSettings(named, cli::OptionSpelling::Python, s.build, s.file);

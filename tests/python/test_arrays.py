@@ -83,7 +83,10 @@ def test_options_are_keywords_checked_by_name_and_type():
     assert str(raised.value) == "build(): k must be a float, not str"
     with pytest.raises(TypeError) as raised:
         facetree.build(vertices, faces, branching=4.0)
-    assert str(raised.value) == "build(): branching must be an int (2, 4 or 8), not float"
+    assert str(raised.value) == "build(): branching must be a non-negative int, not float"
+    with pytest.raises(TypeError) as raised:
+        facetree.build(vertices, faces, threads=-1)
+    assert str(raised.value) == "build(): threads must be a non-negative int, not int"
     with pytest.raises(TypeError) as raised:
         facetree.build(vertices, faces, 2)
     # The defaults the docstring names are the ones a call without options gets.
