@@ -10,17 +10,9 @@
 #include <string>
 #include <vector>
 
-namespace facetree::cli {
+#include "exit_codes.h"
 
-// Exit codes, one per failure class (documented in README.md and `facetree --help`).
-enum ExitCode : int {
-  kExitOk = 0,
-  kExitInternal = 1,  // a bug: an unexpected exception
-  kExitUsage = 2,     // bad command line
-  kExitInput = 3,     // unreadable or malformed input mesh / cluster file
-  kExitOutput = 4,    // cannot write the output
-  kExitResource = 5,  // out of memory or over a limit
-};
+namespace facetree::cli {
 
 class UsageError : public std::runtime_error {
  public:

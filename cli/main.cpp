@@ -93,23 +93,6 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
   throw UsageError("unknown command '" + command + "'");
 }
 
-// The exit code of each category of facetree::Error (the README's table).
-int exitCode(facetree::ErrorCategory category) {
-  using facetree::ErrorCategory;
-  using namespace facetree::cli;
-  switch (category) {
-    case ErrorCategory::Input:
-      return kExitInput;
-    case ErrorCategory::Output:
-      return kExitOutput;
-    case ErrorCategory::Resource:
-      return kExitResource;
-    case ErrorCategory::Cancelled:
-      break;
-  }
-  return kExitInternal;
-}
-
 // Runs the command; failures become one line on stderr and an exit code.
 int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
   using namespace facetree::cli;

@@ -2,25 +2,38 @@
 // gives it, and a subclass per category that also derives from the built-in exception a Python
 // caller would catch for it (ValueError for bad input, OSError for output, RuntimeError for a
 // resource limit). Messages are the CLI's one-line messages without its "facetree: " prefix.
+#include <array>
 #include <new>
 
 #include "bindings.h"
+#include "exit_codes.h"
 
 namespace facetree::python {
 namespace {
 
+// A Python exception class per category of facetree::Error.
 struct Category {
+  ErrorCategory category;
   const char* name;
-  const char* category;
-  int exitCode;
-  PyObject* builtin;
+  const char* categoryName;
+  PyObject* builtin;  // also a base, or nullptr
   const char* doc;
 };
 
+std::array<Category, 4> categories() {
+  return {{{ErrorCategory::Input, "InputError", "input", PyExc_ValueError,
+            "Bad or unreadable input: a mesh file, a cluster file, arrays or an option value."},
+           {ErrorCategory::Output, "OutputError", "output", PyExc_OSError, "An output cannot be written."},
+           {ErrorCategory::Resource, "ResourceError", "resource", PyExc_RuntimeError,
+            "Out of memory, over the memory cap, or over the temporary-space limit."},
+           {ErrorCategory::Cancelled, "Cancelled", "cancelled", nullptr,
+            "The progress callback returned False: the job stopped and left nothing behind."}}};
+}
+
 void makeType(py::module_& module, PyObject* base, const Category& c) {
   py::dict attributes;
-  attributes["category"] = c.category;
-  attributes["exit_code"] = c.exitCode;
+  attributes["category"] = c.categoryName;
+  attributes["exit_code"] = cli::exitCode(c.category);
   PyObject* bases = c.builtin ? PyTuple_Pack(2, base, c.builtin) : PyTuple_Pack(1, base);
   const std::string qualified = std::string("facetree.") + c.name;
   PyObject* type = PyErr_NewExceptionWithDoc(qualified.c_str(), c.doc, bases, attributes.ptr());
@@ -40,7 +53,7 @@ void raise(const char* type, const char* message) {
 void registerErrors(py::module_& module) {
   py::dict base;
   base["category"] = "internal";
-  base["exit_code"] = 1;
+  base["exit_code"] = int{cli::kExitInternal};
   PyObject* errorType = PyErr_NewExceptionWithDoc(
       "facetree.Error",
       "Base of facetree's exceptions. `category` names the kind of failure and `exit_code` is the "
@@ -48,35 +61,14 @@ void registerErrors(py::module_& module) {
       PyExc_Exception, base.ptr());
   if (!errorType) throw py::error_already_set();
   module.add_object("Error", py::handle(errorType));
-  makeType(module, errorType,
-           {"InputError", "input", 3, PyExc_ValueError,
-            "Bad or unreadable input: a mesh file, a cluster file, arrays or an option value."});
-  makeType(module, errorType, {"OutputError", "output", 4, PyExc_OSError, "An output cannot be written."});
-  makeType(module, errorType,
-           {"ResourceError", "resource", 5, PyExc_RuntimeError,
-            "Out of memory, over the memory cap, or over the temporary-space limit."});
-  makeType(module, errorType,
-           {"Cancelled", "cancelled", 130, nullptr,
-            "The progress callback returned False: the job stopped and left nothing behind."});
+  for (const Category& c : categories()) makeType(module, errorType, c);
 
   py::register_exception_translator([](std::exception_ptr thrown) {
     try {
       if (thrown) std::rethrow_exception(thrown);
     } catch (const Error& e) {
-      switch (e.category()) {
-        case ErrorCategory::Input:
-          raise("InputError", e.what());
-          break;
-        case ErrorCategory::Output:
-          raise("OutputError", e.what());
-          break;
-        case ErrorCategory::Resource:
-          raise("ResourceError", e.what());
-          break;
-        case ErrorCategory::Cancelled:
-          raise("Cancelled", e.what());
-          break;
-      }
+      for (const Category& c : categories())
+        if (c.category == e.category()) raise(c.name, e.what());
     } catch (const std::invalid_argument& e) {
       raise("InputError", e.what());
     } catch (const std::bad_alloc&) {
