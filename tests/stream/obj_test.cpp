@@ -37,15 +37,15 @@ TEST(StreamObj, AllVertexReferenceFormsNegativeIndicesAndNgons) {
       "f -1 -2 -3 -4 -5 -6\n";  // hexagon over vertices 6..1
   const auto [reader, t] = test::readBytes("forms.obj", obj);
   ASSERT_EQ(t.size(), 1u + 1 + 1 + 2 + 2 + 4);
-  const auto corners = [&](size_t i) { return test::cornersOf(t)[i]; };
-  EXPECT_EQ(corners(0), (std::array<uint32_t, 3>{0, 1, 2}));
-  EXPECT_EQ(corners(1), (std::array<uint32_t, 3>{0, 2, 3}));
-  EXPECT_EQ(corners(3), (std::array<uint32_t, 3>{0, 1, 2}));
-  EXPECT_EQ(corners(4), (std::array<uint32_t, 3>{0, 2, 3}));
+  const auto corners = test::cornersOf(t);
+  EXPECT_EQ(corners[0], (std::array<uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(corners[1], (std::array<uint32_t, 3>{0, 2, 3}));
+  EXPECT_EQ(corners[3], (std::array<uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(corners[4], (std::array<uint32_t, 3>{0, 2, 3}));
   EXPECT_EQ(t[4].face, 3u);
-  EXPECT_EQ(corners(5), (std::array<uint32_t, 3>{1, 4, 5}));
-  EXPECT_EQ(corners(7), (std::array<uint32_t, 3>{5, 4, 3}));
-  EXPECT_EQ(corners(10), (std::array<uint32_t, 3>{5, 1, 0}));
+  EXPECT_EQ(corners[5], (std::array<uint32_t, 3>{1, 4, 5}));
+  EXPECT_EQ(corners[7], (std::array<uint32_t, 3>{5, 4, 3}));
+  EXPECT_EQ(corners[10], (std::array<uint32_t, 3>{5, 1, 0}));
   EXPECT_EQ(t[10].face, 5u);
   EXPECT_EQ(t[5].position[2], glm::vec3(2, 1, 0));
   EXPECT_EQ(reader->stats().faces, 6u);
