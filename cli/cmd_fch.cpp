@@ -149,6 +149,8 @@ int runInfo(const std::vector<std::string>& argv) {
           json.field("clusters", fits[i].clusters);
           json.field("sum_fit", fits[i].sumFit);
           json.field("sum_area_fit", fits[i].sumAreaFit);
+          json.field("sum_box_area", fits[i].sumBoxArea);
+          json.field("morton_box_area", fits[i].mortonBoxArea);
           json.endObject();
         }
         json.endObject();
@@ -184,9 +186,12 @@ int runInfo(const std::vector<std::string>& argv) {
                   static_cast<unsigned long long>(sections[i].raw));
     std::printf("per node      %.1f bytes compressed\n", perNode);
     for (size_t i = 0; i < fits.size(); ++i)
-      std::printf("fit cut       %llu asked, %llu clusters: sum eFit %.9g, sum area*eFit %.9g\n",
-                  static_cast<unsigned long long>(fitCuts[i]),
-                  static_cast<unsigned long long>(fits[i].clusters), fits[i].sumFit, fits[i].sumAreaFit);
+      std::printf(
+          "fit cut       %llu asked, %llu clusters: sum eFit %.9g, sum area*eFit %.9g, sum of box areas %.9g "
+          "(%.3f x the Morton runs')\n",
+          static_cast<unsigned long long>(fitCuts[i]), static_cast<unsigned long long>(fits[i].clusters),
+          fits[i].sumFit, fits[i].sumAreaFit, fits[i].sumBoxArea,
+          fits[i].mortonBoxArea > 0 ? fits[i].sumBoxArea / fits[i].mortonBoxArea : 0.0);
     return int{kExitOk};
   }();
 }

@@ -51,7 +51,8 @@ commands:
   info FILE.fch [--json] [--fit-cuts N,N...]
                                  counts, height, branching histogram, bytes per section; with
                                  --fit-cuts the fit error of cuts of N clusters (sum of eq. 84's
-                                 eFit and of area * eFit over the cut)
+                                 eFit and of area * eFit over the cut) and the sum of the cut's
+                                 box areas against N runs of the faces in Morton order
   verify FILE.fch [MESH] [--json]  check every invariant (exit 3 names the first violation)
 
   render FILE.fch (--cut N | --depth D) -o OUT.png [--width W] [--height H] [--view X,Y,Z] [--up X,Y,Z]

@@ -90,16 +90,44 @@ std::vector<uint32_t> frontierClusters(const ClusterFile& file, const std::vecto
 
 }  // namespace
 
-std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters) {
-  // The shortest prefix whose frontier has at least `clusters` members: keeping a node with c
-  // children replaces one frontier member by c.
+namespace {
+
+// The shortest prefix whose frontier has at least `clusters` members: keeping a node with c
+// children replaces one frontier member by c.
+std::vector<uint8_t> keptPrefix(const ClusterFile& file, uint64_t clusters) {
   std::vector<uint8_t> kept(file.nodes.size(), 0);
   uint64_t frontier = 1;
   for (size_t j = 0; j < file.nodes.size() && frontier < clusters; ++j) {
     kept[j] = 1;
     frontier += file.nodes[j].childCount - 1;
   }
-  return frontierClusters(file, kept);
+  return kept;
+}
+
+}  // namespace
+
+std::vector<uint32_t> clusterCut(const ClusterFile& file, uint64_t clusters) {
+  return frontierClusters(file, keptPrefix(file, clusters));
+}
+
+std::vector<uint32_t> cutNodes(const ClusterFile& file, uint64_t clusters,
+                               const std::vector<uint32_t>& cluster) {
+  const uint32_t count = cluster.empty() ? 0 : cluster.back() + 1;
+  std::vector<uint32_t> node(count, kNoOwner);
+  if (file.nodes.empty()) return node;
+  const std::vector<uint8_t> kept = keptPrefix(file, clusters);
+  if (!kept[0]) {
+    if (count == 1) node[0] = 0;
+    return node;
+  }
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    if (!kept[j]) continue;
+    forEachChildRange(file, file.nodes[j], [&](uint64_t first, uint64_t end, uint32_t ref) {
+      if ((ref & kFaceChild) || kept[ref] || first >= end || first >= cluster.size()) return;
+      node[cluster[first]] = ref;
+    });
+  }
+  return node;
 }
 
 std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth) {

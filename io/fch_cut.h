@@ -16,4 +16,9 @@ inline constexpr uint32_t kNoOwner = 0xFFFFFFFFu;
 // depth cuts). O(faces + nodes·b): each face is assigned once, by the node that owns it directly.
 std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector<uint8_t>& kept);
 
+// For each cluster of clusterCut(file, clusters) (numbered by `cluster`, its result), the node whose
+// whole range it is, or kNoOwner for a single face or a gap left by cut-off children.
+std::vector<uint32_t> cutNodes(const ClusterFile& file, uint64_t clusters,
+                               const std::vector<uint32_t>& cluster);
+
 }  // namespace facetree

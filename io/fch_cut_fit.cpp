@@ -1,7 +1,10 @@
 // cutFit: the fit error of a cut of a cluster file, eFit of Willmott 2000, eq. 84 summed over the
-// cut's clusters (surfaceStats + surfaceFitError of merge.h). Each cluster is a contiguous run of the
-// file's faces; its triangles are renumbered onto their own vertices so that surfaceStats (whose
-// dual graph is O(vertices of its mesh)) costs O(cluster) and the whole cut O(triangles + vertices).
+// cut's clusters (surfaceStats + surfaceFitError of merge.h), and how spatially coherent the cut is:
+// the sum of its boxes' surface areas against that of as many runs of the faces in Morton order. Each cluster
+// is a contiguous run of the file's faces; its triangles are renumbered onto their own vertices so that
+// surfaceStats (whose dual graph is O(vertices of its mesh)) costs O(cluster) and the whole cut O(triangles +
+// vertices).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -11,6 +14,7 @@
 #include <glm/common.hpp>
 
 #include "facetree/io.h"
+#include "fch_cut.h"
 
 namespace facetree {
 
@@ -30,6 +34,55 @@ glm::dvec3 boundingBoxCentre(std::span<const glm::vec3> vertices) {
   return lo.x <= hi.x ? 0.5 * (lo + hi) : glm::dvec3(0.0);
 }
 
+// The surface area of an axis-aligned box, and of an oriented one by its half extents.
+struct AreaBox {
+  glm::dvec3 lo{std::numeric_limits<double>::max()}, hi{std::numeric_limits<double>::lowest()};
+  void add(const glm::vec3& p) {
+    lo = glm::min(lo, glm::dvec3(p));
+    hi = glm::max(hi, glm::dvec3(p));
+  }
+  double area() const {
+    if (!(lo.x <= hi.x)) return 0;
+    const glm::dvec3 d = hi - lo;
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+  }
+};
+double orientedArea(const NodeBox& box) {
+  const glm::dvec3 h(box.halfExtent);
+  return 8.0 * (h.x * h.y + h.y * h.z + h.z * h.x);
+}
+
+// The faces in the Morton order of their centroids (within the centroids' box), split into
+// `runs` runs of equal face count (the first ones one face longer where it does not divide):
+// the sum of the runs' axis-aligned box areas. A plain spatial grouping that any hierarchy's cut
+// of as many clusters should match.
+double mortonRunsArea(const ClusterFile& file, uint64_t runs) {
+  const size_t faces = file.indices.size() / 3;
+  if (faces == 0 || runs == 0) return 0;
+  std::vector<glm::dvec3> centroid(faces);
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+  for (size_t t = 0; t < faces; ++t) {
+    glm::dvec3 p(0.0);
+    for (int k = 0; k < 3; ++k) p += glm::dvec3(file.vertices[file.indices[3 * t + k]]);
+    centroid[t] = p / 3.0;
+    lo = glm::min(lo, centroid[t]);
+    hi = glm::max(hi, centroid[t]);
+  }
+  std::vector<std::pair<uint64_t, uint32_t>> order(faces);
+  for (size_t t = 0; t < faces; ++t) order[t] = {mortonCode(centroid[t], lo, hi), static_cast<uint32_t>(t)};
+  centroid = {};
+  std::sort(order.begin(), order.end());
+  runs = std::min<uint64_t>(runs, faces);
+  double sum = 0;
+  for (uint64_t r = 0; r < runs; ++r) {
+    AreaBox box;
+    for (size_t i = r * faces / runs; i < (r + 1) * faces / runs; ++i)
+      for (int k = 0; k < 3; ++k) box.add(file.vertices[file.indices[3 * size_t{order[i].second} + k]]);
+    sum += box.area();
+  }
+  return sum;
+}
+
 }  // namespace
 
 CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
@@ -42,6 +95,7 @@ CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
   std::vector<uint32_t> local(file.vertices.size(), kNoLocalVertex);
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
+  const std::vector<uint32_t> node = cutNodes(file, clusters, cluster);
   CutFit fit;
   for (size_t begin = 0, end = 0; begin < faces; begin = end) {
     end = begin + 1;
@@ -63,8 +117,17 @@ CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
     const double eFit = surfaceFitError(stats);
     fit.sumFit += eFit;
     fit.sumAreaFit += stats.area * eFit;
+    const uint32_t n = node[cluster[begin]];
+    if (n != kNoOwner) {
+      fit.sumBoxArea += orientedArea(file.nodes[n].box);
+    } else {
+      AreaBox box;
+      for (const glm::vec3& p : positions) box.add(p);
+      fit.sumBoxArea += box.area();
+    }
     ++fit.clusters;
   }
+  fit.mortonBoxArea = mortonRunsArea(file, fit.clusters);
   return fit;
 }
 

@@ -17,17 +17,25 @@
 //    whose cheapest edge got dearer is only flagged, and rescanned if it surfaces. Every
 //    cluster keeps its stats in place, and with Metric::Garland its quadrics (GarlandStats,
 //    from the caller's GarlandQuadrics).
-//  - Roots left when the edges run out (or are blocked) are joined Huffman-style by face
-//    count, ties by the Morton rank of their centroids within the box of the roots'
-//    centroids (zero-area roots sit at the origin), flagged kNodeJoinsDisjointSurfaces: a
-//    large component then sits directly under the root, and small nearby pieces are joined
-//    with each other first.
-// Memory: 112 B of stats (Garland: 184 more) and 32 B of record per leaf, 32 B per distinct edge (24 in the
-// graph, 8 for the double length), the heap ~9 B per leaf, and the output nodes (~144 B each).
+//  - One cost for every merge, separate pieces included (proximity.h): once at most
+//    kTopClusters clusters are live, each proposes its kProximityNeighbours nearest
+//    clusters of other components by box gap as candidate edges of shared length 0. Every key
+//    is eq. 84 on the union with the perimeter lengthened by twice the boxes' gap (the two sides
+//    of a strip bridging it), so near pieces join before far ones and coplanar before crossing;
+//    a mesh edge's ends share a vertex, so its gap is 0. A merge along a candidate that no mesh
+//    edge backs is flagged kNodeJoinsDisjointSurfaces.
+//  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
+//    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
+//    box places are joined Huffman-style by face count, ties by the Morton rank of their
+//    centroids, the last resort.
+// Memory: 112 B of stats (Garland: 184 more), 24 B of box and 32 B of record per leaf, 33 B per
+// distinct edge (24 in the graph, 8 for the double length, 1 for the candidate flag), the heap ~9 B
+// per leaf, and the output nodes (~168 B each).
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <queue>
 #include <stdexcept>
 #include <string>
@@ -40,6 +48,7 @@
 #include "heap.h"
 #include "merge_engine.h"
 #include "morton.h"
+#include "proximity.h"
 #include "surface_stats.h"
 
 namespace facetree {
@@ -51,6 +60,9 @@ constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 // Leaf and half-edge ids share 32 bits with a flag (kLeafChild, 2e + side).
 constexpr size_t kMaxLeaves = size_t{0x7FFFFFFF};
 constexpr size_t kMaxEdges = size_t{0x7FFFFFFF};
+// Candidates each cluster proposes: enough that the pieces' candidate graph is mostly connected
+// at once (what stays apart proposes again when the edges run out).
+constexpr uint32_t kProximityNeighbours = 6;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -67,6 +79,7 @@ DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input,
             [](const Canonical& x, const Canonical& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
   DualGraph graph;
   exact.clear();
+  graph.edges.reserve(sorted.size());
   for (size_t i = 0; i < sorted.size();) {
     const uint32_t a = sorted[i].a, b = sorted[i].b;
     double shared = 0;
@@ -106,16 +119,20 @@ class ClusterMerger {
       for (const GarlandQuadrics& q : garland) extras_.push_back(toGarlandStats(q));
     }
     graph_ = buildLeafGraph(static_cast<uint32_t>(leaves.size()), edges, exactShared_);
+    candidate_.assign(graph_.edgeCount(), 0);
   }
 
   ClusterMergeResult run() {
     const uint32_t n = static_cast<uint32_t>(leaves_.size());
     stats_.resize(n);
     clusters_.resize(n);
+    boxes_.resize(n);
     for (uint32_t c = 0; c < n; ++c) {
       stats_[c] = toClusterStats(leaves_[c]);
+      boxes_[c] = clusterBox(leaves_[c]);
       clusters_[c] = {kLeaf, kNone, 0.0f, kNoEdge, leaves_[c].height, leaves_[c].faceCount};
     }
+    live_ = n;
     result_.nodes.reserve(n > 0 ? n - 1 : 0);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
@@ -134,8 +151,33 @@ class ClusterMerger {
     }
     heap_.heapify();
 
-    for (uint64_t step = 1; !heap_.empty(); ++step) {
-      if (step % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled()) throw cancelledError();
+    if (live_ <= kTopClusters) addCandidates(false);
+    drain();
+    result_.components = candidatesAdded_ ? components_ : live_;
+    // The edges ran out or are blocked: the roots propose each other, the guard no longer blocks.
+    while (live_ > 1 && addCandidates(true)) {
+      if (drain() == 0) break;
+    }
+    exactShared_ = {};
+    heap_.release();
+
+    joinComponents();
+    graph_ = DualGraph{};
+    candidate_ = {};
+    result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
+    result_.eigenSolves = counters_.eigenSolves;
+    result_.normalShortcuts = counters_.normalShortcuts;
+    return std::move(result_);
+  }
+
+ private:
+  // Merges the cheapest edge until the heap holds no unblocked key; adds the proximity candidates
+  // when the live clusters fall to kTopClusters. Returns the merges made.
+  uint64_t drain() {
+    uint64_t merges = 0;
+    while (!heap_.empty()) {
+      if (++steps_ % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled())
+        throw cancelledError();
       const EdgeHeap::Entry top = heap_.top();
       if (top.key == kBlockedKey) break;
       Record& r = clusters_[top.id];
@@ -152,6 +194,7 @@ class ClusterMerger {
         const uint32_t e = r.minEdge;
         const uint32_t a = graph_.edges[e].end[0];
         merge(a, graph_.edges[e].end[1], e, top.key);
+        ++merges;
         ++edgeMerges_;
         const Record& ra = clusters_[a];
         const EdgeHeap::Entry now = heap_.top();
@@ -164,20 +207,87 @@ class ClusterMerger {
         } else if (ra.minEdge != kNoEdge) {
           pushEntry(ra.minKey, a);
         }
+        if (!candidatesAdded_ && live_ <= kTopClusters) addCandidates(false);
       }
     }
-    exactShared_ = {};
-    heap_.release();
-
-    joinComponents();
-    graph_ = DualGraph{};
-    result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
-    result_.eigenSolves = counters_.eigenSolves;
-    result_.normalShortcuts = counters_.normalShortcuts;
-    return std::move(result_);
+    return merges;
   }
 
- private:
+  // Proximity candidates (see the top of the file) between the live clusters of different
+  // components (`betweenRoots` false: once, when few clusters are left), or between any two live
+  // clusters, every key then re-costed without the guard's block (`betweenRoots`: the edges ran
+  // out). Rebuilds the heap. Returns whether a candidate was added or an edge unblocked.
+  bool addCandidates(bool betweenRoots) {
+    if (!betweenRoots) candidatesAdded_ = true;
+    std::vector<uint32_t> live;
+    live.reserve(live_);
+    for (uint32_t c = 0; c < clusters_.size(); ++c)
+      if (clusters_[c].node != kDead) live.push_back(c);
+    std::vector<uint32_t> label(live.size());
+    if (betweenRoots) {
+      std::iota(label.begin(), label.end(), 0u);
+    } else {
+      components_ = componentLabels(live, label);
+      if (components_ <= 1) return false;
+    }
+    std::vector<AxisBox> boxes(live.size());
+    for (size_t i = 0; i < live.size(); ++i) boxes[i] = boxes_[live[i]];
+    const std::vector<std::pair<uint32_t, uint32_t>> pairs = nearestPairs(boxes, label, kProximityNeighbours);
+    boxes = {};
+    bool changed = false;
+    for (const auto& [p, q] : pairs) {
+      const uint32_t a = live[p], b = live[q];
+      if (edgeBetween(a, b) != kNone) continue;
+      const uint32_t e = graph_.edgeCount();
+      if (e >= kMaxEdges) break;
+      graph_.edges.push_back({{a, b}, {graph_.head[a], graph_.head[b]}, 0.0f, 0.0f});
+      graph_.head[a] = 2 * e;
+      graph_.head[b] = 2 * e + 1;
+      graph_.edges[e].key = key(stats_[a], stats_[b], 0.0, a, b);
+      exactShared_.push_back(0.0);
+      candidate_.push_back(1);
+      changed = true;
+    }
+    if (betweenRoots) {
+      final_ = true;
+      for (DualEdge& edge : graph_.edges) {
+        if (edge.end[0] == kNone || edge.key != kBlockedKey) continue;
+        edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1]);
+        changed = true;
+      }
+    }
+    heap_.clear();
+    for (const uint32_t c : live) {
+      rescan(c);
+      if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
+    }
+    heap_.heapify();
+    return changed;
+  }
+
+  // Labels the live clusters by the components of the dual graph's live edges (blocked ones
+  // included): the lowest position in `live` of each component. Returns the number of components.
+  uint32_t componentLabels(std::span<const uint32_t> live, std::vector<uint32_t>& label) {
+    std::vector<uint32_t> position(clusters_.size(), kNone);
+    for (uint32_t i = 0; i < live.size(); ++i) position[live[i]] = i;
+    std::iota(label.begin(), label.end(), 0u);
+    const auto find = [&](uint32_t x) {
+      while (label[x] != x) x = label[x] = label[label[x]];
+      return x;
+    };
+    for (const DualEdge& edge : graph_.edges) {
+      if (edge.end[0] == kNone) continue;
+      const uint32_t a = find(position[edge.end[0]]), b = find(position[edge.end[1]]);
+      if (a != b) label[std::max(a, b)] = std::min(a, b);
+    }
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < live.size(); ++i) {
+      label[i] = find(i);
+      count += label[i] == i;
+    }
+    return count;
+  }
+
   static constexpr size_t kHeapSlackDivisor = 8;
   static constexpr size_t kHeapSlackMin = 1024;
   // The cancellation hook is polled every this many heap steps: a few milliseconds of merging.
@@ -206,13 +316,18 @@ class ClusterMerger {
     return willmottCost(m, k_, flatThreshold_, counters_);
   }
 
+  // The key of merging clusters ia and ib: eq. 84 on the union, its perimeter lengthened by twice
+  // the gap between their boxes.
   float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib) {
-    double c = cost(ClusterStats::merged(a, b, shared), a, b, ia, ib) * keyScale_;
+    ClusterStats m = ClusterStats::merged(a, b, shared);
+    const double gap = squaredBoxGap(boxes_[ia], boxes_[ib]);
+    if (gap > 0) m.perimeter += 2.0 * std::sqrt(gap);
+    double c = cost(m, a, b, ia, ib) * keyScale_;
     if (guard_) {
       const Record& x = clusters_[ia];
       const Record& y = clusters_[ib];
       const double excess = balanceExcess(x.height, y.height, x.faceCount + y.faceCount, balanceSlack_);
-      if (excess > kBalanceBlockExcess) return kBlockedKey;
+      if (excess > kBalanceBlockExcess && !final_) return kBlockedKey;
       if (excess > 0) c *= std::pow(kBalancePenaltyBase, excess);
     }
     return toKey(c);
@@ -288,14 +403,18 @@ class ClusterMerger {
     ClusterMergeNode node;
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
-    node.flags = between == kNone ? kNodeJoinsDisjointSurfaces : 0u;
+    node.flags = between == kNone || candidate_[between] ? kNodeJoinsDisjointSurfaces : 0u;
     node.cost = joining ? toKey(cost(merged, stats_[a], stats_[b], a, b))
                         : toKey(static_cast<double>(heapKey) / keyScale_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
+    boxes_[a] = AxisBox::united(boxes_[a], boxes_[b]);
     node.stats = toSurfaceStats(kept, ra.faceCount, ra.height);
+    node.stats.boundsMin = boxes_[a].lo;
+    node.stats.boundsMax = boxes_[a].hi;
     ra.node = static_cast<uint32_t>(result_.nodes.size());
     rb.node = kDead;
+    --live_;
     result_.nodes.push_back(node);
     stats_[a] = kept;
     if (garland_) extras_[a] = GarlandStats::merged(extras_[a], extras_[b]);
@@ -321,6 +440,7 @@ class ClusterMerger {
         const uint32_t s = rx.stamp;
         if (s != kNone) {
           graph_.edges[s].shared += edge.shared;
+          candidate_[s] &= candidate_[h >> 1];  // a mesh edge backs the pair
           kill(edge);
           if (rx.minEdge == (h >> 1)) rx.minEdge |= kDirty;
           continue;
@@ -381,7 +501,6 @@ class ClusterMerger {
       hi = glm::max(hi, p);
       centroids.emplace_back(p, c);
     }
-    result_.components = centroids.size();
     std::vector<std::pair<uint64_t, uint32_t>> roots;
     roots.reserve(centroids.size());
     for (const auto& [p, c] : centroids) roots.emplace_back(mortonCode(p, lo, hi), c);
@@ -418,6 +537,13 @@ class ClusterMerger {
   std::vector<Record> clusters_;
   EdgeHeap heap_;
   CostCounters counters_;
+  std::vector<AxisBox> boxes_;      // per cluster: the box of its faces (clusterBox for a leaf)
+  std::vector<uint8_t> candidate_;  // per edge: 1 for a proximity candidate no mesh edge backs
+  uint32_t live_ = 0;
+  uint32_t components_ = 0;       // of the dual graph when the candidates were added
+  bool candidatesAdded_ = false;  // between components, once
+  bool final_ = false;            // the edges ran out: the guard penalises but never blocks
+  uint64_t steps_ = 0;
   uint64_t edgeMerges_ = 0;
   double degreeSum_ = 0;
   ClusterMergeResult result_;

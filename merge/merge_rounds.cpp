@@ -41,6 +41,7 @@
 #include "buffer.h"
 #include "merge_engine.h"
 #include "parallel_blocks.h"
+#include "proximity.h"
 #include "stopwatch.h"
 #include "surface_stats.h"
 
@@ -54,9 +55,8 @@ constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 constexpr uint32_t kBlock = 4096;
 // A round that would merge fewer than live / kStallRatio pairs hands the rest to the greedy.
 constexpr uint32_t kStallRatio = 64;
-// The greedy also takes the last min(kTailClusters, faces / kTailFraction) clusters: the top of
+// The greedy also takes the last min(kTopClusters, faces / kTailFraction) clusters: the top of
 // the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
-constexpr uint32_t kTailClusters = 1024;
 constexpr uint32_t kTailFraction = 8;
 
 // A dual edge as one of its ends lists it: the other end, the length the two share and the
@@ -205,6 +205,7 @@ class RoundsEngine {
         options_(options),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
     setUp(diagonalSquared);
+    givenLeaves_ = leaves;
     auto start = std::chrono::steady_clock::now();
     initialiseClusters(leaves, edges, garland);
     result_.secondsCost = secondsSince(start);
@@ -213,7 +214,7 @@ class RoundsEngine {
   MergeResult run() {
     auto start = std::chrono::steady_clock::now();
     uint32_t rounds = 0;
-    const uint32_t tail = std::min(kTailClusters, leafCount_ / kTailFraction);
+    const uint32_t tail = std::min(kTopClusters, leafCount_ / kTailFraction);
     while (options_.order == MergeOrder::Rounds) {
       if (options_.cancelled && options_.cancelled()) throw cancelledError();
       if (rounds > 0) findCheapest();
@@ -686,6 +687,7 @@ class RoundsEngine {
     }
     Leaves leaves(live_, options_.metric == Metric::Garland);
     std::vector<ClusterEdge> edges;
+    liveBoxes(leaves.stats);
     for (uint32_t c = 0; c < live_; ++c) {
       leaves.set(c, cluster(c, policies_[0]));
       for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
@@ -714,8 +716,48 @@ class RoundsEngine {
       block = {};
     }
     Leaves leaves(n, options_.metric == Metric::Garland);
-    for (uint32_t f = 0; f < n; ++f) leaves.set(f, leaf(f, policies_[0]));
+    for (uint32_t f = 0; f < n; ++f) {
+      leaves.set(f, leaf(f, policies_[0]));
+      const AxisBox box = atomBox(f);
+      leaves.stats[f].boundsMin = box.lo;
+      leaves.stats[f].boundsMax = box.hi;
+    }
     greedy(leaves, edges);
+  }
+
+  // The box of a face (about the geometry's origin, as its statistics), or of a given leaf.
+  AxisBox atomBox(uint32_t atom) const {
+    if (!geometry_) return clusterBox(givenLeaves_[atom]);
+    AxisBox box;
+    for (int k = 0; k < 3; ++k) box.add(glm::vec3(geometry_->corner(atom, k)));
+    return box;
+  }
+
+  // The boxes of the live clusters into their stats, each from the faces (or given leaves) under it,
+  // walking its records down; in parallel over blocks of clusters.
+  void liveBoxes(std::vector<SurfaceStats>& stats) const {
+    const auto& records = result_.records;
+    std::vector<std::vector<uint32_t>> stacks(threads_);
+    forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned t) {
+      std::vector<uint32_t>& stack = stacks[t];
+      const uint32_t hi = std::min(live_, (block + 1) * kBlock);
+      for (uint32_t c = block * kBlock; c < hi; ++c) {
+        AxisBox box;
+        stack.assign(1, single(c) ? now_.ref[c] : now_.slots[now_.ref[c]].node);
+        while (!stack.empty()) {
+          const uint32_t ref = stack.back();
+          stack.pop_back();
+          if (ref & kFaceChild) {
+            box = AxisBox::united(box, atomBox(ref & ~kFaceChild));
+          } else {
+            stack.push_back(records[ref].child[0]);
+            stack.push_back(records[ref].child[1]);
+          }
+        }
+        stats[c].boundsMin = box.lo;
+        stats[c].boundsMax = box.hi;
+      }
+    });
   }
 
   // Clusters handed to the greedy as its leaves.
@@ -726,7 +768,10 @@ class RoundsEngine {
 
     Leaves(uint32_t count, bool garland) : stats(count), node(count), quadrics(garland ? count : 0) {}
     void set(uint32_t i, const Cluster& k) {
+      const glm::vec3 lo = stats[i].boundsMin, hi = stats[i].boundsMax;
       stats[i] = toSurfaceStats(k.stats.aboutOrigin(), k.count, k.height);
+      stats[i].boundsMin = lo;
+      stats[i].boundsMax = hi;
       node[i] = k.node;
       if constexpr (std::is_same_v<Extra, GarlandStats>) {
         if (!quadrics.empty()) quadrics[i] = toGarlandQuadrics(k.extra);
@@ -753,7 +798,8 @@ class RoundsEngine {
       for (int i = 0; i < 3; ++i) record.sumNormal[i] = static_cast<float>(n.stats.sumNormal[i]);
       result_.records.push_back(record);
     }
-    const uint64_t joins = tail.components ? tail.components - 1 : 0;
+    uint64_t joins = 0;
+    for (const ClusterMergeNode& n : tail.nodes) joins += (n.flags & kNodeJoinsDisjointSurfaces) != 0;
     const uint64_t edgeMerges = tail.nodes.size() - joins;
     result_.degreeSum += tail.averageDegree * static_cast<double>(edgeMerges);
     result_.maxDegree = std::max(result_.maxDegree, tail.maxDegree);
@@ -764,7 +810,8 @@ class RoundsEngine {
   }
 
   const FaceGeometry* geometry_ = nullptr;  // null over given clusters
-  uint32_t leafCount_;                      // faces, or given clusters
+  std::span<const SurfaceStats> givenLeaves_;
+  uint32_t leafCount_;  // faces, or given clusters
   double diagonalSquared_;
   const BuildOptions& options_;
   double keyScale_ = 1.0;
@@ -819,6 +866,9 @@ ClusterMergeResult clusterResult(MergeResult&& merged, std::span<const SurfaceSt
       const bool leaf = (c & kFaceChild) != 0;
       node.child[k] = leaf ? kLeafChild | (c & ~kFaceChild) : c;
       const SurfaceStats& child = leaf ? leaves[c & ~kFaceChild] : out.nodes[c].stats;
+      const AxisBox box = AxisBox::united(AxisBox{stats.boundsMin, stats.boundsMax}, clusterBox(child));
+      stats.boundsMin = box.lo;
+      stats.boundsMax = box.hi;
       stats.area += child.area;
       stats.sumNormal += child.sumNormal;
       stats.firstMoment += child.firstMoment;

@@ -71,7 +71,14 @@ SurfaceStats stats(const MeshView& mesh, const glm::dvec3& origin, const SharedO
     add(total, block);
   }
   total.perimeter = std::max(0.0, total.perimeter - 2.0 * sharedOf(geometry));
-  return toSurfaceStats(total, n, 1);
+  SurfaceStats out = toSurfaceStats(total, n, 1);
+  const size_t corners = size_t{3} * n;
+  for (size_t i = 0; i < corners; ++i) {
+    const glm::vec3 p(glm::dvec3(mesh.positions[mesh.indices[i]]) - origin);
+    out.boundsMin = glm::min(out.boundsMin, p);
+    out.boundsMax = glm::max(out.boundsMax, p);
+  }
+  return out;
 }
 
 }  // namespace

@@ -292,13 +292,18 @@ std::vector<uint32_t> clusterDepthCut(const ClusterFile& file, uint32_t depth);
 // clusterCut(file, clusters), the sum of their eFit (surfaceFitError with the default flat
 // threshold, whatever the file was built with, so files built differently compare on one measure)
 // and of area * eFit (the area integral of the squared distance to each cluster's plane along its
-// normal), from surfaceStats of each cluster's triangles about the centre of the vertices' bounding box.
+// normal), from surfaceStats of each cluster's triangles about the centre of the vertices' bounding box;
+// and the sums of box areas that measure how spatially coherent the cut is.
 // Lower is better; a cut of single triangles gives 0. Needs the geometry (readClusterFile with
 // geometry; else std::invalid_argument). Cost O(triangles + vertices), memory O(vertices).
 struct CutFit {
   uint64_t clusters = 0;  // of the cut: at least the number asked for, or every face if there are fewer
   double sumFit = 0;      // sum of eFit (length^2)
   double sumAreaFit = 0;  // sum of area * eFit (length^4)
+  // Spatial coherence: the sum of the surface areas of the cut's boxes (a node's stored oriented box; a
+  // single face's or a truncation gap's axis-aligned box), and of the axis-aligned boxes of as many runs
+  // of equal face count along the Morton order of the face centroids (length^2 both).
+  double sumBoxArea = 0, mortonBoxArea = 0;
 };
 // The fit of the cut of `clusters` clusters.
 CutFit cutFit(const ClusterFile& file, uint64_t clusters);

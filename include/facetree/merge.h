@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -111,7 +112,7 @@ struct BuildStats {
   uint32_t maxDegree = 0;        // the largest of those degrees
   uint64_t eigenSolves = 0;      // PCA solves for non-flat clusters
   uint64_t normalShortcuts = 0;  // clusters whose normal came from S (eq. 78)
-  uint64_t components = 0;       // roots joined at the top: components, and pieces the balance guard blocked
+  uint64_t components = 0;       // edge-connected pieces of the mesh, joined at the top through proximity
   uint32_t rounds = 0;           // rounds of reciprocal pairs before the greedy finished (MergeOrder::Rounds)
   // Per phase: the dual graph, the merge (the cost and eigen solves within it), the boxes.
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
@@ -153,6 +154,11 @@ struct SurfaceStats {
   double secondMoment[6] = {};  // integral of x x^T dA: xx xy xz yy yz zz
   uint64_t faceCount = 0;       // faces in the set
   uint32_t height = 1;          // nodes on the longest root-to-face path, the face included
+  // Axis-aligned bounds of the faces' vertices about the same origin as the moments; empty (min above
+  // max) when unknown, and the merge then takes the box the moments imply. They place clusters that
+  // share no mesh edge for the merge's proximity candidates.
+  glm::vec3 boundsMin{std::numeric_limits<float>::infinity()};
+  glm::vec3 boundsMax{-std::numeric_limits<float>::infinity()};
 };
 
 // Garland's per-cluster quadrics for Metric::Garland (Garland, Willmott & Heckbert 2001, as MixKit's
@@ -211,6 +217,11 @@ struct EdgeShare {
   // as |e| u_f u_g / (U - 1) evaluated left to right.
   double of(double length) const { return length * numerator / denominator; }
 };
+
+// The Morton (Z-order) code of p within the box [lo, hi], 21 bits per axis in 63 bits: nearby points get
+// nearby codes. A coordinate on a degenerate axis, or non-finite, is taken at the box's centre; others
+// are clamped into the box.
+uint64_t mortonCode(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi);
 
 // Edge-connected components under the dual graph's edge rules (EdgeShare): label[f] for each triangle,
 // components numbered 0, 1, ... in order of their lowest triangle. Returns the number of components.
@@ -303,7 +314,7 @@ struct ClusterMergeNode {
 // What mergeClusters built and measured.
 struct ClusterMergeResult {
   std::vector<ClusterMergeNode> nodes;  // creation order; the last one is the root (leaves.size()-1 nodes)
-  uint64_t components = 0;              // roots left when the edges ran out (then joined)
+  uint64_t components = 0;              // edge-connected pieces of the leaves' graph (joined by proximity)
   double averageDegree = 0;             // dual-edge degree of merged clusters, sampled at each edge merge
   uint32_t maxDegree = 0;               // as BuildStats
   uint64_t eigenSolves = 0, normalShortcuts = 0;  // as BuildStats

@@ -550,17 +550,21 @@ TEST(FaceComponents, AgreeWithTheJoinsOfBuildHierarchy) {
   EXPECT_EQ(count, 5u);
   const Hierarchy h = buildHierarchy(shuffled.view(), noBoxes());
   EXPECT_EQ(h.stats.components, count);
+  // A node with no join in its subtree lies within one component; the components need at least
+  // count - 1 joins (parts of pieces may join with what lies near them before the pieces are whole).
+  std::vector<uint8_t> joinBelow(h.nodes.size(), 0);
   uint32_t joins = 0;
-  for (const Node& node : h.nodes) {
-    if (node.flags & kNodeJoinsDisjointSurfaces) {
-      ++joins;
-      continue;
-    }
-    // An edge-connected node lies within one component.
+  for (size_t j = h.nodes.size(); j-- > 0;) {  // children after parents: bottom up
+    const Node& node = h.nodes[j];
+    joinBelow[j] = (node.flags & kNodeJoinsDisjointSurfaces) != 0;
+    joins += joinBelow[j];
+    for (const uint32_t c : node.child)
+      if (!(c & kFaceChild)) joinBelow[j] |= joinBelow[c];
+    if (joinBelow[j]) continue;
     for (uint32_t p = node.first; p < node.first + node.count; ++p)
       EXPECT_EQ(label[h.faceOrder[p]], label[h.faceOrder[node.first]]);
   }
-  EXPECT_EQ(joins, count - 1);
+  EXPECT_GE(joins, count - 1);
 }
 
 // --- mergeClusters ---------------------------------------------------------------------------
