@@ -57,7 +57,7 @@ constexpr uint32_t kBlock = 4096;
 constexpr uint32_t kStallRatio = 64;
 // The greedy also takes the last min(kTopClusters, faces / kTailFraction) clusters: the top of
 // the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
-constexpr uint32_t kTailFraction = 2;
+constexpr uint32_t kTailFraction = 4;
 
 // A dual edge as one of its ends lists it: the other end, the length the two share and the
 // edge's merge key (kBlockedKey when blocked); both ends hold the same key.

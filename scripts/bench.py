@@ -104,7 +104,11 @@ OUT_OF_CORE_FACES_FULL = 10_000_000
 # Quality: meshes that fit, built in core and out of core forced with cells of at most N faces.
 QUALITY_MESHES = [("dragon_vrip", None), ("terrain 1M", 1_000_000)]  # (name, generated faces or shared)
 QUALITY_CELL_FACES = [20_000, 100_000]
-FIT_CUTS = [1000, 100_000]
+FIT_CUTS = [1000, 10_000, 100_000]
+# Coherence of the top: a cut's sum of box surface areas over that of as many Morton runs of the faces
+# (info --fit-cuts), at most these ratios at these cuts, in core and out of core.
+BOX_CUTS = {12: 1.0, 100: 1.0, 1000: 0.5}
+INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS))
 # The subdivided dragon out of core: (subdivision levels of dragon_vrip, --memory), coherent and with
 # vertices and faces shuffled. The quick run takes the 14M-face one only (about two minutes).
 DRAGON_CASES_QUICK = [(2, "64M")]
@@ -662,9 +666,16 @@ def cap_bytes(cap):
 
 
 def fit_cuts(args, fch):
-    info = json.loads(run([args.facetree, "info", fch, "--json", "--fit-cuts", ",".join(map(str, FIT_CUTS))])[0])
+    info = json.loads(run([args.facetree, "info", fch, "--json", "--fit-cuts", ",".join(map(str, INFO_CUTS))])[0])
+    cuts = {int(k): v for k, v in info["fit_cuts"].items()}
     return {"height": info["height"], "balanced_height": info["balanced_height"],
-            "cuts": {int(k): v for k, v in info["fit_cuts"].items()}}
+            "cuts": {c: cuts[c] for c in FIT_CUTS},
+            "box_ratio": {c: ratio(cuts[c]["sum_box_area"], cuts[c]["morton_box_area"]) for c in BOX_CUTS}}
+
+
+def coherent(box_ratio):
+    """Whether a file's cuts are at least as spatially coherent as BOX_CUTS asks."""
+    return all(r is None or r <= BOX_CUTS[c] for c, r in box_ratio.items())
 
 
 def ratio(a, b):
@@ -696,9 +707,9 @@ def bench_rounds(args, meshes, out):
             stdout, wall, cpu, rss = run_measured([args.facetree, "build", path, "--method", "octree", "--json"])
             runs["octree"].append({"process_wall_seconds": wall, "process_cpu_seconds": cpu,
                                    "process_peak_rss_bytes": rss, **json.loads(stdout)})
-        fits = {name: {int(k): v["sum_area_fit"] for k, v in json.loads(run(
-            [args.facetree, "info", files[name], "--json", "--fit-cuts", ",".join(map(str, FIT_CUTS))])[0])
-            ["fit_cuts"].items()} for name in ("rounds", "exact")}
+        infos = {name: fit_cuts(args, files[name]) for name in ("rounds", "exact")}
+        fits = {name: {c: v["sum_area_fit"] for c, v in infos[name]["cuts"].items()} for name in infos}
+        box_ratio = {name: infos[name]["box_ratio"] for name in infos}
         same_bytes = files["rounds"].read_bytes() == files["one"].read_bytes()
         for f in files.values():
             f.unlink()
@@ -717,6 +728,7 @@ def bench_rounds(args, meshes, out):
                "balanced_height": runs["rounds"][0]["balanced_height"],
                "fit": fits, "fit_ratio": {c: ratio(fits["rounds"].get(c), fits["exact"].get(c))
                                           for c in FIT_CUTS},
+               "box_ratio": box_ratio,
                "same_bytes_threads_1_and_default": same_bytes}
         # Same-run ratios, median of the per-repetition ratios.
         row["ratio_to_exact"] = median(a["process_wall_seconds"] / b["process_wall_seconds"]
@@ -735,12 +747,15 @@ def bench_rounds(args, meshes, out):
             checks["octree_ratio"] = row["ratio_to_octree"] <= target["octree_ratio"]
         checks["height"] = row["height"] <= 2 * row["balanced_height"]
         checks["fit"] = all(r is None or r <= ROUNDS_FIT_BOUND for r in row["fit_ratio"].values())
+        checks["coherence"] = coherent(box_ratio["rounds"]) and coherent(box_ratio["exact"])
         checks["same_bytes"] = same_bytes
         row["targets"] = target
         row["checks"] = checks
         rows.append(row)
         phases = row["rounds"]["phases"]
         fit_text = " ".join(f"{c}:{r:.3f}" for c, r in row["fit_ratio"].items() if r is not None)
+        fit_text += "  boxes/Morton " + " ".join(f"{c}:{r:.2f}" for c, r in box_ratio["rounds"].items()
+                                                 if r is not None)
         failed = [k for k, ok in checks.items() if not ok]
         print(f"rounds    {mesh:24s} {row['rounds']['wall_seconds']:6.2f} s (1 thread {row['one']['wall_seconds']:.2f}, "
               f"exact {row['exact']['wall_seconds']:.2f}, octree {row['octree']['wall_seconds']:.2f}; init "
@@ -814,10 +829,12 @@ def bench_cap_quality(args, tmp, fch):
         row = {"mesh": name, "memory": CAP_QUALITY_CAP, "in_core": inside, "out_of_core": outside,
                "height_ratio": outside["height"] / inside["height"],
                "fit_ratio": {n: ratio(outside["cuts"][n]["sum_area_fit"], inside["cuts"][n]["sum_area_fit"])
-                             for n in inside["cuts"]}}
+                             for n in inside["cuts"]},
+               "box_ratio": {"in_core": inside["box_ratio"], "out_of_core": outside["box_ratio"]}}
         row["checks"] = {"forced_out_of_core": outside["out_of_core"] and not inside["out_of_core"],
                          "fit": all(r is not None and r <= CAP_QUALITY_FIT_BOUND for r in row["fit_ratio"].values()),
-                         "height": row["height_ratio"] <= CAP_QUALITY_HEIGHT_BOUND}
+                         "height": row["height_ratio"] <= CAP_QUALITY_HEIGHT_BOUND,
+                         "coherence": coherent(inside["box_ratio"]) and coherent(outside["box_ratio"])}
         rows.append(row)
         print(f"outofcore quality {name:24s} --memory {CAP_QUALITY_CAP} / in core: height "
               f"{outside['height']}/{inside['height']} ({row['height_ratio']:.3f})  sum area x eFit " +
@@ -912,7 +929,7 @@ def bench_outofcore(args, out):
     shutil.rmtree(tmp, ignore_errors=True)
     return {"faces": faces, "in_core_cap": IN_CORE_CAP, "repeat": repeat, "rows": rows, "dragons": dragons,
             "cap_quality": cap_quality, "quality": quality,
-            "fit_cuts": FIT_CUTS, "date": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(started)),
+            "fit_cuts": FIT_CUTS, "box_cuts": BOX_CUTS, "date": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(started)),
             "load_average_start": load_start, "load_average_end": os.getloadavg(),
             "wall_seconds": time.time() - started}
 

@@ -110,6 +110,15 @@ std::vector<std::vector<uint32_t>> cutClusters(const Hierarchy& h, uint32_t kept
   return out;
 }
 
+// The hierarchy of `mesh` in `order`, without boxes, its structure checked.
+Hierarchy checkedBuild(const TestMesh& mesh, MergeOrder order) {
+  BuildOptions options = noBoxes();
+  options.order = order;
+  Hierarchy h = buildHierarchy(mesh.view(), options);
+  checkStructure(h, mesh.faceCount());
+  return h;
+}
+
 // A closed box surface of 6 n^2 quads (12 n^2 triangles) over [lo, hi], its own vertices per side.
 TestMesh boxSurface(glm::vec3 lo, glm::vec3 hi, uint32_t n) {
   TestMesh mesh;
@@ -159,10 +168,7 @@ TEST(Proximity, TwoGroupsOfPartsFarApartAreTheRootsChildren) {
   }
   for (const MergeOrder order : {MergeOrder::Rounds, MergeOrder::Exact}) {
     SCOPED_TRACE(int(order));
-    BuildOptions options = noBoxes();
-    options.order = order;
-    const Hierarchy h = buildHierarchy(mesh.view(), options);
-    checkStructure(h, mesh.faceCount());
+    const Hierarchy h = checkedBuild(mesh, order);
     EXPECT_EQ(h.stats.components, 18u);  // a box's six sides have their own vertices
     for (const std::vector<uint32_t>& faces : rootChildren(h)) {
       ASSERT_FALSE(faces.empty());
@@ -189,10 +195,7 @@ TEST(Proximity, TilesSharingNoVertexGroupIntoQuadrants) {
   }
   for (const MergeOrder order : {MergeOrder::Rounds, MergeOrder::Exact}) {
     SCOPED_TRACE(int(order));
-    BuildOptions options = noBoxes();
-    options.order = order;
-    const Hierarchy h = buildHierarchy(mesh.view(), options);
-    checkStructure(h, mesh.faceCount());
+    const Hierarchy h = checkedBuild(mesh, order);
     EXPECT_EQ(h.stats.components, kTiles * kTiles);
     const std::vector<std::vector<uint32_t>> cut = cutClusters(h, 3);
     ASSERT_EQ(cut.size(), 4u);
