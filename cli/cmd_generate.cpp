@@ -1,4 +1,4 @@
-// facetree gen grid|sphere|terrain|subdivide: synthetic meshes for tests and benchmarks.
+// facetree gen grid|sphere|terrain|strip|assembly|subdivide: synthetic meshes for tests and benchmarks.
 #include <cstdio>
 
 #include "args.h"
@@ -13,7 +13,8 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"triangles", "output", "seed", "levels"}, {"shuffle-vertices", "shuffle-faces"},
                   {{"-n", "--triangles"}, {"-o", "--output"}});
   const auto& positional = args.positional();
-  if (positional.empty()) throw UsageError("gen needs a kind: grid, sphere, terrain, strip or subdivide");
+  if (positional.empty())
+    throw UsageError("gen needs a kind: grid, sphere, terrain, strip, assembly or subdivide");
   const auto output = args.value("output");
   if (!output) throw UsageError("gen needs -o OUTPUT.ply");
 
@@ -44,8 +45,11 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
       shape = SyntheticKind::Terrain;
     else if (kind == "strip")
       shape = SyntheticKind::Strip;
+    else if (kind == "assembly")
+      shape = SyntheticKind::Assembly;
     else
-      throw UsageError("unknown mesh kind '" + kind + "' (grid, sphere, terrain, strip, subdivide)");
+      throw UsageError("unknown mesh kind '" + kind +
+                       "' (grid, sphere, terrain, strip, assembly, subdivide)");
     counts = writeSyntheticMesh(shape, options, *output);
   }
   std::fprintf(stderr, "wrote %s: %llu vertices, %llu triangles\n", output->c_str(),

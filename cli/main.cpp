@@ -44,7 +44,7 @@ commands:
   build MESH --method octree [--leaf-size N] [--json]
                                  baseline: tightest-fit octree volume clustering (time, nodes,
                                  height); writes no cluster file (-o is a usage error)
-  gen grid|sphere|terrain|strip -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
+  gen grid|sphere|terrain|strip|assembly -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
   truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
                                  keep the first nodes of a cluster file (geometry counts in B)

@@ -1,4 +1,4 @@
-// Synthetic mesh generators (flat grid, sphere, terrain, subdivision) streamed to PLY.
+// Synthetic mesh generators (flat grid, sphere, terrain, strip, assembly, subdivision) streamed to PLY.
 // Every shape computes any vertex and any triangle from its index, so a keyed bijection
 // (io/permutation.h) can shuffle vertex and face order without memory proportional to size.
 #include <algorithm>
@@ -127,6 +127,93 @@ class SphereShape : public IndexedShape {
 
  private:
   uint64_t rings_, segments_;
+};
+
+// A CAD-like assembly: two groups of closed boxes far apart (kAssemblyGroupGap box sizes). In each,
+// six unit boxes stand touching in a 3 x 2 block, two more on top of it, and a ninth floats a
+// quarter of a box off the block's side. Where two boxes touch, both store the face they share (as
+// assemblies exported part by part do): the touching faces are there twice, with their own vertices.
+// A box is the surface of an n x n x n lattice, its vertices shared between its sides; all of space
+// is bent a little, the same for every part.
+class AssemblyShape : public IndexedShape {
+ public:
+  explicit AssemblyShape(uint64_t triangles) {
+    n_ = std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(std::sqrt(triangles / (12.0 * kParts)))));
+    perBox_ = (n_ + 1) * (n_ + 1) * 2 + (n_ - 1) * 4 * n_;
+  }
+  uint64_t vertexCount() const override { return kParts * perBox_; }
+  uint64_t triangleCount() const override { return kParts * 12 * n_ * n_; }
+  glm::dvec3 vertex(uint64_t i) const override {
+    const uint64_t part = i / perBox_;
+    const glm::dvec3 p = origin(part) + latticePoint(i % perBox_) / static_cast<double>(n_);
+    // One smooth bend of space for every part: the boxes' sides curve (so that their cuts have a
+    // fit error to compare), and faces that touch stay coincident.
+    return p + kBend * glm::dvec3(std::sin(2.0 * p.y + 0.3), std::sin(2.0 * p.z + 1.1),
+                                  std::sin(2.0 * p.x + 2.3));
+  }
+  Tri triangle(uint64_t j) const override {
+    const uint64_t part = j / (12 * n_ * n_), local = j % (12 * n_ * n_);
+    const uint64_t side = local / (2 * n_ * n_), quad = (local / 2) % (n_ * n_);
+    const int axis = static_cast<int>(side / 2), u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const bool high = side % 2 == 1;
+    const auto id = [&](uint64_t du, uint64_t dv) {
+      uint64_t p[3];
+      p[axis] = high ? n_ : 0;
+      p[u] = quad % n_ + du;
+      p[v] = quad / n_ + dv;
+      return part * perBox_ + latticeId(p[0], p[1], p[2]);
+    };
+    // Counter-clockwise seen from outside: u x v points along +axis.
+    const uint64_t a = id(0, 0), b = id(1, 0), c = id(1, 1), d = id(0, 1);
+    if (local % 2 == 0) return high ? Tri{{a, b, c}} : Tri{{a, c, b}};
+    return high ? Tri{{a, c, d}} : Tri{{a, d, c}};
+  }
+
+ private:
+  static constexpr uint64_t kParts = 18;
+  static constexpr double kAssemblyGroupGap = 30.0;
+  static constexpr double kBend = 0.05;
+
+  static glm::dvec3 origin(uint64_t part) {
+    const uint64_t group = part / 9, k = part % 9;
+    const glm::dvec3 base(group * kAssemblyGroupGap, 0.0, 0.0);
+    if (k < 6) return base + glm::dvec3(double(k % 3), double(k / 3), 0.0);  // the 3 x 2 block
+    if (k < 8) return base + glm::dvec3(double(k - 6), 0.0, 1.0);            // two on top
+    return base + glm::dvec3(3.25, 0.0, 0.0);                                // one floating off
+  }
+  // Surface lattice points of [0, n]^3: the bottom layer, n - 1 rings of 4n, the top layer.
+  uint64_t latticeId(uint64_t x, uint64_t y, uint64_t z) const {
+    const uint64_t layer = (n_ + 1) * (n_ + 1);
+    if (z == 0) return x + (n_ + 1) * y;
+    if (z == n_) return layer + (n_ - 1) * 4 * n_ + x + (n_ + 1) * y;
+    uint64_t ring;
+    if (y == 0 && x < n_) {
+      ring = x;
+    } else if (x == n_ && y < n_) {
+      ring = n_ + y;
+    } else if (y == n_ && x > 0) {
+      ring = 2 * n_ + (n_ - x);
+    } else {
+      ring = 3 * n_ + (n_ - y);
+    }
+    return layer + (z - 1) * 4 * n_ + ring;
+  }
+  glm::dvec3 latticePoint(uint64_t id) const {
+    const uint64_t layer = (n_ + 1) * (n_ + 1), rings = (n_ - 1) * 4 * n_;
+    if (id < layer) return {double(id % (n_ + 1)), double(id / (n_ + 1)), 0.0};
+    id -= layer;
+    if (id >= rings) {
+      id -= rings;
+      return {double(id % (n_ + 1)), double(id / (n_ + 1)), double(n_)};
+    }
+    const double z = double(id / (4 * n_) + 1);
+    const uint64_t r = id % (4 * n_);
+    if (r < n_) return {double(r), 0.0, z};
+    if (r < 2 * n_) return {double(n_), double(r - n_), z};
+    if (r < 3 * n_) return {double(n_ - (r - 2 * n_)), double(n_), z};
+    return {0.0, double(n_ - (r - 3 * n_)), z};
+  }
+  uint64_t n_, perBox_;
 };
 
 // Subdivides every triangle of the input into s*s triangles, s = 2^levels, on the barycentric
@@ -258,6 +345,8 @@ GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& op
                         options, path);
     case SyntheticKind::Sphere:
       return writeShape(SphereShape(options.triangles), options, path);
+    case SyntheticKind::Assembly:
+      return writeShape(AssemblyShape(options.triangles), options, path);
   }
   throw std::invalid_argument("unknown synthetic mesh kind");
 }

@@ -55,8 +55,9 @@ constexpr float kBlockedKey = std::numeric_limits<float>::infinity();
 constexpr uint32_t kBlock = 4096;
 // A round that would merge fewer than live / kStallRatio pairs hands the rest to the greedy.
 constexpr uint32_t kStallRatio = 64;
-// The greedy also takes the last min(kTopClusters, faces / kTailFraction) clusters: the top of
-// the tree, where a few clusters decide the coarse cuts and a round holds few pairs.
+// The greedy also takes the last min(kTopClusters, faces / kTailFraction) clusters (over given
+// clusters, the last kTopClusters): the top of the tree, where a few clusters decide the coarse cuts
+// and a round holds few pairs.
 constexpr uint32_t kTailFraction = 4;
 
 // A dual edge as one of its ends lists it: the other end, the length the two share and the
@@ -214,7 +215,8 @@ class RoundsEngine {
   MergeResult run() {
     auto start = std::chrono::steady_clock::now();
     uint32_t rounds = 0;
-    const uint32_t tail = std::min(kTopClusters, leafCount_ / kTailFraction);
+    // Given clusters are few next to faces: the greedy takes the last kTopClusters of them whole.
+    const uint32_t tail = geometry_ ? std::min(kTopClusters, leafCount_ / kTailFraction) : kTopClusters;
     while (options_.order == MergeOrder::Rounds) {
       if (options_.cancelled && options_.cancelled()) throw cancelledError();
       if (rounds > 0) findCheapest();

@@ -385,7 +385,7 @@ class PlyWriter {
 // Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
 // memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
 // a keyed bijection so any size can be shuffled while streaming.
-enum class SyntheticKind { Grid, Sphere, Terrain, Strip };
+enum class SyntheticKind { Grid, Sphere, Terrain, Strip, Assembly };
 // Size, shuffling and seed of a synthetic mesh.
 struct GenerateOptions {
   uint64_t triangles = 20000;  // approximate target; the shape rounds it
@@ -400,7 +400,9 @@ struct GeneratedCounts {
 };
 // Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
 // radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square
-// cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long).
+// cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long). Assembly: two
+// groups of closed unit boxes 30 units apart, 9 in each, most touching with the shared faces stored
+// by both boxes (their own vertices), as CAD parts exported one by one are.
 GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
                                    const std::filesystem::path& path);
 // Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;

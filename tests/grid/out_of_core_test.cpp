@@ -241,6 +241,36 @@ TEST(OutOfCore, ClosedSurfaceCutsFitNearInCore) {
   }
 }
 
+// An assembly of boxes in two groups far apart, out of core in cells of 1,000 faces (each box
+// spread over several cells, cell fragments of a box joined through proximity candidates): the
+// root's children are the two groups, as in core, and the top is as spatially coherent as in core.
+TEST(OutOfCore, AssemblyGroupsAreTheRootsChildrenInTinyCells) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "assembly.ply", SyntheticKind::Assembly, 18 * 12 * 64);
+  build(mesh, dir / "in.fch", 0);
+  const JobReport report = build(mesh, dir / "out.fch", 1000);
+  EXPECT_TRUE(report.outOfCore);
+  EXPECT_GT(report.cells, 8u);
+  const ClusterFile inCore = expectHierarchyOf(dir / "in.fch", mesh);
+  const ClusterFile outOfCore = expectHierarchyOf(dir / "out.fch", mesh);
+  for (const ClusterFile* file : {&inCore, &outOfCore}) {
+    const FchNode& root = file->nodes[0];
+    ASSERT_EQ(root.childCount, 2u);
+    for (unsigned c = 0; c < 2; ++c) {
+      const FchNode& child = file->nodes[root.child[c]];
+      EXPECT_EQ(child.count, file->indices.size() / 6);
+      const bool left = file->vertices[file->indices[3 * size_t{child.first}]].x < 15.0f;
+      for (size_t i = 3 * size_t{child.first}; i < 3 * (size_t{child.first} + child.count); ++i)
+        EXPECT_EQ(file->vertices[file->indices[i]].x < 15.0f, left);
+    }
+  }
+  for (const uint64_t clusters : {12u, 100u}) {
+    const CutFit a = cutFit(inCore, clusters), b = cutFit(outOfCore, clusters);
+    EXPECT_LT(a.sumBoxArea, a.mortonBoxArea) << clusters;
+    EXPECT_LT(b.sumBoxArea, b.mortonBoxArea) << clusters;
+  }
+}
+
 TEST(OutOfCore, TemporaryFilesRemovedOnSuccessAndFailure) {
   ScratchDir dir;
   fs::create_directory(dir / "tmp");

@@ -6,6 +6,7 @@
 #include <array>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <tuple>
 #include <vector>
 
@@ -141,6 +142,41 @@ TEST(Generate, SphereIsClosedAndManifold) {
   EXPECT_EQ(static_cast<int64_t>(counts.vertices) - static_cast<int64_t>(use.size()) +
                 static_cast<int64_t>(counts.triangles),
             2);
+  std::filesystem::remove(path);
+}
+
+TEST(Generate, AssemblyIsEighteenClosedBoxesWithTheirTouchingFacesStoredTwice) {
+  const auto path = scratch("assembly.ply");
+  GenerateOptions options;
+  options.triangles = 18 * 12 * 16;  // boxes of 4 x 4 cells a side
+  const GeneratedCounts counts = writeSyntheticMesh(SyntheticKind::Assembly, options, path);
+  EXPECT_EQ(counts.triangles, 18u * 12 * 16);
+  const IndexedMesh mesh = readBack(path);
+  // Every box closed and manifold, oriented outwards (every directed edge once), a sphere each.
+  const auto use = edgeUse(mesh);
+  for (const auto& [edge, n] : use) ASSERT_EQ(n, 2);
+  std::set<std::pair<uint32_t, uint32_t>> directed;
+  for (size_t t = 0; t < mesh.indices.size() / 3; ++t)
+    for (int k = 0; k < 3; ++k)
+      EXPECT_TRUE(directed.insert({mesh.indices[3 * t + k], mesh.indices[3 * t + (k + 1) % 3]}).second);
+  EXPECT_EQ(static_cast<int64_t>(counts.vertices) - static_cast<int64_t>(use.size()) +
+                static_cast<int64_t>(counts.triangles),
+            2 * 18);
+  // Touching boxes store their shared faces both: in each group 10 contacts (7 in the block of 3 x
+  // 2, 2 under the two on top, 1 between them) of 4 x 4 cells, 2 triangles each.
+  // (The two boxes face opposite ways: the same corners in the other turn.)
+  std::vector<PositionTriangle> triangles = canonicalTriangles(mesh);
+  for (PositionTriangle& t : triangles) {
+    std::array<std::array<float, 3>, 3> c{{{t[0], t[1], t[2]}, {t[3], t[4], t[5]}, {t[6], t[7], t[8]}}};
+    std::sort(c.begin(), c.end());
+    for (int k = 0; k < 9; ++k) t[k] = c[k / 3][k % 3];
+  }
+  std::sort(triangles.begin(), triangles.end());
+  size_t twice = 0;
+  for (size_t i = 0; i + 1 < triangles.size(); ++i) twice += triangles[i] == triangles[i + 1];
+  EXPECT_EQ(twice, 2u * 10 * 16 * 2);
+  // Two groups far apart: no triangle between x = 5 and x = 25.
+  for (const glm::vec3& p : mesh.positions) EXPECT_TRUE(p.x < 5.0f || p.x > 25.0f);
   std::filesystem::remove(path);
 }
 
