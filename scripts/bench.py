@@ -102,8 +102,10 @@ IN_CORE_CAP = "16G"
 OUT_OF_CORE_FACES_QUICK = 2_000_000
 OUT_OF_CORE_FACES_FULL = 10_000_000
 # Quality: meshes that fit, built in core and out of core forced with cells of at most N faces.
-QUALITY_MESHES = [("dragon_vrip", None), ("terrain 1M", 1_000_000)]  # (name, generated faces or shared)
-QUALITY_CELL_FACES = [20_000, 100_000]
+# (name, generated kind and faces, or shared)
+QUALITY_MESHES = [("dragon_vrip", None, None), ("terrain 1M", "terrain", 1_000_000),
+                  ("assembly 331k", "assembly", 331_000)]
+QUALITY_CELL_FACES = [2_000, 20_000, 100_000]
 FIT_CUTS = [1000, 10_000, 100_000]
 # Coherence of the top: a cut's sum of box surface areas over that of as many Morton runs of the faces
 # (info --fit-cuts), at most these ratios at these cuts, in core and out of core.
@@ -689,15 +691,20 @@ ROUNDS_TARGETS = {
     "fg_hawaii": {"seconds": 4.0},
 }
 ROUNDS_FIT_BOUND = 1.05  # cut fits within 5% of the exact order's (or better)
+# A CAD-like assembly (gen assembly): two groups of boxes far apart, touching faces stored twice.
+ASSEMBLY_FACES = 331_000
+ASSEMBLY_NAME = "assembly 331k"
 
 
 def bench_rounds(args, meshes, out):
-    """The merge in rounds against the exact greedy: time, memory, rounds, height, cut fits."""
+    """The merge in rounds against the exact greedy: time, memory, rounds, height, cut fits, the
+    coherence of the top; the shared meshes and a generated assembly of parts (gen assembly)."""
     tmp = out / "rounds_tmp"
     tmp.mkdir(exist_ok=True)
+    assembly = tmp / "assembly.ply"
+    run([args.facetree, "gen", "assembly", "-n", ASSEMBLY_FACES, "-o", assembly])
     rows = []
-    for mesh in meshes:
-        path = mesh_path(mesh)
+    for mesh, path in [(m, mesh_path(m)) for m in meshes] + [(ASSEMBLY_NAME, assembly)]:
         files = {name: tmp / f"{mesh}.{name}.fch" for name in ("rounds", "one", "exact")}
         variants = {"rounds": [], "one": ["--threads", "1"], "exact": ["--order", "exact"]}
         runs = {name: [] for name in (*variants, "octree")}
@@ -764,6 +771,7 @@ def bench_rounds(args, meshes, out):
               f"height {row['height']}/{row['balanced_height']}  fit/exact {fit_text}  "
               f"x{row['ratio_to_exact']:.2f} of exact, x{row['ratio_to_octree']:.2f} of octree"
               f"{'  missed: ' + ', '.join(failed) if failed else ''}", flush=True)
+    assembly.unlink()
     return rows
 
 
@@ -892,10 +900,10 @@ def bench_outofcore(args, out):
     cap_quality = bench_cap_quality(args, tmp, fch)
 
     quality = []
-    for name, generated in QUALITY_MESHES:
+    for name, kind, generated in QUALITY_MESHES:
         if generated:
             mesh = out / "outofcore_quality.ply"
-            run([args.facetree, "gen", "terrain", "-n", generated, "-o", mesh])
+            run([args.facetree, "gen", kind, "-n", generated, "-o", mesh])
         else:
             mesh = mesh_path(name)
         builds = [(None, ["--memory", IN_CORE_CAP])]
