@@ -175,35 +175,39 @@ AxisBox clusterBox(const SurfaceStats& stats) {
 std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox> boxes,
                                                         std::span<const uint32_t> label, uint32_t k) {
   const BoxTree tree(boxes, label);
-  struct Proposal {
-    uint32_t to;
-    Candidate from;  // the proposer, by its distance to `to`
-  };
-  std::vector<Proposal> proposals;
+  // Proposals as (proposed, proposer) in 8 bytes; their distances are recomputed per proposed box.
+  std::vector<std::pair<uint32_t, uint32_t>> proposals;
   proposals.reserve(tree.order().size() * k);
-  std::vector<Candidate> best;
-  std::vector<uint32_t> stack;
-  for (const uint32_t q : tree.order()) {
-    tree.nearest(q, k, best, stack);
-    for (const Candidate& c : best) proposals.push_back({c.index, {c.gap, c.centre, q}});
+  {
+    std::vector<Candidate> best;
+    std::vector<uint32_t> stack;
+    for (const uint32_t q : tree.order()) {
+      tree.nearest(q, k, best, stack);
+      for (const Candidate& c : best) proposals.emplace_back(c.index, q);
+    }
   }
-  // A box that many propose (a small piece beside a large one) keeps the nearest kAcceptedPerProposed x k.
-  std::sort(proposals.begin(), proposals.end(), [](const Proposal& a, const Proposal& b) {
-    return a.to != b.to ? a.to < b.to : a.from < b.from;
-  });
-  std::vector<uint8_t> kept(proposals.size(), 1);
-  for (size_t i = 0, run = 0; i < proposals.size(); ++i) {
-    run = i > 0 && proposals[i].to == proposals[i - 1].to ? run + 1 : 0;
-    kept[i] = run < kAcceptedPerProposed * k;
-  }
+  std::sort(proposals.begin(), proposals.end());
+  // A box that many propose (a small piece beside a large one) accepts the nearest
+  // kAcceptedPerProposed x k; a pair proposed both ways is kept when either side accepts it.
   std::vector<std::pair<uint32_t, uint32_t>> accepted;
   accepted.reserve(proposals.size());
-  for (size_t i = 0; i < proposals.size(); ++i) {
-    if (!kept[i]) continue;
-    const uint32_t a = proposals[i].to, b = proposals[i].from.index;
-    accepted.emplace_back(std::min(a, b), std::max(a, b));
+  std::vector<Candidate> from;
+  for (size_t begin = 0, end = 0; begin < proposals.size(); begin = end) {
+    const uint32_t to = proposals[begin].first;
+    for (end = begin; end < proposals.size() && proposals[end].first == to; ++end) {
+    }
+    from.clear();
+    const glm::vec3 centre = boxes[to].centre();
+    for (size_t i = begin; i < end; ++i) {
+      const uint32_t q = proposals[i].second;
+      from.push_back({squaredBoxGap(boxes[to], boxes[q]), squaredDistance(centre, boxes[q].centre()), q});
+    }
+    const size_t keep = std::min<size_t>(from.size(), kAcceptedPerProposed * k);
+    std::partial_sort(from.begin(), from.begin() + static_cast<ptrdiff_t>(keep), from.end());
+    for (size_t i = 0; i < keep; ++i)
+      accepted.emplace_back(std::min(to, from[i].index), std::max(to, from[i].index));
   }
-  // A pair proposed both ways is kept when either side accepts it.
+  proposals = {};
   std::sort(accepted.begin(), accepted.end());
   accepted.erase(std::unique(accepted.begin(), accepted.end()), accepted.end());
   return accepted;
