@@ -479,6 +479,9 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
   // The cells already run on the job's threads: each builds on its own (the same hierarchy).
   BuildOptions cellBuild = context_.job.build;
   cellBuild.threads = 1;
+  // A cell is the bottom of a larger tree: its pieces propose each other only once whole (the
+  // merge above the cells joins the cells' pieces by proximity when few clusters are left).
+  cellBuild.proximityClusters = 0;
   const auto groupCount = static_cast<uint32_t>(groups.start.size() - 1);
   for (uint32_t g = 0; g < groupCount; ++g) {
     const std::span<const uint32_t> members(groups.groupFaces.data() + groups.start[g],

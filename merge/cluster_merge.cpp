@@ -18,7 +18,7 @@
 //    cluster keeps its stats in place, and with Metric::Garland its quadrics (GarlandStats,
 //    from the caller's GarlandQuadrics).
 //  - One cost for every merge, separate pieces included (proximity.h): once at most
-//    kProximityClusters clusters are live, each proposes its kProximityNeighbours nearest
+//    BuildOptions::proximityClusters clusters are live, each proposes its kProximityNeighbours nearest
 //    clusters of other components by box gap as candidate edges of shared length 0. Every key
 //    is eq. 84 on the union with the perimeter lengthened by twice the boxes' gap (the two sides
 //    of a strip bridging it), so near pieces join before far ones and coplanar before crossing;
@@ -151,7 +151,7 @@ class ClusterMerger {
     }
     heap_.heapify();
 
-    if (live_ <= kProximityClusters) addCandidates(false);
+    if (live_ <= options_.proximityClusters) addCandidates(false);
     drain();
     result_.components = candidatesAdded_ ? components_ : live_;
     // The edges ran out or are blocked: the roots propose each other, the guard no longer blocks.
@@ -172,7 +172,7 @@ class ClusterMerger {
 
  private:
   // Merges the cheapest edge until the heap holds no unblocked key; adds the proximity candidates
-  // when the live clusters fall to kProximityClusters. Returns the merges made.
+  // when the live clusters fall to BuildOptions::proximityClusters. Returns the merges made.
   uint64_t drain() {
     uint64_t merges = 0;
     while (!heap_.empty()) {
@@ -207,7 +207,7 @@ class ClusterMerger {
         } else if (ra.minEdge != kNoEdge) {
           pushEntry(ra.minKey, a);
         }
-        if (!candidatesAdded_ && live_ <= kProximityClusters) addCandidates(false);
+        if (!candidatesAdded_ && live_ <= options_.proximityClusters) addCandidates(false);
       }
     }
     return merges;

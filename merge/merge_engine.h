@@ -14,10 +14,9 @@
 namespace facetree {
 
 // The top of the tree: the merge in rounds hands its last kTopClusters clusters (or fewer, for
-// small meshes) to the exact greedy, and the greedy adds the proximity candidates between separate
-// pieces when kProximityClusters clusters are left, in either order (cluster_merge.cpp).
+// small meshes) to the exact greedy, which adds the proximity candidates between separate pieces
+// when BuildOptions::proximityClusters are left, in either order (cluster_merge.cpp).
 inline constexpr uint32_t kTopClusters = 16384;
-inline constexpr uint32_t kProximityClusters = 16384;
 
 // One merge as the engine records it: a Node without its face range, 36 bytes instead of 44
 // (the merge's memory peak is at its end, when every record exists and the dual graph is

@@ -64,6 +64,11 @@ struct BuildOptions {
   // balanceSlack * (ceil(log2 n') + 1) for its n' faces gets its cost multiplied by
   // kBalancePenaltyBase^(excess) (balance_guard.h). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
+  // Clusters that share no mesh edge become merge candidates by proximity (nearest by box gap,
+  // costed by eq. 84 on the union plus their gap) once this many clusters are left; 0: only when
+  // the mesh's edges have run out, between whole pieces (what a piece of a larger mesh wants, whose
+  // pieces the merge above it joins).
+  uint32_t proximityClusters = 16384;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.
