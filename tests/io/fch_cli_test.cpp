@@ -49,10 +49,16 @@ TEST_F(FchCli, InfoFitCutsReportTheLibrarysCutFit) {
   std::snprintf(want, sizeof want, "\"sum_area_fit\": %.9g", some.sumAreaFit);
   EXPECT_NE(json.out.find(want), std::string::npos) << want << "\n" << json.out;
   EXPECT_NE(json.out.find("\"clusters\": 1200"), std::string::npos) << json.out;  // 5000 asked: every face
+  std::snprintf(want, sizeof want, "\"sum_box_area\": %.9g", some.sumBoxArea);
+  EXPECT_NE(json.out.find(want), std::string::npos) << want << "\n" << json.out;
+  std::snprintf(want, sizeof want, "\"morton_box_area\": %.9g", some.mortonBoxArea);
+  EXPECT_NE(json.out.find(want), std::string::npos) << want << "\n" << json.out;
   const CliResult text = runCli("info " + fch.string() + " --fit-cuts 50");
   EXPECT_EQ(text.exitCode, 0) << text.out;
   std::snprintf(want, sizeof want, "50 asked, %llu clusters", static_cast<unsigned long long>(some.clusters));
   EXPECT_NE(text.out.find(want), std::string::npos) << text.out;
+  std::snprintf(want, sizeof want, "(%.3f x the Morton runs')", some.sumBoxArea / some.mortonBoxArea);
+  EXPECT_NE(text.out.find(want), std::string::npos) << want << "\n" << text.out;
   for (const char* bad : {"0", "10,x", ",", "-5"})
     EXPECT_EQ(runCli("info " + fch.string() + " --fit-cuts " + bad).exitCode, 2) << bad;
 }

@@ -113,6 +113,44 @@ TEST(CutFit, FinerCutsFitBetterDownToZeroForSingleTriangles) {
   EXPECT_LE(all.sumAreaFit, 1e-9 * root.sumAreaFit);
 }
 
+// The box areas of a cut: the root's stored box for a cut of one, every face's axis-aligned box
+// for a cut of every face; the Morton runs of one cluster are the mesh's axis-aligned box, and of
+// every face the faces' own boxes.
+TEST(CutFit, BoxAreasOfTheCutAndOfAsManyMortonRuns) {
+  const TestMesh mesh = gridMesh(40, 30, 2.0f);
+  const ClusterFile file = fileOf(mesh);
+  const auto boxArea = [](glm::dvec3 lo, glm::dvec3 hi) {
+    const glm::dvec3 d = hi - lo;
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+  };
+  const auto faceBox = [&](size_t t) {
+    glm::dvec3 lo(INFINITY), hi(-INFINITY);
+    for (int k = 0; k < 3; ++k) {
+      const glm::dvec3 p(file.vertices[file.indices[3 * t + k]]);
+      lo = glm::min(lo, p), hi = glm::max(hi, p);
+    }
+    return boxArea(lo, hi);
+  };
+  const CutFit root = cutFit(file, 1);
+  const glm::dvec3 h(file.nodes[0].box.halfExtent);
+  EXPECT_NEAR(root.sumBoxArea, 8.0 * (h.x * h.y + h.y * h.z + h.z * h.x), 1e-9 * root.sumBoxArea);
+  glm::dvec3 lo(INFINITY), hi(-INFINITY);
+  for (const glm::vec3& p : file.vertices) lo = glm::min(lo, glm::dvec3(p)), hi = glm::max(hi, glm::dvec3(p));
+  EXPECT_NEAR(root.mortonBoxArea, boxArea(lo, hi), 1e-9 * root.mortonBoxArea);
+  const size_t faces = file.indices.size() / 3;
+  double each = 0;
+  for (size_t t = 0; t < faces; ++t) each += faceBox(t);
+  const CutFit all = cutFit(file, faces);
+  EXPECT_NEAR(all.sumBoxArea, each, 1e-9 * each);
+  EXPECT_NEAR(all.mortonBoxArea, each, 1e-9 * each);
+  // In between, the hierarchy's cuts of this smooth sheet are more compact than Morton runs.
+  for (const uint64_t asked : {12u, 100u}) {
+    const CutFit fit = cutFit(file, asked);
+    EXPECT_LT(fit.sumBoxArea, fit.mortonBoxArea) << asked;
+    EXPECT_GT(fit.sumBoxArea, 0.0);
+  }
+}
+
 TEST(CutFit, FlatGridFitsExactlyAndGeometryIsRequired) {
   const TestMesh flat = gridMesh(30, 20, 0.0f);
   const ClusterFile file = fileOf(flat);
