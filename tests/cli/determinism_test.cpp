@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -21,6 +22,28 @@ using test::runChild;
 std::string fileBytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Builds `mesh` with `options` once per entry of `threads` into `dir`: every file has the bytes of
+// the first.
+void expectSameBytesForThreads(const fs::path& mesh, const std::vector<std::string>& options,
+                               std::initializer_list<const char*> threads, const fs::path& dir) {
+  std::string first;
+  for (const char* count : threads) {
+    const fs::path out = dir / (std::string("t") + count + ".fch");
+    std::vector<std::string> args{"build", mesh.string(), "-o", out.string(), "--threads", count};
+    args.insert(args.end(), options.begin(), options.end());
+    const ChildResult result = runChild(args);
+    ASSERT_EQ(result.exitCode, 0) << result.output;
+    const std::string bytes = fileBytes(out);
+    ASSERT_GT(bytes.size(), 1000u);
+    if (first.empty()) {
+      first = bytes;
+    } else {
+      EXPECT_TRUE(bytes == first) << "--threads " << count << " differs from --threads " << *threads.begin();
+    }
+    fs::remove(out);
+  }
 }
 
 struct Case {
@@ -46,22 +69,7 @@ TEST(Determinism, SharedMeshesGiveTheSameBytesAcrossRunsAndThreadCounts) {
     const fs::path mesh = data / c.mesh;
     if (!fs::exists(mesh)) continue;
     SCOPED_TRACE(c.mesh);
-    std::string first;
-    for (const char* threads : {"1", "2", "2", "3"}) {
-      const fs::path out = dir / (std::string("t") + threads + ".fch");
-      std::vector<std::string> args{"build", mesh.string(), "-o", out.string(), "--threads", threads};
-      args.insert(args.end(), c.options.begin(), c.options.end());
-      const ChildResult result = runChild(args);
-      ASSERT_EQ(result.exitCode, 0) << result.output;
-      const std::string bytes = fileBytes(out);
-      ASSERT_GT(bytes.size(), 1000u);
-      if (first.empty()) {
-        first = bytes;
-      } else {
-        EXPECT_TRUE(bytes == first) << "--threads " << threads << " differs from --threads 1";
-      }
-      fs::remove(out);
-    }
+    expectSameBytesForThreads(mesh, c.options, {"1", "2", "2", "3"}, dir);
     ++built;
   }
   fs::remove_all(dir);
@@ -80,22 +88,7 @@ TEST(Determinism, AssemblyGivesTheSameBytesAcrossThreadCountsInCoreAndOutOfCore)
        {std::vector<std::string>{},
         std::vector<std::string>{"--memory", "64M", "--cell-faces", "3000", "--tmp", dir.string()}}) {
     SCOPED_TRACE(options.empty() ? "in core" : "out of core");
-    std::string first;
-    for (const char* threads : {"1", "2", "3"}) {
-      const fs::path out = dir / (std::string("t") + threads + ".fch");
-      std::vector<std::string> args{"build", mesh.string(), "-o", out.string(), "--threads", threads};
-      args.insert(args.end(), options.begin(), options.end());
-      const ChildResult result = runChild(args);
-      ASSERT_EQ(result.exitCode, 0) << result.output;
-      const std::string bytes = fileBytes(out);
-      ASSERT_GT(bytes.size(), 1000u);
-      if (first.empty()) {
-        first = bytes;
-      } else {
-        EXPECT_TRUE(bytes == first) << "--threads " << threads << " differs from --threads 1";
-      }
-      fs::remove(out);
-    }
+    expectSameBytesForThreads(mesh, options, {"1", "2", "3"}, dir);
   }
   fs::remove_all(dir);
 }
