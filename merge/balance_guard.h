@@ -19,8 +19,8 @@ inline constexpr double kBalancePenaltyBase = 4.0;
 // Past this many levels over the allowance an edge is not merged at all (its key is +inf,
 // which toKey never produces): the penalty cannot help where a cluster's last neighbours are
 // slivers adjacent to it only (it would absorb them one at a time, each merge forced). Such
-// clusters stay roots and are joined by joinComponents,
-// balanced by face count, like disconnected pieces.
+// clusters stay roots until the edges run out; then the roots join by cost with the penalty only,
+// through their edges and proximity candidates, like disconnected pieces (cluster_merge.cpp).
 inline constexpr double kBalanceBlockExcess = 3.0;
 
 // Levels by which a merge of clusters of heights ha, hb and n faces in all exceeds the allowance.

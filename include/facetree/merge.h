@@ -330,7 +330,8 @@ struct ClusterMergeResult {
 // hierarchies), its second entry point beside buildHierarchy: in options.order, rounds of reciprocal
 // cheapest pairs then the greedy over the last clusters (MergeOrder::Rounds), or the exact greedy
 // (MergeOrder::Exact). Eq. 84 with options.k / flatThreshold, the balance guard with options.balanceSlack
-// using the leaves' heights and face counts, Huffman component joins by face count as the engine does,
+// using the leaves' heights and face counts, separate pieces joined through proximity candidates by the
+// leaves' bounds (SurfaceStats::boundsMin/Max, or the boxes their moments imply) as the engine does,
 // deterministic ties (cost, then ids), the same result for every options.threads. Parallel edges are summed.
 // `diagonalSquared` is the squared bounding-box diagonal of the whole model (the key scale the engine uses).
 // Metric::Constant supported; Metric::Garland with `garland`, the leaves' quadrics (one per leaf, about the
