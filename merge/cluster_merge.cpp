@@ -21,8 +21,8 @@
 //    BuildOptions::proximityClusters clusters are live, each proposes its kProximityNeighbours nearest
 //    clusters of other components by box gap as candidate edges of shared length 0. Every key
 //    is eq. 84 on the union with the perimeter lengthened by twice the boxes' gap (the two sides
-//    of a strip bridging it), so near pieces join before far ones and coplanar before crossing;
-//    a mesh edge's ends share a vertex, so its gap is 0. A merge along a candidate that no mesh
+//    of a strip bridging it), so near pieces join before far ones and coplanar before crossing
+//    (a mesh edge's ends share a vertex: they pay no gap). A merge along a candidate that no mesh
 //    edge backs is flagged kNodeJoinsDisjointSurfaces.
 //  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
 //    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
@@ -136,7 +136,7 @@ class ClusterMerger {
     result_.nodes.reserve(n > 0 ? n - 1 : 0);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
-      edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1]);
+      edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1], false);
       for (const uint32_t c : edge.end) {
         Record& r = clusters_[c];
         if (r.minEdge == kNoEdge || edge.key < r.minKey) {  // edges ascend: ties keep the first
@@ -234,6 +234,7 @@ class ClusterMerger {
     for (size_t i = 0; i < live.size(); ++i) boxes[i] = boxes_[live[i]];
     const std::vector<std::pair<uint32_t, uint32_t>> pairs = nearestPairs(boxes, label, kProximityNeighbours);
     boxes = {};
+    final_ = final_ || betweenRoots;
     bool changed = false;
     for (const auto& [p, q] : pairs) {
       const uint32_t a = live[p], b = live[q];
@@ -243,16 +244,17 @@ class ClusterMerger {
       graph_.edges.push_back({{a, b}, {graph_.head[a], graph_.head[b]}, 0.0f, 0.0f});
       graph_.head[a] = 2 * e;
       graph_.head[b] = 2 * e + 1;
-      graph_.edges[e].key = key(stats_[a], stats_[b], 0.0, a, b);
+      graph_.edges[e].key = key(stats_[a], stats_[b], 0.0, a, b, true);
       exactShared_.push_back(0.0);
       candidate_.push_back(1);
       changed = true;
     }
     if (betweenRoots) {
-      final_ = true;
-      for (DualEdge& edge : graph_.edges) {
+      for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
+        DualEdge& edge = graph_.edges[e];
         if (edge.end[0] == kNone || edge.key != kBlockedKey) continue;
-        edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1]);
+        edge.key = key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1],
+                       candidate_[e]);
         changed = true;
       }
     }
@@ -266,24 +268,15 @@ class ClusterMerger {
   }
 
   // Labels the live clusters by the components of the dual graph's live edges (blocked ones
-  // included): the lowest position in `live` of each component. Returns the number of components.
-  uint32_t componentLabels(std::span<const uint32_t> live, std::vector<uint32_t>& label) {
-    std::vector<uint32_t> position(clusters_.size(), kNone);
-    for (uint32_t i = 0; i < live.size(); ++i) position[live[i]] = i;
-    std::iota(label.begin(), label.end(), 0u);
-    const auto find = [&](uint32_t x) {
-      while (label[x] != x) x = label[x] = label[label[x]];
-      return x;
-    };
-    for (const DualEdge& edge : graph_.edges) {
-      if (edge.end[0] == kNone) continue;
-      const uint32_t a = find(position[edge.end[0]]), b = find(position[edge.end[1]]);
-      if (a != b) label[std::max(a, b)] = std::min(a, b);
-    }
+  // included), as graphComponents numbers them. Returns the number of components among them.
+  uint32_t componentLabels(std::span<const uint32_t> live, std::vector<uint32_t>& label) const {
+    std::vector<uint32_t> component;
+    std::vector<uint8_t> seen(graphComponents(graph_, component), 0);
     uint32_t count = 0;
-    for (uint32_t i = 0; i < live.size(); ++i) {
-      label[i] = find(i);
-      count += label[i] == i;
+    for (size_t i = 0; i < live.size(); ++i) {
+      label[i] = component[live[i]];
+      count += seen[label[i]] == 0;
+      seen[label[i]] = 1;
     }
     return count;
   }
@@ -316,12 +309,12 @@ class ClusterMerger {
     return willmottCost(m, k_, flatThreshold_, counters_);
   }
 
-  // The key of merging clusters ia and ib: eq. 84 on the union, its perimeter lengthened by twice
-  // the gap between their boxes.
-  float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib) {
+  // The key of merging clusters ia and ib: eq. 84 on the union, for a proximity candidate with its
+  // perimeter lengthened by twice the gap between their boxes (a mesh edge's ends touch).
+  float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib,
+            bool candidate) {
     ClusterStats m = ClusterStats::merged(a, b, shared);
-    const double gap = squaredBoxGap(boxes_[ia], boxes_[ib]);
-    if (gap > 0) m.perimeter += 2.0 * std::sqrt(gap);
+    if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
     double c = cost(m, a, b, ia, ib) * keyScale_;
     if (guard_) {
       const Record& x = clusters_[ia];
@@ -466,7 +459,7 @@ class ClusterMerger {
       const uint32_t f = h >> 1;
       DualEdge& edge = graph_.edges[f];
       const uint32_t x = edge.end[(h & 1) ^ 1];
-      const float k = key(merged, stats_[x], edge.shared, a, x);
+      const float k = key(merged, stats_[x], edge.shared, a, x, candidate_[f]);
       edge.key = k;
       if (ra.minEdge == kNoEdge || k < ra.minKey || (k == ra.minKey && f < ra.minEdge)) {
         ra.minKey = k;

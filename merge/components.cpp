@@ -4,7 +4,8 @@
 // kNodeJoinsDisjointSurfaces. A depth-first flood fill over the dual graph's adjacency lists
 // from each unlabelled triangle in increasing order numbers them by their lowest triangle.
 // O(n + E) time; memory: the dual graph and a stack of at most n face ids. With a FaceAdjacency built
-// once for the mesh, its links instead of a dual graph.
+// once for the mesh, its links instead of a dual graph. graphComponents: the same over a merge's
+// graph of clusters (its live edges).
 #include "dual_graph.h"
 #include "face_geometry.h"
 
@@ -48,6 +49,13 @@ uint32_t faceComponents(const MeshView& mesh, std::vector<uint32_t>& labels) {
   const DualGraph graph = buildDualGraph(geometry);
   return label(geometry.faceCount(), labels, [&](uint32_t f, const auto& visit) {
     for (uint32_t h = graph.head[f]; h != DualGraph::kNone; h = graph.next(h)) visit(graph.other(h));
+  });
+}
+
+uint32_t graphComponents(const DualGraph& graph, std::vector<uint32_t>& labels) {
+  return label(static_cast<uint32_t>(graph.head.size()), labels, [&](uint32_t c, const auto& visit) {
+    for (uint32_t h = graph.head[c]; h != DualGraph::kNone; h = graph.next(h))
+      if (graph.edges[h >> 1].end[0] != DualGraph::kNone) visit(graph.other(h));
   });
 }
 

@@ -52,6 +52,11 @@ struct DualGraph {
 // fixed blocks on `threads` threads; the graph is the same for every count.
 DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);
 
+// Labels every node of a merge's dual graph (clusters) by its component over the live edges (dead
+// ones, end[0] == kNone, are skipped), numbered 0, 1, ... by their lowest node (components.cpp).
+// Returns the number of components.
+uint32_t graphComponents(const DualGraph& graph, std::vector<uint32_t>& label);
+
 // The dual graph's edges as matched, block by block (concatenated, they are buildDualGraph's
 // edges), without the adjacency lists: what the merge in rounds reads.
 using DualEdgeBlocks = std::vector<std::vector<DualEdge>>;

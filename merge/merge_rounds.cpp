@@ -689,7 +689,6 @@ class RoundsEngine {
     }
     Leaves leaves(live_, options_.metric == Metric::Garland);
     std::vector<ClusterEdge> edges;
-    liveBoxes(leaves.stats);
     for (uint32_t c = 0; c < live_; ++c) {
       leaves.set(c, cluster(c, policies_[0]));
       for (uint32_t h = now_.begin[c]; h < now_.begin[c + 1]; ++h) {
@@ -697,6 +696,7 @@ class RoundsEngine {
         if (half.neighbour > c) edges.push_back({c, half.neighbour, half.shared});
       }
     }
+    liveBoxes(leaves.stats);
     now_ = {};
     next_ = {};
     greedy(leaves, edges);
@@ -769,11 +769,9 @@ class RoundsEngine {
     std::vector<GarlandQuadrics> quadrics;  // with Metric::Garland only
 
     Leaves(uint32_t count, bool garland) : stats(count), node(count), quadrics(garland ? count : 0) {}
+    // The cluster's statistics, its bounds left unknown (liveBoxes and atomBox set them).
     void set(uint32_t i, const Cluster& k) {
-      const glm::vec3 lo = stats[i].boundsMin, hi = stats[i].boundsMax;
       stats[i] = toSurfaceStats(k.stats.aboutOrigin(), k.count, k.height);
-      stats[i].boundsMin = lo;
-      stats[i].boundsMax = hi;
       node[i] = k.node;
       if constexpr (std::is_same_v<Extra, GarlandStats>) {
         if (!quadrics.empty()) quadrics[i] = toGarlandQuadrics(k.extra);

@@ -9,6 +9,9 @@
 // garlandQuadrics: the same sums of Garland's quadrics (cost.h GarlandStats).
 // surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
+#include <limits>
+
+#include <glm/common.hpp>
 
 #include "cost.h"
 #include "dual_graph.h"
@@ -59,25 +62,28 @@ SurfaceStats stats(const MeshView& mesh, const glm::dvec3& origin, const SharedO
   const FaceGeometry geometry(mesh);  // validates the indices
   const uint32_t n = geometry.faceCount();
   ClusterStats total;
+  glm::vec3 lo{std::numeric_limits<float>::infinity()}, hi{-std::numeric_limits<float>::infinity()};
   for (uint32_t begin = 0; begin < n; begin += kSumBlock) {
     ClusterStats block;
     const uint32_t end = std::min(n, begin + kSumBlock);
     for (uint32_t f = begin; f < end; ++f) {
       const size_t base = size_t{3} * f;
-      add(block, ClusterStats::fromShiftedTriangle(mesh.positions[mesh.indices[base]],
-                                                   mesh.positions[mesh.indices[base + 1]],
-                                                   mesh.positions[mesh.indices[base + 2]], origin));
+      const glm::vec3& a = mesh.positions[mesh.indices[base]];
+      const glm::vec3& b = mesh.positions[mesh.indices[base + 1]];
+      const glm::vec3& c = mesh.positions[mesh.indices[base + 2]];
+      add(block, ClusterStats::fromShiftedTriangle(a, b, c, origin));
+      for (const glm::vec3* p : {&a, &b, &c}) {  // the bounds about the origin, as the engine's boxes
+        const glm::vec3 q(glm::dvec3(*p) - origin);
+        lo = glm::min(lo, q);
+        hi = glm::max(hi, q);
+      }
     }
     add(total, block);
   }
   total.perimeter = std::max(0.0, total.perimeter - 2.0 * sharedOf(geometry));
   SurfaceStats out = toSurfaceStats(total, n, 1);
-  const size_t corners = size_t{3} * n;
-  for (size_t i = 0; i < corners; ++i) {
-    const glm::vec3 p(glm::dvec3(mesh.positions[mesh.indices[i]]) - origin);
-    out.boundsMin = glm::min(out.boundsMin, p);
-    out.boundsMax = glm::max(out.boundsMax, p);
-  }
+  out.boundsMin = lo;
+  out.boundsMax = hi;
   return out;
 }
 
