@@ -87,8 +87,7 @@ int runInfo(const std::vector<std::string>& argv) {
   return [&] {
     const FchLayout layout = readClusterFileLayout(name);
     ClusterFile file = readClusterFile(name, /*geometry=*/!fitCuts.empty());
-    std::vector<CutFit> fits;
-    for (const uint64_t clusters : fitCuts) fits.push_back(cutFit(file, clusters));
+    const std::vector<CutFit> fits = cutFits(file, fitCuts);
     // branchingStats needs the triangle count only from the indices' size.
     file.indices.resize(3 * layout.header.triangleCount);
     const BranchingStats s = branchingStats(file);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <vector>
 
@@ -52,13 +53,10 @@ double orientedArea(const NodeBox& box) {
   return 8.0 * (h.x * h.y + h.y * h.z + h.z * h.x);
 }
 
-// The faces in the Morton order of their centroids (within the centroids' box), split into
-// `runs` runs of equal face count (the first ones one face longer where it does not divide):
-// the sum of the runs' axis-aligned box areas. A plain spatial grouping that any hierarchy's cut
-// of as many clusters should match.
-double mortonRunsArea(const ClusterFile& file, uint64_t runs) {
+// The faces in the Morton order of their centroids (within the centroids' box): one order for
+// every cut's runs.
+std::vector<uint32_t> mortonOrder(const ClusterFile& file) {
   const size_t faces = file.indices.size() / 3;
-  if (faces == 0 || runs == 0) return 0;
   std::vector<glm::dvec3> centroid(faces);
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
   for (size_t t = 0; t < faces; ++t) {
@@ -68,34 +66,41 @@ double mortonRunsArea(const ClusterFile& file, uint64_t runs) {
     lo = glm::min(lo, centroid[t]);
     hi = glm::max(hi, centroid[t]);
   }
-  std::vector<std::pair<uint64_t, uint32_t>> order(faces);
-  for (size_t t = 0; t < faces; ++t) order[t] = {mortonCode(centroid[t], lo, hi), static_cast<uint32_t>(t)};
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(faces);
+  for (size_t t = 0; t < faces; ++t) keyed[t] = {mortonCode(centroid[t], lo, hi), static_cast<uint32_t>(t)};
   centroid = {};
-  std::sort(order.begin(), order.end());
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(faces);
+  for (size_t i = 0; i < faces; ++i) order[i] = keyed[i].second;
+  return order;
+}
+
+// The faces of `order` split into `runs` runs of equal face count (run r: positions
+// [r F / runs, (r + 1) F / runs)): the sum of the runs' axis-aligned box areas. A plain spatial
+// grouping that any hierarchy's cut of as many clusters should match.
+double mortonRunsArea(const ClusterFile& file, std::span<const uint32_t> order, uint64_t runs) {
+  const size_t faces = order.size();
+  if (faces == 0 || runs == 0) return 0;
   runs = std::min<uint64_t>(runs, faces);
   double sum = 0;
   for (uint64_t r = 0; r < runs; ++r) {
     AreaBox box;
     for (size_t i = r * faces / runs; i < (r + 1) * faces / runs; ++i)
-      for (int k = 0; k < 3; ++k) box.add(file.vertices[file.indices[3 * size_t{order[i].second} + k]]);
+      for (int k = 0; k < 3; ++k) box.add(file.vertices[file.indices[3 * size_t{order[i]} + k]]);
     sum += box.area();
   }
   return sum;
 }
 
-}  // namespace
-
-CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
+// The fit and box areas of one cut (its Morton runs' area left to cutFits); `local` is all
+// kNoLocalVertex, and is left so.
+CutFit fitOfCut(const ClusterFile& file, uint64_t clusters, const glm::dvec3& origin,
+                std::vector<uint32_t>& local) {
   const size_t faces = file.indices.size() / 3;
-  if (file.header.triangleCount != faces || (faces > 0 && file.vertices.empty()))
-    throw std::invalid_argument("cutFit: the cluster file was read without its geometry");
   const std::vector<uint32_t> cluster = clusterCut(file, clusters);
-  const glm::dvec3 origin = boundingBoxCentre(file.vertices);
-
-  std::vector<uint32_t> local(file.vertices.size(), kNoLocalVertex);
+  const std::vector<uint32_t> node = cutNodes(file, clusters, cluster);
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
-  const std::vector<uint32_t> node = cutNodes(file, clusters, cluster);
   CutFit fit;
   for (size_t begin = 0, end = 0; begin < faces; begin = end) {
     end = begin + 1;
@@ -127,8 +132,27 @@ CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
     }
     ++fit.clusters;
   }
-  fit.mortonBoxArea = mortonRunsArea(file, fit.clusters);
   return fit;
+}
+
+}  // namespace
+
+std::vector<CutFit> cutFits(const ClusterFile& file, std::span<const uint64_t> clusters) {
+  std::vector<CutFit> fits;
+  if (clusters.empty()) return fits;
+  const size_t faces = file.indices.size() / 3;
+  if (file.header.triangleCount != faces || (faces > 0 && file.vertices.empty()))
+    throw std::invalid_argument("cutFit: the cluster file was read without its geometry");
+  const glm::dvec3 origin = boundingBoxCentre(file.vertices);
+  std::vector<uint32_t> local(file.vertices.size(), kNoLocalVertex);
+  for (const uint64_t count : clusters) fits.push_back(fitOfCut(file, count, origin, local));
+  const std::vector<uint32_t> order = mortonOrder(file);  // the indices are checked by now
+  for (CutFit& fit : fits) fit.mortonBoxArea = mortonRunsArea(file, order, fit.clusters);
+  return fits;
+}
+
+CutFit cutFit(const ClusterFile& file, uint64_t clusters) {
+  return cutFits(file, std::span<const uint64_t>(&clusters, 1)).front();
 }
 
 }  // namespace facetree

@@ -307,6 +307,9 @@ struct CutFit {
 };
 // The fit of the cut of `clusters` clusters.
 CutFit cutFit(const ClusterFile& file, uint64_t clusters);
+// The fits of several cuts, one per entry of `clusters` (the faces' Morton order sorted once for all);
+// none asked, none given, geometry or not.
+std::vector<CutFit> cutFits(const ClusterFile& file, std::span<const uint64_t> clusters);
 
 // The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
 // PLY (".ply") or Draco (".drc", sequential connectivity so face order and point ids are kept).

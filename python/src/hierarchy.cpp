@@ -238,11 +238,14 @@ face_order[first:first + count] of its face range; its children partition that r
             d["clusters"] = fit.clusters;
             d["sum_fit"] = fit.sumFit;
             d["sum_area_fit"] = fit.sumAreaFit;
+            d["sum_box_area"] = fit.sumBoxArea;
+            d["morton_box_area"] = fit.mortonBoxArea;
             return d;
           },
           py::arg("clusters"),
           "How well the cut of `clusters` clusters fits the surface: the sums of eFit and area * eFit "
-          "(Willmott 2000, eq. 84) over its clusters; lower is better.")
+          "(Willmott 2000, eq. 84) over its clusters; lower is better. And how spatially coherent it is: "
+          "the sum of its boxes' surface areas, and that of as many runs of the faces in Morton order.")
       .def(
           "truncate",
           [](const PyHierarchy& h, uint64_t nodes) {

@@ -114,6 +114,7 @@ def test_load_round_trip(hierarchy, tmp_path):
         assert np.array_equal(getattr(loaded, field), getattr(hierarchy, field)), field
     fit = loaded.cut_fit(1000)
     assert fit["clusters"] >= 1000 and fit["sum_area_fit"] > 0
+    assert 0 < fit["sum_box_area"] and 0 < fit["morton_box_area"]
 
 
 def test_bad_cluster_files_raise_input_errors(tmp_path, hierarchy):
