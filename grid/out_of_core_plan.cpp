@@ -83,14 +83,12 @@ void planLeaves(OutOfCorePlan& plan, uint64_t triangles) {
   plan.minNodeRun =
       static_cast<uint32_t>(std::max<uint64_t>(kMinNodeBlock, (triangles * kRunBytes + half - 1) / half));
   plan.topRuns = topRunsPerLeaf(plan.minNodeRun);
-  // Frontier clusters of the size that makes a kFrontierShare-th of the leaves the budget pays
-  // for at most: the more and the smaller the leaves, the more freedom the merge above the cells
-  // has (the cells' many small components still get theirs: a cell past its quota builds its
-  // smallest components as one group).
+  // Frontier clusters of the size that makes as many leaves as the budget pays for: the more and
+  // the smaller the leaves, the more freedom the merge above the cells has (the cells' many small
+  // components still get theirs: a cell past its quota builds its smallest components as one group).
   const uint64_t leaves =
       std::max<uint64_t>(1, plan.leafBudget / (plan.leafFixedBytes() + plan.topRuns * kRunBytes));
-  const uint64_t target = std::max<uint64_t>(1, leaves / kFrontierShare);
-  plan.frontierFaces = std::clamp<uint64_t>((triangles + target - 1) / target, plan.frontierFaces,
+  plan.frontierFaces = std::clamp<uint64_t>((triangles + leaves - 1) / leaves, plan.frontierFaces,
                                             std::max<uint64_t>(plan.frontierFaces, plan.cellFaceLimit / 4));
 }
 

@@ -35,7 +35,6 @@ inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // find pieces of that size.
 inline constexpr uint64_t kFrontiersPerCell = 128;
 inline constexpr uint64_t kMinFrontierFaces = 64;
-inline constexpr uint64_t kFrontierShare = 1;  // of the leaf budget, for frontier pieces (all of it)
 // Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 32 B
 // and geometry handle 16, box corners 96, its upper merge node 144 and box accumulator 176, the
 // write's tables ~70, the hull points its upper node carries for the frames (384); during the
