@@ -9,7 +9,6 @@
 #include "surface_stats.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 
@@ -153,8 +152,7 @@ class BoxTree {
   std::vector<TreeNode> nodes_;
 };
 
-}  // namespace
-
+// The box the moments imply: each axis centroid +- sqrt(3 variance).
 AxisBox momentBox(const ClusterStats& stats) {
   AxisBox box;
   if (!(stats.area > 0)) return box;
@@ -166,6 +164,8 @@ AxisBox momentBox(const ClusterStats& stats) {
   box.hi = glm::vec3(mean + half);
   return box;
 }
+
+}  // namespace
 
 AxisBox clusterBox(const SurfaceStats& stats) {
   const AxisBox given{stats.boundsMin, stats.boundsMax};

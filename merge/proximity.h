@@ -15,7 +15,6 @@
 #include <glm/common.hpp>
 #include <glm/vec3.hpp>
 
-#include "cluster_stats.h"
 #include "facetree/merge.h"
 
 namespace facetree {
@@ -50,15 +49,14 @@ inline double squaredBoxGap(const AxisBox& a, const AxisBox& b) {
 // A cluster's box: its stats' bounds, or when they are unknown the box its moments imply (each axis
 // centroid +- sqrt(3 variance), the extent of a uniform spread with that variance).
 AxisBox clusterBox(const SurfaceStats& stats);
-AxisBox momentBox(const ClusterStats& stats);
 
 // Pairs (a, b), a < b, of the boxes whose labels differ where b is among a's `k` nearest of another
 // label, ordered by (gap, distance between centres, index), and a among the 2k nearest of those that
 // propose b (so that a small piece beside a large one gets a few candidates, not one per cluster of
-// the large piece), or the same with a and b swapped; sorted, each once. A box is never its own candidate;
-// empty boxes take part as their moments' would not: they propose and receive nothing. Deterministic. O(n log
-// n) for boxes of comparable sizes: a bounding volume hierarchy over the boxes, each node knowing whether all
-// its boxes carry one label so that a cluster inside a large piece skips the piece's own subtrees.
+// the large piece), or the same with a and b swapped; sorted, each once. A box is never its own
+// candidate; an empty box proposes and receives nothing. Deterministic. O(n log n) for boxes of
+// comparable sizes: a bounding volume hierarchy over the boxes, each node knowing whether all its
+// boxes carry one label so that a cluster inside a large piece skips the piece's own subtrees.
 std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox> boxes,
                                                         std::span<const uint32_t> label, uint32_t k);
 
