@@ -38,6 +38,23 @@ struct Incidence {
   }
 };
 
+// The faces on one mesh edge and their sides (EdgeShare's u_f and U), and what the dual graph's edge
+// rules have them share in all, in units of the edge's length: sum of u_f u_g / (U - 1) over the pairs
+// when they are joined pairwise, U / 2 along a chain.
+struct EdgeSides {
+  uint32_t faces = 0, uses = 0, squares = 0;
+  void add(uint32_t u) {
+    ++faces;
+    uses += u;
+    squares += u * u;
+  }
+  double pairWeight() const { return 0.5 * (double(uses) * uses - squares); }  // sum of u_f u_g
+  double joinedShare() const {
+    if (faces < 2) return 0;
+    return faces <= kMaxFacesJoinedPairwise ? pairWeight() / (uses - 1) : 0.5 * uses;
+  }
+};
+
 template <class T>
 void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
   const size_t at = out.size();
@@ -596,35 +613,50 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
     if (sentGhosts) border.push_back({f, leafOf[f]});
   }
   std::sort(incidences.begin(), incidences.end());
-  // Shared lengths under the dual graph's edge rules (EdgeShare), which the whole mesh's graph
-  // would give these faces.
+  // Shared lengths under the dual graph's edge rules (EdgeShare). Each cell has already joined its
+  // own faces on the edge by those rules over its own sides (its FaceAdjacency), so the cross-cell
+  // pairs get what the whole edge shares in the whole mesh's graph minus what the cells shared
+  // inside: merging every face of the edge then removes exactly what it removes in core, and the
+  // root's perimeter is the in-core one, however the cells cut the non-manifold edges.
   for (size_t i = 0; i < incidences.size();) {
     size_t j = i;
-    uint32_t totalSides = 0;
+    EdgeSides whole;
     bool mixed = false;
     for (; j < incidences.size() && incidences[j].key == incidences[i].key; ++j) {
-      totalSides += incidences[j].sides;
+      whole.add(incidences[j].sides);
       mixed |= incidences[j].cell != incidences[i].cell;
     }
-    const size_t k = j - i;
-    if (mixed && totalSides >= 2) {
+    if (mixed && whole.uses >= 2) {
+      double inside = 0, crossWeight = 0;  // shares within the cells; sum of u_a u_b over cross pairs
+      uint32_t cellRuns = 0;
+      for (size_t a = i; a < j;) {
+        EdgeSides own;
+        size_t b = a;
+        for (; b < j && incidences[b].cell == incidences[a].cell; ++b) own.add(incidences[b].sides);
+        inside += own.joinedShare();
+        crossWeight -= own.pairWeight();
+        ++cellRuns;
+        a = b;
+      }
+      crossWeight += whole.pairWeight();
       const double length = incidences[i].length;
-      if (k <= kMaxFacesJoinedPairwise) {
+      const double cross = std::max(0.0, whole.joinedShare() - inside) * length;
+      if (whole.faces <= kMaxFacesJoinedPairwise) {
         for (size_t a = i; a < j; ++a)
           for (size_t b = a + 1; b < j; ++b) {
             if (incidences[a].cell == incidences[b].cell) continue;
-            const double shared =
-                EdgeShare::pair(incidences[a].sides, incidences[b].sides, totalSides).of(length);
-            pairs.push_back(
-                {{incidences[a].cell, incidences[b].cell}, {incidences[a].ref, incidences[b].ref}, shared});
+            const double weight = double(incidences[a].sides) * incidences[b].sides;
+            pairs.push_back({{incidences[a].cell, incidences[b].cell},
+                             {incidences[a].ref, incidences[b].ref},
+                             crossWeight > 0 ? cross * weight / crossWeight : 0.0});
           }
       } else {
-        const double shared = EdgeShare::chain(totalSides, k - 1).of(length);
+        // A chain: each cell's faces are linked by its own adjacency, the cells' runs by one link each.
         for (size_t a = i; a + 1 < j; ++a) {
           if (incidences[a].cell == incidences[a + 1].cell) continue;
           pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
                            {incidences[a].ref, incidences[a + 1].ref},
-                           shared});
+                           cross / (cellRuns - 1)});
         }
       }
     }

@@ -4,8 +4,9 @@
 // numbers. The perimeter follows the dual graph's edge rules (dual_graph.h): the sum of the
 // triangles' perimeters minus twice every dual edge's shared length, which is what the merges
 // of all dual edges subtract (perim(A u B) = perim(A) + perim(B) - 2 shared).
-// With a FaceAdjacency built once for a whole mesh, the shared lengths of a piece come from it
-// (dual_graph.h FaceAdjacencyAccess::Piece) instead of the piece's own dual graph.
+// With a FaceAdjacency built once for a whole mesh, a piece is a cluster of that mesh: its shared
+// lengths are the adjacency's (dual_graph.h FaceAdjacencyAccess::Piece), so that the pieces'
+// perimeters and the shares between them add up to the whole mesh's perimeter.
 // garlandQuadrics: the same sums of Garland's quadrics (cost.h GarlandStats).
 // surfaceFitError: eFit of eq. 84 from those statistics (cost.cpp willmottFitError).
 #include <algorithm>
@@ -100,11 +101,13 @@ SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::
     const FaceAdjacencyAccess::Piece view(adjacency, faces, 0);
     return SurfaceStats{};
   }
+  // The adjacency's shares, whether or not the piece's own graph would have the same (it differs where
+  // the piece cuts a non-manifold edge): the piece's neighbours are paired by the adjacency too.
   return stats(piece, origin, [&](const FaceGeometry& geometry) {
     const FaceAdjacencyAccess::Piece view(adjacency, faces, geometry.faceCount());
     SharedSum sum;
-    const bool exact = view.forEachEdge(geometry, [&](uint32_t, uint32_t, float shared) { sum.add(shared); });
-    return exact ? sum.total() : graphShared(geometry);
+    view.forEachEdge(geometry, [&](uint32_t, uint32_t, float shared) { sum.add(shared); });
+    return sum.total();
   });
 }
 

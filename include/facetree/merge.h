@@ -294,7 +294,10 @@ uint32_t faceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& l
 // piece's. The adjacency's scratch is used: one call at a time per adjacency.
 Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
                          const BuildOptions& options = {});
-// surfaceStats of a piece of the adjacency's mesh (see above).
+// surfaceStats of a piece as a cluster of the adjacency's mesh: the same sums, but its perimeter counts the
+// adjacency's shares among its faces, which are the piece's own except where the piece cuts a non-manifold
+// edge or a chain. Pieces that partition the mesh, paired by the adjacency's shares between them, so add up
+// to surfaceStats of the whole mesh (perim(A u B) = perim(A) + perim(B) - 2 shared), as in one build.
 SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
                           const glm::dvec3& origin);
 

@@ -144,6 +144,60 @@ TEST(OutOfCore, TerrainVerifiesAndKeepsEveryTriangle) {
   }
 }
 
+// A bumpy grid with fins on many edges (3 or 20 faces on an edge: pairwise and chained under the
+// dual graph's edge rules) and faces with a repeated index along others, as scans in tiles and CAD
+// exports carry them, written as a PLY.
+fs::path nonManifoldGrid(const ScratchDir& dir, uint32_t side) {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::uvec3> faces;
+  for (uint32_t y = 0; y <= side; ++y)
+    for (uint32_t x = 0; x <= side; ++x)
+      positions.push_back(
+          {float(x), float(y), 0.3f * std::sin(0.37f * float(x)) * std::cos(0.23f * float(y))});
+  const auto at = [&](uint32_t x, uint32_t y) { return y * (side + 1) + x; };
+  for (uint32_t y = 0; y < side; ++y)
+    for (uint32_t x = 0; x < side; ++x) {
+      const uint32_t a = at(x, y), b = at(x + 1, y), c = at(x + 1, y + 1), d = at(x, y + 1);
+      faces.push_back({a, b, c});
+      faces.push_back({a, c, d});
+      const uint32_t cellId = y * side + x;
+      if (cellId % 5 == 0) {  // fins on the diagonal a-c
+        const uint32_t fins = cellId % 35 == 0 ? 18 : 1;
+        for (uint32_t i = 0; i < fins; ++i) {
+          positions.push_back(positions[a] + glm::vec3(0.02f * float(i), 0.1f, 0.5f + 0.01f * float(i)));
+          faces.push_back({a, c, uint32_t(positions.size() - 1)});
+        }
+      }
+      if (cellId % 7 == 3) faces.push_back({a, b, b});  // a repeated index on the edge a-b
+    }
+  const fs::path path = dir / "nonmanifold.ply";
+  std::ofstream out(path);
+  out << "ply\nformat ascii 1.0\nelement vertex " << positions.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << faces.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const glm::vec3& p : positions) out << p.x << ' ' << p.y << ' ' << p.z << '\n';
+  for (const glm::uvec3& f : faces) out << "3 " << f.x << ' ' << f.y << ' ' << f.z << '\n';
+  return path;
+}
+
+// Cells cut non-manifold edges, leaf clusters cut them again: the leaves' perimeters and the shares
+// between them still add up to what one in-core build has, so the root's perimeter is the in-core
+// root's and the merge above the cells costs its merges as in core.
+TEST(OutOfCore, NonManifoldEdgesCutByCellsKeepTheInCorePerimeter) {
+  ScratchDir dir;
+  const fs::path mesh = nonManifoldGrid(dir, 80);
+  build(mesh, dir / "in.fch", 0);
+  const ClusterFile inCore = expectHierarchyOf(dir / "in.fch", mesh);
+  for (const uint64_t cellFaces : {uint64_t{1000}, uint64_t{3000}}) {
+    const JobReport report = build(mesh, dir / "out.fch", cellFaces);
+    EXPECT_TRUE(report.outOfCore);
+    EXPECT_GT(report.cells, 4u);
+    const ClusterFile outOfCore = expectHierarchyOf(dir / "out.fch", mesh);
+    const float expected = inCore.nodes[0].perimeter;
+    EXPECT_NEAR(outOfCore.nodes[0].perimeter, expected, 1e-5 * expected) << "cells of " << cellFaces;
+  }
+}
+
 TEST(OutOfCore, HeightCloseToInCore) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "sphere.ply", SyntheticKind::Sphere, 80000);

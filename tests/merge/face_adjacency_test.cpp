@@ -1,7 +1,8 @@
 // FaceAdjacency (merge.h): the matching built once for a mesh stands in for the dual graph of any
-// piece of it. Every result must be bit for bit the call on the piece's own mesh, also where the
+// piece of it. Every hierarchy must be bit for bit the call on the piece's own mesh, also where the
 // adjacency's factors are not the piece's (non-manifold edges cut by the piece, chains, repeated
-// indices) and where the piece's origin rounds positions differently from the whole mesh's.
+// indices) and where the piece's origin rounds positions differently from the whole mesh's; a piece's
+// statistics are its own but for the perimeter, which is the piece's as a cluster of the whole mesh.
 #include <algorithm>
 #include <cstring>
 #include <numeric>
@@ -161,15 +162,42 @@ TEST(FaceAdjacency, ComponentGroupsBuildThePiecesOwnHierarchy) {
   }
 }
 
-// Any piece, in any order (leaf clusters come in hierarchy order): the statistics are the piece's
-// own, whether or not the adjacency's factors are (cut non-manifold edges and chains fall back).
-TEST(FaceAdjacency, AnyPieceHasThePiecesOwnStatistics) {
+// The adjacency's shares among `faces` (both ends in the set), summed in double.
+double sharedWithin(const TestMesh& mesh, const FaceAdjacency& adjacency, const std::vector<uint8_t>& in) {
+  double shared = 0;
+  for (uint32_t f = 0; f < mesh.faceCount(); ++f) {
+    if (!in[f]) continue;
+    for (const FaceAdjacency::Link& link : adjacency.links(f)) {
+      if (link.face < f || !in[link.face]) continue;
+      for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
+        const glm::dvec3 a(mesh.positions[mesh.indices[3 * f + share.corner]]);
+        const glm::dvec3 b(mesh.positions[mesh.indices[3 * f + (share.corner + 1) % 3]]);
+        shared += share.of(glm::length(b - a));
+      }
+    }
+  }
+  return shared;
+}
+
+double trianglePerimeters(const TestMesh& mesh, const std::vector<uint32_t>& faces) {
+  double sum = 0;
+  for (const uint32_t f : faces)
+    for (int k = 0; k < 3; ++k)
+      sum += glm::length(glm::dvec3(mesh.positions[mesh.indices[3 * f + k]]) -
+                         glm::dvec3(mesh.positions[mesh.indices[3 * f + (k + 1) % 3]]));
+  return sum;
+}
+
+// Any piece, in any order (leaf clusters come in hierarchy order): the sums are the piece's own, bit
+// for bit, and the perimeter is the piece's as a cluster of the whole mesh: its triangles' perimeters
+// minus twice the adjacency's shares among them, also where it cuts non-manifold edges and chains.
+TEST(FaceAdjacency, AnyPieceIsAClusterOfTheWholeMesh) {
   const TestMesh mesh = shuffled(awkwardMesh(), 9);
   FaceAdjacency adjacency = buildFaceAdjacency(mesh.view());
   std::mt19937 random(13);
   const glm::dvec3 origin(1000.5, 0.25, 0.0);
+  int differsFromOwn = 0;
   for (int trial = 0; trial < 200; ++trial) {
-    std::vector<uint32_t> faces;
     const uint32_t want = 1 + random() % mesh.faceCount();
     // Half the trials: a spatially coherent piece (faces near a random face), else scattered.
     std::vector<uint32_t> order(mesh.faceCount());
@@ -187,18 +215,55 @@ TEST(FaceAdjacency, AnyPieceHasThePiecesOwnStatistics) {
       std::shuffle(order.begin(), order.end(), random);
       order.resize(want);
     }
-    faces = order;
+    const std::vector<uint32_t>& faces = order;
     const TestMesh part = piece(mesh, faces);
-    EXPECT_TRUE(
-        sameStats(surfaceStats(part.view(), adjacency, faces, origin), surfaceStats(part.view(), origin)))
-        << "trial " << trial;
+    SurfaceStats got = surfaceStats(part.view(), adjacency, faces, origin);
+    const SurfaceStats own = surfaceStats(part.view(), origin);
+    std::vector<uint8_t> in(mesh.faceCount(), 0);
+    for (const uint32_t f : faces) in[f] = 1;
+    const double expected =
+        std::max(0.0, trianglePerimeters(mesh, faces) - 2.0 * sharedWithin(mesh, adjacency, in));
+    // The shares are the engine's floats, per pair of faces.
+    EXPECT_NEAR(got.perimeter, expected, 1e-6 * trianglePerimeters(mesh, faces)) << "trial " << trial;
+    differsFromOwn += got.perimeter != own.perimeter;
+    got.perimeter = own.perimeter;
+    EXPECT_TRUE(sameStats(got, own)) << "trial " << trial;
     if (trial % 20 == 0)
       expectSameHierarchy(buildHierarchy(part.view(), adjacency, faces), buildHierarchy(part.view()));
+  }
+  EXPECT_GT(differsFromOwn, 0);  // some pieces cut a non-manifold edge: the case this is for
+}
+
+// Pieces that partition the mesh, with the adjacency's shares between them, add up to the whole
+// mesh's perimeter, however they cut its non-manifold edges: what the merge above out-of-core leaf
+// clusters starts from.
+TEST(FaceAdjacency, PiecesAndTheirSharesAddUpToTheWholePerimeter) {
+  const TestMesh mesh = shuffled(awkwardMesh(), 4);
+  FaceAdjacency adjacency = buildFaceAdjacency(mesh.view());
+  const glm::dvec3 origin(1000.5, 0.25, 0.0);
+  const double whole = surfaceStats(mesh.view(), origin).perimeter;
+  std::mt19937 random(21);
+  for (const uint32_t pieces : {2u, 5u, 17u, 60u}) {
+    std::vector<uint32_t> label(mesh.faceCount());
+    for (uint32_t& l : label) l = random() % pieces;
+    double sum = 0, sharedInside = 0;
+    for (uint32_t p = 0; p < pieces; ++p) {
+      std::vector<uint32_t> faces;
+      std::vector<uint8_t> in(mesh.faceCount(), 0);
+      for (uint32_t f = 0; f < mesh.faceCount(); ++f)
+        if (label[f] == p) faces.push_back(f), in[f] = 1;
+      sum += surfaceStats(piece(mesh, faces).view(), adjacency, faces, origin).perimeter;
+      sharedInside += sharedWithin(mesh, adjacency, in);
+    }
+    const std::vector<uint8_t> all(mesh.faceCount(), 1);
+    const double between = sharedWithin(mesh, adjacency, all) - sharedInside;
+    EXPECT_NEAR(sum - 2.0 * between, whole, 1e-6 * whole) << pieces << " pieces";
   }
 }
 
 // Two faces on the same three vertices share three manifold edges; the piece's graph sums their
-// lengths in the order of its lower face's corners, which need not be the adjacency's.
+// lengths in the order of its lower face's corners, which need not be the adjacency's: the hierarchy
+// is still the piece's own, and the perimeter the same but for that rounding.
 TEST(FaceAdjacency, TrianglePairsSumInThePiecesOrder) {
   // A triangle whose edge lengths (as the dual graph rounds them) sum differently in float in the
   // two corner orders.
@@ -224,8 +289,12 @@ TEST(FaceAdjacency, TrianglePairsSumInThePiecesOrder) {
   for (const std::vector<uint32_t>& faces :
        {std::vector<uint32_t>{0, 1, 2}, std::vector<uint32_t>{1, 0, 2}}) {
     const TestMesh part = piece(mesh, faces);
-    EXPECT_TRUE(
-        sameStats(surfaceStats(part.view(), adjacency, faces, origin), surfaceStats(part.view(), origin)));
+    expectSameHierarchy(buildHierarchy(part.view(), adjacency, faces), buildHierarchy(part.view()));
+    SurfaceStats got = surfaceStats(part.view(), adjacency, faces, origin);
+    const SurfaceStats own = surfaceStats(part.view(), origin);
+    EXPECT_NEAR(got.perimeter, own.perimeter, 1e-6 * (1.0 + own.perimeter));
+    got.perimeter = own.perimeter;
+    EXPECT_TRUE(sameStats(got, own));
   }
 }
 
