@@ -29,12 +29,14 @@ inline constexpr uint64_t kCellWorkers = 2;
 // several cells at once.
 inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
-// Leaf clusters of the upper merge: a cell's clusters of at most cellFaceLimit / kFrontiersPerCell
-// faces (and at least kMinFrontierFaces; larger when the leaf budget pays for fewer), so that the
-// upper merge can balance the top of the tree across cell borders and cuts of a few leaves' size
-// find pieces of that size.
-inline constexpr uint64_t kFrontiersPerCell = 128;
+// Leaf clusters of the upper merge: a cell's clusters of at most the mesh's faces over the leaves the
+// leaf budget pays for, so that the upper merge has as many pieces to balance the top of the tree
+// across cell borders as the cap allows; at least kMinFrontierFaces, at most a quarter of a cell.
 inline constexpr uint64_t kMinFrontierFaces = 64;
+// Above the cells the balance guard allows this many times the job's slack (BuildOptions::balanceSlack):
+// the leaves are cut from trees that already spent their allowance, and a guard as tight as a cell's
+// holds their small border pieces back to the top of the tree, where they join by the last resort.
+inline constexpr double kUpperSlackFactor = 4.0 / 3.0;
 // Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 32 B
 // and geometry handle 16, box corners 96, its upper merge node 144 and box accumulator 176, the
 // write's tables ~70, the hull points its upper node carries for the frames (384); during the

@@ -13,8 +13,10 @@ namespace facetree {
 
 ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& extent, LeafGraph& graph) {
   context.checkCancel("merge", 0, graph.leaves.size());
+  BuildOptions build = context.job.build;
+  build.balanceSlack *= kUpperSlackFactor;
   ClusterMergeResult upper =
-      mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, context.job.build, graph.garland);
+      mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, build, graph.garland);
   context.report.crossEdges = graph.edges.size();
   context.report.upperComponents = upper.components;
   graph.edges = {};
