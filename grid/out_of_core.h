@@ -124,8 +124,9 @@ struct LeafCluster {
   uint32_t vertexCount = 0;
   uint32_t height = 1;      // of its binary hierarchy, faces included (the upper merge's guard)
   uint32_t fileHeight = 1;  // of its subtree in the file, recast to the file's branching
-  uint32_t firstBlock = 0;  // its runs, LeafGraph::runs[firstBlock, + blockCount), in file order
+  uint32_t firstBlock = 0;  // its runs, global run indices [firstBlock, + blockCount), in file order
   uint32_t blockCount = 0;
+  float topKey = 0;            // its first run's key (NodeBlock::key), when it has runs
   uint32_t firstGeometry = 0;  // its geometry, LeafGraph::geometry[firstGeometry, + geometryCount)
   uint32_t geometryCount = 0;
 };
@@ -191,7 +192,12 @@ struct LeafGraph {
   std::vector<SurfaceStats> stats;
   std::vector<GarlandQuadrics> garland;  // --metric garland only
   std::vector<BoxCorners> corners;
-  std::vector<NodeBlock> runs;       // every leaf's node runs
+  // Every leaf's node runs (NodeBlock), on disk: cell c's as block cellRuns[c] of runTables; in
+  // memory only each run's first node, by global run index, for the write's node references.
+  std::unique_ptr<SpillFile> runTables;
+  std::vector<SpillBlock> cellRuns;
+  std::vector<uint32_t> cellLeafBase;  // cell c's leaves are [cellLeafBase[c], cellLeafBase[c + 1])
+  std::vector<uint32_t> runFirst;
   std::vector<SpillBlock> geometry;  // every leaf's geometry blocks
   std::vector<ClusterEdge> edges;
 };

@@ -162,25 +162,33 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
   graph.stats.reserve(leafBase[cells]);
   if (context.job.build.metric == Metric::Garland) graph.garland.reserve(leafBase[cells]);
   graph.corners.reserve(leafBase[cells]);
+  // The run tables stay on disk (the write sorts them by key); their first nodes come to memory.
+  std::vector<NodeBlock> runs;
+  graph.cellLeafBase.assign(leafBase.begin(), leafBase.end());
   for (CellResult& cell : records.cells) {
     context.report.components += cell.components;
     const size_t first = graph.leaves.size();
-    const auto blockBase = static_cast<uint32_t>(graph.runs.size());
+    const auto blockBase = static_cast<uint32_t>(graph.runFirst.size());
     const auto geometryBase = static_cast<uint32_t>(graph.geometry.size());
     append(graph.leaves, cell.leaves);
     append(graph.stats, cell.stats);
     append(graph.garland, cell.garland);
     append(graph.corners, cell.corners);
-    append(graph.runs, cell.blocks);
+    runs.clear();
+    append(runs, cell.blocks);
+    graph.cellRuns.push_back(cell.blocks);
+    for (const NodeBlock& run : runs) graph.runFirst.push_back(run.first);
     append(graph.geometry, cell.geometry);
     for (size_t i = first; i < graph.leaves.size(); ++i) {
-      graph.leaves[i].firstBlock += blockBase;
-      graph.leaves[i].firstGeometry += geometryBase;
+      LeafCluster& leaf = graph.leaves[i];
+      if (leaf.blockCount > 0) leaf.topKey = runs[leaf.firstBlock].key;
+      leaf.firstBlock += blockBase;
+      leaf.firstGeometry += geometryBase;
     }
-    if (graph.runs.size() > UINT32_MAX || graph.geometry.size() > UINT32_MAX)
+    if (graph.runFirst.size() > UINT32_MAX || graph.geometry.size() > UINT32_MAX)
       throw std::logic_error("out-of-core build: more than 2^32 node runs");
   }
-  records.leaves.reset();
+  graph.runTables = std::move(records.leaves);
   records.cells = {};
   context.report.leaves = graph.leaves.size();
   return graph;

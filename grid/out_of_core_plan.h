@@ -44,8 +44,9 @@ inline constexpr double kUpperSlackFactor = 4.0 / 3.0;
 inline constexpr uint64_t kLeafBytes = 1024;
 // With --metric garland a leaf also brings Garland's quadrics, which the upper merge copies.
 inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
-// Per node run: its NodeBlock 24 B, its entry in the write's run order 16 and position 4.
-inline constexpr uint64_t kRunBytes = 48;
+// Per node run in memory: its first node and its file position (4 B each). The run tables themselves
+// stay on disk and the write sorts them there (out_of_core_write.cpp).
+inline constexpr uint64_t kRunBytes = 8;
 // The cross-edge join runs up to three external sorts at once, each with this fraction of the cap.
 inline constexpr uint64_t kEdgeSortShare = 24;
 // The file interleaves the leaves' subtrees in runs of at most kNodeBlock nodes whose effective

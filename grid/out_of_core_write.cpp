@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "external_sort.h"
 #include "facetree/io.h"
 #include "out_of_core.h"
 #include "upper_boxes.h"
@@ -33,12 +34,33 @@ struct FileLayout {
   uint32_t height = 1;
 };
 
-// One entry of the file's node order: an upper node or a run of a leaf's nodes.
+// One entry of the file's node order: an upper node or a run of a leaf's nodes, with where the run's
+// nodes are in the node spill. The order is sorted on disk (ExternalSorter): a leaf's runs take no
+// memory beyond their first nodes and file positions.
 struct NodeRef {
   float key;
   uint32_t kind;  // 0: upper node (leafRank = its file index), 1: leaf run
   uint32_t leafRank, block;
+  uint32_t run;  // 1: its global run index
+  uint32_t count, compressedBytes;
+  uint32_t unused = 0;
+  uint64_t offset;
+  SpillBlock spill() const {
+    return {offset, compressedBytes, static_cast<uint32_t>(count * sizeof(FchNode))};
+  }
 };
+// Decreasing key, upper nodes first at equal keys, then by leaf rank and run: a total order.
+struct ByFileOrder {
+  bool operator()(const NodeRef& x, const NodeRef& y) const {
+    if (x.key != y.key) return x.key > y.key;
+    if (x.kind != y.kind) return x.kind < y.kind;
+    if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
+    return x.block < y.block;
+  }
+};
+using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
+// The sorted order is kept in blocks of this many entries (64 KiB) for the node pass.
+constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
 class WriteStage {
  public:
@@ -53,14 +75,16 @@ class WriteStage {
 
  private:
   FileLayout layout() const;
-  std::vector<NodeRef> nodeOrder(const FileLayout& layout) const;
-  // The file position of every upper node (by file index) and of every run's first node.
-  void place(std::span<const NodeRef> order, const FileLayout& layout);
+  // The node order, sorted on disk.
+  std::unique_ptr<OrderSorter> nodeOrder(const FileLayout& layout);
+  // The file position of every upper node (by file index) and of every run's first node; the
+  // order is kept in order_ for the node pass.
+  void place(OrderSorter& order);
   uint32_t nodePosition(uint32_t leaf, uint32_t local) const;
   void writeGeometry(ClusterFileWriter& writer, const FileLayout& layout, UpperFrames& frames,
                      uint64_t& done);
-  void writeNodes(ClusterFileWriter& writer, const FileLayout& layout, std::span<const NodeRef> order,
-                  const UpperFrames& frames, uint64_t& done);
+  void writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
+                  uint64_t& done);
 
   const StageContext& context_;
   const MeshExtent& extent_;
@@ -68,8 +92,10 @@ class WriteStage {
   const ClusterMergeResult& upper_;
   LeafSubtrees subtrees_;
   SpillCodec codec_;
-  std::vector<uint32_t> runPosition_;    // per run of graph_.runs
+  std::vector<uint32_t> runPosition_;    // per run, by global run index
   std::vector<uint32_t> upperPosition_;  // per upper node, by file index (reverse creation order)
+  std::unique_ptr<SpillFile> order_;     // the sorted node order, in blocks of kOrderBlock
+  std::vector<SpillBlock> orderBlocks_;
 };
 
 FileLayout WriteStage::layout() const {
@@ -139,61 +165,81 @@ FileLayout WriteStage::layout() const {
 // children's keys (its upper children's, its leaf children's first runs'). Keys never increase from
 // parent to child, so children follow their parents and a prefix refines the leaves as the in-core
 // order refines the mesh.
-std::vector<NodeRef> WriteStage::nodeOrder(const FileLayout& layout) const {
+std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
-  std::vector<float> upperKey(upperCount);
-  for (uint32_t i = 0; i < upperCount; ++i) {  // children (created earlier) first
-    float key = static_cast<float>(std::log(std::max(double(upper[i].cost), 1e-30)));
-    for (const uint32_t c : upper[i].child) {
-      if (!(c & kLeafChild)) {
-        key = std::max(key, upperKey[c]);
-      } else if (const LeafCluster& l = graph_.leaves[c & ~kLeafChild]; l.blockCount > 0) {
-        key = std::max(key, graph_.runs[l.firstBlock].key);
+  const uint64_t budget = std::max<uint64_t>(context_.memoryCap / kEdgeSortShare, uint64_t{1} << 20);
+  auto order = std::make_unique<OrderSorter>(context_.temp, "order", budget);
+  {
+    std::vector<float> upperKey(upperCount);
+    for (uint32_t i = 0; i < upperCount; ++i) {  // children (created earlier) first
+      float key = static_cast<float>(std::log(std::max(double(upper[i].cost), 1e-30)));
+      for (const uint32_t c : upper[i].child) {
+        if (!(c & kLeafChild)) {
+          key = std::max(key, upperKey[c]);
+        } else if (const LeafCluster& l = graph_.leaves[c & ~kLeafChild]; l.blockCount > 0) {
+          key = std::max(key, l.topKey);
+        }
+      }
+      upperKey[i] = key;
+    }
+    for (uint32_t j = 0; j < upperCount; ++j)
+      if (layout.recast.kept[upperCount - 1 - j])
+        order->push({upperKey[upperCount - 1 - j], 0, j, 0, 0, 0, 0, 0, 0});
+  }
+  std::vector<uint32_t> rank(graph_.leaves.size());
+  for (uint32_t r = 0; r < layout.leafOrder.size(); ++r) rank[layout.leafOrder[r]] = r;
+  std::vector<std::byte> raw;
+  std::vector<NodeBlock> runs;
+  for (size_t c = 0; c < graph_.cellRuns.size(); ++c) {
+    const SpillBlock& block = graph_.cellRuns[c];
+    if (block.rawBytes == 0) continue;
+    graph_.runTables->read(block, raw, codec_);
+    runs.resize(raw.size() / sizeof(NodeBlock));
+    std::memcpy(static_cast<void*>(runs.data()), raw.data(), raw.size());
+    for (uint32_t leafId = graph_.cellLeafBase[c]; leafId < graph_.cellLeafBase[c + 1]; ++leafId) {
+      const LeafCluster& l = graph_.leaves[leafId];
+      const uint32_t local = l.firstBlock - graph_.leaves[graph_.cellLeafBase[c]].firstBlock;
+      for (uint32_t b = 0; b < l.blockCount; ++b) {
+        const NodeBlock& run = runs[local + b];
+        order->push(
+            {run.key, 1, rank[leafId], b, l.firstBlock + b, run.count, run.compressedBytes, 0, run.offset});
       }
     }
-    upperKey[i] = key;
   }
-  std::vector<NodeRef> order;
-  for (uint32_t j = 0; j < upperCount; ++j)
-    if (layout.recast.kept[upperCount - 1 - j]) order.push_back({upperKey[upperCount - 1 - j], 0, j, 0});
-  for (uint32_t rank = 0; rank < layout.leafOrder.size(); ++rank) {
-    const LeafCluster& l = graph_.leaves[layout.leafOrder[rank]];
-    for (uint32_t b = 0; b < l.blockCount; ++b)
-      order.push_back({graph_.runs[l.firstBlock + b].key, 1, rank, b});
-  }
-  std::sort(order.begin(), order.end(), [](const NodeRef& x, const NodeRef& y) {
-    if (x.key != y.key) return x.key > y.key;
-    if (x.kind != y.kind) return x.kind < y.kind;
-    if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
-    return x.block < y.block;
-  });
+  graph_.runTables.reset();
+  graph_.cellRuns = {};
+  order->finish();
   return order;
 }
 
 // Node positions fit 32 bits (fewer nodes than triangles < 2^31).
-void WriteStage::place(std::span<const NodeRef> order, const FileLayout& layout) {
-  runPosition_.resize(graph_.runs.size());
+void WriteStage::place(OrderSorter& order) {
+  runPosition_.resize(graph_.runFirst.size());
   upperPosition_.resize(upper_.nodes.size());
+  order_ = std::make_unique<SpillFile>(context_.temp, "order", /*discardable=*/true, sizeof(NodeRef));
+  std::vector<NodeRef> batch(kOrderBlock);
   uint64_t position = 0;
-  for (const NodeRef& ref : order) {
-    if (ref.kind == 0) {
-      upperPosition_[ref.leafRank] = static_cast<uint32_t>(position++);
-      continue;
+  for (size_t n; (n = order.read(batch)) > 0;) {
+    for (size_t i = 0; i < n; ++i) {
+      const NodeRef& ref = batch[i];
+      if (ref.kind == 0) {
+        upperPosition_[ref.leafRank] = static_cast<uint32_t>(position++);
+      } else {
+        runPosition_[ref.run] = static_cast<uint32_t>(position);
+        position += ref.count;
+      }
     }
-    const LeafCluster& leaf = graph_.leaves[layout.leafOrder[ref.leafRank]];
-    runPosition_[leaf.firstBlock + ref.block] = static_cast<uint32_t>(position);
-    position += graph_.runs[leaf.firstBlock + ref.block].count;
+    orderBlocks_.push_back(order_->append(std::as_bytes(std::span(batch.data(), n)), codec_));
   }
 }
 
 uint32_t WriteStage::nodePosition(uint32_t leaf, uint32_t local) const {
   const LeafCluster& l = graph_.leaves[leaf];
-  const auto begin = graph_.runs.begin() + l.firstBlock;
-  const auto it = std::upper_bound(begin, begin + l.blockCount, local,
-                                   [](uint32_t x, const NodeBlock& b) { return x < b.first; }) -
-                  1;
-  return runPosition_[static_cast<size_t>(it - graph_.runs.begin())] + (local - it->first);
+  const auto begin = graph_.runFirst.begin() + l.firstBlock;
+  const auto it = std::upper_bound(begin, begin + l.blockCount, local) - 1;
+  const auto run = static_cast<size_t>(it - graph_.runFirst.begin());
+  return runPosition_[run] + (local - *it);
 }
 
 // Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
@@ -242,8 +288,8 @@ void WriteStage::writeGeometry(ClusterFileWriter& writer, const FileLayout& layo
 
 // Nodes in `order`: upper nodes made from the merge's records and their frames, leaf runs read back
 // with their leaf-local references made global.
-void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
-                            std::span<const NodeRef> order, const UpperFrames& frames, uint64_t& done) {
+void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
+                            uint64_t& done) {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   const UpperRecast& recast = layout.recast;
@@ -272,41 +318,47 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     n.box = frames.boxes[i].box();
     return n;
   };
-  std::vector<std::byte> raw;
+  std::vector<std::byte> raw, orderRaw;
   std::vector<FchNode> leafNodes;
-  for (const NodeRef& ref : order) {
-    if (ref.kind == 0) {
-      out.push_back(upperNode(ref.leafRank));
-      continue;
+  std::vector<NodeRef> batch;
+  for (const SpillBlock& orderBlock : orderBlocks_) {
+    order_->read(orderBlock, orderRaw, codec_);
+    order_->discard(orderBlock);
+    batch.resize(orderRaw.size() / sizeof(NodeRef));
+    std::memcpy(static_cast<void*>(batch.data()), orderRaw.data(), orderRaw.size());
+    for (const NodeRef& ref : batch) {
+      if (ref.kind == 0) {
+        out.push_back(upperNode(ref.leafRank));
+        continue;
+      }
+      if (!out.empty()) {
+        writer.addNodes(out);
+        out.clear();
+      }
+      const uint32_t leafId = layout.leafOrder[ref.leafRank];
+      const auto faceOffset = static_cast<uint32_t>(layout.faceBase[leafId]);
+      subtrees_.nodes->read(ref.spill(), raw, codec_);
+      leafNodes.resize(raw.size() / sizeof(FchNode));
+      std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
+      for (FchNode& n : leafNodes) {
+        n.first += faceOffset;
+        for (uint32_t c = 0; c < n.childCount; ++c)
+          n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
+                                                 : nodePosition(leafId, n.child[c]);
+      }
+      writer.addNodes(leafNodes);
+      done += leafNodes.size();
+      context_.checkCancel("write", done, layout.faces + layout.nodes);
     }
-    if (!out.empty()) {
-      writer.addNodes(out);
-      out.clear();
-    }
-    const uint32_t leafId = layout.leafOrder[ref.leafRank];
-    const LeafCluster& leaf = graph_.leaves[leafId];
-    const auto faceOffset = static_cast<uint32_t>(layout.faceBase[leafId]);
-    subtrees_.nodes->read(graph_.runs[leaf.firstBlock + ref.block].spill(), raw, codec_);
-    leafNodes.resize(raw.size() / sizeof(FchNode));
-    std::memcpy(leafNodes.data(), raw.data(), leafNodes.size() * sizeof(FchNode));
-    for (FchNode& n : leafNodes) {
-      n.first += faceOffset;
-      for (uint32_t c = 0; c < n.childCount; ++c)
-        n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
-                                               : nodePosition(leafId, n.child[c]);
-    }
-    writer.addNodes(leafNodes);
-    done += leafNodes.size();
-    context_.checkCancel("write", done, layout.faces + layout.nodes);
   }
   writer.addNodes(out);
   subtrees_.nodes.reset();
+  order_.reset();
 }
 
 void WriteStage::run() {
   const FileLayout fileLayout = layout();
-  const std::vector<NodeRef> order = nodeOrder(fileLayout);
-  place(order, fileLayout);
+  place(*nodeOrder(fileLayout));
   JobReport& report = context_.report;
   report.nodes = fileLayout.nodes;
   report.height = fileLayout.height;
@@ -339,7 +391,7 @@ void WriteStage::run() {
   uint64_t done = 0;
   writeGeometry(writer, fileLayout, frames, done);
   releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
-  writeNodes(writer, fileLayout, order, frames, done);
+  writeNodes(writer, fileLayout, frames, done);
   report.fileBytes = writer.finish();
 }
 
