@@ -62,7 +62,8 @@ OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap) {
     plan.cellWorkers = static_cast<unsigned>(std::clamp<uint64_t>(
         spare / (plan.cellFaceLimit * plan.cellBytesPerFace()), 1, std::max(1u, job.threads)));
   }
-  plan.frontierFaces = std::max<uint64_t>(kMinFrontierFaces, plan.cellFaceLimit / 4);
+  plan.minFrontierFaces = kMinFrontierFaces * std::max(2u, job.file.branching);
+  plan.frontierFaces = std::max<uint64_t>(plan.minFrontierFaces, plan.cellFaceLimit / 4);
   return plan;
 }
 
@@ -88,8 +89,9 @@ void planLeaves(OutOfCorePlan& plan, uint64_t triangles) {
   // components still get theirs: a cell past its quota builds its smallest components as one group).
   const uint64_t leaves =
       std::max<uint64_t>(1, plan.leafBudget / (plan.leafFixedBytes() + plan.topRuns * kRunBytes));
-  plan.frontierFaces = std::clamp<uint64_t>((triangles + leaves - 1) / leaves, kMinFrontierFaces,
-                                            std::max<uint64_t>(kMinFrontierFaces, plan.cellFaceLimit / 4));
+  plan.frontierFaces =
+      std::clamp<uint64_t>((triangles + leaves - 1) / leaves, plan.minFrontierFaces,
+                           std::max<uint64_t>(plan.minFrontierFaces, plan.cellFaceLimit / 4));
 }
 
 }  // namespace facetree

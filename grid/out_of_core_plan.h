@@ -31,17 +31,20 @@ inline constexpr uint64_t kMaxCellFaces = uint64_t{1} << 17;
 inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // Leaf clusters of the upper merge: a cell's clusters of at most the mesh's faces over the leaves the
 // leaf budget pays for, so that the upper merge has as many pieces to balance the top of the tree
-// across cell borders as the cap allows; at least kMinFrontierFaces, at most a quarter of a cell.
-inline constexpr uint64_t kMinFrontierFaces = 64;
+// across cell borders as the cap allows; at most a quarter of a cell, and at least kMinFrontierFaces per
+// child a node may have (BranchingStats): the upper tree's recast to b takes leaves whole, so with b = 8
+// leaves of 16 faces made a sphere's file 13% more nodes than in core, leaves of 64 under 10%.
+inline constexpr uint64_t kMinFrontierFaces = 8;
 // Above the cells the balance guard allows this many times the job's slack (BuildOptions::balanceSlack):
 // the leaves are cut from trees that already spent their allowance, and a guard as tight as a cell's
 // holds their small border pieces back to the top of the tree, where they join by the last resort.
-inline constexpr double kUpperSlackFactor = 4.0 / 3.0;
-// Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 32 B
-// and geometry handle 16, box corners 96, its upper merge node 144 and box accumulator 176, the
-// write's tables ~70, the hull points its upper node carries for the frames (384); during the
-// merge its statistics twice (128 B each), its heap entry and its edges (~2 a leaf, 48 B).
-inline constexpr uint64_t kLeafBytes = 1024;
+inline constexpr double kUpperSlackFactor = 1.15;
+// Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 40 B and
+// geometry handle 16, box corners 96, its upper merge node 144; during the merge its statistics
+// twice (128 B each), its heap entry, box and edges (~2 a leaf, ~100 B); during the write its upper
+// node's box accumulator 176 and orientation 16, and the write's tables ~80. The hull points the
+// upper frames carry wait in O(height) slots, not one per node (frameUpper).
+inline constexpr uint64_t kLeafBytes = 704;
 // With --metric garland a leaf also brings Garland's quadrics, which the upper merge copies.
 inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);
 // Per node run in memory: its first node and its file position (4 B each). The run tables themselves
@@ -65,6 +68,7 @@ struct OutOfCorePlan {
   uint64_t cellFaceLimit = 0;           // faces of a cell at most
   unsigned cellWorkers = 1;             // cells built at once: as many as the cap holds, up to --threads
   uint64_t frontierFaces = 0;           // leaf clusters: each component's frontier at this size
+  uint64_t minFrontierFaces = 0;        // kMinFrontierFaces times the file's branching
   uint64_t leafBudget = 0;              // bytes of leaf metadata, all cells together (cellLeafAllowance)
   uint32_t minNodeRun = kMinNodeBlock;  // nodeBlocks' run length, raised for huge inputs
   uint64_t topRuns = 0;                 // runs at the top of a leaf (before they reach minNodeRun)

@@ -4,6 +4,8 @@
 // a cell; then the upper tree's recast to the file's branching factor and the frames of its nodes
 // (out_of_core.h).
 #include <algorithm>
+#include <array>
+#include <utility>
 
 #include "facetree/io.h"
 #include "out_of_core.h"
@@ -78,41 +80,67 @@ UpperRecast recastUpper(const ClusterMergeResult& merged, const FileOptions& fil
   return r;
 }
 
-// Bottom-up (creation order): each upper node is oriented from its children's carried hull points
-// (a leaf's: its root box's 8 corners) and carries at most kMaxCarried on (ClusterOrienter), so the
-// frames cost O(upper nodes), not O(leaves x height).
+// Children before parents: each upper node is oriented from its children's carried hull points (a
+// leaf's: its root box's 8 corners) and carries at most kMaxCarried on (ClusterOrienter), so the frames
+// cost O(upper nodes), not O(leaves x height). The nodes are visited depth first, so the carried points
+// wait in as many slots as the walk's stack holds (O(height)), not one per node; each node's frame
+// depends on its children's alone, so the frames are those of any other children-first order.
 UpperFrames frameUpper(const ClusterMergeResult& merged, std::span<const BoxCorners> leafCorners,
                        double flatThreshold) {
   const auto& upper = merged.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   UpperFrames frames;
   frames.flat.assign(upperCount, 0);
-  frames.boxes.reserve(upperCount);
+  if (upperCount == 0) return frames;
+  std::vector<glm::quat> orientation(upperCount);
   constexpr size_t kCap = ClusterOrienter::kMaxCarried;
-  std::vector<glm::vec3> carried(size_t{upperCount} * kCap);
-  std::vector<uint8_t> carriedCount(upperCount, 0);
+  struct Slot {
+    std::array<glm::vec3, kCap> points;
+    uint8_t count = 0;
+  };
+  std::vector<Slot> slots;
+  std::vector<uint32_t> freeSlots, slotOf(upperCount, 0);
   std::vector<glm::vec3> points;
   points.reserve(2 * kCap);
   ClusterOrienter orienter;
-  for (uint32_t i = 0; i < upperCount; ++i) {
+  // The walk's stack: a node, and whether its children are done.
+  std::vector<std::pair<uint32_t, bool>> stack{{upperCount - 1, false}};
+  while (!stack.empty()) {
+    auto [i, childrenDone] = stack.back();
+    stack.pop_back();
+    if (!childrenDone) {
+      stack.push_back({i, true});
+      for (const uint32_t c : upper[i].child)
+        if (!(c & kLeafChild)) stack.push_back({c, false});
+      continue;
+    }
     points.clear();
     for (const uint32_t c : upper[i].child) {
       if (c & kLeafChild) {
         const BoxCorners& corners = leafCorners[c & ~kLeafChild];
         points.insert(points.end(), corners.begin(), corners.end());
       } else {
-        const auto from = carried.begin() + static_cast<ptrdiff_t>(size_t{c} * kCap);
-        points.insert(points.end(), from, from + carriedCount[c]);
+        const Slot& slot = slots[slotOf[c]];
+        points.insert(points.end(), slot.points.begin(), slot.points.begin() + slot.count);
+        freeSlots.push_back(slotOf[c]);
       }
     }
     bool isFlat = false;
     size_t keep = 0;
-    frames.boxes.emplace_back(orienter.orient(upper[i].stats, points, flatThreshold, isFlat, keep));
+    orientation[i] = orienter.orient(upper[i].stats, points, flatThreshold, isFlat, keep);
     frames.flat[i] = isFlat;
-    std::copy(points.begin(), points.begin() + static_cast<ptrdiff_t>(keep),
-              carried.begin() + static_cast<ptrdiff_t>(size_t{i} * kCap));
-    carriedCount[i] = static_cast<uint8_t>(keep);
+    if (freeSlots.empty()) {
+      freeSlots.push_back(static_cast<uint32_t>(slots.size()));
+      slots.emplace_back();
+    }
+    slotOf[i] = freeSlots.back();
+    freeSlots.pop_back();
+    Slot& slot = slots[slotOf[i]];
+    std::copy(points.begin(), points.begin() + static_cast<ptrdiff_t>(keep), slot.points.begin());
+    slot.count = static_cast<uint8_t>(keep);
   }
+  frames.boxes.reserve(upperCount);
+  for (const glm::quat& q : orientation) frames.boxes.emplace_back(q);
   return frames;
 }
 

@@ -1,13 +1,17 @@
 // Compressed block files for the out-of-core spills (see spill_file.h). Each block is one zstd frame with
-// its content size and checksum, so a block damaged on disk is an error, never garbage records.
+// its content size and checksum, or, below kStoredBelow bytes, the bytes as they are between a tag and
+// their XXH32: a block damaged on disk is an error, never garbage records.
 #include "spill_file.h"
 
 #include <fcntl.h>
 #include <unistd.h>
+#include <xxhash.h>
 #include <zstd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -48,9 +52,33 @@ void unshuffleRecords(std::span<const std::byte> in, std::byte* out, size_t reco
   std::copy(in.begin() + records * recordBytes, in.end(), out + records * recordBytes);
 }
 
+// Blocks under this many bytes are stored, not compressed: zstd's frame and context setup cost more
+// than the few bytes it would save (the top runs of a leaf's nodes are one to a few nodes).
+constexpr size_t kStoredBelow = 1024;
+// The tag of a stored block (a zstd frame starts with 28 B5 2F FD), then the bytes, then their XXH32.
+constexpr std::array<std::byte, 4> kStoredTag = {std::byte{'F'}, std::byte{'T'}, std::byte{'S'},
+                                                 std::byte{'B'}};
+constexpr size_t kStoredOverhead = kStoredTag.size() + sizeof(uint32_t);
+
+uint32_t storedChecksum(std::span<const std::byte> raw) {
+  return XXH32(raw.data(), raw.size(), 0);
+}
+
+bool isStored(std::span<const std::byte> block) {
+  return block.size() >= kStoredOverhead && std::equal(kStoredTag.begin(), kStoredTag.end(), block.begin());
+}
+
 }  // namespace
 
 std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw, size_t recordBytes) {
+  if (raw.size() < kStoredBelow) {
+    scratch_.resize(raw.size() + kStoredOverhead);
+    std::copy(kStoredTag.begin(), kStoredTag.end(), scratch_.begin());
+    std::copy(raw.begin(), raw.end(), scratch_.begin() + kStoredTag.size());
+    const uint32_t sum = storedChecksum(raw);
+    std::memcpy(scratch_.data() + kStoredTag.size() + raw.size(), &sum, sizeof sum);
+    return {scratch_.data(), scratch_.size()};
+  }
   if (recordBytes > 1) {
     shuffled_.resize(raw.size());
     shuffleRecords(raw, shuffled_.data(), recordBytes);
@@ -72,6 +100,21 @@ std::span<std::byte> SpillCodec::compressedScratch(size_t bytes) {
 
 bool SpillCodec::decompress(std::span<const std::byte> compressed, std::span<std::byte> raw,
                             const char*& reason, size_t recordBytes) {
+  if (isStored(compressed)) {
+    if (compressed.size() != raw.size() + kStoredOverhead) {
+      reason = "stored size disagrees with the block";
+      return false;
+    }
+    const std::span<const std::byte> bytes = compressed.subspan(kStoredTag.size(), raw.size());
+    uint32_t sum = 0;
+    std::memcpy(&sum, compressed.data() + kStoredTag.size() + raw.size(), sizeof sum);
+    if (sum != storedChecksum(bytes)) {
+      reason = "stored block checksum mismatch";
+      return false;
+    }
+    std::copy(bytes.begin(), bytes.end(), raw.begin());
+    return true;
+  }
   if (recordBytes > 1) {
     shuffled_.resize(raw.size());
     if (!decompress(compressed, shuffled_, reason)) return false;

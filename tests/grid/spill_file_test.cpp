@@ -409,6 +409,44 @@ TEST(SpillFile, aHandleThatDoesNotMatchTheDataIsATempSpaceError) {
   EXPECT_EQ(back, second);
 }
 
+// Blocks under 1 KiB are stored as they are between a tag and their XXH32 (zstd's frame costs more
+// than it saves there): they round-trip, in record-shuffled files too, and a handle that does not match
+// them is the same error as for a frame.
+TEST(SpillFile, smallBlocksAreStoredAndCheckedLikeFrames) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  for (const size_t recordBytes : {size_t{1}, size_t{12}}) {
+    SpillFile file(space, "runs", /*discardable=*/false, recordBytes);
+    std::mt19937_64 rng(5 + recordBytes);
+    std::vector<std::vector<std::byte>> raw;
+    std::vector<SpillBlock> handles;
+    for (const size_t size : {size_t{0}, size_t{1}, size_t{96}, size_t{1023}, size_t{1024}, size_t{5000}}) {
+      raw.push_back(randomBlock(rng, size, true));
+      handles.push_back(file.append(raw.back(), codec));
+      if (size < 1024) {
+        EXPECT_EQ(handles.back().compressedBytes, size + 8) << size;
+      }
+    }
+    std::vector<std::byte> back;
+    for (size_t i = raw.size(); i-- > 0;) {
+      file.read(handles[i], back, codec);
+      EXPECT_EQ(back, raw[i]) << i;
+    }
+    const std::string prefix = file.path().string() + ": corrupt block at byte ";
+    auto expectCorrupt = [&](SpillBlock block) {
+      const std::string message = errorOf([&] { file.read(block, back, codec); });
+      EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
+    };
+    const SpillBlock a = handles[2], b = handles[3];
+    expectCorrupt({a.offset + 1, a.compressedBytes, a.rawBytes});                               // not a tag
+    expectCorrupt({a.offset, a.compressedBytes, a.rawBytes + 1});                               // wrong size
+    expectCorrupt({a.offset, a.compressedBytes - 1, a.rawBytes});                               // truncated
+    expectCorrupt({a.offset, a.compressedBytes + b.compressedBytes, a.rawBytes + b.rawBytes});  // two blocks
+    expectCorrupt({a.offset, a.compressedBytes - 1, a.rawBytes - 1});  // the checksum read as data
+  }
+}
+
 TEST(SpillFile, maxTmpStopsAppendsWithTheExactMessage) {
   ScratchDir parent;
   TempSpace space(parent.path(), 200000);
