@@ -87,8 +87,8 @@ void planLeaves(OutOfCorePlan& plan, uint64_t triangles) {
   // Frontier clusters of the size that makes as many leaves as the budget pays for: the more and
   // the smaller the leaves, the more freedom the merge above the cells has (the cells' many small
   // components still get theirs: a cell past its quota builds its smallest components as one group).
-  const uint64_t leaves =
-      std::max<uint64_t>(1, plan.leafBudget / (plan.leafFixedBytes() + plan.topRuns * kRunBytes));
+  const uint64_t leaves = std::clamp<uint64_t>(
+      plan.leafBudget / (plan.leafFixedBytes() + plan.topRuns * kRunBytes), 1, kMaxLeaves);
   plan.frontierFaces =
       std::clamp<uint64_t>((triangles + leaves - 1) / leaves, plan.minFrontierFaces,
                            std::max<uint64_t>(plan.minFrontierFaces, plan.cellFaceLimit / 4));

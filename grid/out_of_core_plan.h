@@ -35,6 +35,9 @@ inline constexpr uint64_t kMinCellFaces = 4096;  // below this a cap is refused
 // child a node may have (BranchingStats): the upper tree's recast to b takes leaves whole, so with b = 8
 // leaves of 16 faces made a sphere's file 13% more nodes than in core, leaves of 64 under 10%.
 inline constexpr uint64_t kMinFrontierFaces = 8;
+// The frontier aims at no more leaves than this, whatever the budget pays for: the merge above the
+// cells and the write cost per leaf, and past it the cuts of up to 100,000 clusters gain little.
+inline constexpr uint64_t kMaxLeaves = uint64_t{1} << 16;
 // Above the cells the balance guard allows this many times the job's slack (BuildOptions::balanceSlack):
 // the leaves are cut from trees that already spent their allowance, and a guard as tight as a cell's
 // holds their small border pieces back to the top of the tree, where they join by the last resort.
