@@ -106,6 +106,8 @@ OUT_OF_CORE_FACES_FULL = 10_000_000
 QUALITY_MESHES = [("dragon_vrip", None, None), ("terrain 1M", "terrain", 1_000_000),
                   ("assembly 331k", "assembly", 331_000)]
 QUALITY_CELL_FACES = [2_000, 20_000, 100_000]
+# In the smallest cells, cut fits (sum of area x eFit) within 15% of in core (a check).
+QUALITY_SMALL_CELLS_FIT_BOUND = 1.15
 FIT_CUTS = [1000, 10_000, 100_000]
 # Coherence of the top: a cut's sum of box surface areas over that of as many Morton runs of the faces
 # (info --fit-cuts), at most these ratios at these cuts, in core and out of core.
@@ -936,6 +938,9 @@ def bench_outofcore(args, out):
                         "sum_fit": {n: ratio(c["sum_fit"], base["cuts"][n]["sum_fit"]) for n, c in row["cuts"].items()},
                         "sum_area_fit": {n: ratio(c["sum_area_fit"], base["cuts"][n]["sum_area_fit"])
                                          for n, c in row["cuts"].items()}}
+        if row["cell_faces"] == min(QUALITY_CELL_FACES):
+            row["checks"] = {"fit": all(r is not None and r <= QUALITY_SMALL_CELLS_FIT_BOUND
+                                        for r in row["ratio"]["sum_area_fit"].values())}
         if row["cell_faces"] is not None:
             print(f"outofcore quality {row['mesh']:12s} cells of {row['cell_faces']}: OOC / in core: height "
                   f"{row['ratio']['height']:.3f}  " + "  ".join(
