@@ -73,10 +73,10 @@ OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap) {
 // n faces (at most n - 1 nodes) costs at most leafBytes(n): kLeafBytes, plus kRunBytes per run, of
 // which nodeBlocks makes at most topRuns at its top, then one per minNodeRun nodes. minNodeRun is
 // 256, or more when the runs past the tops of all leaves would take more than half the budget
-// (beyond ~2^26 triangles at 64 MiB). Each cell may spend its faces' share of the budget
+// (beyond ~2^29 triangles at 64 MiB). Each cell may spend its faces' share of the budget
 // (cellLeafAllowance) and spends it by leafBytes. A cell always makes one leaf, so the bound holds
 // while the cells are fewer than the budget's leaves of a cell's size (64 MiB: cells of 31k faces,
-// 7.7 KB as one leaf, ~4k cells, ~130M triangles; 256 MiB: cells of 2^17 faces, ~1G triangles).
+// 1.8 KB as one leaf, ~18k cells, ~570M triangles; 256 MiB: cells of 2^17 faces, 4.9 KB, ~6G triangles).
 void planLeaves(OutOfCorePlan& plan, uint64_t triangles) {
   plan.triangles = triangles;
   plan.leafBudget = plan.memoryCap > kBaseBytes ? plan.memoryCap - kBaseBytes : 0;
