@@ -39,8 +39,7 @@ struct Incidence {
 };
 
 // The faces on one mesh edge and their sides (EdgeShare's u_f and U), and what the dual graph's edge
-// rules have them share in all, in units of the edge's length: sum of u_f u_g / (U - 1) over the pairs
-// when they are joined pairwise, U / 2 along a chain.
+// rules have them share in all, in units of the edge's length (EdgeShare::joined).
 struct EdgeSides {
   uint32_t faces = 0, uses = 0, squares = 0;
   void add(uint32_t u) {
@@ -49,10 +48,7 @@ struct EdgeSides {
     squares += u * u;
   }
   double pairWeight() const { return 0.5 * (double(uses) * uses - squares); }  // sum of u_f u_g
-  double joinedShare() const {
-    if (faces < 2) return 0;
-    return faces <= kMaxFacesJoinedPairwise ? pairWeight() / (uses - 1) : 0.5 * uses;
-  }
+  double joinedShare() const { return EdgeShare::joined(faces, uses, squares); }
 };
 
 template <class T>

@@ -221,6 +221,14 @@ struct EdgeShare {
   // The shared length for an edge of length `length`; u_f u_g is 1, 2 or 4, so this is the same number
   // as |e| u_f u_g / (U - 1) evaluated left to right.
   double of(double length) const { return length * numerator / denominator; }
+  // What all `faces` faces on a mesh edge share in all, in units of |e|, U = totalUses their sides and
+  // `squares` the sum of u_f^2: sum of u_f u_g / (U - 1) = (U^2 - squares) / (2 (U - 1)) joined
+  // pairwise, U / 2 along a chain, 0 for one face.
+  static double joined(size_t faces, uint32_t totalUses, uint32_t squares) {
+    if (faces < 2) return 0;
+    if (faces > kMaxFacesJoinedPairwise) return 0.5 * totalUses;
+    return 0.5 * (double(totalUses) * totalUses - squares) / (totalUses - 1);
+  }
 };
 
 // The Morton (Z-order) code of p within the box [lo, hi], 21 bits per axis in 63 bits: nearby points get

@@ -1,5 +1,6 @@
 // Dual graph construction: edge counts, shared lengths, the rules for repeated indices,
 // non-manifold edges and folded duplicates.
+#include <cmath>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -78,6 +79,35 @@ TEST(DualGraph, ManyFacesOnOneEdgeAreChained) {
   const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
   EXPECT_EQ(g.edgeCount(), 39u);
   for (const Edge& e : edges(g)) EXPECT_EQ(e.b, e.a + 1);
+}
+
+// EdgeShare::joined is what the dual graph's edges on one mesh edge share in all: pairwise up to
+// kMaxFacesJoinedPairwise faces, along a chain past it, with a face of two sides on the edge or not.
+TEST(DualGraph, JoinedShareIsTheSumOfTheEdgesShares) {
+  for (const bool degenerate : {false, true}) {
+    for (uint32_t fins = 1; fins <= 20; ++fins) {
+      TestMesh mesh;
+      mesh.positions = {{0, 0, 0}, {1, 0, 0}};
+      uint32_t uses = 0, squares = 0;
+      for (uint32_t i = 0; i < fins; ++i) {
+        mesh.positions.emplace_back(0.5f, std::cos(float(i)), std::sin(float(i)));
+        mesh.add(0, 1, 2 + i);
+        uses += 1;
+        squares += 1;
+      }
+      if (degenerate) {
+        mesh.add(0, 1, 1);  // two sides on the edge (0, 1)
+        uses += 2;
+        squares += 4;
+      }
+      const size_t faces = fins + (degenerate ? 1 : 0);
+      const DualGraph g = buildDualGraph(FaceGeometry(mesh.view()));
+      double shared = 0;
+      for (const DualEdge& e : g.edges) shared += e.shared;
+      EXPECT_NEAR(EdgeShare::joined(faces, uses, squares), shared, 1e-5)
+          << faces << " faces" << (degenerate ? ", one of two sides" : "");
+    }
+  }
 }
 
 TEST(DualGraph, FoldedDuplicateGetsOneEdgeWithSummedLength) {
