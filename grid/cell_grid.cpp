@@ -1,68 +1,97 @@
-// CellGrid (cell_grid.h): Morton bins of the bounding box, the octree descent that packs them into
-// cells of at most a given number of faces, and the bins split among several cells.
+// CellGrid (cell_grid.h): bins near to cubes, the descent that packs them into cells of at most a
+// given number of faces, and the bins split among several cells.
 #include "cell_grid.h"
 
 #include <algorithm>
 #include <cmath>
 
 namespace facetree {
-namespace {
-
-// Spreads the low 7 bits of v to every third bit (bit i to bit 3i), by the usual shift-and-mask
-// steps: it runs three times per corner of every face, twice over, so a bit loop would show.
-uint32_t spread(uint32_t v) {
-  static_assert(CellGrid::kLevel <= 8, "the masks spread 8 bits");
-  v &= (1u << CellGrid::kLevel) - 1;
-  v = (v | (v << 8)) & 0x0000F00Fu;
-  v = (v | (v << 4)) & 0x000C30C3u;
-  v = (v | (v << 2)) & 0x00249249u;
-  return v;
-}
-
-}  // namespace
 
 CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax)
     : min_(boundsMin), table_(kBins, 0) {
-  const glm::dvec3 extent = glm::dvec3(boundsMax) - min_;
+  glm::dvec3 extent = glm::dvec3(boundsMax) - min_;
   for (int a = 0; a < 3; ++a)
-    scale_[a] = extent[a] > 0 && std::isfinite(extent[a]) ? double(1u << kLevel) / extent[a] : 0.0;
+    if (!(extent[a] > 0) || !std::isfinite(extent[a])) extent[a] = 0;
+  // Each bit to the axis whose bins are longest (ties to the lower axis): near-cubic bins.
+  glm::dvec3 side = extent;
+  for (int bit = 0; bit < kBits; ++bit) {
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+      if (side[a] > side[axis]) axis = a;
+    if (!(side[axis] > 0)) axis = bit % 3;  // a flat or empty box: the rest in turn
+    ++bits_[axis];
+    side[axis] *= 0.5;
+  }
+  for (int a = 0; a < 3; ++a) scale_[a] = extent[a] > 0 ? std::ldexp(1.0, bits_[a]) / extent[a] : 0.0;
+  // Code bit order, from the lowest: level by level, the axes that still have a bit at that level.
+  // The top bits are then the long axes' extra levels, so halving a range of codes halves its
+  // longest side.
+  std::array<std::array<int, kBits>, 3> position{};
+  int next = 0;
+  for (int level = 0; level < kBits; ++level)
+    for (int a = 0; a < 3; ++a)
+      if (level < bits_[a]) position[a][level] = next++;
+  for (int a = 0; a < 3; ++a)
+    for (int k = 0; k < 3; ++k)
+      for (uint32_t v = 0; v < 256; ++v) {
+        uint32_t code = 0;
+        for (int b = 0; b < 8; ++b) {
+          const int level = 8 * k + b;
+          if (level < bits_[a] && ((v >> b) & 1u)) code |= 1u << position[a][level];
+        }
+        spread_[a][k][v] = code;
+      }
 }
 
 uint32_t CellGrid::bin(const glm::vec3& p) const {
   uint32_t code = 0;
   for (int a = 0; a < 3; ++a) {
+    const double top = std::ldexp(1.0, bits_[a]) - 1;
     const double q = (double(p[a]) - min_[a]) * scale_[a];
-    const uint32_t i = q >= 0 ? static_cast<uint32_t>(std::min(q, double((1u << kLevel) - 1))) : 0u;
-    code |= spread(i) << a;
+    const uint32_t i = q >= 0 ? static_cast<uint32_t>(std::min(q, top)) : 0u;
+    code |= spread_[a][0][i & 255u] | spread_[a][1][(i >> 8) & 255u] | spread_[a][2][(i >> 16) & 255u];
   }
   return code;
 }
 
-uint32_t CellGrid::centroidBin(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) const {
-  const glm::dvec3 centroid = (glm::dvec3(a) + glm::dvec3(b) + glm::dvec3(c)) / 3.0;
-  return bin(glm::vec3(centroid));
+uint32_t CellGrid::faceBin(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) const {
+  const glm::dvec3 corner[3] = {glm::dvec3(a), glm::dvec3(b), glm::dvec3(c)};
+  int longest = 0;
+  double most = -1;
+  for (int k = 0; k < 3; ++k) {
+    const glm::dvec3 d = corner[(k + 1) % 3] - corner[k];
+    const double squared = d.x * d.x + d.y * d.y + d.z * d.z;
+    if (squared > most) {  // NaN corners keep edge 0: the bin clamps them in
+      most = squared;
+      longest = k;
+    }
+  }
+  return bin(glm::vec3(0.5 * (corner[longest] + corner[(longest + 1) % 3])));
 }
 
 void CellGrid::partition(uint64_t maxFaces) {
   maxFaces_ = std::max<uint64_t>(maxFaces, 1);
-  // Octree descent in Morton order: a node whole if it holds <= maxFaces (or is one bin).
+  // Descent in code order: a range whole if it holds <= maxFaces (or is one bin), else its halves.
   struct Range {
     uint32_t start, size;
     uint64_t count;
   };
   std::vector<Range> pieces;
-  std::vector<std::pair<uint32_t, uint32_t>> stack{{0u, kBins}};
+  uint64_t total = 0;
+  for (const uint32_t n : table_) total += n;
+  std::vector<Range> stack{{0u, kBins, total}};
   while (!stack.empty()) {
-    const auto [start, size] = stack.back();
+    const Range range = stack.back();
     stack.pop_back();
-    uint64_t count = 0;
-    for (uint32_t b = start; b < start + size; ++b) count += table_[b];
-    if (count <= maxFaces_ || size == 1) {
-      pieces.push_back({start, size, count});
-    } else {
-      const uint32_t child = size / 8;
-      for (int k = 7; k >= 0; --k) stack.push_back({start + uint32_t(k) * child, child});
+    if (range.count <= maxFaces_ || range.size == 1) {
+      pieces.push_back(range);
+      continue;
     }
+    const uint32_t half = range.size / 2;
+    uint64_t low = 0;
+    for (uint32_t b = range.start; b < range.start + half; ++b) low += table_[b];
+    stack.push_back({range.start + half, half, range.count - low});
+    stack.push_back({range.start, half, low});
   }
   // Pack consecutive pieces into cells; an oversized bin gets cells of its own.
   uint32_t cell = 0;

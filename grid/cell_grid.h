@@ -1,13 +1,18 @@
-// The spatial cells of an out-of-core build: a sparse octree over Morton bins of the model's
-// bounding box, cut so that every cell holds at most a given number of faces (by centroid).
+// The spatial cells of an out-of-core build: a sparse k-d tree over Morton-like bins of the model's
+// bounding box, cut so that every cell holds at most a given number of faces.
 //
-// Faces are counted in 128^3 bins (Morton order, 8 MiB of counters); an octree descent keeps a
-// node whole when it holds at most `maxFaces`, and consecutive small nodes (in Morton order) are
-// packed into one cell up to `maxFaces`, so cells are compact runs of the Z-order curve. A single
-// bin with more faces than that (a dense detail in a huge bounding box) is split into several
-// cells in arrival order: exactness does not depend on cell shape, only compactness does.
+// Faces are counted in 2^21 bins (8 MiB of counters). The 21 bits go to the axes so that the bins
+// are as near to cubes as powers of two allow (a box of 17 x 1 x 1 gets 10, 6 and 5 bits), and are
+// interleaved so that each bit from the top halves the longer sides first. A descent that halves a
+// range of codes keeps it whole when it holds at most `maxFaces`, and consecutive small ranges are
+// packed into one cell up to `maxFaces`: cells are compact runs of the curve whatever the box's
+// proportions. Bins of equal extents per axis would make the cells of an elongated model slabs as
+// elongated as the model, whose borders cut every cluster. A single bin with more faces than that (a
+// dense detail in a huge bounding box) is split into several cells in arrival order: exactness does
+// not depend on cell shape, only compactness does.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
@@ -18,22 +23,26 @@ namespace facetree {
 
 class CellGrid {
  public:
-  static constexpr int kLevel = 7;  // bins per axis: 2^kLevel
-  static constexpr uint32_t kBins = 1u << (3 * kLevel);
+  static constexpr int kBits = 21;
+  static constexpr uint32_t kBins = 1u << kBits;
 
   CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax);
 
-  // Morton bin of a point (clamped into the box).
+  // The bits of the bin coordinates along each axis (kBits in all).
+  const std::array<int, 3>& axisBits() const { return bits_; }
+  // The bin of a point (clamped into the box): its coordinates' bits interleaved.
   uint32_t bin(const glm::vec3& p) const;
-  uint32_t centroidBin(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) const;
+  // The bin of a face: that of the midpoint of its longest edge, which the two triangles of a quad
+  // (or of any pair split along its longest edge) share, so that a cell border never parts them.
+  uint32_t faceBin(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) const;
 
   // Histogram pass, then partition().
   void count(uint32_t bin) { ++table_[bin]; }
   void partition(uint64_t maxFaces);
 
   uint32_t cellCount() const { return cellCount_; }
-  // The cell of the next face whose centroid lies in `bin` (distribution pass, in arrival
-  // order: a split bin hands out its cells in turn).
+  // The cell of the next face whose bin is `bin` (distribution pass, in arrival order: a split bin
+  // hands out its cells in turn).
   uint32_t nextFaceCell(uint32_t bin);
   // The cell that owns the edges whose lower-id endpoint lies in `bin` (the first cell of a
   // split bin).
@@ -42,6 +51,9 @@ class CellGrid {
 
  private:
   glm::dvec3 min_, scale_;
+  std::array<int, 3> bits_{};
+  // spread_[a][k][v]: the code bits of byte k of axis a's coordinate v.
+  std::array<std::array<std::array<uint32_t, 256>, 3>, 3> spread_{};
   std::vector<uint32_t> table_;  // counts, then after partition() the (first) cell of each bin
   struct SplitBin {
     uint32_t firstCell;

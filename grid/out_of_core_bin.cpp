@@ -1,4 +1,4 @@
-// The out-of-core build, bin stage: the cells from a histogram of the face centroids, then every
+// The out-of-core build, bin stage: the cells from a histogram of the faces' bins, then every
 // face into its cell's spill, and every edge whose owner cell is another cell to that cell as a
 // ghost, so that the owner sees every face on each edge it owns (out_of_core.h, cell_grid.h).
 #include <algorithm>
@@ -15,7 +15,7 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {
     decodeRecords(bytes, records);
     for (const FaceRecord& r : records)
-      out.grid->count(out.grid->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
+      out.grid->count(out.grid->faceBin(r.corner(0), r.corner(1), r.corner(2)));
   });
   out.grid->partition(cellFaceLimit);
   const uint32_t cells = out.grid->cellCount();
@@ -40,8 +40,7 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {
     decodeRecords(bytes, records);
     for (const FaceRecord& r : records) {
-      const uint32_t cell =
-          out.grid->nextFaceCell(out.grid->centroidBin(r.corner(0), r.corner(1), r.corner(2)));
+      const uint32_t cell = out.grid->nextFaceCell(out.grid->faceBin(r.corner(0), r.corner(1), r.corner(2)));
       const auto local = static_cast<uint32_t>(out.faces->records(cell));
       out.faces->append(cell, &r);
       forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
