@@ -62,7 +62,8 @@ OutOfCorePlan planCells(const ClusterJob& job, uint64_t memoryCap) {
     plan.cellWorkers = static_cast<unsigned>(std::clamp<uint64_t>(
         spare / (plan.cellFaceLimit * plan.cellBytesPerFace()), 1, std::max(1u, job.threads)));
   }
-  plan.minFrontierFaces = kMinFrontierFaces * std::max(2u, job.file.branching);
+  plan.minFrontierFaces =
+      job.file.branching > 2 ? kMinFrontierFaces * job.file.branching : kMinBinaryFrontierFaces;
   plan.frontierFaces = std::max<uint64_t>(plan.minFrontierFaces, plan.cellFaceLimit / 4);
   return plan;
 }

@@ -69,6 +69,11 @@ struct BuildOptions {
   // the mesh's edges have run out, between whole pieces (what a piece of a larger mesh wants, whose
   // pieces the merge above it joins).
   uint32_t proximityClusters = 16384;
+  // MergeOrder::Rounds: once at most this many clusters are live, a round merges only the
+  // reciprocal pairs whose key is at most the median of the round's pair keys (about half of
+  // them), so that the merges that form the top of the tree come nearer to the greedy's global
+  // order; 0: every reciprocal pair in every round.
+  uint32_t orderedClusters = 262144;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.
