@@ -22,7 +22,10 @@ CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax)
     ++bits_[axis];
     side[axis] *= 0.5;
   }
-  for (int a = 0; a < 3; ++a) scale_[a] = extent[a] > 0 ? std::ldexp(1.0, bits_[a]) / extent[a] : 0.0;
+  for (int a = 0; a < 3; ++a) {
+    top_[a] = std::ldexp(1.0, bits_[a]) - 1;
+    scale_[a] = extent[a] > 0 ? (top_[a] + 1) / extent[a] : 0.0;
+  }
   // Code bit order, from the lowest: level by level, the axes that still have a bit at that level.
   // The top bits are then the long axes' extra levels, so halving a range of codes halves its
   // longest side.
@@ -46,9 +49,8 @@ CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax)
 uint32_t CellGrid::bin(const glm::vec3& p) const {
   uint32_t code = 0;
   for (int a = 0; a < 3; ++a) {
-    const double top = std::ldexp(1.0, bits_[a]) - 1;
     const double q = (double(p[a]) - min_[a]) * scale_[a];
-    const uint32_t i = q >= 0 ? static_cast<uint32_t>(std::min(q, top)) : 0u;
+    const uint32_t i = q >= 0 ? static_cast<uint32_t>(std::min(q, top_[a])) : 0u;
     code |= spread_[a][0][i & 255u] | spread_[a][1][(i >> 8) & 255u] | spread_[a][2][(i >> 16) & 255u];
   }
   return code;

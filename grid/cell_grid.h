@@ -51,6 +51,7 @@ class CellGrid {
 
  private:
   glm::dvec3 min_, scale_;
+  glm::dvec3 top_;  // the highest bin coordinate per axis, 2^bits - 1
   std::array<int, 3> bits_{};
   // spread_[a][k][v]: the code bits of byte k of axis a's coordinate v.
   std::array<std::array<std::array<uint32_t, 256>, 3>, 3> spread_{};

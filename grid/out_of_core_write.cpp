@@ -40,10 +40,9 @@ struct FileLayout {
 struct NodeRef {
   float key;
   uint32_t kind;  // 0: upper node (leafRank = its file index), 1: leaf run
-  uint32_t leafRank, block;
-  uint32_t run;  // 1: its global run index
+  uint32_t leafRank;
+  uint32_t run;  // 1: its global run index (a leaf's runs are consecutive, in the leaf's order)
   uint32_t count, compressedBytes;
-  uint32_t unused = 0;
   uint64_t offset;
   SpillBlock spill() const {
     return {offset, compressedBytes, static_cast<uint32_t>(count * sizeof(FchNode))};
@@ -55,7 +54,7 @@ struct ByFileOrder {
     if (x.key != y.key) return x.key > y.key;
     if (x.kind != y.kind) return x.kind < y.kind;
     if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
-    return x.block < y.block;
+    return x.run < y.run;
   }
 };
 using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
@@ -185,7 +184,7 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
     }
     for (uint32_t j = 0; j < upperCount; ++j)
       if (layout.recast.kept[upperCount - 1 - j])
-        order->push({upperKey[upperCount - 1 - j], 0, j, 0, 0, 0, 0, 0, 0});
+        order->push({upperKey[upperCount - 1 - j], 0, j, 0, 0, 0, 0});
   }
   std::vector<uint32_t> rank(graph_.leaves.size());
   for (uint32_t r = 0; r < layout.leafOrder.size(); ++r) rank[layout.leafOrder[r]] = r;
@@ -202,8 +201,7 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
       const uint32_t local = l.firstBlock - graph_.leaves[graph_.cellLeafBase[c]].firstBlock;
       for (uint32_t b = 0; b < l.blockCount; ++b) {
         const NodeBlock& run = runs[local + b];
-        order->push(
-            {run.key, 1, rank[leafId], b, l.firstBlock + b, run.count, run.compressedBytes, 0, run.offset});
+        order->push({run.key, 1, rank[leafId], l.firstBlock + b, run.count, run.compressedBytes, run.offset});
       }
     }
   }

@@ -527,23 +527,24 @@ class RoundsEngine {
   // Unpairs the pairs whose key is above the median of the `pairs` pairs' keys (a value, so the
   // same for every thread count); returns the pairs kept.
   uint32_t keepCheaperPairs(uint32_t pairs) {
-    pairKeys_.resize(pairs);
     const uint32_t blocks = blockCount();
-    std::vector<uint32_t> at(blocks + 1, 0);
-    for (uint32_t b = 0; b < blocks; ++b) at[b + 1] = at[b] + pairsInBlock_[b];
+    pairAt_.assign(blocks + 1, 0);
+    for (uint32_t b = 0; b < blocks; ++b) pairAt_[b + 1] = pairAt_[b] + pairsInBlock_[b];
+    pairKeys_.resize(2 * size_t{pairs});  // the keys, then their copy for the median's selection
     forBlocks(threads_, blocks, [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
-      uint32_t out = at[block];
+      uint32_t out = pairAt_[block];
       for (uint32_t c = block * kBlock; c < hi; ++c)
         if (paired_[c] && c < best_[c]) pairKeys_[out++] = pairKey(c);
     });
-    std::vector<float> sorted(pairKeys_.begin(), pairKeys_.end());
-    const auto median = sorted.begin() + (sorted.size() - 1) / 2;
-    std::nth_element(sorted.begin(), median, sorted.end());
+    const auto copy = pairKeys_.begin() + pairs;
+    std::copy(pairKeys_.begin(), copy, copy);
+    const auto median = copy + (pairs - 1) / 2;
+    std::nth_element(copy, median, pairKeys_.end());
     const float limit = *median;
     forBlocks(threads_, blocks, [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
-      uint32_t in = at[block], kept = 0;
+      uint32_t in = pairAt_[block], kept = 0;
       for (uint32_t c = block * kBlock; c < hi; ++c) {
         if (!paired_[c] || c > best_[c]) continue;
         if (pairKeys_[in++] <= limit) {
@@ -880,7 +881,10 @@ class RoundsEngine {
   Buffer<uint8_t> paired_;
   Buffer<uint32_t> newId_;
   std::vector<uint32_t> pairsInBlock_;
-  std::vector<float> pairKeys_;  // keepCheaperPairs: the round's pair keys, lower member's order
+  // keepCheaperPairs' buffers, kept across rounds: each block's first pair, and the round's pair keys
+  // (lower member's order) followed by their copy for the median's selection.
+  std::vector<uint32_t> pairAt_;
+  std::vector<float> pairKeys_;
   std::vector<Folder> folders_;  // one per thread
   MergeResult result_;
 
