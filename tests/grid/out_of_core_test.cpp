@@ -295,6 +295,27 @@ TEST(OutOfCore, ClosedSurfaceCutsFitNearInCore) {
   }
 }
 
+// A terrain out of core in cells of 2,000 faces (30 cells, every cut of 10,000 clusters crossing
+// borders) fits its cuts within 15% of the in-core build's (scripts/bench holds dragon_vrip and the
+// assembly to the same bound).
+TEST(OutOfCore, TinyCellsOnATerrainFitNearInCore) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000);
+  build(mesh, dir / "in.fch", 0);
+  const JobReport report = build(mesh, dir / "out.fch", 2000);
+  EXPECT_TRUE(report.outOfCore);
+  EXPECT_GE(report.cells, 30u);
+  const ClusterFile inCore = readClusterFile(dir / "in.fch");
+  const ClusterFile outOfCore = readClusterFile(dir / "out.fch");
+  for (const uint64_t clusters : {100u, 1000u, 10000u}) {
+    const CutFit a = cutFit(inCore, clusters), b = cutFit(outOfCore, clusters);
+    EXPECT_EQ(a.clusters, b.clusters);
+    EXPECT_GT(a.sumAreaFit, 0.0);
+    EXPECT_LT(b.sumAreaFit, 1.15 * a.sumAreaFit)
+        << clusters << " clusters: " << b.sumAreaFit / a.sumAreaFit << "x in core";
+  }
+}
+
 // An assembly of boxes in two groups far apart, out of core in cells of 1,000 faces (each box
 // spread over several cells, cell fragments of a box joined through proximity candidates): the
 // root's children are the two groups, as in core, and the top is as spatially coherent as in core.
