@@ -17,11 +17,11 @@ namespace facetree::cli {
 namespace {}  // namespace
 
 int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(
-      argv, {"output",    "metric",  "k",          "flat-threshold", "w-fit",         "w-dir",     "w-shape",
-             "branching", "recast",  "mesh-out",   "draco-bits",     "balance-slack", "memory",    "tmp",
-             "max-tmp",   "threads", "cell-faces", "zstd-level",     "method",        "leaf-size", "order"},
-      {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
+  const Args args(argv, {"output",  "metric",    "k",       "flat-threshold", "w-fit",      "w-dir",
+                         "w-shape", "branching", "recast",  "mesh-out",       "draco-bits", "balance-slack",
+                         "memory",  "tmp",       "max-tmp", "threads",        "cell-faces", "zstd-level",
+                         "method",  "leaf-size", "order",   "spatial-top"},
+                  {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];
@@ -41,6 +41,7 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   settings.garlandWeights[2] = args.number("w-shape", settings.garlandWeights[2]);
   settings.balanceSlack = args.number("balance-slack", settings.balanceSlack);
   settings.threads = static_cast<unsigned>(args.count("threads", settings.threads));
+  settings.spatialTop = static_cast<unsigned>(args.count("spatial-top", settings.spatialTop));
   settings.branching = static_cast<unsigned>(args.count("branching", settings.branching));
   BuildOptions options;
   FileOptions fileOptions;

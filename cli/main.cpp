@@ -35,6 +35,9 @@ commands:
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
         [--order rounds|exact]   merge order: rounds of reciprocal cheapest pairs (default,
                                  parallel), or the exact global greedy (the reference)
+        [--spatial-top N]        the last N clusters (default 1024, at most one per 64 faces)
+                                 merge by the smallest union box, so that the file's first nodes
+                                 split space compactly; 0: eq. 84 to the root
         [--threads N]            threads of the merge rounds, the box phase and the out-of-core cells
                                  (default 0: all cores, at most 8); the output does not depend on it
         [--memory SIZE] [--tmp DIR] [--max-tmp SIZE]

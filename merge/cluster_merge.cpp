@@ -24,6 +24,16 @@
 //    of a strip bridging it), so near pieces join before far ones and coplanar before crossing
 //    (a mesh edge's ends share a vertex: they pay no gap). A merge along a candidate that no mesh
 //    edge backs is flagged kNodeJoinsDisjointSurfaces.
+//  - The spatial top: once at most BuildOptions::spatialClusters clusters are live (at most one
+//    per kSpatialTopFaces faces), an edge's key is the surface area of the two clusters' union
+//    box (Walter et al. 2008, "Fast Agglomerative Clustering for Rendering": what a ray or a
+//    visibility query pays to enter the cluster), with the same guard, along the same edges and
+//    proximity candidates, so clusters stay connected where the mesh is. Eq. 84 groups coplanar
+//    surfaces however far apart (the floors of a building's rooms); at the coarse cuts a truncated
+//    file keeps, compact boxes matter more. A node records eq. 84 on the union or, when higher,
+//    the highest cost recorded before it: the file, which orders nodes by decreasing effective
+//    cost, keeps the spatial top first and in reverse merge order, so its cut of k <= n clusters
+//    is the spatial top's last k. The cuts of more clusters are eq. 84's.
 //  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
 //    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
 //    box places are joined Huffman-style by face count, ties by the Morton rank of their
@@ -113,7 +123,8 @@ class ClusterMerger {
         flatThreshold_(options.flatThreshold),
         keyScale_(constant_ || garland_ ? 1.0 : 1.0 / diagonalSquared),  // as the policies' keyScale()
         guard_(!constant_ && !garland_ && options.balanceSlack > 0),     // as their kBalanceGuard
-        balanceSlack_(options.balanceSlack) {
+        balanceSlack_(options.balanceSlack),
+        boxScale_(1.0 / diagonalSquared) {
     if (garland_) {
       extras_.reserve(garland.size());
       for (const GarlandQuadrics& q : garland) extras_.push_back(toGarlandStats(q));
@@ -133,6 +144,12 @@ class ClusterMerger {
       clusters_[c] = {kLeaf, kNone, 0.0f, kNoEdge, leaves_[c].height, leaves_[c].faceCount};
     }
     live_ = n;
+    uint64_t faces = 0;
+    for (const SurfaceStats& leaf : leaves_) faces += leaf.faceCount;
+    // Metric::Constant is the order's worst case (Willmott 2000, Fig. 69) to the root.
+    if (!constant_)
+      spatial_ =
+          static_cast<uint32_t>(std::min<uint64_t>(options_.spatialClusters, faces / kSpatialTopFaces));
     result_.nodes.reserve(n > 0 ? n - 1 : 0);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
@@ -152,6 +169,7 @@ class ClusterMerger {
     heap_.heapify();
 
     if (live_ <= options_.proximityClusters) addCandidates(false);
+    if (live_ <= spatial_) enterSpatialTop();
     drain();
     result_.components = candidatesAdded_ ? components_ : live_;
     // The edges ran out or are blocked: the roots propose each other, the guard no longer blocks.
@@ -172,7 +190,8 @@ class ClusterMerger {
 
  private:
   // Merges the cheapest edge until the heap holds no unblocked key; adds the proximity candidates
-  // when the live clusters fall to BuildOptions::proximityClusters. Returns the merges made.
+  // when the live clusters fall to BuildOptions::proximityClusters and re-keys the edges when they
+  // fall to the spatial top. Returns the merges made.
   uint64_t drain() {
     uint64_t merges = 0;
     while (!heap_.empty()) {
@@ -208,6 +227,7 @@ class ClusterMerger {
           pushEntry(ra.minKey, a);
         }
         if (!candidatesAdded_ && live_ <= options_.proximityClusters) addCandidates(false);
+        if (!spatialTop_ && live_ <= spatial_) enterSpatialTop();
       }
     }
     return merges;
@@ -310,12 +330,20 @@ class ClusterMerger {
   }
 
   // The key of merging clusters ia and ib: eq. 84 on the union, for a proximity candidate with its
-  // perimeter lengthened by twice the gap between their boxes (a mesh edge's ends touch).
+  // perimeter lengthened by twice the gap between their boxes (a mesh edge's ends touch); in the
+  // spatial top the surface area of their union box over 2, over the squared diagonal.
   float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib,
             bool candidate) {
-    ClusterStats m = ClusterStats::merged(a, b, shared);
-    if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
-    double c = cost(m, a, b, ia, ib) * keyScale_;
+    double c;
+    if (spatialTop_) {
+      const AxisBox u = AxisBox::united(boxes_[ia], boxes_[ib]);
+      const glm::dvec3 d = glm::dvec3(u.hi) - glm::dvec3(u.lo);
+      c = (d.x * d.y + d.y * d.z + d.z * d.x) * boxScale_;
+    } else {
+      ClusterStats m = ClusterStats::merged(a, b, shared);
+      if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
+      c = cost(m, a, b, ia, ib) * keyScale_;
+    }
     if (guard_) {
       const Record& x = clusters_[ia];
       const Record& y = clusters_[ib];
@@ -397,8 +425,9 @@ class ClusterMerger {
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
     node.flags = between == kNone || candidate_[between] ? kNodeJoinsDisjointSurfaces : 0u;
-    node.cost = joining ? toKey(cost(merged, stats_[a], stats_[b], a, b))
-                        : toKey(static_cast<double>(heapKey) / keyScale_);
+    node.cost = joining || spatialTop_ ? toKey(cost(merged, stats_[a], stats_[b], a, b))
+                                       : toKey(static_cast<double>(heapKey) / keyScale_);
+    if (spatialTop_) level_ = node.cost = std::max(node.cost, level_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
     boxes_[a] = AxisBox::united(boxes_[a], boxes_[b]);
@@ -480,6 +509,26 @@ class ClusterMerger {
     }
   }
 
+  // The spatial top (see the top of the file): every live edge is re-keyed by its union box and
+  // the heap rebuilt; the merges from now on record costs no lower than any before.
+  void enterSpatialTop() {
+    spatialTop_ = true;
+    for (const ClusterMergeNode& node : result_.nodes) level_ = std::max(level_, node.cost);
+    for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
+      DualEdge& edge = graph_.edges[e];
+      if (edge.end[0] == kNone) continue;
+      edge.key =
+          key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1], candidate_[e]);
+    }
+    heap_.clear();
+    for (uint32_t c = 0; c < clusters_.size(); ++c) {
+      if (clusters_[c].node == kDead) continue;
+      rescan(c);
+      if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
+    }
+    heap_.heapify();
+  }
+
   // Huffman joins of the remaining roots by face count, ties by Morton rank.
   void joinComponents() {
     const uint32_t n = static_cast<uint32_t>(clusters_.size());
@@ -533,6 +582,10 @@ class ClusterMerger {
   std::vector<AxisBox> boxes_;      // per cluster: the box of its faces (clusterBox for a leaf)
   std::vector<uint8_t> candidate_;  // per edge: 1 for a proximity candidate no mesh edge backs
   uint32_t live_ = 0;
+  uint32_t spatial_ = 0;          // live clusters at which the spatial top takes over
+  bool spatialTop_ = false;       // keys are union box areas (times boxScale_)
+  float level_ = 0;               // in the spatial top: the highest node cost so far
+  double boxScale_ = 1.0;         // 1 / diagonalSquared: keys of order 1
   uint32_t components_ = 0;       // of the dual graph when the candidates were added
   bool candidatesAdded_ = false;  // between components, once
   bool final_ = false;            // the edges ran out: the guard penalises but never blocks

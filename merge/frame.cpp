@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <glm/geometric.hpp>
 
@@ -16,6 +17,19 @@ namespace {
 // such a pair are arbitrary (Willmott 2000, sec. 5.3.2, Fig. 72), so the frame comes from the
 // distinct axis and a minimum-area rectangle, or from the world axes.
 constexpr double kEigenTieRelative = 0.02;
+
+// Surface area over 2 of the box of `points` along the orthonormal axes of `frame`.
+double boxArea(std::span<const glm::vec3> points, const ClusterFrame& frame) {
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+  for (const glm::vec3& q : points) {
+    const glm::dvec3 p(q);
+    const glm::dvec3 t(glm::dot(p, frame.axis[0]), glm::dot(p, frame.axis[1]), glm::dot(p, frame.axis[2]));
+    lo = glm::min(lo, t);
+    hi = glm::max(hi, t);
+  }
+  const glm::dvec3 d = hi - lo;
+  return d.x * d.y + d.y * d.z + d.z * d.x;
+}
 
 }  // namespace
 
@@ -85,6 +99,13 @@ size_t FrameBuilder::build(const FrameInput& in, std::span<glm::vec3> points, Cl
     frame.axis[0] = e.vector[2];
     frame.axis[1] = e.vector[1];
     frame.axis[2] = glm::cross(e.vector[2], e.vector[1]);
+  }
+  // PCA minimises the spread, not the box (sec. 5.3.2 takes its axes as an approximation): a
+  // bulky cluster of several surfaces, a room or a group of pieces, often has a smaller box along
+  // the world axes, which the points tell at once.
+  if (!points.empty() && boxArea(points, ClusterFrame{}) < boxArea(points, frame)) {
+    frame = ClusterFrame{};
+    hullDone = false;
   }
   if (points.size() <= kFrameHullCap) return points.size();
   if (!hullDone) {

@@ -51,6 +51,10 @@ enum class MergeOrder : uint8_t {
   Exact,
 };
 
+// Faces per cluster of the spatial top at least (BuildOptions::spatialClusters): a small mesh keeps
+// eq. 84 over all but its last few merges.
+inline constexpr uint64_t kSpatialTopFaces = 64;
+
 // Options of buildHierarchy and mergeClusters.
 struct BuildOptions {
   Metric metric = Metric::Willmott;       // the merge cost
@@ -74,6 +78,13 @@ struct BuildOptions {
   // them), so that the merges that form the top of the tree come nearer to the greedy's global
   // order; 0: every reciprocal pair in every round.
   uint32_t orderedClusters = 262144;
+  // The last this many clusters (at most one per kSpatialTopFaces faces) merge along their edges
+  // and proximity candidates by the smallest union box (Walter et al. 2008) rather than by eq. 84:
+  // the first nodes of the file, which a truncated file keeps and every cut starts from, then
+  // split space as a ray tracer or a visibility pass needs, even where eq. 84 would join coplanar
+  // surfaces far apart or the mesh is many pieces; every cut of more clusters keeps
+  // eq. 84's. 0: eq. 84 to the root (what a piece of a larger mesh wants). Metric::Constant has none.
+  uint32_t spatialClusters = 1024;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.

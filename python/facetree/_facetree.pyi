@@ -90,6 +90,7 @@ class BuildOptions(TypedDict, total=False):
     branching: int
     recast: str
     threads: int
+    spatial_top: int
     weld: bool
 
 def build(

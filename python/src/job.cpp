@@ -146,6 +146,10 @@ std::string optionsDoc() {
          "    count [" +
          std::to_string(d.threads) +
          "].\n"
+         "  spatial_top: the last clusters (at most one per 64 faces) merge by the smallest union box,\n"
+         "    0 for eq. 84 to the root [" +
+         std::to_string(d.spatialTop) +
+         "].\n"
          "  weld: make faces meeting at bit-identical positions neighbours [False].";
 }
 
@@ -171,6 +175,7 @@ Settings settingsFrom(const py::kwargs& options, const char* function) {
                                                   {"flat_threshold", &named.flatThreshold},
                                                   {"branching", &named.branching},
                                                   {"threads", &named.threads},
+                                                  {"spatial_top", &named.spatialTop},
                                                   {"weld", &weld}};
   for (const auto& [key, value] : options) {
     const std::string name = py::cast<std::string>(key);

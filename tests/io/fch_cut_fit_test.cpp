@@ -96,7 +96,11 @@ TEST(CutFit, EqualsABruteForceRecountOverTheCutsRuns) {
 
 TEST(CutFit, FinerCutsFitBetterDownToZeroForSingleTriangles) {
   const TestMesh mesh = gridMesh(40, 30, 2.0f);
-  const ClusterFile file = fileOf(mesh);
+  // Eq. 84 to the root: the spatial top trades fit for compact boxes (BuildOptions::spatialClusters).
+  BuildOptions options;
+  options.spatialClusters = 0;
+  const ClusterFile file =
+      makeClusterFile(mesh.view(), {}, buildHierarchy(mesh.view(), options), FileOptions{});
   const uint64_t faces = mesh.faceCount();
   // The area-weighted error is the squared distance to each cluster's plane integrated over the
   // surface: refining a cut of a Willmott hierarchy lowers it at every step of 2x here.

@@ -239,5 +239,44 @@ TEST(Proximity, PartsThatTouchJoinBeforePartsThatDoNot) {
   }
 }
 
+TEST(SpatialTop, TilesJoinTheirNeighboursRatherThanTheCoplanarTilesFarther) {
+  // 2 x 2 flat tiles of 16 x 16 cells, 1 apart, their own vertices; the diagonal pairs share a
+  // plane, the neighbours stand 2 apart in height. Eq. 84 joins the coplanar diagonal pairs (no
+  // fit error); the spatial top joins neighbours, whose union box is the smaller.
+  constexpr uint32_t kCells = 16;
+  TestMesh mesh;
+  std::vector<uint8_t> tile;
+  for (uint32_t ty = 0; ty < 2; ++ty) {
+    for (uint32_t tx = 0; tx < 2; ++tx) {
+      mesh.append(grid(kCells),
+                  glm::vec3(float(tx * (kCells + 1)), float(ty * (kCells + 1)), 2.0f * float((tx + ty) % 2)));
+      tile.resize(mesh.faceCount(), uint8_t(ty * 2 + tx));
+    }
+  }
+  const auto rootPairs = [&](const Hierarchy& h) {
+    std::set<std::set<uint8_t>> pairs;
+    for (const std::vector<uint32_t>& faces : rootChildren(h)) {
+      std::set<uint8_t> tiles;
+      for (const uint32_t f : faces) tiles.insert(tile[f]);
+      pairs.insert(tiles);
+    }
+    return pairs;
+  };
+  const std::set<std::set<uint8_t>> diagonal = {{0, 3}, {1, 2}};
+  for (const MergeOrder order : {MergeOrder::Rounds, MergeOrder::Exact}) {
+    SCOPED_TRACE(int(order));
+    BuildOptions options;
+    options.order = order;
+    const Hierarchy h = buildHierarchy(mesh.view(), options);
+    const Layout layout = checkStructure(h, mesh.faceCount());
+    checkConnectivity(h, mesh, layout);
+    const std::set<std::set<uint8_t>> pairs = rootPairs(h);
+    EXPECT_TRUE(pairs == (std::set<std::set<uint8_t>>{{0, 1}, {2, 3}}) ||
+                pairs == (std::set<std::set<uint8_t>>{{0, 2}, {1, 3}}));
+    options.spatialClusters = 0;
+    EXPECT_EQ(rootPairs(buildHierarchy(mesh.view(), options)), diagonal);
+  }
+}
+
 }  // namespace
 }  // namespace facetree::test
