@@ -110,6 +110,15 @@ std::vector<std::vector<uint32_t>> cutClusters(const Hierarchy& h, uint32_t kept
   return out;
 }
 
+// The hierarchy of `mesh` with boxes, its structure checked and its nodes flagged exactly where
+// the children share no mesh edge.
+Hierarchy connectedBuild(const TestMesh& mesh, const BuildOptions& options) {
+  Hierarchy h = buildHierarchy(mesh.view(), options);
+  const Layout layout = checkStructure(h, mesh.faceCount());
+  checkConnectivity(h, mesh, layout);
+  return h;
+}
+
 // The hierarchy of `mesh` in `order`, without boxes, its structure checked.
 Hierarchy checkedBuild(const TestMesh& mesh, MergeOrder order) {
   BuildOptions options = noBoxes();
@@ -226,9 +235,7 @@ TEST(Proximity, PartsThatTouchJoinBeforePartsThatDoNot) {
     SCOPED_TRACE(int(order));
     BuildOptions options;
     options.order = order;
-    const Hierarchy h = buildHierarchy(mesh.view(), options);
-    const Layout layout = checkStructure(h, mesh.faceCount());
-    checkConnectivity(h, mesh, layout);  // flagged exactly where the children share no mesh edge
+    const Hierarchy h = connectedBuild(mesh, options);
     checkStats(h, mesh, 1e-5);
     ASSERT_EQ(h.boxes.size(), h.nodes.size());
     // The root joins the touching pairs {0, 1} and {2, 3}.
@@ -267,9 +274,7 @@ TEST(SpatialTop, TilesJoinTheirNeighboursRatherThanTheCoplanarTilesFarther) {
     SCOPED_TRACE(int(order));
     BuildOptions options;
     options.order = order;
-    const Hierarchy h = buildHierarchy(mesh.view(), options);
-    const Layout layout = checkStructure(h, mesh.faceCount());
-    checkConnectivity(h, mesh, layout);
+    const Hierarchy h = connectedBuild(mesh, options);
     const std::set<std::set<uint8_t>> pairs = rootPairs(h);
     EXPECT_TRUE(pairs == (std::set<std::set<uint8_t>>{{0, 1}, {2, 3}}) ||
                 pairs == (std::set<std::set<uint8_t>>{{0, 2}, {1, 3}}));
