@@ -44,6 +44,10 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              the pipeline's targets as checks (time, faces/s, cap, temporary peak against the file);
              and every shared mesh of 1M faces or more at --memory 64M against in core (cut fits
              within 10%, heights within 1.25x, as checks)
+  speed      with --baseline-facetree BIN (an earlier build, e.g. the previous commit's): dragon_vrip
+             in core (quick and full) and the 14M-face dragon at --memory 64M (full), built by both
+             binaries alternately in one run, medians of whole processes' wall and CPU; the ratio
+             new / baseline at most 1.10 as the check (skipped without a baseline)
 
 The per-mesh builds (default metric, Garland metric, octree) run interleaved, once per
 repetition, and are shared by build, profile, balance, scaling and octree.
@@ -955,7 +959,7 @@ def bench_outofcore(args, out):
 
 
 SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore",
-            "python"]
+            "python", "speed"]
 
 
 PYTHON_BUILD = r"""
@@ -982,6 +986,45 @@ for _ in range(runs):
                       "copied": h.report["input_copied"]}), flush=True)
     del h
 """
+
+
+# Speed against an earlier build (--baseline-facetree), alternating runs in one invocation: whole
+# `build -o` processes, medians of wall and CPU; the ratio new / baseline at most SPEED_BOUND.
+SPEED_BOUND = 1.10
+SPEED_CASES_FULL = [("dragon_vrip in core", 0, [], 7), ("14M-face dragon at 64M", 2, ["--memory", "64M"], 5)]
+SPEED_CASES_QUICK = [("dragon_vrip in core", 0, [], 3)]
+
+
+def bench_speed(args, out):
+    if not args.baseline_facetree:
+        print("speed     skipped: no --baseline-facetree", flush=True)
+        return {"skipped": "no --baseline-facetree"}
+    rows = []
+    for name, levels, options, repeat in SPEED_CASES_QUICK if args.quick else SPEED_CASES_FULL:
+        mesh = mesh_path("dragon_vrip")
+        if levels:
+            mesh = out / f"speed_dragon{levels}.ply"
+            run([args.facetree, "gen", "subdivide", mesh_path("dragon_vrip"), "--levels", str(levels), "-o", mesh])
+        samples = {"baseline": [], "new": []}
+        for _ in range(repeat):
+            for which, binary in (("baseline", args.baseline_facetree), ("new", args.facetree)):
+                fch = out / f"speed_{which}.fch"
+                _, wall, cpu, rss = run_measured([binary, "build", mesh, "-o", fch, *options])
+                samples[which].append({"seconds": wall, "cpu_seconds": cpu, "peak_rss_bytes": rss})
+                fch.unlink(missing_ok=True)
+        if levels:
+            mesh.unlink()
+        row = {"case": name, "runs": repeat}
+        for which, runs in samples.items():
+            row[which] = {k: median(r[k] for r in runs) for k in ("seconds", "cpu_seconds", "peak_rss_bytes")}
+        row["wall_ratio"] = row["new"]["seconds"] / row["baseline"]["seconds"]
+        row["cpu_ratio"] = row["new"]["cpu_seconds"] / row["baseline"]["cpu_seconds"]
+        row["met"] = row["wall_ratio"] <= SPEED_BOUND
+        rows.append(row)
+        print(f"speed     {name:24s} {row['new']['seconds']:7.2f} s against {row['baseline']['seconds']:7.2f} s "
+              f"(x{row['wall_ratio']:.3f} wall, x{row['cpu_ratio']:.3f} CPU; medians of {repeat})"
+              f"{'' if row['met'] else '  missed: seconds'}", flush=True)
+    return {"baseline": str(args.baseline_facetree), "bound": SPEED_BOUND, "rows": rows}
 
 
 def bench_python(args):
@@ -1049,6 +1092,8 @@ def main():
                         help="skip the cluster pictures of the balance section")
     parser.add_argument("--no-callgrind", dest="callgrind", action="store_false",
                         help="skip the callgrind instruction counts of the octree section")
+    parser.add_argument("--baseline-facetree", metavar="BIN",
+                        help="an earlier build's facetree for the speed section, run alternately with --facetree")
     parser.add_argument("--keep-from", type=pathlib.Path, metavar="BENCH.json",
                         help="copy the sections not run now from an earlier report (with its date and load), "
                              "so that `--only SECTION --keep-from OLD.json` updates one section of the docs")
@@ -1094,6 +1139,7 @@ def main():
         "rounds": lambda: bench_rounds(args, meshes, out),
         "outofcore": lambda: bench_outofcore(args, out),
         "python": lambda: bench_python(args),
+        "speed": lambda: bench_speed(args, out),
     }
     for name, run in runners.items():
         if name in sections:
