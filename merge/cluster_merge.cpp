@@ -278,13 +278,19 @@ class ClusterMerger {
         changed = true;
       }
     }
+    rebuildHeap();
+    return changed;
+  }
+
+  // Every live cluster's cheapest edge rescanned and the heap rebuilt from them, after keys changed.
+  void rebuildHeap() {
     heap_.clear();
-    for (const uint32_t c : live) {
+    for (uint32_t c = 0; c < clusters_.size(); ++c) {
+      if (clusters_[c].node == kDead) continue;
       rescan(c);
       if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
     }
     heap_.heapify();
-    return changed;
   }
 
   // Labels the live clusters by the components of the dual graph's live edges (blocked ones
@@ -520,13 +526,7 @@ class ClusterMerger {
       edge.key =
           key(stats_[edge.end[0]], stats_[edge.end[1]], edge.shared, edge.end[0], edge.end[1], candidate_[e]);
     }
-    heap_.clear();
-    for (uint32_t c = 0; c < clusters_.size(); ++c) {
-      if (clusters_[c].node == kDead) continue;
-      rescan(c);
-      if (clusters_[c].minEdge != kNoEdge) heap_.append({clusters_[c].minKey, c});
-    }
-    heap_.heapify();
+    rebuildHeap();
   }
 
   // Huffman joins of the remaining roots by face count, ties by Morton rank.
