@@ -86,7 +86,7 @@ UpperRecast recastUpper(const ClusterMergeResult& merged, const FileOptions& fil
 // wait in as many slots as the walk's stack holds (O(height)), not one per node; each node's frame
 // depends on its children's alone, so the frames are those of any other children-first order.
 UpperFrames frameUpper(const ClusterMergeResult& merged, std::span<const BoxCorners> leafCorners,
-                       double flatThreshold) {
+                       double flatThreshold, BoxPrecision precision) {
   const auto& upper = merged.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   UpperFrames frames;
@@ -127,7 +127,7 @@ UpperFrames frameUpper(const ClusterMergeResult& merged, std::span<const BoxCorn
     }
     bool isFlat = false;
     size_t keep = 0;
-    orientation[i] = orienter.orient(upper[i].stats, points, flatThreshold, isFlat, keep);
+    orientation[i] = orienter.orient(upper[i].stats, points, flatThreshold, precision, isFlat, keep);
     frames.flat[i] = isFlat;
     if (freeSlots.empty()) {
       freeSlots.push_back(static_cast<uint32_t>(slots.size()));

@@ -362,7 +362,8 @@ void WriteStage::run() {
   report.height = fileLayout.height;
   report.balancedHeight = balancedHeight(fileLayout.faces, context_.job.file.branching);
 
-  UpperFrames frames = frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold);
+  UpperFrames frames =
+      frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
   graph_.corners = {};
 
   const ClusterJob& job = context_.job;

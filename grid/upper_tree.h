@@ -31,6 +31,6 @@ struct UpperFrames {
   std::vector<uint8_t> flat;
 };
 UpperFrames frameUpper(const ClusterMergeResult& upper, std::span<const BoxCorners> leafCorners,
-                       double flatThreshold);
+                       double flatThreshold, BoxPrecision precision);
 
 }  // namespace facetree

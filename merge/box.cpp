@@ -438,7 +438,7 @@ class Worker {
     arena_.resize(begin + kept);
     n.flags = (n.flags & ~uint32_t(kNodeFlatFrame)) | (frame.flat ? uint32_t(kNodeFlatFrame) : 0u);
     NodeBox& box = ctx_.hierarchy.boxes[node];
-    box.orientation = frameQuaternion(frame);
+    box.orientation = frameQuaternion(frame, ctx_.options.boxes);
     if (scan) {
       const ScanFrame sf = scanFrame(ctx_.faces, box.orientation, n.first);
       finishBox(scanRange(window_, sf, n.first, n.first + n.count), sf, box);
@@ -496,10 +496,9 @@ float roundUp(double v) {
 
 }  // namespace
 
-glm::quat frameQuaternion(const ClusterFrame& frame) {
+glm::quat frameQuaternion(const ClusterFrame& frame, BoxPrecision precision) {
   const glm::dmat3 m(frame.axis[0], frame.axis[1], frame.axis[2]);
-  const glm::quat q(glm::normalize(glm::quat_cast(m)));
-  return q.w < 0 ? -q : q;  // canonical sign
+  return latticeOrientation(glm::quat(glm::normalize(glm::quat_cast(m))), orientationBits(precision));
 }
 
 void finishBox(const BoxExtent& e, const ScanFrame& frame, NodeBox& box, double minPad) {

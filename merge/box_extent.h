@@ -40,9 +40,10 @@ struct ScanFrame {
 // three products and two sums, each within 2^-24 relative, over |p - o|_1 <= sqrt(3) |p - o|.
 inline constexpr double kProjectionError = 4.0 * 0x1p-24 * 1.7320508075688772 * 1.01;
 
-// Float quaternion of a right-handed orthonormal frame, canonical sign (w >= 0). Its mat3_cast
-// gives the axes the extents are measured along, so containment holds for the stored form.
-glm::quat frameQuaternion(const ClusterFrame& frame);
+// Float quaternion of a right-handed orthonormal frame on the stored lattice of `precision`
+// (latticeOrientation). Its mat3_cast gives the axes the extents are measured along, so
+// containment holds for the stored form.
+glm::quat frameQuaternion(const ClusterFrame& frame, BoxPrecision precision);
 
 // Center and half extents from the projections; the half extents are measured from the float
 // center as stored, padded by the float error bound (at least `minPad`) and rounded up, so the

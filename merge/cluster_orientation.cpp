@@ -14,7 +14,7 @@ namespace facetree {
 namespace {
 
 glm::quat orientation(FrameBuilder& builder, const SurfaceStats& stats, std::span<glm::vec3> points,
-                      double flatThreshold, bool& flat, size_t& carried) {
+                      double flatThreshold, BoxPrecision precision, bool& flat, size_t& carried) {
   FrameInput in;
   in.area = stats.area;
   in.sumNormal = stats.sumNormal;
@@ -24,18 +24,18 @@ glm::quat orientation(FrameBuilder& builder, const SurfaceStats& stats, std::spa
   ClusterFrame frame;
   carried = builder.build(in, points, frame);
   flat = frame.flat;
-  return frameQuaternion(frame);
+  return frameQuaternion(frame, precision);
 }
 
 }  // namespace
 
 glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
-                             double flatThreshold, bool& flat) {
+                             double flatThreshold, BoxPrecision precision, bool& flat) {
   // FrameBuilder reorders its points (hull candidates to the front): work on a copy.
   std::vector<glm::vec3> scratch(points.begin(), points.end());
   FrameBuilder builder;
   size_t carried = 0;
-  return orientation(builder, stats, scratch, flatThreshold, flat, carried);
+  return orientation(builder, stats, scratch, flatThreshold, precision, flat, carried);
 }
 
 static_assert(ClusterOrienter::kMaxCarried == kFrameHullCap);
@@ -44,8 +44,8 @@ ClusterOrienter::ClusterOrienter() : builder_(std::make_unique<FrameBuilder>()) 
 ClusterOrienter::~ClusterOrienter() = default;
 
 glm::quat ClusterOrienter::orient(const SurfaceStats& stats, std::span<glm::vec3> points,
-                                  double flatThreshold, bool& flat, size_t& carried) {
-  return orientation(*builder_, stats, points, flatThreshold, flat, carried);
+                                  double flatThreshold, BoxPrecision precision, bool& flat, size_t& carried) {
+  return orientation(*builder_, stats, points, flatThreshold, precision, flat, carried);
 }
 
 }  // namespace facetree

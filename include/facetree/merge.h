@@ -51,6 +51,16 @@ enum class MergeOrder : uint8_t {
   Exact,
 };
 
+// How a cluster file stores boxes (docs/FORMAT.md). The merge needs it too: a box's extents are
+// measured along the axes of its orientation as stored, so that they stay exact in the file.
+enum class BoxPrecision : uint8_t {
+  // Orientations in 16 bits a component; extents exact along them (within the float error bound).
+  Exact,
+  // Orientations in 8 bits a component; the file quantises each box conservatively against its
+  // parent's, 8 bits a face (compressed BVH nodes' way), so that a box always contains its faces.
+  Compact,
+};
+
 // Faces per cluster of the spatial top at least (BuildOptions::spatialClusters): a small mesh keeps
 // eq. 84 over all but its last few merges.
 inline constexpr uint64_t kSpatialTopFaces = 64;
@@ -86,6 +96,9 @@ struct BuildOptions {
   // eq. 84's. 0: eq. 84 to the root (what a piece of a larger mesh wants). Metric::Constant has none.
   uint32_t spatialClusters = 1024;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
+  // The box precision the file will have: orientations are rounded to its lattice
+  // (latticeOrientation) before the extents are measured along them.
+  BoxPrecision boxes = BoxPrecision::Exact;
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.
   unsigned threads = 0;
@@ -115,6 +128,26 @@ struct Node {
   float area, perimeter;  // of the cluster's surface and its boundary (shared edges removed)
   glm::vec3 sumNormal;    // S = sum of area-weighted face normals; projArea = |S|
 };
+
+// A box orientation as a cluster file stores it: the unit quaternion's three smallest components
+// (x, y, z, w order, the largest one dropped and made positive by the sign of the whole), each
+// rounded to a signed integer of `bits` bits on [-1/sqrt(2), 1/sqrt(2)]; the dropped one
+// follows from unit length. 16 bits turn the axes by at most about 7e-5 rad, 8 bits by 0.017.
+struct OrientationCode {
+  int32_t component[3] = {0, 0, 0};  // the three kept components, in x, y, z, w order
+  uint8_t largest = 3;               // index of the dropped (largest) component
+  bool operator==(const OrientationCode&) const = default;
+};
+// Bits a component for a box precision: 16 (Exact) or 8 (Compact).
+unsigned orientationBits(BoxPrecision precision);
+// The code of a unit quaternion (its sign is free: q and -q are one rotation).
+OrientationCode encodeOrientation(const glm::quat& q, unsigned bits);
+// The quaternion of a code, unit to float precision. Throws std::invalid_argument for a
+// component outside [-(2^(bits-1) - 1), 2^(bits-1) - 1] or an index above 3.
+glm::quat decodeOrientation(const OrientationCode& code, unsigned bits);
+// The lattice point nearest q whose code decodes to it and encodes back to the same code: the
+// orientation a box is measured in, so that the file stores it without loss.
+glm::quat latticeOrientation(const glm::quat& q, unsigned bits);
 
 // Oriented box: axes are the columns of mat3_cast(orientation); every vertex of the node's
 // faces lies in center +- halfExtent along them, and each of the six faces touches a vertex.
@@ -378,7 +411,7 @@ ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span
 // points (e.g. the 8 corners of its children's boxes: orientation only, never extents). Returns the
 // orientation (columns of mat3_cast = axes, as NodeBox) and sets `flat`.
 glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
-                             double flatThreshold, bool& flat);
+                             double flatThreshold, BoxPrecision precision, bool& flat);
 
 // clusterOrientation for a tree of clusters, bottom-up, as computeBoxes carries hull candidates (box.cpp):
 // a cluster is oriented from its children's carried points (a leaf from a sample of its own, e.g. its box's
@@ -396,8 +429,8 @@ class ClusterOrienter {
   ClusterOrienter& operator=(const ClusterOrienter&) = delete;
   // The orientation (as clusterOrientation) of a cluster of `stats` whose points are `points`, which it
   // reorders: on return the first `carried` (at most kMaxCarried) are the ones to pass on to its parent.
-  glm::quat orient(const SurfaceStats& stats, std::span<glm::vec3> points, double flatThreshold, bool& flat,
-                   size_t& carried);
+  glm::quat orient(const SurfaceStats& stats, std::span<glm::vec3> points, double flatThreshold,
+                   BoxPrecision precision, bool& flat, size_t& carried);
 
  private:
   std::unique_ptr<FrameBuilder> builder_;

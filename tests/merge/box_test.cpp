@@ -85,6 +85,10 @@ Hierarchy medianSplit(const TestMesh& m) {
 }
 
 // Brute force: every vertex of every node, in double, against the stored box.
+// The stored orientations turn the axes by at most this much (facetree/merge.h OrientationCode): a
+// plane's box is that angle times its half diagonal thick.
+constexpr double kLatticeAngle[2] = {8e-5, 2e-2};  // BoxPrecision::Exact, Compact
+
 void checkBoxes(const TestMesh& m, const Hierarchy& h, const BuildOptions& opt, size_t nodeStride = 1) {
   ASSERT_EQ(h.boxes.size(), h.nodes.size());
   for (size_t i = 0; i < h.nodes.size(); i += nodeStride) {
@@ -133,7 +137,8 @@ void checkBoxes(const TestMesh& m, const Hierarchy& h, const BuildOptions& opt, 
     const bool flat = isFlatCluster(node.area, glm::dvec3(node.sumNormal), opt.flatThreshold);
     EXPECT_EQ(flat, (node.flags & kNodeFlatFrame) != 0);
     if (flat) {
-      EXPECT_NEAR(glm::dot(a[2], glm::normalize(glm::dvec3(node.sumNormal))), 1.0, 1e-5);
+      const double turn = kLatticeAngle[opt.boxes == BoxPrecision::Compact];
+      EXPECT_NEAR(glm::dot(a[2], glm::normalize(glm::dvec3(node.sumNormal))), 1.0, turn * turn / 2 + 1e-6);
     }
   }
 }
@@ -235,8 +240,9 @@ TEST(Box, RotatedSquareGridRootIsTheSquare) {
     checkBoxes(m, h, {});
     const NodeBox& root = h.boxes[0];
     EXPECT_TRUE(h.nodes[0].flags & kNodeFlatFrame);
-    EXPECT_LT(root.halfExtent.z, 1e-5);  // flat up to float rounding of the box size
-    EXPECT_NEAR(4.0 * root.halfExtent.x * root.halfExtent.y, 4.0, 4e-5) << inPlane;  // not 8 at 45 degrees
+    EXPECT_LT(root.halfExtent.z, kLatticeAngle[0] * std::sqrt(2.0));  // flat up to the stored axes' angle
+    EXPECT_NEAR(4.0 * root.halfExtent.x * root.halfExtent.y, 4.0, 4 * kLatticeAngle[0])
+        << inPlane;  // not 8 at 45 degrees
   }
 }
 
@@ -246,10 +252,26 @@ TEST(Box, RotatedRectangleGridRoot) {
     const TestMesh m = grid(40, 10, 4.0, 1.0, inPlane, randomRotation(rng));
     const Hierarchy h = boxed(m);
     checkBoxes(m, h, {});
-    EXPECT_NEAR(h.boxes[0].halfExtent.x, 2.0, 1e-5);  // axis 0 along the long side
-    EXPECT_NEAR(h.boxes[0].halfExtent.y, 0.5, 1e-5);
-    EXPECT_LT(h.boxes[0].halfExtent.z, 1e-5);
+    EXPECT_NEAR(h.boxes[0].halfExtent.x, 2.0, 2 * kLatticeAngle[0]);  // axis 0 along the long side
+    EXPECT_NEAR(h.boxes[0].halfExtent.y, 0.5, 2 * kLatticeAngle[0]);
+    EXPECT_LT(h.boxes[0].halfExtent.z, 2.1 * kLatticeAngle[0]);
   }
+}
+
+TEST(Box, CompactPrecisionMeasuresAlongCoarserAxes) {
+  std::mt19937_64 rng(2);
+  const TestMesh m = grid(40, 10, 4.0, 1.0, 0.7, randomRotation(rng));
+  BuildOptions opt;
+  opt.boxes = BoxPrecision::Compact;
+  const Hierarchy h = boxed(m, opt);
+  checkBoxes(m, h, opt);
+  for (const NodeBox& box : h.boxes) {
+    const OrientationCode code = encodeOrientation(box.orientation, 8);
+    const glm::quat back = decodeOrientation(code, 8);
+    ASSERT_TRUE(back == box.orientation);  // on the 8-bit lattice, stored without loss
+  }
+  EXPECT_NEAR(h.boxes[0].halfExtent.x, 2.0, 2 * kLatticeAngle[1]);
+  EXPECT_LT(h.boxes[0].halfExtent.z, 2.1 * kLatticeAngle[1]);
 }
 
 TEST(Box, BumpyGridAllNodes) {

@@ -1,0 +1,88 @@
+// The stored form of box orientations (facetree/merge.h OrientationCode): the "smallest three"
+// quaternion encoding of compressed transforms. A unit quaternion's largest component is at least
+// 1/2, so the other three lie in [-1/sqrt(2), 1/sqrt(2)] and fit a fixed-point range; the largest
+// follows from unit length. Boxes are measured along the decoded axes (latticeOrientation), so a
+// file stores orientations without loss and extents stay exact in the stored frame.
+//
+// Decoding runs in double with IEEE operations only (products, sums, one sqrt, one division):
+// every machine gets the same float quaternion from the same code.
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "facetree/merge.h"
+
+namespace facetree {
+namespace {
+
+constexpr double kHalfSqrt2 = 0.70710678118654752440;
+
+int32_t maxCode(unsigned bits) {
+  if (bits < 2 || bits > 24) throw std::invalid_argument("orientation code: bits must be 2 to 24");
+  return (int32_t{1} << (bits - 1)) - 1;
+}
+
+}  // namespace
+
+unsigned orientationBits(BoxPrecision precision) {
+  return precision == BoxPrecision::Compact ? 8 : 16;
+}
+
+OrientationCode encodeOrientation(const glm::quat& q, unsigned bits) {
+  const int32_t m = maxCode(bits);
+  const double v[4] = {q.x, q.y, q.z, q.w};
+  double largest = 0;
+  for (double c : v) largest = std::max(largest, std::abs(c));
+  // The first component within 2^-20 of the largest: a decoded quaternion's recomputed largest
+  // component differs from a near-tie by rounding only, and must be dropped again.
+  OrientationCode code;
+  for (uint8_t i = 0; i < 4; ++i)
+    if (std::abs(v[i]) >= largest * (1.0 - 0x1p-20)) {
+      code.largest = i;
+      break;
+    }
+  const double sign = v[code.largest] < 0 ? -1.0 : 1.0;
+  for (int j = 0, i = 0; i < 4; ++i) {
+    if (i == code.largest) continue;
+    const double scaled = std::nearbyint(sign * v[i] / kHalfSqrt2 * m);
+    code.component[j++] = static_cast<int32_t>(std::clamp(scaled, double(-m), double(m)));
+  }
+  return code;
+}
+
+glm::quat decodeOrientation(const OrientationCode& code, unsigned bits) {
+  const int32_t m = maxCode(bits);
+  if (code.largest > 3)
+    throw std::invalid_argument("orientation code: index " + std::to_string(code.largest));
+  double v[4];
+  double sum = 0;
+  for (int j = 0, i = 0; i < 4; ++i) {
+    if (i == code.largest) continue;
+    const int32_t c = code.component[j++];
+    if (c < -m || c > m) throw std::invalid_argument("orientation code: component " + std::to_string(c));
+    v[i] = double(c) * kHalfSqrt2 / m;
+    sum += v[i] * v[i];
+  }
+  v[code.largest] = std::sqrt(std::max(0.0, 1.0 - sum));
+  const double norm = std::sqrt(sum + v[code.largest] * v[code.largest]);
+  return glm::quat(float(v[3] / norm), float(v[0] / norm), float(v[1] / norm), float(v[2] / norm));
+}
+
+glm::quat latticeOrientation(const glm::quat& q, unsigned bits) {
+  OrientationCode code = encodeOrientation(q, bits);
+  // Rounding can leave a kept component above the recomputed dropped one (near ties of the two
+  // largest); then the decoded quaternion would drop another component. Stepping the largest kept
+  // code one unit towards zero raises the dropped one until it is the largest again.
+  for (int step = 0; step < 64; ++step) {
+    const glm::quat lattice = decodeOrientation(code, bits);
+    if (encodeOrientation(lattice, bits) == code) return lattice;
+    int32_t* top = &code.component[0];
+    for (int32_t& c : code.component)
+      if (std::abs(c) > std::abs(*top)) top = &c;
+    *top -= *top > 0 ? 1 : -1;
+  }
+  throw std::logic_error("latticeOrientation: no fixed point");
+}
+
+}  // namespace facetree
