@@ -20,7 +20,7 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args(argv, {"output",  "metric",    "k",       "flat-threshold", "w-fit",      "w-dir",
                          "w-shape", "branching", "recast",  "mesh-out",       "draco-bits", "balance-slack",
                          "memory",  "tmp",       "max-tmp", "threads",        "cell-faces", "zstd-level",
-                         "method",  "leaf-size", "order",   "spatial-top"},
+                         "method",  "leaf-size", "order",   "spatial-top",    "boxes"},
                   {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
@@ -34,6 +34,7 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   settings.metric = args.valueOr("metric", settings.metric);
   settings.order = args.valueOr("order", settings.order);
   settings.recast = args.valueOr("recast", settings.recast);
+  settings.boxes = args.valueOr("boxes", settings.boxes);
   settings.k = args.number("k", settings.k);
   settings.flatThreshold = args.number("flat-threshold", settings.flatThreshold);
   settings.garlandWeights[0] = args.number("w-fit", settings.garlandWeights[0]);

@@ -127,6 +127,8 @@ int runInfo(const std::vector<std::string>& argv) {
       json.field("garland_weights",
                  std::vector<double>{h.garlandWeights[0], h.garlandWeights[1], h.garlandWeights[2]});
       json.field("memory_cap_bytes", h.memoryCapBytes);
+      json.field("boxes", boxesName(h.boxes));
+      json.field("spatial_top", h.spatialClusters);
       json.endObject();
       json.field("bbox_min", std::vector<double>{h.boundsMin.x, h.boundsMin.y, h.boundsMin.z});
       json.field("bbox_max", std::vector<double>{h.boundsMax.x, h.boundsMax.y, h.boundsMax.z});
@@ -173,8 +175,10 @@ int runInfo(const std::vector<std::string>& argv) {
       if (s.childHistogram[c])
         std::printf(" %u:%llu", c, static_cast<unsigned long long>(s.childHistogram[c]));
     std::printf("\n");
-    std::printf("options       metric %s, k %g, flat threshold %g, memory cap %llu\n", metricName(h.metric),
-                h.k, h.flatThreshold, static_cast<unsigned long long>(h.memoryCapBytes));
+    std::printf(
+        "options       metric %s, k %g, flat threshold %g, memory cap %llu, %s boxes, spatial top %u\n",
+        metricName(h.metric), h.k, h.flatThreshold, static_cast<unsigned long long>(h.memoryCapBytes),
+        boxesName(h.boxes), h.spatialClusters);
     std::printf("bounding box  [%g %g %g] - [%g %g %g]\n", h.boundsMin.x, h.boundsMin.y, h.boundsMin.z,
                 h.boundsMax.x, h.boundsMax.y, h.boundsMax.z);
     std::printf("header+index  %llu bytes\n", static_cast<unsigned long long>(overhead));

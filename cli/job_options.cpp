@@ -25,6 +25,7 @@ using Names = std::initializer_list<std::pair<const char*, T>>;
 const Names<Metric> kMetricNames = {
     {"willmott", Metric::Willmott}, {"garland", Metric::Garland}, {"constant", Metric::Constant}};
 const Names<MergeOrder> kOrderNames = {{"rounds", MergeOrder::Rounds}, {"exact", MergeOrder::Exact}};
+const Names<BoxPrecision> kBoxesNames = {{"exact", BoxPrecision::Exact}, {"compact", BoxPrecision::Compact}};
 const Names<RecastRule> kRecastNames = {{"largest-area", RecastRule::LargestArea},
                                         {"fewest-nodes", RecastRule::FewestNodes}};
 
@@ -56,6 +57,7 @@ void applyBuildSettings(const BuildSettings& s, OptionSpelling spelling, BuildOp
   };
   build.metric = named("metric", s.metric, kMetricNames);
   build.order = named("merge order", s.order, kOrderNames);
+  build.boxes = named("box precision", s.boxes, kBoxesNames);
   if (s.threads > kMaxJobThreads)
     fail("threads", "must be 0 (all cores) to " + std::to_string(kMaxJobThreads));
   if (!(s.balanceSlack >= 0)) fail("balance_slack", "must be 0 (off) or positive");
@@ -79,6 +81,9 @@ const char* metricName(Metric metric) {
 }
 const char* orderName(MergeOrder order) {
   return nameOf(order, kOrderNames);
+}
+const char* boxesName(BoxPrecision boxes) {
+  return nameOf(boxes, kBoxesNames);
 }
 
 void checkJobLimits(uint64_t memoryCap, int zstdLevel, OptionSpelling spelling) {

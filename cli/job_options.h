@@ -18,6 +18,7 @@ struct BuildSettings {
   std::string metric = "willmott";      // willmott, garland, constant
   std::string order = "rounds";         // rounds, exact
   std::string recast = "largest-area";  // largest-area, fewest-nodes
+  std::string boxes = "exact";          // exact, compact
   double k = BuildOptions{}.k;
   double flatThreshold = BuildOptions{}.flatThreshold;
   double balanceSlack = BuildOptions{}.balanceSlack;
@@ -35,6 +36,7 @@ void applyBuildSettings(const BuildSettings& settings, OptionSpelling spelling, 
 // The names applyBuildSettings takes, for a value (as reports and headers print it).
 const char* metricName(Metric metric);
 const char* orderName(MergeOrder order);
+const char* boxesName(BoxPrecision boxes);
 
 // Throws std::invalid_argument unless the cap is 0 (half the memory) or at least 16 MiB and the
 // zstd level is 0 (the default) to 19.

@@ -35,6 +35,9 @@ commands:
         [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
         [--order rounds|exact]   merge order: rounds of reciprocal cheapest pairs (default,
                                  parallel), or the exact global greedy (the reference)
+        [--boxes exact|compact]  boxes exact in their stored frame (default), or quantised against
+                                 their parent's in 8 bits a face (smaller files; a box always
+                                 contains its faces)
         [--spatial-top N]        the last N clusters (default 1024, at most one per 64 faces)
                                  merge by the smallest union box, so that the file's first nodes
                                  split space compactly; 0: eq. 84 to the root

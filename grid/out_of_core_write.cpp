@@ -299,6 +299,10 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     return graph_.leaves[leaf].nodeCount ? nodePosition(leaf, 0)
                                          : kFaceChild | static_cast<uint32_t>(layout.faceBase[leaf]);
   };
+  const auto childFaces = [&](uint32_t c) -> uint32_t {
+    if (!(c & kLeafChild)) return static_cast<uint32_t>(upper[c].stats.faceCount);
+    return graph_.leaves[c & ~kLeafChild].faceCount;
+  };
   const auto upperNode = [&](uint32_t j) {
     const uint32_t i = upperCount - 1 - j;
     const ClusterMergeNode& u = upper[i];
@@ -306,7 +310,10 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     n.first = static_cast<uint32_t>(layout.firstFace[i]);
     n.count = static_cast<uint32_t>(u.stats.faceCount);
     n.childCount = recast.childCount[i];
-    for (uint32_t k = 0; k < n.childCount; ++k) n.child[k] = childRef(recast.children[i][k]);
+    for (uint32_t k = 0; k < n.childCount; ++k) {
+      n.child[k] = childRef(recast.children[i][k]);
+      n.childFaces[k] = childFaces(recast.children[i][k]);
+    }
     n.flags = static_cast<uint8_t>((recast.joined[i] ? kFchJoinsDisjointSurfaces : 0) |
                                    (frames.flat[i] ? kFchFlatFrame : 0));
     n.cost = u.cost;

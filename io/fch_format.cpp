@@ -7,11 +7,14 @@
 #include <zstd.h>
 
 #include <bit>
+#include <cmath>
 #include <cstring>
 #include <new>
 #include <stdexcept>
 
+#include "byte_planes.h"
 #include "facetree/io.h"
+#include "fch_node_code.h"
 #include "output_file.h"
 
 namespace facetree::fch {
@@ -38,65 +41,13 @@ T get(const uint8_t* p) {
   return value;
 }
 
-// A column of n elements of `width` bytes, stored as byte planes (docs/FORMAT.md).
-template <class Value>
-void putColumn(std::string& out, size_t n, Value value, unsigned width = 4) {
-  const size_t base = out.size();
-  out.resize(base + width * n);
-  char* planes = out.data() + base;
-  for (size_t i = 0; i < n; ++i) {
-    const uint64_t v = value(i);
-    for (unsigned b = 0; b < width; ++b) planes[b * n + i] = static_cast<char>(v >> (8 * b));
-  }
-}
-uint32_t bits(float f) {
-  return std::bit_cast<uint32_t>(f);
-}
-
-// Reads columns back from a payload whose total size has been checked.
-class Columns {
- public:
-  explicit Columns(const std::string& raw) : data_(reinterpret_cast<const uint8_t*>(raw.data())) {}
-  // Starts the next column of n elements of `width` bytes.
-  void next(size_t n, unsigned width = 4) {
-    pos_ += n_ * width_;
-    n_ = n;
-    width_ = width;
-  }
-  uint64_t at(size_t i) const {
-    uint64_t v = 0;
-    for (unsigned b = 0; b < width_; ++b) v |= uint64_t{data_[pos_ + b * n_ + i]} << (8 * b);
-    return v;
-  }
-  float f(size_t i) const { return std::bit_cast<float>(static_cast<uint32_t>(at(i))); }
-  const uint8_t* bytes() const { return data_ + pos_; }
-
- private:
-  const uint8_t* data_;
-  size_t pos_ = 0, n_ = 0;
-  unsigned width_ = 0;
-};
-
-uint64_t zigzag(int64_t d) {
-  return (static_cast<uint64_t>(d) << 1) ^ static_cast<uint64_t>(d >> 63);
-}
-int64_t unzigzag(uint64_t z) {
-  return static_cast<int64_t>(z >> 1) ^ -static_cast<int64_t>(z & 1);
-}
-uint32_t zigzag32(int32_t d) {
-  return (static_cast<uint32_t>(d) << 1) ^ static_cast<uint32_t>(d >> 31);
-}
-int32_t unzigzag32(uint32_t z) {
-  return static_cast<int32_t>(z >> 1) ^ -static_cast<int32_t>(z & 1);
-}
-
 constexpr const char* kSectionWords[] = {"", "node", "vertex", "triangle", "original-id"};
 constexpr const char* kElementWords[] = {"", "nodes", "vertices", "triangles", "ids"};
 
 std::string encodeHeader(const FchLayout& layout, uint64_t indexChecksum, uint32_t frameCount) {
   const FileHeader& h = layout.header;
   std::string out(reinterpret_cast<const char*>(kMagic), sizeof kMagic);
-  put<uint32_t>(out, kFchVersion);
+  put<uint32_t>(out, h.version);
   put<uint32_t>(out, kHeaderBytes);
   put<uint64_t>(out, layout.fileBytes);
   put<uint64_t>(out, h.nodeCount);
@@ -109,7 +60,7 @@ std::string encodeHeader(const FchLayout& layout, uint64_t indexChecksum, uint32
   put<uint8_t>(out, static_cast<uint8_t>(h.branching));
   put<uint8_t>(out, static_cast<uint8_t>(h.metric));
   put<uint8_t>(out, static_cast<uint8_t>(layout.originalIdBytes));
-  put<uint8_t>(out, 0);
+  put<uint8_t>(out, h.version >= 2 ? static_cast<uint8_t>(h.boxes) : 0);
   put<double>(out, h.k);
   put<double>(out, h.flatThreshold);
   put<uint64_t>(out, h.memoryCapBytes);
@@ -117,8 +68,12 @@ std::string encodeHeader(const FchLayout& layout, uint64_t indexChecksum, uint32
   for (int a = 0; a < 3; ++a) put<float>(out, h.boundsMax[a]);
   put<uint64_t>(out, indexChecksum);
   put<int32_t>(out, layout.zstdLevel);
-  put<uint32_t>(out, 0);
+  put<uint32_t>(out, h.version >= 2 ? h.spatialClusters : 0);
   for (double w : h.garlandWeights) put<double>(out, w);
+  if (h.version >= 2 && h.boxes == BoxPrecision::Compact) {
+    for (int a = 0; a < 3; ++a) put<float>(out, layout.rootBox.center[a]);
+    for (int a = 0; a < 3; ++a) put<float>(out, layout.rootBox.halfExtent[a]);
+  }
   out.resize(kHeaderChecksumOffset, '\0');
   put<uint64_t>(out, xxh64(out.data(), out.size()));
   return out;
@@ -314,7 +269,7 @@ void SourceFile::readLayout() {
     fail("not a facetree cluster file (bad magic)");
   if (head.size() < 12) fail("truncated at byte " + std::to_string(size_));
   const uint32_t version = get<uint32_t>(p + 8);
-  if (version != kFchVersion) fail("unsupported version " + std::to_string(version));
+  if (version != 1 && version != kFchVersion) fail("unsupported version " + std::to_string(version));
   if (head.size() < kHeaderBytes) fail("truncated at byte " + std::to_string(size_));
   if (get<uint32_t>(p + 12) != kHeaderBytes) fail("bad header size " + std::to_string(get<uint32_t>(p + 12)));
   if (get<uint64_t>(p + kHeaderChecksumOffset) != xxh64(p, kHeaderChecksumOffset))
@@ -343,6 +298,19 @@ void SourceFile::readLayout() {
   const uint64_t indexChecksum = get<uint64_t>(p + 120);
   l.zstdLevel = get<int32_t>(p + 128);
   for (int w = 0; w < 3; ++w) h.garlandWeights[w] = get<double>(p + 136 + 8 * w);
+  if (version >= 2) {
+    if (p[71] > static_cast<uint8_t>(BoxPrecision::Compact))
+      fail("unknown box precision " + std::to_string(p[71]));
+    h.boxes = static_cast<BoxPrecision>(p[71]);
+    h.spatialClusters = get<uint32_t>(p + 132);
+    for (int a = 0; a < 3; ++a)
+      l.rootBox.center[a] = get<float>(p + 160 + 4 * a),
+      l.rootBox.halfExtent[a] = get<float>(p + 172 + 4 * a);
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(l.rootBox.center[a]) || !(l.rootBox.halfExtent[a] >= 0) ||
+          !std::isfinite(l.rootBox.halfExtent[a]))
+        fail("bad root box");
+  }
 
   if (l.nodesPerFrame < 1 || l.nodesPerFrame > kMaxNodesPerFrame)
     fail("bad nodes per frame " + std::to_string(l.nodesPerFrame));
@@ -402,7 +370,12 @@ void SourceFile::readLayout() {
     uint64_t minRaw = 0, maxRaw = 0;
     switch (s) {
       case 1:
-        minRaw = uint64_t{kNodeFixedBytes} * f.count, maxRaw = minRaw + 4ull * h.branching * f.count;
+        if (version == 1) {
+          minRaw = uint64_t{kNodeFixedBytes} * f.count, maxRaw = minRaw + 4ull * h.branching * f.count;
+        } else {  // up to b child references and b - 1 face counts a node
+          minRaw = uint64_t{nodeFixedBytes(h.boxes)} * f.count;
+          maxRaw = minRaw + 4ull * (2 * h.branching - 1) * f.count;
+        }
         break;
       case 2:
         minRaw = maxRaw = 12ull * f.count;
@@ -454,7 +427,31 @@ std::string SourceFile::rawFrame(size_t i) const {
   return raw;
 }
 
+void SourceFile::decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out) const {
+  const FchFrame& f = layout_.frames[i];
+  const std::string error =
+      decodeNodeFrame(raw, f.count, layout_.header.boxes, layout_.header.branching, out);
+  if (!error.empty()) fail(where(i) + ": " + error);
+}
+
 void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const {
+  const FchFrame& f = layout_.frames[i];
+  if (layout_.header.version == 1) return decodeNodesV1(i, raw, out);
+  if (out.size() != f.first)
+    throw std::logic_error("SourceFile::decodeNodes: node frames are decoded in order into one array");
+  if (f.first == 0)
+    decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.header.boxes, layout_.rootBox);
+  std::vector<NodeCode> codes;
+  codes.reserve(f.count);
+  decodeNodeCodes(i, raw, codes);
+  for (const NodeCode& code : codes) {
+    const uint64_t index = out.size();
+    const std::string error = decoder_->decode(code, out);
+    if (!error.empty()) fail(where(i) + ": node " + std::to_string(index) + ": " + error);
+  }
+}
+
+void SourceFile::decodeNodesV1(size_t i, const std::string& raw, std::vector<FchNode>& out) const {
   const FchFrame& f = layout_.frames[i];
   const FileHeader& h = layout_.header;
   const size_t n = f.count;
@@ -520,6 +517,8 @@ void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNo
       }
     }
   }
+  // Version 1 stores no child face counts: those of node children come from their own records,
+  // once read (fillChildFaces).
 }
 
 void SourceFile::decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const {

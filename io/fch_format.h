@@ -30,6 +30,9 @@ inline constexpr uint64_t kMaxTriangles = kFaceChild - 1;
 // XXH64 (Collet; libxxhash), seed 0 unless given: the checksum of headers, index and frames.
 uint64_t xxh64(const void* data, size_t bytes, uint64_t seed = 0);
 
+struct NodeCode;
+class NodeDecoder;
+
 // One frame as assembled for writing: its index entry (offset filled in by writeFrames) and
 // its compressed bytes.
 struct FrameData {
@@ -85,7 +88,7 @@ uint64_t assembledBytes(const std::vector<FrameData>& frames);
 class SourceFile {
  public:
   explicit SourceFile(const std::filesystem::path& path);
-  ~SourceFile();
+  ~SourceFile();  // defined where NodeDecoder is complete
   SourceFile(const SourceFile&) = delete;
   SourceFile& operator=(const SourceFile&) = delete;
 
@@ -95,8 +98,11 @@ class SourceFile {
   std::string compressedFrame(size_t i) const;
   // The decompressed payload of frame `i`, checksum and size checked.
   std::string rawFrame(size_t i) const;
-  // Decodes node frame `i` (payload `raw`) and appends its nodes to `out`.
+  // Decodes node frame `i` (payload `raw`) and appends its nodes to `out`, which holds every
+  // earlier node (version 2 derives face ranges and compact boxes from the parents).
   void decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
+  // Version 2: the frame's records as stored (truncation re-encodes them unchanged).
+  void decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out) const;
   void decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const;
   void decodeTriangles(size_t i, const std::string& raw, std::vector<uint32_t>& out) const;
   void decodeIds(size_t i, const std::string& raw, std::vector<uint64_t>& out) const;
@@ -106,6 +112,7 @@ class SourceFile {
 
  private:
   std::string readAt(uint64_t offset, uint64_t bytes) const;
+  void decodeNodesV1(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
   void readLayout();
   std::string name_;
   struct Closer {
@@ -114,6 +121,7 @@ class SourceFile {
   std::unique_ptr<std::FILE, Closer> file_;
   uint64_t size_ = 0;
   FchLayout layout_;
+  mutable std::unique_ptr<NodeDecoder> decoder_;  // version 2: the node frames' state, frame to frame
 };
 
 }  // namespace facetree::fch

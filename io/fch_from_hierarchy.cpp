@@ -46,6 +46,7 @@ class FileNodes {
       node.child[1] = b.child[swap ? 0 : 1];
       joined = (b.flags & kNodeJoinsDisjointSurfaces) != 0;
     }
+    for (unsigned c = 0; c < node.childCount; ++c) node.childFaces[c] = faces(node.child[c]);
     node.flags = static_cast<uint8_t>((b.flags & kNodeFlatFrame ? kFchFlatFrame : 0) |
                                       (joined ? kFchJoinsDisjointSurfaces : 0));
     node.cost = b.cost;
@@ -59,6 +60,11 @@ class FileNodes {
   }
 
  private:
+  // Faces under a child reference of the file (a face, or a file node index).
+  uint32_t faces(uint32_t ref) const {
+    if (ref & kFaceChild) return 1;
+    return hierarchy_.nodes[tree_ ? tree_->binaryNode[ref] : ref].count;
+  }
   uint32_t rangeStart(uint32_t ref) const {
     return ref & kFaceChild ? ref & ~kFaceChild : hierarchy_.nodes[ref].first;
   }
@@ -90,6 +96,8 @@ FileHeader optionsHeader(const FileOptions& options) {
   h.garlandWeights[1] = options.build.garlandDirWeight;
   h.garlandWeights[2] = options.build.garlandShapeWeight;
   h.memoryCapBytes = options.memoryCapBytes;
+  h.boxes = options.build.boxes;
+  h.spatialClusters = options.build.metric == Metric::Constant ? 0 : options.build.spatialClusters;
   return h;
 }
 

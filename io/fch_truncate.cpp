@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "fch_format.h"
+#include "fch_node_code.h"
 
 namespace facetree {
 namespace {
@@ -37,16 +38,29 @@ struct Source {
     for (size_t i = 0; i < file.layout().frames.size(); ++i)
       (file.layout().frames[i].section == FchSection::Nodes ? nodeFrames : geometryFrames).push_back(i);
   }
-  std::vector<FchNode> decode(size_t nodeFrame) const {
+  // The records of one node frame as stored: version 2 codes, or version 1 nodes (whose frames
+  // decode on their own).
+  struct Records {
+    std::vector<fch::NodeCode> codes;
     std::vector<FchNode> nodes;
+    size_t size() const { return codes.empty() ? nodes.size() : codes.size(); }
+  };
+  Records decode(size_t nodeFrame) const {
+    Records records;
     const size_t i = nodeFrames[nodeFrame];
-    file.decodeNodes(i, file.rawFrame(i), nodes);
-    return nodes;
+    if (file.layout().header.version == 1)
+      file.decodeNodes(i, file.rawFrame(i), records.nodes);
+    else
+      file.decodeNodeCodes(i, file.rawFrame(i), records.codes);
+    return records;
   }
-  FrameData partial(const std::vector<FchNode>& nodes, size_t nodeFrame, uint32_t keep) const {
+  FrameData partial(const Records& records, size_t nodeFrame, uint32_t keep) const {
     const uint64_t first = file.layout().frames[nodeFrames[nodeFrame]].first;
-    return fch::makeFrame(FchSection::Nodes, first, keep,
-                          fch::encodeNodes(std::span(nodes).first(keep), first), levelOf(file.layout()));
+    const std::string raw =
+        records.codes.empty()
+            ? fch::encodeNodes(std::span(records.nodes).first(keep), first)
+            : fch::encodeNodeFrame(std::span(records.codes).first(keep), file.layout().header.boxes);
+    return fch::makeFrame(FchSection::Nodes, first, keep, raw, levelOf(file.layout()));
   }
   fch::SourceFile file;
   std::vector<size_t> nodeFrames, geometryFrames;
@@ -99,7 +113,7 @@ TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const
   if (full < source.nodeFrames.size()) {
     // Bisection on the nodes kept from the next frame: its compressed size grows with the count
     // up to zstd noise, and the answer is checked against the limit in any case.
-    const std::vector<FchNode> decoded = source.decode(full);
+    const Source::Records decoded = source.decode(full);
     uint32_t lo = 0, hi = static_cast<uint32_t>(decoded.size());  // lo fits (none), hi does not
     FrameData best;
     while (hi - lo > 1) {

@@ -2,6 +2,7 @@
 // (the nodes partition and nest the faces, children follow parents, boxes contain their faces),
 // reporting the first violation by node and check.
 #include "fch_cut.h"
+#include "fch_node_code.h"
 
 #include <algorithm>
 #include <array>
@@ -154,6 +155,10 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
       static constexpr const char* kAxis[3] = {"axis 0", "axis 1", "axis 2"};
       const double size = glm::length(glm::dvec3(box.halfExtent)) + glm::length(center);
       const double tolerance = kBoxRelative * size + modelTolerance;
+      // Compact boxes: each face within one step of the parent's grid of a vertex (docs/FORMAT.md).
+      double step[3] = {0, 0, 0};
+      if (h.boxes == BoxPrecision::Compact && h.version >= 2 && j > 0)
+        fch::compactStep(nodes[parent[j]].box, box.orientation, step);
       for (int a = 0; a < 3; ++a) {
         const double half = box.halfExtent[a];
         if (pHi[a] > half + tolerance || pLo[a] < -half - tolerance)
@@ -161,7 +166,7 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
                         std::string(kAxis[a]) + ": vertices reach [" + str(pLo[a]) + ", " + str(pHi[a]) +
                             "] beyond half extent " + str(half),
                         j);
-        if (pHi[a] < half - tolerance || pLo[a] > -half + tolerance)
+        if (pHi[a] < half - tolerance - step[a] || pLo[a] > -half + tolerance + step[a])
           return failAt(j, "box tightness",
                         std::string(kAxis[a]) + ": vertices span [" + str(pLo[a]) + ", " + str(pHi[a]) +
                             "], half extent " + str(half),

@@ -19,12 +19,14 @@
 #include <optional>
 #include <stdexcept>
 #include <thread>
+#include <unordered_map>
 #include <utility>
 
 #include <glm/common.hpp>
 
 #include "facetree/io.h"
 #include "fch_format.h"
+#include "fch_node_code.h"
 #include "output_file.h"
 
 namespace facetree {
@@ -105,10 +107,26 @@ class FrameSpill {
   uint64_t bytes_ = 0;
 };
 
+// The node frame of exact boxes: each record depends on its node alone, so workers can make them.
+// `owner` prefixes the message of a node the format cannot hold.
+std::string exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner) {
+  std::vector<fch::NodeCode> codes;
+  codes.reserve(nodes.size());
+  try {
+    for (size_t i = 0; i < nodes.size(); ++i)
+      codes.push_back(fch::quantizeNode(nodes[i], first + i, BoxPrecision::Exact, nullptr, nullptr));
+
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(owner + ": " + e.what());
+  }
+  return fch::encodeNodeFrame(codes, BoxPrecision::Exact);
+}
+
 // Compresses frames on worker threads, each with its own compressor, while the caller encodes
-// the next ones. At most one frame per worker is queued or in flight; the caller takes them back
-// in submission order (oldest) and writes each where it goes, so frames land in order, compressed
-// exactly as inline (each frame is independent): the same bytes for any number of workers.
+// the next ones (exact-box node frames: the workers encode them too). At most one frame per worker is queued
+// or in flight; the caller takes them back in submission order (oldest) and writes each where it goes, so
+// frames land in order, compressed exactly as inline (each frame is independent): the same bytes for any
+// number of workers.
 class CompressorPool {
  public:
   struct Job {
@@ -116,6 +134,8 @@ class CompressorPool {
     uint64_t first = 0;
     uint32_t count = 0;
     std::string raw;
+    std::vector<FchNode> nodes;  // exact-box nodes to encode into `raw` first
+    const std::string* owner = nullptr;
     std::string compressed;
     FchFrame frame{};
     bool done = false;
@@ -142,7 +162,8 @@ class CompressorPool {
   bool empty() const { return submitted_ == taken_; }
 
   // Queues a frame; call only when not full().
-  void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw) {
+  void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw,
+              std::span<const FchNode> nodes = {}, const std::string* owner = nullptr) {
     {
       std::lock_guard lock(mutex_);
       Job& job = jobs_[submitted_ % jobs_.size()];
@@ -150,6 +171,8 @@ class CompressorPool {
       job.first = first;
       job.count = count;
       job.raw = std::move(raw);
+      job.nodes.assign(nodes.begin(), nodes.end());
+      job.owner = owner;
       job.done = false;
       job.failure = nullptr;
       ++submitted_;
@@ -177,6 +200,7 @@ class CompressorPool {
       lock.unlock();
       std::exception_ptr failure;
       try {
+        if (!job.nodes.empty()) job.raw = exactNodeFrame(job.nodes, job.first, *job.owner);
         job.frame =
             compressors_[worker]->compress(job.section, job.first, job.count, job.raw, job.compressed);
       } catch (...) {
@@ -211,7 +235,8 @@ struct ClusterFileWriter::State {
     std::optional<FrameSpill> spill;
   };
 
-  std::string name;  // the output as named in messages
+  std::string name;        // the output as named in messages
+  std::string writerName;  // "ClusterFileWriter NAME", for messages made on the pool's workers
   std::filesystem::path spillDir;
   FchLayout layout;
   uint64_t maxOriginalFace = 0;
@@ -223,6 +248,9 @@ struct ClusterFileWriter::State {
   bool stream = false;                 // isStreamOutput: the header cannot be written last
   Section sections[kSections];
   std::vector<FchNode> nodes;
+  std::vector<fch::NodeCode> codes;  // the node frame being encoded
+  // Compact boxes: the decoded boxes of the parents of nodes still to come, by child index.
+  std::unordered_map<uint32_t, NodeBox> parentBoxes;
   std::vector<glm::vec3> vertices;
   std::vector<uint32_t> indices;
   std::vector<uint64_t> ids;
@@ -277,7 +305,7 @@ struct ClusterFileWriter::State {
 
 ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFileInfo& info,
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
-    : name(out.string()), compressor(options.zstdLevel) {
+    : name(out.string()), writerName("ClusterFileWriter " + name), compressor(options.zstdLevel) {
   if (const unsigned workers = compressorThreads(options)) pool.emplace(options.zstdLevel, workers);
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
@@ -394,7 +422,42 @@ void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::str
 
 void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
   const uint64_t first = section(FchSection::Nodes).arrived - batch.size();
-  writeFrame(FchSection::Nodes, first, static_cast<uint32_t>(batch.size()), fch::encodeNodes(batch, first));
+  const BoxPrecision precision = layout.header.boxes;
+  const auto count = static_cast<uint32_t>(batch.size());
+  if (precision == BoxPrecision::Exact) {
+    if (!pool) return writeFrame(FchSection::Nodes, first, count, exactNodeFrame(batch, first, writerName));
+    if (pool->full()) placeOldest();
+    pool->submit(FchSection::Nodes, first, count, {}, batch, &writerName);
+    return;
+  }
+  codes.clear();
+  for (size_t i = 0; i < batch.size(); ++i) {
+    const FchNode& node = batch[i];
+    const uint64_t index = first + i;
+    try {
+      if (precision == BoxPrecision::Exact) {
+        codes.push_back(fch::quantizeNode(node, index, precision, nullptr, nullptr));
+        continue;
+      }
+      NodeBox decoded;
+      if (index == 0) {
+        codes.push_back(fch::quantizeNode(node, index, precision, nullptr, &decoded));
+        layout.rootBox = decoded;
+      } else {
+        const auto it = parentBoxes.find(static_cast<uint32_t>(index));
+        if (it == parentBoxes.end()) reject("node " + str(index) + ": no earlier node refers to it");
+        codes.push_back(fch::quantizeNode(node, index, precision, &it->second, &decoded));
+        parentBoxes.erase(it);
+      }
+      for (unsigned c = 0; c < node.childCount; ++c)
+        if (!(node.child[c] & kFaceChild) && node.child[c] < layout.header.nodeCount)
+          parentBoxes.emplace(node.child[c], decoded);
+    } catch (const std::invalid_argument& e) {
+      reject(e.what());
+    }
+  }
+  writeFrame(FchSection::Nodes, first, static_cast<uint32_t>(batch.size()),
+             fch::encodeNodeFrame(codes, precision));
 }
 void ClusterFileWriter::State::vertexFrame(std::span<const glm::vec3> batch) {
   const uint64_t first = section(FchSection::Vertices).arrived - batch.size();
@@ -584,18 +647,21 @@ void ClusterFileWriter::setTemporaryBytesHook(std::function<void(int64_t)> hook)
 
 uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t n = options.nodesPerFrame, g = options.geometryPerFrame;
-  const uint64_t nodeRaw = (fch::kNodeFixedBytes + 4 * kMaxBranching) * n;
-  // Per section: the element buffer, the payload and the compressed frame (zstd's bound).
-  const uint64_t nodes =
-      sizeof(FchNode) * n + 4 * kMaxBranching * n + nodeRaw + fch::compressedBound(nodeRaw);
+  const uint64_t nodeRaw = (fch::nodeFixedBytes(BoxPrecision::Exact) + 4 * (2 * kMaxBranching - 1)) * n;
+  // Per section: the element buffer, the payload and the compressed frame (zstd's bound); for
+  // nodes also their codes and the column scratch.
+  const uint64_t nodes = (sizeof(FchNode) + sizeof(fch::NodeCode)) * n + 4 * kMaxBranching * n + nodeRaw +
+                         fch::compressedBound(nodeRaw);
   const uint64_t vertices = sizeof(glm::vec3) * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
-  // In the pool: per worker a frame, its compressed bytes and a compressor.
+  // In the pool: per worker a frame (with exact boxes its nodes and their codes too), its
+  // compressed bytes and a compressor.
   const uint64_t background =
-      compressorThreads(options) * (largestRaw + fch::compressedBound(largestRaw) +
-                                    fch::compressorMemoryBound(options.zstdLevel, largestRaw));
+      compressorThreads(options) *
+      ((sizeof(FchNode) + sizeof(fch::NodeCode)) * n + largestRaw + fch::compressedBound(largestRaw) +
+       fch::compressorMemoryBound(options.zstdLevel, largestRaw));
   return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
          background + kCopyBufferBytes + kOutputBufferBytes +
          64 * 1024;  // + the header, index entry vectors, names

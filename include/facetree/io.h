@@ -33,7 +33,7 @@ namespace facetree {
 // --- The cluster file ----------------------------------------------------------------------
 
 // The format version this library writes and reads (docs/FORMAT.md).
-inline constexpr uint32_t kFchVersion = 1;
+inline constexpr uint32_t kFchVersion = 2;
 // The largest branching factor a cluster file holds.
 inline constexpr unsigned kMaxBranching = 8;
 
@@ -58,6 +58,9 @@ struct FileHeader {
   double garlandWeights[3] = {1, 1, 1};        // fit, dir, shape
   uint64_t memoryCapBytes = 0;                 // 0 = not given
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // of the vertices
+  // How boxes are stored (version 2; version 1 files read as Exact): BuildOptions::boxes.
+  BoxPrecision boxes = BoxPrecision::Exact;
+  uint32_t spatialClusters = 0;  // BuildOptions::spatialClusters (version 2; 0 in version 1 files)
 };
 
 // One node. A child reference is a node index (>= nodes.size() means cut off by truncation) or
@@ -67,10 +70,13 @@ struct FchNode {
   uint8_t childCount = 0;              // 2 to the file's branching
   uint8_t flags = 0;                   // FchNodeFlag bits
   uint32_t child[kMaxBranching] = {};  // childCount references, in face-range order
-  float cost = 0;                      // as Node::cost
-  float area = 0, perimeter = 0;       // of the cluster's surface and its boundary
-  glm::vec3 sumNormal{0.0f};           // S = sum of area-weighted face normals; projArea = |S|
-  NodeBox box{};  // the oriented box of the node's faces, with their projected side areas
+  // Faces under each child (1 for a face child): the writers need them with the node, since a node
+  // child's own record comes later; readers fill them in.
+  uint32_t childFaces[kMaxBranching] = {};
+  float cost = 0;                 // as Node::cost
+  float area = 0, perimeter = 0;  // of the cluster's surface and its boundary
+  glm::vec3 sumNormal{0.0f};      // S = sum of area-weighted face normals; projArea = |S|
+  NodeBox box{};                  // the oriented box of the node's faces, with their projected side areas
 };
 
 // A whole cluster file in memory: header, nodes in file order and the reordered mesh.
@@ -199,7 +205,8 @@ class ClusterFileWriter {
 };
 // Upper bound of the bytes a ClusterFileWriter holds (buffers of one frame per section, their
 // payloads and compressed forms, the zstd context, the output buffer), whatever the counts; the
-// frame index adds 40 bytes per frame.
+// frame index adds 40 bytes per frame. Compact boxes add the decoded box of every node whose
+// parent has arrived and which has not (BoxPrecision::Compact quantises a box against its parent's).
 uint64_t writerMemoryBound(const WriteOptions& options = {});
 
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
@@ -238,6 +245,7 @@ struct FchLayout {
   uint32_t originalIdBytes = 0;  // 4, or 8 when an input face id exceeds 32 bits
   int zstdLevel = 0;             // the level the frames were compressed at
   std::vector<FchFrame> frames;  // in file order
+  NodeBox rootBox{};             // compact boxes: the root's centre and half extents, from the header
 };
 // Header and frame index only (validated; frame contents are not read).
 FchLayout readClusterFileLayout(const std::filesystem::path& path);

@@ -91,6 +91,7 @@ class BuildOptions(TypedDict, total=False):
     recast: str
     threads: int
     spatial_top: int
+    boxes: str  # "exact" | "compact"
     weld: bool
 
 def build(

@@ -104,6 +104,8 @@ face_order[first:first + count] of its face range; its children partition that r
             d["k"] = f.k;
             d["flat_threshold"] = f.flatThreshold;
             d["memory_cap_bytes"] = f.memoryCapBytes;
+            d["boxes"] = cli::boxesName(f.boxes);
+            d["spatial_top"] = f.spatialClusters;
             d["bounds_min"] = py::make_tuple(f.boundsMin.x, f.boundsMin.y, f.boundsMin.z);
             d["bounds_max"] = py::make_tuple(f.boundsMax.x, f.boundsMax.y, f.boundsMax.z);
             return d;

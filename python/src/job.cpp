@@ -150,6 +150,10 @@ std::string optionsDoc() {
          "    0 for eq. 84 to the root [" +
          std::to_string(d.spatialTop) +
          "].\n"
+         "  boxes: \"exact\" (extents exact in the stored frame) or \"compact\" (each box quantised\n"
+         "    against its parent's, always containing its faces) [\"" +
+         d.boxes +
+         "\"].\n"
          "  weld: make faces meeting at bit-identical positions neighbours [False].";
 }
 
@@ -176,6 +180,7 @@ Settings settingsFrom(const py::kwargs& options, const char* function) {
                                                   {"branching", &named.branching},
                                                   {"threads", &named.threads},
                                                   {"spatial_top", &named.spatialTop},
+                                                  {"boxes", &named.boxes},
                                                   {"weld", &weld}};
   for (const auto& [key, value] : options) {
     const std::string name = py::cast<std::string>(key);

@@ -42,6 +42,9 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(metric.exitCode, 2);
   EXPECT_EQ(metric.out,
             "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree --help)\n");
+  auto boxes = runCli("build --boxes tight x.ply");
+  EXPECT_EQ(boxes.exitCode, 2);
+  EXPECT_EQ(boxes.out, "facetree: unknown box precision 'tight' (exact, compact) (see facetree --help)\n");
   auto count = runCli("gen grid -n 12x -o x.ply");
   EXPECT_EQ(count.exitCode, 2);
 }

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the fuzz_fch seed corpus: small cluster files made with the facetree CLI, and copies
+"""Writes the fuzz_fch seed corpus: small cluster files made with the facetree CLI (both box
+precisions; the v1_ seeds beside them were written by the version 1 writer), and copies
 of them whose zstd frames hold one stored (raw) block each, so that fuzz_fch's mutations of
 the payload bytes stay decompressible (it recomputes the checksums before reading).
 
@@ -103,7 +104,11 @@ def main():
         run('build', t('terrain.ply'), '-o', t('terrain_b8.fch'), '--branching', '8', '--recast', 'fewest-nodes',
             '--metric', 'garland')
         run('truncate', t('sphere.fch'), '-o', t('sphere_trunc.fch'), '--nodes', '20')
-        for name in ['sphere', 'grid_b4', 'terrain_b8', 'sphere_trunc']:
+        run('build', t('sphere.ply'), '-o', t('sphere_compact.fch'), '--boxes', 'compact')
+        run('build', t('grid.ply'), '-o', t('grid_b4_compact.fch'), '--branching', '4', '--boxes', 'compact')
+        run('truncate', t('sphere_compact.fch'), '-o', t('sphere_compact_trunc.fch'), '--nodes', '20')
+        for name in ['sphere', 'grid_b4', 'terrain_b8', 'sphere_trunc', 'sphere_compact', 'grid_b4_compact',
+                     'sphere_compact_trunc']:
             data = open(t(name + '.fch'), 'rb').read()
             open(os.path.join(out, name + '.fch'), 'wb').write(data)
             stored = with_stored_frames(data)

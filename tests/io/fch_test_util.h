@@ -124,16 +124,28 @@ inline void spit(const std::filesystem::path& path, const std::string& bytes) {
 }
 
 // Field-by-field node equality (NodeBox has no operator==).
-inline bool sameNode(const FchNode& a, const FchNode& b) {
+// `read` as a version 2 file with exact boxes gives back `written` (docs/FORMAT.md): structure,
+// costs, areas, perimeters, centres and orientations exactly; S within 2^-12 of the area a
+// component, side areas within 2^-11 of it; half extents at least the written ones and at most
+// 2^-17 of the largest written one above them.
+inline bool sameNode(const FchNode& read, const FchNode& written) {
+  const FchNode &a = read, &b = written;
   if (a.first != b.first || a.count != b.count || a.childCount != b.childCount || a.flags != b.flags)
     return false;
   if (!std::equal(a.child, a.child + a.childCount, b.child)) return false;
-  if (a.cost != b.cost || a.area != b.area || a.perimeter != b.perimeter || a.sumNormal != b.sumNormal)
-    return false;
-  if (a.box.center != b.box.center || a.box.orientation != b.box.orientation ||
-      a.box.halfExtent != b.box.halfExtent)
-    return false;
-  return std::equal(a.box.sideArea, a.box.sideArea + 6, b.box.sideArea);
+  if (!std::equal(a.childFaces, a.childFaces + a.childCount, b.childFaces)) return false;
+  if (a.cost != b.cost || a.area != b.area || a.perimeter != b.perimeter) return false;
+  if (a.box.center != b.box.center || a.box.orientation != b.box.orientation) return false;
+  const double area = b.area,
+               largest = std::max({b.box.halfExtent.x, b.box.halfExtent.y, b.box.halfExtent.z});
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(double(a.sumNormal[k]) - b.sumNormal[k]) > 0x1p-12 * area * 1.001) return false;
+    const double over = double(a.box.halfExtent[k]) - b.box.halfExtent[k];
+    if (over < 0 || over > 0x1p-17 * largest) return false;
+  }
+  for (int k = 0; k < 6; ++k)
+    if (std::abs(double(a.box.sideArea[k]) - b.box.sideArea[k]) > 0x1p-11 * area * 1.001) return false;
+  return true;
 }
 
 // Removes the listed files when the test ends.

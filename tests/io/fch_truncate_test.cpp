@@ -48,7 +48,7 @@ TEST_P(Truncate, EveryPrefixIsAValidHierarchyReachingEveryFaceOnce) {
     truncateInMemory(memory, k);
     ASSERT_EQ(memory.nodes.size(), back.nodes.size());
     for (size_t j = 0; j < back.nodes.size(); ++j)
-      ASSERT_TRUE(sameNode(memory.nodes[j], back.nodes[j])) << "node " << j;
+      ASSERT_TRUE(sameNode(back.nodes[j], memory.nodes[j])) << "node " << j;
     writeClusterFile(reference, memory, write);
     EXPECT_EQ(slurp(reference), slurp(cut));
     // Every face has exactly one owner, the deepest kept node; owners are leaves of the cut tree

@@ -13,9 +13,9 @@
 #include <random>
 
 #include "../cli/run_cli.h"
-#include "fch_test_util.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
+#include "fch_test_util.h"
 
 namespace facetree {
 namespace {
@@ -73,6 +73,8 @@ class SyntheticFile {
       node.child[0] = half == 1 ? kFaceChild | r.first : static_cast<uint32_t>(self + 1);
       node.child[1] =
           rest == 1 ? kFaceChild | (r.first + half) : static_cast<uint32_t>(self + 1 + (half - 1));
+      node.childFaces[0] = half;
+      node.childFaces[1] = rest;
       node.flags = self % 3 == 0 ? kFchFlatFrame : 0;
       node.cost = float(self) * 0.25f;
       node.area = float(r.count);
@@ -81,7 +83,8 @@ class SyntheticFile {
       node.box.center = {float(r.first), 0.5f, 0.0f};
       node.box.orientation = glm::quat(1, 0, 0, 0);
       node.box.halfExtent = {float(r.count) * 0.5f, 0.5f, 0.1f};
-      for (int k = 0; k < 6; ++k) node.box.sideArea[k] = float(k) * node.area;
+      const float sides[6] = {0.25f, 0.25f, 0.0f, 0.0f, 1.0f, 0.0f};  // S . axis = side+ - side-
+      for (int k = 0; k < 6; ++k) node.box.sideArea[k] = sides[k] * node.area;
       nodeBatch_.push_back(node);
       if (rest >= 2) stack_.push_back({r.first + half, rest});
       if (half >= 2) stack_.push_back({r.first, half});

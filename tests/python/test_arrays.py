@@ -128,6 +128,7 @@ def test_bad_arrays_raise_one_clear_input_error():
     bad(vertices.astype(np.complex64), faces, "vertices: expected a float array, got dtype complex64")
     bad(vertices, faces, "unknown metric 'bogus' (willmott, garland, constant)", metric="bogus")
     bad(vertices, faces, "branching must be 2, 4 or 8", branching=3)
+    bad(vertices, faces, "unknown box precision 'tight' (exact, compact)", boxes="tight")
     bad(vertices, faces, "face_ids: expected shape (32,), one id per row of faces", face_ids=np.arange(3))
     bad(vertices, faces, "face_ids: ids must be distinct", face_ids=np.zeros(32, np.int64))
     with pytest.raises(facetree.InputError, match="expected a NumPy array"):

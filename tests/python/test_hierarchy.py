@@ -92,15 +92,27 @@ def read_coloured_ply(path):
     return np.frombuffer(data, record, faces, end + 12 * vertices)["rgb"]
 
 
+def assert_stored_as(loaded, memory):
+    """`loaded` read from a file of `memory` with exact boxes: S within 2^-12 of the area a component,
+    side areas within 2^-11 of it, half extents at most 2^-17 of the largest above (docs/FORMAT.md)."""
+    area = memory.area.astype(np.float64)
+    assert np.all(np.abs(loaded.sum_normal - memory.sum_normal) <= 2.0**-12 * 1.001 * area[:, None])
+    assert np.all(np.abs(loaded.box_side_areas - memory.box_side_areas) <= 2.0**-11 * 1.001 * area[:, None])
+    over = loaded.box_half_extents.astype(np.float64) - memory.box_half_extents
+    largest = memory.box_half_extents.max(axis=1).astype(np.float64)
+    assert np.all(over >= 0) and np.all(over <= 2.0**-17 * largest[:, None])
+
+
 def test_truncate_is_the_cli_truncate_and_load_reads_it(hierarchy, cli, tmp_path):
     hierarchy.save(tmp_path / "h.fch")
     run_cli(cli, "truncate", tmp_path / "h.fch", "--nodes", 500, "-o", tmp_path / "t.fch")
     loaded = facetree.load(tmp_path / "t.fch")
     truncated = hierarchy.truncate(500)
     assert len(loaded) == len(truncated) == 500 and loaded.truncated and truncated.truncated
-    for field in ("face_ranges", "children", "parent", "cost", "flags", "box_center", "box_half_extents",
-                  "box_side_areas", "face_order", "vertices", "triangles"):
+    for field in ("face_ranges", "children", "parent", "cost", "flags", "box_center", "box_axes", "face_order",
+                  "vertices", "triangles"):
         assert np.array_equal(getattr(loaded, field), getattr(truncated, field)), field
+    assert_stored_as(loaded, truncated)
     truncated.verify()
     assert np.array_equal(loaded.cut(100), truncated.cut(100))
 
@@ -110,8 +122,9 @@ def test_load_round_trip(hierarchy, tmp_path):
     loaded = facetree.load(tmp_path / "h.fch")
     assert loaded.report is None and loaded.height == hierarchy.height and loaded.branching == 4
     assert loaded.header["metric"] == "willmott" and loaded.header["triangle_count"] == hierarchy.face_count
-    for field in ("face_ranges", "children", "cost", "effective_cost", "box_axes", "area", "sum_normal"):
+    for field in ("face_ranges", "children", "cost", "effective_cost", "box_axes", "box_center", "area"):
         assert np.array_equal(getattr(loaded, field), getattr(hierarchy, field)), field
+    assert_stored_as(loaded, hierarchy)
     fit = loaded.cut_fit(1000)
     assert fit["clusters"] >= 1000 and fit["sum_area_fit"] > 0
     assert 0 < fit["sum_box_area"] and 0 < fit["morton_box_area"]

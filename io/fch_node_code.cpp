@@ -1,0 +1,491 @@
+// Version 2 node records (docs/FORMAT.md "Node frames, version 2"). What each field costs and why:
+// - Face ranges: a node's range follows from its parent's, so a record stores, per child, whether
+//   it is a single face and, for node children, the child's index (relative to its own) and its
+//   face count, except for the child whose count follows from the others' (the one with most
+//   faces: the stored counts are then the small ones). Truncation keeps records unchanged: a
+//   cut-off child's count is still in its parent.
+// - Costs, areas and perimeters are float, as the merge made them.
+// - S and the side areas are fractions of the area in 12 bits: within 2.5e-4 of the area, inside
+//   verify's 1e-3. Only the sums side+ + side- are stored; side+ - side- = S . axis.
+// - Orientations are codes of the stored lattice (facetree/merge.h OrientationCode), on which the
+//   merge measured the boxes: stored without loss.
+// - Exact boxes: the float centre, and half extents rounded up to 18 bits of the largest one's
+//   power of two (at most 2^-17 of it looser: inside verify's 1e-5 of the box size).
+// - Compact boxes: each face on a grid of 255 steps across the parent box's extent along the
+//   child's axis, rounded outwards (compressed BVH nodes' quantisation against the parent box,
+//   Ylitie et al. 2017, for oriented boxes): a box still contains its faces.
+#include "fch_node_code.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+#include "byte_planes.h"
+#include "fch_format.h"
+
+namespace facetree::fch {
+namespace {
+
+constexpr double kSignedFraction = double((1 << (kFractionBits - 1)) - 1);
+constexpr double kUnsignedFraction = double((1 << kFractionBits) - 1);
+constexpr uint32_t kMaxHalfUnits = (uint32_t{1} << kHalfExtentBits) + 1;
+
+// The smallest float >= v (v finite, within float range).
+float roundUp(double v) {
+  float f = static_cast<float>(v);
+  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// The least s with 2^s >= x > 0.
+int ceilLog2(double x) {
+  int e = 0;
+  const double m = std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1)
+  return m == 0.5 ? e - 1 : e;
+}
+
+void axesOf(const glm::quat& q, glm::dvec3 (&axis)[3]) {
+  const glm::mat3 m = glm::mat3_cast(q);
+  for (int k = 0; k < 3; ++k) axis[k] = glm::dvec3(m[k]);
+}
+
+unsigned childNodes(uint8_t shape, uint8_t faceMask) {
+  const unsigned children = (shape & 7u) + 2;
+  return children - static_cast<unsigned>(std::popcount(static_cast<unsigned>(faceMask)));
+}
+
+uint32_t orientationBitsOf(BoxPrecision precision) {
+  return orientationBits(precision);
+}
+
+}  // namespace
+
+uint32_t nodeFixedBytes(BoxPrecision precision) {
+  // shape, faceMask, derived; cost, area, perimeter; S; side sums; orientation; box.
+  return 3 + 12 + 6 + 6 + (precision == BoxPrecision::Compact ? 3 + 6 : 6 + 1 + 12 + 9);
+}
+
+void compactStep(const NodeBox& parent, const glm::quat& orientation, double step[3]) {
+  glm::dvec3 axis[3], parentAxis[3];
+  axesOf(orientation, axis);
+  axesOf(parent.orientation, parentAxis);
+  const glm::dvec3 ph(parent.halfExtent), pc(parent.center);
+  // Widened by a little of the parent's size, and by 16 float steps of its coordinates: box
+  // centres are floats, so a child's box may leave its parent's by their rounding.
+  const double margin = kCompactMargin * (ph.x + ph.y + ph.z) +
+                        kCompactCoordinateMargin * (std::abs(pc.x) + std::abs(pc.y) + std::abs(pc.z));
+  for (int a = 0; a < 3; ++a) {
+    double reach = margin;  // the parent box's half width along axis a, widened
+    for (int j = 0; j < 3; ++j) reach += std::abs(glm::dot(axis[a], parentAxis[j])) * ph[j];
+    step[a] = 2 * reach / 255;
+  }
+}
+
+void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8_t lo[3], const uint8_t hi[3],
+                NodeBox& box) {
+  glm::dvec3 axis[3];
+  axesOf(orientation, axis);
+  double step[3];
+  compactStep(parent, orientation, step);
+  const glm::dvec3 pc(parent.center);
+  double l[3], h[3];
+  glm::dvec3 mid;
+  for (int a = 0; a < 3; ++a) {
+    const double base = glm::dot(pc, axis[a]) - 127.5 * step[a];
+    l[a] = base + lo[a] * step[a];
+    h[a] = base + hi[a] * step[a];
+    mid[a] = 0.5 * (l[a] + h[a]);
+  }
+  // The float axes are orthonormal only to ~1e-7: solve dot(center, axis_k) = mid_k.
+  const glm::dmat3 m(axis[0], axis[1], axis[2]);
+  box.center = glm::vec3(glm::inverse(glm::transpose(m)) * mid);
+  box.orientation = orientation;
+  const glm::dvec3 c(box.center);
+  for (int a = 0; a < 3; ++a) {
+    const double ca = glm::dot(c, axis[a]);
+    const double half = std::max({h[a] - ca, ca - l[a], 0.0});
+    box.halfExtent[a] = roundUp(half + 0x1p-40 * (std::abs(ca) + half));
+  }
+}
+
+NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
+                      NodeBox* decoded) {
+  const auto fail = [&](const std::string& why) {
+    throw std::invalid_argument("node " + std::to_string(index) + ": " + why);
+  };
+  NodeCode code;
+  if (node.childCount < 2 || node.childCount > kMaxBranching)
+    fail(std::to_string(node.childCount) + " children");
+  const unsigned bits = orientationBitsOf(precision);
+  const NodeBox& box = node.box;
+  const OrientationCode orientation = encodeOrientation(box.orientation, bits);
+  const glm::quat lattice = decodeOrientation(orientation, bits);
+  if (!(lattice == box.orientation))
+    fail("box orientation off the stored lattice (build with the file's BuildOptions::boxes)");
+  code.shape = static_cast<uint8_t>((node.childCount - 2) | (node.flags & kStoredFlagMask) << 3 |
+                                    orientation.largest << 5);
+
+  // Children: the node child with most faces (the first of equals) is the derived one.
+  int derived = -1;
+  uint64_t faces = 0;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    if (node.child[c] & kFaceChild) {
+      code.faceMask |= static_cast<uint8_t>(1u << c);
+      faces += 1;
+      continue;
+    }
+    if (node.child[c] <= index) fail("child " + std::to_string(node.child[c]) + " not after it");
+    if (node.childFaces[c] < 2) fail("node child " + std::to_string(c) + " of fewer than 2 faces");
+    faces += node.childFaces[c];
+    if (derived < 0 || node.childFaces[c] > node.childFaces[derived]) derived = static_cast<int>(c);
+  }
+  if (faces != node.count)
+    fail("its children's face counts add up to " + std::to_string(faces) + ", not its " +
+         std::to_string(node.count) + " faces");
+  code.derived = static_cast<uint8_t>(std::max(derived, 0));
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    if (node.child[c] & kFaceChild) continue;
+    code.ref[code.refCount++] = static_cast<uint32_t>(node.child[c] - index);
+    if (static_cast<int>(c) != derived) code.faces[code.faceCountCount++] = node.childFaces[c];
+  }
+
+  code.cost = node.cost;
+  code.area = node.area;
+  code.perimeter = node.perimeter;
+  const double area = node.area;
+  const bool hasArea = area > 0 && std::isfinite(area);
+  for (int a = 0; a < 3; ++a) {
+    const double s = hasArea ? std::nearbyint(node.sumNormal[a] / area * kSignedFraction) : 0.0;
+    code.sumNormal[a] = static_cast<uint16_t>(
+        zigzag32(static_cast<int32_t>(std::clamp(s, -kSignedFraction, kSignedFraction))));
+    const double sum = double(box.sideArea[2 * a]) + box.sideArea[2 * a + 1];
+    const double f = hasArea ? std::nearbyint(sum / area * kUnsignedFraction) : 0.0;
+    code.sideSum[a] = static_cast<uint16_t>(std::clamp(f, 0.0, kUnsignedFraction));
+  }
+  for (int k = 0; k < 3; ++k) code.orientation[k] = static_cast<uint16_t>(zigzag32(orientation.component[k]));
+
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(box.center[a]) || !std::isfinite(box.halfExtent[a]) || box.halfExtent[a] < 0)
+      fail("box not finite");
+  if (precision == BoxPrecision::Exact || !parent) {
+    const double largest = std::max({box.halfExtent.x, box.halfExtent.y, box.halfExtent.z});
+    const int scale = largest > 0 ? std::max(ceilLog2(largest), kMinScale) : kMinScale;
+    if (scale > kMaxScale) fail("box too large");
+    const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
+    code.scale = static_cast<uint8_t>(scale + kScaleBias);
+    for (int a = 0; a < 3; ++a) {
+      code.center[a] = box.center[a];
+      code.half[a] = static_cast<uint32_t>(std::ceil(double(box.halfExtent[a]) / unit));
+    }
+    if (decoded) *decoded = box;
+    if (precision == BoxPrecision::Compact)
+      code.scale = 0, code.center[0] = code.center[1] = code.center[2] = 0,
+      code.half[0] = code.half[1] = code.half[2] = 0;
+    return code;
+  }
+
+  // Compact: the exact box's interval along each axis, rounded outwards on the parent's grid.
+  glm::dvec3 axis[3];
+  axesOf(box.orientation, axis);
+  double step[3];
+  compactStep(*parent, box.orientation, step);
+  const glm::dvec3 c(box.center), pc(parent->center);
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double ca = glm::dot(c, axis[a]);
+    const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
+    lo[a] = ca - box.halfExtent[a] - slack;
+    hi[a] = ca + box.halfExtent[a] + slack;
+    const double base = glm::dot(pc, axis[a]) - 127.5 * step[a];
+    const double qlo = std::floor((lo[a] - base) / step[a]), qhi = std::ceil((hi[a] - base) / step[a]);
+    if (!(qlo >= 0 && qhi <= 255 && step[a] > 0))
+      throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
+    code.lo[a] = static_cast<uint8_t>(qlo);
+    code.hi[a] = static_cast<uint8_t>(qhi);
+  }
+  // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
+  NodeBox out;
+  for (int attempt = 0;; ++attempt) {
+    compactBox(*parent, box.orientation, code.lo, code.hi, out);
+    bool holds = true;
+    const glm::dvec3 oc(out.center);
+    for (int a = 0; a < 3; ++a) {
+      const double ca = glm::dot(oc, axis[a]);
+      if (ca - out.halfExtent[a] > lo[a]) {
+        holds = false;
+        if (code.lo[a] == 0 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        --code.lo[a];
+      }
+      if (ca + out.halfExtent[a] < hi[a]) {
+        holds = false;
+        if (code.hi[a] == 255 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        ++code.hi[a];
+      }
+    }
+    if (holds) break;
+  }
+  out.orientation = box.orientation;
+  if (decoded) *decoded = out;
+  return code;
+}
+
+std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision) {
+  const size_t n = codes.size();
+  size_t refs = 0, counts = 0;
+  for (const NodeCode& c : codes) refs += c.refCount, counts += c.faceCountCount;
+  std::string out;
+  out.reserve(nodeFixedBytes(precision) * n + 4 * (refs + counts));
+  putColumn(
+      out, n, [&](size_t i) { return codes[i].shape; }, 1);
+  putColumn(
+      out, n, [&](size_t i) { return codes[i].faceMask; }, 1);
+  putColumn(
+      out, n, [&](size_t i) { return codes[i].derived; }, 1);
+  putColumn(out, n, [&](size_t i) { return bits(codes[i].cost); });
+  putColumn(out, n, [&](size_t i) { return bits(codes[i].area); });
+  putColumn(out, n, [&](size_t i) { return bits(codes[i].perimeter); });
+  for (int a = 0; a < 3; ++a)
+    putColumn(
+        out, n, [&](size_t i) { return codes[i].sumNormal[a]; }, 2);
+  for (int a = 0; a < 3; ++a)
+    putColumn(
+        out, n, [&](size_t i) { return codes[i].sideSum[a]; }, 2);
+  const unsigned orientationWidth = precision == BoxPrecision::Compact ? 1 : 2;
+  for (int k = 0; k < 3; ++k)
+    putColumn(
+        out, n, [&](size_t i) { return codes[i].orientation[k]; }, orientationWidth);
+  if (precision == BoxPrecision::Compact) {
+    for (int a = 0; a < 3; ++a)
+      putColumn(
+          out, n, [&](size_t i) { return codes[i].lo[a]; }, 1);
+    for (int a = 0; a < 3; ++a)
+      putColumn(
+          out, n, [&](size_t i) { return codes[i].hi[a]; }, 1);
+  } else {
+    putColumn(
+        out, n, [&](size_t i) { return codes[i].scale; }, 1);
+    for (int a = 0; a < 3; ++a) putColumn(out, n, [&](size_t i) { return bits(codes[i].center[a]); });
+    for (int a = 0; a < 3; ++a)
+      putColumn(
+          out, n, [&](size_t i) { return codes[i].half[a]; }, 3);
+  }
+  std::vector<uint32_t> column;
+  column.reserve(std::max(refs, counts));
+  for (const NodeCode& c : codes) column.insert(column.end(), c.ref, c.ref + c.refCount);
+  putColumn(out, column.size(), [&](size_t i) { return column[i]; });
+  column.clear();
+  for (const NodeCode& c : codes) column.insert(column.end(), c.faces, c.faces + c.faceCountCount);
+  putColumn(out, column.size(), [&](size_t i) { return column[i]; });
+  return out;
+}
+
+std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,
+                            std::vector<NodeCode>& out) {
+  const uint32_t fixed = nodeFixedBytes(precision);
+  if (raw.size() < uint64_t{fixed} * n) return "payload smaller than its nodes' fixed fields";
+  const auto* p = reinterpret_cast<const uint8_t*>(raw.data());
+  const uint8_t *shape = p, *faceMask = p + n, *derived = p + 2 * n;
+  uint64_t refs = 0, counts = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned children = (shape[i] & 7u) + 2;
+    if (children > branching || (shape[i] & 0x80))
+      return "node " + std::to_string(i) + " of the frame: bad shape byte " + std::to_string(shape[i]);
+    if (faceMask[i] >> children)
+      return "node " + std::to_string(i) + " of the frame: face mask beyond its children";
+    const unsigned nodes = childNodes(shape[i], faceMask[i]);
+    if (derived[i] >= children || (nodes > 0 && (faceMask[i] >> derived[i] & 1)))
+      return "node " + std::to_string(i) + " of the frame: bad derived child " + std::to_string(derived[i]);
+    refs += nodes;
+    counts += nodes ? nodes - 1 : 0;
+  }
+  if (raw.size() != uint64_t{fixed} * n + 4 * (refs + counts))
+    return "payload size disagrees with the child counts";
+  const size_t base = out.size();
+  out.resize(base + n);
+  NodeCode* codes = out.data() + base;
+  Columns col(raw);
+  col.next(n, 1);
+  for (size_t i = 0; i < n; ++i) codes[i].shape = static_cast<uint8_t>(col.at(i));
+  col.next(n, 1);
+  for (size_t i = 0; i < n; ++i) codes[i].faceMask = static_cast<uint8_t>(col.at(i));
+  col.next(n, 1);
+  for (size_t i = 0; i < n; ++i) codes[i].derived = static_cast<uint8_t>(col.at(i));
+  col.next(n);
+  for (size_t i = 0; i < n; ++i) codes[i].cost = col.f(i);
+  col.next(n);
+  for (size_t i = 0; i < n; ++i) codes[i].area = col.f(i);
+  col.next(n);
+  for (size_t i = 0; i < n; ++i) codes[i].perimeter = col.f(i);
+  for (int a = 0; a < 3; ++a) {
+    col.next(n, 2);
+    for (size_t i = 0; i < n; ++i) codes[i].sumNormal[a] = static_cast<uint16_t>(col.at(i));
+  }
+  for (int a = 0; a < 3; ++a) {
+    col.next(n, 2);
+    for (size_t i = 0; i < n; ++i) codes[i].sideSum[a] = static_cast<uint16_t>(col.at(i));
+  }
+  const unsigned orientationWidth = precision == BoxPrecision::Compact ? 1 : 2;
+  for (int k = 0; k < 3; ++k) {
+    col.next(n, orientationWidth);
+    for (size_t i = 0; i < n; ++i) codes[i].orientation[k] = static_cast<uint16_t>(col.at(i));
+  }
+  if (precision == BoxPrecision::Compact) {
+    for (int a = 0; a < 3; ++a) {
+      col.next(n, 1);
+      for (size_t i = 0; i < n; ++i) codes[i].lo[a] = static_cast<uint8_t>(col.at(i));
+    }
+    for (int a = 0; a < 3; ++a) {
+      col.next(n, 1);
+      for (size_t i = 0; i < n; ++i) codes[i].hi[a] = static_cast<uint8_t>(col.at(i));
+    }
+  } else {
+    col.next(n, 1);
+    for (size_t i = 0; i < n; ++i) codes[i].scale = static_cast<uint8_t>(col.at(i));
+    for (int a = 0; a < 3; ++a) {
+      col.next(n);
+      for (size_t i = 0; i < n; ++i) codes[i].center[a] = col.f(i);
+    }
+    for (int a = 0; a < 3; ++a) {
+      col.next(n, 3);
+      for (size_t i = 0; i < n; ++i) codes[i].half[a] = static_cast<uint32_t>(col.at(i));
+    }
+  }
+  col.next(refs);
+  size_t r = 0;
+  for (size_t i = 0; i < n; ++i) {
+    codes[i].refCount = static_cast<uint8_t>(childNodes(codes[i].shape, codes[i].faceMask));
+    for (unsigned k = 0; k < codes[i].refCount; ++k) codes[i].ref[k] = static_cast<uint32_t>(col.at(r++));
+  }
+  col.next(counts);
+  r = 0;
+  for (size_t i = 0; i < n; ++i) {
+    codes[i].faceCountCount = static_cast<uint8_t>(codes[i].refCount ? codes[i].refCount - 1 : 0);
+    for (unsigned k = 0; k < codes[i].faceCountCount; ++k)
+      codes[i].faces[k] = static_cast<uint32_t>(col.at(r++));
+  }
+  return {};
+}
+
+NodeDecoder::NodeDecoder(const FileHeader& header, BoxPrecision precision, const NodeBox& rootBox)
+    : header_(header), precision_(precision), rootBox_(rootBox) {}
+
+std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
+  const uint64_t index = out.size();
+  Range range{0, 0, static_cast<uint32_t>(header_.triangleCount)};
+  if (index > 0) {
+    const auto it = pending_.find(static_cast<uint32_t>(index));
+    if (it == pending_.end()) return "no earlier node refers to it";
+    range = it->second;
+    pending_.erase(it);
+  }
+  FchNode node;
+  node.first = range.first;
+  node.count = range.count;
+  node.childCount = static_cast<uint8_t>((code.shape & 7u) + 2);
+  node.flags = static_cast<uint8_t>((code.shape >> 3) & kStoredFlagMask);
+
+  // Face counts: the stored ones, and the derived child's from the node's own.
+  uint64_t known = 0;
+  unsigned stored = 0;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    if (code.faceMask >> c & 1) {
+      known += 1;
+    } else if (c != code.derived) {
+      const uint32_t faces = code.faces[stored++];
+      if (faces < 2) return "child " + std::to_string(c) + " of " + std::to_string(faces) + " faces";
+      known += faces;
+    }
+  }
+  const bool anyNode = code.refCount > 0;
+  if (anyNode ? known + 2 > node.count : known != node.count)
+    return "children's face counts (" + std::to_string(known) + " besides the derived one) do not fit its " +
+           std::to_string(node.count) + " faces";
+  uint32_t cursor = node.first;
+  unsigned ref = 0;
+  stored = 0;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    if (code.faceMask >> c & 1) {
+      node.child[c] = kFaceChild | cursor;
+      node.childFaces[c] = 1;
+      cursor += 1;
+      continue;
+    }
+    const uint64_t target = index + code.ref[ref++];
+    if (target == index || target >= kFaceChild) return "bad child reference";
+    const uint32_t faces =
+        c == code.derived ? static_cast<uint32_t>(node.count - known) : code.faces[stored++];
+    node.child[c] = static_cast<uint32_t>(target);
+    node.childFaces[c] = faces;
+    if (target < header_.nodeCount) {
+      if (!pending_.emplace(static_cast<uint32_t>(target), Range{static_cast<uint32_t>(index), cursor, faces})
+               .second)
+        return "child " + std::to_string(target) + " of two nodes";
+    } else {
+      node.flags |= kFchTruncated;
+    }
+    cursor += faces;
+  }
+
+  node.cost = code.cost;
+  node.area = code.area;
+  node.perimeter = code.perimeter;
+  OrientationCode orientation;
+  orientation.largest = static_cast<uint8_t>((code.shape >> 5) & 3);
+  for (int k = 0; k < 3; ++k) orientation.component[k] = unzigzag32(code.orientation[k]);
+  const unsigned bits = orientationBitsOf(precision_);
+  const int32_t limit = (int32_t{1} << (bits - 1)) - 1;
+  for (int32_t c : orientation.component)
+    if (c < -limit || c > limit) return "orientation component " + std::to_string(c) + " out of range";
+  NodeBox& box = node.box;
+  box.orientation = decodeOrientation(orientation, bits);
+  glm::dvec3 axis[3];
+  axesOf(box.orientation, axis);
+  const double area = node.area;
+  glm::dvec3 s;
+  for (int a = 0; a < 3; ++a) {
+    const int32_t q = unzigzag32(code.sumNormal[a]);
+    if (q < -int32_t(kSignedFraction) || q > int32_t(kSignedFraction) || code.sideSum[a] > kUnsignedFraction)
+      return "S or side area fraction out of range";
+    s[a] = q / kSignedFraction * area;
+    node.sumNormal[a] = static_cast<float>(s[a]);
+  }
+  for (int a = 0; a < 3; ++a) {
+    const double sum = code.sideSum[a] / kUnsignedFraction * area, along = glm::dot(s, axis[a]);
+    box.sideArea[2 * a] = static_cast<float>(std::max(0.0, 0.5 * (sum + along)));
+    box.sideArea[2 * a + 1] = static_cast<float>(std::max(0.0, 0.5 * (sum - along)));
+  }
+  if (precision_ == BoxPrecision::Compact) {
+    for (int a = 0; a < 3; ++a)
+      if (code.lo[a] > code.hi[a]) return "compact box face below its opposite";
+    if (index == 0) {
+      box.center = rootBox_.center;
+      box.halfExtent = rootBox_.halfExtent;
+    } else {
+      compactBox(out[range.parent].box, box.orientation, code.lo, code.hi, box);
+    }
+  } else {
+    const int scale = int(code.scale) - kScaleBias;
+    if (scale < kMinScale || scale > kMaxScale)
+      return "box scale " + std::to_string(code.scale) + " out of range";
+    const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
+    for (int a = 0; a < 3; ++a) {
+      if (code.half[a] > kMaxHalfUnits || !std::isfinite(code.center[a])) return "box out of range";
+      box.center[a] = code.center[a];
+      box.halfExtent[a] = static_cast<float>(code.half[a] * unit);
+      if (!std::isfinite(box.halfExtent[a])) return "box out of range";
+    }
+  }
+  out.push_back(node);
+  return {};
+}
+
+}  // namespace facetree::fch

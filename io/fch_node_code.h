@@ -1,0 +1,92 @@
+// Internal to io/: version 2 node records (docs/FORMAT.md "Node frames, version 2"). A node is
+// quantised into a NodeCode (quantizeNode), NodeCodes are laid out as columns of byte planes
+// (encodeNodeFrame / decodeNodeFrame), and a NodeDecoder turns them back into FchNodes in file
+// order, deriving face ranges from the parents. Truncation re-encodes NodeCodes as they were read,
+// so kept records never change.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "facetree/io.h"
+
+namespace facetree::fch {
+
+// S and the side-area sums are stored as fractions of the node's area in this many bits.
+inline constexpr unsigned kFractionBits = 12;
+// Exact boxes: half extents are whole multiples of 2^(scale - kHalfExtentBits), scale the
+// exponent of the largest half extent (2^scale >= it), rounded up: at most 2^-17 of it looser.
+inline constexpr int kHalfExtentBits = 18;
+// The scale's stored byte is scale + kScaleBias; scales run from kMinScale to kMaxScale.
+inline constexpr int kScaleBias = 120, kMinScale = -106, kMaxScale = 128;
+// Compact boxes: each box face on a grid of 255 steps across the parent box's extent along the
+// child's axis, widened on either side by kCompactMargin of the parent's half extents' sum and
+// kCompactCoordinateMargin of its centre's coordinates (float centres round by 2^-24 of them).
+inline constexpr double kCompactMargin = 0x1p-16, kCompactCoordinateMargin = 0x1p-20;
+
+// One node as version 2 stores it.
+struct NodeCode {
+  uint8_t shape = 0;     // childCount - 2 | flags << 3 | orientation.largest << 5
+  uint8_t faceMask = 0;  // bit c: child c is a single face
+  uint8_t derived = 0;   // the child slot whose face count follows from the others'
+  float cost = 0, area = 0, perimeter = 0;
+  uint16_t sumNormal[3] = {};          // zigzag of round(S / area * (2^(kFractionBits-1) - 1))
+  uint16_t sideSum[3] = {};            // round((side+ + side-) / area * (2^kFractionBits - 1)) per axis
+  uint16_t orientation[3] = {};        // zigzag of OrientationCode::component
+  uint8_t scale = 0;                   // exact boxes
+  float center[3] = {};                // exact boxes
+  uint32_t half[3] = {};               // exact boxes: half extents in units of 2^(scale - kHalfExtentBits)
+  uint8_t lo[3] = {}, hi[3] = {};      // compact boxes (0 for the root, whose box is in the header)
+  uint32_t ref[kMaxBranching] = {};    // node children in slot order: child index - own index
+  uint32_t faces[kMaxBranching] = {};  // face counts of the node children but `derived`, in slot order
+  uint8_t refCount = 0, faceCountCount = 0;
+};
+
+// Bytes of a node's fixed columns in a frame of `precision` boxes (refs and counts: 4 each).
+uint32_t nodeFixedBytes(BoxPrecision precision);
+
+// The compact box of a child from its parent's (as decoded) and its codes: the reader's and the
+// writer's one definition. Side areas are left as they are.
+void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8_t lo[3], const uint8_t hi[3],
+                NodeBox& box);
+// The face of the compact box along each axis lies within this of the exact box's (verify's bound).
+void compactStep(const NodeBox& parent, const glm::quat& orientation, double step[3]);
+
+// Quantises `node` (file index `index`; children with their face counts in childFaces). `parent`:
+// the parent's box as decoded (compact boxes; null for the root). `decoded` gets the node's box as
+// a reader will decode it (compact boxes; the root's is its own). Throws std::invalid_argument
+// for what the format cannot hold: an orientation off the lattice, face counts that do not add
+// up, non-finite values.
+NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
+                      NodeBox* decoded);
+
+// Columns of a frame of codes, and back: decodeNodeFrame appends the frame's `n` codes to `out`
+// and returns an empty string, or why the payload is invalid (its size is checked against the
+// child counts before anything is read).
+std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision);
+std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,
+                            std::vector<NodeCode>& out);
+
+// Turns codes back into nodes in file order: face ranges follow from the parents' records
+// (the root covers every triangle), compact boxes from the parents' boxes.
+class NodeDecoder {
+ public:
+  NodeDecoder(const FileHeader& header, BoxPrecision precision, const NodeBox& rootBox);
+  // Appends node `index` (= out.size(); every earlier node already in `out`). Returns an empty
+  // string, or why the record is invalid.
+  std::string decode(const NodeCode& code, std::vector<FchNode>& out);
+
+ private:
+  struct Range {
+    uint32_t parent, first, count;
+  };
+  const FileHeader& header_;
+  BoxPrecision precision_;
+  NodeBox rootBox_;
+  std::unordered_map<uint32_t, Range> pending_;  // node children announced by their parents
+};
+
+}  // namespace facetree::fch

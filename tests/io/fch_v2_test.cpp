@@ -1,0 +1,200 @@
+// Version 2 of the cluster file: records within their stated bounds, compact boxes that always
+// hold their faces within one step of the parent's grid, the same bytes for any writer threads,
+// and version 1 files (written by the version 1 writer) read, verify and truncate.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "facetree/grid.h"
+#include "facetree/io.h"
+#include "facetree/stream.h"
+#include "fch_test_util.h"
+#include "io/fch_node_code.h"
+
+namespace facetree {
+namespace {
+
+using namespace facetree::test;
+
+const std::filesystem::path kVersion1 = std::filesystem::path(FACETREE_TEST_DATA) / "fch_v1";
+
+IndexedMesh load(const std::filesystem::path& path) {
+  auto reader = openMesh(path);
+  return loadMesh(*reader);
+}
+
+// Every node's child face counts add up to its own, and a kept node child's is that child's count.
+void expectChildFacesConsistent(const ClusterFile& file) {
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    const FchNode& node = file.nodes[j];
+    uint64_t sum = 0;
+    for (unsigned c = 0; c < node.childCount; ++c) {
+      sum += node.childFaces[c];
+      const uint32_t ref = node.child[c];
+      if (ref & kFaceChild) {
+        EXPECT_EQ(node.childFaces[c], 1u) << "node " << j;
+      } else if (!file.isCutOff(ref)) {
+        EXPECT_EQ(node.childFaces[c], file.nodes[ref].count) << "node " << j;
+      }
+    }
+    EXPECT_EQ(sum, node.count) << "node " << j;
+  }
+}
+
+struct Version1Case {
+  const char* file;
+  const char* mesh;
+  uint64_t nodes;
+  bool truncated;
+};
+
+TEST(FchVersion1, FilesOfTheVersion1WriterReadVerifyAndTruncate) {
+  Cleanup cleanup;
+  for (const Version1Case& c : {Version1Case{"terrain_b2.fch", "terrain.ply.zst", 967, false},
+                                Version1Case{"assembly_b4.fch", "assembly.ply.zst", 687, false},
+                                Version1Case{"terrain_b8_truncated.fch", "terrain.ply.zst", 40, true},
+                                Version1Case{"terrain_cells.fch", "terrain.ply.zst", 967, false}}) {
+    SCOPED_TRACE(c.file);
+    const std::filesystem::path path = kVersion1 / c.file;
+    const ClusterFile file = readClusterFile(path);
+    EXPECT_EQ(file.header.version, 1u);
+    EXPECT_EQ(file.header.boxes, BoxPrecision::Exact);
+    ASSERT_EQ(file.nodes.size(), c.nodes);
+    const VerifyResult verified = verifyClusterFile(file);
+    EXPECT_TRUE(verified.ok) << verified.message;
+    const IndexedMesh mesh = load(kVersion1 / c.mesh);
+    const VerifyResult same = verifyAgainstMesh(file, mesh.view(), mesh.originalFace);
+    EXPECT_TRUE(same.ok) << same.message;
+    expectChildFacesConsistent(file);
+    bool anyTruncated = false;
+    for (const FchNode& node : file.nodes) anyTruncated |= (node.flags & kFchTruncated) != 0;
+    EXPECT_EQ(anyTruncated, c.truncated);
+    // Truncation keeps the version and the kept records.
+    const auto cut = cleanup.add(scratch("v1_cut.fch"));
+    const TruncateResult kept = truncateClusterFile(path, cut, c.nodes / 2);
+    const ClusterFile back = readClusterFile(cut);
+    EXPECT_EQ(back.header.version, 1u);
+    ASSERT_EQ(back.nodes.size(), kept.nodes);
+    for (size_t j = 0; j < back.nodes.size(); ++j) {
+      EXPECT_EQ(back.nodes[j].cost, file.nodes[j].cost);
+      EXPECT_EQ(back.nodes[j].box.orientation, file.nodes[j].box.orientation);
+      EXPECT_EQ(back.nodes[j].sumNormal, file.nodes[j].sumNormal);
+    }
+    EXPECT_TRUE(verifyClusterFile(back).ok) << verifyClusterFile(back).message;
+    expectChildFacesConsistent(back);
+  }
+}
+
+// A bumpy, folded surface whose clusters take tilted frames.
+TestMesh foldedGrid() {
+  TestMesh mesh = gridMesh(40, 30, 0.4f);
+  for (glm::vec3& p : mesh.positions) p.z += 0.05f * std::sin(7 * p.x) * std::cos(5 * p.y) + 3.0f;
+  return mesh;
+}
+
+ClusterFile buildFile(const TestMesh& mesh, BoxPrecision boxes, unsigned branching) {
+  BuildOptions build;
+  build.boxes = boxes;
+  const Hierarchy hierarchy = buildHierarchy(mesh.view(), build);
+  FileOptions options;
+  options.branching = branching;
+  options.build = build;
+  return makeClusterFile(mesh.view(), {}, hierarchy, options);
+}
+
+TEST(FchVersion2, CompactBoxesHoldTheExactOnesWithinOneStepOfTheParentsGrid) {
+  Cleanup cleanup;
+  const TestMesh mesh = foldedGrid();
+  for (unsigned branching : {2u, 4u, 8u}) {
+    SCOPED_TRACE(branching);
+    const ClusterFile file = buildFile(mesh, BoxPrecision::Compact, branching);
+    const auto path = cleanup.add(scratch("compact.fch"));
+    writeClusterFile(path, file);
+    const ClusterFile back = readClusterFile(path);
+    EXPECT_EQ(back.header.boxes, BoxPrecision::Compact);
+    ASSERT_EQ(back.nodes.size(), file.nodes.size());
+    const VerifyResult verified = verifyClusterFile(back);
+    ASSERT_TRUE(verified.ok) << verified.message;
+    std::vector<uint32_t> parent(back.nodes.size(), 0);
+    for (uint32_t j = 0; j < back.nodes.size(); ++j)
+      for (unsigned c = 0; c < back.nodes[j].childCount; ++c)
+        if (!(back.nodes[j].child[c] & kFaceChild)) parent[back.nodes[j].child[c]] = j;
+    double looser = 0;
+    for (size_t j = 0; j < back.nodes.size(); ++j) {
+      const NodeBox &exact = file.nodes[j].box, &compact = back.nodes[j].box;
+      ASSERT_TRUE(compact.orientation == exact.orientation);
+      const glm::mat3 axes = glm::mat3_cast(exact.orientation);
+      double step[3] = {0, 0, 0};
+      if (j > 0) fch::compactStep(back.nodes[parent[j]].box, compact.orientation, step);
+      for (int a = 0; a < 3; ++a) {
+        const glm::dvec3 axis(axes[a]);
+        const double e = glm::dot(glm::dvec3(exact.center), axis),
+                     q = glm::dot(glm::dvec3(compact.center), axis);
+        const double tolerance = 1e-6 * (std::abs(e) + exact.halfExtent[a]);
+        // Holds the exact box, each face at most a step (and rounding) beyond it.
+        EXPECT_LE(q - compact.halfExtent[a], e - exact.halfExtent[a] + tolerance) << j;
+        EXPECT_GE(q + compact.halfExtent[a], e + exact.halfExtent[a] - tolerance) << j;
+        EXPECT_LE(e - exact.halfExtent[a] - (q - compact.halfExtent[a]), step[a] + tolerance) << j;
+        EXPECT_LE(q + compact.halfExtent[a] - (e + exact.halfExtent[a]), step[a] + tolerance) << j;
+        looser = std::max(looser, double(compact.halfExtent[a]) - exact.halfExtent[a]);
+      }
+    }
+    EXPECT_GT(looser, 0.0);  // quantised, not copied
+  }
+}
+
+TEST(FchVersion2, ExactBoxesStillTouchTheirFacesAndCompactFilesAreSmaller) {
+  Cleanup cleanup;
+  const TestMesh mesh = foldedGrid();
+  const auto exactPath = cleanup.add(scratch("exact.fch")), compactPath = cleanup.add(scratch("compact.fch"));
+  writeClusterFile(exactPath, buildFile(mesh, BoxPrecision::Exact, 2));
+  writeClusterFile(compactPath, buildFile(mesh, BoxPrecision::Compact, 2));
+  const ClusterFile exact = readClusterFile(exactPath);
+  EXPECT_EQ(exact.header.version, kFchVersion);
+  const VerifyResult verified = verifyClusterFile(exact);  // containment and tightness
+  EXPECT_TRUE(verified.ok) << verified.message;
+  uint64_t exactNodes = 0, compactNodes = 0;
+  for (const FchFrame& f : readClusterFileLayout(exactPath).frames)
+    if (f.section == FchSection::Nodes) exactNodes += f.compressedBytes;
+  for (const FchFrame& f : readClusterFileLayout(compactPath).frames)
+    if (f.section == FchSection::Nodes) compactNodes += f.compressedBytes;
+  EXPECT_LT(compactNodes, exactNodes * 0.8);
+}
+
+TEST(FchVersion2, AnOrientationOffTheLatticeIsRefusedNamingTheNode) {
+  Cleanup cleanup;
+  ClusterFile file = buildFile(foldedGrid(), BoxPrecision::Exact, 2);
+  file.nodes[3].box.orientation = glm::normalize(glm::quat(0.9f, 0.1f, 0.2f, 0.3f));
+  try {
+    writeClusterFile(cleanup.add(scratch("off.fch")), file);
+    FAIL() << "written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("node 3: box orientation off the stored lattice"), std::string::npos)
+        << e.what();
+  }
+  // Exact lattice orientations in a compact file: the 8-bit lattice does not hold them.
+  file = buildFile(foldedGrid(), BoxPrecision::Exact, 2);
+  file.header.boxes = BoxPrecision::Compact;
+  EXPECT_THROW(writeClusterFile(cleanup.add(scratch("mixed.fch")), file), std::invalid_argument);
+}
+
+TEST(FchVersion2, TheSameBytesForAnyWriterThreadsAndFrameBatching) {
+  Cleanup cleanup;
+  for (BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
+    const ClusterFile file = buildFile(foldedGrid(), boxes, 4);
+    std::string first;
+    for (unsigned threads : {1u, 2u, 5u}) {
+      WriteOptions options;
+      options.threads = threads;
+      options.nodesPerFrame = 64;
+      const auto path = cleanup.add(scratch("threads.fch"));
+      writeClusterFile(path, file, options);
+      const std::string bytes = slurp(path);
+      if (first.empty()) first = bytes;
+      EXPECT_EQ(bytes, first) << threads << " threads";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace facetree
