@@ -174,7 +174,11 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(box.center[a]) || !std::isfinite(box.halfExtent[a]) || box.halfExtent[a] < 0)
       fail("box not finite");
-  if (precision == BoxPrecision::Exact || !parent) {
+  if (precision == BoxPrecision::Compact && !parent) {  // the root: its box goes in the header
+    if (decoded) *decoded = box;
+    return code;
+  }
+  if (precision == BoxPrecision::Exact) {
     const double largest = std::max({box.halfExtent.x, box.halfExtent.y, box.halfExtent.z});
     const int scale = largest > 0 ? std::max(ceilLog2(largest), kMinScale) : kMinScale;
     if (scale > kMaxScale) fail("box too large");
@@ -185,9 +189,6 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
       code.half[a] = static_cast<uint32_t>(std::ceil(double(box.halfExtent[a]) / unit));
     }
     if (decoded) *decoded = box;
-    if (precision == BoxPrecision::Compact)
-      code.scale = 0, code.center[0] = code.center[1] = code.center[2] = 0,
-      code.half[0] = code.half[1] = code.half[2] = 0;
     return code;
   }
 

@@ -959,7 +959,7 @@ def bench_outofcore(args, out):
 
 
 SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore",
-            "python", "speed"]
+            "python", "speed", "format"]
 
 
 PYTHON_BUILD = r"""
@@ -1025,6 +1025,84 @@ def bench_speed(args, out):
               f"(x{row['wall_ratio']:.3f} wall, x{row['cpu_ratio']:.3f} CPU; medians of {repeat})"
               f"{'' if row['met'] else '  missed: seconds'}", flush=True)
     return {"baseline": str(args.baseline_facetree), "bound": SPEED_BOUND, "rows": rows}
+
+
+# The cluster file's node bytes against an earlier build's (--baseline-facetree, a version 1 writer):
+# per shared mesh the nodes' compressed bytes per node with exact and compact boxes and their ratios
+# to the baseline's (targets: at most FORMAT_EXACT_BOUND and FORMAT_COMPACT_BOUND; dragon_vrip at
+# most FORMAT_DRAGON_BYTES), every file verified for b = 2, 4, 8 in core and (b = 2) out of core;
+# the in-core write phase of dragon_vrip, alternating with the baseline (median; target at most
+# FORMAT_WRITE_BOUND of it); and truncation by bytes: nodes kept for the same budgets.
+FORMAT_EXACT_BOUND, FORMAT_COMPACT_BOUND = 0.65, 0.42
+FORMAT_DRAGON_BYTES = {"exact": 48.0, "compact": 30.0}
+FORMAT_WRITE_BOUND, FORMAT_TRUNCATE_BOUND = 0.5, 1.5
+
+
+def node_bytes(args, binary, fch):
+    return run_json([binary if binary else args.facetree, "info", fch, "--json"])["node_bytes_per_node"]
+
+
+def bench_format(args, meshes, out):
+    if not args.baseline_facetree:
+        print("format    skipped: no --baseline-facetree", flush=True)
+        return {"skipped": "no --baseline-facetree"}
+    base, new = args.baseline_facetree, args.facetree
+    fch = out / "format.fch"
+    rows = []
+    for mesh in meshes:
+        row = {"mesh": mesh}
+        run([base, "build", mesh_path(mesh), "-o", fch])
+        row["baseline"] = node_bytes(args, new, fch)
+        for boxes in ("exact", "compact"):
+            for b in (2, 4, 8):
+                run([new, "build", mesh_path(mesh), "-o", fch, "--boxes", boxes, "--branching", b])
+                run([new, "verify", fch])
+                if b == 2:
+                    row[boxes] = node_bytes(args, new, fch)
+            run([new, "build", mesh_path(mesh), "-o", fch, "--boxes", boxes, "--cell-faces", 20000])
+            run([new, "verify", fch])
+            row[f"{boxes}_ratio"] = row[boxes] / row["baseline"]
+        row["met"] = row["exact_ratio"] <= FORMAT_EXACT_BOUND and row["compact_ratio"] <= FORMAT_COMPACT_BOUND
+        rows.append(row)
+        print(f"format    {mesh:24s} {row['baseline']:6.1f} B/node -> exact {row['exact']:5.1f} "
+              f"(x{row['exact_ratio']:.3f}), compact {row['compact']:5.1f} (x{row['compact_ratio']:.3f})"
+              f"{'' if row['met'] else '  missed'}", flush=True)
+    dragon = next((r for r in rows if r["mesh"] == "dragon_vrip"), None)
+    # The write phase, alternating builds.
+    writes = {"baseline": [], "new": []}
+    for _ in range(1 if args.quick else 5):
+        for which, binary in (("baseline", base), ("new", new)):
+            writes[which].append(run_json([binary, "build", mesh_path("dragon_vrip"), "-o", fch, "--json"])
+                                 ["seconds"]["write"])
+    write = {k: median(v) for k, v in writes.items()}
+    write["ratio"] = write["new"] / write["baseline"]
+    write["met"] = write["ratio"] <= FORMAT_WRITE_BOUND
+    print(f"format    dragon_vrip write phase {write['new']:.3f} s against {write['baseline']:.3f} s "
+          f"(x{write['ratio']:.3f}){'' if write['met'] else '  missed'}", flush=True)
+    # Truncation by bytes: the geometry plus a share of the baseline file's nodes.
+    run([base, "build", mesh_path("dragon_vrip"), "-o", out / "format_v1.fch"])
+    run([new, "build", mesh_path("dragon_vrip"), "-o", fch])
+    info = run_json([new, "info", out / "format_v1.fch", "--json"])
+    geometry = info["bytes"] - info["sections"]["nodes"]["compressed_bytes"]
+    truncation = []
+    for share in (0.05, 0.25, 0.5):
+        budget = int(geometry + share * (info["bytes"] - geometry))
+        kept = {}
+        for which, binary, source in (("baseline", base, out / "format_v1.fch"), ("new", new, fch)):
+            kept[which] = run_json([binary, "truncate", source, "-o", out / "format_cut.fch", "--max-bytes", budget,
+                                    "--json"])["nodes"]
+        truncation.append({"max_bytes": budget, **kept, "ratio": kept["new"] / kept["baseline"],
+                           "met": kept["new"] >= FORMAT_TRUNCATE_BOUND * kept["baseline"]})
+        print(f"format    truncate --max-bytes {budget}: {kept['new']} nodes against {kept['baseline']} "
+              f"(x{kept['new'] / kept['baseline']:.2f})", flush=True)
+    for f in (fch, out / "format_v1.fch", out / "format_cut.fch"):
+        f.unlink(missing_ok=True)
+    return {"baseline": str(base), "rows": rows, "exact_bound": FORMAT_EXACT_BOUND,
+            "compact_bound": FORMAT_COMPACT_BOUND,
+            "dragon_vrip": dragon and {boxes: {"bytes_per_node": dragon[boxes],
+                                               "met": dragon[boxes] <= FORMAT_DRAGON_BYTES[boxes]}
+                                       for boxes in ("exact", "compact")},
+            "write": write, "truncation": truncation}
 
 
 def bench_python(args):
@@ -1140,6 +1218,7 @@ def main():
         "outofcore": lambda: bench_outofcore(args, out),
         "python": lambda: bench_python(args),
         "speed": lambda: bench_speed(args, out),
+        "format": lambda: bench_format(args, meshes, out),
     }
     for name, run in runners.items():
         if name in sections:
