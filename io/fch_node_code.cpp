@@ -314,51 +314,35 @@ std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision preci
   out.resize(base + n);
   NodeCode* codes = out.data() + base;
   Columns col(raw);
-  col.next(n, 1);
-  for (size_t i = 0; i < n; ++i) codes[i].shape = static_cast<uint8_t>(col.at(i));
-  col.next(n, 1);
-  for (size_t i = 0; i < n; ++i) codes[i].faceMask = static_cast<uint8_t>(col.at(i));
-  col.next(n, 1);
-  for (size_t i = 0; i < n; ++i) codes[i].derived = static_cast<uint8_t>(col.at(i));
-  col.next(n);
-  for (size_t i = 0; i < n; ++i) codes[i].cost = col.f(i);
-  col.next(n);
-  for (size_t i = 0; i < n; ++i) codes[i].area = col.f(i);
-  col.next(n);
-  for (size_t i = 0; i < n; ++i) codes[i].perimeter = col.f(i);
-  for (int a = 0; a < 3; ++a) {
-    col.next(n, 2);
-    for (size_t i = 0; i < n; ++i) codes[i].sumNormal[a] = static_cast<uint16_t>(col.at(i));
-  }
-  for (int a = 0; a < 3; ++a) {
-    col.next(n, 2);
-    for (size_t i = 0; i < n; ++i) codes[i].sideSum[a] = static_cast<uint16_t>(col.at(i));
-  }
+  // The next column, of `width` bytes an element, given to `set` with each code.
+  const auto column = [&](unsigned width, auto set) {
+    col.next(n, width);
+    for (size_t i = 0; i < n; ++i) set(codes[i], col.at(i));
+  };
+  const auto f32 = [](uint64_t v) { return std::bit_cast<float>(static_cast<uint32_t>(v)); };
+  column(1, [](NodeCode& c, uint64_t v) { c.shape = static_cast<uint8_t>(v); });
+  column(1, [](NodeCode& c, uint64_t v) { c.faceMask = static_cast<uint8_t>(v); });
+  column(1, [](NodeCode& c, uint64_t v) { c.derived = static_cast<uint8_t>(v); });
+  column(4, [&](NodeCode& c, uint64_t v) { c.cost = f32(v); });
+  column(4, [&](NodeCode& c, uint64_t v) { c.area = f32(v); });
+  column(4, [&](NodeCode& c, uint64_t v) { c.perimeter = f32(v); });
+  for (int a = 0; a < 3; ++a)
+    column(2, [a](NodeCode& c, uint64_t v) { c.sumNormal[a] = static_cast<uint16_t>(v); });
+  for (int a = 0; a < 3; ++a)
+    column(2, [a](NodeCode& c, uint64_t v) { c.sideSum[a] = static_cast<uint16_t>(v); });
   const unsigned orientationWidth = precision == BoxPrecision::Compact ? 1 : 2;
-  for (int k = 0; k < 3; ++k) {
-    col.next(n, orientationWidth);
-    for (size_t i = 0; i < n; ++i) codes[i].orientation[k] = static_cast<uint16_t>(col.at(i));
-  }
+  for (int k = 0; k < 3; ++k)
+    column(orientationWidth, [k](NodeCode& c, uint64_t v) { c.orientation[k] = static_cast<uint16_t>(v); });
   if (precision == BoxPrecision::Compact) {
-    for (int a = 0; a < 3; ++a) {
-      col.next(n, 1);
-      for (size_t i = 0; i < n; ++i) codes[i].lo[a] = static_cast<uint8_t>(col.at(i));
-    }
-    for (int a = 0; a < 3; ++a) {
-      col.next(n, 1);
-      for (size_t i = 0; i < n; ++i) codes[i].hi[a] = static_cast<uint8_t>(col.at(i));
-    }
+    for (int a = 0; a < 3; ++a)
+      column(1, [a](NodeCode& c, uint64_t v) { c.lo[a] = static_cast<uint8_t>(v); });
+    for (int a = 0; a < 3; ++a)
+      column(1, [a](NodeCode& c, uint64_t v) { c.hi[a] = static_cast<uint8_t>(v); });
   } else {
-    col.next(n, 1);
-    for (size_t i = 0; i < n; ++i) codes[i].scale = static_cast<uint8_t>(col.at(i));
-    for (int a = 0; a < 3; ++a) {
-      col.next(n);
-      for (size_t i = 0; i < n; ++i) codes[i].center[a] = col.f(i);
-    }
-    for (int a = 0; a < 3; ++a) {
-      col.next(n, 3);
-      for (size_t i = 0; i < n; ++i) codes[i].half[a] = static_cast<uint32_t>(col.at(i));
-    }
+    column(1, [](NodeCode& c, uint64_t v) { c.scale = static_cast<uint8_t>(v); });
+    for (int a = 0; a < 3; ++a) column(4, [&, a](NodeCode& c, uint64_t v) { c.center[a] = f32(v); });
+    for (int a = 0; a < 3; ++a)
+      column(3, [a](NodeCode& c, uint64_t v) { c.half[a] = static_cast<uint32_t>(v); });
   }
   col.next(refs);
   size_t r = 0;
