@@ -44,11 +44,16 @@ float roundUp(double v) {
   return f;
 }
 
-// The least s with 2^s >= x > 0.
+// The least s with 2^s >= x, x > 0 and normal: from the double's exponent and mantissa bits.
 int ceilLog2(double x) {
-  int e = 0;
-  const double m = std::frexp(x, &e);  // x = m 2^e, m in [0.5, 1)
-  return m == 0.5 ? e - 1 : e;
+  const auto bits = std::bit_cast<uint64_t>(x);
+  const int e = static_cast<int>((bits >> 52) & 0x7ff) - 1023;
+  return (bits & ((uint64_t{1} << 52) - 1)) ? e + 1 : e;
+}
+
+// x rounded half away from zero, for |x| < 2^31 (truncation, no library call).
+int32_t roundToInt(double x) {
+  return static_cast<int32_t>(x + (x < 0 ? -0.5 : 0.5));
 }
 
 void axesOf(const glm::quat& q, glm::dvec3 (&axis)[3]) {
@@ -160,14 +165,14 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
   code.area = node.area;
   code.perimeter = node.perimeter;
   const double area = node.area;
-  const bool hasArea = area > 0 && std::isfinite(area);
+  const double perArea = area > 0 && std::isfinite(area) ? 1.0 / area : 0.0;
   for (int a = 0; a < 3; ++a) {
-    const double s = hasArea ? std::nearbyint(node.sumNormal[a] / area * kSignedFraction) : 0.0;
-    code.sumNormal[a] = static_cast<uint16_t>(
-        zigzag32(static_cast<int32_t>(std::clamp(s, -kSignedFraction, kSignedFraction))));
+    const double s =
+        std::clamp(node.sumNormal[a] * perArea * kSignedFraction, -kSignedFraction, kSignedFraction);
+    code.sumNormal[a] = static_cast<uint16_t>(zigzag32(roundToInt(s)));
     const double sum = double(box.sideArea[2 * a]) + box.sideArea[2 * a + 1];
-    const double f = hasArea ? std::nearbyint(sum / area * kUnsignedFraction) : 0.0;
-    code.sideSum[a] = static_cast<uint16_t>(std::clamp(f, 0.0, kUnsignedFraction));
+    code.sideSum[a] = static_cast<uint16_t>(
+        roundToInt(std::clamp(sum * perArea * kUnsignedFraction, 0.0, kUnsignedFraction)));
   }
   for (int k = 0; k < 3; ++k) code.orientation[k] = static_cast<uint16_t>(zigzag32(orientation.component[k]));
 
@@ -182,11 +187,14 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
     const double largest = std::max({box.halfExtent.x, box.halfExtent.y, box.halfExtent.z});
     const int scale = largest > 0 ? std::max(ceilLog2(largest), kMinScale) : kMinScale;
     if (scale > kMaxScale) fail("box too large");
-    const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
+    // Units of a power of two: the division is exact, and the quotient at most 2^18.
+    const double perUnit = std::bit_cast<double>(uint64_t(1023 - (scale - kHalfExtentBits)) << 52);
     code.scale = static_cast<uint8_t>(scale + kScaleBias);
     for (int a = 0; a < 3; ++a) {
       code.center[a] = box.center[a];
-      code.half[a] = static_cast<uint32_t>(std::ceil(double(box.halfExtent[a]) / unit));
+      const double units = box.halfExtent[a] * perUnit;
+      code.half[a] = static_cast<uint32_t>(units);
+      if (code.half[a] < units) ++code.half[a];
     }
     if (decoded) *decoded = box;
     return code;

@@ -42,11 +42,12 @@ OrientationCode encodeOrientation(const glm::quat& q, unsigned bits) {
       code.largest = i;
       break;
     }
-  const double sign = v[code.largest] < 0 ? -1.0 : 1.0;
+  // Rounded half away from zero by truncation of |x| + 1/2 (no library call on the writer's path).
+  const double scale = (v[code.largest] < 0 ? -1.0 : 1.0) * m / kHalfSqrt2;
   for (int j = 0, i = 0; i < 4; ++i) {
     if (i == code.largest) continue;
-    const double scaled = std::nearbyint(sign * v[i] / kHalfSqrt2 * m);
-    code.component[j++] = static_cast<int32_t>(std::clamp(scaled, double(-m), double(m)));
+    const double x = std::clamp(v[i] * scale, double(-m), double(m));
+    code.component[j++] = static_cast<int32_t>(x + (x < 0 ? -0.5 : 0.5));
   }
   return code;
 }
