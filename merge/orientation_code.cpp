@@ -58,16 +58,17 @@ glm::quat decodeOrientation(const OrientationCode& code, unsigned bits) {
     throw std::invalid_argument("orientation code: index " + std::to_string(code.largest));
   double v[4];
   double sum = 0;
+  const double unit = kHalfSqrt2 / m;
   for (int j = 0, i = 0; i < 4; ++i) {
     if (i == code.largest) continue;
     const int32_t c = code.component[j++];
     if (c < -m || c > m) throw std::invalid_argument("orientation code: component " + std::to_string(c));
-    v[i] = double(c) * kHalfSqrt2 / m;
+    v[i] = double(c) * unit;
     sum += v[i] * v[i];
   }
   v[code.largest] = std::sqrt(std::max(0.0, 1.0 - sum));
-  const double norm = std::sqrt(sum + v[code.largest] * v[code.largest]);
-  return glm::quat(float(v[3] / norm), float(v[0] / norm), float(v[1] / norm), float(v[2] / norm));
+  const double scale = 1.0 / std::sqrt(sum + v[code.largest] * v[code.largest]);
+  return glm::quat(float(v[3] * scale), float(v[0] * scale), float(v[1] * scale), float(v[2] * scale));
 }
 
 glm::quat latticeOrientation(const glm::quat& q, unsigned bits) {
@@ -77,6 +78,15 @@ glm::quat latticeOrientation(const glm::quat& q, unsigned bits) {
   // code one unit towards zero raises the dropped one until it is the largest again.
   for (int step = 0; step < 64; ++step) {
     const glm::quat lattice = decodeOrientation(code, bits);
+    // Where the dropped component exceeds the others by more than 2^-18, encoding drops it again
+    // (no other is within 2^-20 of it) and each kept component, within 2^-23 of its code's value,
+    // rounds back to its code: the fixed point, without encoding again.
+    const float value[4] = {std::abs(lattice.x), std::abs(lattice.y), std::abs(lattice.z),
+                            std::abs(lattice.w)};
+    float others = 0;
+    for (int i = 0; i < 4; ++i)
+      if (i != code.largest) others = std::max(others, value[i]);
+    if (double(value[code.largest]) > double(others) * (1.0 + 0x1p-18)) return lattice;
     if (encodeOrientation(lattice, bits) == code) return lattice;
     int32_t* top = &code.component[0];
     for (int32_t& c : code.component)
