@@ -439,8 +439,7 @@ void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNo
   if (layout_.header.version == 1) return decodeNodesV1(i, raw, out);
   if (out.size() != f.first)
     throw std::logic_error("SourceFile::decodeNodes: node frames are decoded in order into one array");
-  if (f.first == 0)
-    decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.header.boxes, layout_.rootBox);
+  if (f.first == 0) decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.rootBox);
   std::vector<NodeCode> codes;
   codes.reserve(f.count);
   decodeNodeCodes(i, raw, codes);

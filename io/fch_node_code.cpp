@@ -66,10 +66,6 @@ unsigned childNodes(uint8_t shape, uint8_t faceMask) {
   return children - static_cast<unsigned>(std::popcount(static_cast<unsigned>(faceMask)));
 }
 
-uint32_t orientationBitsOf(BoxPrecision precision) {
-  return orientationBits(precision);
-}
-
 }  // namespace
 
 uint32_t nodeFixedBytes(BoxPrecision precision) {
@@ -77,9 +73,18 @@ uint32_t nodeFixedBytes(BoxPrecision precision) {
   return 3 + 12 + 6 + 6 + (precision == BoxPrecision::Compact ? 3 + 6 : 6 + 1 + 12 + 9);
 }
 
-void compactStep(const NodeBox& parent, const glm::quat& orientation, double step[3]) {
-  glm::dvec3 axis[3], parentAxis[3];
-  axesOf(orientation, axis);
+namespace {
+
+// A child's axes and the parent box's grid along each: faces at base + q * step, q in 0 ... 255.
+struct CompactGrid {
+  glm::dvec3 axis[3];
+  double base[3], step[3];
+};
+
+CompactGrid compactGrid(const NodeBox& parent, const glm::quat& orientation) {
+  CompactGrid grid;
+  glm::dvec3 parentAxis[3];
+  axesOf(orientation, grid.axis);
   axesOf(parent.orientation, parentAxis);
   const glm::dvec3 ph(parent.halfExtent), pc(parent.center);
   // Widened by a little of the parent's size, and by 16 float steps of its coordinates: box
@@ -88,36 +93,44 @@ void compactStep(const NodeBox& parent, const glm::quat& orientation, double ste
                         kCompactCoordinateMargin * (std::abs(pc.x) + std::abs(pc.y) + std::abs(pc.z));
   for (int a = 0; a < 3; ++a) {
     double reach = margin;  // the parent box's half width along axis a, widened
-    for (int j = 0; j < 3; ++j) reach += std::abs(glm::dot(axis[a], parentAxis[j])) * ph[j];
-    step[a] = 2 * reach / 255;
+    for (int j = 0; j < 3; ++j) reach += std::abs(glm::dot(grid.axis[a], parentAxis[j])) * ph[j];
+    grid.step[a] = 2 * reach / 255;
+    grid.base[a] = glm::dot(pc, grid.axis[a]) - reach;
   }
+  return grid;
+}
+
+// The centre and half extents of the box whose faces are codes lo, hi on `grid`.
+void gridBox(const CompactGrid& grid, const uint8_t lo[3], const uint8_t hi[3], NodeBox& box) {
+  double l[3], h[3];
+  glm::dvec3 mid;
+  for (int a = 0; a < 3; ++a) {
+    l[a] = grid.base[a] + lo[a] * grid.step[a];
+    h[a] = grid.base[a] + hi[a] * grid.step[a];
+    mid[a] = 0.5 * (l[a] + h[a]);
+  }
+  // The float axes are orthonormal only to ~1e-7: solve dot(center, axis_k) = mid_k.
+  const glm::dmat3 m(grid.axis[0], grid.axis[1], grid.axis[2]);
+  box.center = glm::vec3(glm::inverse(glm::transpose(m)) * mid);
+  const glm::dvec3 c(box.center);
+  for (int a = 0; a < 3; ++a) {
+    const double ca = glm::dot(c, grid.axis[a]);
+    const double half = std::max({h[a] - ca, ca - l[a], 0.0});
+    box.halfExtent[a] = roundUp(half + 0x1p-40 * (std::abs(ca) + half));
+  }
+}
+
+}  // namespace
+
+void compactStep(const NodeBox& parent, const glm::quat& orientation, double step[3]) {
+  const CompactGrid grid = compactGrid(parent, orientation);
+  for (int a = 0; a < 3; ++a) step[a] = grid.step[a];
 }
 
 void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8_t lo[3], const uint8_t hi[3],
                 NodeBox& box) {
-  glm::dvec3 axis[3];
-  axesOf(orientation, axis);
-  double step[3];
-  compactStep(parent, orientation, step);
-  const glm::dvec3 pc(parent.center);
-  double l[3], h[3];
-  glm::dvec3 mid;
-  for (int a = 0; a < 3; ++a) {
-    const double base = glm::dot(pc, axis[a]) - 127.5 * step[a];
-    l[a] = base + lo[a] * step[a];
-    h[a] = base + hi[a] * step[a];
-    mid[a] = 0.5 * (l[a] + h[a]);
-  }
-  // The float axes are orthonormal only to ~1e-7: solve dot(center, axis_k) = mid_k.
-  const glm::dmat3 m(axis[0], axis[1], axis[2]);
-  box.center = glm::vec3(glm::inverse(glm::transpose(m)) * mid);
+  gridBox(compactGrid(parent, orientation), lo, hi, box);
   box.orientation = orientation;
-  const glm::dvec3 c(box.center);
-  for (int a = 0; a < 3; ++a) {
-    const double ca = glm::dot(c, axis[a]);
-    const double half = std::max({h[a] - ca, ca - l[a], 0.0});
-    box.halfExtent[a] = roundUp(half + 0x1p-40 * (std::abs(ca) + half));
-  }
 }
 
 NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
@@ -128,7 +141,7 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
   NodeCode code;
   if (node.childCount < 2 || node.childCount > kMaxBranching)
     fail(std::to_string(node.childCount) + " children");
-  const unsigned bits = orientationBitsOf(precision);
+  const unsigned bits = orientationBits(precision);
   const NodeBox& box = node.box;
   const OrientationCode orientation = encodeOrientation(box.orientation, bits);
   const glm::quat lattice = decodeOrientation(orientation, bits);
@@ -146,7 +159,6 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
       faces += 1;
       continue;
     }
-    if (node.child[c] <= index) fail("child " + std::to_string(node.child[c]) + " not after it");
     if (node.childFaces[c] < 2) fail("node child " + std::to_string(c) + " of fewer than 2 faces");
     faces += node.childFaces[c];
     if (derived < 0 || node.childFaces[c] > node.childFaces[derived]) derived = static_cast<int>(c);
@@ -201,32 +213,30 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
   }
 
   // Compact: the exact box's interval along each axis, rounded outwards on the parent's grid.
-  glm::dvec3 axis[3];
-  axesOf(box.orientation, axis);
-  double step[3];
-  compactStep(*parent, box.orientation, step);
-  const glm::dvec3 c(box.center), pc(parent->center);
+  const CompactGrid grid = compactGrid(*parent, box.orientation);
+  const glm::dvec3 c(box.center);
   double lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
-    const double ca = glm::dot(c, axis[a]);
+    const double ca = glm::dot(c, grid.axis[a]);
     const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
     lo[a] = ca - box.halfExtent[a] - slack;
     hi[a] = ca + box.halfExtent[a] + slack;
-    const double base = glm::dot(pc, axis[a]) - 127.5 * step[a];
-    const double qlo = std::floor((lo[a] - base) / step[a]), qhi = std::ceil((hi[a] - base) / step[a]);
-    if (!(qlo >= 0 && qhi <= 255 && step[a] > 0))
+    const double qlo = std::floor((lo[a] - grid.base[a]) / grid.step[a]);
+    const double qhi = std::ceil((hi[a] - grid.base[a]) / grid.step[a]);
+    if (!(qlo >= 0 && qhi <= 255 && grid.step[a] > 0))
       throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
     code.lo[a] = static_cast<uint8_t>(qlo);
     code.hi[a] = static_cast<uint8_t>(qhi);
   }
   // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
   NodeBox out;
+  out.orientation = box.orientation;
   for (int attempt = 0;; ++attempt) {
-    compactBox(*parent, box.orientation, code.lo, code.hi, out);
+    gridBox(grid, code.lo, code.hi, out);
     bool holds = true;
     const glm::dvec3 oc(out.center);
     for (int a = 0; a < 3; ++a) {
-      const double ca = glm::dot(oc, axis[a]);
+      const double ca = glm::dot(oc, grid.axis[a]);
       if (ca - out.halfExtent[a] > lo[a]) {
         holds = false;
         if (code.lo[a] == 0 || attempt == 4)
@@ -242,7 +252,6 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
     }
     if (holds) break;
   }
-  out.orientation = box.orientation;
   if (decoded) *decoded = out;
   return code;
 }
@@ -253,47 +262,36 @@ std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precis
   for (const NodeCode& c : codes) refs += c.refCount, counts += c.faceCountCount;
   std::string out;
   out.reserve(nodeFixedBytes(precision) * n + 4 * (refs + counts));
-  putColumn(
-      out, n, [&](size_t i) { return codes[i].shape; }, 1);
-  putColumn(
-      out, n, [&](size_t i) { return codes[i].faceMask; }, 1);
-  putColumn(
-      out, n, [&](size_t i) { return codes[i].derived; }, 1);
-  putColumn(out, n, [&](size_t i) { return bits(codes[i].cost); });
-  putColumn(out, n, [&](size_t i) { return bits(codes[i].area); });
-  putColumn(out, n, [&](size_t i) { return bits(codes[i].perimeter); });
-  for (int a = 0; a < 3; ++a)
+  // The next column, of `width` bytes an element, from each code's `get`.
+  const auto column = [&](unsigned width, auto get) {
     putColumn(
-        out, n, [&](size_t i) { return codes[i].sumNormal[a]; }, 2);
-  for (int a = 0; a < 3; ++a)
-    putColumn(
-        out, n, [&](size_t i) { return codes[i].sideSum[a]; }, 2);
+        out, n, [&](size_t i) -> uint64_t { return get(codes[i]); }, width);
+  };
+  column(1, [](const NodeCode& c) { return c.shape; });
+  column(1, [](const NodeCode& c) { return c.faceMask; });
+  column(1, [](const NodeCode& c) { return c.derived; });
+  column(4, [](const NodeCode& c) { return bits(c.cost); });
+  column(4, [](const NodeCode& c) { return bits(c.area); });
+  column(4, [](const NodeCode& c) { return bits(c.perimeter); });
+  for (int a = 0; a < 3; ++a) column(2, [a](const NodeCode& c) { return c.sumNormal[a]; });
+  for (int a = 0; a < 3; ++a) column(2, [a](const NodeCode& c) { return c.sideSum[a]; });
   const unsigned orientationWidth = precision == BoxPrecision::Compact ? 1 : 2;
-  for (int k = 0; k < 3; ++k)
-    putColumn(
-        out, n, [&](size_t i) { return codes[i].orientation[k]; }, orientationWidth);
+  for (int k = 0; k < 3; ++k) column(orientationWidth, [k](const NodeCode& c) { return c.orientation[k]; });
   if (precision == BoxPrecision::Compact) {
-    for (int a = 0; a < 3; ++a)
-      putColumn(
-          out, n, [&](size_t i) { return codes[i].lo[a]; }, 1);
-    for (int a = 0; a < 3; ++a)
-      putColumn(
-          out, n, [&](size_t i) { return codes[i].hi[a]; }, 1);
+    for (int a = 0; a < 3; ++a) column(1, [a](const NodeCode& c) { return c.lo[a]; });
+    for (int a = 0; a < 3; ++a) column(1, [a](const NodeCode& c) { return c.hi[a]; });
   } else {
-    putColumn(
-        out, n, [&](size_t i) { return codes[i].scale; }, 1);
-    for (int a = 0; a < 3; ++a) putColumn(out, n, [&](size_t i) { return bits(codes[i].center[a]); });
-    for (int a = 0; a < 3; ++a)
-      putColumn(
-          out, n, [&](size_t i) { return codes[i].half[a]; }, 3);
+    column(1, [](const NodeCode& c) { return c.scale; });
+    for (int a = 0; a < 3; ++a) column(4, [a](const NodeCode& c) { return bits(c.center[a]); });
+    for (int a = 0; a < 3; ++a) column(3, [a](const NodeCode& c) { return c.half[a]; });
   }
-  std::vector<uint32_t> column;
-  column.reserve(std::max(refs, counts));
-  for (const NodeCode& c : codes) column.insert(column.end(), c.ref, c.ref + c.refCount);
-  putColumn(out, column.size(), [&](size_t i) { return column[i]; });
-  column.clear();
-  for (const NodeCode& c : codes) column.insert(column.end(), c.faces, c.faces + c.faceCountCount);
-  putColumn(out, column.size(), [&](size_t i) { return column[i]; });
+  std::vector<uint32_t> lists;  // the refs, then the face counts, of every code in turn
+  lists.reserve(std::max(refs, counts));
+  for (const NodeCode& c : codes) lists.insert(lists.end(), c.ref, c.ref + c.refCount);
+  putColumn(out, lists.size(), [&](size_t i) { return lists[i]; });
+  lists.clear();
+  for (const NodeCode& c : codes) lists.insert(lists.end(), c.faces, c.faces + c.faceCountCount);
+  putColumn(out, lists.size(), [&](size_t i) { return lists[i]; });
   return out;
 }
 
@@ -368,8 +366,8 @@ std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision preci
   return {};
 }
 
-NodeDecoder::NodeDecoder(const FileHeader& header, BoxPrecision precision, const NodeBox& rootBox)
-    : header_(header), precision_(precision), rootBox_(rootBox) {}
+NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
+    : header_(header), rootBox_(rootBox) {}
 
 std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
   const uint64_t index = out.size();
@@ -434,7 +432,7 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
   OrientationCode orientation;
   orientation.largest = static_cast<uint8_t>((code.shape >> 5) & 3);
   for (int k = 0; k < 3; ++k) orientation.component[k] = unzigzag32(code.orientation[k]);
-  const unsigned bits = orientationBitsOf(precision_);
+  const unsigned bits = orientationBits(header_.boxes);
   const int32_t limit = (int32_t{1} << (bits - 1)) - 1;
   for (int32_t c : orientation.component)
     if (c < -limit || c > limit) return "orientation component " + std::to_string(c) + " out of range";
@@ -456,7 +454,7 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
     box.sideArea[2 * a] = static_cast<float>(std::max(0.0, 0.5 * (sum + along)));
     box.sideArea[2 * a + 1] = static_cast<float>(std::max(0.0, 0.5 * (sum - along)));
   }
-  if (precision_ == BoxPrecision::Compact) {
+  if (header_.boxes == BoxPrecision::Compact) {
     for (int a = 0; a < 3; ++a)
       if (code.lo[a] > code.hi[a]) return "compact box face below its opposite";
     if (index == 0) {

@@ -74,7 +74,7 @@ std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision preci
 // (the root covers every triangle), compact boxes from the parents' boxes.
 class NodeDecoder {
  public:
-  NodeDecoder(const FileHeader& header, BoxPrecision precision, const NodeBox& rootBox);
+  NodeDecoder(const FileHeader& header, const NodeBox& rootBox);
   // Appends node `index` (= out.size(); every earlier node already in `out`). Returns an empty
   // string, or why the record is invalid.
   std::string decode(const NodeCode& code, std::vector<FchNode>& out);
@@ -84,7 +84,6 @@ class NodeDecoder {
     uint32_t parent, first, count;
   };
   const FileHeader& header_;
-  BoxPrecision precision_;
   NodeBox rootBox_;
   std::unordered_map<uint32_t, Range> pending_;  // node children announced by their parents
 };

@@ -115,7 +115,6 @@ std::string exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const
   try {
     for (size_t i = 0; i < nodes.size(); ++i)
       codes.push_back(fch::quantizeNode(nodes[i], first + i, BoxPrecision::Exact, nullptr, nullptr));
-
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(owner + ": " + e.what());
   }
@@ -435,10 +434,6 @@ void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
     const FchNode& node = batch[i];
     const uint64_t index = first + i;
     try {
-      if (precision == BoxPrecision::Exact) {
-        codes.push_back(fch::quantizeNode(node, index, precision, nullptr, nullptr));
-        continue;
-      }
       NodeBox decoded;
       if (index == 0) {
         codes.push_back(fch::quantizeNode(node, index, precision, nullptr, &decoded));
