@@ -115,24 +115,21 @@ std::string encodeNodes(std::span<const FchNode> nodes, uint64_t firstIndex) {
   return out;
 }
 
-std::string encodeVertices(std::span<const glm::vec3> vertices) {
-  std::string out;
-  out.reserve(12 * vertices.size());
+void encodeVertices(std::span<const glm::vec3> vertices, std::string& out) {
+  out.clear();
   for (int a = 0; a < 3; ++a) putColumn(out, vertices.size(), [&](size_t i) { return bits(vertices[i][a]); });
-  return out;
 }
 
-std::string encodeTriangles(std::span<const uint32_t> indices) {
-  std::string out;
+void encodeTriangles(std::span<const uint32_t> indices, std::string& out) {
+  out.clear();
   putColumn(out, indices.size(), [&](size_t i) {
     const uint32_t previous = i ? indices[i - 1] : 0;
     return zigzag32(static_cast<int32_t>(indices[i] - previous));
   });
-  return out;
 }
 
-std::string encodeIds(std::span<const uint64_t> ids, uint32_t width) {
-  std::string out;
+void encodeIds(std::span<const uint64_t> ids, uint32_t width, std::string& out) {
+  out.clear();
   putColumn(
       out, ids.size(),
       [&](size_t i) {
@@ -141,7 +138,6 @@ std::string encodeIds(std::span<const uint64_t> ids, uint32_t width) {
                           : zigzag(static_cast<int64_t>(ids[i] - previous));
       },
       width);
-  return out;
 }
 
 FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level) {
@@ -157,6 +153,16 @@ struct FrameCompressor::Context {
 
 FrameCompressor::FrameCompressor(int level) : context_(std::make_unique<Context>()), level_(level) {
   if (!context_->cctx) throw std::bad_alloc();
+  ZSTD_CCtx* c = context_->cctx;
+  ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, level);
+  // The default level looks for matches with zstd's single-hash finder at level 3's table size:
+  // byte planes are runs of slowly varying high bytes beside incompressible low ones, where the
+  // double-hash finder of levels 3 to 4 finds hardly more (docs/benchmarks.md).
+  if (level == kDefaultZstdLevel) {
+    ZSTD_CCtx_setParameter(c, ZSTD_c_strategy, ZSTD_fast);
+    ZSTD_CCtx_setParameter(c, ZSTD_c_hashLog, 17);
+    ZSTD_CCtx_setParameter(c, ZSTD_c_minMatch, 4);
+  }
 }
 
 FrameCompressor::~FrameCompressor() = default;
@@ -169,8 +175,7 @@ FchFrame FrameCompressor::compress(FchSection section, uint64_t first, uint32_t 
   entry.count = count;
   entry.rawBytes = static_cast<uint32_t>(raw.size());
   out.resize(ZSTD_compressBound(raw.size()));
-  const size_t got =
-      ZSTD_compressCCtx(context_->cctx, out.data(), out.size(), raw.data(), raw.size(), level_);
+  const size_t got = ZSTD_compress2(context_->cctx, out.data(), out.size(), raw.data(), raw.size());
   if (ZSTD_isError(got))
     throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(got));
   out.resize(got);
@@ -184,7 +189,9 @@ uint64_t compressedBound(uint64_t rawBytes) {
 }
 
 uint64_t compressorMemoryBound(int level, uint64_t rawBytes) {
-  return ZSTD_estimateCCtxSize_usingCParams(ZSTD_getCParams(level, rawBytes, 0));
+  ZSTD_compressionParameters params = ZSTD_getCParams(level, rawBytes, 0);
+  if (level == kDefaultZstdLevel) params.hashLog = std::max(params.hashLog, 17u);  // as FrameCompressor's
+  return ZSTD_estimateCCtxSize_usingCParams(params);
 }
 
 uint64_t assembledBytes(const std::vector<FrameData>& frames) {

@@ -42,9 +42,10 @@ struct FrameData {
 
 // Payload encoders (docs/FORMAT.md "Frame payloads").
 std::string encodeNodes(std::span<const FchNode> nodes, uint64_t firstIndex);
-std::string encodeVertices(std::span<const glm::vec3> vertices);
-std::string encodeTriangles(std::span<const uint32_t> indices);
-std::string encodeIds(std::span<const uint64_t> ids, uint32_t width);
+// The geometry encoders replace `out`'s contents, keeping its capacity for the next frame.
+void encodeVertices(std::span<const glm::vec3> vertices, std::string& out);
+void encodeTriangles(std::span<const uint32_t> indices, std::string& out);
+void encodeIds(std::span<const uint64_t> ids, uint32_t width, std::string& out);
 
 // Compresses a payload into a frame entry of `section` covering [first, first + count).
 FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level);

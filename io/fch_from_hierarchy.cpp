@@ -28,6 +28,12 @@ class FileNodes {
       tree_ = recastHierarchy(hierarchy, options.branching, options.rule);
   }
   size_t size() const { return tree_ ? tree_->binaryNode.size() : hierarchy_.nodes.size(); }
+  // Node j's child references, in no particular order, into `child`; returns their number.
+  unsigned children(size_t j, uint32_t* child) const {
+    if (tree_) return std::copy_n(tree_->child[j].begin(), tree_->childCount[j], child) - child;
+    std::copy_n(hierarchy_.nodes[j].child, 2, child);
+    return 2;
+  }
   FchNode operator[](size_t j) const {
     const uint32_t binary = tree_ ? tree_->binaryNode[j] : static_cast<uint32_t>(j);
     const Node& b = hierarchy_.nodes[binary];
@@ -39,14 +45,22 @@ class FileNodes {
       node.childCount = tree_->childCount[j];
       std::copy_n(tree_->child[j].begin(), node.childCount, node.child);
       joined = tree_->joinFlag[j];
+      for (unsigned c = 0; c < node.childCount; ++c) node.childFaces[c] = faces(node.child[c]);
     } else {
-      const bool swap = rangeStart(b.child[1]) < rangeStart(b.child[0]);
+      // The two children split the node's faces: one look at the first child (a random read, the
+      // cost of this loop) gives the order and both face counts.
+      const uint32_t c0 = b.child[0];
+      const bool face0 = (c0 & kFaceChild) != 0;
+      const uint32_t start0 = face0 ? c0 & ~kFaceChild : hierarchy_.nodes[c0].first;
+      const uint32_t faces0 = face0 ? 1 : hierarchy_.nodes[c0].count;
+      const bool swap = start0 != b.first;
       node.childCount = 2;
       node.child[0] = b.child[swap ? 1 : 0];
       node.child[1] = b.child[swap ? 0 : 1];
+      node.childFaces[swap ? 1 : 0] = faces0;
+      node.childFaces[swap ? 0 : 1] = b.count - faces0;
       joined = (b.flags & kNodeJoinsDisjointSurfaces) != 0;
     }
-    for (unsigned c = 0; c < node.childCount; ++c) node.childFaces[c] = faces(node.child[c]);
     node.flags = static_cast<uint8_t>((b.flags & kNodeFlatFrame ? kFchFlatFrame : 0) |
                                       (joined ? kFchJoinsDisjointSurfaces : 0));
     node.cost = b.cost;
@@ -64,9 +78,6 @@ class FileNodes {
   uint32_t faces(uint32_t ref) const {
     if (ref & kFaceChild) return 1;
     return hierarchy_.nodes[tree_ ? tree_->binaryNode[ref] : ref].count;
-  }
-  uint32_t rangeStart(uint32_t ref) const {
-    return ref & kFaceChild ? ref & ~kFaceChild : hierarchy_.nodes[ref].first;
   }
   const Hierarchy& hierarchy_;
   std::optional<RecastTree> tree_;
@@ -132,9 +143,11 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
                           BranchingStats* stats) {
   checkFileInputs(mesh, originalFace, hierarchy, "writeClusterFile");
   const FileNodes nodes(hierarchy, options);
-  std::optional<FileShape> shape;
-  if (stats) shape.emplace(options.branching, mesh.triangleCount(), nodes.size());
   const FirstUseNumbering numbering = numberByFirstUse(mesh, hierarchy.faceOrder);
+  // The input vertex of each number, so that any run of the file's vertices can be made alone.
+  std::vector<uint32_t> vertexOf(numbering.vertexCount);
+  for (size_t v = 0; v < numbering.remap.size(); ++v)
+    if (numbering.remap[v] != kUnusedVertex) vertexOf[numbering.remap[v]] = static_cast<uint32_t>(v);
   const size_t triangles = mesh.triangleCount();
   StreamFileInfo info;
   info.header = optionsHeader(options);
@@ -147,47 +160,36 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
     info.maxOriginalFace = *std::max_element(originalFace.begin(), originalFace.end());
   ClusterFileWriter writer(path, info, writeOptions);
 
-  // The three streams go to the writer interleaved: a batch of nodes, then the geometry of the same
-  // share of the faces, so that with WriteOptions::threads the node frames (zstd-bound) compress on
-  // the writer's workers while this thread walks the faces (random reads). The file's bytes do not
-  // depend on the interleaving.
-  std::vector<FchNode> nodeBatch;
-  nodeBatch.reserve(std::min(kNodeBatch, nodes.size()));
+  // Every frame is made from the hierarchy and the mesh alone, so the writer's workers make them
+  // (node records, gathered geometry) as well as compress them; this thread only places them.
   const std::span<const uint32_t> order = hierarchy.faceOrder;
-  std::vector<glm::vec3> vertexBatch;
-  vertexBatch.reserve(std::min<size_t>(kGeometryBatch, numbering.vertexCount));
-  std::vector<uint32_t> indexBatch;
-  std::vector<uint64_t> idBatch;
-  indexBatch.reserve(3 * std::min(kGeometryBatch, triangles));
-  idBatch.reserve(std::min(kGeometryBatch, triangles));
-  uint32_t next = 0;  // vertices numbered so far: a walk along the faces meets each one's number in turn
-  size_t node = 0, face = 0;
-  const size_t steps = std::max<size_t>(1, (nodes.size() + kNodeBatch - 1) / kNodeBatch);
-  for (size_t step = 1; step <= steps; ++step) {
-    for (const size_t end = std::min(nodes.size(), step * kNodeBatch); node < end; ++node) {
-      nodeBatch.push_back(nodes[node]);
-      if (shape) shape->add(node, nodeBatch.back());
-    }
-    if (!nodeBatch.empty()) writer.addNodes(nodeBatch), nodeBatch.clear();
-    for (const size_t end = step == steps ? triangles : triangles / steps * step; face < end; ++face) {
-      const uint32_t t = order[face];
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t v = mesh.indices[3 * size_t{t} + k];
-        const uint32_t number = numbering.remap[v];
-        indexBatch.push_back(number);
-        if (number != next) continue;
-        vertexBatch.push_back(mesh.positions[v]);
-        if (++next == numbering.vertexCount || vertexBatch.size() == kGeometryBatch)
-          writer.addVertices(vertexBatch), vertexBatch.clear();
-      }
-      idBatch.push_back(originalFace.empty() ? t : originalFace[t]);
-      if (idBatch.size() == kGeometryBatch || face + 1 == triangles)
-        writer.addTriangles(indexBatch, idBatch), indexBatch.clear(), idBatch.clear();
-    }
+  writer.addNodes(nodes.size(), [&nodes](uint64_t first, std::span<FchNode> out) {
+    for (size_t i = 0; i < out.size(); ++i) out[i] = nodes[first + i];
+  });
+  writer.addVertices(numbering.vertexCount, [&](uint64_t first, std::span<glm::vec3> out) {
+    for (size_t i = 0; i < out.size(); ++i) out[i] = mesh.positions[vertexOf[first + i]];
+  });
+  writer.addTriangles(
+      triangles,
+      [&](uint64_t first, std::span<uint32_t> out) {
+        for (size_t i = 0; i < out.size() / 3; ++i) {
+          const size_t t = order[first + i];
+          for (size_t k = 0; k < 3; ++k) out[3 * i + k] = numbering.remap[mesh.indices[3 * t + k]];
+        }
+      },
+      [&](uint64_t first, std::span<uint64_t> out) {
+        for (size_t i = 0; i < out.size(); ++i) {
+          const uint32_t t = order[first + i];
+          out[i] = originalFace.empty() ? t : originalFace[t];
+        }
+      });
+  if (stats) {  // while the last frames are made
+    FileShape shape(options.branching, triangles, nodes.size());
+    uint32_t child[kMaxBranching];
+    for (size_t j = 0; j < nodes.size(); ++j) shape.add(j, nodes.children(j, child), child);
+    *stats = shape.stats();
   }
-  const uint64_t bytes = writer.finish();
-  if (stats) *stats = shape->stats();
-  return bytes;
+  return writer.finish();
 }
 
 BranchingStats branchingStats(const Hierarchy& hierarchy, const FileOptions& options) {

@@ -257,10 +257,16 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
 }
 
 std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision) {
+  std::string out;
+  encodeNodeFrame(codes, precision, out);
+  return out;
+}
+
+void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision, std::string& out) {
   const size_t n = codes.size();
   size_t refs = 0, counts = 0;
   for (const NodeCode& c : codes) refs += c.refCount, counts += c.faceCountCount;
-  std::string out;
+  out.clear();
   out.reserve(nodeFixedBytes(precision) * n + 4 * (refs + counts));
   // The next column, of `width` bytes an element, from each code's `get`.
   const auto column = [&](unsigned width, auto get) {
@@ -292,7 +298,6 @@ std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precis
   lists.clear();
   for (const NodeCode& c : codes) lists.insert(lists.end(), c.faces, c.faces + c.faceCountCount);
   putColumn(out, lists.size(), [&](size_t i) { return lists[i]; });
-  return out;
 }
 
 std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,

@@ -67,6 +67,8 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
 // and returns an empty string, or why the payload is invalid (its size is checked against the
 // child counts before anything is read).
 std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision);
+void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision,
+                     std::string& out);  // into `out`
 std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,
                             std::vector<NodeCode>& out);
 

@@ -39,6 +39,9 @@ constexpr size_t kCopyBufferBytes = size_t{1} << 20;    // spill -> output copie
 constexpr size_t kOutputBufferBytes = size_t{1} << 20;  // OutputFile's stdio buffer
 // Compression threads at most (WriteOptions::threads): frames are small and independent.
 constexpr unsigned kMaxCompressorThreads = 8;
+// Frames queued or in flight per worker: a second one keeps a worker busy while the caller waits
+// for the oldest frame, which another worker may still be making.
+constexpr unsigned kSlotsPerWorker = 2;
 
 // The compressor pool's workers for WriteOptions::threads (0: the hardware's); none for one thread,
 // which compresses inline.
@@ -107,25 +110,49 @@ class FrameSpill {
   uint64_t bytes_ = 0;
 };
 
+// A worker's buffers, reused frame to frame: elements made by a fill, node codes.
+struct FrameScratch {
+  std::vector<FchNode> nodes;
+  std::vector<fch::NodeCode> codes;
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> corners;
+  std::vector<uint64_t> ids;
+};
+
+// The vertex bounds of a frame made on a worker, folded into the header when the frame is placed
+// (min and max do not depend on the order).
+struct Bounds {
+  glm::vec3 lo{std::numeric_limits<float>::infinity()}, hi{-std::numeric_limits<float>::infinity()};
+  void add(std::span<const glm::vec3> points) {
+    for (const glm::vec3& p : points) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  }
+};
+
+// Makes a frame's payload into `raw`: from the nodes handed to the frame (`given`; exact-box node
+// frames) or from a fill, with a worker's scratch.
+using FrameMaker = std::function<void(std::span<const FchNode> given, FrameScratch& scratch, std::string& raw,
+                                      Bounds& bounds)>;
+
 // The node frame of exact boxes: each record depends on its node alone, so workers can make them.
 // `owner` prefixes the message of a node the format cannot hold.
-std::string exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner) {
-  std::vector<fch::NodeCode> codes;
-  codes.reserve(nodes.size());
+void exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner,
+                    std::vector<fch::NodeCode>& codes, std::string& raw) {
+  codes.clear();
   try {
     for (size_t i = 0; i < nodes.size(); ++i)
       codes.push_back(fch::quantizeNode(nodes[i], first + i, BoxPrecision::Exact, nullptr, nullptr));
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(owner + ": " + e.what());
   }
-  return fch::encodeNodeFrame(codes, BoxPrecision::Exact);
+  fch::encodeNodeFrame(codes, BoxPrecision::Exact, raw);
 }
 
-// Compresses frames on worker threads, each with its own compressor, while the caller encodes
-// the next ones (exact-box node frames: the workers encode them too). At most one frame per worker is queued
-// or in flight; the caller takes them back in submission order (oldest) and writes each where it goes, so
-// frames land in order, compressed exactly as inline (each frame is independent): the same bytes for any
-// number of workers.
+// Compresses frames on worker threads, each with its own compressor and scratch, while the caller
+// goes on (frames with a maker: the workers make their payloads too). At most kSlotsPerWorker
+// frames per worker are queued or in flight; the caller takes them back in submission order (oldest) and
+// writes each where it goes, so frames land in order, compressed exactly as inline (each frame is
+// independent): the same bytes for any number of workers. A job's buffers stay with its slot of the ring, so
+// their capacity serves the frames after it.
 class CompressorPool {
  public:
   struct Job {
@@ -133,15 +160,16 @@ class CompressorPool {
     uint64_t first = 0;
     uint32_t count = 0;
     std::string raw;
-    std::vector<FchNode> nodes;  // exact-box nodes to encode into `raw` first
-    const std::string* owner = nullptr;
+    std::vector<FchNode> nodes;  // handed to `make`
+    FrameMaker make;             // empty: `raw` is the payload
+    Bounds bounds;
     std::string compressed;
     FchFrame frame{};
     bool done = false;
     std::exception_ptr failure;
   };
 
-  CompressorPool(int level, unsigned workers) : jobs_(workers) {
+  CompressorPool(int level, unsigned workers) : jobs_(kSlotsPerWorker * workers), scratch_(workers) {
     for (unsigned w = 0; w < workers; ++w)
       compressors_.push_back(std::make_unique<fch::FrameCompressor>(level));
     for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w] { run(w); });
@@ -160,18 +188,19 @@ class CompressorPool {
   bool full() const { return submitted_ - taken_ == jobs_.size(); }
   bool empty() const { return submitted_ == taken_; }
 
-  // Queues a frame; call only when not full().
+  // Queues a frame whose payload is `raw`, or is made by `make` from `nodes`; call only when not full().
   void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw,
-              std::span<const FchNode> nodes = {}, const std::string* owner = nullptr) {
+              std::span<const FchNode> nodes = {}, FrameMaker make = {}) {
     {
       std::lock_guard lock(mutex_);
       Job& job = jobs_[submitted_ % jobs_.size()];
       job.section = section;
       job.first = first;
       job.count = count;
-      job.raw = std::move(raw);
+      if (!make) job.raw = std::move(raw);
       job.nodes.assign(nodes.begin(), nodes.end());
-      job.owner = owner;
+      job.make = std::move(make);
+      job.bounds = Bounds{};
       job.done = false;
       job.failure = nullptr;
       ++submitted_;
@@ -199,7 +228,7 @@ class CompressorPool {
       lock.unlock();
       std::exception_ptr failure;
       try {
-        if (!job.nodes.empty()) job.raw = exactNodeFrame(job.nodes, job.first, *job.owner);
+        if (job.make) job.make(job.nodes, scratch_[worker], job.raw, job.bounds);
         job.frame =
             compressors_[worker]->compress(job.section, job.first, job.count, job.raw, job.compressed);
       } catch (...) {
@@ -212,7 +241,8 @@ class CompressorPool {
     }
   }
 
-  std::vector<Job> jobs_;  // a ring: frame number i in jobs_[i % size]
+  std::vector<Job> jobs_;              // a ring: frame number i in jobs_[i % size]
+  std::vector<FrameScratch> scratch_;  // per worker
   std::vector<std::unique_ptr<fch::FrameCompressor>> compressors_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
@@ -242,9 +272,11 @@ struct ClusterFileWriter::State {
   uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
-  std::optional<CompressorPool> pool;  // WriteOptions::threads > 1: compresses instead of `compressor`
-  std::optional<OutputFile> output;    // file output: from the start; a stream: in finish()
-  bool stream = false;                 // isStreamOutput: the header cannot be written last
+  // WriteOptions::threads > 1: compresses instead of `compressor`. Frame makers on its workers read
+  // only the members above it, which outlive it.
+  std::optional<CompressorPool> pool;
+  std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
+  bool stream = false;               // isStreamOutput: the header cannot be written last
   Section sections[kSections];
   std::vector<FchNode> nodes;
   std::vector<fch::NodeCode> codes;  // the node frame being encoded
@@ -254,6 +286,8 @@ struct ClusterFileWriter::State {
   std::vector<uint32_t> indices;
   std::vector<uint64_t> ids;
   std::string compressed;  // reused for every frame
+  FrameScratch scratch;    // frames made on this thread: one thread, or a fill's head and tail
+  std::string raw;         // their payload
   uint64_t spilled = 0, spilledPeak = 0;
   std::function<void(int64_t)> hook;
   bool finished = false, failed = false;
@@ -277,14 +311,27 @@ struct ClusterFileWriter::State {
   }
   void checkNode(const FchNode& node, uint64_t index) const;
   void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw);
+  // A frame whose payload `make` makes (on a worker when there are workers) from `given`.
+  void makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
+                 std::span<const FchNode> given = {});
   // Places a compressed frame: in the output (file-output nodes) or its section's spill.
-  void placeFrame(FchSection s, FchFrame frame, std::string_view bytes);
+  void placeFrame(FchSection s, FchFrame frame, std::string_view bytes, const Bounds& bounds);
   // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
   void placeOldest();
   void drain();
   void nodeFrame(std::span<const FchNode> batch);
   void vertexFrame(std::span<const glm::vec3> batch);
   void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
+  void addNodes(std::span<const FchNode> nodes);
+  void addVertices(std::span<const glm::vec3> vertices);
+  void addTriangles(std::span<const uint32_t> indices, std::span<const uint64_t> originalFace);
+  void checkTriangles(std::span<const uint32_t> indices, std::span<const uint64_t> originalFace,
+                      uint64_t first) const;
+  // Frames of `count` elements made by `make(first, n)`, from the section's arrival on: the
+  // elements completing a frame begun by earlier ones, and those short of a frame at the end that
+  // is not the section's, go through `add(first, n)` on this thread.
+  template <class Add, class Make>
+  void fillFrames(FchSection s, size_t buffered, uint64_t count, Add&& add, Make&& make);
   void release(Section& s);
   // Every entry point: refuses a writer that failed or finished, and marks it failed if the call
   // throws (its buffers and files are then in no defined state).
@@ -391,20 +438,37 @@ void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t
   }
   const FchFrame frame =
       compressor.compress(s, first, count, raw, compressed);  // before `compressed` is read
-  placeFrame(s, frame, compressed);
+  placeFrame(s, frame, compressed, Bounds{});
+}
+
+void ClusterFileWriter::State::makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
+                                         std::span<const FchNode> given) {
+  if (pool) {
+    if (pool->full()) placeOldest();
+    pool->submit(s, first, count, {}, given, std::move(make));
+    return;
+  }
+  Bounds bounds;
+  make(given, scratch, raw, bounds);
+  const FchFrame frame = compressor.compress(s, first, count, raw, compressed);
+  placeFrame(s, frame, compressed, bounds);
 }
 
 void ClusterFileWriter::State::placeOldest() {
   const CompressorPool::Job& done = pool->takeOldest();
-  placeFrame(done.section, done.frame, done.compressed);
+  placeFrame(done.section, done.frame, done.compressed, done.bounds);
 }
 
 void ClusterFileWriter::State::drain() {
   while (pool && !pool->empty()) placeOldest();
 }
 
-void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::string_view bytes) {
+void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::string_view bytes,
+                                          const Bounds& bounds) {
   Section& sec = section(s);
+  FileHeader& h = layout.header;
+  h.boundsMin = glm::min(h.boundsMin, bounds.lo);
+  h.boundsMax = glm::max(h.boundsMax, bounds.hi);
   frame.offset = sec.bytes;
   if (s == FchSection::Nodes && !stream) {
     output->write(bytes);
@@ -423,12 +487,13 @@ void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
   const uint64_t first = section(FchSection::Nodes).arrived - batch.size();
   const BoxPrecision precision = layout.header.boxes;
   const auto count = static_cast<uint32_t>(batch.size());
-  if (precision == BoxPrecision::Exact) {
-    if (!pool) return writeFrame(FchSection::Nodes, first, count, exactNodeFrame(batch, first, writerName));
-    if (pool->full()) placeOldest();
-    pool->submit(FchSection::Nodes, first, count, {}, batch, &writerName);
-    return;
-  }
+  if (precision == BoxPrecision::Exact)
+    return makeFrame(
+        FchSection::Nodes, first, count,
+        [this, first](std::span<const FchNode> given, FrameScratch& scratch, std::string& out, Bounds&) {
+          exactNodeFrame(given, first, writerName, scratch.codes, out);
+        },
+        batch);
   codes.clear();
   for (size_t i = 0; i < batch.size(); ++i) {
     const FchNode& node = batch[i];
@@ -456,14 +521,20 @@ void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
 }
 void ClusterFileWriter::State::vertexFrame(std::span<const glm::vec3> batch) {
   const uint64_t first = section(FchSection::Vertices).arrived - batch.size();
-  writeFrame(FchSection::Vertices, first, static_cast<uint32_t>(batch.size()), fch::encodeVertices(batch));
+  std::string out;
+  fch::encodeVertices(batch, out);
+  writeFrame(FchSection::Vertices, first, static_cast<uint32_t>(batch.size()), std::move(out));
 }
 void ClusterFileWriter::State::triangleFrames(std::span<const uint32_t> corners,
                                               std::span<const uint64_t> faces) {
   const uint64_t first = section(FchSection::Triangles).arrived - faces.size();
   const auto n = static_cast<uint32_t>(faces.size());
-  writeFrame(FchSection::Triangles, first, n, fch::encodeTriangles(corners));
-  writeFrame(FchSection::OriginalFaces, first, n, fch::encodeIds(faces, layout.originalIdBytes));
+  std::string out;
+  fch::encodeTriangles(corners, out);
+  writeFrame(FchSection::Triangles, first, n, std::move(out));
+  out = {};
+  fch::encodeIds(faces, layout.originalIdBytes, out);
+  writeFrame(FchSection::OriginalFaces, first, n, std::move(out));
 }
 
 void ClusterFileWriter::State::release(Section& s) {
@@ -516,82 +587,196 @@ ClusterFileWriter::~ClusterFileWriter() {
   }
 }
 
+void ClusterFileWriter::State::addNodes(std::span<const FchNode> batch) {
+  Section& sec = arriving(FchSection::Nodes, "nodes", batch.size());
+  for (size_t i = 0; i < batch.size(); ++i) checkNode(batch[i], sec.arrived + i);
+  if (nodes.capacity() == 0) nodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
+  appendFrames(batch, nodes, sec.arrived, sec.declared, layout.nodesPerFrame,
+               [&](std::span<const FchNode> frame) { nodeFrame(frame); });
+}
+
+void ClusterFileWriter::State::addVertices(std::span<const glm::vec3> batch) {
+  Section& sec = arriving(FchSection::Vertices, "vertices", batch.size());
+  FileHeader& h = layout.header;
+  for (const glm::vec3& p : batch)
+    h.boundsMin = glm::min(h.boundsMin, p), h.boundsMax = glm::max(h.boundsMax, p);
+  if (vertices.capacity() == 0) vertices.reserve(std::min<uint64_t>(layout.geometryPerFrame, sec.declared));
+  appendFrames(batch, vertices, sec.arrived, sec.declared, layout.geometryPerFrame,
+               [&](std::span<const glm::vec3> frame) { vertexFrame(frame); });
+}
+
+void ClusterFileWriter::State::checkTriangles(std::span<const uint32_t> corners,
+                                              std::span<const uint64_t> faces, uint64_t first) const {
+  const uint64_t vertexCount = layout.header.vertexCount;
+  for (size_t i = 0; i < corners.size(); ++i)
+    if (corners[i] >= vertexCount)
+      reject("triangle " + str(first + i / 3) + ": vertex index " + str(corners[i]) +
+             " beyond the declared " + str(vertexCount) + " vertices");
+  for (size_t i = 0; i < faces.size(); ++i)
+    if (faces[i] > maxOriginalFace)
+      reject("triangle " + str(first + i) + ": original face id " + str(faces[i]) +
+             " above the declared maximum " + str(maxOriginalFace));
+}
+
+void ClusterFileWriter::State::addTriangles(std::span<const uint32_t> corners,
+                                            std::span<const uint64_t> faces) {
+  if (corners.size() != 3 * faces.size())
+    reject(str(corners.size()) + " vertex indices for " + str(faces.size()) +
+           " original face ids (3 per triangle)");
+  Section& sec = arriving(FchSection::Triangles, "triangles", faces.size());
+  checkTriangles(corners, faces, sec.arrived);
+  const uint32_t g = layout.geometryPerFrame;
+  if (ids.capacity() == 0) {
+    ids.reserve(std::min<uint64_t>(g, sec.declared));
+    indices.reserve(3 * ids.capacity());
+  }
+  // Triangles and ids share their framing: walk both by triangles, through one buffer pair.
+  uint64_t arrived = sec.arrived;
+  while (!faces.empty()) {
+    const uint64_t frameEnd = std::min<uint64_t>(sec.declared, (arrived - ids.size()) + g);
+    const size_t need = static_cast<size_t>(frameEnd - arrived);
+    const size_t take = std::min(need, faces.size());
+    arrived += take;
+    sec.arrived = section(FchSection::OriginalFaces).arrived = arrived;
+    if (ids.empty() && take == need) {
+      triangleFrames(corners.first(3 * take), faces.first(take));
+    } else {
+      ids.insert(ids.end(), faces.begin(), faces.begin() + static_cast<ptrdiff_t>(take));
+      indices.insert(indices.end(), corners.begin(), corners.begin() + static_cast<ptrdiff_t>(3 * take));
+      if (take == need) {
+        triangleFrames(indices, ids);
+        ids.clear();
+        indices.clear();
+      }
+    }
+    faces = faces.subspan(take);
+    corners = corners.subspan(3 * take);
+  }
+}
+
+template <class Add, class Make>
+void ClusterFileWriter::State::fillFrames(FchSection s, size_t buffered, uint64_t count, Add&& add,
+                                          Make&& make) {
+  Section& sec = arriving(s, sectionName(s), count);
+  const uint32_t per = perFrame(s);
+  uint64_t first = sec.arrived;
+  const uint64_t end = first + count;
+  if (buffered > 0) {  // complete the frame begun
+    const uint64_t head = std::min(end, std::min<uint64_t>(sec.declared, first - buffered + per)) - first;
+    add(first, static_cast<size_t>(head));
+    first += head;
+  }
+  while (first < end) {
+    const uint64_t frameEnd = std::min<uint64_t>(sec.declared, first + per);
+    if (frameEnd > end) {  // short of a frame: buffered until more comes
+      add(first, static_cast<size_t>(end - first));
+      break;
+    }
+    make(first, static_cast<uint32_t>(frameEnd - first));
+    first = frameEnd;
+  }
+}
+
 void ClusterFileWriter::addNodes(std::span<const FchNode> nodes) {
   State& s = *state_;
+  s.guarded("addNodes", [&] { s.addNodes(nodes); });
+}
+
+void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
+  State& s = *state_;
   s.guarded("addNodes", [&] {
-    State::Section& sec = s.arriving(FchSection::Nodes, "nodes", nodes.size());
-    for (size_t i = 0; i < nodes.size(); ++i) s.checkNode(nodes[i], sec.arrived + i);
-    if (s.nodes.capacity() == 0) s.nodes.reserve(std::min<uint64_t>(s.layout.nodesPerFrame, sec.declared));
-    appendFrames(nodes, s.nodes, sec.arrived, sec.declared, s.layout.nodesPerFrame,
-                 [&](std::span<const FchNode> batch) { s.nodeFrame(batch); });
+    const auto add = [&](uint64_t first, size_t n) {
+      s.scratch.nodes.resize(n);
+      fill(first, s.scratch.nodes);
+      s.addNodes(s.scratch.nodes);
+    };
+    // Compact boxes are quantised against their parents' in file order, on this thread.
+    const bool onWorkers = s.layout.header.boxes == BoxPrecision::Exact;
+    s.fillFrames(FchSection::Nodes, s.nodes.size(), count, add, [&](uint64_t first, uint32_t n) {
+      if (!onWorkers) return add(first, n);
+      s.section(FchSection::Nodes).arrived += n;
+      s.makeFrame(
+          FchSection::Nodes, first, n,
+          [&s, fill, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw, Bounds&) {
+            scratch.nodes.resize(n);
+            fill(first, scratch.nodes);
+            for (uint32_t i = 0; i < n; ++i) s.checkNode(scratch.nodes[i], first + i);
+            exactNodeFrame(scratch.nodes, first, s.writerName, scratch.codes, raw);
+          });
+    });
   });
 }
 
 void ClusterFileWriter::addVertices(std::span<const glm::vec3> vertices) {
   State& s = *state_;
+  s.guarded("addVertices", [&] { s.addVertices(vertices); });
+}
+
+void ClusterFileWriter::addVertices(uint64_t count, VertexFill fill) {
+  State& s = *state_;
   s.guarded("addVertices", [&] {
-    State::Section& sec = s.arriving(FchSection::Vertices, "vertices", vertices.size());
-    FileHeader& h = s.layout.header;
-    for (const glm::vec3& p : vertices)
-      h.boundsMin = glm::min(h.boundsMin, p), h.boundsMax = glm::max(h.boundsMax, p);
-    if (s.vertices.capacity() == 0)
-      s.vertices.reserve(std::min<uint64_t>(s.layout.geometryPerFrame, sec.declared));
-    appendFrames(vertices, s.vertices, sec.arrived, sec.declared, s.layout.geometryPerFrame,
-                 [&](std::span<const glm::vec3> batch) { s.vertexFrame(batch); });
+    const auto add = [&](uint64_t first, size_t n) {
+      s.scratch.vertices.resize(n);
+      fill(first, s.scratch.vertices);
+      s.addVertices(s.scratch.vertices);
+    };
+    s.fillFrames(FchSection::Vertices, s.vertices.size(), count, add, [&](uint64_t first, uint32_t n) {
+      s.section(FchSection::Vertices).arrived += n;
+      s.makeFrame(FchSection::Vertices, first, n,
+                  [fill, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw,
+                                   Bounds& bounds) {
+                    scratch.vertices.resize(n);
+                    fill(first, scratch.vertices);
+                    bounds.add(scratch.vertices);
+                    fch::encodeVertices(scratch.vertices, raw);
+                  });
+    });
   });
 }
 
 void ClusterFileWriter::addTriangles(std::span<const uint32_t> indices,
                                      std::span<const uint64_t> originalFace) {
   State& s = *state_;
+  s.guarded("addTriangles", [&] { s.addTriangles(indices, originalFace); });
+}
+
+void ClusterFileWriter::addTriangles(uint64_t count, IndexFill indices, IdFill originalFace) {
+  State& s = *state_;
   s.guarded("addTriangles", [&] {
-    if (indices.size() != 3 * originalFace.size())
-      s.reject(str(indices.size()) + " vertex indices for " + str(originalFace.size()) +
-               " original face ids (3 per triangle)");
-    State::Section& sec = s.arriving(FchSection::Triangles, "triangles", originalFace.size());
-    const uint64_t vertexCount = s.layout.header.vertexCount;
-    for (size_t i = 0; i < indices.size(); ++i)
-      if (indices[i] >= vertexCount)
-        s.reject("triangle " + str(sec.arrived + i / 3) + ": vertex index " + str(indices[i]) +
-                 " beyond the declared " + str(vertexCount) + " vertices");
-    for (size_t i = 0; i < originalFace.size(); ++i)
-      if (originalFace[i] > s.maxOriginalFace)
-        s.reject("triangle " + str(sec.arrived + i) + ": original face id " + str(originalFace[i]) +
-                 " above the declared maximum " + str(s.maxOriginalFace));
-    const uint32_t g = s.layout.geometryPerFrame;
-    if (s.ids.capacity() == 0) {
-      s.ids.reserve(std::min<uint64_t>(g, sec.declared));
-      s.indices.reserve(3 * s.ids.capacity());
-    }
-    // Triangles and ids share their framing: walk both by triangles, through one buffer pair.
-    uint64_t arrived = sec.arrived;
-    while (!originalFace.empty()) {
-      const uint64_t frameEnd = std::min<uint64_t>(sec.declared, (arrived - s.ids.size()) + g);
-      const size_t need = static_cast<size_t>(frameEnd - arrived);
-      const size_t take = std::min(need, originalFace.size());
-      arrived += take;
-      sec.arrived = s.section(FchSection::OriginalFaces).arrived = arrived;
-      if (s.ids.empty() && take == need) {
-        s.triangleFrames(indices.first(3 * take), originalFace.first(take));
-      } else {
-        s.ids.insert(s.ids.end(), originalFace.begin(), originalFace.begin() + static_cast<ptrdiff_t>(take));
-        s.indices.insert(s.indices.end(), indices.begin(),
-                         indices.begin() + static_cast<ptrdiff_t>(3 * take));
-        if (take == need) {
-          s.triangleFrames(s.indices, s.ids);
-          s.ids.clear();
-          s.indices.clear();
-        }
-      }
-      originalFace = originalFace.subspan(take);
-      indices = indices.subspan(3 * take);
-    }
+    const auto add = [&](uint64_t first, size_t n) {
+      s.scratch.corners.resize(3 * n);
+      s.scratch.ids.resize(n);
+      indices(first, s.scratch.corners);
+      originalFace(first, s.scratch.ids);
+      s.addTriangles(s.scratch.corners, s.scratch.ids);
+    };
+    s.fillFrames(FchSection::Triangles, s.ids.size(), count, add, [&](uint64_t first, uint32_t n) {
+      s.section(FchSection::Triangles).arrived += n;
+      s.section(FchSection::OriginalFaces).arrived += n;
+      s.makeFrame(FchSection::Triangles, first, n,
+                  [&s, indices, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw,
+                                          Bounds&) {
+                    scratch.corners.resize(3 * size_t{n});
+                    indices(first, scratch.corners);
+                    s.checkTriangles(scratch.corners, {}, first);
+                    fch::encodeTriangles(scratch.corners, raw);
+                  });
+      s.makeFrame(FchSection::OriginalFaces, first, n,
+                  [&s, originalFace, first, n](std::span<const FchNode>, FrameScratch& scratch,
+                                               std::string& raw, Bounds&) {
+                    scratch.ids.resize(n);
+                    originalFace(first, scratch.ids);
+                    s.checkTriangles({}, scratch.ids, first);
+                    fch::encodeIds(scratch.ids, s.layout.originalIdBytes, raw);
+                  });
+    });
   });
 }
 
 uint64_t ClusterFileWriter::finish() {
   State& s = *state_;
   return s.guarded("finish", [&] {
+    s.drain();  // a frame made wrong on a worker is the first error
     std::string missing;
     for (const FchSection section : {FchSection::Nodes, FchSection::Vertices, FchSection::Triangles}) {
       const State::Section& sec = s.section(section);
@@ -600,7 +785,6 @@ uint64_t ClusterFileWriter::finish() {
                    " " + sectionName(section);
     }
     if (!missing.empty()) s.reject("finish: only " + missing + " arrived");
-    s.drain();
 
     FchLayout& layout = s.layout;
     FileHeader& h = layout.header;
@@ -651,15 +835,18 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t ids = 8 * g + 8 * g + fch::compressedBound(8 * g);
   const uint64_t largestRaw = std::max(nodeRaw, 12 * g);
-  // In the pool: per worker a frame (with exact boxes its nodes and their codes too), its
-  // compressed bytes and a compressor.
+  // Frames made from fills: the elements, node codes and payload of one frame, on this thread and
+  // on each worker.
+  const uint64_t scratch = (sizeof(FchNode) + sizeof(fch::NodeCode)) * n + (12 + 12 + 8) * g + largestRaw;
+  // In the pool: per slot a frame's nodes, payload and compressed bytes; per worker a scratch and
+  // a compressor.
+  const uint64_t workers = compressorThreads(options);
   const uint64_t background =
-      compressorThreads(options) *
-      ((sizeof(FchNode) + sizeof(fch::NodeCode)) * n + largestRaw + fch::compressedBound(largestRaw) +
-       fch::compressorMemoryBound(options.zstdLevel, largestRaw));
-  return nodes + vertices + triangles + ids + fch::compressorMemoryBound(options.zstdLevel, largestRaw) +
-         background + kCopyBufferBytes + kOutputBufferBytes +
-         64 * 1024;  // + the header, index entry vectors, names
+      kSlotsPerWorker * workers * (sizeof(FchNode) * n + largestRaw + fch::compressedBound(largestRaw)) +
+      workers * (scratch + fch::compressorMemoryBound(options.zstdLevel, largestRaw));
+  return nodes + vertices + triangles + ids + scratch +
+         fch::compressorMemoryBound(options.zstdLevel, largestRaw) + background + kCopyBufferBytes +
+         kOutputBufferBytes + 64 * 1024;  // + the header, index entry vectors, names
 }
 
 void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file,

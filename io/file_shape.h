@@ -24,11 +24,12 @@ class FileShape {
   // Node j of the file; every parent comes before its children. The root is at depth 1, and a
   // node with a face below it directly (or a child cut off by truncation, where the truncated
   // tree ends) reaches depth[j] + 1.
-  void add(size_t j, const FchNode& node) {
-    ++stats_.childHistogram[std::min<unsigned>(node.childCount, kMaxBranching)];
+  void add(size_t j, const FchNode& node) { add(j, node.childCount, node.child); }
+  void add(size_t j, unsigned childCount, const uint32_t* child) {
+    ++stats_.childHistogram[std::min<unsigned>(childCount, kMaxBranching)];
     bool endsHere = false;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
+    for (unsigned c = 0; c < childCount; ++c) {
+      const uint32_t ref = child[c];
       if (!(ref & kFaceChild) && ref < depth_.size())
         depth_[ref] = depth_[j] + 1;
       else

@@ -140,11 +140,14 @@ BranchingStats branchingStats(const Hierarchy& hierarchy, const FileOptions& opt
 // faces: ceil(log_b faces) + 1.
 uint32_t balancedHeight(uint64_t faces, uint32_t branching);
 
+// The cluster file's default zstd level, tuned for its byte planes (FrameCompressor).
+inline constexpr int kDefaultZstdLevel = 3;
+
 // How a cluster file is written: frame sizes, zstd level, compression threads.
 struct WriteOptions {
   uint32_t nodesPerFrame = 4096;      // truncation recompresses at most this many nodes
   uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
-  int zstdLevel = 3;                  // higher: a few percent smaller, several times slower
+  int zstdLevel = kDefaultZstdLevel;  // higher: a few percent smaller, several times slower
   // 2 or more (0: the hardware's count): each frame is compressed on a helper thread while the
   // caller encodes the next one (zstd is ~60% of a write); 1: on the calling thread. The bytes are
   // the same either way.
@@ -191,6 +194,18 @@ class ClusterFileWriter {
   void addVertices(std::span<const glm::vec3> vertices);
   void addTriangles(std::span<const uint32_t> indices,
                     std::span<const uint64_t> originalFace);  // 3 indices each
+  // The same elements made on demand, a frame at a time, on the writer's workers (WriteOptions::threads;
+  // inline with one thread): fill(first, out) writes elements first ... first + out.size() - 1, and may run
+  // on several threads at once. The section must be at a frame boundary (everything added to it so far
+  // fills whole frames); what a fill reads must stay valid until the writer finishes or is destroyed.
+  // Checked as the elements are made; same bytes as the elements added in spans.
+  using NodeFill = std::function<void(uint64_t first, std::span<FchNode> out)>;
+  using VertexFill = std::function<void(uint64_t first, std::span<glm::vec3> out)>;
+  using IndexFill = std::function<void(uint64_t firstTriangle, std::span<uint32_t> out)>;  // 3 per triangle
+  using IdFill = std::function<void(uint64_t firstTriangle, std::span<uint64_t> out)>;
+  void addNodes(uint64_t count, NodeFill fill);
+  void addVertices(uint64_t count, VertexFill fill);
+  void addTriangles(uint64_t count, IndexFill indices, IdFill originalFace);
   uint64_t finish();                    // returns the file size; all counts must have arrived
   uint64_t temporaryBytesPeak() const;  // bytes of spilled frames at their largest
   // Called with +bytes / -bytes whenever spilled bytes grow or shrink (so the caller can enforce --max-tmp);

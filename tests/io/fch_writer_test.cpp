@@ -259,6 +259,60 @@ TEST(ClusterFileWriter, AnyBatchingAndInterleavingGivesTheWholeFileWritersBytes)
   EXPECT_EQ(back.nodes.size(), 999u);
 }
 
+TEST(ClusterFileWriter, FillsMadeOnTheWorkersGiveTheBytesOfSpansInAnyMix) {
+  Cleanup cleanup;
+  const auto whole = cleanup.add(scratch("whole_fill.fch")), filled = cleanup.add(scratch("filled.fch"));
+  for (const uint64_t triangles : {0, 1, 2, 3, 500, 1000}) {
+    for (const WriteOptions& options : {WriteOptions{}, smallFrames()}) {
+      const ClusterFile file = SyntheticFile(triangles).materialize();
+      writeClusterFile(whole, file, options);
+      const std::string expected = slurp(whole);
+      std::mt19937 rng(static_cast<unsigned>(triangles) + 1);
+      for (const unsigned threads : {1u, 2u, 3u}) {
+        WriteOptions streaming = options;
+        streaming.threads = threads;
+        ClusterFileWriter writer(filled, SyntheticFile(triangles).info(), streaming);
+        // Each stream in runs of random length (within a frame, across several, to the end), each
+        // run a span or a fill, the streams interleaved at random.
+        const uint64_t total[3] = {file.nodes.size(), file.vertices.size(), file.originalFace.size()};
+        uint64_t at[3] = {0, 0, 0};
+        while (at[0] < total[0] || at[1] < total[1] || at[2] < total[2]) {
+          const unsigned s = rng() % 3;
+          const uint64_t first = at[s], n = std::min<uint64_t>(total[s] - first, rng() % 70);
+          const bool fill = rng() % 2 == 0;
+          at[s] += n;
+          if (s == 0 && fill)
+            writer.addNodes(n, [&file](uint64_t f, std::span<FchNode> out) {
+              std::copy_n(file.nodes.begin() + ptrdiff_t(f), out.size(), out.begin());
+            });
+          else if (s == 0)
+            writer.addNodes(std::span(file.nodes).subspan(first, n));
+          else if (s == 1 && fill)
+            writer.addVertices(n, [&file](uint64_t f, std::span<glm::vec3> out) {
+              std::copy_n(file.vertices.begin() + ptrdiff_t(f), out.size(), out.begin());
+            });
+          else if (s == 1)
+            writer.addVertices(std::span(file.vertices).subspan(first, n));
+          else if (fill)
+            writer.addTriangles(
+                n,
+                [&file](uint64_t f, std::span<uint32_t> out) {
+                  std::copy_n(file.indices.begin() + ptrdiff_t(3 * f), out.size(), out.begin());
+                },
+                [&file](uint64_t f, std::span<uint64_t> out) {
+                  std::copy_n(file.originalFace.begin() + ptrdiff_t(f), out.size(), out.begin());
+                });
+          else
+            writer.addTriangles(std::span(file.indices).subspan(3 * first, 3 * n),
+                                std::span(file.originalFace).subspan(first, n));
+        }
+        EXPECT_EQ(writer.finish(), expected.size());
+        ASSERT_EQ(slurp(filled), expected) << triangles << " triangles, threads " << threads;
+      }
+    }
+  }
+}
+
 TEST(ClusterFileWriter, StreamedHierarchyGivesTheBytesOfMakeClusterFile) {
   Cleanup cleanup;
   const auto whole = cleanup.add(scratch("made.fch")), streamed = cleanup.add(scratch("streamed_h.fch"));
@@ -560,6 +614,68 @@ TEST(ClusterFileWriter, CountsAndReferencesNotMatchingTheDeclarationAreInvalidAr
   EXPECT_TRUE(has(e, path.string())) << e;
 
   EXPECT_EQ(dir.entries(), 0u);
+}
+
+TEST(ClusterFileWriter, WhatAFillMakesWrongIsRefusedFromAnyThreadAndLeavesNothing) {
+  ScratchDir dir("fill_mismatch");
+  const auto path = dir.path / "bad.fch";
+  const ClusterFile file = SyntheticFile(10).materialize();  // 9 nodes, 12 vertices, 10 triangles
+  for (const unsigned threads : {1u, 2u}) {
+    WriteOptions options = smallFrames();
+    options.threads = threads;
+    const auto withWriter = [&](const std::function<void(ClusterFileWriter&)>& body) {
+      return invalidArgument([&] {
+        ClusterFileWriter writer(path, SyntheticFile(10).info(), options);
+        body(writer);
+        writer.finish();
+      });
+    };
+    std::string e = withWriter([&](ClusterFileWriter& w) {
+      w.addNodes(9, [&](uint64_t first, std::span<FchNode> out) {
+        for (size_t i = 0; i < out.size(); ++i) {
+          out[i] = file.nodes[first + i];
+          if (first + i == 2) out[i].child[1] = 1;  // before node 2
+        }
+      });
+    });
+    EXPECT_NE(e.find("node 2: child 1 not after it"), std::string::npos) << e;
+    EXPECT_NE(e.find(path.string()), std::string::npos) << e;
+
+    e = withWriter([&](ClusterFileWriter& w) {
+      w.addNodes(file.nodes);
+      w.addVertices(file.vertices);
+      w.addTriangles(
+          10,
+          [&](uint64_t first, std::span<uint32_t> out) {
+            for (size_t i = 0; i < out.size(); ++i)
+              out[i] = first * 3 + i == 7 ? 12 : file.indices[first * 3 + i];
+          },
+          [&](uint64_t first, std::span<uint64_t> out) {
+            std::copy_n(file.originalFace.begin() + ptrdiff_t(first), out.size(), out.begin());
+          });
+    });
+    EXPECT_NE(e.find("triangle 2: vertex index 12 beyond the declared 12 vertices"), std::string::npos) << e;
+
+    e = withWriter([&](ClusterFileWriter& w) {
+      w.addNodes(file.nodes);
+      w.addVertices(file.vertices);
+      w.addTriangles(
+          10,
+          [&](uint64_t first, std::span<uint32_t> out) {
+            std::copy_n(file.indices.begin() + ptrdiff_t(3 * first), out.size(), out.begin());
+          },
+          [&](uint64_t first, std::span<uint64_t> out) {
+            for (size_t i = 0; i < out.size(); ++i)
+              out[i] = first + i == 9 ? 1019 : file.originalFace[first + i];
+          });
+    });
+    EXPECT_NE(e.find("triangle 9: original face id 1019 above the declared maximum 1018"), std::string::npos)
+        << e;
+
+    e = withWriter([](ClusterFileWriter& w) { w.addVertices(13, [](uint64_t, std::span<glm::vec3>) {}); });
+    EXPECT_NE(e.find("vertices 0 ... 12 beyond the declared 12"), std::string::npos) << e;
+    EXPECT_EQ(dir.entries(), 0u) << threads << " threads";
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
