@@ -104,11 +104,10 @@ struct NodeBlock {
   float key;       // its first node's log effective cost: non-increasing along the leaf
   uint32_t first;  // its first node, leaf-local
   uint32_t count;
-  uint32_t compressedBytes = 0;  // the FchNodes in the node spill
+  uint32_t compressedBytes = 0;  // its encodeNodeRun bytes in the node spill, and their raw size
+  uint32_t rawBytes = 0;
   uint64_t offset = 0;
-  SpillBlock spill() const {
-    return {offset, compressedBytes, static_cast<uint32_t>(count * sizeof(FchNode))};
-  }
+  SpillBlock spill() const { return {offset, compressedBytes, rawBytes}; }
 };
 // How a leaf's nodes (file order, root first) are cut into runs. `minRun`: kMinNodeBlock, or more
 // when the input's nodes would make more runs than the budget holds (planLeaves); runs are at most

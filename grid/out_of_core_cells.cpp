@@ -269,11 +269,10 @@ CellsOutput CellsStage::run() {
   // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
   // scattered over the file, so they are not given back one by one (the file system's hole
   // punching would dominate the write, for no lower peak: the peak is the end of the cells).
-  // Node runs are floats and small integers in 132-byte records, which shuffled by byte place
-  // (SpillCodec) compress better; face records are not (consecutive faces repeat whole corner
-  // positions, which zstd matches only while the bytes stay together).
-  out_.subtrees.nodes =
-      std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/false, sizeof(FchNode));
+  // Node runs are in the file's own records (encodeNodeRun: columns of byte planes already);
+  // face records are not shuffled (consecutive faces repeat whole corner positions, which zstd
+  // matches only while the bytes stay together).
+  out_.subtrees.nodes = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/false);
   // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
   out_.subtrees.geometry = std::make_unique<SpillFile>(context_.temp, "geometry", /*discardable=*/true, 4);
   out_.records.pairs = std::make_unique<SpillFile>(context_.temp, "pairs");
@@ -539,11 +538,12 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
       out.corners.push_back(rootCorners(file));
       leaf.firstBlock = static_cast<uint32_t>(out.runs.size());
       for (NodeBlock b : nodeBlocks(file.nodes, plan_.minNodeRun)) {
-        block.clear();
-        appendBytes(block, file.nodes.data() + b.first, b.count);
-        const SpillBlock spill = out_.subtrees.nodes->append(block, codec);
+        const std::string run =
+            encodeNodeRun(std::span(file.nodes).subspan(b.first, b.count), b.first, context_.job.build.boxes);
+        const SpillBlock spill = out_.subtrees.nodes->append(std::as_bytes(std::span(run)), codec);
         b.offset = spill.offset;
         b.compressedBytes = spill.compressedBytes;
+        b.rawBytes = spill.rawBytes;
         out.runs.push_back(b);
         ++leaf.blockCount;
       }

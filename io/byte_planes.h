@@ -6,6 +6,7 @@
 #include <bit>
 #include <cstdint>
 #include <string>
+#include <string_view>
 
 namespace facetree::fch {
 
@@ -27,7 +28,7 @@ inline uint32_t bits(float f) {
 // Reads columns back from a payload whose total size has been checked.
 class Columns {
  public:
-  explicit Columns(const std::string& raw) : data_(reinterpret_cast<const uint8_t*>(raw.data())) {}
+  explicit Columns(std::string_view raw) : data_(reinterpret_cast<const uint8_t*>(raw.data())) {}
   // Starts the next column of n elements of `width` bytes.
   void next(size_t n, unsigned width = 4) {
     pos_ += n_ * width_;

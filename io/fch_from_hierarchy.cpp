@@ -2,6 +2,7 @@
 // (recastHierarchy), its geometry reordered, built whole (makeClusterFile) or streamed into a
 // ClusterFileWriter (writeClusterFile) without holding the file.
 #include <algorithm>
+#include <future>
 #include <optional>
 #include <stdexcept>
 
@@ -33,6 +34,19 @@ class FileNodes {
     if (tree_) return std::copy_n(tree_->child[j].begin(), tree_->childCount[j], child) - child;
     std::copy_n(hierarchy_.nodes[j].child, 2, child);
     return 2;
+  }
+  // Nodes first ... first + out.size() - 1. A node's first child is a random read: asking for it
+  // kPrefetch nodes ahead lets the cache misses overlap instead of stalling each node in turn.
+  void fill(size_t first, std::span<FchNode> out) const {
+    constexpr size_t kPrefetch = 32;
+    const size_t n = out.size();
+    for (size_t i = 0; i < n; ++i) {
+      if (!tree_ && i + kPrefetch < n) {
+        const uint32_t c0 = hierarchy_.nodes[first + i + kPrefetch].child[0];
+        if (!(c0 & kFaceChild)) __builtin_prefetch(&hierarchy_.nodes[c0]);
+      }
+      out[i] = (*this)[first + i];
+    }
   }
   FchNode operator[](size_t j) const {
     const uint32_t binary = tree_ ? tree_->binaryNode[j] : static_cast<uint32_t>(j);
@@ -143,17 +157,40 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
                           BranchingStats* stats) {
   checkFileInputs(mesh, originalFace, hierarchy, "writeClusterFile");
   const FileNodes nodes(hierarchy, options);
-  const FirstUseNumbering numbering = numberByFirstUse(mesh, hierarchy.faceOrder);
-  // The input vertex of each number, so that any run of the file's vertices can be made alone.
-  std::vector<uint32_t> vertexOf(numbering.vertexCount);
-  for (size_t v = 0; v < numbering.remap.size(); ++v)
-    if (numbering.remap[v] != kUnusedVertex) vertexOf[numbering.remap[v]] = static_cast<uint32_t>(v);
   const size_t triangles = mesh.triangleCount();
+  const std::span<const uint32_t> order = hierarchy.faceOrder;
+  // The header declares the vertex count: the vertices some face uses, counted in memory order.
+  // The numbering by first use along the face order (random reads), which only the vertex and
+  // triangle frames need, and the file's shape are made beside the node frames (on this thread
+  // when the write has one).
+  const uint32_t vertexCount = usedVertexCount(mesh);
+  const std::launch beside = writeOptions.threads == 1 ? std::launch::deferred : std::launch::async;
+  struct Numbered {
+    FirstUseNumbering numbering;
+    std::vector<uint32_t> vertexOf;  // the input vertex of each number: any run of vertices made alone
+  };
+  auto numbered = std::async(beside, [&] {
+    Numbered out{numberByFirstUse(mesh, order), {}};
+    out.vertexOf.resize(out.numbering.vertexCount);
+    for (size_t v = 0; v < out.numbering.remap.size(); ++v)
+      if (out.numbering.remap[v] != kUnusedVertex)
+        out.vertexOf[out.numbering.remap[v]] = static_cast<uint32_t>(v);
+    return out;
+  });
+  std::future<BranchingStats> shaped;
+  if (stats)
+    shaped = std::async(beside, [&] {
+      FileShape shape(options.branching, triangles, nodes.size());
+      uint32_t child[kMaxBranching];
+      for (size_t j = 0; j < nodes.size(); ++j) shape.add(j, nodes.children(j, child), child);
+      return shape.stats();
+    });
+  Numbered numbering;  // before the writer: its workers read it until the writer goes
   StreamFileInfo info;
   info.header = optionsHeader(options);
   info.header.nodeCount = info.header.originalNodeCount = nodes.size();
   info.header.triangleCount = triangles;
-  info.header.vertexCount = numbering.vertexCount;
+  info.header.vertexCount = vertexCount;
   if (originalFace.empty())
     info.maxOriginalFace = triangles > 0 ? triangles - 1 : 0;
   else
@@ -162,33 +199,29 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
 
   // Every frame is made from the hierarchy and the mesh alone, so the writer's workers make them
   // (node records, gathered geometry) as well as compress them; this thread only places them.
-  const std::span<const uint32_t> order = hierarchy.faceOrder;
-  writer.addNodes(nodes.size(), [&nodes](uint64_t first, std::span<FchNode> out) {
-    for (size_t i = 0; i < out.size(); ++i) out[i] = nodes[first + i];
-  });
-  writer.addVertices(numbering.vertexCount, [&](uint64_t first, std::span<glm::vec3> out) {
+  writer.addNodes(nodes.size(), [&nodes](uint64_t first, std::span<FchNode> out) { nodes.fill(first, out); });
+  numbering = numbered.get();
+  if (numbering.numbering.vertexCount != vertexCount)
+    throw std::invalid_argument("writeClusterFile: the face order does not hold every face once");
+  const std::span<const uint32_t> remap = numbering.numbering.remap, vertexOf = numbering.vertexOf;
+  writer.addVertices(vertexCount, [&mesh, vertexOf](uint64_t first, std::span<glm::vec3> out) {
     for (size_t i = 0; i < out.size(); ++i) out[i] = mesh.positions[vertexOf[first + i]];
   });
   writer.addTriangles(
       triangles,
-      [&](uint64_t first, std::span<uint32_t> out) {
+      [&mesh, order, remap](uint64_t first, std::span<uint32_t> out) {
         for (size_t i = 0; i < out.size() / 3; ++i) {
           const size_t t = order[first + i];
-          for (size_t k = 0; k < 3; ++k) out[3 * i + k] = numbering.remap[mesh.indices[3 * t + k]];
+          for (size_t k = 0; k < 3; ++k) out[3 * i + k] = remap[mesh.indices[3 * t + k]];
         }
       },
-      [&](uint64_t first, std::span<uint64_t> out) {
+      [order, originalFace](uint64_t first, std::span<uint64_t> out) {
         for (size_t i = 0; i < out.size(); ++i) {
           const uint32_t t = order[first + i];
           out[i] = originalFace.empty() ? t : originalFace[t];
         }
       });
-  if (stats) {  // while the last frames are made
-    FileShape shape(options.branching, triangles, nodes.size());
-    uint32_t child[kMaxBranching];
-    for (size_t j = 0; j < nodes.size(); ++j) shape.add(j, nodes.children(j, child), child);
-    *stats = shape.stats();
-  }
+  if (stats) *stats = shaped.get();
   return writer.finish();
 }
 

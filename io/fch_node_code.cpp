@@ -133,15 +133,17 @@ void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8
   box.orientation = orientation;
 }
 
-NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
-                      NodeBox* decoded) {
+namespace {
+
+// quantizeNode with the orientation on a lattice of `bits` and the box coded as `precision` says.
+NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxPrecision precision,
+                        const NodeBox* parent, NodeBox* decoded) {
   const auto fail = [&](const std::string& why) {
     throw std::invalid_argument("node " + std::to_string(index) + ": " + why);
   };
   NodeCode code;
   if (node.childCount < 2 || node.childCount > kMaxBranching)
     fail(std::to_string(node.childCount) + " children");
-  const unsigned bits = orientationBits(precision);
   const NodeBox& box = node.box;
   const OrientationCode orientation = encodeOrientation(box.orientation, bits);
   const glm::quat lattice = decodeOrientation(orientation, bits);
@@ -256,6 +258,17 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
   return code;
 }
 
+}  // namespace
+
+NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
+                      NodeBox* decoded) {
+  return quantizeRecord(node, index, orientationBits(precision), precision, parent, decoded);
+}
+
+NodeCode quantizeRunNode(const FchNode& node, uint64_t index, BoxPrecision precision) {
+  return quantizeRecord(node, index, orientationBits(precision), BoxPrecision::Exact, nullptr, nullptr);
+}
+
 std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision) {
   std::string out;
   encodeNodeFrame(codes, precision, out);
@@ -300,7 +313,7 @@ void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision, st
   putColumn(out, lists.size(), [&](size_t i) { return lists[i]; });
 }
 
-std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,
+std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precision, unsigned branching,
                             std::vector<NodeCode>& out) {
   const uint32_t fixed = nodeFixedBytes(precision);
   if (raw.size() < uint64_t{fixed} * n) return "payload smaller than its nodes' fixed fields";
@@ -374,18 +387,11 @@ std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision preci
 NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
     : header_(header), rootBox_(rootBox) {}
 
-std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
-  const uint64_t index = out.size();
-  Range range{0, 0, static_cast<uint32_t>(header_.triangleCount)};
-  if (index > 0) {
-    const auto it = pending_.find(static_cast<uint32_t>(index));
-    if (it == pending_.end()) return "no earlier node refers to it";
-    range = it->second;
-    pending_.erase(it);
-  }
-  FchNode node;
-  node.first = range.first;
-  node.count = range.count;
+std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
+                         bool exactBox, FchNode& node) {
+  node = FchNode{};
+  node.first = first;
+  node.count = count;
   node.childCount = static_cast<uint8_t>((code.shape & 7u) + 2);
   node.flags = static_cast<uint8_t>((code.shape >> 3) & kStoredFlagMask);
 
@@ -421,13 +427,6 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
         c == code.derived ? static_cast<uint32_t>(node.count - known) : code.faces[stored++];
     node.child[c] = static_cast<uint32_t>(target);
     node.childFaces[c] = faces;
-    if (target < header_.nodeCount) {
-      if (!pending_.emplace(static_cast<uint32_t>(target), Range{static_cast<uint32_t>(index), cursor, faces})
-               .second)
-        return "child " + std::to_string(target) + " of two nodes";
-    } else {
-      node.flags |= kFchTruncated;
-    }
     cursor += faces;
   }
 
@@ -437,7 +436,6 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
   OrientationCode orientation;
   orientation.largest = static_cast<uint8_t>((code.shape >> 5) & 3);
   for (int k = 0; k < 3; ++k) orientation.component[k] = unzigzag32(code.orientation[k]);
-  const unsigned bits = orientationBits(header_.boxes);
   const int32_t limit = (int32_t{1} << (bits - 1)) - 1;
   for (int32_t c : orientation.component)
     if (c < -limit || c > limit) return "orientation component " + std::to_string(c) + " out of range";
@@ -459,7 +457,51 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
     box.sideArea[2 * a] = static_cast<float>(std::max(0.0, 0.5 * (sum + along)));
     box.sideArea[2 * a + 1] = static_cast<float>(std::max(0.0, 0.5 * (sum - along)));
   }
-  if (header_.boxes == BoxPrecision::Compact) {
+  if (!exactBox) return {};
+  const int scale = int(code.scale) - kScaleBias;
+  if (scale < kMinScale || scale > kMaxScale)
+    return "box scale " + std::to_string(code.scale) + " out of range";
+  const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
+  for (int a = 0; a < 3; ++a) {
+    if (code.half[a] > kMaxHalfUnits || !std::isfinite(code.center[a])) return "box out of range";
+    box.center[a] = code.center[a];
+    box.halfExtent[a] = static_cast<float>(code.half[a] * unit);
+    if (!std::isfinite(box.halfExtent[a])) return "box out of range";
+  }
+  return {};
+}
+
+std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
+  const uint64_t index = out.size();
+  Range range{0, 0, static_cast<uint32_t>(header_.triangleCount)};
+  if (index > 0) {
+    const auto it = pending_.find(static_cast<uint32_t>(index));
+    if (it == pending_.end()) return "no earlier node refers to it";
+    range = it->second;
+    pending_.erase(it);
+  }
+  const bool compact = header_.boxes == BoxPrecision::Compact;
+  FchNode node;
+  if (std::string error =
+          decodeRecord(code, index, range.first, range.count, orientationBits(header_.boxes), !compact, node);
+      !error.empty())
+    return error;
+  // The node children this record announces, with their face ranges.
+  uint32_t cursor = node.first;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t child = node.child[c];
+    if (!(child & kFaceChild)) {
+      if (child < header_.nodeCount) {
+        if (!pending_.emplace(child, Range{static_cast<uint32_t>(index), cursor, node.childFaces[c]}).second)
+          return "child " + std::to_string(child) + " of two nodes";
+      } else {
+        node.flags |= kFchTruncated;
+      }
+    }
+    cursor += node.childFaces[c];
+  }
+  if (compact) {
+    NodeBox& box = node.box;
     for (int a = 0; a < 3; ++a)
       if (code.lo[a] > code.hi[a]) return "compact box face below its opposite";
     if (index == 0) {
@@ -467,17 +509,6 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
       box.halfExtent = rootBox_.halfExtent;
     } else {
       compactBox(out[range.parent].box, box.orientation, code.lo, code.hi, box);
-    }
-  } else {
-    const int scale = int(code.scale) - kScaleBias;
-    if (scale < kMinScale || scale > kMaxScale)
-      return "box scale " + std::to_string(code.scale) + " out of range";
-    const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
-    for (int a = 0; a < 3; ++a) {
-      if (code.half[a] > kMaxHalfUnits || !std::isfinite(code.center[a])) return "box out of range";
-      box.center[a] = code.center[a];
-      box.halfExtent[a] = static_cast<float>(code.half[a] * unit);
-      if (!std::isfinite(box.halfExtent[a])) return "box out of range";
     }
   }
   out.push_back(node);

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -69,8 +70,17 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
 std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision);
 void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision,
                      std::string& out);  // into `out`
-std::string decodeNodeFrame(const std::string& raw, size_t n, BoxPrecision precision, unsigned branching,
+std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precision, unsigned branching,
                             std::vector<NodeCode>& out);
+
+// A spilled node run's record (encodeNodeRun): quantizeNode's fields with the orientation on
+// `precision`'s lattice and the box always as exact boxes store it, whatever `precision` is.
+NodeCode quantizeRunNode(const FchNode& node, uint64_t index, BoxPrecision precision);
+// The node `index` of faces first ... first + count - 1 that `code` holds, with its box's centre and
+// extents when `exactBox` (else left for the caller); orientation on a lattice of `bits`. Returns
+// an empty string, or why the record is invalid.
+std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
+                         bool exactBox, FchNode& node);
 
 // Turns codes back into nodes in file order: face ranges follow from the parents' records
 // (the root covers every triangle), compact boxes from the parents' boxes.

@@ -39,9 +39,11 @@ constexpr size_t kCopyBufferBytes = size_t{1} << 20;    // spill -> output copie
 constexpr size_t kOutputBufferBytes = size_t{1} << 20;  // OutputFile's stdio buffer
 // Compression threads at most (WriteOptions::threads): frames are small and independent.
 constexpr unsigned kMaxCompressorThreads = 8;
-// Frames queued or in flight per worker: a second one keeps a worker busy while the caller waits
-// for the oldest frame, which another worker may still be making.
-constexpr unsigned kSlotsPerWorker = 2;
+// Frames queued or in flight per worker. One: a second would keep a worker busy while the caller
+// waits for the oldest frame, for a frame's buffers more per worker (out of core, under the cap).
+constexpr unsigned kSlotsPerWorker = 1;
+// Nodes a fill makes at a time for an exact-box frame: their records stay in cache until quantised.
+constexpr uint32_t kFillChunk = 256;
 
 // The compressor pool's workers for WriteOptions::threads (0: the hardware's); none for one thread,
 // which compresses inline.
@@ -133,17 +135,23 @@ struct Bounds {
 using FrameMaker = std::function<void(std::span<const FchNode> given, FrameScratch& scratch, std::string& raw,
                                       Bounds& bounds)>;
 
-// The node frame of exact boxes: each record depends on its node alone, so workers can make them.
-// `owner` prefixes the message of a node the format cannot hold.
-void exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner,
-                    std::vector<fch::NodeCode>& codes, std::string& raw) {
-  codes.clear();
+// Appends the codes of nodes first, first + 1, ... with exact boxes: each record depends on its
+// node alone, so workers can make them. `owner` prefixes the message of a node the format cannot hold.
+void quantizeExact(std::span<const FchNode> nodes, uint64_t first, const std::string& owner,
+                   std::vector<fch::NodeCode>& codes) {
   try {
     for (size_t i = 0; i < nodes.size(); ++i)
       codes.push_back(fch::quantizeNode(nodes[i], first + i, BoxPrecision::Exact, nullptr, nullptr));
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(owner + ": " + e.what());
   }
+}
+
+// The node frame of exact boxes.
+void exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner,
+                    std::vector<fch::NodeCode>& codes, std::string& raw) {
+  codes.clear();
+  quantizeExact(nodes, first, owner, codes);
   fch::encodeNodeFrame(codes, BoxPrecision::Exact, raw);
 }
 
@@ -695,13 +703,18 @@ void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
     s.fillFrames(FchSection::Nodes, s.nodes.size(), count, add, [&](uint64_t first, uint32_t n) {
       if (!onWorkers) return add(first, n);
       s.section(FchSection::Nodes).arrived += n;
+      // Made kFillChunk nodes at a time, so that the nodes are still in cache when quantised.
       s.makeFrame(
           FchSection::Nodes, first, n,
           [&s, fill, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw, Bounds&) {
-            scratch.nodes.resize(n);
-            fill(first, scratch.nodes);
-            for (uint32_t i = 0; i < n; ++i) s.checkNode(scratch.nodes[i], first + i);
-            exactNodeFrame(scratch.nodes, first, s.writerName, scratch.codes, raw);
+            scratch.codes.clear();
+            for (uint32_t at = 0; at < n; at += kFillChunk) {
+              scratch.nodes.resize(std::min(kFillChunk, n - at));
+              fill(first + at, scratch.nodes);
+              for (size_t i = 0; i < scratch.nodes.size(); ++i) s.checkNode(scratch.nodes[i], first + at + i);
+              quantizeExact(scratch.nodes, first + at, s.writerName, scratch.codes);
+            }
+            fch::encodeNodeFrame(scratch.codes, BoxPrecision::Exact, raw);
           });
     });
   });

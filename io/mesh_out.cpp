@@ -5,6 +5,7 @@
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "facetree/io.h"
@@ -88,6 +89,15 @@ FirstUseNumbering numberByFirstUse(const MeshView& mesh, std::span<const uint32_
     }
   }
   return out;
+}
+
+uint32_t usedVertexCount(const MeshView& mesh) {
+  std::vector<uint8_t> used(mesh.positions.size(), 0);
+  for (const uint32_t v : mesh.indices) {
+    if (v >= used.size()) throw std::invalid_argument("vertex index beyond the mesh");
+    used[v] = 1;
+  }
+  return static_cast<uint32_t>(std::count(used.begin(), used.end(), uint8_t{1}));
 }
 
 ReorderedGeometry reorderGeometry(const MeshView& mesh, std::span<const uint32_t> faceOrder) {

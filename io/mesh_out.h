@@ -17,6 +17,9 @@ struct FirstUseNumbering {
   uint32_t vertexCount = 0;
 };
 FirstUseNumbering numberByFirstUse(const MeshView& mesh, std::span<const uint32_t> faceOrder);
+// The vertices some triangle of `mesh` uses (what numberByFirstUse numbers when the order holds
+// every triangle), in one pass in memory order. Throws std::invalid_argument for indices out of range.
+uint32_t usedVertexCount(const MeshView& mesh);
 
 // Triangles in `faceOrder`, vertices renumbered by first use (unused vertices dropped), corner
 // order kept. Throws std::invalid_argument for indices out of range.

@@ -20,6 +20,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/ext/vector_uint3_sized.hpp>
@@ -223,6 +224,19 @@ class ClusterFileWriter {
 // frame index adds 40 bytes per frame. Compact boxes add the decoded box of every node whose
 // parent has arrived and which has not (BoxPrecision::Compact quantises a box against its parent's).
 uint64_t writerMemoryBound(const WriteOptions& options = {});
+
+// Runs of nodes in the file's version 2 record encoding (docs/FORMAT.md), for nodes that wait on disk
+// before they are written (the out-of-core build's spills): nodes firstIndex, firstIndex + 1, ... of
+// a tree whose children come after their parents, face children in face-range order (as written).
+// Their face ranges are stored; orientations on `precision`'s lattice; boxes as exact boxes store
+// them (extents rounded outwards by at most 2^-17), S and side areas as the file does: decoding gives
+// the nodes a file of those records would. Throws std::invalid_argument for a node the format cannot
+// hold (quantizeNode's reasons).
+std::string encodeNodeRun(std::span<const FchNode> nodes, uint64_t firstIndex, BoxPrecision precision);
+// The `n` nodes encodeNodeRun made `raw` from, into `out`. Throws std::runtime_error for bytes that
+// are not such a run.
+void decodeNodeRun(std::string_view raw, size_t n, uint64_t firstIndex, BoxPrecision precision,
+                   std::vector<FchNode>& out);
 
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
 // nodes are produced in batches, vertices numbered by first use on the fly (one index per input

@@ -196,5 +196,31 @@ TEST(FchVersion2, TheSameBytesForAnyWriterThreadsAndFrameBatching) {
   }
 }
 
+TEST(FchVersion2, NodeRunsDecodeToTheNodesAFileOfTheirRecordsGives) {
+  for (BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact})
+    for (unsigned branching : {2u, 8u}) {
+      SCOPED_TRACE(std::to_string(branching) + (boxes == BoxPrecision::Exact ? " exact" : " compact"));
+      const ClusterFile file = buildFile(foldedGrid(), boxes, branching);
+      const std::span<const FchNode> nodes = file.nodes;
+      // Runs anywhere in the tree: the whole file, its top, a piece from its middle.
+      for (const auto& [first, count] : {std::pair<size_t, size_t>{0, nodes.size()}, {0, 5}, {7, 40}}) {
+        const std::string run = encodeNodeRun(nodes.subspan(first, count), first, boxes);
+        std::vector<FchNode> back;
+        decodeNodeRun(run, count, first, boxes, back);
+        ASSERT_EQ(back.size(), count);
+        for (size_t i = 0; i < count; ++i) ASSERT_TRUE(sameNode(back[i], nodes[first + i])) << first + i;
+        // The writer quantises decoded runs again: still within the file's bounds of the nodes.
+        std::vector<FchNode> twice;
+        decodeNodeRun(encodeNodeRun(back, first, boxes), count, first, boxes, twice);
+        for (size_t i = 0; i < count; ++i) ASSERT_TRUE(sameNode(twice[i], nodes[first + i])) << first + i;
+        // A run cut short or from elsewhere is refused.
+        EXPECT_THROW(
+            decodeNodeRun(std::string_view(run).substr(0, run.size() - 1), count, first, boxes, back),
+            std::runtime_error);
+        EXPECT_THROW(decodeNodeRun(run, count + 1, first, boxes, back), std::runtime_error);
+      }
+    }
+}
+
 }  // namespace
 }  // namespace facetree
