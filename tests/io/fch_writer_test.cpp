@@ -641,34 +641,27 @@ TEST(ClusterFileWriter, WhatAFillMakesWrongIsRefusedFromAnyThreadAndLeavesNothin
     EXPECT_NE(e.find("node 2: child 1 not after it"), std::string::npos) << e;
     EXPECT_NE(e.find(path.string()), std::string::npos) << e;
 
-    e = withWriter([&](ClusterFileWriter& w) {
-      w.addNodes(file.nodes);
-      w.addVertices(file.vertices);
-      w.addTriangles(
-          10,
-          [&](uint64_t first, std::span<uint32_t> out) {
-            for (size_t i = 0; i < out.size(); ++i)
-              out[i] = first * 3 + i == 7 ? 12 : file.indices[first * 3 + i];
-          },
-          [&](uint64_t first, std::span<uint64_t> out) {
-            std::copy_n(file.originalFace.begin() + ptrdiff_t(first), out.size(), out.begin());
-          });
-    });
+    // Triangles whose corner `badCorner` is a vertex beyond the declared ones, or whose id `badId`
+    // is above the declared maximum, made by fills.
+    const auto badTriangles = [&](size_t badCorner, size_t badId) {
+      return withWriter([&](ClusterFileWriter& w) {
+        w.addNodes(file.nodes);
+        w.addVertices(file.vertices);
+        w.addTriangles(
+            10,
+            [&](uint64_t first, std::span<uint32_t> out) {
+              for (size_t i = 0; i < out.size(); ++i)
+                out[i] = 3 * first + i == badCorner ? 12 : file.indices[3 * first + i];
+            },
+            [&](uint64_t first, std::span<uint64_t> out) {
+              for (size_t i = 0; i < out.size(); ++i)
+                out[i] = first + i == badId ? 1019 : file.originalFace[first + i];
+            });
+      });
+    };
+    e = badTriangles(7, SIZE_MAX);
     EXPECT_NE(e.find("triangle 2: vertex index 12 beyond the declared 12 vertices"), std::string::npos) << e;
-
-    e = withWriter([&](ClusterFileWriter& w) {
-      w.addNodes(file.nodes);
-      w.addVertices(file.vertices);
-      w.addTriangles(
-          10,
-          [&](uint64_t first, std::span<uint32_t> out) {
-            std::copy_n(file.indices.begin() + ptrdiff_t(3 * first), out.size(), out.begin());
-          },
-          [&](uint64_t first, std::span<uint64_t> out) {
-            for (size_t i = 0; i < out.size(); ++i)
-              out[i] = first + i == 9 ? 1019 : file.originalFace[first + i];
-          });
-    });
+    e = badTriangles(SIZE_MAX, 9);
     EXPECT_NE(e.find("triangle 9: original face id 1019 above the declared maximum 1018"), std::string::npos)
         << e;
 
