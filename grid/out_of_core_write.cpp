@@ -64,15 +64,18 @@ using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
 constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
 // The node pass's input, read ahead on a helper thread: the sorted order's entries in batches, with
-// the nodes of the batch's leaf runs read, decompressed and decoded (encodeNodeRun), one batch being
+// the batch's leaf runs read and decompressed (and decoded for compact boxes), one batch being
 // made while the pass takes the one before. The spill's reads, zstd and decoding then overlap the
 // pass's remapping and the writer (perf: reading was half of the pass's thread on the 14M-face
 // dragon at 64 MiB). Order blocks are given back as read.
 class NodeRunReader {
  public:
   struct Batch {
-    std::vector<NodeRef> refs;   // consecutive entries of the order
-    std::vector<FchNode> nodes;  // the leaf runs' nodes among them, in turn
+    std::vector<NodeRef> refs;  // consecutive entries of the order
+    // The leaf runs among them, in turn: with exact boxes their records as spilled (the writer takes
+    // them as they are), with compact boxes their nodes decoded.
+    std::vector<char> records;
+    std::vector<FchNode> nodes;
   };
   // `runFirst`: each run's first node, leaf-local; `precision`: the runs' orientation lattice.
   NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs,
@@ -121,11 +124,13 @@ class NodeRunReader {
       std::vector<NodeRef> refs;
       std::vector<FchNode> run;
       Batch* batch = nullptr;
+      size_t batched = 0;  // run nodes in the batch
       const auto publish = [&] {
         std::lock_guard lock(mutex_);
         ++made_;
         changed_.notify_all();
         batch = nullptr;
+        batched = 0;
       };
       for (const SpillBlock& block : orderBlocks_) {
         order_.read(block, raw, codec);
@@ -139,16 +144,23 @@ class NodeRunReader {
             if (stop_) return;
             batch = &slots_[made_ % slots_.size()];
             batch->refs.clear();
+            batch->records.clear();
             batch->nodes.clear();
           }
           batch->refs.push_back(ref);
           if (ref.kind == 1) {
             runs_.read(ref.spill(), raw, codec);
-            decodeNodeRun(std::string_view(reinterpret_cast<const char*>(raw.data()), raw.size()), ref.count,
-                          runFirst_[ref.run], precision_, run);
-            batch->nodes.insert(batch->nodes.end(), run.begin(), run.end());
+            const auto* bytes = reinterpret_cast<const char*>(raw.data());
+            if (precision_ == BoxPrecision::Exact) {
+              batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
+            } else {
+              decodeNodeRun(std::string_view(bytes, raw.size()), ref.count, runFirst_[ref.run], precision_,
+                            run);
+              batch->nodes.insert(batch->nodes.end(), run.begin(), run.end());
+            }
+            batched += ref.count;
           }
-          if (batch->nodes.size() >= kBatchNodes) publish();
+          if (batched >= kBatchNodes) publish();
         }
       }
       if (batch) publish();
@@ -439,8 +451,10 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     return n;
   };
   {
+    const bool exact = context_.job.build.boxes == BoxPrecision::Exact;
     NodeRunReader reader(*order_, orderBlocks_, *subtrees_.nodes, graph_.runFirst, context_.job.build.boxes);
     while (NodeRunReader::Batch* batch = reader.next()) {
+      const char* records = batch->records.data();
       FchNode* nodes = batch->nodes.data();
       for (const NodeRef& ref : batch->refs) {
         if (ref.kind == 0) {
@@ -452,6 +466,14 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
           out.clear();
         }
         const uint32_t leafId = layout.leafOrder[ref.leafRank];
+        done += ref.count;
+        if (exact) {  // the records as they are, their node children placed
+          writer.addNodeRun(
+              std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
+              [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); });
+          records += ref.rawBytes;
+          continue;
+        }
         const auto faceOffset = static_cast<uint32_t>(layout.faceBase[leafId]);
         const std::span<FchNode> run(nodes, ref.count);
         nodes += ref.count;
@@ -462,7 +484,6 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
                                                    : nodePosition(leafId, n.child[c]);
         }
         writer.addNodes(run);
-        done += run.size();
       }
       context_.checkCancel("write", done, layout.faces + layout.nodes);
     }

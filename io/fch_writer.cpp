@@ -130,10 +130,10 @@ struct Bounds {
   }
 };
 
-// Makes a frame's payload into `raw`: from the nodes handed to the frame (`given`; exact-box node
-// frames) or from a fill, with a worker's scratch.
-using FrameMaker = std::function<void(std::span<const FchNode> given, FrameScratch& scratch, std::string& raw,
-                                      Bounds& bounds)>;
+// Makes a frame's payload into `raw`: from the node records handed to the frame (`given`; exact-box
+// node frames) or from a fill, with a worker's scratch.
+using FrameMaker = std::function<void(std::span<const fch::NodeCode> given, FrameScratch& scratch,
+                                      std::string& raw, Bounds& bounds)>;
 
 // Appends the codes of nodes first, first + 1, ... with exact boxes: each record depends on its
 // node alone, so workers can make them. `owner` prefixes the message of a node the format cannot hold.
@@ -145,14 +145,6 @@ void quantizeExact(std::span<const FchNode> nodes, uint64_t first, const std::st
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(owner + ": " + e.what());
   }
-}
-
-// The node frame of exact boxes.
-void exactNodeFrame(std::span<const FchNode> nodes, uint64_t first, const std::string& owner,
-                    std::vector<fch::NodeCode>& codes, std::string& raw) {
-  codes.clear();
-  quantizeExact(nodes, first, owner, codes);
-  fch::encodeNodeFrame(codes, BoxPrecision::Exact, raw);
 }
 
 // Compresses frames on worker threads, each with its own compressor and scratch, while the caller
@@ -168,8 +160,8 @@ class CompressorPool {
     uint64_t first = 0;
     uint32_t count = 0;
     std::string raw;
-    std::vector<FchNode> nodes;  // handed to `make`
-    FrameMaker make;             // empty: `raw` is the payload
+    std::vector<fch::NodeCode> codes;  // handed to `make`
+    FrameMaker make;                   // empty: `raw` is the payload
     Bounds bounds;
     std::string compressed;
     FchFrame frame{};
@@ -196,9 +188,9 @@ class CompressorPool {
   bool full() const { return submitted_ - taken_ == jobs_.size(); }
   bool empty() const { return submitted_ == taken_; }
 
-  // Queues a frame whose payload is `raw`, or is made by `make` from `nodes`; call only when not full().
+  // Queues a frame whose payload is `raw`, or is made by `make` from `codes`; call only when not full().
   void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw,
-              std::span<const FchNode> nodes = {}, FrameMaker make = {}) {
+              std::span<const fch::NodeCode> codes = {}, FrameMaker make = {}) {
     {
       std::lock_guard lock(mutex_);
       Job& job = jobs_[submitted_ % jobs_.size()];
@@ -206,7 +198,7 @@ class CompressorPool {
       job.first = first;
       job.count = count;
       if (!make) job.raw = std::move(raw);
-      job.nodes.assign(nodes.begin(), nodes.end());
+      job.codes.assign(codes.begin(), codes.end());
       job.make = std::move(make);
       job.bounds = Bounds{};
       job.done = false;
@@ -236,7 +228,7 @@ class CompressorPool {
       lock.unlock();
       std::exception_ptr failure;
       try {
-        if (job.make) job.make(job.nodes, scratch_[worker], job.raw, job.bounds);
+        if (job.make) job.make(job.codes, scratch_[worker], job.raw, job.bounds);
         job.frame =
             compressors_[worker]->compress(job.section, job.first, job.count, job.raw, job.compressed);
       } catch (...) {
@@ -287,7 +279,8 @@ struct ClusterFileWriter::State {
   bool stream = false;               // isStreamOutput: the header cannot be written last
   Section sections[kSections];
   std::vector<FchNode> nodes;
-  std::vector<fch::NodeCode> codes;  // the node frame being encoded
+  std::vector<fch::NodeCode> codes;       // the node frame being encoded (compact boxes)
+  std::vector<fch::NodeCode> frameCodes;  // the node frame being gathered (exact boxes)
   // Compact boxes: the decoded boxes of the parents of nodes still to come, by child index.
   std::unordered_map<uint32_t, NodeBox> parentBoxes;
   std::vector<glm::vec3> vertices;
@@ -321,13 +314,15 @@ struct ClusterFileWriter::State {
   void writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw);
   // A frame whose payload `make` makes (on a worker when there are workers) from `given`.
   void makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
-                 std::span<const FchNode> given = {});
+                 std::span<const fch::NodeCode> given = {});
   // Places a compressed frame: in the output (file-output nodes) or its section's spill.
   void placeFrame(FchSection s, FchFrame frame, std::string_view bytes, const Bounds& bounds);
   // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
   void placeOldest();
   void drain();
-  void nodeFrame(std::span<const FchNode> batch);
+  void nodeFrame(std::span<const FchNode> batch);  // compact boxes
+  // Exact boxes: a record for the frame being gathered, which goes to a worker once whole.
+  void pushCode(const fch::NodeCode& code);
   void vertexFrame(std::span<const glm::vec3> batch);
   void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
   void addNodes(std::span<const FchNode> nodes);
@@ -450,7 +445,7 @@ void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t
 }
 
 void ClusterFileWriter::State::makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
-                                         std::span<const FchNode> given) {
+                                         std::span<const fch::NodeCode> given) {
   if (pool) {
     if (pool->full()) placeOldest();
     pool->submit(s, first, count, {}, given, std::move(make));
@@ -494,14 +489,6 @@ void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::str
 void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
   const uint64_t first = section(FchSection::Nodes).arrived - batch.size();
   const BoxPrecision precision = layout.header.boxes;
-  const auto count = static_cast<uint32_t>(batch.size());
-  if (precision == BoxPrecision::Exact)
-    return makeFrame(
-        FchSection::Nodes, first, count,
-        [this, first](std::span<const FchNode> given, FrameScratch& scratch, std::string& out, Bounds&) {
-          exactNodeFrame(given, first, writerName, scratch.codes, out);
-        },
-        batch);
   codes.clear();
   for (size_t i = 0; i < batch.size(); ++i) {
     const FchNode& node = batch[i];
@@ -595,9 +582,38 @@ ClusterFileWriter::~ClusterFileWriter() {
   }
 }
 
+void ClusterFileWriter::State::pushCode(const fch::NodeCode& code) {
+  Section& sec = section(FchSection::Nodes);
+  frameCodes.push_back(code);
+  ++sec.arrived;
+  const uint64_t first = sec.arrived - frameCodes.size();
+  const auto n = static_cast<uint32_t>(frameCodes.size());
+  if (n < std::min<uint64_t>(layout.nodesPerFrame, sec.declared - first)) return;
+  makeFrame(
+      FchSection::Nodes, first, n,
+      [](std::span<const fch::NodeCode> given, FrameScratch&, std::string& raw, Bounds&) {
+        fch::encodeNodeFrame(given, BoxPrecision::Exact, raw);
+      },
+      frameCodes);
+  frameCodes.clear();
+}
+
 void ClusterFileWriter::State::addNodes(std::span<const FchNode> batch) {
   Section& sec = arriving(FchSection::Nodes, "nodes", batch.size());
   for (size_t i = 0; i < batch.size(); ++i) checkNode(batch[i], sec.arrived + i);
+  if (layout.header.boxes == BoxPrecision::Exact) {  // quantised here: frames take records of any origin
+    if (frameCodes.capacity() == 0)
+      frameCodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
+    for (const FchNode& node : batch) {
+      const uint64_t index = sec.arrived;
+      try {
+        pushCode(fch::quantizeNode(node, index, BoxPrecision::Exact, nullptr, nullptr));
+      } catch (const std::invalid_argument& e) {
+        reject(e.what());
+      }
+    }
+    return;
+  }
   if (nodes.capacity() == 0) nodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
   appendFrames(batch, nodes, sec.arrived, sec.declared, layout.nodesPerFrame,
                [&](std::span<const FchNode> frame) { nodeFrame(frame); });
@@ -700,23 +716,55 @@ void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
     };
     // Compact boxes are quantised against their parents' in file order, on this thread.
     const bool onWorkers = s.layout.header.boxes == BoxPrecision::Exact;
-    s.fillFrames(FchSection::Nodes, s.nodes.size(), count, add, [&](uint64_t first, uint32_t n) {
+    const size_t buffered = onWorkers ? s.frameCodes.size() : s.nodes.size();
+    s.fillFrames(FchSection::Nodes, buffered, count, add, [&](uint64_t first, uint32_t n) {
       if (!onWorkers) return add(first, n);
       s.section(FchSection::Nodes).arrived += n;
       // Made kFillChunk nodes at a time, so that the nodes are still in cache when quantised.
-      s.makeFrame(
-          FchSection::Nodes, first, n,
-          [&s, fill, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw, Bounds&) {
-            scratch.codes.clear();
-            for (uint32_t at = 0; at < n; at += kFillChunk) {
-              scratch.nodes.resize(std::min(kFillChunk, n - at));
-              fill(first + at, scratch.nodes);
-              for (size_t i = 0; i < scratch.nodes.size(); ++i) s.checkNode(scratch.nodes[i], first + at + i);
-              quantizeExact(scratch.nodes, first + at, s.writerName, scratch.codes);
-            }
-            fch::encodeNodeFrame(scratch.codes, BoxPrecision::Exact, raw);
-          });
+      s.makeFrame(FchSection::Nodes, first, n,
+                  [&s, fill, first, n](std::span<const fch::NodeCode>, FrameScratch& scratch,
+                                       std::string& raw, Bounds&) {
+                    scratch.codes.clear();
+                    for (uint32_t at = 0; at < n; at += kFillChunk) {
+                      scratch.nodes.resize(std::min(kFillChunk, n - at));
+                      fill(first + at, scratch.nodes);
+                      for (size_t i = 0; i < scratch.nodes.size(); ++i)
+                        s.checkNode(scratch.nodes[i], first + at + i);
+                      quantizeExact(scratch.nodes, first + at, s.writerName, scratch.codes);
+                    }
+                    fch::encodeNodeFrame(scratch.codes, BoxPrecision::Exact, raw);
+                  });
     });
+  });
+}
+
+void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
+                                   const std::function<uint32_t(uint64_t)>& childIndex) {
+  State& s = *state_;
+  s.guarded("addNodeRun", [&] {
+    if (s.layout.header.boxes != BoxPrecision::Exact)
+      s.reject(
+          "addNodeRun: compact boxes are quantised against their parents' (add the run's decoded nodes)");
+    State::Section& sec = s.arriving(FchSection::Nodes, "nodes", n);
+    if (run.size() < 8 * n) s.reject("node run: smaller than its face ranges");
+    std::vector<fch::NodeCode>& codes = s.codes;
+    codes.clear();
+    if (std::string error =
+            fch::decodeNodeFrame(run.substr(8 * n), n, BoxPrecision::Exact, s.layout.header.branching, codes);
+        !error.empty())
+      s.reject("node run: " + error);
+    for (size_t i = 0; i < n; ++i) {
+      fch::NodeCode& code = codes[i];
+      const uint64_t index = sec.arrived;
+      for (unsigned k = 0; k < code.refCount; ++k) {
+        const uint64_t target = childIndex(runFirst + i + code.ref[k]);
+        if (target <= index || target >= s.nodeLimit)
+          s.reject("node " + str(index) + ": child " + str(target) + " not after it among the declared " +
+                   str(s.nodeLimit) + " nodes");
+        code.ref[k] = static_cast<uint32_t>(target - index);
+      }
+      s.pushCode(code);
+    }
   });
 }
 
@@ -736,7 +784,7 @@ void ClusterFileWriter::addVertices(uint64_t count, VertexFill fill) {
     s.fillFrames(FchSection::Vertices, s.vertices.size(), count, add, [&](uint64_t first, uint32_t n) {
       s.section(FchSection::Vertices).arrived += n;
       s.makeFrame(FchSection::Vertices, first, n,
-                  [fill, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw,
+                  [fill, first, n](std::span<const fch::NodeCode>, FrameScratch& scratch, std::string& raw,
                                    Bounds& bounds) {
                     scratch.vertices.resize(n);
                     fill(first, scratch.vertices);
@@ -767,15 +815,15 @@ void ClusterFileWriter::addTriangles(uint64_t count, IndexFill indices, IdFill o
       s.section(FchSection::Triangles).arrived += n;
       s.section(FchSection::OriginalFaces).arrived += n;
       s.makeFrame(FchSection::Triangles, first, n,
-                  [&s, indices, first, n](std::span<const FchNode>, FrameScratch& scratch, std::string& raw,
-                                          Bounds&) {
+                  [&s, indices, first, n](std::span<const fch::NodeCode>, FrameScratch& scratch,
+                                          std::string& raw, Bounds&) {
                     scratch.corners.resize(3 * size_t{n});
                     indices(first, scratch.corners);
                     s.checkTriangles(scratch.corners, {}, first);
                     fch::encodeTriangles(scratch.corners, raw);
                   });
       s.makeFrame(FchSection::OriginalFaces, first, n,
-                  [&s, originalFace, first, n](std::span<const FchNode>, FrameScratch& scratch,
+                  [&s, originalFace, first, n](std::span<const fch::NodeCode>, FrameScratch& scratch,
                                                std::string& raw, Bounds&) {
                     scratch.ids.resize(n);
                     originalFace(first, scratch.ids);
@@ -842,7 +890,7 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   const uint64_t nodeRaw = (fch::nodeFixedBytes(BoxPrecision::Exact) + 4 * (2 * kMaxBranching - 1)) * n;
   // Per section: the element buffer, the payload and the compressed frame (zstd's bound); for
   // nodes also their codes and the column scratch.
-  const uint64_t nodes = (sizeof(FchNode) + sizeof(fch::NodeCode)) * n + 4 * kMaxBranching * n + nodeRaw +
+  const uint64_t nodes = (sizeof(FchNode) + 2 * sizeof(fch::NodeCode)) * n + 4 * kMaxBranching * n + nodeRaw +
                          fch::compressedBound(nodeRaw);
   const uint64_t vertices = sizeof(glm::vec3) * g + 12 * g + fch::compressedBound(12 * g);
   const uint64_t triangles = 12 * g + 12 * g + fch::compressedBound(12 * g);
@@ -855,7 +903,8 @@ uint64_t writerMemoryBound(const WriteOptions& options) {
   // a compressor.
   const uint64_t workers = compressorThreads(options);
   const uint64_t background =
-      kSlotsPerWorker * workers * (sizeof(FchNode) * n + largestRaw + fch::compressedBound(largestRaw)) +
+      kSlotsPerWorker * workers *
+          (sizeof(fch::NodeCode) * n + largestRaw + fch::compressedBound(largestRaw)) +
       workers * (scratch + fch::compressorMemoryBound(options.zstdLevel, largestRaw));
   return nodes + vertices + triangles + ids + scratch +
          fch::compressorMemoryBound(options.zstdLevel, largestRaw) + background + kCopyBufferBytes +
@@ -877,7 +926,10 @@ void writeClusterFile(const std::filesystem::path& path, const ClusterFile& file
   info.header.vertexCount = file.vertices.size();
   for (const uint64_t id : file.originalFace) info.maxOriginalFace = std::max(info.maxOriginalFace, id);
   ClusterFileWriter writer(path, info, options);
-  writer.addNodes(file.nodes);
+  // Through fills, so that the writer's workers quantise the nodes as they compress them.
+  writer.addNodes(file.nodes.size(), [&file](uint64_t first, std::span<FchNode> out) {
+    std::copy_n(file.nodes.begin() + static_cast<ptrdiff_t>(first), out.size(), out.begin());
+  });
   writer.addVertices(file.vertices);
   writer.addTriangles(file.indices, file.originalFace);
   writer.finish();

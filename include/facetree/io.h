@@ -205,6 +205,13 @@ class ClusterFileWriter {
   using IndexFill = std::function<void(uint64_t firstTriangle, std::span<uint32_t> out)>;  // 3 per triangle
   using IdFill = std::function<void(uint64_t firstTriangle, std::span<uint64_t> out)>;
   void addNodes(uint64_t count, NodeFill fill);
+  // Exact boxes: `n` nodes as encodeNodeRun encoded them (nodes runFirst, runFirst + 1, ... of their
+  // own tree) appended without decoding them, their records unchanged but for their node children's
+  // references: childIndex(i) is the file index of the node the run's tree calls i (face children
+  // follow from the parents' ranges). References are checked as addNodes checks them; the records'
+  // face counts are the run's.
+  void addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
+                  const std::function<uint32_t(uint64_t)>& childIndex);
   void addVertices(uint64_t count, VertexFill fill);
   void addTriangles(uint64_t count, IndexFill indices, IdFill originalFace);
   uint64_t finish();                    // returns the file size; all counts must have arrived

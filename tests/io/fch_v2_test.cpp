@@ -3,7 +3,9 @@
 // and version 1 files (written by the version 1 writer) read, verify and truncate.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -220,6 +222,57 @@ TEST(FchVersion2, NodeRunsDecodeToTheNodesAFileOfTheirRecordsGives) {
         EXPECT_THROW(decodeNodeRun(run, count + 1, first, boxes, back), std::runtime_error);
       }
     }
+}
+
+TEST(FchVersion2, NodeRunsAddedAsRecordsGiveTheBytesOfTheirNodes) {
+  Cleanup cleanup;
+  const ClusterFile file = buildFile(foldedGrid(), BoxPrecision::Exact, 4);
+  const auto whole = cleanup.add(scratch("whole_runs.fch")), runs = cleanup.add(scratch("runs.fch"));
+  WriteOptions options;
+  options.nodesPerFrame = 16;
+  writeClusterFile(whole, file, options);
+  StreamFileInfo info;
+  info.header = file.header;
+  info.header.nodeCount = file.nodes.size();
+  info.header.triangleCount = file.originalFace.size();
+  info.header.vertexCount = file.vertices.size();
+  info.maxOriginalFace = *std::max_element(file.originalFace.begin(), file.originalFace.end());
+  const std::span<const FchNode> nodes = file.nodes;
+  const auto identity = [](uint64_t i) { return static_cast<uint32_t>(i); };
+  for (const unsigned threads : {1u, 3u}) {
+    options.threads = threads;
+    ClusterFileWriter writer(runs, info, options);
+    // Runs of 1 to 37 nodes, every third one added as nodes instead.
+    std::mt19937 rng(threads);
+    for (size_t first = 0, k = 0; first < nodes.size(); ++k) {
+      const size_t n = std::min<size_t>(nodes.size() - first, 1 + rng() % 37);
+      if (k % 3 == 2)
+        writer.addNodes(nodes.subspan(first, n));
+      else
+        writer.addNodeRun(encodeNodeRun(nodes.subspan(first, n), first, BoxPrecision::Exact), n, first,
+                          identity);
+      first += n;
+    }
+    writer.addVertices(file.vertices);
+    writer.addTriangles(file.indices, file.originalFace);
+    writer.finish();
+    EXPECT_EQ(slurp(runs), slurp(whole)) << threads << " threads";
+  }
+  // A child placed before its parent, and compact boxes, are refused.
+  const std::string run = encodeNodeRun(nodes.first(3), 0, BoxPrecision::Exact);
+  for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
+    StreamFileInfo bad = info;
+    bad.header.boxes = boxes;
+    try {
+      ClusterFileWriter writer(cleanup.add(scratch("bad_runs.fch")), bad);
+      writer.addNodeRun(run, 3, 0, [](uint64_t) { return 0u; });
+      FAIL() << "added";
+    } catch (const std::invalid_argument& e) {
+      const std::string expected =
+          boxes == BoxPrecision::Exact ? "node 0: child 0 not after it" : "compact boxes";
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
