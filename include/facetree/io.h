@@ -197,9 +197,10 @@ class ClusterFileWriter {
                     std::span<const uint64_t> originalFace);  // 3 indices each
   // The same elements made on demand, a frame at a time, on the writer's workers (WriteOptions::threads;
   // inline with one thread): fill(first, out) writes elements first ... first + out.size() - 1, and may run
-  // on several threads at once. The section must be at a frame boundary (everything added to it so far
-  // fills whole frames); what a fill reads must stay valid until the writer finishes or is destroyed.
-  // Checked as the elements are made; same bytes as the elements added in spans.
+  // on several threads at once; elements that complete a frame begun by earlier ones, or fall short of a
+  // frame before the section's end, are made on the calling thread. What a fill reads must stay valid
+  // until the writer finishes or is destroyed. Checked as the elements are made; same bytes as the
+  // elements added in spans, in any mix with them.
   using NodeFill = std::function<void(uint64_t first, std::span<FchNode> out)>;
   using VertexFill = std::function<void(uint64_t first, std::span<glm::vec3> out)>;
   using IndexFill = std::function<void(uint64_t firstTriangle, std::span<uint32_t> out)>;  // 3 per triangle
@@ -246,8 +247,9 @@ void decodeNodeRun(std::string_view raw, size_t n, uint64_t firstIndex, BoxPreci
                    std::vector<FchNode>& out);
 
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
-// nodes are produced in batches, vertices numbered by first use on the fly (one index per input
-// vertex is held). For b = 2 the recast is the identity and no tree is built. Same bytes as
+// every frame's nodes and geometry are made from the hierarchy and the mesh by the writer's workers
+// (fills), vertices numbered by first use beforehand (two indices per input vertex are held). For
+// b = 2 the recast is the identity and no tree is built. Same bytes as
 // writeClusterFile(path, makeClusterFile(...), writeOptions). Returns the file size; `stats`, when
 // given, gets the file's branchingStats.
 uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mesh,
