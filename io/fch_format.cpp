@@ -151,17 +151,20 @@ struct FrameCompressor::Context {
   ~Context() { ZSTD_freeCCtx(cctx); }
 };
 
-FrameCompressor::FrameCompressor(int level) : context_(std::make_unique<Context>()), level_(level) {
+// The default level's match finder (FrameCompressor): zstd's single-hash finder at level 3's
+// table size. Byte planes are runs of slowly varying high bytes beside incompressible low ones,
+// where the double-hash finder of levels 3 to 4 finds hardly more (docs/benchmarks.md).
+constexpr ZSTD_strategy kDefaultLevelStrategy = ZSTD_fast;
+constexpr unsigned kDefaultLevelHashLog = 17, kDefaultLevelMinMatch = 4;
+
+FrameCompressor::FrameCompressor(int level) : context_(std::make_unique<Context>()) {
   if (!context_->cctx) throw std::bad_alloc();
   ZSTD_CCtx* c = context_->cctx;
   ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, level);
-  // The default level looks for matches with zstd's single-hash finder at level 3's table size:
-  // byte planes are runs of slowly varying high bytes beside incompressible low ones, where the
-  // double-hash finder of levels 3 to 4 finds hardly more (docs/benchmarks.md).
   if (level == kDefaultZstdLevel) {
-    ZSTD_CCtx_setParameter(c, ZSTD_c_strategy, ZSTD_fast);
-    ZSTD_CCtx_setParameter(c, ZSTD_c_hashLog, 17);
-    ZSTD_CCtx_setParameter(c, ZSTD_c_minMatch, 4);
+    ZSTD_CCtx_setParameter(c, ZSTD_c_strategy, kDefaultLevelStrategy);
+    ZSTD_CCtx_setParameter(c, ZSTD_c_hashLog, kDefaultLevelHashLog);
+    ZSTD_CCtx_setParameter(c, ZSTD_c_minMatch, kDefaultLevelMinMatch);
   }
 }
 
@@ -190,7 +193,11 @@ uint64_t compressedBound(uint64_t rawBytes) {
 
 uint64_t compressorMemoryBound(int level, uint64_t rawBytes) {
   ZSTD_compressionParameters params = ZSTD_getCParams(level, rawBytes, 0);
-  if (level == kDefaultZstdLevel) params.hashLog = std::max(params.hashLog, 17u);  // as FrameCompressor's
+  if (level == kDefaultZstdLevel) {  // as FrameCompressor's
+    params.strategy = kDefaultLevelStrategy;
+    params.hashLog = kDefaultLevelHashLog;
+    params.minMatch = kDefaultLevelMinMatch;
+  }
   return ZSTD_estimateCCtxSize_usingCParams(params);
 }
 

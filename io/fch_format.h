@@ -66,7 +66,6 @@ class FrameCompressor {
  private:
   struct Context;
   std::unique_ptr<Context> context_;
-  int level_;
 };
 
 // ZSTD_compressBound: the largest compressed frame of `rawBytes`.

@@ -14,9 +14,6 @@
 namespace facetree {
 namespace {
 
-constexpr size_t kNodeBatch = 4096;       // file nodes handed to the writer at a time
-constexpr size_t kGeometryBatch = 65536;  // vertices / triangles handed to the writer at a time
-
 // The nodes of the cluster file of a hierarchy, one at a time in file order. For b = 2 the
 // recast is the identity (every binary node kept, its two children sorted by face range, its
 // join flag its own), so no tree is built: the nodes come straight from the hierarchy.
@@ -35,18 +32,9 @@ class FileNodes {
     std::copy_n(hierarchy_.nodes[j].child, 2, child);
     return 2;
   }
-  // Nodes first ... first + out.size() - 1. A node's first child is a random read: asking for it
-  // kPrefetch nodes ahead lets the cache misses overlap instead of stalling each node in turn.
+  // Nodes first ... first + out.size() - 1.
   void fill(size_t first, std::span<FchNode> out) const {
-    constexpr size_t kPrefetch = 32;
-    const size_t n = out.size();
-    for (size_t i = 0; i < n; ++i) {
-      if (!tree_ && i + kPrefetch < n) {
-        const uint32_t c0 = hierarchy_.nodes[first + i + kPrefetch].child[0];
-        if (!(c0 & kFaceChild)) __builtin_prefetch(&hierarchy_.nodes[c0]);
-      }
-      out[i] = (*this)[first + i];
-    }
+    for (size_t i = 0; i < out.size(); ++i) out[i] = (*this)[first + i];
   }
   FchNode operator[](size_t j) const {
     const uint32_t binary = tree_ ? tree_->binaryNode[j] : static_cast<uint32_t>(j);
