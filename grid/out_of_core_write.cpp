@@ -64,28 +64,18 @@ using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
 constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
 // The node pass's input, read ahead on a helper thread: the sorted order's entries in batches, with
-// the batch's leaf runs read and decompressed (and decoded for compact boxes), one batch being
-// made while the pass takes the one before. The spill's reads, zstd and decoding then overlap the
+// the batch's leaf runs read and decompressed, one batch being made while the pass takes the one
+// before. The spill's reads, zstd and decoding then overlap the
 // pass's remapping and the writer (perf: reading was half of the pass's thread on the 14M-face
 // dragon at 64 MiB). Order blocks are given back as read.
 class NodeRunReader {
  public:
   struct Batch {
     std::vector<NodeRef> refs;  // consecutive entries of the order
-    // The leaf runs among them, in turn: with exact boxes their records as spilled (the writer takes
-    // them as they are), with compact boxes their nodes decoded.
-    std::vector<char> records;
-    std::vector<FchNode> nodes;
+    std::vector<char> records;  // the leaf runs among them, in turn, their records as spilled
   };
-  // `runFirst`: each run's first node, leaf-local; `precision`: the runs' orientation lattice.
-  NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs,
-                std::span<const uint32_t> runFirst, BoxPrecision precision)
-      : order_(order),
-        orderBlocks_(orderBlocks),
-        runs_(runs),
-        runFirst_(runFirst),
-        precision_(precision),
-        slots_(kSlots) {
+  NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs)
+      : order_(order), orderBlocks_(orderBlocks), runs_(runs), slots_(kSlots) {
     thread_ = std::thread([this] { produce(); });
   }
   ~NodeRunReader() {
@@ -122,7 +112,6 @@ class NodeRunReader {
       SpillCodec codec;
       std::vector<std::byte> raw;
       std::vector<NodeRef> refs;
-      std::vector<FchNode> run;
       Batch* batch = nullptr;
       size_t batched = 0;  // run nodes in the batch
       const auto publish = [&] {
@@ -145,19 +134,12 @@ class NodeRunReader {
             batch = &slots_[made_ % slots_.size()];
             batch->refs.clear();
             batch->records.clear();
-            batch->nodes.clear();
           }
           batch->refs.push_back(ref);
           if (ref.kind == 1) {
             runs_.read(ref.spill(), raw, codec);
             const auto* bytes = reinterpret_cast<const char*>(raw.data());
-            if (precision_ == BoxPrecision::Exact) {
-              batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
-            } else {
-              decodeNodeRun(std::string_view(bytes, raw.size()), ref.count, runFirst_[ref.run], precision_,
-                            run);
-              batch->nodes.insert(batch->nodes.end(), run.begin(), run.end());
-            }
+            batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
             batched += ref.count;
           }
           if (batched >= kBatchNodes) publish();
@@ -176,8 +158,6 @@ class NodeRunReader {
   SpillFile& order_;
   std::span<const SpillBlock> orderBlocks_;
   const SpillFile& runs_;
-  std::span<const uint32_t> runFirst_;
-  BoxPrecision precision_;
   std::vector<Batch> slots_;  // a ring: batch i in slots_[i % size]
   std::mutex mutex_;
   std::condition_variable changed_;
@@ -451,11 +431,9 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     return n;
   };
   {
-    const bool exact = context_.job.build.boxes == BoxPrecision::Exact;
-    NodeRunReader reader(*order_, orderBlocks_, *subtrees_.nodes, graph_.runFirst, context_.job.build.boxes);
+    NodeRunReader reader(*order_, orderBlocks_, *subtrees_.nodes);
     while (NodeRunReader::Batch* batch = reader.next()) {
       const char* records = batch->records.data();
-      FchNode* nodes = batch->nodes.data();
       for (const NodeRef& ref : batch->refs) {
         if (ref.kind == 0) {
           out.push_back(upperNode(ref.leafRank));
@@ -465,25 +443,12 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
           writer.addNodes(out);
           out.clear();
         }
+        // The records as they are, their node children placed (and compact boxes quantised).
         const uint32_t leafId = layout.leafOrder[ref.leafRank];
         done += ref.count;
-        if (exact) {  // the records as they are, their node children placed
-          writer.addNodeRun(
-              std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
-              [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); });
-          records += ref.rawBytes;
-          continue;
-        }
-        const auto faceOffset = static_cast<uint32_t>(layout.faceBase[leafId]);
-        const std::span<FchNode> run(nodes, ref.count);
-        nodes += ref.count;
-        for (FchNode& n : run) {
-          n.first += faceOffset;
-          for (uint32_t c = 0; c < n.childCount; ++c)
-            n.child[c] = (n.child[c] & kFaceChild) ? kFaceChild | ((n.child[c] & ~kFaceChild) + faceOffset)
-                                                   : nodePosition(leafId, n.child[c]);
-        }
-        writer.addNodes(run);
+        writer.addNodeRun(std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
+                          [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); });
+        records += ref.rawBytes;
       }
       context_.checkCancel("write", done, layout.faces + layout.nodes);
     }

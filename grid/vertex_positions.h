@@ -37,8 +37,13 @@ class VertexPositions {
   void readBlock(size_t b, std::vector<glm::vec3>& out, SpillCodec& codec) const;
   // Spills the partial last block (after the reader ended).
   void finish();
-  // Frees the in-memory positions (once copied).
-  void release() { positions_ = {}; }  // (blocks stay readable while spilled)
+  // Frees the positions, in memory and spilled, once every triangle has its corners: the spill's
+  // bytes would otherwise count against the temporary peak of the stages after the read.
+  void release() {
+    positions_ = {};
+    spill_.reset();
+    blocks_ = {};
+  }
   // Hands over the in-memory positions (when inMemory()), leaving none.
   std::vector<glm::vec3> take() { return std::exchange(positions_, {}); }
 

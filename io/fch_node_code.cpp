@@ -135,6 +135,52 @@ void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8
 
 namespace {
 
+// The compact box of `box` on its parent's grid, into code.lo and code.hi: the exact box's interval
+// along each axis rounded outwards, widened by a step where the decoded box would not hold it.
+// Returns the box as a reader decodes it.
+NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code) {
+  const CompactGrid grid = compactGrid(parent, box.orientation);
+  const glm::dvec3 c(box.center);
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double ca = glm::dot(c, grid.axis[a]);
+    const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
+    lo[a] = ca - box.halfExtent[a] - slack;
+    hi[a] = ca + box.halfExtent[a] + slack;
+    const double qlo = std::floor((lo[a] - grid.base[a]) / grid.step[a]);
+    const double qhi = std::ceil((hi[a] - grid.base[a]) / grid.step[a]);
+    if (!(qlo >= 0 && qhi <= 255 && grid.step[a] > 0))
+      throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
+    code.lo[a] = static_cast<uint8_t>(qlo);
+    code.hi[a] = static_cast<uint8_t>(qhi);
+  }
+  // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
+  NodeBox out;
+  out.orientation = box.orientation;
+  for (int attempt = 0;; ++attempt) {
+    gridBox(grid, code.lo, code.hi, out);
+    bool holds = true;
+    const glm::dvec3 oc(out.center);
+    for (int a = 0; a < 3; ++a) {
+      const double ca = glm::dot(oc, grid.axis[a]);
+      if (ca - out.halfExtent[a] > lo[a]) {
+        holds = false;
+        if (code.lo[a] == 0 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        --code.lo[a];
+      }
+      if (ca + out.halfExtent[a] < hi[a]) {
+        holds = false;
+        if (code.hi[a] == 255 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        ++code.hi[a];
+      }
+    }
+    if (holds) break;
+  }
+  return out;
+}
+
 // quantizeNode with the orientation on a lattice of `bits` and the box coded as `precision` says.
 NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxPrecision precision,
                         const NodeBox* parent, NodeBox* decoded) {
@@ -214,46 +260,7 @@ NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxP
     return code;
   }
 
-  // Compact: the exact box's interval along each axis, rounded outwards on the parent's grid.
-  const CompactGrid grid = compactGrid(*parent, box.orientation);
-  const glm::dvec3 c(box.center);
-  double lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    const double ca = glm::dot(c, grid.axis[a]);
-    const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
-    lo[a] = ca - box.halfExtent[a] - slack;
-    hi[a] = ca + box.halfExtent[a] + slack;
-    const double qlo = std::floor((lo[a] - grid.base[a]) / grid.step[a]);
-    const double qhi = std::ceil((hi[a] - grid.base[a]) / grid.step[a]);
-    if (!(qlo >= 0 && qhi <= 255 && grid.step[a] > 0))
-      throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
-    code.lo[a] = static_cast<uint8_t>(qlo);
-    code.hi[a] = static_cast<uint8_t>(qhi);
-  }
-  // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
-  NodeBox out;
-  out.orientation = box.orientation;
-  for (int attempt = 0;; ++attempt) {
-    gridBox(grid, code.lo, code.hi, out);
-    bool holds = true;
-    const glm::dvec3 oc(out.center);
-    for (int a = 0; a < 3; ++a) {
-      const double ca = glm::dot(oc, grid.axis[a]);
-      if (ca - out.halfExtent[a] > lo[a]) {
-        holds = false;
-        if (code.lo[a] == 0 || attempt == 4)
-          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
-        --code.lo[a];
-      }
-      if (ca + out.halfExtent[a] < hi[a]) {
-        holds = false;
-        if (code.hi[a] == 255 || attempt == 4)
-          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
-        ++code.hi[a];
-      }
-    }
-    if (holds) break;
-  }
+  const NodeBox out = quantizeCompactBox(box, *parent, index, code);
   if (decoded) *decoded = out;
   return code;
 }
@@ -384,6 +391,55 @@ std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precisi
   return {};
 }
 
+namespace {
+
+// The orientation a record's code gives, on a lattice of `bits`; an empty string, or why it is invalid.
+std::string decodeOrientationOf(const NodeCode& code, unsigned bits, glm::quat& orientation) {
+  OrientationCode stored;
+  stored.largest = static_cast<uint8_t>((code.shape >> 5) & 3);
+  for (int k = 0; k < 3; ++k) stored.component[k] = unzigzag32(code.orientation[k]);
+  const int32_t limit = (int32_t{1} << (bits - 1)) - 1;
+  for (int32_t c : stored.component)
+    if (c < -limit || c > limit) return "orientation component " + std::to_string(c) + " out of range";
+  orientation = decodeOrientation(stored, bits);
+  return {};
+}
+
+// An exact box's centre and half extents from its record (the orientation is the caller's).
+std::string decodeExactBox(const NodeCode& code, NodeBox& box) {
+  const int scale = int(code.scale) - kScaleBias;
+  if (scale < kMinScale || scale > kMaxScale)
+    return "box scale " + std::to_string(code.scale) + " out of range";
+  const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
+  for (int a = 0; a < 3; ++a) {
+    if (code.half[a] > kMaxHalfUnits || !std::isfinite(code.center[a])) return "box out of range";
+    box.center[a] = code.center[a];
+    box.halfExtent[a] = static_cast<float>(code.half[a] * unit);
+    if (!std::isfinite(box.halfExtent[a])) return "box out of range";
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* parent, NodeBox& decoded) {
+  NodeBox box;
+  if (std::string error = decodeOrientationOf(code, orientationBits(BoxPrecision::Compact), box.orientation);
+      !error.empty())
+    return error;
+  if (std::string error = decodeExactBox(code, box); !error.empty()) return error;
+  if (!parent) {  // the root: its box goes in the header
+    decoded = box;
+    return {};
+  }
+  try {
+    decoded = quantizeCompactBox(box, *parent, index, code);
+  } catch (const std::logic_error& e) {
+    return e.what();
+  }
+  return {};
+}
+
 NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
     : header_(header), rootBox_(rootBox) {}
 
@@ -433,14 +489,8 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
   node.cost = code.cost;
   node.area = code.area;
   node.perimeter = code.perimeter;
-  OrientationCode orientation;
-  orientation.largest = static_cast<uint8_t>((code.shape >> 5) & 3);
-  for (int k = 0; k < 3; ++k) orientation.component[k] = unzigzag32(code.orientation[k]);
-  const int32_t limit = (int32_t{1} << (bits - 1)) - 1;
-  for (int32_t c : orientation.component)
-    if (c < -limit || c > limit) return "orientation component " + std::to_string(c) + " out of range";
   NodeBox& box = node.box;
-  box.orientation = decodeOrientation(orientation, bits);
+  if (std::string error = decodeOrientationOf(code, bits, box.orientation); !error.empty()) return error;
   glm::dvec3 axis[3];
   axesOf(box.orientation, axis);
   const double area = node.area;
@@ -458,17 +508,7 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
     box.sideArea[2 * a + 1] = static_cast<float>(std::max(0.0, 0.5 * (sum - along)));
   }
   if (!exactBox) return {};
-  const int scale = int(code.scale) - kScaleBias;
-  if (scale < kMinScale || scale > kMaxScale)
-    return "box scale " + std::to_string(code.scale) + " out of range";
-  const double unit = std::ldexp(1.0, scale - kHalfExtentBits);
-  for (int a = 0; a < 3; ++a) {
-    if (code.half[a] > kMaxHalfUnits || !std::isfinite(code.center[a])) return "box out of range";
-    box.center[a] = code.center[a];
-    box.halfExtent[a] = static_cast<float>(code.half[a] * unit);
-    if (!std::isfinite(box.halfExtent[a])) return "box out of range";
-  }
-  return {};
+  return decodeExactBox(code, box);
 }
 
 std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {

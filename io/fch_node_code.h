@@ -81,6 +81,11 @@ NodeCode quantizeRunNode(const FchNode& node, uint64_t index, BoxPrecision preci
 // an empty string, or why the record is invalid.
 std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
                          bool exactBox, FchNode& node);
+// A run's record (quantizeRunNode) as a file of compact boxes holds it at `index`: its box, stored
+// as exact boxes store it, quantised against `parent`'s decoded box (null for the root, whose box
+// goes in the header); `decoded` gets the box a reader decodes. Returns an empty string, or why the
+// record is invalid or its box does not fit its parent's.
+std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* parent, NodeBox& decoded);
 
 // Turns codes back into nodes in file order: face ranges follow from the parents' records
 // (the root covers every triangle), compact boxes from the parents' boxes.

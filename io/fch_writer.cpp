@@ -278,9 +278,8 @@ struct ClusterFileWriter::State {
   std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
   bool stream = false;               // isStreamOutput: the header cannot be written last
   Section sections[kSections];
-  std::vector<FchNode> nodes;
-  std::vector<fch::NodeCode> codes;       // the node frame being encoded (compact boxes)
-  std::vector<fch::NodeCode> frameCodes;  // the node frame being gathered (exact boxes)
+  std::vector<fch::NodeCode> codes;       // a node run's records (addNodeRun)
+  std::vector<fch::NodeCode> frameCodes;  // the node frame being gathered
   // Compact boxes: the decoded boxes of the parents of nodes still to come, by child index.
   std::unordered_map<uint32_t, NodeBox> parentBoxes;
   std::vector<glm::vec3> vertices;
@@ -320,12 +319,15 @@ struct ClusterFileWriter::State {
   // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
   void placeOldest();
   void drain();
-  void nodeFrame(std::span<const FchNode> batch);  // compact boxes
   // Exact boxes: a record for the frame being gathered, which goes to a worker once whole.
   void pushCode(const fch::NodeCode& code);
   void vertexFrame(std::span<const glm::vec3> batch);
   void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
   void addNodes(std::span<const FchNode> nodes);
+  // Compact boxes: the decoded box of node `index`'s parent into `box` (false for the root), refused
+  // when no earlier node refers to it; keepParentBox holds a node's box for its node child `child`.
+  bool takeParentBox(uint64_t index, NodeBox& box);
+  void keepParentBox(uint32_t child, const NodeBox& box);
   void addVertices(std::span<const glm::vec3> vertices);
   void addTriangles(std::span<const uint32_t> indices, std::span<const uint64_t> originalFace);
   void checkTriangles(std::span<const uint32_t> indices, std::span<const uint64_t> originalFace,
@@ -486,34 +488,6 @@ void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::str
   sec.frames.push_back(frame);
 }
 
-void ClusterFileWriter::State::nodeFrame(std::span<const FchNode> batch) {
-  const uint64_t first = section(FchSection::Nodes).arrived - batch.size();
-  const BoxPrecision precision = layout.header.boxes;
-  codes.clear();
-  for (size_t i = 0; i < batch.size(); ++i) {
-    const FchNode& node = batch[i];
-    const uint64_t index = first + i;
-    try {
-      NodeBox decoded;
-      if (index == 0) {
-        codes.push_back(fch::quantizeNode(node, index, precision, nullptr, &decoded));
-        layout.rootBox = decoded;
-      } else {
-        const auto it = parentBoxes.find(static_cast<uint32_t>(index));
-        if (it == parentBoxes.end()) reject("node " + str(index) + ": no earlier node refers to it");
-        codes.push_back(fch::quantizeNode(node, index, precision, &it->second, &decoded));
-        parentBoxes.erase(it);
-      }
-      for (unsigned c = 0; c < node.childCount; ++c)
-        if (!(node.child[c] & kFaceChild) && node.child[c] < layout.header.nodeCount)
-          parentBoxes.emplace(node.child[c], decoded);
-    } catch (const std::invalid_argument& e) {
-      reject(e.what());
-    }
-  }
-  writeFrame(FchSection::Nodes, first, static_cast<uint32_t>(batch.size()),
-             fch::encodeNodeFrame(codes, precision));
-}
 void ClusterFileWriter::State::vertexFrame(std::span<const glm::vec3> batch) {
   const uint64_t first = section(FchSection::Vertices).arrived - batch.size();
   std::string out;
@@ -591,32 +565,48 @@ void ClusterFileWriter::State::pushCode(const fch::NodeCode& code) {
   if (n < std::min<uint64_t>(layout.nodesPerFrame, sec.declared - first)) return;
   makeFrame(
       FchSection::Nodes, first, n,
-      [](std::span<const fch::NodeCode> given, FrameScratch&, std::string& raw, Bounds&) {
-        fch::encodeNodeFrame(given, BoxPrecision::Exact, raw);
-      },
+      [precision = layout.header.boxes](std::span<const fch::NodeCode> given, FrameScratch&, std::string& raw,
+                                        Bounds&) { fch::encodeNodeFrame(given, precision, raw); },
       frameCodes);
   frameCodes.clear();
+}
+
+bool ClusterFileWriter::State::takeParentBox(uint64_t index, NodeBox& box) {
+  if (index == 0) return false;
+  const auto it = parentBoxes.find(static_cast<uint32_t>(index));
+  if (it == parentBoxes.end()) reject("node " + str(index) + ": no earlier node refers to it");
+  box = it->second;
+  parentBoxes.erase(it);
+  return true;
+}
+
+void ClusterFileWriter::State::keepParentBox(uint32_t child, const NodeBox& box) {
+  if (child < layout.header.nodeCount) parentBoxes.emplace(child, box);
 }
 
 void ClusterFileWriter::State::addNodes(std::span<const FchNode> batch) {
   Section& sec = arriving(FchSection::Nodes, "nodes", batch.size());
   for (size_t i = 0; i < batch.size(); ++i) checkNode(batch[i], sec.arrived + i);
-  if (layout.header.boxes == BoxPrecision::Exact) {  // quantised here: frames take records of any origin
-    if (frameCodes.capacity() == 0)
-      frameCodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
-    for (const FchNode& node : batch) {
-      const uint64_t index = sec.arrived;
-      try {
+  if (frameCodes.capacity() == 0) frameCodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
+  const BoxPrecision precision = layout.header.boxes;
+  for (const FchNode& node : batch) {
+    const uint64_t index = sec.arrived;
+    try {
+      if (precision == BoxPrecision::Exact) {  // quantised here: frames take records of any origin
         pushCode(fch::quantizeNode(node, index, BoxPrecision::Exact, nullptr, nullptr));
-      } catch (const std::invalid_argument& e) {
-        reject(e.what());
+        continue;
       }
+      // Compact boxes: against the parent's box as decoded, in file order.
+      NodeBox parent, decoded;
+      const bool hasParent = takeParentBox(index, parent);
+      pushCode(fch::quantizeNode(node, index, precision, hasParent ? &parent : nullptr, &decoded));
+      if (!hasParent) layout.rootBox = decoded;
+      for (unsigned c = 0; c < node.childCount; ++c)
+        if (!(node.child[c] & kFaceChild)) keepParentBox(node.child[c], decoded);
+    } catch (const std::invalid_argument& e) {
+      reject(e.what());
     }
-    return;
   }
-  if (nodes.capacity() == 0) nodes.reserve(std::min<uint64_t>(layout.nodesPerFrame, sec.declared));
-  appendFrames(batch, nodes, sec.arrived, sec.declared, layout.nodesPerFrame,
-               [&](std::span<const FchNode> frame) { nodeFrame(frame); });
 }
 
 void ClusterFileWriter::State::addVertices(std::span<const glm::vec3> batch) {
@@ -716,7 +706,7 @@ void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
     };
     // Compact boxes are quantised against their parents' in file order, on this thread.
     const bool onWorkers = s.layout.header.boxes == BoxPrecision::Exact;
-    const size_t buffered = onWorkers ? s.frameCodes.size() : s.nodes.size();
+    const size_t buffered = s.frameCodes.size();
     s.fillFrames(FchSection::Nodes, buffered, count, add, [&](uint64_t first, uint32_t n) {
       if (!onWorkers) return add(first, n);
       s.section(FchSection::Nodes).arrived += n;
@@ -742,17 +732,14 @@ void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runF
                                    const std::function<uint32_t(uint64_t)>& childIndex) {
   State& s = *state_;
   s.guarded("addNodeRun", [&] {
-    if (s.layout.header.boxes != BoxPrecision::Exact)
-      s.reject(
-          "addNodeRun: compact boxes are quantised against their parents' (add the run's decoded nodes)");
     State::Section& sec = s.arriving(FchSection::Nodes, "nodes", n);
-    if (run.size() < 8 * n) s.reject("node run: smaller than its face ranges");
     std::vector<fch::NodeCode>& codes = s.codes;
     codes.clear();
     if (std::string error =
-            fch::decodeNodeFrame(run.substr(8 * n), n, BoxPrecision::Exact, s.layout.header.branching, codes);
+            fch::decodeNodeFrame(run, n, BoxPrecision::Exact, s.layout.header.branching, codes);
         !error.empty())
       s.reject("node run: " + error);
+    const bool compact = s.layout.header.boxes == BoxPrecision::Compact;
     for (size_t i = 0; i < n; ++i) {
       fch::NodeCode& code = codes[i];
       const uint64_t index = sec.arrived;
@@ -762,6 +749,16 @@ void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runF
           s.reject("node " + str(index) + ": child " + str(target) + " not after it among the declared " +
                    str(s.nodeLimit) + " nodes");
         code.ref[k] = static_cast<uint32_t>(target - index);
+      }
+      if (compact) {
+        NodeBox parent, decoded;
+        const bool hasParent = s.takeParentBox(index, parent);
+        if (std::string error = fch::compactRunRecord(code, index, hasParent ? &parent : nullptr, decoded);
+            !error.empty())
+          s.reject("node " + str(index) + ": " + error);
+        if (!hasParent) s.layout.rootBox = decoded;
+        for (unsigned k = 0; k < code.refCount; ++k)
+          s.keepParentBox(static_cast<uint32_t>(index + code.ref[k]), decoded);
       }
       s.pushCode(code);
     }

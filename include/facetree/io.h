@@ -206,11 +206,11 @@ class ClusterFileWriter {
   using IndexFill = std::function<void(uint64_t firstTriangle, std::span<uint32_t> out)>;  // 3 per triangle
   using IdFill = std::function<void(uint64_t firstTriangle, std::span<uint64_t> out)>;
   void addNodes(uint64_t count, NodeFill fill);
-  // Exact boxes: `n` nodes as encodeNodeRun encoded them (nodes runFirst, runFirst + 1, ... of their
-  // own tree) appended without decoding them, their records unchanged but for their node children's
-  // references: childIndex(i) is the file index of the node the run's tree calls i (face children
-  // follow from the parents' ranges). References are checked as addNodes checks them; the records'
-  // face counts are the run's.
+  // `n` nodes as encodeNodeRun encoded them (nodes runFirst, runFirst + 1, ... of their own tree),
+  // appended without quantising them again: their records unchanged but for their node children's
+  // references (childIndex(i) is the file index of the node the run's tree calls i; face children
+  // and face ranges follow from the parents') and, with compact boxes, for their boxes, quantised
+  // against their parents' as decoded. References are checked as addNodes checks them.
   void addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
                   const std::function<uint32_t(uint64_t)>& childIndex);
   void addVertices(uint64_t count, VertexFill fill);
@@ -234,17 +234,13 @@ class ClusterFileWriter {
 uint64_t writerMemoryBound(const WriteOptions& options = {});
 
 // Runs of nodes in the file's version 2 record encoding (docs/FORMAT.md), for nodes that wait on disk
-// before they are written (the out-of-core build's spills): nodes firstIndex, firstIndex + 1, ... of
-// a tree whose children come after their parents, face children in face-range order (as written).
-// Their face ranges are stored; orientations on `precision`'s lattice; boxes as exact boxes store
-// them (extents rounded outwards by at most 2^-17), S and side areas as the file does: decoding gives
-// the nodes a file of those records would. Throws std::invalid_argument for a node the format cannot
-// hold (quantizeNode's reasons).
+// before they are written (the out-of-core build's spills, ClusterFileWriter::addNodeRun): nodes
+// firstIndex, firstIndex + 1, ... of a tree whose children come after their parents, face children in
+// face-range order (as written). As in the file, face ranges are not stored; orientations are on
+// `precision`'s lattice, boxes as exact boxes store them (extents rounded outwards by at most 2^-17),
+// S and side areas as the file does. Throws std::invalid_argument for a node the format cannot hold
+// (quantizeNode's reasons).
 std::string encodeNodeRun(std::span<const FchNode> nodes, uint64_t firstIndex, BoxPrecision precision);
-// The `n` nodes encodeNodeRun made `raw` from, into `out`. Throws std::runtime_error for bytes that
-// are not such a run.
-void decodeNodeRun(std::string_view raw, size_t n, uint64_t firstIndex, BoxPrecision precision,
-                   std::vector<FchNode>& out);
 
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
 // every frame's nodes and geometry are made from the hierarchy and the mesh by the writer's workers

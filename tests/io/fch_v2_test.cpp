@@ -198,28 +198,61 @@ TEST(FchVersion2, TheSameBytesForAnyWriterThreadsAndFrameBatching) {
   }
 }
 
-TEST(FchVersion2, NodeRunsDecodeToTheNodesAFileOfTheirRecordsGives) {
+// The header of a writer of `file`'s counts.
+StreamFileInfo infoOf(const ClusterFile& file) {
+  StreamFileInfo info;
+  info.header = file.header;
+  info.header.nodeCount = file.nodes.size();
+  info.header.triangleCount = file.originalFace.size();
+  info.header.vertexCount = file.vertices.size();
+  info.maxOriginalFace = *std::max_element(file.originalFace.begin(), file.originalFace.end());
+  return info;
+}
+
+// `file` written as runs of 1 to 37 nodes, every third one added as nodes instead.
+void writeAsRuns(const std::filesystem::path& path, const ClusterFile& file, WriteOptions options,
+                 unsigned seed) {
+  const std::span<const FchNode> nodes = file.nodes;
+  const BoxPrecision lattice = file.header.boxes;
+  ClusterFileWriter writer(path, infoOf(file), options);
+  std::mt19937 rng(seed);
+  for (size_t first = 0, k = 0; first < nodes.size(); ++k) {
+    const size_t n = std::min<size_t>(nodes.size() - first, 1 + rng() % 37);
+    if (k % 3 == 2)
+      writer.addNodes(nodes.subspan(first, n));
+    else
+      writer.addNodeRun(encodeNodeRun(nodes.subspan(first, n), first, lattice), n, first,
+                        [](uint64_t i) { return static_cast<uint32_t>(i); });
+    first += n;
+  }
+  writer.addVertices(file.vertices);
+  writer.addTriangles(file.indices, file.originalFace);
+  writer.finish();
+}
+
+TEST(FchVersion2, NodeRunsReadBackAsTheirNodesWithinTheFilesBounds) {
+  Cleanup cleanup;
   for (BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact})
     for (unsigned branching : {2u, 8u}) {
       SCOPED_TRACE(std::to_string(branching) + (boxes == BoxPrecision::Exact ? " exact" : " compact"));
       const ClusterFile file = buildFile(foldedGrid(), boxes, branching);
-      const std::span<const FchNode> nodes = file.nodes;
-      // Runs anywhere in the tree: the whole file, its top, a piece from its middle.
-      for (const auto& [first, count] : {std::pair<size_t, size_t>{0, nodes.size()}, {0, 5}, {7, 40}}) {
-        const std::string run = encodeNodeRun(nodes.subspan(first, count), first, boxes);
-        std::vector<FchNode> back;
-        decodeNodeRun(run, count, first, boxes, back);
-        ASSERT_EQ(back.size(), count);
-        for (size_t i = 0; i < count; ++i) ASSERT_TRUE(sameNode(back[i], nodes[first + i])) << first + i;
-        // The writer quantises decoded runs again: still within the file's bounds of the nodes.
-        std::vector<FchNode> twice;
-        decodeNodeRun(encodeNodeRun(back, first, boxes), count, first, boxes, twice);
-        for (size_t i = 0; i < count; ++i) ASSERT_TRUE(sameNode(twice[i], nodes[first + i])) << first + i;
-        // A run cut short or from elsewhere is refused.
-        EXPECT_THROW(
-            decodeNodeRun(std::string_view(run).substr(0, run.size() - 1), count, first, boxes, back),
-            std::runtime_error);
-        EXPECT_THROW(decodeNodeRun(run, count + 1, first, boxes, back), std::runtime_error);
+      const auto path = cleanup.add(scratch("as_runs.fch"));
+      WriteOptions options;
+      options.nodesPerFrame = 16;
+      writeAsRuns(path, file, options, branching);
+      const ClusterFile back = readClusterFile(path);
+      const VerifyResult verified = verifyClusterFile(back);
+      EXPECT_TRUE(verified.ok) << verified.message;
+      ASSERT_EQ(back.nodes.size(), file.nodes.size());
+      for (size_t i = 0; i < file.nodes.size(); ++i) {
+        FchNode node = back.nodes[i];
+        if (boxes == BoxPrecision::Compact) {
+          // A compact box is judged by verify (it holds the faces, each face of it within a step of
+          // the exact box's); the rest as exact boxes.
+          node.box.center = file.nodes[i].box.center;
+          node.box.halfExtent = file.nodes[i].box.halfExtent;
+        }
+        ASSERT_TRUE(sameNode(node, file.nodes[i])) << i;
       }
     }
 }
@@ -231,47 +264,32 @@ TEST(FchVersion2, NodeRunsAddedAsRecordsGiveTheBytesOfTheirNodes) {
   WriteOptions options;
   options.nodesPerFrame = 16;
   writeClusterFile(whole, file, options);
-  StreamFileInfo info;
-  info.header = file.header;
-  info.header.nodeCount = file.nodes.size();
-  info.header.triangleCount = file.originalFace.size();
-  info.header.vertexCount = file.vertices.size();
-  info.maxOriginalFace = *std::max_element(file.originalFace.begin(), file.originalFace.end());
-  const std::span<const FchNode> nodes = file.nodes;
-  const auto identity = [](uint64_t i) { return static_cast<uint32_t>(i); };
   for (const unsigned threads : {1u, 3u}) {
     options.threads = threads;
-    ClusterFileWriter writer(runs, info, options);
-    // Runs of 1 to 37 nodes, every third one added as nodes instead.
-    std::mt19937 rng(threads);
-    for (size_t first = 0, k = 0; first < nodes.size(); ++k) {
-      const size_t n = std::min<size_t>(nodes.size() - first, 1 + rng() % 37);
-      if (k % 3 == 2)
-        writer.addNodes(nodes.subspan(first, n));
-      else
-        writer.addNodeRun(encodeNodeRun(nodes.subspan(first, n), first, BoxPrecision::Exact), n, first,
-                          identity);
-      first += n;
-    }
-    writer.addVertices(file.vertices);
-    writer.addTriangles(file.indices, file.originalFace);
-    writer.finish();
+    writeAsRuns(runs, file, options, threads);
     EXPECT_EQ(slurp(runs), slurp(whole)) << threads << " threads";
   }
-  // A child placed before its parent, and compact boxes, are refused.
+  // A child placed before its parent, a run cut short and a run of fewer records than said are refused.
+  const std::span<const FchNode> nodes = file.nodes;
   const std::string run = encodeNodeRun(nodes.first(3), 0, BoxPrecision::Exact);
-  for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
-    StreamFileInfo bad = info;
+  const auto identity = [](uint64_t i) { return static_cast<uint32_t>(i); };
+  const auto refused = [&](BoxPrecision boxes, std::string_view bytes, size_t n,
+                           const std::function<uint32_t(uint64_t)>& place, const std::string& expected) {
+    StreamFileInfo bad = infoOf(file);
     bad.header.boxes = boxes;
     try {
       ClusterFileWriter writer(cleanup.add(scratch("bad_runs.fch")), bad);
-      writer.addNodeRun(run, 3, 0, [](uint64_t) { return 0u; });
-      FAIL() << "added";
+      writer.addNodeRun(bytes, n, 0, place);
+      ADD_FAILURE() << "added";
     } catch (const std::invalid_argument& e) {
-      const std::string expected =
-          boxes == BoxPrecision::Exact ? "node 0: child 0 not after it" : "compact boxes";
       EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
     }
+  };
+  for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
+    refused(
+        boxes, run, 3, [](uint64_t) { return 0u; }, "node 0: child 0 not after it");
+    refused(boxes, std::string_view(run).substr(0, run.size() - 1), 3, identity, "node run: ");
+    refused(boxes, run, 4, identity, "node run: ");
   }
 }
 
