@@ -267,12 +267,13 @@ class CellsStage {
 CellsOutput CellsStage::run() {
   // The write reads the geometry once, in large blocks, and gives them back as it goes, while the
   // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
-  // scattered over the file, so they are not given back one by one (the file system's hole
-  // punching would dominate the write, for no lower peak: the peak is the end of the cells).
+  // scattered over the file, so the node pass does not give them back one by one (the file system's
+  // hole punching would dominate the write, for no lower peak: the peak is the end of the cells);
+  // with compact boxes a pass in spill order rewrites them and gives them back as it goes.
   // Node runs are in the file's own records (encodeNodeRun: columns of byte planes already);
   // face records are not shuffled (consecutive faces repeat whole corner positions, which zstd
   // matches only while the bytes stay together).
-  out_.subtrees.nodes = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/false);
+  out_.subtrees.nodes = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
   // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
   out_.subtrees.geometry = std::make_unique<SpillFile>(context_.temp, "geometry", /*discardable=*/true, 4);
   out_.records.pairs = std::make_unique<SpillFile>(context_.temp, "pairs");

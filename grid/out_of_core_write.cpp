@@ -190,6 +190,9 @@ class WriteStage {
                      uint64_t& done);
   void writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
                   uint64_t& done);
+  // Compact boxes: every leaf run's records quantised against their parents' decoded boxes, leaf by
+  // leaf in spill order, into a spill that replaces the node spill (and the runs' tables).
+  void compactRuns(const FileLayout& layout, const UpperFrames& frames);
 
   const StageContext& context_;
   const MeshExtent& extent_;
@@ -197,9 +200,10 @@ class WriteStage {
   const ClusterMergeResult& upper_;
   LeafSubtrees subtrees_;
   SpillCodec codec_;
-  std::vector<uint32_t> runPosition_;    // per run, by global run index
-  std::vector<uint32_t> upperPosition_;  // per upper node, by file index (reverse creation order)
-  std::unique_ptr<SpillFile> order_;     // the sorted node order, in blocks of kOrderBlock
+  std::vector<uint32_t> runPosition_;              // per run, by global run index
+  std::vector<uint32_t> upperPosition_;            // per upper node, by file index (reverse creation order)
+  std::unique_ptr<SpillFile> order_;               // the sorted node order, in blocks of kOrderBlock
+  BoxPrecision runRecords_ = BoxPrecision::Exact;  // the node spill's records (compactRuns)
   std::vector<SpillBlock> orderBlocks_;
 };
 
@@ -446,8 +450,9 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
         // The records as they are, their node children placed (and compact boxes quantised).
         const uint32_t leafId = layout.leafOrder[ref.leafRank];
         done += ref.count;
-        writer.addNodeRun(std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
-                          [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); });
+        writer.addNodeRun(
+            std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
+            [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); }, runRecords_);
         records += ref.rawBytes;
       }
       context_.checkCancel("write", done, layout.faces + layout.nodes);
@@ -458,9 +463,67 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
   order_.reset();
 }
 
+void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames) {
+  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
+  // The upper nodes' decoded boxes, parents (created later) first.
+  std::vector<NodeBox> upperBox(upperCount);
+  for (uint32_t i = upperCount; i-- > 0;) {
+    if (!layout.recast.kept[i]) continue;
+    const uint32_t parent = layout.nodeParent[i];
+    upperBox[i] = compactDecodedBox(frames.boxes[i].box(), parent == kNone ? nullptr : &upperBox[parent]);
+  }
+  auto out = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
+  SpillFile& runs = *subtrees_.nodes;
+  std::vector<std::byte> raw, table;
+  std::vector<NodeBlock> blocks;
+  std::vector<NodeBox> parentBox;
+  const auto readTable = [&](size_t c) {
+    graph_.runTables->read(graph_.cellRuns[c], table, codec_);
+    blocks.resize(table.size() / sizeof(NodeBlock));
+    std::memcpy(static_cast<void*>(blocks.data()), table.data(), table.size());
+  };
+  // Cells wrote their runs side by side: the spill below the lowest run of the cells still to come
+  // is read once the cells before them are, and is given back then, a cell at a time.
+  const size_t cells = graph_.cellRuns.size();
+  std::vector<uint64_t> unreadFrom(cells + 1, runs.bytes());
+  for (size_t c = cells; c-- > 0;) {
+    unreadFrom[c] = unreadFrom[c + 1];
+    if (graph_.cellRuns[c].rawBytes == 0) continue;
+    readTable(c);
+    for (const NodeBlock& block : blocks) unreadFrom[c] = std::min(unreadFrom[c], block.offset);
+  }
+  for (size_t c = 0; c < cells; ++c) {
+    if (graph_.cellRuns[c].rawBytes == 0) continue;
+    readTable(c);
+    const uint32_t cellFirst = graph_.leaves[graph_.cellLeafBase[c]].firstBlock;
+    for (uint32_t leafId = graph_.cellLeafBase[c]; leafId < graph_.cellLeafBase[c + 1]; ++leafId) {
+      const LeafCluster& leaf = graph_.leaves[leafId];
+      if (leaf.blockCount == 0) continue;
+      parentBox.assign(leaf.nodeCount, NodeBox{});
+      parentBox[0] = upperBox[layout.leafParent[leafId]];
+      for (uint32_t b = 0; b < leaf.blockCount; ++b) {
+        NodeBlock& block = blocks[leaf.firstBlock - cellFirst + b];
+        const SpillBlock at = block.spill();
+        runs.read(at, raw, codec_);
+        const std::string records =
+            compactNodeRun(std::string_view(reinterpret_cast<const char*>(raw.data()), raw.size()),
+                           block.count, graph_.runFirst[leaf.firstBlock + b], parentBox);
+        const SpillBlock placed = out->append(std::as_bytes(std::span(records)), codec_);
+        block.offset = placed.offset;
+        block.compressedBytes = placed.compressedBytes;
+        block.rawBytes = placed.rawBytes;
+      }
+    }
+    graph_.cellRuns[c] = graph_.runTables->append(std::as_bytes(std::span(blocks)), codec_);
+    runs.discardBefore(unreadFrom[c + 1]);
+    context_.checkCancel("write", 0, layout.faces + layout.nodes);
+  }
+  subtrees_.nodes = std::move(out);
+  runRecords_ = BoxPrecision::Compact;
+}
+
 void WriteStage::run() {
   const FileLayout fileLayout = layout();
-  place(*nodeOrder(fileLayout));
   JobReport& report = context_.report;
   report.nodes = fileLayout.nodes;
   report.height = fileLayout.height;
@@ -494,6 +557,10 @@ void WriteStage::run() {
   uint64_t done = 0;
   writeGeometry(writer, fileLayout, frames, done);
   releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
+  // With compact boxes a leaf's boxes depend on their ancestors' only: quantised leaf by leaf here,
+  // so that the node pass keeps no box of a node waiting for its children.
+  if (job.build.boxes == BoxPrecision::Compact && !upper_.nodes.empty()) compactRuns(fileLayout, frames);
+  place(*nodeOrder(fileLayout));
   writeNodes(writer, fileLayout, frames, done);
   report.fileBytes = writer.finish();
 }

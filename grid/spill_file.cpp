@@ -229,6 +229,28 @@ void SpillFile::discard(const SpillBlock& block) {
   punch();
 }
 
+void SpillFile::discardBefore(uint64_t end) {
+  if (!discardable_) throw std::logic_error("SpillFile::discardBefore: the file was not made discardable");
+  std::lock_guard lock(writeMutex_);
+  const uint64_t pages = std::min(end, bytes_.load(std::memory_order_relaxed)) / kPageBytes;
+  // The live pages below `end` in runs, each punched once (those given back before stay so).
+  uint64_t page = 0;
+  while (page < pages) {
+    if (live_[page] == 0) {
+      ++page;
+      continue;
+    }
+    const uint64_t start = page;
+    while (page < pages && live_[page] != 0) live_[page++] = 0;
+    const uint64_t count = page - start;
+    if (::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(start * kPageBytes),
+                    static_cast<off_t>(count * kPageBytes)) == 0) {
+      held_ -= count * kPageBytes;
+      space_.release(count * kPageBytes);
+    }  // else the pages keep their space, still accounted
+  }
+}
+
 void SpillFile::read(const SpillBlock& block, std::vector<std::byte>& raw, SpillCodec& codec) const {
   raw.resize(block.rawBytes);
   read(block, std::span<std::byte>(raw), codec);

@@ -101,6 +101,10 @@ class SpillFile {
   // Thread-safe, also against append() and read() of other blocks. Where the file system cannot
   // punch holes the pages keep their space, still accounted.
   void discard(const SpillBlock& block);
+  // For a file read in order: every block wholly before byte `end` is read for the last time, and
+  // the pages below it are punched out at once (one punch instead of one per block of a few KiB, which
+  // would dominate a pass over small blocks). Blocks on those pages read back as corrupt.
+  void discardBefore(uint64_t end);
 
   // On disk (compressed), the end of the last block.
   uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }

@@ -135,52 +135,6 @@ void compactBox(const NodeBox& parent, const glm::quat& orientation, const uint8
 
 namespace {
 
-// The compact box of `box` on its parent's grid, into code.lo and code.hi: the exact box's interval
-// along each axis rounded outwards, widened by a step where the decoded box would not hold it.
-// Returns the box as a reader decodes it.
-NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code) {
-  const CompactGrid grid = compactGrid(parent, box.orientation);
-  const glm::dvec3 c(box.center);
-  double lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    const double ca = glm::dot(c, grid.axis[a]);
-    const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
-    lo[a] = ca - box.halfExtent[a] - slack;
-    hi[a] = ca + box.halfExtent[a] + slack;
-    const double qlo = std::floor((lo[a] - grid.base[a]) / grid.step[a]);
-    const double qhi = std::ceil((hi[a] - grid.base[a]) / grid.step[a]);
-    if (!(qlo >= 0 && qhi <= 255 && grid.step[a] > 0))
-      throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
-    code.lo[a] = static_cast<uint8_t>(qlo);
-    code.hi[a] = static_cast<uint8_t>(qhi);
-  }
-  // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
-  NodeBox out;
-  out.orientation = box.orientation;
-  for (int attempt = 0;; ++attempt) {
-    gridBox(grid, code.lo, code.hi, out);
-    bool holds = true;
-    const glm::dvec3 oc(out.center);
-    for (int a = 0; a < 3; ++a) {
-      const double ca = glm::dot(oc, grid.axis[a]);
-      if (ca - out.halfExtent[a] > lo[a]) {
-        holds = false;
-        if (code.lo[a] == 0 || attempt == 4)
-          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
-        --code.lo[a];
-      }
-      if (ca + out.halfExtent[a] < hi[a]) {
-        holds = false;
-        if (code.hi[a] == 255 || attempt == 4)
-          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
-        ++code.hi[a];
-      }
-    }
-    if (holds) break;
-  }
-  return out;
-}
-
 // quantizeNode with the orientation on a lattice of `bits` and the box coded as `precision` says.
 NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxPrecision precision,
                         const NodeBox* parent, NodeBox* decoded) {
@@ -266,6 +220,49 @@ NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxP
 }
 
 }  // namespace
+
+NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code) {
+  const CompactGrid grid = compactGrid(parent, box.orientation);
+  const glm::dvec3 c(box.center);
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double ca = glm::dot(c, grid.axis[a]);
+    const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
+    lo[a] = ca - box.halfExtent[a] - slack;
+    hi[a] = ca + box.halfExtent[a] + slack;
+    const double qlo = std::floor((lo[a] - grid.base[a]) / grid.step[a]);
+    const double qhi = std::ceil((hi[a] - grid.base[a]) / grid.step[a]);
+    if (!(qlo >= 0 && qhi <= 255 && grid.step[a] > 0))
+      throw std::logic_error("node " + std::to_string(index) + ": box outside its parent's (compact boxes)");
+    code.lo[a] = static_cast<uint8_t>(qlo);
+    code.hi[a] = static_cast<uint8_t>(qhi);
+  }
+  // The decoded box must hold the exact one: widen by a step where rounding says otherwise.
+  NodeBox out;
+  out.orientation = box.orientation;
+  for (int attempt = 0;; ++attempt) {
+    gridBox(grid, code.lo, code.hi, out);
+    bool holds = true;
+    const glm::dvec3 oc(out.center);
+    for (int a = 0; a < 3; ++a) {
+      const double ca = glm::dot(oc, grid.axis[a]);
+      if (ca - out.halfExtent[a] > lo[a]) {
+        holds = false;
+        if (code.lo[a] == 0 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        --code.lo[a];
+      }
+      if (ca + out.halfExtent[a] < hi[a]) {
+        holds = false;
+        if (code.hi[a] == 255 || attempt == 4)
+          throw std::logic_error("node " + std::to_string(index) + ": compact box cannot hold it");
+        ++code.hi[a];
+      }
+    }
+    if (holds) break;
+  }
+  return out;
+}
 
 NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precision, const NodeBox* parent,
                       NodeBox* decoded) {

@@ -86,6 +86,10 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
 // goes in the header); `decoded` gets the box a reader decodes. Returns an empty string, or why the
 // record is invalid or its box does not fit its parent's.
 std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* parent, NodeBox& decoded);
+// The compact box of `box` on its parent's grid, into code.lo and code.hi (rounded outwards, widened
+// by a step where the decoded box would not hold it); returns the box as a reader decodes it. Throws
+// std::logic_error when the box does not fit its parent's.
+NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code);
 
 // Turns codes back into nodes in file order: face ranges follow from the parents' records
 // (the root covers every triangle), compact boxes from the parents' boxes.

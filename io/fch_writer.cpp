@@ -729,20 +729,25 @@ void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
 }
 
 void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
-                                   const std::function<uint32_t(uint64_t)>& childIndex) {
+                                   const std::function<uint32_t(uint64_t)>& childIndex,
+                                   BoxPrecision records) {
   State& s = *state_;
   s.guarded("addNodeRun", [&] {
+    if (records == BoxPrecision::Compact && s.layout.header.boxes != BoxPrecision::Compact)
+      s.reject("addNodeRun: compact records in a file of exact boxes");
     State::Section& sec = s.arriving(FchSection::Nodes, "nodes", n);
     std::vector<fch::NodeCode>& codes = s.codes;
     codes.clear();
-    if (std::string error =
-            fch::decodeNodeFrame(run, n, BoxPrecision::Exact, s.layout.header.branching, codes);
+    if (std::string error = fch::decodeNodeFrame(run, n, records, s.layout.header.branching, codes);
         !error.empty())
       s.reject("node run: " + error);
-    const bool compact = s.layout.header.boxes == BoxPrecision::Compact;
+    // Exact-box records in a compact-box file: quantised here against the parents' decoded boxes.
+    const bool compact = s.layout.header.boxes == BoxPrecision::Compact && records == BoxPrecision::Exact;
     for (size_t i = 0; i < n; ++i) {
       fch::NodeCode& code = codes[i];
       const uint64_t index = sec.arrived;
+      if (index == 0 && records == BoxPrecision::Compact)
+        s.reject("node 0: the root's box goes in the header (add the root as a node or an exact-box run)");
       for (unsigned k = 0; k < code.refCount; ++k) {
         const uint64_t target = childIndex(runFirst + i + code.ref[k]);
         if (target <= index || target >= s.nodeLimit)

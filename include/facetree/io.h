@@ -209,10 +209,13 @@ class ClusterFileWriter {
   // `n` nodes as encodeNodeRun encoded them (nodes runFirst, runFirst + 1, ... of their own tree),
   // appended without quantising them again: their records unchanged but for their node children's
   // references (childIndex(i) is the file index of the node the run's tree calls i; face children
-  // and face ranges follow from the parents') and, with compact boxes, for their boxes, quantised
-  // against their parents' as decoded. References are checked as addNodes checks them.
+  // and face ranges follow from the parents'). With compact boxes, exact-box records (`records`
+  // Exact) have their boxes quantised here against their parents' as decoded, which the writer keeps
+  // until each child arrives; records that compactNodeRun made (`records` Compact) are taken as
+  // they are. References are checked as addNodes checks them.
   void addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
-                  const std::function<uint32_t(uint64_t)>& childIndex);
+                  const std::function<uint32_t(uint64_t)>& childIndex,
+                  BoxPrecision records = BoxPrecision::Exact);
   void addVertices(uint64_t count, VertexFill fill);
   void addTriangles(uint64_t count, IndexFill indices, IdFill originalFace);
   uint64_t finish();                    // returns the file size; all counts must have arrived
@@ -241,6 +244,17 @@ uint64_t writerMemoryBound(const WriteOptions& options = {});
 // S and side areas as the file does. Throws std::invalid_argument for a node the format cannot hold
 // (quantizeNode's reasons).
 std::string encodeNodeRun(std::span<const FchNode> nodes, uint64_t firstIndex, BoxPrecision precision);
+// Compact boxes of a tree placed in pieces (docs/FORMAT.md: a child's box is quantised against its
+// parent's as decoded, so it depends on its ancestors only): the box a compact-box file decodes for
+// a node whose exact box is `box` (orientation on the compact lattice) under a parent decoded as
+// `parent` (null: the root, which the header stores as it is). Throws std::logic_error when the box
+// does not fit its parent's.
+NodeBox compactDecodedBox(const NodeBox& box, const NodeBox* parent);
+// An encodeNodeRun run of compact-lattice nodes (nodes runFirst ... of their tree) as the records of
+// a compact-box file: each box quantised against `parentBox[i]`, the decoded box of tree node i's
+// parent, which the caller sets for the tree's root and this sets for the run's node children.
+// Runs of one tree go in tree order. Throws std::runtime_error for bytes that are not such a run.
+std::string compactNodeRun(std::string_view run, size_t n, uint64_t runFirst, std::span<NodeBox> parentBox);
 
 // makeClusterFile's file streamed into a ClusterFileWriter at `path` without building the ClusterFile:
 // every frame's nodes and geometry are made from the hierarchy and the mesh by the writer's workers
