@@ -339,6 +339,39 @@ TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
   EXPECT_NE(message.find(": corrupt block at byte "), std::string::npos) << message;
 }
 
+// A file read in order given back below a byte: the pages wholly below it go (accounted and on
+// disk) in one call, those before given back block by block stay so, and the blocks from the page
+// holding that byte on read back intact.
+TEST(SpillFile, discardBeforeGivesBackThePagesBelowAByte) {
+  ScratchDir parent;
+  TempSpace space(parent.path());
+  SpillCodec codec;
+  SpillFile file(space, "nodes", /*discardable=*/true);
+  std::mt19937_64 rng(5);
+  std::vector<std::vector<std::byte>> raws;
+  std::vector<SpillBlock> blocks;
+  for (int i = 0; i < 200; ++i) {
+    raws.push_back(randomBlock(rng, 200 + rng() % 5000, false));
+    blocks.push_back(file.append(raws.back(), codec));
+  }
+  const uint64_t total = file.bytes();
+  constexpr uint64_t kPage = 4096;
+  file.discard(blocks[0]);  // given back alone first: discardBefore does not count its pages twice
+  const uint64_t end = blocks[120].offset;
+  file.discardBefore(end);
+  EXPECT_EQ(space.currentBytes(), total - end / kPage * kPage);
+  EXPECT_LE(allocatedBytes(file), space.currentBytes() + kPage);
+  std::vector<std::byte> back;
+  for (size_t b = 120; b < blocks.size(); ++b) {
+    file.read(blocks[b], back, codec);
+    ASSERT_EQ(back, raws[b]) << "block " << b;
+  }
+  const std::string message = errorOf([&] { file.read(blocks[60], back, codec); });
+  EXPECT_NE(message.find(": corrupt block at byte "), std::string::npos) << message;
+  file.discardBefore(total);  // all but the file's last page
+  EXPECT_LE(space.currentBytes(), kPage);
+}
+
 // Blocks shuffled by record place round-trip whatever their size (partial records at the end too),
 // and records of floats that vary slowly compress smaller shuffled than not.
 TEST(SpillFile, recordShuffledBlocksRoundTripAndCompressBetter) {

@@ -257,6 +257,62 @@ TEST(FchVersion2, NodeRunsReadBackAsTheirNodesWithinTheFilesBounds) {
     }
 }
 
+// Compact boxes quantised ahead of the write (compactNodeRun, a tree's runs in order against the
+// decoded boxes of their parents) give the bytes of the same runs quantised by the writer as they
+// arrive, and a compact record for the root, whose box goes in the header, is refused.
+TEST(FchVersion2, CompactRunsMadeAheadGiveTheBytesTheWriterMakes) {
+  Cleanup cleanup;
+  for (unsigned branching : {2u, 8u}) {
+    const ClusterFile file = buildFile(foldedGrid(), BoxPrecision::Compact, branching);
+    const auto byWriter = cleanup.add(scratch("compact_by_writer.fch")),
+               ahead = cleanup.add(scratch("compact_ahead.fch"));
+    WriteOptions options;
+    options.nodesPerFrame = 16;
+    const std::span<const FchNode> nodes = file.nodes;
+    const auto identity = [](uint64_t i) { return static_cast<uint32_t>(i); };
+    // The root as a node, the rest in runs of 1 to 37 nodes: exact records that the writer quantises
+    // as they arrive, or compact records made ahead.
+    for (const bool madeAhead : {false, true}) {
+      ClusterFileWriter writer(madeAhead ? ahead : byWriter, infoOf(file), options);
+      writer.addNodes(nodes.first(1));
+      std::vector<NodeBox> parentBox(nodes.size());
+      const NodeBox root = compactDecodedBox(nodes[0].box, nullptr);
+      for (unsigned c = 0; c < nodes[0].childCount; ++c)
+        if (!(nodes[0].child[c] & kFaceChild)) parentBox[nodes[0].child[c]] = root;
+      std::mt19937 rng(branching);
+      for (size_t first = 1; first < nodes.size();) {
+        const size_t n = std::min<size_t>(nodes.size() - first, 1 + rng() % 37);
+        const std::string run = encodeNodeRun(nodes.subspan(first, n), first, BoxPrecision::Compact);
+        if (madeAhead)
+          writer.addNodeRun(compactNodeRun(run, n, first, parentBox), n, first, identity,
+                            BoxPrecision::Compact);
+        else
+          writer.addNodeRun(run, n, first, identity);
+        first += n;
+      }
+      writer.addVertices(file.vertices);
+      writer.addTriangles(file.indices, file.originalFace);
+      writer.finish();
+    }
+    EXPECT_TRUE(slurp(ahead) == slurp(byWriter)) << branching;
+    const VerifyResult verified = verifyClusterFile(readClusterFile(ahead));
+    EXPECT_TRUE(verified.ok) << verified.message;
+    // The root as a compact record: refused.
+    std::vector<NodeBox> parentBox(nodes.size());
+    parentBox[0] = compactDecodedBox(nodes[0].box, nullptr);  // a box that holds the root's
+    const std::string top =
+        compactNodeRun(encodeNodeRun(nodes.first(1), 0, BoxPrecision::Compact), 1, 0, parentBox);
+    try {
+      ClusterFileWriter writer(cleanup.add(scratch("compact_root.fch")), infoOf(file), options);
+      writer.addNodeRun(top, 1, 0, identity, BoxPrecision::Compact);
+      ADD_FAILURE() << "added";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("node 0: the root's box goes in the header"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(FchVersion2, NodeRunsAddedAsRecordsGiveTheBytesOfTheirNodes) {
   Cleanup cleanup;
   const ClusterFile file = buildFile(foldedGrid(), BoxPrecision::Exact, 4);
