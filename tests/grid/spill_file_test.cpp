@@ -288,6 +288,18 @@ uint64_t allocatedBytes(const SpillFile& file) {
   return 0;
 }
 
+// `count` incompressible blocks of 200 to 200 + `spread` bytes appended to `file`, their bytes in `raws`.
+std::vector<SpillBlock> appendRandomBlocks(SpillFile& file, SpillCodec& codec, std::mt19937_64& rng,
+                                           int count, size_t spread,
+                                           std::vector<std::vector<std::byte>>& raws) {
+  std::vector<SpillBlock> blocks;
+  for (int i = 0; i < count; ++i) {
+    raws.push_back(randomBlock(rng, 200 + rng() % spread, false));
+    blocks.push_back(file.append(raws.back(), codec));
+  }
+  return blocks;
+}
+
 // Blocks of a discardable file given back in random order: a page goes back (accounted and on disk)
 // once every block on it is discarded, never before; the blocks still live read back intact.
 TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
@@ -297,11 +309,8 @@ TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
   SpillFile file(space, "nodes", /*discardable=*/true);
   std::mt19937_64 rng(11);
   std::vector<std::vector<std::byte>> raws;
-  std::vector<SpillBlock> blocks;
-  for (int i = 0; i < 300; ++i) {
-    raws.push_back(randomBlock(rng, 200 + rng() % 9000, false));  // incompressible: 0.05 to 2.2 pages
-    blocks.push_back(file.append(raws.back(), codec));
-  }
+  // Incompressible: 0.05 to 2.2 pages.
+  const std::vector<SpillBlock> blocks = appendRandomBlocks(file, codec, rng, 300, 9000, raws);
   const uint64_t total = file.bytes();
   ASSERT_EQ(space.currentBytes(), total);
   constexpr uint64_t kPage = 4096;
@@ -349,11 +358,7 @@ TEST(SpillFile, discardBeforeGivesBackThePagesBelowAByte) {
   SpillFile file(space, "nodes", /*discardable=*/true);
   std::mt19937_64 rng(5);
   std::vector<std::vector<std::byte>> raws;
-  std::vector<SpillBlock> blocks;
-  for (int i = 0; i < 200; ++i) {
-    raws.push_back(randomBlock(rng, 200 + rng() % 5000, false));
-    blocks.push_back(file.append(raws.back(), codec));
-  }
+  const std::vector<SpillBlock> blocks = appendRandomBlocks(file, codec, rng, 200, 5000, raws);
   const uint64_t total = file.bytes();
   constexpr uint64_t kPage = 4096;
   file.discard(blocks[0]);  // given back alone first: discardBefore does not count its pages twice
