@@ -48,14 +48,17 @@ void encodeTriangles(std::span<const uint32_t> indices, std::string& out);
 void encodeIds(std::span<const uint64_t> ids, uint32_t width, std::string& out);
 
 // Compresses a payload into a frame entry of `section` covering [first, first + count).
-FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level);
+// `boxes`: the file's box precision (FrameCompressor).
+FrameData makeFrame(FchSection section, uint64_t first, uint32_t count, const std::string& raw, int level,
+                    BoxPrecision boxes);
 
 // The same with one zstd context kept across frames (ZSTD_compressCCtx gives the bytes
 // ZSTD_compress gives), compressing into a caller-owned buffer whose capacity is reused: the
 // streaming writer's per-frame cost is the payload and this buffer, never a fresh context.
 class FrameCompressor {
  public:
-  explicit FrameCompressor(int level);
+  // `boxes`: the file's box precision, for the match finder's step in node frames.
+  FrameCompressor(int level, BoxPrecision boxes);
   ~FrameCompressor();
   FrameCompressor(const FrameCompressor&) = delete;
   FrameCompressor& operator=(const FrameCompressor&) = delete;

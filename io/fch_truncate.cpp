@@ -60,7 +60,8 @@ struct Source {
         records.codes.empty()
             ? fch::encodeNodes(std::span(records.nodes).first(keep), first)
             : fch::encodeNodeFrame(std::span(records.codes).first(keep), file.layout().header.boxes);
-    return fch::makeFrame(FchSection::Nodes, first, keep, raw, levelOf(file.layout()));
+    return fch::makeFrame(FchSection::Nodes, first, keep, raw, levelOf(file.layout()),
+                          file.layout().header.boxes);
   }
   fch::SourceFile file;
   std::vector<size_t> nodeFrames, geometryFrames;

@@ -169,9 +169,10 @@ class CompressorPool {
     std::exception_ptr failure;
   };
 
-  CompressorPool(int level, unsigned workers) : jobs_(kSlotsPerWorker * workers), scratch_(workers) {
+  CompressorPool(int level, BoxPrecision boxes, unsigned workers)
+      : jobs_(kSlotsPerWorker * workers), scratch_(workers) {
     for (unsigned w = 0; w < workers; ++w)
-      compressors_.push_back(std::make_unique<fch::FrameCompressor>(level));
+      compressors_.push_back(std::make_unique<fch::FrameCompressor>(level, boxes));
     for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w] { run(w); });
   }
   ~CompressorPool() {
@@ -356,8 +357,11 @@ struct ClusterFileWriter::State {
 
 ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFileInfo& info,
                                 const WriteOptions& options, const std::filesystem::path& tmpDir)
-    : name(out.string()), writerName("ClusterFileWriter " + name), compressor(options.zstdLevel) {
-  if (const unsigned workers = compressorThreads(options)) pool.emplace(options.zstdLevel, workers);
+    : name(out.string()),
+      writerName("ClusterFileWriter " + name),
+      compressor(options.zstdLevel, info.header.boxes) {
+  if (const unsigned workers = compressorThreads(options))
+    pool.emplace(options.zstdLevel, info.header.boxes, workers);
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
