@@ -38,6 +38,7 @@ class OutputFile {
 
  private:
   [[noreturn]] void fail(const char* what) const;
+  void startWriteback();  // hands the bytes written since the last call to the disk
   std::filesystem::path path_;
   std::filesystem::path temporary_;
   struct Closer {
@@ -47,6 +48,7 @@ class OutputFile {
   bool stream_ = false;
   bool committed_ = false;
   uint64_t written_ = 0;
+  uint64_t handedToDisk_ = 0;  // bytes whose writeback has been started
 };
 
 }  // namespace facetree
