@@ -288,29 +288,34 @@ uint64_t allocatedBytes(const SpillFile& file) {
   return 0;
 }
 
-// `count` incompressible blocks of 200 to 200 + `spread` bytes appended to `file`, their bytes in `raws`.
-std::vector<SpillBlock> appendRandomBlocks(SpillFile& file, SpillCodec& codec, std::mt19937_64& rng,
-                                           int count, size_t spread,
-                                           std::vector<std::vector<std::byte>>& raws) {
+// A discardable spill of `count` incompressible blocks of 200 to 200 + `spread` bytes (seed `seed`),
+// their bytes in `raws`.
+struct DiscardableBlocks {
+  ScratchDir parent;
+  TempSpace space{parent.path()};
+  SpillCodec codec;
+  SpillFile file{space, "nodes", /*discardable=*/true};
+  std::mt19937_64 rng;
+  std::vector<std::vector<std::byte>> raws;
   std::vector<SpillBlock> blocks;
-  for (int i = 0; i < count; ++i) {
-    raws.push_back(randomBlock(rng, 200 + rng() % spread, false));
-    blocks.push_back(file.append(raws.back(), codec));
+  DiscardableBlocks(uint64_t seed, int count, size_t spread) : rng(seed) {
+    for (int i = 0; i < count; ++i) {
+      raws.push_back(randomBlock(rng, 200 + rng() % spread, false));
+      blocks.push_back(file.append(raws.back(), codec));
+    }
   }
-  return blocks;
-}
+};
 
 // Blocks of a discardable file given back in random order: a page goes back (accounted and on disk)
 // once every block on it is discarded, never before; the blocks still live read back intact.
 TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
-  ScratchDir parent;
-  TempSpace space(parent.path());
-  SpillCodec codec;
-  SpillFile file(space, "nodes", /*discardable=*/true);
-  std::mt19937_64 rng(11);
-  std::vector<std::vector<std::byte>> raws;
-  // Incompressible: 0.05 to 2.2 pages.
-  const std::vector<SpillBlock> blocks = appendRandomBlocks(file, codec, rng, 300, 9000, raws);
+  DiscardableBlocks spill(11, 300, 9000);  // incompressible: 0.05 to 2.2 pages
+  TempSpace& space = spill.space;
+  SpillCodec& codec = spill.codec;
+  SpillFile& file = spill.file;
+  std::mt19937_64& rng = spill.rng;
+  const std::vector<std::vector<std::byte>>& raws = spill.raws;
+  const std::vector<SpillBlock>& blocks = spill.blocks;
   const uint64_t total = file.bytes();
   ASSERT_EQ(space.currentBytes(), total);
   constexpr uint64_t kPage = 4096;
@@ -352,13 +357,12 @@ TEST(SpillFile, discardGivesBackThePagesWhoseBlocksAreAllDiscarded) {
 // disk) in one call, those before given back block by block stay so, and the blocks from the page
 // holding that byte on read back intact.
 TEST(SpillFile, discardBeforeGivesBackThePagesBelowAByte) {
-  ScratchDir parent;
-  TempSpace space(parent.path());
-  SpillCodec codec;
-  SpillFile file(space, "nodes", /*discardable=*/true);
-  std::mt19937_64 rng(5);
-  std::vector<std::vector<std::byte>> raws;
-  const std::vector<SpillBlock> blocks = appendRandomBlocks(file, codec, rng, 200, 5000, raws);
+  DiscardableBlocks spill(5, 200, 5000);
+  TempSpace& space = spill.space;
+  SpillCodec& codec = spill.codec;
+  SpillFile& file = spill.file;
+  const std::vector<std::vector<std::byte>>& raws = spill.raws;
+  const std::vector<SpillBlock>& blocks = spill.blocks;
   const uint64_t total = file.bytes();
   constexpr uint64_t kPage = 4096;
   file.discard(blocks[0]);  // given back alone first: discardBefore does not count its pages twice
