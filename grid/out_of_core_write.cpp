@@ -65,9 +65,9 @@ constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
 // The node pass's input, read ahead on a helper thread: the sorted order's entries in batches, with
 // the batch's leaf runs read and decompressed, one batch being made while the pass takes the one
-// before. The spill's reads, zstd and decoding then overlap the
-// pass's remapping and the writer (perf: reading was half of the pass's thread on the 14M-face
-// dragon at 64 MiB). Order blocks are given back as read.
+// before. The spill's reads and zstd then overlap the pass's placing and the writer (perf: reading
+// was half of the pass's thread on the 14M-face dragon at 64 MiB). Order blocks are given back as
+// read.
 class NodeRunReader {
  public:
   struct Batch {

@@ -233,8 +233,10 @@ void SpillFile::discardBefore(uint64_t end) {
   if (!discardable_) throw std::logic_error("SpillFile::discardBefore: the file was not made discardable");
   std::lock_guard lock(writeMutex_);
   const uint64_t pages = std::min(end, bytes_.load(std::memory_order_relaxed)) / kPageBytes;
-  // The live pages below `end` in runs, each punched once (those given back before stay so).
-  uint64_t page = 0;
+  // The live pages below `end` in runs, each punched once (those given back before stay so); the
+  // pages below an earlier call's end are all given back already, so the scan starts there.
+  uint64_t page = discardedBelow_;
+  discardedBelow_ = std::max(discardedBelow_, pages);
   while (page < pages) {
     if (live_[page] == 0) {
       ++page;

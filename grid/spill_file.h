@@ -122,6 +122,7 @@ class SpillFile {
   std::atomic<uint64_t> bytes_{0};  // written under writeMutex_, read by read() without it
   uint64_t held_ = 0;               // accounted in the TempSpace, under writeMutex_
   std::vector<uint16_t> live_;      // discardable: blocks not yet discarded on each page
+  uint64_t discardedBelow_ = 0;     // discardBefore: every page below this is given back
 };
 
 }  // namespace facetree

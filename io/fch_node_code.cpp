@@ -417,29 +417,9 @@ std::string decodeExactBox(const NodeCode& code, NodeBox& box) {
   return {};
 }
 
-}  // namespace
-
-std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* parent, NodeBox& decoded) {
-  NodeBox box;
-  if (std::string error = decodeOrientationOf(code, orientationBits(BoxPrecision::Compact), box.orientation);
-      !error.empty())
-    return error;
-  if (std::string error = decodeExactBox(code, box); !error.empty()) return error;
-  if (!parent) {  // the root: its box goes in the header
-    decoded = box;
-    return {};
-  }
-  try {
-    decoded = quantizeCompactBox(box, *parent, index, code);
-  } catch (const std::logic_error& e) {
-    return e.what();
-  }
-  return {};
-}
-
-NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
-    : header_(header), rootBox_(rootBox) {}
-
+// The node `index` of faces first ... first + count - 1 that `code` holds, with its box's centre and
+// extents when `exactBox` (else left for the caller); orientation on a lattice of `bits`. Returns
+// an empty string, or why the record is invalid.
 std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
                          bool exactBox, FchNode& node) {
   node = FchNode{};
@@ -507,6 +487,29 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
   if (!exactBox) return {};
   return decodeExactBox(code, box);
 }
+
+}  // namespace
+
+std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* parent, NodeBox& decoded) {
+  NodeBox box;
+  if (std::string error = decodeOrientationOf(code, orientationBits(BoxPrecision::Compact), box.orientation);
+      !error.empty())
+    return error;
+  if (std::string error = decodeExactBox(code, box); !error.empty()) return error;
+  if (!parent) {  // the root: its box goes in the header
+    decoded = box;
+    return {};
+  }
+  try {
+    decoded = quantizeCompactBox(box, *parent, index, code);
+  } catch (const std::logic_error& e) {
+    return e.what();
+  }
+  return {};
+}
+
+NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
+    : header_(header), rootBox_(rootBox) {}
 
 std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
   const uint64_t index = out.size();

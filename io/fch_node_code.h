@@ -76,11 +76,6 @@ std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precisi
 // A spilled node run's record (encodeNodeRun): quantizeNode's fields with the orientation on
 // `precision`'s lattice and the box always as exact boxes store it, whatever `precision` is.
 NodeCode quantizeRunNode(const FchNode& node, uint64_t index, BoxPrecision precision);
-// The node `index` of faces first ... first + count - 1 that `code` holds, with its box's centre and
-// extents when `exactBox` (else left for the caller); orientation on a lattice of `bits`. Returns
-// an empty string, or why the record is invalid.
-std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
-                         bool exactBox, FchNode& node);
 // A run's record (quantizeRunNode) as a file of compact boxes holds it at `index`: its box, stored
 // as exact boxes store it, quantised against `parent`'s decoded box (null for the root, whose box
 // goes in the header); `decoded` gets the box a reader decodes. Returns an empty string, or why the

@@ -320,7 +320,7 @@ struct ClusterFileWriter::State {
   // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
   void placeOldest();
   void drain();
-  // Exact boxes: a record for the frame being gathered, which goes to a worker once whole.
+  // A record for the frame being gathered, which goes to a worker once whole.
   void pushCode(const fch::NodeCode& code);
   void vertexFrame(std::span<const glm::vec3> batch);
   void triangleFrames(std::span<const uint32_t> corners, std::span<const uint64_t> faces);
