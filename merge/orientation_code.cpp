@@ -32,22 +32,20 @@ unsigned orientationBits(BoxPrecision precision) {
 OrientationCode encodeOrientation(const glm::quat& q, unsigned bits) {
   const int32_t m = maxCode(bits);
   const double v[4] = {q.x, q.y, q.z, q.w};
-  double largest = 0;
-  for (double c : v) largest = std::max(largest, std::abs(c));
+  const double a[4] = {std::abs(v[0]), std::abs(v[1]), std::abs(v[2]), std::abs(v[3])};
   // The first component within 2^-20 of the largest: a decoded quaternion's recomputed largest
-  // component differs from a near-tie by rounding only, and must be dropped again.
+  // component differs from a near-tie by rounding only, and must be dropped again. Selects and
+  // sign copies rather than branches: which component is largest, and every sign, is a coin toss
+  // from box to box, and the writer encodes every node's orientation.
+  const double near = std::max(std::max(a[0], a[1]), std::max(a[2], a[3])) * (1.0 - 0x1p-20);
+  const unsigned largest = a[0] >= near ? 0u : a[1] >= near ? 1u : a[2] >= near ? 2u : 3u;
   OrientationCode code;
-  for (uint8_t i = 0; i < 4; ++i)
-    if (std::abs(v[i]) >= largest * (1.0 - 0x1p-20)) {
-      code.largest = i;
-      break;
-    }
+  code.largest = static_cast<uint8_t>(largest);
   // Rounded half away from zero by truncation of |x| + 1/2 (no library call on the writer's path).
-  const double scale = (v[code.largest] < 0 ? -1.0 : 1.0) * m / kHalfSqrt2;
-  for (int j = 0, i = 0; i < 4; ++i) {
-    if (i == code.largest) continue;
-    const double x = std::clamp(v[i] * scale, double(-m), double(m));
-    code.component[j++] = static_cast<int32_t>(x + (x < 0 ? -0.5 : 0.5));
+  const double scale = std::copysign(m / kHalfSqrt2, v[largest]);
+  for (unsigned j = 0; j < 3; ++j) {
+    const double x = std::clamp(v[j + (j >= largest ? 1 : 0)] * scale, double(-m), double(m));
+    code.component[j] = static_cast<int32_t>(x + std::copysign(0.5, x));
   }
   return code;
 }
@@ -56,18 +54,19 @@ glm::quat decodeOrientation(const OrientationCode& code, unsigned bits) {
   const int32_t m = maxCode(bits);
   if (code.largest > 3)
     throw std::invalid_argument("orientation code: index " + std::to_string(code.largest));
+  const unsigned largest = code.largest;
   double v[4];
   double sum = 0;
   const double unit = kHalfSqrt2 / m;
-  for (int j = 0, i = 0; i < 4; ++i) {
-    if (i == code.largest) continue;
-    const int32_t c = code.component[j++];
+  for (unsigned j = 0; j < 3; ++j) {  // kept components in x, y, z, w order, as encoded
+    const int32_t c = code.component[j];
     if (c < -m || c > m) throw std::invalid_argument("orientation code: component " + std::to_string(c));
-    v[i] = double(c) * unit;
-    sum += v[i] * v[i];
+    const double x = double(c) * unit;
+    v[j + (j >= largest ? 1 : 0)] = x;
+    sum += x * x;
   }
-  v[code.largest] = std::sqrt(std::max(0.0, 1.0 - sum));
-  const double scale = 1.0 / std::sqrt(sum + v[code.largest] * v[code.largest]);
+  v[largest] = std::sqrt(std::max(0.0, 1.0 - sum));
+  const double scale = 1.0 / std::sqrt(sum + v[largest] * v[largest]);
   return glm::quat(float(v[3] * scale), float(v[0] * scale), float(v[1] * scale), float(v[2] * scale));
 }
 
