@@ -10,8 +10,6 @@
 #include <string>
 #include <vector>
 
-#include "exit_codes.h"
-
 namespace facetree::cli {
 
 class UsageError : public std::runtime_error {

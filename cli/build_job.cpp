@@ -9,8 +9,6 @@
 #include <thread>
 
 #include "commands.h"
-#include "job_options.h"
-#include "job_report.h"
 #include "signals.h"
 
 namespace facetree::cli {

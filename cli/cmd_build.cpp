@@ -9,8 +9,6 @@
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
-#include "job_options.h"
-#include "json.h"
 #include "signals.h"
 
 namespace facetree::cli {

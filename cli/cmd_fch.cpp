@@ -9,8 +9,6 @@
 #include "facetree/io.h"
 #include "facetree/stream.h"
 #include "fch_commands.h"
-#include "job_options.h"
-#include "json.h"
 #include "signals.h"
 
 namespace facetree::cli {

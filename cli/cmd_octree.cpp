@@ -11,8 +11,6 @@
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/merge.h"
-#include "job_options.h"
-#include "json.h"
 
 namespace facetree::cli {
 namespace {

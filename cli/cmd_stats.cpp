@@ -6,9 +6,8 @@
 
 #include "args.h"
 #include "commands.h"
+#include "facetree/grid.h"
 #include "facetree/stream.h"
-#include "job_options.h"
-#include "json.h"
 
 namespace facetree::cli {
 namespace {

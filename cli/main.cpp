@@ -74,6 +74,7 @@ exit codes: 0 success, 1 internal error, 2 usage, 3 bad or unreadable input,
 )";
 
 int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
+  using namespace facetree;
   using namespace facetree::cli;
   if (args.empty()) {
     std::fputs(kUsage, stderr);
@@ -102,6 +103,7 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
 
 // Runs the command; failures become one line on stderr and an exit code.
 int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
+  using namespace facetree;
   using namespace facetree::cli;
   try {
     return dispatch(args, signals);
@@ -127,6 +129,7 @@ int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signal
 }  // namespace
 
 int main(int argc, char** argv) {
+  using namespace facetree;
   using namespace facetree::cli;
   int code = kExitInternal;
   int received = 0;

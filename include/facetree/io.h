@@ -491,4 +491,33 @@ void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceClust
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                              const std::filesystem::path& path);
 
+// A JSON object written field by field, for reports (`--json` of the command line, the Python
+// package's report): nested objects by beginObject / endObject, numbers as C's %.9g, non-finite
+// ones as null, two-space indents.
+class JsonWriter {
+ public:
+  JsonWriter();
+  void key(const std::string& name);
+  void field(const std::string& name, const std::string& value);
+  void field(const std::string& name, const char* value);
+  void field(const std::string& name, bool value);
+  void field(const std::string& name, uint64_t value);
+  void field(const std::string& name, int64_t value);
+  void field(const std::string& name, uint32_t value);
+  void field(const std::string& name, int value);
+  void field(const std::string& name, double value);
+  void field(const std::string& name, const std::vector<double>& values);
+  void beginObject(const std::string& name);
+  void endObject();
+  // The text, every object still open closed, with a final newline.
+  std::string finish();
+
+ private:
+  void open();
+  void separator();
+  std::string out_;
+  int depth_ = 0;
+  bool first_ = true;
+};
+
 }  // namespace facetree

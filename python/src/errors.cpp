@@ -6,7 +6,6 @@
 #include <new>
 
 #include "bindings.h"
-#include "exit_codes.h"
 
 namespace facetree::python {
 namespace {
@@ -33,7 +32,7 @@ std::array<Category, 4> categories() {
 void makeType(py::module_& module, PyObject* base, const Category& c) {
   py::dict attributes;
   attributes["category"] = c.categoryName;
-  attributes["exit_code"] = cli::exitCode(c.category);
+  attributes["exit_code"] = exitCode(c.category);
   PyObject* bases = c.builtin ? PyTuple_Pack(2, base, c.builtin) : PyTuple_Pack(1, base);
   const std::string qualified = std::string("facetree.") + c.name;
   PyObject* type = PyErr_NewExceptionWithDoc(qualified.c_str(), c.doc, bases, attributes.ptr());
@@ -53,7 +52,7 @@ void raise(const char* type, const char* message) {
 void registerErrors(py::module_& module) {
   py::dict base;
   base["category"] = "internal";
-  base["exit_code"] = int{cli::kExitInternal};
+  base["exit_code"] = int{kExitInternal};
   PyObject* errorType = PyErr_NewExceptionWithDoc(
       "facetree.Error",
       "Base of facetree's exceptions. `category` names the kind of failure and `exit_code` is the "

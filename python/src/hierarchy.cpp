@@ -7,7 +7,6 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "bindings.h"
-#include "job_options.h"
 
 namespace facetree::python {
 namespace {
@@ -100,11 +99,11 @@ face_order[first:first + count] of its face range; its children partition that r
             d["triangle_count"] = f.triangleCount;
             d["vertex_count"] = f.vertexCount;
             d["branching"] = f.branching;
-            d["metric"] = cli::metricName(f.metric);
+            d["metric"] = metricName(f.metric);
             d["k"] = f.k;
             d["flat_threshold"] = f.flatThreshold;
             d["memory_cap_bytes"] = f.memoryCapBytes;
-            d["boxes"] = cli::boxesName(f.boxes);
+            d["boxes"] = boxesName(f.boxes);
             d["spatial_top"] = f.spatialClusters;
             d["bounds_min"] = py::make_tuple(f.boundsMin.x, f.boundsMin.y, f.boundsMin.z);
             d["bounds_max"] = py::make_tuple(f.boundsMax.x, f.boundsMax.y, f.boundsMax.z);

@@ -16,8 +16,6 @@
 #include <variant>
 
 #include "bindings.h"
-#include "job_options.h"
-#include "job_report.h"
 
 namespace facetree::python {
 namespace {
@@ -91,7 +89,7 @@ auto runReleased(Interrupts& interrupts, Work&& work) {
 }
 
 py::object reportDict(const JobReport& report, const std::string& mesh, MergeOrder order, bool hasOutput) {
-  const std::string json = cli::jobReportJson(report, {mesh, order, hasOutput, cli::peakResidentBytes()});
+  const std::string json = jobReportJson(report, {mesh, order, hasOutput, peakResidentBytes()});
   return py::module_::import("json").attr("loads")(json);
 }
 
@@ -118,7 +116,7 @@ std::vector<uint64_t> faceIdsFrom(const py::object& object, size_t triangles) {
 
 // The options' part of build()'s and build_file()'s docstrings, with the defaults they have.
 std::string optionsDoc() {
-  const cli::BuildSettings d;
+  const BuildSettings d;
   const auto number = [](double v) { return py::cast<std::string>(py::str(py::float_(v))); };
   return "\n\nOptions, by keyword, as the command line's `facetree build` takes them [default]:\n"
          "  metric: \"willmott\" (Willmott 2000, eq. 84), \"garland\" or \"constant\" [\"" +
@@ -168,7 +166,7 @@ struct Settings {
 // and checked as the command line checks them. A name that is no option raises TypeError, as
 // Python does for a misspelt keyword; a value of the wrong type too.
 Settings settingsFrom(const py::kwargs& options, const char* function) {
-  cli::BuildSettings named;
+  BuildSettings named;
   bool weld = false;
   using Field = std::variant<std::string*, double*, unsigned*, bool*>;
   const std::pair<const char*, Field> fields[] = {{"metric", &named.metric},
@@ -204,7 +202,7 @@ Settings settingsFrom(const py::kwargs& options, const char* function) {
         field->second);
   }
   Settings s;  // std::invalid_argument for a bad option: an InputError in Python (errors.cpp)
-  cli::applyBuildSettings(named, cli::OptionSpelling::Python, s.build, s.file);
+  applyBuildSettings(named, OptionSpelling::Python, s.build, s.file);
   s.weld = weld;
   return s;
 }
@@ -272,7 +270,7 @@ arrays or options.)") +
          uint64_t maxTmp, int zstdLevel, const py::object& progress, uint64_t cellFaces,
          const py::kwargs& options) {
         const Settings s = settingsFrom(options, "build_file");
-        cli::checkJobLimits(memory, zstdLevel, cli::OptionSpelling::Python);
+        checkJobLimits(memory, zstdLevel, OptionSpelling::Python);
         ClusterJob job;
         job.input = input;
         job.output = output;
@@ -282,7 +280,7 @@ arrays or options.)") +
         job.memoryCap = memory;
         job.tmpDir = tmp;
         job.maxTemporaryBytes = maxTmp;
-        job.threads = cli::jobThreads(s.build.threads);
+        job.threads = jobThreads(s.build.threads);
         job.zstdLevel = zstdLevel;
         job.forceCellFaces = cellFaces;
         Interrupts interrupts(progress);

@@ -3,6 +3,7 @@
 # stream, io on merge, merge and stream on nothing. The compiler already refuses another module's
 # internal header (a module sees only include/ and its own folder); this checks which public
 # headers each module includes, and that no source reaches outside its folder by a relative path.
+# The Python package depends on the library only, never on the command line.
 #   check_module_includes.sh SOURCE_DIR
 set -euo pipefail
 cd "$1"
@@ -29,6 +30,20 @@ for module in "${!allowed[@]}"; do
     failed=1
   fi
 done
+# The package stands on the library alone: its sources include only their own headers and the
+# public ones, and its build names nothing of the command line's folder.
+while IFS= read -r line; do
+  file="${line%%:*}"
+  header="$(sed -n 's/.*#include "\([^"]*\)".*/\1/p' <<<"$line")"
+  case "$header" in
+    facetree/*) ;;
+    *) [ -f "python/src/$header" ] || { echo "$file: includes \"$header\", not a header of python/src" >&2; failed=1; } ;;
+  esac
+done < <(grep -rn --include='*.cpp' --include='*.h' '#include "' python/src || true)
+if grep -n 'cli' python/CMakeLists.txt; then
+  echo "python/CMakeLists.txt: names the command line's folder or targets" >&2
+  failed=1
+fi
 # The public headers themselves: each includes only the modules below it.
 declare -A below=([error]="" [stream]="error" [merge]="error" [io]="error merge" [grid]="error stream merge io")
 for header in "${!below[@]}"; do

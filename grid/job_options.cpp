@@ -1,5 +1,5 @@
-// The build options by name (job_options.h), and the process's peak resident set.
-#include "job_options.h"
+// The build options by name (facetree/grid.h), and the process's peak resident set.
+#include "facetree/grid.h"
 
 #include <sys/resource.h>
 
@@ -9,7 +9,7 @@
 #include <thread>
 #include <utility>
 
-namespace facetree::cli {
+namespace facetree {
 namespace {
 
 // `name` (snake case) as `spelling` writes an option.
@@ -103,4 +103,4 @@ uint64_t peakResidentBytes() {
   return static_cast<uint64_t>(usage.ru_maxrss) * 1024;  // Linux reports KiB
 }
 
-}  // namespace facetree::cli
+}  // namespace facetree

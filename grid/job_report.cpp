@@ -1,10 +1,8 @@
-// The job report as one JSON object (job_report.h).
-#include "job_report.h"
+// The job report as one JSON object (facetree/grid.h).
+#include "facetree/grid.h"
+#include "facetree/io.h"
 
-#include "job_options.h"
-#include "json.h"
-
-namespace facetree::cli {
+namespace facetree {
 
 std::string jobReportJson(const JobReport& r, const JobReportContext& context) {
   const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;
@@ -61,4 +59,4 @@ std::string jobReportJson(const JobReport& r, const JobReportContext& context) {
   return json.finish();
 }
 
-}  // namespace facetree::cli
+}  // namespace facetree
