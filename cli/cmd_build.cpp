@@ -5,6 +5,7 @@
 
 #include "args.h"
 #include "build_job.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -15,11 +16,7 @@ namespace facetree::cli {
 namespace {}  // namespace
 
 int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv, {"output",  "metric",    "k",       "flat-threshold", "w-fit",      "w-dir",
-                         "w-shape", "branching", "recast",  "mesh-out",       "draco-bits", "balance-slack",
-                         "memory",  "tmp",       "max-tmp", "threads",        "cell-faces", "zstd-level",
-                         "method",  "leaf-size", "order",   "spatial-top",    "boxes"},
-                  {"json", "no-boxes", "weld"}, {{"-o", "--output"}});
+  const Args args = parseCommand("build", argv);
   if (args.positional().size() != 1)
     throw UsageError("build takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];

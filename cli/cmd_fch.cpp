@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -40,7 +41,7 @@ std::vector<uint64_t> fitCutCounts(const Args& args) {
 }  // namespace
 
 int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv, {"output", "nodes", "max-bytes"}, {"json"}, {{"-o", "--output"}});
+  const Args args = parseCommand("truncate", argv);
   if (args.positional().size() != 1) throw UsageError("truncate takes exactly one cluster file");
   const auto output = args.value("output");
   if (!output) throw UsageError("truncate needs -o OUT.fch");
@@ -78,7 +79,7 @@ int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
 }
 
 int runInfo(const std::vector<std::string>& argv) {
-  const Args args(argv, {"fit-cuts"}, {"json"});
+  const Args args = parseCommand("info", argv);
   if (args.positional().size() != 1) throw UsageError("info takes exactly one cluster file");
   const std::string& name = args.positional()[0];
   const std::vector<uint64_t> fitCuts = fitCutCounts(args);
@@ -198,7 +199,7 @@ int runInfo(const std::vector<std::string>& argv) {
 }
 
 int runVerify(const std::vector<std::string>& argv) {
-  const Args args(argv, {}, {"json"});
+  const Args args = parseCommand("verify", argv);
   if (args.positional().empty() || args.positional().size() > 2)
     throw UsageError("verify takes a cluster file and optionally the mesh it was built from");
   const std::string& name = args.positional()[0];

@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -10,8 +11,7 @@
 namespace facetree::cli {
 
 int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv, {"triangles", "output", "seed", "levels"}, {"shuffle-vertices", "shuffle-faces"},
-                  {{"-n", "--triangles"}, {"-o", "--output"}});
+  const Args args = parseCommand("gen", argv);
   const auto& positional = args.positional();
   if (positional.empty())
     throw UsageError("gen needs a kind: grid, sphere, terrain, strip, assembly or subdivide");

@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/io.h"
 #include "signals.h"
@@ -49,8 +50,7 @@ glm::vec3 parseVector(const std::string& text, const std::string& option) {
 }  // namespace
 
 int runRender(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv, {"output", "cut", "depth", "width", "height", "view", "up"}, {},
-                  {{"-o", "--output"}});
+  const Args args = parseCommand("render", argv);
   const auto output = args.value("output");
   if (!output) throw UsageError("render needs -o OUT.png");
   RenderOptions options;
@@ -70,7 +70,7 @@ int runRender(const std::vector<std::string>& argv, SignalGuard& signals) {
 }
 
 int runExport(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args(argv, {"output", "cut", "depth"}, {}, {{"-o", "--output"}});
+  const Args args = parseCommand("export", argv);
   const auto output = args.value("output");
   if (!output) throw UsageError("export needs -o OUT.ply");
   prepareOutput(signals, *output);

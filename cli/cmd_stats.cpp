@@ -5,6 +5,7 @@
 #include <glm/common.hpp>
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/stream.h"
@@ -16,7 +17,7 @@ constexpr double kMega = 1e6;
 }  // namespace
 
 int runStats(const std::vector<std::string>& argv) {
-  const Args args(argv, {}, {"json"});
+  const Args args = parseCommand("stats", argv);
   if (args.positional().size() != 1)
     throw UsageError("stats takes exactly one mesh file (or - for standard input)");
   const std::string& name = args.positional()[0];

@@ -13,6 +13,7 @@
 #endif
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -22,72 +23,29 @@
 
 namespace {
 
-constexpr const char* kUsage = R"(usage: facetree COMMAND [OPTIONS]
-
-Face cluster hierarchies over very large triangle meshes (PLY, OBJ, STL, Draco; any .zst).
-
-commands:
-  stats MESH [--json]            counts, bounding box and read throughput of a mesh
-  build MESH [-o OUT.fch] [--json] build the face cluster hierarchy, print its statistics
-        [--branching 2|4|8] [--recast largest-area|fewest-nodes]
-        [--mesh-out REORDERED.ply|.drc] [--draco-bits B]
-        [--metric willmott|garland|constant] [--k K] [--flat-threshold T]
-        [--w-fit W] [--w-dir W] [--w-shape W] [--balance-slack A] [--no-boxes]
-        [--order rounds|exact]   merge order: rounds of reciprocal cheapest pairs (default,
-                                 parallel), or the exact global greedy (the reference)
-        [--boxes exact|compact]  boxes exact in their stored frame (default), or quantised against
-                                 their parent's in 8 bits a face (smaller files; a box always
-                                 contains its faces)
-        [--spatial-top N]        the last N clusters (default 1024, at most one per 64 faces)
-                                 merge by the smallest union box, so that the file's first nodes
-                                 split space compactly; 0: eq. 84 to the root
-        [--threads N]            threads of the merge rounds, the box phase and the out-of-core cells
-                                 (default 0: all cores, at most 8); the output does not depend on it
-        [--memory SIZE] [--tmp DIR] [--max-tmp SIZE]
-                                 the whole job under a memory cap (e.g. 256M; default half the
-                                 RAM): in core when it fits, else (with -o, no --mesh-out) out of
-                                 core with temporary files under --tmp; OUT.fch may be - (stdout)
-  build MESH --method octree [--leaf-size N] [--json]
-                                 baseline: tightest-fit octree volume clustering (time, nodes,
-                                 height); writes no cluster file (-o is a usage error)
-  gen grid|sphere|terrain|strip|assembly -n TRIANGLES -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
-  gen subdivide MESH --levels L -o OUT.ply [--shuffle-vertices] [--shuffle-faces] [--seed S]
-  truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]
-                                 keep the first nodes of a cluster file (geometry counts in B)
-  info FILE.fch [--json] [--fit-cuts N,N...]
-                                 counts, height, branching histogram, bytes per section; with
-                                 --fit-cuts the fit error of cuts of N clusters (sum of eq. 84's
-                                 eFit and of area * eFit over the cut) and the sum of the cut's
-                                 box areas against N runs of the faces in Morton order
-  verify FILE.fch [MESH] [--json]  check every invariant (exit 3 names the first violation)
-
-  render FILE.fch (--cut N | --depth D) -o OUT.png [--width W] [--height H] [--view X,Y,Z] [--up X,Y,Z]
-                                 flat-shaded picture of the clusters of a cut (default --cut 64)
-  export FILE.fch (--cut N | --depth D) -o OUT.ply
-                                 the mesh with a colour per cluster of the cut (MeshLab)
-
-MESH may be - for standard input; the format is detected from the content.
-
-exit codes: 0 success, 1 internal error, 2 usage, 3 bad or unreadable input,
-            4 cannot write output, 5 out of memory or over a limit,
-            130/143/129 interrupted by SIGINT/SIGTERM/SIGHUP (no output left behind)
-)";
-
 int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& signals) {
   using namespace facetree;
   using namespace facetree::cli;
   if (args.empty()) {
-    std::fputs(kUsage, stderr);
+    std::fputs(overviewUsage().c_str(), stderr);
     return kExitUsage;
   }
   const std::string& command = args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "--help" || command == "-h" || command == "help") {
-    std::fputs(kUsage, stdout);
+    std::fputs(overviewUsage().c_str(), stdout);
     return kExitOk;
   }
   if (command == "--version") {
     std::printf("facetree %s\n", FACETREE_VERSION);
+    return kExitOk;
+  }
+  if (asksForHelp(rest)) {
+    try {
+      std::fputs(commandUsage(commandHelp(command)).c_str(), stdout);
+    } catch (const std::out_of_range&) {
+      throw UsageError("unknown command '" + command + "'");
+    }
     return kExitOk;
   }
   if (command == "stats") return runStats(rest);
@@ -108,7 +66,13 @@ int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signal
   try {
     return dispatch(args, signals);
   } catch (const UsageError& e) {
-    std::fprintf(stderr, "facetree: %s (see facetree --help)\n", e.what());
+    // The command's own help, when the command is known.
+    std::string help = "facetree --help";
+    try {
+      if (!args.empty()) help = "facetree " + std::string(commandHelp(args[0]).name) + " --help";
+    } catch (const std::out_of_range&) {
+    }
+    std::fprintf(stderr, "facetree: %s (see %s)\n", e.what(), help.c_str());
     return kExitUsage;
   } catch (const facetree::Error& e) {
     if (e.category() == facetree::ErrorCategory::Cancelled) return -1;  // main() reports the signal

@@ -6,6 +6,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "run_cli.h"
 
@@ -29,6 +32,59 @@ TEST(Cli, HelpAndVersionSucceed) {
   EXPECT_EQ(version.out.rfind("facetree ", 0), 0u);
 }
 
+// The commands the overview lists, by name ("  NAME ARGS..." lines under "commands:").
+std::vector<std::string> listedCommands(const std::string& overview) {
+  std::vector<std::string> names;
+  std::istringstream lines(overview.substr(overview.find("commands:\n")));
+  std::string line;
+  std::getline(lines, line);
+  while (std::getline(lines, line) && !line.empty()) {
+    if (line.rfind("      ", 0) == 0) continue;  // a command's one-line description
+    std::istringstream words(line);
+    std::string name;
+    words >> name;
+    names.push_back(name);
+  }
+  return names;
+}
+
+TEST(Cli, EveryCommandAnswersHelpWithItsOwnOptions) {
+  const auto overview = runCli("--help");
+  const std::vector<std::string> commands = listedCommands(overview.out);
+  ASSERT_GE(commands.size(), 8u) << overview.out;
+  for (const std::string& command : commands) {
+    SCOPED_TRACE(command);
+    const auto help = runCli(command + " --help");
+    EXPECT_EQ(help.exitCode, 0);
+    EXPECT_EQ(help.out.rfind("usage: facetree " + command + " ", 0), 0u) << help.out;
+    EXPECT_NE(help.out.find("\noptions:\n"), std::string::npos) << help.out;
+    EXPECT_EQ(runCli(command + " -h").out, help.out);
+    EXPECT_EQ(runCli(command + " --help 2>/dev/null").out, help.out) << "help goes to standard output";
+    // Every option the help lists is one the command takes: none is an unknown option.
+    size_t options = 0;
+    for (size_t at = help.out.find("\n  "); at != std::string::npos; at = help.out.find("\n  ", at + 1)) {
+      std::istringstream words(help.out.substr(at + 3, help.out.find('\n', at + 1) - at - 3));
+      std::string word;
+      while (words >> word && word.rfind("--", 0) != 0) {
+      }
+      if (word.empty() || word.rfind("--", 0) != 0 || word == "--help") continue;
+      if (word.back() == ',') word.pop_back();
+      ++options;
+      const auto run = runCli(command + " " + word);
+      EXPECT_EQ(run.out.find("unknown option"), std::string::npos) << word << ": " << run.out;
+    }
+    EXPECT_GE(options, 1u) << help.out;
+  }
+  const auto build = runCli("build --help");
+  for (const char* option : {"--memory SIZE", "--boxes exact|compact", "--zstd-level L", "--cell-faces N",
+                             "--tmp DIR", "--max-tmp SIZE", "--weld", "-o, --output OUT.fch"})
+    EXPECT_NE(build.out.find(option), std::string::npos) << option;
+  // An unknown command's help is a usage error.
+  const auto unknown = runCli("frobnicate --help");
+  EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_EQ(unknown.out, "facetree: unknown command 'frobnicate' (see facetree --help)\n");
+}
+
 TEST(Cli, UsageErrorsExitWithTwo) {
   auto none = runCli("");
   EXPECT_EQ(none.exitCode, 2);
@@ -37,14 +93,15 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(unknown.out, "facetree: unknown command 'frobnicate' (see facetree --help)\n");
   auto option = runCli("stats --bogus x.ply");
   EXPECT_EQ(option.exitCode, 2);
-  EXPECT_EQ(option.out, "facetree: unknown option '--bogus' (see facetree --help)\n");
+  EXPECT_EQ(option.out, "facetree: unknown option '--bogus' (see facetree stats --help)\n");
   auto metric = runCli("build --metric nope x.ply");
   EXPECT_EQ(metric.exitCode, 2);
   EXPECT_EQ(metric.out,
-            "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree --help)\n");
+            "facetree: unknown metric 'nope' (willmott, garland, constant) (see facetree build --help)\n");
   auto boxes = runCli("build --boxes tight x.ply");
   EXPECT_EQ(boxes.exitCode, 2);
-  EXPECT_EQ(boxes.out, "facetree: unknown box precision 'tight' (exact, compact) (see facetree --help)\n");
+  EXPECT_EQ(boxes.out,
+            "facetree: unknown box precision 'tight' (exact, compact) (see facetree build --help)\n");
   auto count = runCli("gen grid -n 12x -o x.ply");
   EXPECT_EQ(count.exitCode, 2);
 }

@@ -445,7 +445,7 @@ INSTANTIATE_TEST_SUITE_P(IntAndTerm, Signals, ::testing::Values(SIGINT, SIGTERM)
 TEST(Options, ThreadsOptionIsChecked) {
   const auto result = test::runCli("build --threads 9 x.ply");
   EXPECT_EQ(result.exitCode, 2);
-  EXPECT_EQ(result.out, "facetree: --threads must be 0 (all cores) to 8 (see facetree --help)\n");
+  EXPECT_EQ(result.out, "facetree: --threads must be 0 (all cores) to 8 (see facetree build --help)\n");
 }
 
 }  // namespace

@@ -1,0 +1,217 @@
+// The commands' help and option tables (command_help.h).
+#include "command_help.h"
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+namespace facetree::cli {
+namespace {
+
+const std::vector<CommandHelp>& commands() {
+  static const std::vector<CommandHelp> table = {
+      {"stats",
+       "MESH [--json]",
+       "counts, bounding box and read throughput of a mesh",
+       "Reads MESH once without keeping it (any size) and prints its format, declared and read counts,\n"
+       "bounding box and read throughput.",
+       {{"json", "", "", "print the report as one JSON object"}}},
+      {"build",
+       "MESH [-o OUT.fch] [options]",
+       "build the face cluster hierarchy, print its statistics",
+       "Clusters MESH by greedy dual-edge merging under Willmott's cost (eFit + k area) perim^2 / projArea,\n"
+       "gives every node an oriented box, and writes the cluster file OUT.fch (docs/FORMAT.md): nodes by\n"
+       "decreasing effective cost, so that any prefix is a valid, truncated hierarchy. The job runs in\n"
+       "core when the mesh fits the memory cap, else out of core in cells with temporary files.\n"
+       "The output does not depend on --threads.",
+       {{"output", "OUT.fch", "-o", "the cluster file; - writes it to standard output"},
+        {"json", "", "", "print the report as one JSON object (stage times, peaks, sizes)"},
+        {"branching", "2|4|8", "", "most children a node of the file may have (default 2)"},
+        {"recast", "largest-area|fewest-nodes", "",
+         "how binary nodes are merged into b-ary ones (default largest-area)"},
+        {"metric", "willmott|garland|constant", "", "the merge cost (default willmott)"},
+        {"k", "K", "", "the area weight of Willmott's cost (default 1e-4)"},
+        {"flat-threshold", "T", "",
+         "eq. 78's flatness below which a cluster's frame is its plane's (default 0.5)"},
+        {"w-fit", "W", "", "Garland's fit weight (--metric garland; default 1)"},
+        {"w-dir", "W", "", "Garland's orientation weight (--metric garland; default 1)"},
+        {"w-shape", "W", "", "Garland's shape weight (--metric garland; default 1)"},
+        {"balance-slack", "A", "",
+         "raise the cost of a merge whose subtree is taller than A (ceil(log2 n) + 1) for its n faces "
+         "(default 1.5; 0: off, eq. 84 alone)"},
+        {"order", "rounds|exact", "",
+         "rounds of reciprocal cheapest pairs (default, parallel), or the exact global greedy (the "
+         "reference)"},
+        {"boxes", "exact|compact", "",
+         "boxes exact in their stored frame (default), or quantised against their parent's in 8 bits a "
+         "face (smaller files; a box always contains its faces)"},
+        {"no-boxes", "", "", "skip the boxes (no cluster file; statistics only)"},
+        {"spatial-top", "N", "",
+         "the last N clusters (default 1024, at most one per 64 faces) merge by the smallest union box, so "
+         "that the file's first nodes split space compactly; 0: eq. 84 to the root"},
+        {"threads", "N", "",
+         "threads of the merge rounds, the box phase and the out-of-core cells (default 0: all cores, at "
+         "most 8)"},
+        {"memory", "SIZE", "",
+         "the whole job under this cap (e.g. 256M; default half the RAM): in core when it fits, else (with "
+         "-o, no --mesh-out) out of core"},
+        {"tmp", "DIR", "", "where the out-of-core job's temporary files go (default the system's)"},
+        {"max-tmp", "SIZE", "", "fail (exit 5) rather than let the temporary files pass SIZE"},
+        {"cell-faces", "N", "", "out of core with cells of at most N faces, whatever the cap (needs -o)"},
+        {"zstd-level", "L", "", "zstd level of the file's frames, 1 to 19 (default 3; needs -o)"},
+        {"weld", "", "", "merge vertices at identical positions before clustering (STL always is)"},
+        {"mesh-out", "REORDERED.ply|.drc", "", "also write the mesh with its faces in the file's order"},
+        {"draco-bits", "B", "",
+         "position quantisation bits of a .drc --mesh-out, 0 (lossless, the default) to 30"},
+        {"method", "cluster|octree", "",
+         "octree: the baseline tightest-fit octree volume clustering (time, nodes, height; no file)"},
+        {"leaf-size", "N", "", "most faces in an octree leaf, 1 to 1000000 (--method octree)"}}},
+      {"gen",
+       "KIND -o OUT.ply [options]",
+       "synthetic test meshes, or a mesh subdivided",
+       "KIND is grid, sphere, terrain, strip or assembly (-n TRIANGLES), or subdivide MESH (--levels L):\n"
+       "midpoint subdivision, every triangle into 4^L. Shuffles make the dirty orders of real files.",
+       {{"output", "OUT.ply", "-o", "the mesh written (binary PLY)"},
+        {"triangles", "N", "-n", "about how many triangles (every kind but subdivide)"},
+        {"levels", "L", "", "subdivision levels, 1 to 8 (subdivide)"},
+        {"seed", "S", "", "seed of the shuffles and of the random kinds"},
+        {"shuffle-vertices", "", "", "store the vertices in random order"},
+        {"shuffle-faces", "", "", "store the faces in random order"}}},
+      {"truncate",
+       "IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]",
+       "keep the first nodes of a cluster file",
+       "Keeps the first nodes, the cheapest merges dropped first; the kept records are copied unchanged\n"
+       "and the geometry kept whole.",
+       {{"output", "OUT.fch", "-o", "the truncated file"},
+        {"nodes", "N", "", "keep N nodes"},
+        {"max-bytes", "B", "", "keep the most nodes whose file, geometry included, fits in B bytes"},
+        {"json", "", "", "print the result as one JSON object"}}},
+      {"info",
+       "FILE.fch [--json] [--fit-cuts N,N...]",
+       "counts, height, branching histogram, bytes per section",
+       "",
+       {{"json", "", "", "print the report as one JSON object"},
+        {"fit-cuts", "N,N...", "",
+         "the fit error of cuts of N clusters (sum of eq. 84's eFit and of area * eFit over the cut) and "
+         "the sum of the cut's box areas against N runs of the faces in Morton order"}}},
+      {"verify",
+       "FILE.fch [MESH] [--json]",
+       "check every invariant of a cluster file (exit 3 names the first violation)",
+       "Checks the checksums, the tree, the face ranges, the costs' order and every box against its faces;\n"
+       "with MESH also that the file's geometry is that mesh's.",
+       {{"json", "", "", "print the result as one JSON object"}}},
+      {"render",
+       "FILE.fch (--cut N | --depth D) -o OUT.png [options]",
+       "flat-shaded picture of the clusters of a cut",
+       "",
+       {{"output", "OUT.png", "-o", "the picture"},
+        {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
+        {"depth", "D", "", "the cut at depth D"},
+        {"width", "W", "", "pixels, 16 to 16384 (default 1024)"},
+        {"height", "H", "", "pixels, 16 to 16384 (default 768)"},
+        {"view", "X,Y,Z", "", "viewing direction (default a three-quarter view)"},
+        {"up", "X,Y,Z", "", "up vector (default 0,0,1)"}}},
+      {"export",
+       "FILE.fch (--cut N | --depth D) -o OUT.ply",
+       "the mesh with a colour per cluster of a cut (MeshLab)",
+       "",
+       {{"output", "OUT.ply", "-o", "the coloured mesh"},
+        {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
+        {"depth", "D", "", "the cut at depth D"}}},
+  };
+  return table;
+}
+
+// Text wrapped to `width` columns, every line after the first indented by `indent`.
+std::string wrap(const std::string& text, size_t indent, size_t width) {
+  std::string out, line;
+  size_t at = 0;
+  while (at < text.size()) {
+    const size_t space = text.find(' ', at);
+    const std::string word = text.substr(at, space == std::string::npos ? std::string::npos : space - at);
+    at = space == std::string::npos ? text.size() : space + 1;
+    if (!line.empty() && indent + line.size() + 1 + word.size() > width) {
+      out += line + "\n" + std::string(indent, ' ');
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  return out + line;
+}
+
+}  // namespace
+
+const CommandHelp& commandHelp(std::string_view name) {
+  for (const CommandHelp& c : commands())
+    if (name == c.name) return c;
+  throw std::out_of_range("no command '" + std::string(name) + "'");
+}
+
+std::string commandUsage(const CommandHelp& c) {
+  std::string out = "usage: facetree " + std::string(c.name) + " " + c.synopsis + "\n\n" + c.about + ".\n";
+  if (*c.details) {
+    out += '\n';
+    out += c.details;
+    out += '\n';
+  }
+  out += "\noptions:\n";
+  constexpr size_t kColumn = 34, kWidth = 100;
+  auto row = [&](const std::string& left, const std::string& text) {
+    std::string line = "  " + left;
+    if (line.size() + 2 > kColumn)
+      line += "\n" + std::string(kColumn, ' ');
+    else
+      line.append(kColumn - line.size(), ' ');
+    out += line + wrap(text, kColumn, kWidth) + "\n";
+  };
+  for (const OptionHelp& o : c.options) {
+    std::string left;
+    if (*o.alias) {
+      left += o.alias;
+      left += ", ";
+    }
+    left += "--";
+    left += o.name;
+    if (*o.value) {
+      left += ' ';
+      left += o.value;
+    }
+    row(left, o.text);
+  }
+  row("-h, --help", "print this help and exit");
+  return out;
+}
+
+std::string overviewUsage() {
+  std::string out =
+      "usage: facetree COMMAND [OPTIONS]\n\n"
+      "Face cluster hierarchies over very large triangle meshes (PLY, OBJ, STL, Draco; any .zst).\n\n"
+      "commands:\n";
+  for (const CommandHelp& c : commands())
+    out += "  " + std::string(c.name) + " " + c.synopsis + "\n      " + c.about + "\n";
+  out +=
+      "\n`facetree COMMAND --help` lists the command's options.\n"
+      "MESH may be - for standard input; the format is detected from the content.\n\n"
+      "exit codes: 0 success, 1 internal error, 2 usage, 3 bad or unreadable input,\n"
+      "            4 cannot write output, 5 out of memory or over a limit,\n"
+      "            130/143/129 interrupted by SIGINT/SIGTERM/SIGHUP (no output left behind)\n";
+  return out;
+}
+
+Args parseCommand(std::string_view name, const std::vector<std::string>& argv) {
+  std::set<std::string> valued, flags;
+  std::map<std::string, std::string> aliases;
+  for (const OptionHelp& o : commandHelp(name).options) {
+    (*o.value ? valued : flags).insert(o.name);
+    if (*o.alias) aliases[o.alias] = "--" + std::string(o.name);
+  }
+  return Args(argv, valued, flags, aliases);
+}
+
+bool asksForHelp(const std::vector<std::string>& argv) {
+  return std::any_of(argv.begin(), argv.end(),
+                     [](const std::string& a) { return a == "--help" || a == "-h"; });
+}
+
+}  // namespace facetree::cli
