@@ -4,6 +4,7 @@
 #include "spill_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <xxhash.h>
 #include <zstd.h>
@@ -157,12 +158,60 @@ SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable, 
   }
 }
 
+SpillFile::SpillFile(TempSpace& space, Named name, size_t recordBytes)
+    : space_(space), path_(std::move(name.path)), recordBytes_(recordBytes) {
+  partial_ = path_;
+  partial_ += ".partial";
+  // A partial file of an earlier attempt is replaced: the task starts over.
+  fd_ = ::open(partial_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throwTempSpaceError(partial_, "cannot create", errno);
+}
+
+SpillFile::SpillFile(TempSpace& space, std::filesystem::path path, int fd, uint64_t bytes, size_t recordBytes)
+    : space_(space),
+      path_(std::move(path)),
+      fd_(fd),
+      readOnly_(true),
+      recordBytes_(recordBytes),
+      bytes_(bytes) {}
+
+std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, const std::filesystem::path& path,
+                                           size_t recordBytes) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const auto fail = [&](int error) {
+    throw Error(ErrorCategory::Input, path.string() + ": cannot open: " + std::strerror(error));
+  };
+  if (fd < 0) fail(errno);
+  struct stat info {};
+  if (::fstat(fd, &info) != 0) {
+    const int error = errno;
+    ::close(fd);
+    fail(error);
+  }
+  return std::unique_ptr<SpillFile>(
+      new SpillFile(space, path, fd, static_cast<uint64_t>(info.st_size), recordBytes));
+}
+
+void SpillFile::commit() {
+  if (partial_.empty()) throw std::logic_error("SpillFile::commit: not a named file being written");
+  std::lock_guard lock(writeMutex_);
+  const auto fail = [&](int error) {
+    throw Error(ErrorCategory::Output, path_.string() + ": cannot commit: " + std::strerror(error));
+  };
+  if (::fsync(fd_) != 0) fail(errno);
+  if (::rename(partial_.c_str(), path_.c_str()) != 0) fail(errno);
+  partial_.clear();
+  readOnly_ = true;  // its handles are handed on: the blocks are final
+}
+
 SpillFile::~SpillFile() {
   ::close(fd_);
+  if (!partial_.empty()) ::unlink(partial_.c_str());
   space_.release(held_);
 }
 
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
+  if (readOnly_) throw std::logic_error("SpillFile::append: " + path_.string() + " is opened read-only");
   if (raw.size() > kMaxSpillBlockBytes) throw std::invalid_argument("spill block larger than 256 MiB");
   // Compress outside the lock: each thread has its own codec.
   const std::span<const std::byte> compressed = codec.compress(raw, recordBytes_);

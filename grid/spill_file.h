@@ -75,14 +75,27 @@ struct SpillBlock {
 // append() and read() may be called from several threads at once (append serialises the write with a mutex,
 // read uses pread). The file is deleted and its bytes released from the TempSpace by the destructor.
 //
-// The name is unlinked right after the file is created, so the data goes away with the descriptor even
-// when the process is killed; path() is the name it had, for messages.
+// A temporary file's name is unlinked right after the file is created, so the data goes away with the
+// descriptor even when the process is killed; path() is the name it had, for messages. A named file
+// (SpillFile::Named) keeps its name once committed, for the stages run as tasks.
 class SpillFile {
  public:
   // `discardable`: the file counts the blocks on each of its pages (2 bytes a page, 4 KiB), so that
   // discard() can give back every page whose blocks are all discarded.
   // `recordBytes`: the size of the records its blocks hold, for SpillCodec's shuffle (1: none).
   SpillFile(TempSpace& space, std::string_view stem, bool discardable = false, size_t recordBytes = 1);
+  // A named file that outlives the process, for a task of the stages that hands its blocks to a
+  // later task (docs/out_of_core.md): written as `path`.partial and accounted in `space` like any
+  // spill, renamed to `path` by commit(); the destructor deletes a file never committed, so a task
+  // that fails or is killed before commit leaves no file under the final name.
+  struct Named {
+    std::filesystem::path path;
+  };
+  SpillFile(TempSpace& space, Named name, size_t recordBytes = 1);
+  // A committed named file read back, read-only (append and discard refuse): its blocks are those
+  // the writer's handles name. Throws Error (Input) "PATH: cannot open: REASON".
+  static std::unique_ptr<SpillFile> open(TempSpace& space, const std::filesystem::path& path,
+                                         size_t recordBytes = 1);
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
@@ -106,16 +119,23 @@ class SpillFile {
   // would dominate a pass over small blocks). Blocks on those pages read back as corrupt.
   void discardBefore(uint64_t end);
 
+  // A named file: its bytes reach the disk (fsync) and it takes its final name. Throws Error
+  // (Output) "PATH: cannot commit: REASON".
+  void commit();
+
   // On disk (compressed), the end of the last block.
   uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }
   const std::filesystem::path& path() const { return path_; }
 
  private:
   [[noreturn]] void corrupt(const SpillBlock& block, std::string_view reason) const;
+  SpillFile(TempSpace& space, std::filesystem::path path, int fd, uint64_t bytes, size_t recordBytes);
 
   TempSpace& space_;
   std::filesystem::path path_;
   int fd_ = -1;
+  std::filesystem::path partial_;  // a named file not yet committed: its name until then
+  bool readOnly_ = false;          // opened: a committed file of another writer
   bool discardable_ = false;
   size_t recordBytes_ = 1;
   mutable std::mutex writeMutex_;

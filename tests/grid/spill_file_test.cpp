@@ -275,6 +275,83 @@ TEST(SpillFile, leavesNoNameInTheDirectoryAndReleasesItsBytesWhenDestroyed) {
   EXPECT_GT(space.peakBytes(), 0u);
 }
 
+// A named file, as a task of the stages writes it for a later task: under a partial name until
+// committed, then read back by another SpillFile (another process in a real run) block by block.
+TEST(SpillFile, namedFileIsCommittedUnderItsNameAndReadBackByHandle) {
+  ScratchDir work;
+  TempSpace space(work.path());
+  SpillCodec codec;
+  std::mt19937_64 rng(7);
+  const std::filesystem::path name = work.path() / "cells-0003.spill";
+  std::vector<std::vector<std::byte>> raws;
+  std::vector<SpillBlock> blocks;
+  {
+    SpillFile file(space, SpillFile::Named{name}, /*recordBytes=*/4);
+    for (int i = 0; i < 40; ++i) {
+      raws.push_back(randomBlock(rng, 100 + rng() % 9000, i % 2 == 0));
+      blocks.push_back(file.append(raws.back(), codec));
+    }
+    EXPECT_FALSE(std::filesystem::exists(name));
+    EXPECT_TRUE(std::filesystem::exists(name.string() + ".partial"));
+    EXPECT_EQ(space.currentBytes(), file.bytes());
+    file.commit();
+    EXPECT_TRUE(std::filesystem::exists(name));
+    EXPECT_FALSE(std::filesystem::exists(name.string() + ".partial"));
+    EXPECT_EQ(std::filesystem::file_size(name), file.bytes());
+    EXPECT_THROW(file.append(raws[0], codec), std::logic_error);  // its handles are handed on
+  }
+  EXPECT_TRUE(std::filesystem::exists(name)) << "a committed file outlives its writer";
+  EXPECT_EQ(space.currentBytes(), 0u);
+
+  TempSpace reader(work.path());
+  const std::unique_ptr<SpillFile> file = SpillFile::open(reader, name, 4);
+  std::vector<size_t> order(blocks.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), rng);
+  std::vector<std::byte> raw;
+  for (const size_t i : order) {
+    file->read(blocks[i], raw, codec);
+    EXPECT_EQ(raw, raws[i]) << "block " << i;
+  }
+  EXPECT_THROW(file->append(raws[0], codec), std::logic_error);
+  EXPECT_THROW(file->discard(blocks[0]), std::logic_error);
+
+  // A block changed on disk since is an error naming the file, never garbage records.
+  {
+    std::fstream bytes(name, std::ios::in | std::ios::out | std::ios::binary);
+    bytes.seekp(static_cast<std::streamoff>(blocks[5].offset + blocks[5].compressedBytes / 2));
+    bytes.put('\x5a');
+  }
+  const std::unique_ptr<SpillFile> changed = SpillFile::open(reader, name, 4);
+  const std::string message = errorOf([&] { changed->read(blocks[5], raw, codec); });
+  EXPECT_EQ(
+      message.rfind(name.string() + ": corrupt block at byte " + std::to_string(blocks[5].offset) + ": ", 0),
+      0u)
+      << message;
+}
+
+TEST(SpillFile, namedFileNeverCommittedLeavesNothingAndAMissingOneIsAnInputError) {
+  ScratchDir work;
+  TempSpace space(work.path());
+  SpillCodec codec;
+  const std::filesystem::path name = work.path() / "nodes.spill";
+  {
+    std::ofstream(name.string() + ".partial") << "an earlier attempt, killed";
+    SpillFile file(space, SpillFile::Named{name});
+    file.append(std::vector<std::byte>(5000, std::byte{3}), codec);
+  }  // a task that fails before its commit
+  EXPECT_FALSE(std::filesystem::exists(name));
+  EXPECT_FALSE(std::filesystem::exists(name.string() + ".partial"));
+  EXPECT_EQ(space.currentBytes(), 0u);
+  try {
+    SpillFile::open(space, name);
+    ADD_FAILURE() << "opened a missing file";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Input);
+    EXPECT_EQ(std::string(e.what()), name.string() + ": cannot open: No such file or directory");
+  }
+}
+
 // Bytes the file system holds for the (unlinked) spill, found through this process's descriptors.
 uint64_t allocatedBytes(const SpillFile& file) {
   for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
