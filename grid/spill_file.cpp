@@ -160,6 +160,8 @@ SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable, 
 
 SpillFile::SpillFile(TempSpace& space, Named name, size_t recordBytes)
     : space_(space), path_(std::move(name.path)), recordBytes_(recordBytes) {
+  if (name.segment >= kMaxSegments) throw std::invalid_argument("SpillFile: segment past 65535");
+  base_ = uint64_t{name.segment} << kSegmentShift;
   partial_ = path_;
   partial_ += ".partial";
   // A partial file of an earlier attempt is replaced: the task starts over.
@@ -167,29 +169,43 @@ SpillFile::SpillFile(TempSpace& space, Named name, size_t recordBytes)
   if (fd_ < 0) throwTempSpaceError(partial_, "cannot create", errno);
 }
 
-SpillFile::SpillFile(TempSpace& space, std::filesystem::path path, int fd, uint64_t bytes, size_t recordBytes)
+SpillFile::SpillFile(TempSpace& space, std::vector<Segment> segments, size_t recordBytes)
     : space_(space),
-      path_(std::move(path)),
-      fd_(fd),
+      path_(segments.front().path),
+      opened_(std::move(segments)),
       readOnly_(true),
-      recordBytes_(recordBytes),
-      bytes_(bytes) {}
+      recordBytes_(recordBytes) {
+  uint64_t total = 0;
+  for (const Segment& segment : opened_) total += segment.bytes;
+  bytes_ = total;
+}
 
-std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, const std::filesystem::path& path,
+std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, std::span<const std::filesystem::path> paths,
                                            size_t recordBytes) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  const auto fail = [&](int error) {
-    throw Error(ErrorCategory::Input, path.string() + ": cannot open: " + std::strerror(error));
+  if (paths.empty() || paths.size() > kMaxSegments)
+    throw std::invalid_argument("SpillFile::open: 1 to 65536 segments");
+  std::vector<Segment> segments;
+  const auto closeAll = [&] {
+    for (const Segment& segment : segments) ::close(segment.fd);
   };
-  if (fd < 0) fail(errno);
-  struct stat info {};
-  if (::fstat(fd, &info) != 0) {
-    const int error = errno;
-    ::close(fd);
-    fail(error);
+  for (const std::filesystem::path& path : paths) {
+    Segment segment{path, ::open(path.c_str(), O_RDONLY | O_CLOEXEC), 0};
+    struct stat info {};
+    if (segment.fd < 0 || ::fstat(segment.fd, &info) != 0) {
+      const int error = errno;
+      if (segment.fd >= 0) ::close(segment.fd);
+      closeAll();
+      throw Error(ErrorCategory::Input, path.string() + ": cannot open: " + std::strerror(error));
+    }
+    segment.bytes = static_cast<uint64_t>(info.st_size);
+    segments.push_back(std::move(segment));
   }
-  return std::unique_ptr<SpillFile>(
-      new SpillFile(space, path, fd, static_cast<uint64_t>(info.st_size), recordBytes));
+  try {
+    return std::unique_ptr<SpillFile>(new SpillFile(space, std::move(segments), recordBytes));
+  } catch (...) {
+    closeAll();
+    throw;
+  }
 }
 
 void SpillFile::commit() {
@@ -205,7 +221,8 @@ void SpillFile::commit() {
 }
 
 SpillFile::~SpillFile() {
-  ::close(fd_);
+  if (fd_ >= 0) ::close(fd_);
+  for (const Segment& segment : opened_) ::close(segment.fd);
   if (!partial_.empty()) ::unlink(partial_.c_str());
   space_.release(held_);
 }
@@ -242,10 +259,11 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
     for (uint64_t page = offset / kPageBytes; page <= last; ++page) ++live_[page];
   }
   bytes_.store(offset + compressed.size(), std::memory_order_release);
-  return {offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
+  return {base_ + offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
 }
 
 void SpillFile::discard(const SpillBlock& block) {
+  if (!opened_.empty()) return;  // the task outputs of a run of stages stay for a rerun
   if (!discardable_) throw std::logic_error("SpillFile::discard: the file was not made discardable");
   if (block.compressedBytes == 0) return;
   std::lock_guard lock(writeMutex_);
@@ -279,6 +297,7 @@ void SpillFile::discard(const SpillBlock& block) {
 }
 
 void SpillFile::discardBefore(uint64_t end) {
+  if (!opened_.empty()) return;
   if (!discardable_) throw std::logic_error("SpillFile::discardBefore: the file was not made discardable");
   std::lock_guard lock(writeMutex_);
   const uint64_t pages = std::min(end, bytes_.load(std::memory_order_relaxed)) / kPageBytes;
@@ -310,27 +329,43 @@ void SpillFile::read(const SpillBlock& block, std::vector<std::byte>& raw, Spill
 void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCodec& codec) const {
   if (raw.size() != block.rawBytes)
     throw std::invalid_argument("SpillFile::read: buffer size is not the block's");
-  if (block.offset + block.compressedBytes > bytes()) corrupt(block, "block lies past the end of the file");
+  // The segment the handle names: this file's own, or one of the opened ones.
+  const uint64_t segment = block.offset >> kSegmentShift;
+  const uint64_t local = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
+  int fd = fd_;
+  uint64_t size = bytes();
+  const std::filesystem::path* file = &path_;
+  if (!opened_.empty()) {
+    if (segment >= opened_.size()) corrupt(block, "no such segment");
+    fd = opened_[segment].fd;
+    size = opened_[segment].bytes;
+    file = &opened_[segment].path;
+  } else if (block.offset < base_ || segment != (base_ >> kSegmentShift)) {
+    corrupt(block, "not a block of this file");
+  }
+  if (local + block.compressedBytes > size) corrupt(block, "block lies past the end of the file", file);
   const std::span<std::byte> compressed = codec.compressedScratch(block.compressedBytes);
   size_t done = 0;
   while (done < compressed.size()) {
-    const ssize_t got = ::pread(fd_, compressed.data() + done, compressed.size() - done,
-                                static_cast<off_t>(block.offset + done));
+    const ssize_t got =
+        ::pread(fd, compressed.data() + done, compressed.size() - done, static_cast<off_t>(local + done));
     if (got > 0) {
       done += static_cast<size_t>(got);
     } else if (got == 0) {
-      corrupt(block, "unexpected end of file");
+      corrupt(block, "unexpected end of file", file);
     } else if (errno != EINTR) {
-      throwTempSpaceError(path_, "read failed", errno);
+      throwTempSpaceError(*file, "read failed", errno);
     }
   }
   const char* reason = nullptr;
-  if (!codec.decompress(compressed, raw, reason, recordBytes_)) corrupt(block, reason);
+  if (!codec.decompress(compressed, raw, reason, recordBytes_)) corrupt(block, reason, file);
 }
 
-void SpillFile::corrupt(const SpillBlock& block, std::string_view reason) const {
-  throw Error(ErrorCategory::Resource, path_.string() + ": corrupt block at byte " +
-                                           std::to_string(block.offset) + ": " + std::string(reason));
+void SpillFile::corrupt(const SpillBlock& block, std::string_view reason,
+                        const std::filesystem::path* file) const {
+  const uint64_t local = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
+  throw Error(ErrorCategory::Resource, (file ? *file : path_).string() + ": corrupt block at byte " +
+                                           std::to_string(local) + ": " + std::string(reason));
 }
 
 }  // namespace facetree

@@ -88,14 +88,24 @@ class SpillFile {
   // later task (docs/out_of_core.md): written as `path`.partial and accounted in `space` like any
   // spill, renamed to `path` by commit(); the destructor deletes a file never committed, so a task
   // that fails or is killed before commit leaves no file under the final name.
+  // Its handles carry `segment` in their offsets' top bits (kSegmentShift), so that the files of
+  // several tasks, opened together, read by the handles each task handed on as they are.
   struct Named {
     std::filesystem::path path;
+    uint32_t segment = 0;
   };
+  static constexpr unsigned kSegmentShift = 48;
+  static constexpr uint32_t kMaxSegments = 1u << 16;
   SpillFile(TempSpace& space, Named name, size_t recordBytes = 1);
-  // A committed named file read back, read-only (append and discard refuse): its blocks are those
-  // the writer's handles name. Throws Error (Input) "PATH: cannot open: REASON".
-  static std::unique_ptr<SpillFile> open(TempSpace& space, const std::filesystem::path& path,
+  // Committed named files read back together, read-only (append refuses; discard keeps the blocks,
+  // which a rerun of the reading task needs): segments[i] is the file written as segment i. Throws
+  // Error (Input) "PATH: cannot open: REASON".
+  static std::unique_ptr<SpillFile> open(TempSpace& space, std::span<const std::filesystem::path> segments,
                                          size_t recordBytes = 1);
+  static std::unique_ptr<SpillFile> open(TempSpace& space, const std::filesystem::path& path,
+                                         size_t recordBytes = 1) {
+    return open(space, std::span(&path, 1), recordBytes);
+  }
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
@@ -123,18 +133,27 @@ class SpillFile {
   // (Output) "PATH: cannot commit: REASON".
   void commit();
 
-  // On disk (compressed), the end of the last block.
+  // On disk (compressed): the end of the last block (of every segment, opened files).
   uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }
   const std::filesystem::path& path() const { return path_; }
 
  private:
-  [[noreturn]] void corrupt(const SpillBlock& block, std::string_view reason) const;
-  SpillFile(TempSpace& space, std::filesystem::path path, int fd, uint64_t bytes, size_t recordBytes);
+  [[noreturn]] void corrupt(const SpillBlock& block, std::string_view reason,
+                            const std::filesystem::path* file = nullptr) const;
+  // An opened segment: its file, descriptor and size.
+  struct Segment {
+    std::filesystem::path path;
+    int fd = -1;
+    uint64_t bytes = 0;
+  };
+  SpillFile(TempSpace& space, std::vector<Segment> segments, size_t recordBytes);
 
   TempSpace& space_;
   std::filesystem::path path_;
   int fd_ = -1;
   std::filesystem::path partial_;  // a named file not yet committed: its name until then
+  uint64_t base_ = 0;              // a named file's segment, in its handles' offsets
+  std::vector<Segment> opened_;    // opened files: every segment (fd_ is then -1)
   bool readOnly_ = false;          // opened: a committed file of another writer
   bool discardable_ = false;
   size_t recordBytes_ = 1;
