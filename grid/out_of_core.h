@@ -183,6 +183,15 @@ struct CellsOutput {
 };
 CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
                        BinnedFaces&& binned);
+// The cells stage as tasks (ClusterJob::cellTasks): task t builds cells [bounds[t], bounds[t + 1]),
+// runs of consecutive cells of about equal faces (from the binned faces alone, never the threads),
+// into named spills, segment t of each kind.
+enum class CellSpill { Nodes, Geometry, Pairs, Leaves, Border };
+const char* cellSpillName(CellSpill kind);
+std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task);
+std::vector<uint32_t> cellTaskBounds(const BucketSpill& faces, uint32_t tasks);
+// The committed spills of `tasks` cell tasks opened together, with every cell's records.
+CellsOutput openCellTasks(TempSpace& temp, uint32_t tasks, std::vector<CellResult> results);
 
 // The leaves of every cell in one array each (global leaf ids: cells in order, their leaves in
 // order) and one summed dual edge per pair of neighbouring leaves.

@@ -10,6 +10,7 @@
 #include <exception>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "out_of_core.h"
@@ -232,9 +233,10 @@ BoxCorners rootCorners(const ClusterFile& file) {
 
 class CellsStage {
  public:
+  // Builds cells [first, end) of `in`; with `task`, into that task's named spills (cellTaskFile).
   CellsStage(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
-             BinnedFaces&& in)
-      : context_(context), plan_(plan), extent_(extent), in_(std::move(in)) {}
+             BinnedFaces& in, uint32_t first, uint32_t end, const std::optional<uint32_t>& task)
+      : context_(context), plan_(plan), extent_(extent), in_(in), first_(first), end_(end), task_(task) {}
   CellsOutput run();
 
  private:
@@ -258,7 +260,9 @@ class CellsStage {
   const StageContext& context_;
   const OutOfCorePlan& plan_;
   const MeshExtent& extent_;
-  BinnedFaces in_;
+  BinnedFaces& in_;
+  uint32_t first_, end_;
+  std::optional<uint32_t> task_;
   CellsOutput out_;
 };
 
@@ -273,15 +277,22 @@ CellsOutput CellsStage::run() {
   // Node runs are in the file's own records (encodeNodeRun: columns of byte planes already);
   // face records are not shuffled (consecutive faces repeat whole corner positions, which zstd
   // matches only while the bytes stay together).
-  out_.subtrees.nodes = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
   // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
-  out_.subtrees.geometry = std::make_unique<SpillFile>(context_.temp, "geometry", /*discardable=*/true, 4);
-  out_.records.pairs = std::make_unique<SpillFile>(context_.temp, "pairs");
-  out_.records.leaves = std::make_unique<SpillFile>(context_.temp, "leaves");
-  out_.records.border = std::make_unique<SpillFile>(context_.temp, "border");
-  const uint32_t cells = in_.grid->cellCount();
-  out_.records.cells.assign(cells, {});
-  std::atomic<uint32_t> next{0};
+  const auto spill = [&](CellSpill kind, bool discardable, size_t recordBytes = 1) {
+    if (!task_)
+      return std::make_unique<SpillFile>(context_.temp, cellSpillName(kind), discardable, recordBytes);
+    return std::make_unique<SpillFile>(
+        context_.temp, SpillFile::Named{cellTaskFile(context_.temp.path(), kind, *task_), *task_},
+        recordBytes);
+  };
+  out_.subtrees.nodes = spill(CellSpill::Nodes, true);
+  out_.subtrees.geometry = spill(CellSpill::Geometry, true, 4);
+  out_.records.pairs = spill(CellSpill::Pairs, false);
+  out_.records.leaves = spill(CellSpill::Leaves, false);
+  out_.records.border = spill(CellSpill::Border, false);
+  const uint32_t cells = end_;
+  out_.records.cells.assign(in_.grid->cellCount(), {});
+  std::atomic<uint32_t> next{first_};
   std::atomic<uint64_t> facesDone{0};
   std::atomic<bool> stop{false};
   std::exception_ptr failure;
@@ -303,13 +314,16 @@ CellsOutput CellsStage::run() {
       stop = true;
     }
   };
-  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, cells));
+  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, end_ - first_));
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
   worker(true);
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
-  in_ = {};  // the grid's 8 MiB table serves the owner-cell lookups of this stage only
+  if (task_)
+    for (SpillFile* file : {out_.subtrees.nodes.get(), out_.subtrees.geometry.get(), out_.records.pairs.get(),
+                            out_.records.leaves.get(), out_.records.border.get()})
+      file->commit();
   return std::move(out_);
 }
 
@@ -666,9 +680,82 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
   }
 }
 
+const char* cellSpillName(CellSpill kind) {
+  switch (kind) {
+    case CellSpill::Nodes:
+      return "nodes";
+    case CellSpill::Geometry:
+      return "geometry";
+    case CellSpill::Pairs:
+      return "pairs";
+    case CellSpill::Leaves:
+      return "leaves";
+    case CellSpill::Border:
+      return "border";
+  }
+  return "cells";
+}
+
+std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task) {
+  return dir / ("cells-" + std::to_string(task) + "-" + cellSpillName(kind) + ".spill");
+}
+
+std::vector<uint32_t> cellTaskBounds(const BucketSpill& faces, uint32_t tasks) {
+  const auto cells = static_cast<uint32_t>(faces.buckets());
+  uint64_t total = 0;
+  for (uint32_t c = 0; c < cells; ++c) total += faces.records(c);
+  tasks = std::clamp<uint32_t>(tasks, 1, std::max(1u, cells));
+  // Task t ends at the first cell whose faces so far reach t + 1 shares of the total.
+  std::vector<uint32_t> bounds{0};
+  uint64_t sum = 0;
+  for (uint32_t c = 0; c < cells; ++c) {
+    sum += faces.records(c);
+    const uint64_t t = bounds.size();
+    if (t < tasks && sum * tasks >= t * total && cells - (c + 1) >= tasks - t) bounds.push_back(c + 1);
+  }
+  while (bounds.size() < size_t{tasks} + 1) bounds.push_back(cells);
+  bounds.back() = cells;
+  return bounds;
+}
+
 CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
                        BinnedFaces&& binned) {
-  return CellsStage(context, plan, extent, std::move(binned)).run();
+  BinnedFaces in = std::move(binned);  // the grid's 8 MiB table serves this stage's lookups only
+  const uint32_t cells = in.grid->cellCount();
+  if (context.job.cellTasks <= 1) return CellsStage(context, plan, extent, in, 0, cells, std::nullopt).run();
+
+  // The cells as tasks, one after the other here, each into its named spills; the stages after read
+  // their segments together by the handles the tasks made, and take each cell's records from the task
+  // that built it.
+  const std::vector<uint32_t> bounds = cellTaskBounds(*in.faces, context.job.cellTasks);
+  const auto tasks = static_cast<uint32_t>(bounds.size() - 1);
+  std::vector<CellResult> results(cells);
+  // Each task's files stay accounted by their writers until every task is done, then by the reader.
+  std::vector<CellsOutput> parts;
+  for (uint32_t t = 0; t < tasks; ++t) {
+    parts.push_back(CellsStage(context, plan, extent, in, bounds[t], bounds[t + 1], t).run());
+    for (uint32_t c = bounds[t]; c < bounds[t + 1]; ++c)
+      results[c] = std::move(parts.back().records.cells[c]);
+  }
+  in = {};
+  parts.clear();
+  return openCellTasks(context.temp, tasks, std::move(results));
+}
+
+CellsOutput openCellTasks(TempSpace& temp, uint32_t tasks, std::vector<CellResult> results) {
+  const auto open = [&](CellSpill kind, size_t recordBytes = 1) {
+    std::vector<std::filesystem::path> paths;
+    for (uint32_t t = 0; t < tasks; ++t) paths.push_back(cellTaskFile(temp.path(), kind, t));
+    return SpillFile::open(temp, paths, recordBytes);
+  };
+  CellsOutput out;
+  out.subtrees.nodes = open(CellSpill::Nodes);
+  out.subtrees.geometry = open(CellSpill::Geometry, 4);
+  out.records.pairs = open(CellSpill::Pairs);
+  out.records.leaves = open(CellSpill::Leaves);
+  out.records.border = open(CellSpill::Border);
+  out.records.cells = std::move(results);
+  return out;
 }
 
 }  // namespace facetree

@@ -170,14 +170,10 @@ SpillFile::SpillFile(TempSpace& space, Named name, size_t recordBytes)
 }
 
 SpillFile::SpillFile(TempSpace& space, std::vector<Segment> segments, size_t recordBytes)
-    : space_(space),
-      path_(segments.front().path),
-      opened_(std::move(segments)),
-      readOnly_(true),
-      recordBytes_(recordBytes) {
-  uint64_t total = 0;
-  for (const Segment& segment : opened_) total += segment.bytes;
-  bytes_ = total;
+    : space_(space), path_(segments.front().path), opened_(std::move(segments)), recordBytes_(recordBytes) {
+  for (const Segment& segment : opened_) openedBytes_ += segment.bytes;
+  held_ = openedBytes_;  // open() reserved them
+  base_ = uint64_t{opened_.size()} << kSegmentShift;
 }
 
 std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, std::span<const std::filesystem::path> paths,
@@ -200,9 +196,19 @@ std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, std::span<const std
     segment.bytes = static_cast<uint64_t>(info.st_size);
     segments.push_back(std::move(segment));
   }
+  // Its files count against the job's temporary bytes while it reads them (throws past the limit).
+  uint64_t total = 0;
+  for (const Segment& segment : segments) total += segment.bytes;
+  try {
+    space.reserve(total);
+  } catch (...) {
+    closeAll();
+    throw;
+  }
   try {
     return std::unique_ptr<SpillFile>(new SpillFile(space, std::move(segments), recordBytes));
-  } catch (...) {
+  } catch (...) {  // allocation: the descriptors are still the vector's
+    space.release(total);
     closeAll();
     throw;
   }
@@ -228,11 +234,17 @@ SpillFile::~SpillFile() {
 }
 
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
-  if (readOnly_) throw std::logic_error("SpillFile::append: " + path_.string() + " is opened read-only");
+  if (readOnly_) throw std::logic_error("SpillFile::append: " + path_.string() + " is committed");
   if (raw.size() > kMaxSpillBlockBytes) throw std::invalid_argument("spill block larger than 256 MiB");
   // Compress outside the lock: each thread has its own codec.
   const std::span<const std::byte> compressed = codec.compress(raw, recordBytes_);
   std::lock_guard lock(writeMutex_);
+  if (fd_ < 0) {  // opened files: the reader's own blocks go to a temporary file of its own
+    const std::filesystem::path name = space_.newFile("appended");
+    fd_ = ::open(name.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd_ < 0) throwTempSpaceError(name, "cannot create", errno);
+    ::unlink(name.c_str());
+  }
   const uint64_t offset = bytes_.load(std::memory_order_relaxed);
   const uint64_t footprint = compressed.size();
   space_.reserve(footprint);
@@ -335,13 +347,14 @@ void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCod
   int fd = fd_;
   uint64_t size = bytes();
   const std::filesystem::path* file = &path_;
-  if (!opened_.empty()) {
-    if (segment >= opened_.size()) corrupt(block, "no such segment");
+  if (segment < opened_.size()) {
     fd = opened_[segment].fd;
     size = opened_[segment].bytes;
     file = &opened_[segment].path;
-  } else if (block.offset < base_ || segment != (base_ >> kSegmentShift)) {
-    corrupt(block, "not a block of this file");
+  } else if (segment != (base_ >> kSegmentShift) || fd < 0) {
+    corrupt(block, opened_.empty() ? "not a block of this file" : "no such segment");
+  } else {
+    size = bytes_.load(std::memory_order_acquire);
   }
   if (local + block.compressedBytes > size) corrupt(block, "block lies past the end of the file", file);
   const std::span<std::byte> compressed = codec.compressedScratch(block.compressedBytes);

@@ -97,9 +97,10 @@ class SpillFile {
   static constexpr unsigned kSegmentShift = 48;
   static constexpr uint32_t kMaxSegments = 1u << 16;
   SpillFile(TempSpace& space, Named name, size_t recordBytes = 1);
-  // Committed named files read back together, read-only (append refuses; discard keeps the blocks,
-  // which a rerun of the reading task needs): segments[i] is the file written as segment i. Throws
-  // Error (Input) "PATH: cannot open: REASON".
+  // Committed named files read back together: segments[i] is the file written as segment i. They
+  // are read-only: discard keeps their blocks (a rerun of the reading task needs them), and blocks
+  // appended go to a temporary file of the reader, one segment past them. Throws Error (Input)
+  // "PATH: cannot open: REASON".
   static std::unique_ptr<SpillFile> open(TempSpace& space, std::span<const std::filesystem::path> segments,
                                          size_t recordBytes = 1);
   static std::unique_ptr<SpillFile> open(TempSpace& space, const std::filesystem::path& path,
@@ -134,7 +135,7 @@ class SpillFile {
   void commit();
 
   // On disk (compressed): the end of the last block (of every segment, opened files).
-  uint64_t bytes() const { return bytes_.load(std::memory_order_acquire); }
+  uint64_t bytes() const { return openedBytes_ + bytes_.load(std::memory_order_acquire); }
   const std::filesystem::path& path() const { return path_; }
 
  private:
@@ -154,14 +155,16 @@ class SpillFile {
   std::filesystem::path partial_;  // a named file not yet committed: its name until then
   uint64_t base_ = 0;              // a named file's segment, in its handles' offsets
   std::vector<Segment> opened_;    // opened files: every segment (fd_ is then -1)
-  bool readOnly_ = false;          // opened: a committed file of another writer
+  uint64_t openedBytes_ = 0;       // of the opened segments
+  bool readOnly_ = false;          // a committed named file: its blocks are final
   bool discardable_ = false;
   size_t recordBytes_ = 1;
   mutable std::mutex writeMutex_;
-  std::atomic<uint64_t> bytes_{0};  // written under writeMutex_, read by read() without it
-  uint64_t held_ = 0;               // accounted in the TempSpace, under writeMutex_
-  std::vector<uint16_t> live_;      // discardable: blocks not yet discarded on each page
-  uint64_t discardedBelow_ = 0;     // discardBefore: every page below this is given back
+  // Of the file it appends to, written under writeMutex_, read by read() without it.
+  std::atomic<uint64_t> bytes_{0};
+  uint64_t held_ = 0;            // accounted in the TempSpace, under writeMutex_
+  std::vector<uint16_t> live_;   // discardable: blocks not yet discarded on each page
+  uint64_t discardedBelow_ = 0;  // discardBefore: every page below this is given back
 };
 
 }  // namespace facetree

@@ -89,6 +89,11 @@ struct ClusterJob {
   int zstdLevel = 0;
   // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
   uint64_t forceCellFaces = 0;
+  // Out of core: the cells stage as this many tasks (runs of consecutive cells of about equal
+  // faces), each writing its outputs to named files that the stages after it read together, as
+  // the stages run as tasks on several machines do (docs/out_of_core.md). The cluster file is the
+  // same bytes for any count; 0 or 1: one task.
+  uint32_t cellTasks = 0;
   // Called between steps; returning false cancels the job (an Error of category Cancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;

@@ -273,6 +273,48 @@ TEST(OutOfCore, ByteIdenticalAcrossThreadsUnderACap) {
   EXPECT_EQ(a, bytesOf(dir / "b.fch"));
 }
 
+// The cells stage as tasks, each into its own named files read together by the stages after it:
+// the same file for any number of tasks (shuffled input: the cells' faces arrive from everywhere),
+// both box modes, and the task files are gone with the run.
+TEST(OutOfCore, CellTasksGiveTheSameBytes) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
+  for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
+    std::string reference;
+    for (const uint32_t tasks : {0u, 2u, 5u, 1000u}) {
+      SCOPED_TRACE(tasks);
+      ClusterJob job;
+      job.input = mesh;
+      job.output = dir / "tasks.fch";
+      job.forceCellFaces = 4000;
+      job.cellTasks = tasks;
+      job.build.boxes = boxes;
+      job.tmpDir = dir / "tmp";
+      fs::create_directories(job.tmpDir);
+      std::vector<fs::path> seen;
+      job.progress = [&](const JobProgress& p) {
+        // Between cells: the finished tasks' files are committed under their names.
+        if (std::string(p.phase) == "cells")
+          for (const auto& run : fs::directory_iterator(job.tmpDir))
+            for (const auto& file : fs::directory_iterator(run.path()))
+              if (file.path().filename().string().rfind("cells-", 0) == 0) seen.push_back(file.path());
+        return true;
+      };
+      const JobReport report = runClusterJob(job);
+      EXPECT_GT(report.cells, 10u);
+      EXPECT_EQ(!seen.empty(), tasks > 1);
+      EXPECT_TRUE(fs::is_empty(job.tmpDir)) << "the task files go with the run";
+      const std::string bytes = bytesOf(job.output);
+      if (reference.empty()) {
+        reference = bytes;
+        expectHierarchyOf(job.output, mesh);
+      } else {
+        EXPECT_EQ(bytes, reference);
+      }
+    }
+  }
+}
+
 // A prefix of the out-of-core file fits the surface about as well as the same prefix of
 // the in-core one. A closed surface is the hard case for the node order: its last merges have
 // almost no perimeter and cost ~0; when an upper node's key was capped by its parent's, every
