@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <condition_variable>
+#include <cstring>
 #include <exception>
 #include <mutex>
 #include <stdexcept>
@@ -100,7 +101,17 @@ class BucketSpill::Writer {
 
 BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes,
                          size_t bufferBytes, int level, bool discardable, bool background)
-    : file_(space, stem, discardable),
+    : BucketSpill(std::make_unique<SpillFile>(space, stem, discardable), buckets, recordBytes, bufferBytes,
+                  level, background) {}
+
+BucketSpill::BucketSpill(TempSpace& space, SpillFile::Named name, size_t buckets, size_t recordBytes,
+                         size_t bufferBytes, int level, bool background)
+    : BucketSpill(std::make_unique<SpillFile>(space, std::move(name)), buckets, recordBytes, bufferBytes,
+                  level, background) {}
+
+BucketSpill::BucketSpill(std::unique_ptr<SpillFile> file, size_t buckets, size_t recordBytes,
+                         size_t bufferBytes, int level, bool background)
+    : file_(std::move(file)),
       writer_(level),
       recordBytes_(recordBytes),
       bufferBytes_(
@@ -114,7 +125,7 @@ BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets
       tail_(buckets, kNoBlock) {
   if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes)
     throw std::invalid_argument("BucketSpill: record size must be 1 byte to 256 MiB");
-  if (background) background_ = std::make_unique<Writer>(file_, level, bufferBytes_);
+  if (background) background_ = std::make_unique<Writer>(*file_, level, bufferBytes_);
 }
 
 BucketSpill::~BucketSpill() = default;
@@ -132,6 +143,84 @@ void BucketSpill::releaseBuffers() {
   flushAll();
   background_.reset();
   buffer_.reset();
+}
+
+void BucketSpill::commit() {
+  releaseBuffers();
+  file_->commit();
+}
+
+namespace {
+
+// The index: buckets and record size, then per bucket its record count and block count, then
+// every block (offset, compressed and raw bytes), all little-endian as the machine writes them.
+template <class T>
+void put(std::string& out, const T& value) {
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+template <class T>
+bool take(std::string_view& in, T& value) {
+  if (in.size() < sizeof value) return false;
+  std::memcpy(&value, in.data(), sizeof value);
+  in.remove_prefix(sizeof value);
+  return true;
+}
+
+}  // namespace
+
+std::string BucketSpill::index() const {
+  if (buffer_)
+    throw std::logic_error("BucketSpill::index: buffers still open (commit or releaseBuffers first)");
+  std::string out;
+  put(out, uint64_t{buckets()});
+  put(out, uint64_t{recordBytes_});
+  for (size_t bucket = 0; bucket < buckets(); ++bucket) {
+    uint32_t count = 0;
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) ++count;
+    put(out, records_[bucket]);
+    put(out, count);
+  }
+  for (size_t bucket = 0; bucket < buckets(); ++bucket)
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
+      const SpillBlock& block = blocks_[b].block;
+      put(out, block.offset);
+      put(out, block.compressedBytes);
+      put(out, block.rawBytes);
+    }
+  return out;
+}
+
+std::unique_ptr<BucketSpill> BucketSpill::open(TempSpace& space, const std::filesystem::path& path,
+                                               std::string_view index) {
+  const auto bad = [&](const std::string& why) {
+    throw Error(ErrorCategory::Input, path.string() + ": bucket index " + why);
+  };
+  uint64_t buckets = 0, recordBytes = 0;
+  if (!take(index, buckets) || !take(index, recordBytes)) bad("cut short");
+  if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes || buckets > index.size() / 12)
+    bad("with " + std::to_string(buckets) + " buckets of " + std::to_string(recordBytes) + "-byte records");
+  std::unique_ptr<SpillFile> file = SpillFile::open(space, path);
+  std::unique_ptr<BucketSpill> spill(
+      new BucketSpill(std::move(file), buckets, recordBytes, recordBytes, 0, false));
+  spill->buffer_.reset();
+  std::vector<uint32_t> counts(buckets);
+  for (size_t bucket = 0; bucket < buckets; ++bucket)
+    if (!take(index, spill->records_[bucket]) || !take(index, counts[bucket])) bad("cut short");
+  for (size_t bucket = 0; bucket < buckets; ++bucket) {
+    uint64_t bytes = 0;
+    for (uint32_t k = 0; k < counts[bucket]; ++k) {
+      SpillBlock block;
+      if (!take(index, block.offset) || !take(index, block.compressedBytes) || !take(index, block.rawBytes))
+        bad("cut short");
+      if (block.rawBytes % recordBytes != 0) bad("with a block of part of a record");
+      bytes += block.rawBytes;
+      spill->blocks_[spill->reserveBlock(bucket)].block = block;
+    }
+    if (bytes != spill->records_[bucket] * recordBytes)
+      bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");
+  }
+  if (!index.empty()) bad("with bytes past its end");
+  return spill;
 }
 
 uint32_t BucketSpill::reserveBlock(size_t bucket) {
@@ -175,7 +264,7 @@ void BucketSpill::flush(size_t bucket) {
     const uint32_t index = reserveBlock(bucket);
     background_->submit(bytes, &blocks_[index].block);
   } else {
-    const SpillBlock block = file_.append(bytes, writer_);
+    const SpillBlock block = file_->append(bytes, writer_);
     blocks_[reserveBlock(bucket)].block = block;
   }
   fill_[bucket] = 0;
@@ -193,7 +282,7 @@ void BucketSpill::readBucket(size_t bucket, std::vector<std::byte>& out, SpillCo
   // Straight into `out`: no block of scratch beyond the codec's compressed one.
   for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
     const SpillBlock& block = blocks_[b].block;
-    file_.read(block, std::span<std::byte>(out.data() + at, block.rawBytes), codec);
+    file_->read(block, std::span<std::byte>(out.data() + at, block.rawBytes), codec);
     at += block.rawBytes;
   }
   if (fill_[bucket] > 0) std::memcpy(out.data() + at, buffer_.get() + bucket * bufferBytes_, fill_[bucket]);

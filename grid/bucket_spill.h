@@ -8,6 +8,7 @@
 #include <deque>
 #include <memory>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -26,6 +27,18 @@ class BucketSpill {
   // order and the bytes read back are the same either way.
   BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes, size_t bufferBytes,
               int level = kSpillLevel, bool discardable = false, bool background = false);
+  // Its blocks in a named file (SpillFile::Named), for a task of the stages that hands the buckets
+  // on: commit() writes every buffer and gives the file its name, index() then says where each
+  // bucket's blocks are, and open() reads the buckets back in another task.
+  BucketSpill(TempSpace& space, SpillFile::Named name, size_t buckets, size_t recordBytes, size_t bufferBytes,
+              int level = kSpillLevel, bool background = false);
+  void commit();
+  // Every bucket's record count and blocks, as bytes for a manifest (after commit or releaseBuffers).
+  std::string index() const;
+  // The buckets a committed spill's index describes, read-only: reading and draining them leaves
+  // the file as it is. Throws Error (Input) naming `path` for an index that does not describe it.
+  static std::unique_ptr<BucketSpill> open(TempSpace& space, const std::filesystem::path& path,
+                                           std::string_view index);
   ~BucketSpill();
   BucketSpill(const BucketSpill&) = delete;
   BucketSpill& operator=(const BucketSpill&) = delete;
@@ -65,7 +78,7 @@ class BucketSpill {
   // buffered tail is dropped. The bucket is empty afterwards. Only for a discardable spill.
   template <class F>
   void drainBucket(size_t bucket, SpillCodec& codec, F&& f) {
-    visitBlocks(bucket, codec, f, [this](const SpillBlock& block) { file_.discard(block); });
+    visitBlocks(bucket, codec, f, [this](const SpillBlock& block) { file_->discard(block); });
     head_[bucket] = tail_[bucket] = kNoBlock;
     fill_[bucket] = 0;
     records_[bucket] = 0;
@@ -74,7 +87,7 @@ class BucketSpill {
   size_t buckets() const { return fill_.size(); }
   uint64_t bytesOnDisk() const {
     settle();
-    return file_.bytes();
+    return file_->bytes();
   }
 
  private:
@@ -86,7 +99,7 @@ class BucketSpill {
     settle();
     std::vector<std::byte> raw;
     for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
-      file_.read(blocks_[b].block, raw, codec);
+      file_->read(blocks_[b].block, raw, codec);
       f(std::span<const std::byte>(raw));
       after(blocks_[b].block);
     }
@@ -106,7 +119,10 @@ class BucketSpill {
   void settle() const;
   uint32_t reserveBlock(size_t bucket);
 
-  SpillFile file_;
+  BucketSpill(std::unique_ptr<SpillFile> file, size_t buckets, size_t recordBytes, size_t bufferBytes,
+              int level, bool background);
+
+  std::unique_ptr<SpillFile> file_;
   SpillCodec writer_;
   std::unique_ptr<Writer> background_;
   size_t recordBytes_;

@@ -1,6 +1,7 @@
 // BucketSpill: interleaved appends to many buckets come back per bucket in append order, whether
 // flushed to blocks or still buffered, read whole or block by block, from one thread or two.
 #include <cstring>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <thread>
@@ -8,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "facetree/error.h"
 #include "grid/bucket_spill.h"
 #include "spill_test_util.h"
 
@@ -222,6 +224,61 @@ TEST(BucketSpill, drainBucketReadsOnceAndGivesTheSpaceBack) {
   // The last bucket got nothing (fill's skew): everything on disk was drained, all but a page or
   // two given back (pages shared with no other block, the last page of the file kept).
   EXPECT_LE(space.currentBytes(), 2u * 4096) << "of " << before;
+}
+
+// A named spill as a task of the stages hands it on: committed under its name, described by its
+// index, and read back per bucket in another TempSpace (another process in a real run), drained
+// twice over (draining an opened spill leaves its file as it is). An index that does not describe
+// the file is an input error naming it.
+TEST(BucketSpill, namedSpillIsReadBackFromItsIndex) {
+  test::ScratchDir work;
+  TempSpace space(work.path());
+  constexpr size_t kBuckets = 23;
+  const std::filesystem::path name = work.path() / "faces.spill";
+  std::vector<std::vector<Record>> expected;
+  std::string index;
+  {
+    BucketSpill spill(space, SpillFile::Named{name}, kBuckets, sizeof(Record), 1000, kSpillLevel,
+                      /*background=*/true);
+    expected = fill(spill, 30000, 5);
+    spill.commit();
+    index = spill.index();
+  }
+  ASSERT_TRUE(std::filesystem::exists(name));
+  TempSpace reader(work.path());
+  SpillCodec codec;
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::unique_ptr<BucketSpill> opened = BucketSpill::open(reader, name, index);
+    ASSERT_EQ(opened->buckets(), kBuckets);
+    for (size_t b = 0; b < kBuckets; ++b) {
+      ASSERT_EQ(opened->records(b), expected[b].size());
+      std::vector<std::byte> bytes;
+      opened->drainBucket(b, codec, [&](std::span<const std::byte> block) {
+        bytes.insert(bytes.end(), block.begin(), block.end());
+      });
+      EXPECT_EQ(asRecords(bytes), expected[b]) << "bucket " << b << ", pass " << pass;
+    }
+  }
+  const auto error = [&](std::string_view bytes) {
+    try {
+      BucketSpill::open(reader, name, bytes);
+    } catch (const Error& e) {
+      EXPECT_EQ(e.category(), ErrorCategory::Input);
+      return std::string(e.what());
+    }
+    return std::string("(opened)");
+  };
+  EXPECT_EQ(error(std::string_view(index).substr(0, index.size() - 3)),
+            name.string() + ": bucket index cut short");
+  EXPECT_EQ(error(index + "x"), name.string() + ": bucket index with bytes past its end");
+  std::string lying = index;
+  const uint64_t more = expected[0].size() + 1;
+  std::memcpy(lying.data() + 16, &more, sizeof more);  // bucket 0 claims one record more
+  EXPECT_EQ(error(lying), name.string() + ": bucket index of bucket 0: its blocks do not hold its records");
+  std::string huge = index;
+  const uint64_t buckets = uint64_t{1} << 40;
+  std::memcpy(huge.data(), &buckets, sizeof buckets);  // no allocation from a count the bytes cannot hold
+  EXPECT_EQ(error(huge), name.string() + ": bucket index with 1099511627776 buckets of 12-byte records");
 }
 
 TEST(BucketSpill, memoryBoundCoversTheBuffers) {
