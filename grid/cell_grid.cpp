@@ -121,6 +121,22 @@ void CellGrid::partition(uint64_t maxFaces) {
   if (cellCount_ == 0) cellCount_ = 1;  // no faces: one empty cell
 }
 
+std::unique_ptr<CellGrid> CellGrid::restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
+                                            uint32_t cellCount, std::vector<uint32_t> owners) {
+  if (owners.size() != kBins)
+    throw std::invalid_argument("cell grid: " + std::to_string(owners.size()) + " bins, not " +
+                                std::to_string(kBins));
+  if (cellCount == 0) throw std::invalid_argument("cell grid: no cells");
+  for (const uint32_t owner : owners)
+    if (owner >= cellCount)
+      throw std::invalid_argument("cell grid: a bin of cell " + std::to_string(owner) + " of " +
+                                  std::to_string(cellCount));
+  auto grid = std::make_unique<CellGrid>(boundsMin, boundsMax);
+  grid->table_ = std::move(owners);
+  grid->cellCount_ = cellCount;
+  return grid;
+}
+
 uint32_t CellGrid::nextFaceCell(uint32_t bin) {
   if (!split_.empty()) {
     const auto it = split_.find(bin);

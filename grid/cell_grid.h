@@ -14,6 +14,8 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
@@ -48,6 +50,15 @@ class CellGrid {
   // split bin).
   uint32_t ownerCell(uint32_t bin) const { return table_[bin]; }
   uint64_t bytes() const { return table_.capacity() * sizeof(uint32_t); }
+
+  // After partition(): the owner cell of every bin, all the cells stage looks up, and a grid made
+  // again from it in another task (the bounds as given to the constructor). The rebuilt grid
+  // answers bin(), faceBin() and ownerCell() as this one; it has no split-bin state, which only
+  // the distribution pass used. Throws std::invalid_argument for a table that is not kBins owners
+  // below `cellCount`.
+  std::span<const uint32_t> ownerTable() const { return table_; }
+  static std::unique_ptr<CellGrid> restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
+                                           uint32_t cellCount, std::vector<uint32_t> owners);
 
  private:
   glm::dvec3 min_, scale_;

@@ -6,7 +6,10 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <random>
+#include <stdexcept>
+#include <vector>
 
 #include <glm/common.hpp>
 
@@ -114,6 +117,39 @@ TEST(CellGrid, CellsOfAnElongatedModelAreCompact) {
       EXPECT_LE(side[2], 4.0f * side[1]) << "cell " << cell << " of " << count[cell];
     }
   }
+}
+
+// A grid made again from its owner table (in another task of the stages) bins every point and owns
+// every bin as the one partitioned, a dense bin split among cells included; a table that is not
+// kBins owners below the cell count is refused.
+TEST(CellGrid, RestoredFromItsOwnerTableItAnswersAsTheOriginal) {
+  const glm::vec3 lo(-3.0f, 0.5f, 2.0f), hi(5.0f, 1.5f, 2.25f);
+  CellGrid grid(lo, hi);
+  std::vector<glm::vec3> points;
+  std::mt19937 random(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int n = 0; n < 100000; ++n)
+    points.push_back(lo + (hi - lo) * glm::vec3(u(random), u(random), u(random)));
+  for (int n = 0; n < 5000; ++n) points.push_back(lo);  // one bin over the limit: split
+  for (const glm::vec3& p : points) grid.count(grid.bin(p));
+  grid.partition(1500);
+  ASSERT_GE(grid.cellCount(), 60u);
+  const std::vector<uint32_t> owners(grid.ownerTable().begin(), grid.ownerTable().end());
+  const std::unique_ptr<CellGrid> again = CellGrid::restore(lo, hi, grid.cellCount(), owners);
+  EXPECT_EQ(again->cellCount(), grid.cellCount());
+  EXPECT_EQ(again->axisBits(), grid.axisBits());
+  for (uint32_t b = 0; b < CellGrid::kBins; ++b) ASSERT_EQ(again->ownerCell(b), grid.ownerCell(b)) << b;
+  for (size_t i = 0; i + 2 < points.size(); i += 3) {
+    ASSERT_EQ(again->bin(points[i]), grid.bin(points[i]));
+    ASSERT_EQ(again->faceBin(points[i], points[i + 1], points[i + 2]),
+              grid.faceBin(points[i], points[i + 1], points[i + 2]));
+  }
+  EXPECT_THROW(CellGrid::restore(lo, hi, grid.cellCount(), std::vector<uint32_t>(100, 0)),
+               std::invalid_argument);
+  std::vector<uint32_t> beyond = owners;
+  beyond[12345] = grid.cellCount();
+  EXPECT_THROW(CellGrid::restore(lo, hi, grid.cellCount(), beyond), std::invalid_argument);
+  EXPECT_THROW(CellGrid::restore(lo, hi, 0, owners), std::invalid_argument);
 }
 
 }  // namespace
