@@ -38,14 +38,27 @@ void JobReport::recordInCoreBuild(const Hierarchy& hierarchy, const BranchingSta
   leaves = 1;
 }
 
-JobReport runClusterJob(const ClusterJob& job) {
-  const auto start = std::chrono::steady_clock::now();
-  JobReport report;
-  const uint64_t cap = job.memoryCap ? job.memoryCap : defaultMemoryCap();
-  report.memoryCap = cap;
+ClusterJob effectiveJob(const ClusterJob& job) {
   ClusterJob effective = job;
   effective.file.build = job.build;
   effective.file.memoryCapBytes = job.memoryCap;
+  return effective;
+}
+
+uint64_t jobMemoryCap(const ClusterJob& job) {
+  return job.memoryCap ? job.memoryCap : defaultMemoryCap();
+}
+
+JobReport runClusterJob(const ClusterJob& job) {
+  return runJob(job, nullptr);
+}
+
+JobReport runJob(const ClusterJob& job, const std::filesystem::path* work) {
+  const auto start = std::chrono::steady_clock::now();
+  JobReport report;
+  const uint64_t cap = jobMemoryCap(job);
+  report.memoryCap = cap;
+  const ClusterJob effective = effectiveJob(job);
   const auto check = [&](const char* phase, uint64_t done, uint64_t total) {
     checkJobProgress(job, phase, done, total);
   };
@@ -114,7 +127,7 @@ JobReport runClusterJob(const ClusterJob& job) {
                       " MiB beside it: raise --memory or convert the mesh to PLY, which streams");
     }
     runOutOfCore(effective, temp, deferred ? &positions : nullptr, std::move(reader), std::move(pending),
-                 left, report);
+                 left, report, work);
     report.seconds = secondsSince(start);
     report.secondsBuilt = report.seconds - report.secondsWrite;
     return report;

@@ -7,6 +7,8 @@
 #endif
 
 #include <chrono>
+#include <functional>
+#include <string_view>
 
 namespace facetree {
 namespace {
@@ -19,6 +21,17 @@ uint64_t peakRss() {
 }
 
 }  // namespace
+
+void timeStage(JobReport& report, const char* name, double& seconds, const std::function<void()>& run) {
+  const auto start = std::chrono::steady_clock::now();
+  run();
+  seconds += secondsSince(start);
+  // One entry per stage: a stage timed in two parts keeps its later peak.
+  if (!report.peakRssAfter.empty() && std::string_view(report.peakRssAfter.back().first) == name)
+    report.peakRssAfter.back().second = peakRss();
+  else
+    report.peakRssAfter.push_back({name, peakRss()});
+}
 
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total) {
   if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
@@ -37,48 +50,54 @@ void releaseFreeMemory() {
 
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
-                  JobReport& report) {
+                  JobReport& report, const std::filesystem::path* work) {
   report.outOfCore = true;
-  const StageContext context{job, temp, memoryCap, report};
+  const StageContext context{job, temp, memoryCap, report, work};
   OutOfCorePlan plan = planCells(job, memoryCap);
   report.cellFaceLimit = plan.cellFaceLimit;
-  const auto stage = [&](const char* name, double& seconds, const auto& run) {
-    const auto start = std::chrono::steady_clock::now();
-    run();
-    seconds = secondsSince(start);
-    report.peakRssAfter.push_back({name, peakRss()});
-  };
 
   ArrivalFaces arrival;
-  stage("read", report.secondsRead,
-        [&] { arrival = readArrival(context, std::move(reader), positions, std::move(pending)); });
+  timeStage(report, "read", report.secondsRead,
+            [&] { arrival = readArrival(context, std::move(reader), positions, std::move(pending)); });
   const MeshExtent extent = arrival.extent;
 
   BinnedFaces binned;
-  stage("bin", report.secondsBin, [&] {
+  timeStage(report, "bin", report.secondsBin, [&] {
     binned = binFaces(context, std::move(arrival), plan.cellFaceLimit);
     planLeaves(plan, extent.triangles);
     releaseFreeMemory();
   });
+  if (work) {
+    savePlanManifest(context, extent, plan, binned);
+    report.temporaryBytesPeak = temp.peakBytes();
+    return;
+  }
 
-  LeafSubtrees subtrees;
+  CellsOutput cells;
+  timeStage(report, "cells", report.secondsCells,
+            [&] { cells = buildCells(context, plan, extent, std::move(binned)); });
+  finishOutOfCore(context, extent, std::move(cells));
+  report.temporaryBytesPeak = temp.peakBytes();
+}
+
+void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  JobReport& report = context.report;
+  LeafSubtrees subtrees = std::move(cells.subtrees);
   LeafGraph graph;
-  stage("cells", report.secondsCells, [&] {
-    CellsOutput cells = buildCells(context, plan, extent, std::move(binned));
-    subtrees = std::move(cells.subtrees);
+  // The leaf graph's sort joins count with the cells, as they always have.
+  timeStage(report, "cells", report.secondsCells, [&] {
     graph = resolveLeafGraph(context, std::move(cells.records));
     releaseFreeMemory();
   });
 
   ClusterMergeResult upper;
-  stage("merge", report.secondsMerge, [&] {
+  timeStage(report, "merge", report.secondsMerge, [&] {
     upper = mergeAbove(context, extent, graph);
     releaseFreeMemory();  // the merge's stats and edges, before the write's tables take their place
   });
 
-  stage("write", report.secondsWrite,
-        [&] { writeOutOfCore(context, extent, std::move(graph), upper, std::move(subtrees)); });
-  report.temporaryBytesPeak = temp.peakBytes();
+  timeStage(report, "write", report.secondsWrite,
+            [&] { writeOutOfCore(context, extent, std::move(graph), upper, std::move(subtrees)); });
 }
 
 }  // namespace facetree

@@ -22,6 +22,8 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -44,6 +46,9 @@ inline double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Runs a stage, adding its seconds to `seconds` and the process's peak RSS after it to the report.
+void timeStage(JobReport& report, const char* name, double& seconds, const std::function<void()>& run);
+
 // Reports progress to job.progress; throws Cancelled when it or job.build.cancelled asks to stop.
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total);
 
@@ -53,6 +58,9 @@ struct StageContext {
   TempSpace& temp;
   uint64_t memoryCap;
   JobReport& report;
+  // The stages run as tasks: the work directory their outputs go to as named files (null: one
+  // process, whose outputs stay in its temporary directory).
+  const std::filesystem::path* work = nullptr;
   void checkCancel(const char* phase, uint64_t done, uint64_t total) const {
     checkJobProgress(job, phase, done, total);
   }
@@ -97,6 +105,10 @@ struct BinnedFaces {
   std::unique_ptr<BucketSpill> ghosts;  // GhostEdge, bucket per owner cell
 };
 BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit);
+// The name of a binned spill ("cell-faces", "ghosts") in the work directory of stages run as tasks.
+inline std::string binnedFile(std::string_view stem) {
+  return std::string(stem) + ".spill";
+}
 
 // A run of a leaf's nodes as the file interleaves them (nodeBlocks). One lives per run from the
 // cells to the write: 24 B, the spill handle without its raw size (count FchNodes).
@@ -190,8 +202,13 @@ enum class CellSpill { Nodes, Geometry, Pairs, Leaves, Border };
 const char* cellSpillName(CellSpill kind);
 std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task);
 std::vector<uint32_t> cellTaskBounds(const BucketSpill& faces, uint32_t tasks);
-// The committed spills of `tasks` cell tasks opened together, with every cell's records.
-CellsOutput openCellTasks(TempSpace& temp, uint32_t tasks, std::vector<CellResult> results);
+// The committed spills of `tasks` cell tasks in `dir` opened together, with every cell's records.
+CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uint32_t tasks,
+                          std::vector<CellResult> results);
+// Builds cells [first, end) of `binned` as cells task `task`, into its named spills in
+// context.work (committed): the records of those cells.
+CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                          BinnedFaces& binned, uint32_t first, uint32_t end, uint32_t task);
 
 // The leaves of every cell in one array each (global leaf ids: cells in order, their leaves in
 // order) and one summed dual edge per pair of neighbouring leaves.
@@ -221,10 +238,24 @@ void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafG
 // Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();
 
+// The job as the stages see it (its file options carry the build's and the cap), and its cap.
+ClusterJob effectiveJob(const ClusterJob& job);
+uint64_t jobMemoryCap(const ClusterJob& job);
+// runClusterJob; with `work`, an out-of-core job stops after the bin (planStages).
+JobReport runJob(const ClusterJob& job, const std::filesystem::path* work);
+
 // Runs the out-of-core build from `reader`, `pending` holding the triangles the job had already
 // read into memory; fills `report`.
+// With `work`, the job stops after the bin stage: its outputs are committed there with the plan
+// manifest (planStages, out_of_core_stages.cpp).
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
-                  JobReport& report);
+                  JobReport& report, const std::filesystem::path* work = nullptr);
+// The plan stage's manifest: what the cells tasks and the finish need of the read and the bin.
+void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
+                      const BinnedFaces& binned);
+// The rest of the out-of-core build from the cells' outputs: the leaf graph, the merge above and the
+// write, each timed into the report.
+void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
 
 }  // namespace facetree

@@ -29,12 +29,17 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   };
   // Every spill from here on is read once, and gives its disk space back as it is read: the arrival
   // spill shrinks while the cells' grow, the cells' while the nodes and geometry grow.
-  out.faces = std::make_unique<BucketSpill>(context.temp, "cell-faces", cells, sizeof(FaceRecord),
-                                            bufferFor(sizeof(FaceRecord)), kSpillLevel, /*discardable=*/true,
-                                            context.spillInBackground());
-  out.ghosts = std::make_unique<BucketSpill>(context.temp, "ghosts", cells, sizeof(GhostEdge),
-                                             bufferFor(sizeof(GhostEdge)), kSpillLevel, /*discardable=*/true,
-                                             context.spillInBackground());
+  // Run as tasks, they are named files of the work directory that the cells tasks read.
+  const auto spill = [&](const char* stem, size_t record) {
+    if (context.work)
+      return std::make_unique<BucketSpill>(context.temp, SpillFile::Named{*context.work / binnedFile(stem)},
+                                           cells, record, bufferFor(record), kSpillLevel,
+                                           context.spillInBackground());
+    return std::make_unique<BucketSpill>(context.temp, stem, cells, record, bufferFor(record), kSpillLevel,
+                                         /*discardable=*/true, context.spillInBackground());
+  };
+  out.faces = spill("cell-faces", sizeof(FaceRecord));
+  out.ghosts = spill("ghosts", sizeof(GhostEdge));
 
   uint64_t done = 0;
   arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {
@@ -57,8 +62,13 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   });
   arrival.spill.reset();  // its disk space is released before the cells are spilled again
   // Read-only from here: their buffers (a quarter of the cap) go back before the cells stage.
-  out.faces->releaseBuffers();
-  out.ghosts->releaseBuffers();
+  if (context.work) {
+    out.faces->commit();
+    out.ghosts->commit();
+  } else {
+    out.faces->releaseBuffers();
+    out.ghosts->releaseBuffers();
+  }
   return out;
 }
 

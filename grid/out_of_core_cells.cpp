@@ -282,7 +282,9 @@ CellsOutput CellsStage::run() {
     if (!task_)
       return std::make_unique<SpillFile>(context_.temp, cellSpillName(kind), discardable, recordBytes);
     return std::make_unique<SpillFile>(
-        context_.temp, SpillFile::Named{cellTaskFile(context_.temp.path(), kind, *task_), *task_},
+        context_.temp,
+        SpillFile::Named{cellTaskFile(context_.work ? *context_.work : context_.temp.path(), kind, *task_),
+                         *task_},
         recordBytes);
   };
   out_.subtrees.nodes = spill(CellSpill::Nodes, true);
@@ -739,13 +741,19 @@ CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, c
   }
   in = {};
   parts.clear();
-  return openCellTasks(context.temp, tasks, std::move(results));
+  return openCellTasks(context.temp, context.temp.path(), tasks, std::move(results));
 }
 
-CellsOutput openCellTasks(TempSpace& temp, uint32_t tasks, std::vector<CellResult> results) {
+CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                          BinnedFaces& binned, uint32_t first, uint32_t end, uint32_t task) {
+  return CellsStage(context, plan, extent, binned, first, end, task).run();
+}
+
+CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uint32_t tasks,
+                          std::vector<CellResult> results) {
   const auto open = [&](CellSpill kind, size_t recordBytes = 1) {
     std::vector<std::filesystem::path> paths;
-    for (uint32_t t = 0; t < tasks; ++t) paths.push_back(cellTaskFile(temp.path(), kind, t));
+    for (uint32_t t = 0; t < tasks; ++t) paths.push_back(cellTaskFile(dir, kind, t));
     return SpillFile::open(temp, paths, recordBytes);
   };
   CellsOutput out;

@@ -140,6 +140,25 @@ struct JobReport {
 // Nothing is left behind on any of them.
 JobReport runClusterJob(const ClusterJob& job);
 
+// The out-of-core build as tasks over a shared work directory, for an engine that runs them on
+// several machines (docs/out_of_core.md): planStages reads and bins the input into `work`, then
+// runCellsTask builds each cells task's cells (in any order, on any machine that sees `work`), then
+// finishStages joins them above the cells and writes job.output. Every call takes the same job,
+// and the file is the bytes runClusterJob makes of it. Each task writes its files under temporary
+// names and renames them when complete; the work directory is the caller's to remove.
+struct StagePlan {
+  // The tasks runCellsTask takes (job.cellTasks, or one per 8 cells; at most one per cell); 0 when
+  // the mesh fit the cap in core and planStages wrote the file itself.
+  uint32_t cellsTasks = 0;
+  JobReport report;  // of the read and the bin (of the whole job when it ran in core)
+};
+StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work);
+// Builds the cells of cells task `task`; returns false, doing nothing, when the task's manifest is
+// in `work` already (a rerun picks up where the last one stopped).
+bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// Throws Error (Input) naming the manifest of a cells task that is not done.
+JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work);
+
 // The job's options by name, as the command line (`facetree build`, the stage commands) and the
 // Python package take them: converted and checked once, with one message per mistake naming the
 // option as the caller spells it (--balance-slack on the command line, balance_slack in Python).

@@ -315,6 +315,62 @@ TEST(OutOfCore, CellTasksGiveTheSameBytes) {
   }
 }
 
+// The stages as tasks of separate processes over one work directory: the plan, each cells task in a
+// child process of its own (in reverse order), the finish: the bytes of runClusterJob with the same
+// job. A done task is not run again; a finish that misses a task's manifest names it.
+TEST(OutOfCore, StagesAsTasksInSeparateProcessesGiveTheSameBytes) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
+  ClusterJob job;
+  job.input = mesh;
+  job.forceCellFaces = 4000;
+  job.output = dir / "whole.fch";
+  runClusterJob(job);
+
+  const fs::path work = dir / "work";
+  job.output = dir / "staged.fch";
+  job.cellTasks = 4;
+  const StagePlan plan = planStages(job, work);
+  ASSERT_EQ(plan.cellsTasks, 4u);
+  EXPECT_TRUE(plan.report.outOfCore);
+  EXPECT_FALSE(fs::exists(job.output)) << "the plan writes no file";
+  for (uint32_t task = plan.cellsTasks; task-- > 0;) {
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      int code = 1;
+      try {
+        code = runCellsTask(job, work, task) ? 0 : 2;
+      } catch (...) {
+      }
+      _exit(code);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0) << "cells task " << task;
+  }
+  EXPECT_FALSE(runCellsTask(job, work, 2)) << "a done task is not run again";
+  const JobReport report = finishStages(job, work);
+  EXPECT_TRUE(report.outOfCore);
+  EXPECT_EQ(report.fileBytes, fs::file_size(job.output));
+  EXPECT_EQ(bytesOf(job.output), bytesOf(dir / "whole.fch"));
+  expectHierarchyOf(job.output, mesh);
+  for (const auto& entry : fs::directory_iterator(work))
+    EXPECT_EQ(entry.path().extension(), entry.path().extension() == ".manifest" ? ".manifest" : ".spill")
+        << entry.path() << ": a partial file left behind";
+
+  fs::remove(work / "cells-1.manifest");
+  try {
+    finishStages(job, work);
+    ADD_FAILURE() << "finished without cells task 1";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Input);
+    EXPECT_EQ(std::string(e.what()).rfind((work / "cells-1.manifest").string() + ": cannot open", 0), 0u)
+        << e.what();
+  }
+}
+
 // A prefix of the out-of-core file fits the surface about as well as the same prefix of
 // the in-core one. A closed surface is the hard case for the node order: its last merges have
 // almost no perimeter and cost ~0; when an upper node's key was capped by its parent's, every
