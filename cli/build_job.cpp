@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <thread>
+#include <vector>
 
 #include "commands.h"
 #include "signals.h"
@@ -55,10 +57,7 @@ class ProgressLine {
 
 }  // namespace
 
-int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job,
-                SignalGuard& signals) {
-  job.input = input;
-  job.output = output;
+void applyJobOptions(const Args& args, ClusterJob& job) {
   job.memoryCap = args.count("memory", 0, true);
   if (const auto tmp = args.value("tmp")) job.tmpDir = *tmp;
   job.maxTemporaryBytes = args.count("max-tmp", 0, true);
@@ -71,36 +70,59 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  ProgressLine progress(isatty(STDERR_FILENO) && !args.flag("json"));
-  job.progress = [&progress](const JobProgress& p) { return progress.update(p); };
+}
 
-  std::filesystem::path temporary;
+JobReport runWithProgress(ClusterJob& job, bool json, SignalGuard& signals,
+                          const std::function<JobReport(const ClusterJob&)>& run) {
+  ProgressLine progress(isatty(STDERR_FILENO) && !json);
+  job.progress = [&progress](const JobProgress& p) { return progress.update(p); };
+  // Every temporary directory of the run (a staged run makes one per task) is the signal handler's
+  // to remove if the run is interrupted.
+  std::vector<std::filesystem::path> temporary;
   job.temporaryDirectory = [&](const std::filesystem::path& path) {
-    temporary = path;
+    temporary.push_back(path);
     signals.guardTemporary(path);
+  };
+  const auto release = [&] {
+    for (const std::filesystem::path& path : temporary) signals.releaseTemporary(path);
   };
   JobReport r;
   try {
-    r = runClusterJob(job);
+    r = run(job);
   } catch (...) {
-    if (!temporary.empty()) signals.releaseTemporary(temporary);
+    release();
     throw;
   }
-  if (!temporary.empty()) signals.releaseTemporary(temporary);
+  release();
   progress.clear();
+  return r;
+}
+
+int runBuildJob(const Args& args, const std::string& input, const std::string& output, ClusterJob job,
+                SignalGuard& signals) {
+  job.input = input;
+  job.output = output;
+  applyJobOptions(args, job);
+  const JobReport r =
+      runWithProgress(job, args.flag("json"), signals, [](const ClusterJob& j) { return runClusterJob(j); });
+  return printJobReport(r, input, output, job, args.flag("json"));
+}
+
+int printJobReport(const JobReport& r, const std::string& input, const std::string& output,
+                   const ClusterJob& job, bool json) {
   const uint64_t peak = peakResidentBytes();
   const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;
   const BuildStats& s = r.inCore;  // in-core jobs only
   // Reports go to stderr when the cluster file goes to standard output.
   std::FILE* out = output == "-" ? stderr : stdout;
-  if (args.flag("json")) {
+  if (json) {
     std::fputs(jobReportJson(r, {input, job.build.order, !output.empty(), peak}).c_str(), out);
     return kExitOk;
   }
   std::fprintf(out, "mesh          %s: %llu triangles, %llu vertices", input.c_str(),
                static_cast<unsigned long long>(r.triangles),
                static_cast<unsigned long long>(r.stats.vertices));
-  if (args.flag("weld"))
+  if (job.load.weldPositions)
     std::fprintf(out, ", %llu vertices welded", static_cast<unsigned long long>(r.weldedVertices));
   std::fputc('\n', out);
   std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",

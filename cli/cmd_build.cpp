@@ -13,18 +13,7 @@
 #include "signals.h"
 
 namespace facetree::cli {
-namespace {}  // namespace
-
-int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args = parseCommand("build", argv);
-  if (args.positional().size() != 1)
-    throw UsageError("build takes exactly one mesh file (or - for standard input)");
-  const std::string& name = args.positional()[0];
-  const std::string method = args.valueOr("method", "cluster");
-  if (method == "octree") return runBuildOctree(args);  // cli/cmd_octree.cpp
-  if (method != "cluster") throw UsageError("unknown method '" + method + "' (cluster, octree)");
-  if (args.value("leaf-size")) throw UsageError("--leaf-size is an option of --method octree");
-
+ClusterJob jobFromBuildOptions(const Args& args, SignalGuard& signals) {
   BuildSettings settings;
   settings.metric = args.valueOr("metric", settings.metric);
   settings.order = args.valueOr("order", settings.order);
@@ -39,30 +28,41 @@ int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
   settings.threads = static_cast<unsigned>(args.count("threads", settings.threads));
   settings.spatialTop = static_cast<unsigned>(args.count("spatial-top", settings.spatialTop));
   settings.branching = static_cast<unsigned>(args.count("branching", settings.branching));
-  BuildOptions options;
-  FileOptions fileOptions;
+  ClusterJob job;
   try {
-    applyBuildSettings(settings, OptionSpelling::Cli, options, fileOptions);
+    applyBuildSettings(settings, OptionSpelling::Cli, job.build, job.file);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  options.computeBoxes = !args.flag("no-boxes");
-  options.cancelled = signals.cancelHook();
+  job.build.computeBoxes = !args.flag("no-boxes");
+  job.build.cancelled = signals.cancelHook();
+  job.file.build = job.build;
+  job.load.weldPositions = args.flag("weld");
+  return job;
+}
+
+int runBuild(const std::vector<std::string>& argv, SignalGuard& signals) {
+  const Args args = parseCommand("build", argv);
+  if (args.positional().size() != 1)
+    throw UsageError("build takes exactly one mesh file (or - for standard input)");
+  const std::string& name = args.positional()[0];
+  const std::string method = args.valueOr("method", "cluster");
+  if (method == "octree") return runBuildOctree(args);  // cli/cmd_octree.cpp
+  if (method != "cluster") throw UsageError("unknown method '" + method + "' (cluster, octree)");
+  if (args.value("leaf-size")) throw UsageError("--leaf-size is an option of --method octree");
+
+  ClusterJob job = jobFromBuildOptions(args, signals);
   MeshOutOptions meshOutOptions;
   meshOutOptions.dracoPositionBits = static_cast<int>(args.count("draco-bits", 0));
   if (meshOutOptions.dracoPositionBits > 30) throw UsageError("--draco-bits must be 0 (lossless) to 30");
   const auto output = args.value("output");
   const auto meshOut = args.value("mesh-out");
-  if (output && !options.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
+  if (output && !job.build.computeBoxes) throw UsageError("--no-boxes cannot write a cluster file (-o)");
   if (args.value("cell-faces") && (!output || meshOut))
     throw UsageError("--cell-faces builds out of core: it needs -o and no --mesh-out");
   if (args.value("zstd-level") && !output) throw UsageError("--zstd-level needs -o");
   if (output) prepareOutput(signals, *output);
   if (meshOut) prepareOutput(signals, *meshOut);
-  ClusterJob job;
-  job.build = options;
-  job.file = fileOptions;
-  job.load.weldPositions = args.flag("weld");
   if (meshOut) job.meshOut = *meshOut;
   job.meshOutOptions = meshOutOptions;
   return runBuildJob(args, name, output.value_or(""), job, signals);

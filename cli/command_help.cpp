@@ -9,8 +9,55 @@
 namespace facetree::cli {
 namespace {
 
+std::vector<CommandHelp> makeCommands();
+
 const std::vector<CommandHelp>& commands() {
-  static const std::vector<CommandHelp> table = {
+  static const std::vector<CommandHelp> table = makeCommands();
+  return table;
+}
+
+// The stage commands: the out-of-core build as tasks over a work directory. `stage plan` takes the
+// options of `build` that a cluster file's build uses.
+void addStageCommands(std::vector<CommandHelp>& table) {
+  const CommandHelp& build = table[1];
+  std::vector<OptionHelp> planOptions = {
+      {"work", "DIR", "", "the work directory the tasks share (created; the caller removes it)"},
+      {"cell-tasks", "N", "",
+       "cells tasks to cut the cells into (default one per 8 cells); the file does not depend on it"}};
+  for (const OptionHelp& o : build.options) {
+    const std::string name = o.name;
+    if (name == "mesh-out" || name == "draco-bits" || name == "method" || name == "leaf-size" ||
+        name == "no-boxes")
+      continue;
+    planOptions.push_back(o);
+  }
+  table.push_back(
+      {"stage plan", "MESH --work DIR -o OUT.fch [options]",
+       "read and bin a mesh into a work directory: the first task of a build run as tasks",
+       "The out-of-core build as tasks of an engine (Dask, a Slurm job array) over a work directory that\n"
+       "every task sees: `stage plan` reads and bins the mesh and prints how many cells tasks follow;\n"
+       "`stage cells --task I` builds each (in any order, anywhere); `stage finish` writes OUT.fch, the\n"
+       "bytes `facetree build` writes with the same options. Each task writes under temporary names and\n"
+       "renames when complete: a task rerun gives the same files, and a cells task already done is\n"
+       "skipped. A mesh that fits --memory in core is built by the plan; then no cells tasks follow.",
+       planOptions});
+  table.push_back({"stage cells",
+                   "--work DIR --task I",
+                   "build the cells of one cells task of a planned build",
+                   "Reads the plan's options from DIR; holds the plan's --memory.",
+                   {{"work", "DIR", "", "the work directory of `stage plan`"},
+                    {"task", "I", "", "the cells task, 0 to the count `stage plan` printed, less one"},
+                    {"json", "", "", "print the result as one JSON object"}}});
+  table.push_back({"stage finish",
+                   "--work DIR [--json]",
+                   "join the cells tasks of a planned build and write its cluster file",
+                   "Every cells task must be done. Prints the report `facetree build` prints.",
+                   {{"work", "DIR", "", "the work directory of `stage plan`"},
+                    {"json", "", "", "print the report as one JSON object"}}});
+}
+
+std::vector<CommandHelp> makeCommands() {
+  std::vector<CommandHelp> table = {
       {"stats",
        "MESH [--json]",
        "counts, bounding box and read throughput of a mesh",
@@ -120,6 +167,7 @@ const std::vector<CommandHelp>& commands() {
         {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
         {"depth", "D", "", "the cut at depth D"}}},
   };
+  addStageCommands(table);
   return table;
 }
 
@@ -197,6 +245,15 @@ std::string overviewUsage() {
       "            4 cannot write output, 5 out of memory or over a limit,\n"
       "            130/143/129 interrupted by SIGINT/SIGTERM/SIGHUP (no output left behind)\n";
   return out;
+}
+
+std::string stageUsage() {
+  std::string out =
+      "usage: facetree stage plan|cells|finish [OPTIONS]\n\nA build run as tasks over a work directory:\n";
+  for (const CommandHelp& c : commands())
+    if (std::string_view(c.name).rfind("stage ", 0) == 0)
+      out += "  " + std::string(c.name) + " " + c.synopsis + "\n      " + c.about + "\n";
+  return out + "\n`facetree stage COMMAND --help` lists the command's options.\n";
 }
 
 Args parseCommand(std::string_view name, const std::vector<std::string>& argv) {

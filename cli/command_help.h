@@ -31,6 +31,8 @@ const CommandHelp& commandHelp(std::string_view name);
 std::string commandUsage(const CommandHelp& command);
 // `facetree --help`: every command's synopsis and one line, the exit codes.
 std::string overviewUsage();
+// `facetree stage --help`: the stage commands' synopses and one line each.
+std::string stageUsage();
 
 // The command's arguments parsed against its table (UsageError for an option it does not take).
 Args parseCommand(std::string_view name, const std::vector<std::string>& argv);

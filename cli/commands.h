@@ -19,6 +19,8 @@ int runBuildOctree(const Args& args);
 int runGenerate(const std::vector<std::string>& args, SignalGuard& signals);
 int runRender(const std::vector<std::string>& args, SignalGuard& signals);
 int runExport(const std::vector<std::string>& args, SignalGuard& signals);
+// `stage plan | cells | finish`: the out-of-core build as tasks over a work directory.
+int runStage(const std::vector<std::string>& args, SignalGuard& signals);
 
 // Before the work starts: fails with Error (Output) ("PATH: cannot create: REASON", exit 4) when
 // `path` is a directory or its directory is missing or not writable, so that a long run does

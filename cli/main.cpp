@@ -30,7 +30,9 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
     std::fputs(overviewUsage().c_str(), stderr);
     return kExitUsage;
   }
-  const std::string& command = args[0];
+  // Two-word commands ("stage plan") are looked up by both words.
+  const std::string command =
+      args[0] == "stage" && args.size() > 1 && args[1].rfind("-", 0) != 0 ? "stage " + args[1] : args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "--help" || command == "-h" || command == "help") {
     std::fputs(overviewUsage().c_str(), stdout);
@@ -40,7 +42,12 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
     std::printf("facetree %s\n", FACETREE_VERSION);
     return kExitOk;
   }
-  if (asksForHelp(rest)) {
+  if (command == "stage" && (rest.empty() || asksForHelp(rest))) {
+    std::fputs(stageUsage().c_str(), rest.empty() ? stderr : stdout);
+    return rest.empty() ? kExitUsage : kExitOk;
+  }
+  if (asksForHelp(command.rfind("stage ", 0) == 0 ? std::vector<std::string>(rest.begin() + 1, rest.end())
+                                                  : rest)) {
     try {
       std::fputs(commandUsage(commandHelp(command)).c_str(), stdout);
     } catch (const std::out_of_range&) {
@@ -56,6 +63,7 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
   if (command == "verify") return runVerify(rest);
   if (command == "render") return runRender(rest, signals);
   if (command == "export") return runExport(rest, signals);
+  if (command.rfind("stage", 0) == 0) return runStage(rest, signals);
   throw UsageError("unknown command '" + command + "'");
 }
 
@@ -69,7 +77,12 @@ int run(const std::vector<std::string>& args, facetree::cli::SignalGuard& signal
     // The command's own help, when the command is known.
     std::string help = "facetree --help";
     try {
-      if (!args.empty()) help = "facetree " + std::string(commandHelp(args[0]).name) + " --help";
+      if (!args.empty()) {
+        const std::string name = args[0] == "stage" && args.size() > 1 && args[1].rfind("-", 0) != 0
+                                     ? "stage " + args[1]
+                                     : args[0];
+        help = "facetree " + std::string(commandHelp(name).name) + " --help";
+      }
     } catch (const std::out_of_range&) {
     }
     std::fprintf(stderr, "facetree: %s (see %s)\n", e.what(), help.c_str());

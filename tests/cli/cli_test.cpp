@@ -41,8 +41,9 @@ std::vector<std::string> listedCommands(const std::string& overview) {
   while (std::getline(lines, line) && !line.empty()) {
     if (line.rfind("      ", 0) == 0) continue;  // a command's one-line description
     std::istringstream words(line);
-    std::string name;
+    std::string name, second;
     words >> name;
+    if (name == "stage" && words >> second) name += " " + second;  // two-word commands
     names.push_back(name);
   }
   return names;
@@ -79,7 +80,11 @@ TEST(Cli, EveryCommandAnswersHelpWithItsOwnOptions) {
   for (const char* option : {"--memory SIZE", "--boxes exact|compact", "--zstd-level L", "--cell-faces N",
                              "--tmp DIR", "--max-tmp SIZE", "--weld", "-o, --output OUT.fch"})
     EXPECT_NE(build.out.find(option), std::string::npos) << option;
-  // An unknown command's help is a usage error.
+  // `stage --help` lists the stage commands; an unknown command's help is a usage error.
+  const auto stage = runCli("stage --help");
+  EXPECT_EQ(stage.exitCode, 0);
+  for (const char* name : {"stage plan", "stage cells", "stage finish"})
+    EXPECT_NE(stage.out.find(std::string("  ") + name + " "), std::string::npos) << stage.out;
   const auto unknown = runCli("frobnicate --help");
   EXPECT_EQ(unknown.exitCode, 2);
   EXPECT_EQ(unknown.out, "facetree: unknown command 'frobnicate' (see facetree --help)\n");
