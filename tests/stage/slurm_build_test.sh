@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# scripts/slurm-build against a stand-in sbatch that runs each job at once (an array's tasks one
+# after the other, in reverse, with SLURM_ARRAY_TASK_ID set): the plan job submits the cells array
+# and the finish, and the file is the bytes of `facetree build` with the same options.
+#   slurm_build_test.sh FACETREE SOURCE_DIR
+set -euo pipefail
+facetree="$1" source="$2"
+work="$(mktemp -d "${TMPDIR:-/tmp}/facetree-slurm.XXXXXX")"
+trap '[ -n "${KEEP:-}" ] || rm -rf "$work"' EXIT
+mkdir "$work/bin"
+cat >"$work/bin/sbatch" <<'EOF'
+#!/usr/bin/env bash
+set -euo pipefail
+array='' wrap='' output=/dev/null
+for arg in "$@"; do
+  case "$arg" in
+    --array=*) array="${arg#--array=}" ;;
+    --wrap=*) wrap="${arg#--wrap=}" ;;
+    --output=*) output="${arg#--output=}" ;;
+    --parsable|--mem=*|--time=*|--job-name=*|--dependency=*) ;;
+    *) echo "sbatch stand-in: unexpected argument '$arg'" >&2; exit 2 ;;
+  esac
+done
+echo "$*" >>"$SBATCH_LOG"
+if [ -n "$array" ]; then
+  for ((id = ${array#*-}; id >= ${array%-*}; id--)); do
+    SLURM_ARRAY_TASK_ID=$id bash -c "$wrap" >"${output//%a/$id}" 2>&1
+  done
+else
+  bash -c "$wrap" >"$output" 2>&1
+fi
+echo $((RANDOM + 1000))
+EOF
+chmod +x "$work/bin/sbatch"
+"$facetree" gen terrain -n 200000 -o "$work/terrain.ply" --shuffle-faces >/dev/null
+"$facetree" build "$work/terrain.ply" -o "$work/whole.fch" --memory 64M >/dev/null
+PATH="$work/bin:$PATH" SBATCH_LOG="$work/sbatch.log" FACETREE="$facetree" \
+  "$source/scripts/slurm-build" "$work/terrain.ply" "$work/staged.fch" "$work/stages" --memory 64M --cell-tasks 3
+cmp "$work/whole.fch" "$work/staged.fch"
+test "$(grep -c -- '--array=0-2' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '^--parsable.*--job-name=facetree-finish --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
+test -s "$work/stages/logs/cells-0.log" && test -s "$work/stages/logs/finish.log"
+echo "slurm-build: plan, 3 cells tasks as an array, finish after them; the bytes of facetree build"
