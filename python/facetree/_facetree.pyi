@@ -112,6 +112,20 @@ def _build_file(
     cell_faces: int,
     **options: Unpack[BuildOptions],
 ) -> dict[str, Any]: ...
+def _stage(
+    step: str,
+    input: str,
+    output: str,
+    work: str,
+    task: int,
+    memory: int,
+    tmp: str,
+    max_tmp: int,
+    zstd_level: int,
+    cell_faces: int,
+    cell_tasks: int,
+    **options: Unpack[BuildOptions],
+) -> Any: ...
 def read_mesh(
     path: _Path, *, weld: bool = False
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32], npt.NDArray[np.uint64]]: ...

@@ -207,6 +207,25 @@ Settings settingsFrom(const py::kwargs& options, const char* function) {
   return s;
 }
 
+// The job of build_file() and of the stages: paths, limits and the converted options.
+ClusterJob jobOf(const Settings& s, const std::string& input, const std::string& output, uint64_t memory,
+                 const std::string& tmp, uint64_t maxTmp, int zstdLevel, uint64_t cellFaces) {
+  checkJobLimits(memory, zstdLevel, OptionSpelling::Python);
+  ClusterJob job;
+  job.input = input;
+  job.output = output;
+  job.build = s.build;
+  job.file = s.file;
+  job.load.weldPositions = s.weld;
+  job.memoryCap = memory;
+  job.tmpDir = tmp;
+  job.maxTemporaryBytes = maxTmp;
+  job.threads = jobThreads(s.build.threads);
+  job.zstdLevel = zstdLevel;
+  job.forceCellFaces = cellFaces;
+  return job;
+}
+
 }  // namespace
 
 void registerJob(py::module_& m) {
@@ -265,24 +284,49 @@ arrays or options.)") +
           .c_str());
 
   m.def(
+      "_stage",
+      [](const std::string& step, const std::string& input, const std::string& output,
+         const std::string& work, uint32_t task, uint64_t memory, const std::string& tmp, uint64_t maxTmp,
+         int zstdLevel, uint64_t cellFaces, uint32_t cellTasks, const py::kwargs& options) -> py::object {
+        const Settings s = settingsFrom(options, "build");
+        ClusterJob job = jobOf(s, input, output, memory, tmp, maxTmp, zstdLevel, cellFaces);
+        job.cellTasks = cellTasks;
+        Interrupts interrupts;
+        job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
+        if (step == "plan") {
+          const StagePlan plan = runReleased(interrupts, [&] { return planStages(job, work); });
+          py::dict out;
+          out["cells_tasks"] = plan.cellsTasks;
+          out["report"] = reportDict(plan.report, input, s.build.order, false);
+          out["peak_rss_bytes"] = peakResidentBytes();
+          return out;
+        }
+        if (step == "cells") {
+          const bool built = runReleased(interrupts, [&] { return runCellsTask(job, work, task); });
+          py::dict out;
+          out["task"] = task;
+          out["built"] = built;
+          out["peak_rss_bytes"] = peakResidentBytes();
+          return out;
+        }
+        if (step == "finish") {
+          const JobReport report = runReleased(interrupts, [&] { return finishStages(job, work); });
+          return reportDict(report, input, s.build.order, true);
+        }
+        throw py::value_error("_stage: unknown step '" + step + "'");
+      },
+      py::arg("step"), py::arg("input"), py::arg("output"), py::arg("work"), py::arg("task"),
+      py::arg("memory"), py::arg("tmp"), py::arg("max_tmp"), py::arg("zstd_level"), py::arg("cell_faces"),
+      py::arg("cell_tasks"),
+      "One stage of the build as tasks (facetree.distributed): plan, cells (one task) or finish.");
+
+  m.def(
       "_build_file",
       [](const std::string& input, const std::string& output, uint64_t memory, const std::string& tmp,
          uint64_t maxTmp, int zstdLevel, const py::object& progress, uint64_t cellFaces,
          const py::kwargs& options) {
         const Settings s = settingsFrom(options, "build_file");
-        checkJobLimits(memory, zstdLevel, OptionSpelling::Python);
-        ClusterJob job;
-        job.input = input;
-        job.output = output;
-        job.build = s.build;
-        job.file = s.file;
-        job.load.weldPositions = s.weld;
-        job.memoryCap = memory;
-        job.tmpDir = tmp;
-        job.maxTemporaryBytes = maxTmp;
-        job.threads = jobThreads(s.build.threads);
-        job.zstdLevel = zstdLevel;
-        job.forceCellFaces = cellFaces;
+        ClusterJob job = jobOf(s, input, output, memory, tmp, maxTmp, zstdLevel, cellFaces);
         Interrupts interrupts(progress);
         job.progress = [&interrupts](const JobProgress& p) { return interrupts.progress(p); };
         job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };

@@ -1,0 +1,121 @@
+"""Builds past one machine: the out-of-core build's stages as tasks of a dask.distributed client.
+
+build() plans the build (reads and bins the mesh into a work directory), runs its cells tasks on
+the client's workers, and finishes it; the file is the bytes facetree.build_file writes with the
+same options and cap. Every worker must see the work directory (on a cluster, a shared file
+system). A task that fails is retried (a worker lost takes its task with it, and a cells task
+already done is skipped); an error of the input reaches the caller as the facetree exception the
+reader raised. dask.distributed comes from Debian (python3-distributed); facetree imports without it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from typing import TYPE_CHECKING, Any, Callable, Optional, Union
+
+from . import Cancelled, parse_size
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
+    from ._facetree import BuildOptions
+
+Path = Union[str, "os.PathLike[str]"]
+
+__all__ = ["build"]
+
+
+def _run_stage(step: str, task: int, arguments: dict) -> Any:
+    """One stage in a worker process: plan, one cells task, or finish."""
+    from facetree import _facetree
+
+    return _facetree._stage(step, task=task, **arguments)
+
+
+def build(
+    input: Path,
+    output: Path,
+    client: Any = None,
+    *,
+    work_dir: Optional[Path] = None,
+    memory: Union[int, str, None] = None,
+    tmp: Optional[Path] = None,
+    max_tmp: Union[int, str, None] = None,
+    zstd_level: int = 0,
+    cell_faces: int = 0,
+    cell_tasks: int = 0,
+    retries: int = 2,
+    keep_work: bool = False,
+    progress: Optional[Callable[[str, Optional[float]], Optional[bool]]] = None,
+    **options: Unpack[BuildOptions],
+) -> dict:
+    """Builds the cluster file of a mesh file as tasks of a dask.distributed client.
+
+    input, output: paths every worker sees. client: a distributed.Client; None starts a
+    LocalCluster of 2 worker processes for the call. work_dir: the directory the tasks share
+    (default: a new one under `tmp`); it is removed when the build ends, succeeded or failed,
+    unless keep_work is true (then a rerun with the same work_dir skips the cells tasks done).
+    memory: the cap of every task, bytes or a string like "4G" (default: half the memory of the
+    machine running the task). cell_tasks: how many cells tasks (default one per 8 cells); the file
+    does not depend on it. retries: how many times a failed task is run again. progress: called
+    as progress(stage, fraction) with stage "plan", "cells" or "finish"; returning False cancels
+    the build (Cancelled). Other arguments and options as facetree.build_file's.
+
+    Returns the report of facetree.build_file, with "cells_tasks". Raises the facetree error of a
+    task that failed (InputError for bad input, as the command line would name it).
+    """
+    try:
+        import distributed
+    except ImportError as error:  # pragma: no cover - depends on the machine
+        raise ImportError(
+            "facetree.distributed needs dask.distributed (Debian: python3-distributed)") from error
+
+    made = work_dir is None
+    work = tempfile.mkdtemp(prefix="facetree-work-", dir=tmp) if made else os.fspath(work_dir)
+    os.makedirs(work, exist_ok=True)
+    arguments = dict(
+        input=os.path.abspath(os.fspath(input)), output=os.path.abspath(os.fspath(output)),
+        work=os.path.abspath(work), memory=parse_size(memory),
+        tmp=os.fspath(tmp) if tmp is not None else "", max_tmp=parse_size(max_tmp),
+        zstd_level=zstd_level, cell_faces=cell_faces, cell_tasks=cell_tasks, **options)
+
+    own = client is None
+    cluster = None
+    if own:
+        cluster = distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = distributed.Client(cluster)
+
+    def report(stage: str, fraction: Optional[float]) -> None:
+        if progress is not None and progress(stage, fraction) is False:
+            raise Cancelled("cancelled")
+
+    futures: list = []
+    try:
+        report("plan", None)
+        plan = client.submit(_run_stage, "plan", 0, arguments, pure=False, retries=retries).result()
+        tasks = plan["cells_tasks"]
+        futures = [client.submit(_run_stage, "cells", task, arguments, pure=False, retries=retries,
+                                 key=f"facetree-cells-{task}-{os.path.basename(work)}")
+                   for task in range(tasks)]
+        done = 0
+        for future in distributed.as_completed(futures):
+            future.result()  # the task's error, if it failed every retry
+            done += 1
+            report("cells", done / tasks)
+        report("finish", None)
+        result = client.submit(_run_stage, "finish", 0, arguments, pure=False, retries=retries).result()
+        result["cells_tasks"] = tasks
+        return result
+    except BaseException:
+        if futures:
+            client.cancel(futures)
+        raise
+    finally:
+        if own:
+            client.close()
+            cluster.close()
+        if not keep_work:
+            shutil.rmtree(work, ignore_errors=True)
