@@ -22,6 +22,12 @@
 
 namespace facetree::test {
 
+// The bytes of a file (empty when it cannot be read).
+inline std::string fileBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
 struct ChildOptions {
   std::optional<rlim_t> fileSizeLimit;  // bytes; writes beyond fail with EFBIG
   std::optional<rlim_t> stackLimit;     // bytes, for the main thread and new threads

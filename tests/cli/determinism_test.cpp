@@ -17,12 +17,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::ChildResult;
+using test::fileBytes;
 using test::runChild;
-
-std::string fileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 // Builds `mesh` with `options` once per entry of `threads` into `dir`: every file has the bytes of
 // the first.

@@ -25,6 +25,7 @@ namespace fs = std::filesystem;
 using test::Child;
 using test::ChildOptions;
 using test::ChildResult;
+using test::fileBytes;
 using test::runChild;
 
 // Small enough that every output below exceeds it (each case checks that it does).
@@ -306,11 +307,6 @@ std::string runWithPipeReader(const std::string& fifo, const std::string& readOu
       "for i in $(seq 500); do grep -qs wait_for_partner /proc/$reader/wchan && break; sleep 0.01; done; " +
       command + "; echo exit $?; wait $reader; echo reader $?; kill $watchdog";
   return test::runShell("sh -c '" + script + "'").out;
-}
-
-std::string fileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
 }
 
 // -o a named pipe: the cluster file is streamed into the pipe (in core and out of core), the same

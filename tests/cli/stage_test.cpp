@@ -19,12 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::ChildResult;
+using test::fileBytes;
 using test::runChild;
-
-std::string fileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 // The number after "KEY": in a JSON report (the reports are flat enough for this).
 uint64_t jsonNumber(const std::string& json, const std::string& key) {

@@ -27,21 +27,23 @@ def built(cli, mesh, out):
     return out.read_bytes()
 
 
+def mesh_and_bytes(cli, factory, name, triangles):
+    """A shuffled terrain of about `triangles` faces and the bytes `facetree build --memory 64M`
+    makes of it."""
+    directory = factory.mktemp(name)
+    mesh = directory / f"{name}.ply"
+    generate(cli, mesh, triangles)
+    return mesh, built(cli, mesh, directory / "whole.fch")
+
+
 @pytest.fixture(scope="module")
 def terrain(cli, tmp_path_factory):
-    """A shuffled terrain of about 2M faces and the bytes `facetree build --memory 64M` makes of it."""
-    directory = tmp_path_factory.mktemp("terrain")
-    mesh = directory / "terrain.ply"
-    generate(cli, mesh, 2_000_000)
-    return mesh, built(cli, mesh, directory / "whole.fch")
+    return mesh_and_bytes(cli, tmp_path_factory, "terrain", 2_000_000)
 
 
 @pytest.fixture(scope="module")
 def small(cli, tmp_path_factory):
-    directory = tmp_path_factory.mktemp("small")
-    mesh = directory / "small.ply"
-    generate(cli, mesh, 300_000)
-    return mesh, built(cli, mesh, directory / "whole.fch")
+    return mesh_and_bytes(cli, tmp_path_factory, "small", 300_000)
 
 
 def local_client(workers):
