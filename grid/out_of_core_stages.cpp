@@ -92,7 +92,14 @@ PlanState loadPlan(const std::filesystem::path& work) {
     s.extent = in.take<MeshExtent>();
     s.plan = in.take<OutOfCorePlan>();
     s.cellCount = in.take<uint32_t>();
-    s.owners = in.takeVector<uint32_t>();
+    const std::vector<uint32_t> runs = in.takeVector<uint32_t>();
+    uint64_t bins = 0;
+    for (size_t r = 1; r < runs.size(); r += 2) bins += runs[r];
+    if (runs.size() % 2 != 0 || bins != CellGrid::kBins)
+      throw Error(ErrorCategory::Input,
+                  planPath(work).string() + ": a grid of " + std::to_string(bins) + " bins");
+    s.owners.reserve(CellGrid::kBins);
+    for (size_t r = 0; r < runs.size(); r += 2) s.owners.insert(s.owners.end(), runs[r + 1], runs[r]);
     s.facesIndex = in.takeBytes();
     s.ghostsIndex = in.takeBytes();
     s.bounds = in.takeVector<uint32_t>();
@@ -119,8 +126,17 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
   out.put(extent);
   out.put(plan);
   out.put(cells);
+  // The owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB a task.
   const std::span<const uint32_t> owners = binned.grid->ownerTable();
-  out.putVector(std::vector<uint32_t>(owners.begin(), owners.end()));
+  std::vector<uint32_t> runs;  // owner, length, owner, length, ...
+  for (size_t b = 0; b < owners.size();) {
+    size_t e = b + 1;
+    while (e < owners.size() && owners[e] == owners[b]) ++e;
+    runs.push_back(owners[b]);
+    runs.push_back(static_cast<uint32_t>(e - b));
+    b = e;
+  }
+  out.putVector(runs);
   out.putBytes(binned.faces->index());
   out.putBytes(binned.ghosts->index());
   out.putVector(cellTaskBounds(*binned.faces, tasks));

@@ -7,7 +7,6 @@
 
 #include <cerrno>
 #include <fstream>
-#include <iterator>
 
 #include "facetree/error.h"
 
@@ -53,9 +52,11 @@ void ManifestWriter::commit(const std::filesystem::path& path, std::string_view 
 }
 
 ManifestReader::ManifestReader(const std::filesystem::path& path, std::string_view kind) : path_(path) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) fail(std::string("cannot open: ") + std::strerror(errno));
-  bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  bytes_.resize(static_cast<size_t>(in.tellg()));
+  in.seekg(0);
+  if (!in.read(bytes_.data(), static_cast<std::streamsize>(bytes_.size()))) fail("cannot read it whole");
   const std::string head = std::string(kMagic) + std::string(kind) + "\n";
   if (bytes_.size() < head.size() + sizeof(uint64_t) || bytes_.compare(0, kMagic.size(), kMagic) != 0)
     fail("not a facetree stage manifest");
