@@ -39,7 +39,9 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "`stage cells --task I` builds each (in any order, anywhere); `stage finish` writes OUT.fch, the\n"
        "bytes `facetree build` writes with the same options. Each task writes under temporary names and\n"
        "renames when complete: a task rerun gives the same files, and a cells task already done is\n"
-       "skipped. A mesh that fits --memory in core is built by the plan; then no cells tasks follow.",
+       "skipped. A plan of the same job (input, its size and time, options) already in DIR stands;\n"
+       "another one replaces it and every task's outputs. A mesh that fits --memory in core is built\n"
+       "by the plan; then no cells tasks follow.",
        planOptions});
   table.push_back({"stage cells",
                    "--work DIR --task I",

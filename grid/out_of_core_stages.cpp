@@ -11,6 +11,7 @@
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
 //   cells-T.manifest            its cells' records; its presence marks the task done
 #include <chrono>
+#include <sstream>
 #include <string>
 
 #include "facetree/grid.h"
@@ -33,8 +34,30 @@ std::filesystem::path cellsManifestPath(const std::filesystem::path& work, uint3
   return work / ("cells-" + std::to_string(task) + ".manifest");
 }
 
+// What the file depends on: the input (its path, size and time of change) and every option that
+// shapes the build. A plan of the same job is not made again; any other plan starts afresh.
+std::string jobFingerprint(const ClusterJob& job) {
+  std::ostringstream out;
+  out.precision(17);
+  std::error_code error;
+  const auto size = std::filesystem::file_size(job.input, error);
+  const auto changed = std::filesystem::last_write_time(job.input, error).time_since_epoch().count();
+  const BuildOptions& b = job.build;
+  out << job.input.string() << '\n'
+      << size << ' ' << changed << '\n'
+      << job.output.string() << '\n'
+      << int(b.metric) << ' ' << int(b.order) << ' ' << b.k << ' ' << b.flatThreshold << ' '
+      << b.garlandFitWeight << ' ' << b.garlandDirWeight << ' ' << b.garlandShapeWeight << ' '
+      << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
+      << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
+      << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
+      << ' ' << job.forceCellFaces << ' ' << job.cellTasks;
+  return out.str();
+}
+
 // What the plan task hands on.
 struct PlanState {
+  std::string fingerprint;
   bool inCore = false;
   uint64_t memoryCap = 0;
   MeshExtent extent;
@@ -85,6 +108,7 @@ void takeReport(ManifestReader& in, JobReport& r) {
 PlanState loadPlan(const std::filesystem::path& work) {
   ManifestReader in(planPath(work), kPlanKind);
   PlanState s;
+  s.fingerprint = in.takeBytes();
   s.inCore = in.take<bool>();
   takeReport(in, s.report);
   if (!s.inCore) {
@@ -120,6 +144,7 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
   const uint32_t tasks = context.job.cellTasks ? context.job.cellTasks
                                                : std::max(1u, (cells + kCellsPerTask - 1) / kCellsPerTask);
   ManifestWriter out;
+  out.putBytes(jobFingerprint(context.job));
   out.put(false);
   putReport(out, context.report);
   out.put(context.memoryCap);
@@ -146,9 +171,27 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
 StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   std::filesystem::create_directories(work);
   StagePlan result;
+  // A plan of this very job stands (a rerun picks up the cells tasks done); any other plan goes,
+  // with every task's outputs, before the new one is made.
+  if (job.input != "-" && std::filesystem::exists(planPath(work))) {
+    try {
+      PlanState plan = loadPlan(work);
+      if (plan.fingerprint == jobFingerprint(job)) {
+        result.cellsTasks = plan.inCore ? 0 : static_cast<uint32_t>(plan.bounds.size() - 1);
+        result.report = std::move(plan.report);
+        result.report.outOfCore = !plan.inCore;
+        return result;
+      }
+    } catch (const Error&) {  // unreadable: planned again
+    }
+  }
+  std::filesystem::remove(planPath(work));
+  for (const auto& entry : std::filesystem::directory_iterator(work))
+    if (entry.path().filename().string().rfind("cells-", 0) == 0) std::filesystem::remove(entry.path());
   result.report = runJob(job, &work);
   if (!result.report.outOfCore) {  // in core: the file is written; the finish reports it
     ManifestWriter out;
+    out.putBytes(jobFingerprint(job));
     out.put(true);
     putReport(out, result.report);
     out.commit(planPath(work), kPlanKind);

@@ -152,6 +152,8 @@ struct StagePlan {
   uint32_t cellsTasks = 0;
   JobReport report;  // of the read and the bin (of the whole job when it ran in core)
 };
+// A plan of the same job (the input's path, size and time of change, every option) in `work`
+// stands and is returned as it is; any other is replaced, with every cells task's outputs.
 StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work);
 // Builds the cells of cells task `task`; returns false, doing nothing, when the task's manifest is
 // in `work` already (a rerun picks up where the last one stopped).

@@ -56,7 +56,8 @@ def build(
     input, output: paths every worker sees. client: a distributed.Client; None starts a
     LocalCluster of 2 worker processes for the call. work_dir: the directory the tasks share
     (default: a new one under `tmp`); it is removed when the build ends, succeeded or failed,
-    unless keep_work is true (then a rerun with the same work_dir skips the cells tasks done).
+    unless keep_work is true (then a rerun of the same job with the same work_dir makes neither the
+    plan nor the cells tasks done again).
     memory: the cap of every task, bytes or a string like "4G" (default: half the memory of the
     machine running the task). cell_tasks: how many cells tasks (default one per 8 cells); the file
     does not depend on it. retries: how many times a failed task is run again. progress: called

@@ -360,9 +360,23 @@ TEST(OutOfCore, StagesAsTasksInSeparateProcessesGiveTheSameBytes) {
     EXPECT_EQ(entry.path().extension(), entry.path().extension() == ".manifest" ? ".manifest" : ".spill")
         << entry.path() << ": a partial file left behind";
 
+  // Planned again, the same job keeps its plan and its done tasks; another job starts afresh.
+  const auto planned = fs::last_write_time(work / "plan.manifest");
+  EXPECT_EQ(planStages(job, work).cellsTasks, 4u);
+  EXPECT_EQ(fs::last_write_time(work / "plan.manifest"), planned);
+  EXPECT_FALSE(runCellsTask(job, work, 0)) << "the same plan keeps the tasks done";
+  ClusterJob other = job;
+  other.cellTasks = 3;
+  EXPECT_EQ(planStages(other, work).cellsTasks, 3u);
+  EXPECT_FALSE(fs::exists(work / "cells-3.manifest")) << "the old plan's tasks go with it";
+  EXPECT_FALSE(fs::exists(work / "cells-0.manifest"));
+  for (uint32_t task = 0; task < 3; ++task) EXPECT_TRUE(runCellsTask(other, work, task));
+  finishStages(other, work);
+  EXPECT_EQ(bytesOf(other.output), bytesOf(dir / "whole.fch"));
+
   fs::remove(work / "cells-1.manifest");
   try {
-    finishStages(job, work);
+    finishStages(other, work);
     ADD_FAILURE() << "finished without cells task 1";
   } catch (const Error& e) {
     EXPECT_EQ(e.category(), ErrorCategory::Input);
