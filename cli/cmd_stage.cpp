@@ -61,6 +61,7 @@ struct PlannedJob {
   ClusterJob job;
   std::string mesh, output;
   std::filesystem::path work;
+  bool json = false;  // the plan's own --json
 };
 PlannedJob plannedJob(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args = parseCommand("stage plan", argv);
@@ -69,7 +70,8 @@ PlannedJob plannedJob(const std::vector<std::string>& argv, SignalGuard& signals
   if (!work) throw UsageError("stage plan needs --work DIR");
   const auto output = args.value("output");
   if (!output || *output == "-") throw UsageError("stage plan needs -o OUT.fch (a file)");
-  PlannedJob planned{jobFromBuildOptions(args, signals), args.positional()[0], *output, *work};
+  PlannedJob planned{jobFromBuildOptions(args, signals), args.positional()[0], *output, *work,
+                     args.flag("json")};
   applyJobOptions(args, planned.job);
   planned.job.input = planned.mesh;
   planned.job.output = planned.output;
@@ -85,7 +87,7 @@ std::filesystem::path workOf(const Args& args, const char* command) {
 
 int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
   PlannedJob planned = plannedJob(argv, signals);
-  const bool json = parseCommand("stage plan", argv).flag("json");
+  const bool json = planned.json;
   prepareOutput(signals, planned.output);
   std::filesystem::create_directories(planned.work);
   saveArguments(planned.work, argv);

@@ -683,19 +683,8 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
 }
 
 const char* cellSpillName(CellSpill kind) {
-  switch (kind) {
-    case CellSpill::Nodes:
-      return "nodes";
-    case CellSpill::Geometry:
-      return "geometry";
-    case CellSpill::Pairs:
-      return "pairs";
-    case CellSpill::Leaves:
-      return "leaves";
-    case CellSpill::Border:
-      return "border";
-  }
-  return "cells";
+  constexpr const char* kNames[] = {"nodes", "geometry", "pairs", "leaves", "border"};  // CellSpill's order
+  return kNames[static_cast<size_t>(kind)];
 }
 
 std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task) {

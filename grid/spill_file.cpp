@@ -345,7 +345,7 @@ void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCod
   const uint64_t segment = block.offset >> kSegmentShift;
   const uint64_t local = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
   int fd = fd_;
-  uint64_t size = bytes();
+  uint64_t size = 0;
   const std::filesystem::path* file = &path_;
   if (segment < opened_.size()) {
     fd = opened_[segment].fd;
