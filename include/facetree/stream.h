@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -130,5 +131,41 @@ struct ReadOptions {
 std::unique_ptr<TriangleReader> openMesh(const std::filesystem::path& path, const ReadOptions& options = {});
 // Reads a mesh from standard input ("-"), format detected from the content.
 std::unique_ptr<TriangleReader> openStandardInput(const ReadOptions& options = {});
+
+// --- Binary PLY read in face ranges ---
+//
+// A binary PLY file whose face element comes last and holds only triangles, in records of one
+// size, after a vertex element of fixed-size records, can be read in pieces by independent
+// processes: faces [first, first + count) by one of them, each corner's position fetched from its
+// vertex record by its place in the file. Together the pieces hand on what openMesh with a
+// ReadOptions::vertexSink would, in file order, with the positions filled in: the same triangles,
+// vertex ids and face ids.
+struct PlyFaceRanges {
+  MeshInfo info;
+  uint64_t fileBytes = 0;
+  uint64_t vertexCount = 0, faceCount = 0;
+  // Where the records are and how to read them (the header's layout).
+  uint64_t vertexStart = 0, vertexStride = 0;
+  uint32_t coordinateOffset[3] = {0, 0, 0};
+  uint8_t coordinateType[3] = {0, 0, 0};
+  uint64_t faceStart = 0, faceStride = 0;
+  uint32_t indexListOffset = 0;  // of the vertex_indices list's count within a face record
+  uint8_t countType = 0, indexType = 0;
+  bool swap = false;  // big-endian file on a little-endian machine or the reverse
+};
+// The layout of `path` when it is such a file; std::nullopt for any other mesh (other formats,
+// zstd, ascii, a face element with lists besides vertex_indices, a size that says not every face
+// is a triangle), which openMesh reads whole. Throws Error (Input) for a header openMesh rejects.
+std::optional<PlyFaceRanges> plyFaceRanges(const std::filesystem::path& path);
+// Faces [first, first + count) of `file` (opened again by its name) in chunks of at most
+// `chunkFaces`: `sink` gets each chunk's triangles in file order, positions filled in, non-finite
+// ones included. `stats` gains their faces, triangles and degenerate triangles (repeated vertex
+// ids, as the deferred readers count them). Throws Error (Input) "NAME: byte N: face F: ..." for a
+// record that is not a triangle or a vertex index out of range. Memory: about 80 bytes per chunk
+// face and one block of vertex records.
+void readPlyFaceRange(const PlyFaceRanges& file, uint64_t first, uint64_t count, size_t chunkFaces,
+                      const std::function<void(std::span<const Triangle>)>& sink, ReadStats& stats);
+// Vertices among [first, first + count) with a NaN or infinite coordinate.
+uint64_t countNonFiniteVertices(const PlyFaceRanges& file, uint64_t first, uint64_t count);
 
 }  // namespace facetree
