@@ -1,6 +1,8 @@
-// facetree stage plan | cells | finish: the out-of-core build as tasks over a work directory, for
-// an engine that runs them (facetree/grid.h planStages, runCellsTask, finishStages). The plan keeps
-// its command line in the work directory, so that the later tasks build the same job from it.
+// facetree stage plan | read | count | grid | bin | cells | finish: the out-of-core build as tasks
+// over a work directory, for an engine that runs them (facetree/grid.h planStages, runStageTask,
+// finishStages). The plan keeps its command line in the work directory, so that the later tasks
+// build the same job from it. The plan and the grid print the steps that follow them, which is all
+// an engine needs to run the rest.
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -76,6 +78,7 @@ PlannedJob plannedJob(const std::vector<std::string>& argv, SignalGuard& signals
   planned.job.input = planned.mesh;
   planned.job.output = planned.output;
   planned.job.cellTasks = static_cast<uint32_t>(std::min<uint64_t>(args.count("cell-tasks", 0), 65536));
+  planned.job.readTasks = static_cast<uint32_t>(std::min<uint64_t>(args.count("read-tasks", 0), 65536));
   return planned;
 }
 
@@ -83,6 +86,27 @@ std::filesystem::path workOf(const Args& args, const char* command) {
   const auto work = args.value("work");
   if (!work) throw UsageError(std::string(command) + " needs --work DIR");
   return *work;
+}
+
+// The steps as the JSON reports give them: "read:54 count:54 grid:1".
+std::string stepsText(const std::vector<StageStep>& steps) {
+  std::string out;
+  for (const StageStep& step : steps)
+    out += (out.empty() ? "" : " ") + step.name + ":" + std::to_string(step.tasks);
+  return out;
+}
+
+// The commands of the steps, one line each.
+void printSteps(const std::vector<StageStep>& steps, const std::filesystem::path& work) {
+  const char* lead = "next";
+  for (const StageStep& step : steps) {
+    if (step.tasks == 1 && (step.name == "grid" || step.name == "finish"))
+      std::printf("%-13s facetree stage %s --work %s\n", lead, step.name.c_str(), work.c_str());
+    else
+      std::printf("%-13s facetree stage %s --work %s --task I   (I = 0 ... %u, any order)\n", lead,
+                  step.name.c_str(), work.c_str(), step.tasks - 1);
+    lead = "then";
+  }
 }
 
 int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
@@ -102,43 +126,58 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
     out.field("in_core", !plan.report.outOfCore);
     out.field("cells", plan.report.cells);
     out.field("cells_tasks", plan.cellsTasks);
+    out.field("next", stepsText(plan.next));
     out.field("peak_rss_bytes", peakResidentBytes());
     std::fputs(out.finish().c_str(), stdout);
-  } else if (plan.cellsTasks == 0) {
+    return kExitOk;
+  }
+  if (!plan.report.outOfCore)
     std::printf("planned       %s fits --memory in core: built, `stage finish` reports it\n",
                 planned.mesh.c_str());
-  } else {
+  else if (plan.cellsTasks == 0)
+    std::printf("planned       %s: read in %u ranges\n", planned.mesh.c_str(), plan.next.front().tasks);
+  else
     std::printf("planned       %s: %llu cells in %u cells tasks\n", planned.mesh.c_str(),
                 static_cast<unsigned long long>(plan.report.cells), plan.cellsTasks);
-    std::printf("next          facetree stage cells --work %s --task I   (I = 0 ... %u, any order)\n",
-                planned.work.c_str(), plan.cellsTasks - 1);
-    std::printf("then          facetree stage finish --work %s\n", planned.work.c_str());
-  }
+  printSteps(plan.next, planned.work);
   return kExitOk;
 }
 
-int runCells(const std::vector<std::string>& argv, SignalGuard& signals) {
-  const Args args = parseCommand("stage cells", argv);
-  if (!args.positional().empty()) throw UsageError("stage cells takes no positional arguments");
-  const std::filesystem::path work = workOf(args, "stage cells");
-  if (!args.value("task")) throw UsageError("stage cells needs --task I");
-  const uint64_t task = args.count("task", 0);
+// One task of a step of many (read, count, bin, cells), or the grid.
+int runTask(const std::string& step, const std::vector<std::string>& argv, SignalGuard& signals) {
+  const std::string command = "stage " + step;
+  const Args args = parseCommand(command, argv);
+  if (!args.positional().empty()) throw UsageError(command + " takes no positional arguments");
+  const std::filesystem::path work = workOf(args, command.c_str());
+  const bool grid = step == "grid";
+  if (!grid && !args.value("task")) throw UsageError(command + " needs --task I");
+  const uint64_t task = grid ? 0 : args.count("task", 0);
   PlannedJob planned = plannedJob(loadArguments(work), signals);
-  bool ran = false;
+  StageTaskResult result;
   runWithProgress(planned.job, args.flag("json"), signals, [&](const ClusterJob& job) {
-    ran = runCellsTask(job, work, static_cast<uint32_t>(std::min<uint64_t>(task, UINT32_MAX)));
+    try {
+      result = runStageTask(job, work, step, static_cast<uint32_t>(std::min<uint64_t>(task, UINT32_MAX)));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
     return JobReport{};
   });
   if (args.flag("json")) {
     JsonWriter out;
+    out.field("step", step);
     out.field("task", task);
-    out.field("built", ran);
+    out.field("ran", result.ran);
+    if (grid) out.field("next", stepsText(result.next));
     out.field("peak_rss_bytes", peakResidentBytes());
     std::fputs(out.finish().c_str(), stdout);
-  } else {
-    std::printf("cells task %llu: %s\n", static_cast<unsigned long long>(task),
-                ran ? "built" : "done already");
+    return kExitOk;
   }
+  if (grid)
+    std::printf("grid: %s\n", result.ran ? "made" : "done already");
+  else
+    std::printf("%s task %llu: %s\n", step.c_str(), static_cast<unsigned long long>(task),
+                result.ran ? "done" : "done already");
+  printSteps(result.next, work);
   return kExitOk;
 }
 
@@ -156,12 +195,14 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 }  // namespace
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
-  if (argv.empty()) throw UsageError("stage needs plan, cells or finish");
+  constexpr const char* kSteps = "plan, read, count, grid, bin, cells, finish";
+  if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
-  if (argv[0] == "cells") return runCells(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
-  throw UsageError("unknown stage '" + argv[0] + "' (plan, cells, finish)");
+  for (const char* step : {"read", "count", "grid", "bin", "cells"})
+    if (argv[0] == step) return runTask(argv[0], rest, signals);
+  throw UsageError("unknown stage '" + argv[0] + "' (" + kSteps + ")");
 }
 
 }  // namespace facetree::cli

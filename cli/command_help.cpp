@@ -23,7 +23,10 @@ void addStageCommands(std::vector<CommandHelp>& table) {
   std::vector<OptionHelp> planOptions = {
       {"work", "DIR", "", "the work directory the tasks share (created; the caller removes it)"},
       {"cell-tasks", "N", "",
-       "cells tasks to cut the cells into (default one per 8 cells); the file does not depend on it"}};
+       "cells tasks to cut the cells into (default one per 8 cells); the file does not depend on it"},
+      {"read-tasks", "N", "",
+       "read tasks of a binary PLY read in ranges (default one per 2^18 faces); the file does not "
+       "depend on it"}};
   for (const OptionHelp& o : build.options) {
     const std::string name = o.name;
     if (name == "mesh-out" || name == "draco-bits" || name == "method" || name == "leaf-size" ||
@@ -33,23 +36,46 @@ void addStageCommands(std::vector<CommandHelp>& table) {
   }
   table.push_back(
       {"stage plan", "MESH --work DIR -o OUT.fch [options]",
-       "read and bin a mesh into a work directory: the first task of a build run as tasks",
+       "plan a build run as tasks over a work directory: its first task",
        "The out-of-core build as tasks of an engine (Dask, a Slurm job array) over a work directory that\n"
-       "every task sees: `stage plan` reads and bins the mesh and prints how many cells tasks follow;\n"
-       "`stage cells --task I` builds each (in any order, anywhere); `stage finish` writes OUT.fch, the\n"
-       "bytes `facetree build` writes with the same options. Each task writes under temporary names and\n"
-       "renames when complete: a task rerun gives the same files, and a cells task already done is\n"
-       "skipped. A plan of the same job (input, its size and time, options) already in DIR stands;\n"
-       "another one replaces it and every task's outputs. A mesh that fits --memory in core is built\n"
-       "by the plan; then no cells tasks follow.",
+       "every task sees. `stage plan` prints the steps that follow, each a number of tasks that run in\n"
+       "any order, anywhere, once the step before is done: a binary PLY whose faces are triangles in\n"
+       "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
+       "prints `stage bin`, `stage cells` and `stage finish`); any other mesh is read and binned by the\n"
+       "plan (then `stage cells` and `stage finish`). `stage finish` writes OUT.fch, the bytes `facetree\n"
+       "build` writes with the same options. Each task writes under temporary names and renames when\n"
+       "complete: a task rerun gives the same files, and a task already done is skipped. A plan of the\n"
+       "same job (input, its size and time, options) already in DIR stands; another one replaces it and\n"
+       "every task's outputs. A mesh that fits --memory in core is built by the plan; then only the\n"
+       "finish follows.",
        planOptions});
-  table.push_back({"stage cells",
-                   "--work DIR --task I",
-                   "build the cells of one cells task of a planned build",
-                   "Reads the plan's options from DIR; holds the plan's --memory.",
+  const auto taskCommand = [&](const char* name, const char* about, const char* details) {
+    table.push_back({name,
+                     "--work DIR --task I [--json]",
+                     about,
+                     details,
+                     {{"work", "DIR", "", "the work directory of `stage plan`"},
+                      {"task", "I", "", "the task, 0 to the step's count less one"},
+                      {"json", "", "", "print the result as one JSON object"}}});
+  };
+  taskCommand("stage read", "read one range of a binary PLY: its box and counts",
+              "Reads the plan's options from DIR; holds the plan's --memory. Every read task must be done\n"
+              "before any count task.");
+  taskCommand("stage count", "count one range's faces by cell bin",
+              "Reads the plan's options from DIR; holds the plan's --memory. Every count task must be done\n"
+              "before the grid.");
+  table.push_back({"stage grid",
+                   "--work DIR [--json]",
+                   "cut a mesh read in ranges into cells, and plan the bin and cells tasks",
+                   "Sums the count tasks' bins and prints the steps that follow: bin, cells, finish.",
                    {{"work", "DIR", "", "the work directory of `stage plan`"},
-                    {"task", "I", "", "the cells task, 0 to the count `stage plan` printed, less one"},
                     {"json", "", "", "print the result as one JSON object"}}});
+  taskCommand("stage bin", "put one range's faces into their cells",
+              "Reads the plan's options from DIR; holds the plan's --memory. Every bin task must be done\n"
+              "before any cells task.");
+  taskCommand("stage cells", "build the cells of one cells task of a planned build",
+              "Reads the plan's options from DIR; holds the plan's --memory. Every bin task (of a mesh read\n"
+              "in ranges) must be done first.");
   table.push_back({"stage finish",
                    "--work DIR [--json]",
                    "join the cells tasks of a planned build and write its cluster file",
@@ -251,7 +277,8 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|cells|finish [OPTIONS]\n\nA build run as tasks over a work directory:\n";
+      "usage: facetree stage plan|read|count|grid|bin|cells|finish [OPTIONS]\n\nA build run as tasks over a "
+      "work directory:\n";
   for (const CommandHelp& c : commands())
     if (std::string_view(c.name).rfind("stage ", 0) == 0)
       out += "  " + std::string(c.name) + " " + c.synopsis + "\n      " + c.about + "\n";

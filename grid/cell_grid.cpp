@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace facetree {
 
@@ -135,6 +137,24 @@ std::unique_ptr<CellGrid> CellGrid::restore(const glm::vec3& boundsMin, const gl
   grid->table_ = std::move(owners);
   grid->cellCount_ = cellCount;
   return grid;
+}
+
+std::vector<CellGrid::SplitBin> CellGrid::splitBins() const {
+  std::vector<SplitBin> bins;
+  for (const auto& [bin, state] : split_) bins.push_back({bin, state.firstCell, state.seen});
+  std::sort(bins.begin(), bins.end(), [](const SplitBin& a, const SplitBin& b) { return a.bin < b.bin; });
+  return bins;
+}
+
+void CellGrid::resumeSplitBins(std::span<const SplitBin> bins, uint64_t maxFaces) {
+  maxFaces_ = std::max<uint64_t>(maxFaces, 1);
+  split_.clear();
+  for (const SplitBin& b : bins) {
+    if (b.bin >= kBins || b.firstCell >= cellCount_)
+      throw std::invalid_argument("cell grid: split bin " + std::to_string(b.bin) + " of cell " +
+                                  std::to_string(b.firstCell));
+    split_[b.bin] = {b.firstCell, b.seen};
+  }
 }
 
 uint32_t CellGrid::nextFaceCell(uint32_t bin) {

@@ -40,6 +40,7 @@ class CellGrid {
 
   // Histogram pass, then partition().
   void count(uint32_t bin) { ++table_[bin]; }
+  void count(uint32_t bin, uint32_t faces) { table_[bin] += faces; }
   void partition(uint64_t maxFaces);
 
   uint32_t cellCount() const { return cellCount_; }
@@ -57,6 +58,15 @@ class CellGrid {
   // the distribution pass used. Throws std::invalid_argument for a table that is not kBins owners
   // below `cellCount`.
   std::span<const uint32_t> ownerTable() const { return table_; }
+  // The split bins of partition() by bin, with the faces a distribution pass has seen of each, and
+  // that state set again: a pass over a later part of the faces (a bin task of a mesh read in
+  // ranges) goes on where the parts before it would have left it.
+  struct SplitBin {
+    uint32_t bin, firstCell;
+    uint64_t seen;
+  };
+  std::vector<SplitBin> splitBins() const;
+  void resumeSplitBins(std::span<const SplitBin> bins, uint64_t maxFaces);
   static std::unique_ptr<CellGrid> restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
                                            uint32_t cellCount, std::vector<uint32_t> owners);
 
@@ -67,11 +77,11 @@ class CellGrid {
   // spread_[a][k][v]: the code bits of byte k of axis a's coordinate v.
   std::array<std::array<std::array<uint32_t, 256>, 3>, 3> spread_{};
   std::vector<uint32_t> table_;  // counts, then after partition() the (first) cell of each bin
-  struct SplitBin {
+  struct SplitState {
     uint32_t firstCell;
     uint64_t seen;
   };
-  std::unordered_map<uint32_t, SplitBin> split_;
+  std::unordered_map<uint32_t, SplitState> split_;
   uint64_t maxFaces_ = 0;
   uint32_t cellCount_ = 0;
 };

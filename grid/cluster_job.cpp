@@ -15,10 +15,6 @@ namespace facetree {
 namespace {
 
 constexpr size_t kBatchTriangles = 4096;
-// In-core peak per triangle (the build at its boxes phase and the streamed cluster file) and per
-// vertex (the reader's store and the mesh's copy); docs/out_of_core.md has the measurement.
-constexpr uint64_t kInCoreBytesPerTriangle = 240;
-constexpr uint64_t kInCoreBytesPerVertex = 24;
 
 uint64_t defaultMemoryCap() {
   const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
@@ -69,7 +65,7 @@ JobReport runJob(const ClusterJob& job, const std::filesystem::path* work) {
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
   // of the cap (the reader would hold them all).
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
-  VertexPositions positions(temp, cap / 4);
+  VertexPositions positions(temp, positionsBudget(cap));
   ReadOptions readOptions;
   readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };
   // Draco is decoded whole: refused before decoding when that alone would pass the cap.
@@ -93,9 +89,8 @@ JobReport runJob(const ClusterJob& job, const std::filesystem::path* work) {
         pending.indices.insert(pending.indices.end(), {t.vertex[0], t.vertex[1], t.vertex[2]});
         pending.originalFace.push_back(t.face);
       }
-      const uint64_t estimate = kBaseBytes + kInCoreBytesPerTriangle * pending.originalFace.size() +
-                                kInCoreBytesPerVertex * reader->vertices().size();
-      if (estimate > cap || (deferred && !positions.inMemory())) {
+      if (inCoreEstimate(pending.originalFace.size(), reader->vertices().size()) > cap ||
+          (deferred && !positions.inMemory())) {
         outOfCore = true;
         break;
       }

@@ -95,16 +95,43 @@ struct ArrivalFaces {
 // reader fills in positions itself. The reader is released before the positions are resolved.
 ArrivalFaces readArrival(const StageContext& context, std::unique_ptr<TriangleReader> reader,
                          VertexPositions* positions, PendingTriangles&& pending);
+// The read's last step, once every triangle is in `extent` (its box, count and largest face): the
+// count into the report, the refusals of no triangles and of more than a file holds, the centre and
+// diagonal.
+void frameExtent(const StageContext& context, MeshExtent& extent);
 // Rewrites the arrival spill's vertex ids: one per distinct position (out_of_core_weld.cpp).
 void weldArrival(const StageContext& context, ArrivalFaces& arrival);
 
 // bin: the cells, and each cell's faces and ghosts (edges it owns, seen from other cells' faces).
+// The binned faces in segments, one per pass that binned them (the bin tasks of a mesh read in
+// ranges, in the mesh's order; one when one pass binned it): a cell's faces are its bucket of each
+// segment in turn, a ghost's face index counts within its own segment's bucket (faceBase).
 struct BinnedFaces {
   std::unique_ptr<CellGrid> grid;
-  std::unique_ptr<BucketSpill> faces;   // FaceRecord, bucket per cell
-  std::unique_ptr<BucketSpill> ghosts;  // GhostEdge, bucket per owner cell
+  std::vector<std::unique_ptr<BucketSpill>> faces;   // FaceRecord, bucket per cell
+  std::vector<std::unique_ptr<BucketSpill>> ghosts;  // GhostEdge, bucket per owner cell
+
+  uint64_t cellFaces(uint32_t cell) const;
+  std::vector<uint64_t> cellFaceCounts() const;
+  // The faces of `cell` in segments before `segment`: what a ghost of that segment adds to its index.
+  uint32_t faceBase(size_t segment, uint32_t cell) const {
+    return segment == 0 ? 0 : faceBase_[(segment - 1) * grid->cellCount() + cell];
+  }
+  // Called once every segment is there: the faceBase table (segments - 1 rows of the cells).
+  void indexSegments();
+
+ private:
+  std::vector<uint32_t> faceBase_;
 };
+// The bin stage in one pass over the arrival spill: its histogram, the grid, then distributeFaces.
 BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit);
+// Every face `source` hands on (in arrival order: source(f) calls f(span of FaceRecord) per batch)
+// into its cell's bucket of a new segment of `out` (whose grid is partitioned), and every edge
+// another cell owns to that cell as a ghost. With context.work the segment's spills are named
+// files of the work directory, `stem` + "faces" and `stem` + "ghosts", committed at the end.
+using FaceSource = std::function<void(const std::function<void(std::span<const FaceRecord>)>&)>;
+void distributeFaces(const StageContext& context, BinnedFaces& out, const std::string& stem, uint64_t total,
+                     const FaceSource& source);
 // The name of a binned spill ("cell-faces", "ghosts") in the work directory of stages run as tasks.
 inline std::string binnedFile(std::string_view stem) {
   return std::string(stem) + ".spill";
@@ -201,7 +228,7 @@ CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, c
 enum class CellSpill { Nodes, Geometry, Pairs, Leaves, Border };
 const char* cellSpillName(CellSpill kind);
 std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task);
-std::vector<uint32_t> cellTaskBounds(const BucketSpill& faces, uint32_t tasks);
+std::vector<uint32_t> cellTaskBounds(std::span<const uint64_t> cellFaces, uint32_t tasks);
 // The committed spills of `tasks` cell tasks in `dir` opened together, with every cell's records.
 CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uint32_t tasks,
                           std::vector<CellResult> results);

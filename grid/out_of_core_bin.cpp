@@ -7,6 +7,26 @@
 
 namespace facetree {
 
+uint64_t BinnedFaces::cellFaces(uint32_t cell) const {
+  uint64_t n = 0;
+  for (const auto& segment : faces) n += segment->records(cell);
+  return n;
+}
+
+std::vector<uint64_t> BinnedFaces::cellFaceCounts() const {
+  std::vector<uint64_t> counts(grid->cellCount());
+  for (uint32_t c = 0; c < counts.size(); ++c) counts[c] = cellFaces(c);
+  return counts;
+}
+
+void BinnedFaces::indexSegments() {
+  const uint32_t cells = grid->cellCount();
+  faceBase_.assign(faces.size() > 1 ? (faces.size() - 1) * size_t{cells} : 0, 0);
+  for (size_t s = 1; s < faces.size(); ++s)
+    for (uint32_t c = 0; c < cells; ++c)
+      faceBase_[(s - 1) * cells + c] = static_cast<uint32_t>(faceBase(s - 1, c) + faces[s - 1]->records(c));
+}
+
 BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit) {
   SpillCodec codec;
   BinnedFaces out;
@@ -18,6 +38,18 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
       out.grid->count(out.grid->faceBin(r.corner(0), r.corner(1), r.corner(2)));
   });
   out.grid->partition(cellFaceLimit);
+  distributeFaces(context, out, "", arrival.extent.triangles, [&](const auto& take) {
+    arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {
+      decodeRecords(bytes, records);
+      take(records);
+    });
+  });
+  arrival.spill.reset();
+  return out;
+}
+
+void distributeFaces(const StageContext& context, BinnedFaces& out, const std::string& stem, uint64_t total,
+                     const FaceSource& source) {
   const uint32_t cells = out.grid->cellCount();
   context.report.cells = cells;
 
@@ -30,46 +62,43 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   // Every spill from here on is read once, and gives its disk space back as it is read: the arrival
   // spill shrinks while the cells' grow, the cells' while the nodes and geometry grow.
   // Run as tasks, they are named files of the work directory that the cells tasks read.
-  const auto spill = [&](const char* stem, size_t record) {
+  const auto spill = [&](const std::string& name, size_t record) {
     if (context.work)
-      return std::make_unique<BucketSpill>(context.temp, SpillFile::Named{*context.work / binnedFile(stem)},
+      return std::make_unique<BucketSpill>(context.temp, SpillFile::Named{*context.work / binnedFile(name)},
                                            cells, record, bufferFor(record), kSpillLevel,
                                            context.spillInBackground());
-    return std::make_unique<BucketSpill>(context.temp, stem, cells, record, bufferFor(record), kSpillLevel,
+    return std::make_unique<BucketSpill>(context.temp, name, cells, record, bufferFor(record), kSpillLevel,
                                          /*discardable=*/true, context.spillInBackground());
   };
-  out.faces = spill("cell-faces", sizeof(FaceRecord));
-  out.ghosts = spill("ghosts", sizeof(GhostEdge));
+  BucketSpill& faces = *out.faces.emplace_back(spill(stem + "cell-faces", sizeof(FaceRecord)));
+  BucketSpill& ghosts = *out.ghosts.emplace_back(spill(stem + "ghosts", sizeof(GhostEdge)));
 
   uint64_t done = 0;
-  arrival.spill->drainBucket(0, codec, [&](std::span<const std::byte> bytes) {
-    decodeRecords(bytes, records);
+  source([&](std::span<const FaceRecord> records) {
     for (const FaceRecord& r : records) {
       const uint32_t cell = out.grid->nextFaceCell(out.grid->faceBin(r.corner(0), r.corner(1), r.corner(2)));
-      const auto local = static_cast<uint32_t>(out.faces->records(cell));
-      out.faces->append(cell, &r);
+      const auto local = static_cast<uint32_t>(faces.records(cell));
+      faces.append(cell, &r);
       forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
         const glm::vec3 pLow = r.corner(lowCorner);
         const uint32_t owner = out.grid->ownerCell(out.grid->bin(pLow));
         if (owner == cell) return;
         const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
         const GhostEdge ghost{low, high, cell, local, sides, static_cast<float>(length)};
-        out.ghosts->append(owner, &ghost);
+        ghosts.append(owner, &ghost);
       });
     }
     done += records.size();
-    context.checkCancel("bin", done, arrival.extent.triangles);
+    context.checkCancel("bin", done, total);
   });
-  arrival.spill.reset();  // its disk space is released before the cells are spilled again
   // Read-only from here: their buffers (a quarter of the cap) go back before the cells stage.
   if (context.work) {
-    out.faces->commit();
-    out.ghosts->commit();
+    faces.commit();
+    ghosts.commit();
   } else {
-    out.faces->releaseBuffers();
-    out.ghosts->releaseBuffers();
+    faces.releaseBuffers();
+    ghosts.releaseBuffers();
   }
-  return out;
 }
 
 }  // namespace facetree

@@ -331,21 +331,29 @@ CellsOutput CellsStage::run() {
 
 void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
   records.clear();
-  records.reserve(in_.faces->records(cell));
-  in_.faces->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
-    const size_t at = records.size();
-    records.resize(at + bytes.size() / sizeof(FaceRecord));
-    std::memcpy(records.data() + at, bytes.data(), bytes.size());
-  });
+  records.reserve(in_.cellFaces(cell));
+  for (const auto& segment : in_.faces)
+    segment->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+      const size_t at = records.size();
+      records.resize(at + bytes.size() / sizeof(FaceRecord));
+      std::memcpy(records.data() + at, bytes.data(), bytes.size());
+    });
 }
 
 std::vector<GhostEdge> CellsStage::loadGhosts(uint32_t cell, SpillCodec& codec) {
-  std::vector<GhostEdge> ghosts(in_.ghosts->records(cell));
+  size_t total = 0;
+  for (const auto& segment : in_.ghosts) total += segment->records(cell);
+  std::vector<GhostEdge> ghosts(total);
   size_t at = 0;
-  in_.ghosts->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
-    std::memcpy(reinterpret_cast<std::byte*>(ghosts.data()) + at, bytes.data(), bytes.size());
-    at += bytes.size();
-  });
+  for (size_t s = 0; s < in_.ghosts.size(); ++s) {
+    const size_t first = at;
+    in_.ghosts[s]->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data() + at), bytes.data(), bytes.size());
+      at += bytes.size() / sizeof(GhostEdge);
+    });
+    if (s > 0)
+      for (size_t g = first; g < at; ++g) ghosts[g].face += in_.faceBase(s, ghosts[g].cell);
+  }
   return ghosts;
 }
 
@@ -691,16 +699,16 @@ std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill k
   return dir / ("cells-" + std::to_string(task) + "-" + cellSpillName(kind) + ".spill");
 }
 
-std::vector<uint32_t> cellTaskBounds(const BucketSpill& faces, uint32_t tasks) {
-  const auto cells = static_cast<uint32_t>(faces.buckets());
+std::vector<uint32_t> cellTaskBounds(std::span<const uint64_t> cellFaces, uint32_t tasks) {
+  const auto cells = static_cast<uint32_t>(cellFaces.size());
   uint64_t total = 0;
-  for (uint32_t c = 0; c < cells; ++c) total += faces.records(c);
+  for (uint32_t c = 0; c < cells; ++c) total += cellFaces[c];
   tasks = std::clamp<uint32_t>(tasks, 1, std::max(1u, cells));
   // Task t ends at the first cell whose faces so far reach t + 1 shares of the total.
   std::vector<uint32_t> bounds{0};
   uint64_t sum = 0;
   for (uint32_t c = 0; c < cells; ++c) {
-    sum += faces.records(c);
+    sum += cellFaces[c];
     const uint64_t t = bounds.size();
     if (t < tasks && sum * tasks >= t * total && cells - (c + 1) >= tasks - t) bounds.push_back(c + 1);
   }
@@ -718,7 +726,7 @@ CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, c
   // The cells as tasks, one after the other here, each into its named spills; the stages after read
   // their segments together by the handles the tasks made, and take each cell's records from the task
   // that built it.
-  const std::vector<uint32_t> bounds = cellTaskBounds(*in.faces, context.job.cellTasks);
+  const std::vector<uint32_t> bounds = cellTaskBounds(in.cellFaceCounts(), context.job.cellTasks);
   const auto tasks = static_cast<uint32_t>(bounds.size() - 1);
   std::vector<CellResult> results(cells);
   // Each task's files stay accounted by their writers until every task is done, then by the reader.

@@ -65,6 +65,21 @@ inline constexpr uint32_t kNodeBlock = 256;
 inline constexpr uint32_t kMinNodeBlock = 256;
 inline constexpr double kKeyBand = 0.25;
 
+// In-core peak per triangle (the build at its boxes phase and the streamed cluster file) and per
+// vertex (the reader's store and the mesh's copy); docs/out_of_core.md has the measurement.
+inline constexpr uint64_t kInCoreBytesPerTriangle = 240;
+inline constexpr uint64_t kInCoreBytesPerVertex = 24;
+// What an in-core build of this many triangles and vertices holds at its peak: a job whose mesh
+// takes more than its cap is built out of core.
+inline uint64_t inCoreEstimate(uint64_t triangles, uint64_t vertices) {
+  return kBaseBytes + kInCoreBytesPerTriangle * triangles + kInCoreBytesPerVertex * vertices;
+}
+// The memory the read gives the vertex positions of an indexed mesh before it spills them, which
+// sends the job out of core (VertexPositions).
+inline uint64_t positionsBudget(uint64_t cap) {
+  return cap / 4;
+}
+
 // The least cap an out-of-core build accepts: the fixed part and one cell of kMinCellFaces.
 uint64_t outOfCoreMinimumBytes();
 

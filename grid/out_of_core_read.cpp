@@ -222,20 +222,23 @@ void ArrivalReader::resolveSpilledPositions() {
   out_.spill->releaseBuffers();
   context_.report.stats.skippedTriangles += skipped_;
   context_.report.stats.triangles -= std::min(context_.report.stats.triangles, skipped_);
-  context_.report.triangles = out_.extent.triangles;
-  if (out_.extent.triangles == 0)
-    throw Error(ErrorCategory::Input, context_.report.info.name + ": no triangles to cluster");
-  if (out_.extent.triangles > kFaceChild - 1)
-    throw std::invalid_argument(context_.report.info.name +
-                                ": more than 2^31-1 triangles do not fit a cluster file");
-  const glm::dvec3 lo(out_.extent.min), hi(out_.extent.max);
-  out_.extent.origin = 0.5 * (lo + hi);
-  out_.extent.diagonalSquared = glm::dot(hi - lo, hi - lo);
-  if (!(out_.extent.diagonalSquared > 0) || !std::isfinite(out_.extent.diagonalSquared))
-    out_.extent.diagonalSquared = 1.0;
+  frameExtent(context_, out_.extent);
 }
 
 }  // namespace
+
+void frameExtent(const StageContext& context, MeshExtent& extent) {
+  context.report.triangles = extent.triangles;
+  if (extent.triangles == 0)
+    throw Error(ErrorCategory::Input, context.report.info.name + ": no triangles to cluster");
+  if (extent.triangles > kFaceChild - 1)
+    throw std::invalid_argument(context.report.info.name +
+                                ": more than 2^31-1 triangles do not fit a cluster file");
+  const glm::dvec3 lo(extent.min), hi(extent.max);
+  extent.origin = 0.5 * (lo + hi);
+  extent.diagonalSquared = glm::dot(hi - lo, hi - lo);
+  if (!(extent.diagonalSquared > 0) || !std::isfinite(extent.diagonalSquared)) extent.diagonalSquared = 1.0;
+}
 
 ArrivalFaces readArrival(const StageContext& context, std::unique_ptr<TriangleReader> reader,
                          VertexPositions* positions, PendingTriangles&& pending) {

@@ -1,41 +1,35 @@
-// The out-of-core build as tasks over a work directory (facetree/grid.h planStages, runCellsTask,
-// finishStages; docs/out_of_core.md). The plan task reads and bins as one process would and commits
-// the binned faces and ghosts as named spills beside its manifest; each cells task opens them,
-// builds its run of cells into named spills of its own (segment t) and commits its cells' records
-// in a manifest; the finish opens every task's spills together and runs the rest of the build.
-// Every task's outputs depend on its inputs alone, so the file is the single process's bytes.
-//
-// Work directory:
-//   plan.manifest               the read's and the bin's results, the grid, the binned spills' index
-//   cell-faces.spill, ghosts.spill
-//   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
-//   cells-T.manifest            its cells' records; its presence marks the task done
+// The out-of-core build as tasks over a work directory (facetree/grid.h planStages, runStageTask,
+// finishStages; stage_files.h lists the directory's files). A mesh read whole is read and binned by
+// the plan task, which commits the binned faces and ghosts as named spills beside its manifest; a
+// binary PLY read in ranges goes through the read, count, grid and bin steps (stage_ranges.cpp).
+// Each cells task opens the binned spills, builds its run of cells into named spills of its own
+// (segment t) and commits its cells' records in a manifest; the finish opens every task's spills
+// together and runs the rest of the build. Every task's outputs depend on its inputs alone, so the
+// file is the single process's bytes.
 #include <chrono>
 #include <sstream>
 #include <string>
 
 #include "facetree/grid.h"
 #include "out_of_core.h"
-#include "stage_manifest.h"
+#include "stage_files.h"
 
 namespace facetree {
 namespace {
 
-constexpr std::string_view kPlanKind = "plan";
-constexpr std::string_view kCellsKind = "cells task";
+constexpr std::string_view kCellsStep = "cells";
 // Cells per task when the job does not say: enough tasks to spread a large mesh over many
 // machines, few enough that each task's fixed cost (opening the binned spills) stays small.
 constexpr uint32_t kCellsPerTask = 8;
 
-std::filesystem::path planPath(const std::filesystem::path& work) {
-  return work / "plan.manifest";
-}
-std::filesystem::path cellsManifestPath(const std::filesystem::path& work, uint32_t task) {
-  return work / ("cells-" + std::to_string(task) + ".manifest");
+}  // namespace
+
+uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells) {
+  const uint32_t tasks =
+      job.cellTasks ? job.cellTasks : std::max(1u, (cells + kCellsPerTask - 1) / kCellsPerTask);
+  return std::clamp<uint32_t>(tasks, 1, std::max(1u, cells));
 }
 
-// What the file depends on: the input (its path, size and time of change) and every option that
-// shapes the build. A plan of the same job is not made again; any other plan starts afresh.
 std::string jobFingerprint(const ClusterJob& job) {
   std::ostringstream out;
   out.precision(17);
@@ -51,23 +45,9 @@ std::string jobFingerprint(const ClusterJob& job) {
       << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
       << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
       << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
-      << ' ' << job.forceCellFaces << ' ' << job.cellTasks;
+      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks;
   return out.str();
 }
-
-// What the plan task hands on.
-struct PlanState {
-  std::string fingerprint;
-  bool inCore = false;
-  uint64_t memoryCap = 0;
-  MeshExtent extent;
-  OutOfCorePlan plan;
-  JobReport report;  // the read's and the bin's part
-  uint32_t cellCount = 0;
-  std::vector<uint32_t> owners;  // the grid's owner table
-  std::string facesIndex, ghostsIndex;
-  std::vector<uint32_t> bounds;  // cells task t: cells [bounds[t], bounds[t + 1])
-};
 
 void putReport(ManifestWriter& out, const JobReport& r) {
   out.putBytes(r.info.name);
@@ -105,54 +85,7 @@ void takeReport(ManifestReader& in, JobReport& r) {
   r.temporaryBytesPeak = in.take<uint64_t>();
 }
 
-PlanState loadPlan(const std::filesystem::path& work) {
-  ManifestReader in(planPath(work), kPlanKind);
-  PlanState s;
-  s.fingerprint = in.takeBytes();
-  s.inCore = in.take<bool>();
-  takeReport(in, s.report);
-  if (!s.inCore) {
-    s.memoryCap = in.take<uint64_t>();
-    s.extent = in.take<MeshExtent>();
-    s.plan = in.take<OutOfCorePlan>();
-    s.cellCount = in.take<uint32_t>();
-    const std::vector<uint32_t> runs = in.takeVector<uint32_t>();
-    uint64_t bins = 0;
-    for (size_t r = 1; r < runs.size(); r += 2) bins += runs[r];
-    if (runs.size() % 2 != 0 || bins != CellGrid::kBins)
-      throw Error(ErrorCategory::Input,
-                  planPath(work).string() + ": a grid of " + std::to_string(bins) + " bins");
-    s.owners.reserve(CellGrid::kBins);
-    for (size_t r = 0; r < runs.size(); r += 2) s.owners.insert(s.owners.end(), runs[r + 1], runs[r]);
-    s.facesIndex = in.takeBytes();
-    s.ghostsIndex = in.takeBytes();
-    s.bounds = in.takeVector<uint32_t>();
-    if (s.bounds.size() < 2 || s.bounds.front() != 0 || s.bounds.back() != s.cellCount ||
-        !std::is_sorted(s.bounds.begin(), s.bounds.end()))
-      throw Error(ErrorCategory::Input,
-                  planPath(work).string() + ": cells tasks that do not cover the cells");
-  }
-  in.finish();
-  return s;
-}
-
-}  // namespace
-
-void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
-                      const BinnedFaces& binned) {
-  const uint32_t cells = binned.grid->cellCount();
-  const uint32_t tasks = context.job.cellTasks ? context.job.cellTasks
-                                               : std::max(1u, (cells + kCellsPerTask - 1) / kCellsPerTask);
-  ManifestWriter out;
-  out.putBytes(jobFingerprint(context.job));
-  out.put(false);
-  putReport(out, context.report);
-  out.put(context.memoryCap);
-  out.put(extent);
-  out.put(plan);
-  out.put(cells);
-  // The owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB a task.
-  const std::span<const uint32_t> owners = binned.grid->ownerTable();
+void putOwners(ManifestWriter& out, std::span<const uint32_t> owners) {
   std::vector<uint32_t> runs;  // owner, length, owner, length, ...
   for (size_t b = 0; b < owners.size();) {
     size_t e = b + 1;
@@ -162,52 +95,104 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
     b = e;
   }
   out.putVector(runs);
-  out.putBytes(binned.faces->index());
-  out.putBytes(binned.ghosts->index());
-  out.putVector(cellTaskBounds(*binned.faces, tasks));
+}
+
+std::vector<uint32_t> takeOwners(ManifestReader& in, const std::filesystem::path& path) {
+  const std::vector<uint32_t> runs = in.takeVector<uint32_t>();
+  uint64_t bins = 0;
+  for (size_t r = 1; r < runs.size(); r += 2) bins += runs[r];
+  if (runs.size() % 2 != 0 || bins != CellGrid::kBins)
+    throw Error(ErrorCategory::Input, path.string() + ": a grid of " + std::to_string(bins) + " bins");
+  std::vector<uint32_t> owners;
+  owners.reserve(CellGrid::kBins);
+  for (size_t r = 0; r < runs.size(); r += 2) owners.insert(owners.end(), runs[r + 1], runs[r]);
+  return owners;
+}
+
+PlanState loadPlanManifest(const std::filesystem::path& work) {
+  ManifestReader in(planPath(work), kPlanKind);
+  PlanState s;
+  s.fingerprint = in.takeBytes();
+  s.inCore = in.take<bool>();
+  takeReport(in, s.report);
+  if (!s.inCore) {
+    s.ranges = in.take<bool>();
+    s.memoryCap = in.take<uint64_t>();
+    s.plan = in.take<OutOfCorePlan>();
+    if (s.ranges) {
+      RangePlan& r = s.rangePlan;
+      r.memoryCap = s.memoryCap;
+      r.plan = s.plan;
+      r.report = s.report;
+      r.faceBounds = in.takeVector<uint64_t>();
+      r.vertexBounds = in.takeVector<uint64_t>();
+      if (r.faceBounds.size() < 2 || r.faceBounds.size() != r.vertexBounds.size() ||
+          !std::is_sorted(r.faceBounds.begin(), r.faceBounds.end()) ||
+          !std::is_sorted(r.vertexBounds.begin(), r.vertexBounds.end()))
+        throw Error(ErrorCategory::Input,
+                    planPath(work).string() + ": read tasks that do not cover the mesh");
+    } else {
+      s.extent = in.take<MeshExtent>();
+      s.cellCount = in.take<uint32_t>();
+      s.owners = takeOwners(in, planPath(work));
+      s.facesFiles = {work / binnedFile("cell-faces")};
+      s.ghostsFiles = {work / binnedFile("ghosts")};
+      s.facesIndex = {in.takeBytes()};
+      s.ghostsIndex = {in.takeBytes()};
+      s.bounds = in.takeVector<uint32_t>();
+    }
+  }
+  in.finish();
+  return s;
+}
+
+PlanState loadPlan(const std::filesystem::path& work) {
+  PlanState s = loadPlanManifest(work);
+  if (s.ranges) loadGrid(work, s, /*bins=*/true);
+  if (!s.inCore && (s.bounds.size() < 2 || s.bounds.front() != 0 || s.bounds.back() != s.cellCount ||
+                    !std::is_sorted(s.bounds.begin(), s.bounds.end())))
+    throw Error(ErrorCategory::Input, (s.ranges ? gridPath(work) : planPath(work)).string() +
+                                          ": cells tasks that do not cover the cells");
+  return s;
+}
+
+void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
+                      const BinnedFaces& binned) {
+  const uint32_t cells = binned.grid->cellCount();
+  ManifestWriter out;
+  out.putBytes(jobFingerprint(context.job));
+  out.put(false);
+  putReport(out, context.report);
+  out.put(false);  // read whole
+  out.put(context.memoryCap);
+  out.put(plan);
+  out.put(extent);
+  out.put(cells);
+  putOwners(out, binned.grid->ownerTable());
+  out.putBytes(binned.faces.front()->index());
+  out.putBytes(binned.ghosts.front()->index());
+  out.putVector(cellTaskBounds(binned.cellFaceCounts(), cellsTaskCount(context.job, cells)));
   out.commit(planPath(*context.work), kPlanKind);
 }
 
-StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
-  std::filesystem::create_directories(work);
-  StagePlan result;
-  // A plan of this very job stands (a rerun picks up the cells tasks done); any other plan goes,
-  // with every task's outputs, before the new one is made.
-  if (job.input != "-" && std::filesystem::exists(planPath(work))) {
-    try {
-      PlanState plan = loadPlan(work);
-      if (plan.fingerprint == jobFingerprint(job)) {
-        result.cellsTasks = plan.inCore ? 0 : static_cast<uint32_t>(plan.bounds.size() - 1);
-        result.report = std::move(plan.report);
-        result.report.outOfCore = !plan.inCore;
-        return result;
-      }
-    } catch (const Error&) {  // unreadable: planned again
-    }
+namespace {
+
+// The steps of a plan as planStages returns them.
+std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
+  if (state.inCore) return {{"finish", 1}};
+  if (state.ranges) {
+    const auto tasks = static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1);
+    return {{"read", tasks}, {"count", tasks}, {"grid", 1}};
   }
-  std::filesystem::remove(planPath(work));
-  for (const auto& entry : std::filesystem::directory_iterator(work))
-    if (entry.path().filename().string().rfind("cells-", 0) == 0) std::filesystem::remove(entry.path());
-  result.report = runJob(job, &work);
-  if (!result.report.outOfCore) {  // in core: the file is written; the finish reports it
-    ManifestWriter out;
-    out.putBytes(jobFingerprint(job));
-    out.put(true);
-    putReport(out, result.report);
-    out.commit(planPath(work), kPlanKind);
-    return result;
-  }
-  const PlanState plan = loadPlan(work);
-  result.cellsTasks = static_cast<uint32_t>(plan.bounds.size() - 1);
-  return result;
+  return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"finish", 1}};
 }
 
 bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
-  if (std::filesystem::exists(cellsManifestPath(work, task))) return false;
+  const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
+  if (std::filesystem::exists(manifestPath)) return false;
   const PlanState state = loadPlan(work);
   if (state.inCore || task + 1 >= state.bounds.size())
-    throw std::invalid_argument("runCellsTask: no cells task " + std::to_string(task) + " in " +
-                                work.string());
+    throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
   const ClusterJob effective = effectiveJob(job);
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   JobReport report;
@@ -216,10 +201,14 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
   try {
     binned.grid = CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
   } catch (const std::invalid_argument& e) {
-    throw Error(ErrorCategory::Input, planPath(work).string() + ": " + e.what());
+    throw Error(ErrorCategory::Input,
+                (state.ranges ? gridPath(work) : planPath(work)).string() + ": " + e.what());
   }
-  binned.faces = BucketSpill::open(temp, work / binnedFile("cell-faces"), state.facesIndex);
-  binned.ghosts = BucketSpill::open(temp, work / binnedFile("ghosts"), state.ghostsIndex);
+  for (size_t s = 0; s < state.facesFiles.size(); ++s) {
+    binned.faces.push_back(BucketSpill::open(temp, state.facesFiles[s], state.facesIndex[s]));
+    binned.ghosts.push_back(BucketSpill::open(temp, state.ghostsFiles[s], state.ghostsIndex[s]));
+  }
+  binned.indexSegments();
   const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
   CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);
   ManifestWriter manifest;
@@ -233,8 +222,74 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
     manifest.putVector(r.pairs);
     manifest.put(r.components);
   }
-  manifest.commit(cellsManifestPath(work, task), kCellsKind);
+  manifest.commit(manifestPath, taskKind(kCellsStep));
   return true;
+}
+
+}  // namespace
+
+StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
+  std::filesystem::create_directories(work);
+  StagePlan result;
+  // A plan of this very job stands (a rerun picks up the tasks done); any other plan goes, with
+  // every task's outputs, before the new one is made.
+  if (job.input != "-" && std::filesystem::exists(planPath(work))) {
+    try {
+      PlanState plan = loadPlanManifest(work);
+      if (plan.fingerprint == jobFingerprint(job)) {
+        if (!plan.inCore && !plan.ranges) result.cellsTasks = static_cast<uint32_t>(plan.bounds.size() - 1);
+        result.next = stepsAfterPlan(plan);
+        result.report = std::move(plan.report);
+        result.report.outOfCore = !plan.inCore;
+        return result;
+      }
+    } catch (const Error&) {  // unreadable: planned again
+    }
+  }
+  std::filesystem::remove(planPath(work));
+  for (const auto& entry : std::filesystem::directory_iterator(work)) {
+    const std::string name = entry.path().filename().string();
+    for (const char* step : {"cells-", "read-", "count-", "grid.", "bin-"})
+      if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
+  }
+  if (planRanges(job, work, result)) return result;
+  result.report = runJob(job, &work);
+  if (!result.report.outOfCore) {  // in core: the file is written; the finish reports it
+    ManifestWriter out;
+    out.putBytes(jobFingerprint(job));
+    out.put(true);
+    putReport(out, result.report);
+    out.commit(planPath(work), kPlanKind);
+    result.next = {{"finish", 1}};
+    return result;
+  }
+  const PlanState plan = loadPlan(work);
+  result.cellsTasks = static_cast<uint32_t>(plan.bounds.size() - 1);
+  result.next = stepsAfterPlan(plan);
+  return result;
+}
+
+StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
+                             uint32_t task) {
+  StageTaskResult result;
+  if (step == kCellsStep) {
+    result.ran = runCellsTask(job, work, task);
+  } else if (step == "read") {
+    result.ran = runReadTask(job, work, task);
+  } else if (step == "count") {
+    result.ran = runCountTask(job, work, task);
+  } else if (step == "bin") {
+    result.ran = runBinTask(job, work, task);
+  } else if (step == "grid") {
+    if (task != 0) throw std::invalid_argument("the grid has one task, 0, not " + std::to_string(task));
+    result.ran = runGridStep(job, work);
+    PlanState state = loadPlanManifest(work);
+    loadGrid(work, state, /*bins=*/false);
+    result.next = stepsAfterGrid(state);
+  } else {
+    throw std::invalid_argument("no stage step '" + std::string(step) + "' (read, count, grid, bin, cells)");
+  }
+  return result;
 }
 
 JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
@@ -247,10 +302,11 @@ JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work)
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
   std::vector<CellResult> results(state.cellCount);
   for (uint32_t t = 0; t < tasks; ++t) {
-    ManifestReader in(cellsManifestPath(work, t), kCellsKind);
+    const std::filesystem::path path = taskManifestPath(work, kCellsStep, t);
+    ManifestReader in(path, taskKind(kCellsStep));
     const auto first = in.take<uint32_t>(), end = in.take<uint32_t>();
     if (first != state.bounds[t] || end != state.bounds[t + 1])
-      throw Error(ErrorCategory::Input, cellsManifestPath(work, t).string() + ": cells of another plan");
+      throw Error(ErrorCategory::Input, path.string() + ": cells of another plan");
     for (uint32_t c = first; c < end; ++c) {
       CellResult& r = results[c];
       r.leafCount = in.take<uint32_t>();

@@ -6,8 +6,8 @@
 #include <string>
 
 #include "byte_source.h"
-#include "format_detect.h"
 #include "facetree/stream.h"
+#include "format_detect.h"
 
 namespace facetree::stream_detail {
 

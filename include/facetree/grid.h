@@ -12,6 +12,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -94,6 +95,9 @@ struct ClusterJob {
   // the stages run as tasks on several machines do (docs/out_of_core.md). The cluster file is the
   // same bytes for any count; 0 or 1: one task.
   uint32_t cellTasks = 0;
+  // Stages run as tasks (planStages): the read tasks of a mesh read in ranges; 0: one per 2^18
+  // faces. The file does not depend on it.
+  uint32_t readTasks = 0;
   // Called between steps; returning false cancels the job (an Error of category Cancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;
@@ -141,24 +145,41 @@ struct JobReport {
 JobReport runClusterJob(const ClusterJob& job);
 
 // The out-of-core build as tasks over a shared work directory, for an engine that runs them on
-// several machines (docs/out_of_core.md): planStages reads and bins the input into `work`, then
-// runCellsTask builds each cells task's cells (in any order, on any machine that sees `work`), then
-// finishStages joins them above the cells and writes job.output. Every call takes the same job,
-// and the file is the bytes runClusterJob makes of it. Each task writes its files under temporary
-// names and renames them when complete; the work directory is the caller's to remove.
+// several machines (docs/out_of_core.md). planStages plans the job in `work`; then come steps of
+// tasks, each step's tasks in any order, on any machine that sees `work`, once the step before is
+// done; finishStages joins the cells and writes job.output. A binary PLY whose faces are triangles
+// in records of one size (plyFaceRanges) is read in ranges: steps "read", "count" (its faces' cell
+// bins), "grid" (one task), "bin", then "cells"; any other mesh is read and binned by the plan,
+// then "cells". Every call takes the same job, and the file is the bytes runClusterJob makes of
+// it. Each task writes its files under temporary names and renames them when complete; the work
+// directory is the caller's to remove.
+struct StageStep {
+  std::string name;  // the runStageTask step and `facetree stage` command: "read", "cells", "finish"
+  uint32_t tasks = 1;
+};
 struct StagePlan {
-  // The tasks runCellsTask takes (job.cellTasks, or one per 8 cells; at most one per cell); 0 when
-  // the mesh fit the cap in core and planStages wrote the file itself.
-  uint32_t cellsTasks = 0;
-  JobReport report;  // of the read and the bin (of the whole job when it ran in core)
+  // The steps after the plan, in order, through the first step of one task, whose own result
+  // lists the steps after it: "read", "count", "grid" for a mesh read in ranges, "cells" and
+  // "finish" for one the plan read, "finish" alone when the mesh fit the cap in core and the plan
+  // wrote the file itself.
+  std::vector<StageStep> next;
+  uint32_t cellsTasks = 0;  // when the plan knows them (it read the mesh), else 0
+  JobReport report;         // of the read and the bin (of the whole job when it ran in core)
 };
 // A plan of the same job (the input's path, size and time of change, every option) in `work`
-// stands and is returned as it is; any other is replaced, with every cells task's outputs.
+// stands and is returned as it is; any other is replaced, with every task's outputs.
 StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work);
-// Builds the cells of cells task `task`; returns false, doing nothing, when the task's manifest is
-// in `work` already (a rerun picks up where the last one stopped).
-bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
-// Throws Error (Input) naming the manifest of a cells task that is not done.
+struct StageTaskResult {
+  bool ran = false;             // false: its outputs were there already, and it did nothing
+  std::vector<StageStep> next;  // after the grid: "bin", "cells", "finish"; else empty
+};
+// Runs task `task` of step `step` of `work`'s plan ("read", "count", "grid", "bin", "cells"; the
+// grid's one task is 0). A task whose manifest is there already is not run again (a rerun picks
+// up where the last one stopped). Throws std::invalid_argument for a step or task the plan does
+// not have, Error (Input) naming a manifest of the steps before that is missing.
+StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
+                             uint32_t task);
+// Throws Error (Input) naming the manifest of a task that is not done.
 JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work);
 
 // The job's options by name, as the command line (`facetree build`, the stage commands) and the

@@ -124,6 +124,7 @@ def _stage(
     zstd_level: int,
     cell_faces: int,
     cell_tasks: int,
+    read_tasks: int,
     **options: Unpack[BuildOptions],
 ) -> Any: ...
 def read_mesh(

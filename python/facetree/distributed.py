@@ -1,8 +1,9 @@
 """Builds past one machine: the out-of-core build's stages as tasks of a dask.distributed client.
 
-build() plans the build (reads and bins the mesh into a work directory), runs its cells tasks on
-the client's workers, and finishes it; the file is the bytes facetree.build_file writes with the
-same options and cap. Every worker must see the work directory (on a cluster, a shared file
+build() plans the build in a work directory, runs the steps the plan lists (a binary PLY is read,
+counted and binned in ranges, then its cells are built; any other mesh is read and binned by the
+plan) as tasks on the client's workers, and finishes it; the file is the bytes
+facetree.build_file writes with the same options and cap. Every worker must see the work directory (on a cluster, a shared file
 system). A task that fails is retried (a worker lost takes its task with it, and a cells task
 already done is skipped); an error of the input reaches the caller as the facetree exception the
 reader raised. dask.distributed comes from Debian (python3-distributed); facetree imports without it.
@@ -28,7 +29,7 @@ __all__ = ["build"]
 
 
 def _run_stage(step: str, task: int, arguments: dict) -> Any:
-    """One stage in a worker process: plan, one cells task, or finish."""
+    """One task in a worker process: the plan, a task of a step, or the finish."""
     from facetree import _facetree
 
     return _facetree._stage(step, task=task, **arguments)
@@ -46,6 +47,7 @@ def build(
     zstd_level: int = 0,
     cell_faces: int = 0,
     cell_tasks: int = 0,
+    read_tasks: int = 0,
     retries: int = 2,
     keep_work: bool = False,
     progress: Optional[Callable[[str, Optional[float]], Optional[bool]]] = None,
@@ -59,12 +61,14 @@ def build(
     unless keep_work is true (then a rerun of the same job with the same work_dir makes neither the
     plan nor the cells tasks done again).
     memory: the cap of every task, bytes or a string like "4G" (default: half the memory of the
-    machine running the task). cell_tasks: how many cells tasks (default one per 8 cells); the file
-    does not depend on it. retries: how many times a failed task is run again. progress: called
-    as progress(stage, fraction) with stage "plan", "cells" or "finish"; returning False cancels
-    the build (Cancelled). Other arguments and options as facetree.build_file's.
+    machine running the task). cell_tasks: how many cells tasks (default one per 8 cells);
+    read_tasks: how many ranges a binary PLY is read in (default one per 2^18 faces); the file
+    depends on neither. retries: how many times a failed task is run again. progress: called as
+    progress(step, fraction) with step "plan", "read", "count", "grid", "bin", "cells" or "finish";
+    returning False cancels the build (Cancelled). Other arguments and options as
+    facetree.build_file's.
 
-    Returns the report of facetree.build_file, with "cells_tasks". Raises the facetree error of a
+    Returns the report of facetree.build_file, with "cells_tasks" and "tasks" (each step's count). Raises the facetree error of a
     task that failed (InputError for bad input, as the command line would name it).
     """
     try:
@@ -80,7 +84,8 @@ def build(
         input=os.path.abspath(os.fspath(input)), output=os.path.abspath(os.fspath(output)),
         work=os.path.abspath(work), memory=parse_size(memory),
         tmp=os.fspath(tmp) if tmp is not None else "", max_tmp=parse_size(max_tmp),
-        zstd_level=zstd_level, cell_faces=cell_faces, cell_tasks=cell_tasks, **options)
+        zstd_level=zstd_level, cell_faces=cell_faces, cell_tasks=cell_tasks, read_tasks=read_tasks,
+        **options)
 
     own = client is None
     cluster = None
@@ -97,19 +102,32 @@ def build(
     try:
         report("plan", None)
         plan = client.submit(_run_stage, "plan", 0, arguments, pure=False, retries=retries).result()
-        tasks = plan["cells_tasks"]
-        futures = [client.submit(_run_stage, "cells", task, arguments, pure=False, retries=retries,
-                                 key=f"facetree-cells-{task}-{os.path.basename(work)}")
-                   for task in range(tasks)]
-        done = 0
-        for future in distributed.as_completed(futures):
-            future.result()  # the task's error, if it failed every retry
-            done += 1
-            report("cells", done / tasks)
-        report("finish", None)
-        result = client.submit(_run_stage, "finish", 0, arguments, pure=False, retries=retries).result()
-        result["cells_tasks"] = tasks
-        return result
+        steps = list(plan["next"])
+        counts: dict = {}
+        while steps:
+            step, count = steps.pop(0)
+            counts[step] = count
+            if step == "finish":
+                report("finish", None)
+                result = client.submit(_run_stage, "finish", 0, arguments, pure=False,
+                                       retries=retries).result()
+                result["cells_tasks"] = counts.get("cells", 0)
+                result["tasks"] = counts
+                return result
+            # A step's tasks run in any order once the step before is done; a step of one task (the
+            # grid) lists the steps after it.
+            futures = [client.submit(_run_stage, step, task, arguments, pure=False, retries=retries,
+                                     key=f"facetree-{step}-{task}-{os.path.basename(work)}")
+                       for task in range(count)]
+            done = 0
+            for future in distributed.as_completed(futures):
+                out = future.result()  # the task's error, if it failed every retry
+                done += 1
+                report(step, done / count)
+                if out["next"]:
+                    steps = list(out["next"])
+            futures = []
+        raise RuntimeError("facetree.distributed.build: the plan's steps end without a finish")
     except BaseException:
         if futures:
             client.cancel(futures)

@@ -287,25 +287,24 @@ arrays or options.)") +
       "_stage",
       [](const std::string& step, const std::string& input, const std::string& output,
          const std::string& work, uint32_t task, uint64_t memory, const std::string& tmp, uint64_t maxTmp,
-         int zstdLevel, uint64_t cellFaces, uint32_t cellTasks, const py::kwargs& options) -> py::object {
+         int zstdLevel, uint64_t cellFaces, uint32_t cellTasks, uint32_t readTasks,
+         const py::kwargs& options) -> py::object {
         const Settings s = settingsFrom(options, "build");
         ClusterJob job = jobOf(s, input, output, memory, tmp, maxTmp, zstdLevel, cellFaces);
         job.cellTasks = cellTasks;
+        job.readTasks = readTasks;
         Interrupts interrupts;
         job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
+        const auto steps = [](const std::vector<StageStep>& next) {
+          py::list out;
+          for (const StageStep& step : next) out.append(py::make_tuple(step.name, step.tasks));
+          return out;
+        };
         if (step == "plan") {
           const StagePlan plan = runReleased(interrupts, [&] { return planStages(job, work); });
           py::dict out;
-          out["cells_tasks"] = plan.cellsTasks;
+          out["next"] = steps(plan.next);
           out["report"] = reportDict(plan.report, input, s.build.order, false);
-          out["peak_rss_bytes"] = peakResidentBytes();
-          return out;
-        }
-        if (step == "cells") {
-          const bool built = runReleased(interrupts, [&] { return runCellsTask(job, work, task); });
-          py::dict out;
-          out["task"] = task;
-          out["built"] = built;
           out["peak_rss_bytes"] = peakResidentBytes();
           return out;
         }
@@ -313,12 +312,24 @@ arrays or options.)") +
           const JobReport report = runReleased(interrupts, [&] { return finishStages(job, work); });
           return reportDict(report, input, s.build.order, true);
         }
-        throw py::value_error("_stage: unknown step '" + step + "'");
+        StageTaskResult result;
+        try {
+          result = runReleased(interrupts, [&] { return runStageTask(job, work, step, task); });
+        } catch (const std::invalid_argument& e) {
+          throw py::value_error(std::string("_stage: ") + e.what());
+        }
+        py::dict out;
+        out["task"] = task;
+        out["ran"] = result.ran;
+        out["next"] = steps(result.next);
+        out["peak_rss_bytes"] = peakResidentBytes();
+        return out;
       },
       py::arg("step"), py::arg("input"), py::arg("output"), py::arg("work"), py::arg("task"),
       py::arg("memory"), py::arg("tmp"), py::arg("max_tmp"), py::arg("zstd_level"), py::arg("cell_faces"),
-      py::arg("cell_tasks"),
-      "One stage of the build as tasks (facetree.distributed): plan, cells (one task) or finish.");
+      py::arg("cell_tasks"), py::arg("read_tasks"),
+      "One task of the build as tasks (facetree.distributed): plan, a task of read, count, grid, bin or\n"
+      "cells, or finish. Returns the steps that follow the plan and the grid as (step, tasks) pairs.");
 
   m.def(
       "_build_file",

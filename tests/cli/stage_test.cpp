@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -40,48 +41,96 @@ struct Scratch {
 
 constexpr uint64_t kCap = uint64_t{64} << 20;
 
+// The text after "KEY": " up to the next quote.
+std::string jsonText(const std::string& json, const std::string& key) {
+  const size_t at = json.find("\"" + key + "\": \"");
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "no " << key << " in " << json;
+    return {};
+  }
+  const size_t from = at + key.size() + 5;
+  return json.substr(from, json.find('"', from) - from);
+}
+
+// "read:5 count:5 grid:1" as (step, tasks) pairs.
+std::vector<std::pair<std::string, uint64_t>> stepsOf(const std::string& text) {
+  std::vector<std::pair<std::string, uint64_t>> steps;
+  for (size_t at = 0; at < text.size();) {
+    size_t end = text.find(' ', at);
+    if (end == std::string::npos) end = text.size();
+    const std::string step = text.substr(at, end - at);
+    const size_t colon = step.find(':');
+    steps.emplace_back(step.substr(0, colon), std::stoull(step.substr(colon + 1)));
+    at = end + 1;
+  }
+  return steps;
+}
+
+// A binary PLY read in ranges (read, count, grid, bin, cells), and the same mesh zstd-compressed,
+// which the plan reads whole (cells): every task in a process of its own, in reverse order, under
+// the cap; a finish before the tasks names the first manifest missing; the bytes of build.
 TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
   Scratch dir;
-  const fs::path mesh = dir.path / "terrain.ply", work = dir.path / "work";
-  ASSERT_EQ(runChild({"gen", "terrain", "-n", "300000", "-o", mesh.string(), "--shuffle-faces"}).exitCode, 0);
-  const ChildResult whole = runChild(
-      {"build", mesh.string(), "-o", (dir.path / "whole.fch").string(), "--memory", "64M", "--json"});
+  const fs::path ply = dir.path / "terrain.ply", zst = dir.path / "terrain.ply.zst";
+  ASSERT_EQ(runChild({"gen", "terrain", "-n", "300000", "-o", ply.string(), "--shuffle-faces"}).exitCode, 0);
+  const ChildResult whole =
+      runChild({"build", ply.string(), "-o", (dir.path / "whole.fch").string(), "--memory", "64M", "--json"});
   ASSERT_EQ(whole.exitCode, 0) << whole.output;
   ASSERT_NE(whole.output.find("\"out_of_core\": true"), std::string::npos) << whole.output;
+  ASSERT_EQ(std::system(("zstd -q -1 " + ply.string() + " -o " + zst.string()).c_str()), 0);
 
-  const fs::path staged = dir.path / "staged.fch";
-  const ChildResult plan = runChild({"stage", "plan", mesh.string(), "--work", work.string(), "-o",
-                                     staged.string(), "--memory", "64M", "--cell-tasks", "3", "--json"});
-  ASSERT_EQ(plan.exitCode, 0) << plan.output;
-  EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), 3u);
-  EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
-  EXPECT_FALSE(fs::exists(staged));
+  for (const fs::path& mesh : {ply, zst}) {
+    SCOPED_TRACE(mesh.filename().string());
+    const bool ranges = mesh == ply;
+    const fs::path work = dir.path / "work", staged = dir.path / "staged.fch";
+    fs::remove_all(work);
+    fs::remove(staged);
+    const ChildResult plan =
+        runChild({"stage", "plan", mesh.string(), "--work", work.string(), "-o", staged.string(), "--memory",
+                  "64M", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
+    ASSERT_EQ(plan.exitCode, 0) << plan.output;
+    EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), ranges ? 0u : 3u);
+    EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 finish:1");
+    EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
+    EXPECT_FALSE(fs::exists(staged));
 
-  // Before every cells task is done, the finish names the first missing one and writes nothing.
-  const ChildResult early = runChild({"stage", "finish", "--work", work.string()});
-  EXPECT_EQ(early.exitCode, 3);
-  EXPECT_EQ(early.output.rfind("facetree: " + (work / "cells-0.manifest").string() + ": cannot open: ", 0),
-            0u)
-      << early.output;
-  EXPECT_FALSE(fs::exists(staged));
+    // Before the tasks are done, the finish names the first manifest missing and writes nothing.
+    const ChildResult early = runChild({"stage", "finish", "--work", work.string()});
+    EXPECT_EQ(early.exitCode, 3);
+    const fs::path missing = work / (ranges ? "grid.manifest" : "cells-0.manifest");
+    EXPECT_EQ(early.output.rfind("facetree: " + missing.string() + ": cannot open: ", 0), 0u) << early.output;
+    EXPECT_FALSE(fs::exists(staged));
 
-  for (const char* task : {"2", "0", "1"}) {
-    const ChildResult cells = runChild({"stage", "cells", "--work", work.string(), "--task", task, "--json"});
-    ASSERT_EQ(cells.exitCode, 0) << cells.output;
-    EXPECT_NE(cells.output.find("\"built\": true"), std::string::npos) << cells.output;
-    EXPECT_LE(jsonNumber(cells.output, "peak_rss_bytes"), kCap) << "cells task " << task;
+    std::vector<std::pair<std::string, uint64_t>> next = stepsOf(jsonText(plan.output, "next"));
+    std::string ran;
+    while (!next.empty() && next.front().first != "finish") {
+      const auto [step, tasks] = next.front();
+      next.erase(next.begin());
+      ran += step + ":" + std::to_string(tasks) + " ";
+      for (uint64_t task = tasks; task-- > 0;) {
+        std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
+        if (step != "grid") argv.insert(argv.end(), {"--task", std::to_string(task)});
+        const ChildResult result = runChild(argv);
+        ASSERT_EQ(result.exitCode, 0) << step << " " << task << ": " << result.output;
+        EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
+        EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
+        if (step == "grid") next = stepsOf(jsonText(result.output, "next"));
+      }
+    }
+    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 " : "cells:3 ");
+    const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
+    EXPECT_EQ(again.exitCode, 0);
+    EXPECT_EQ(again.output, "cells task 1: done already\n");
+
+    const ChildResult finish = runChild({"stage", "finish", "--work", work.string(), "--json"});
+    ASSERT_EQ(finish.exitCode, 0) << finish.output;
+    EXPECT_LE(jsonNumber(finish.output, "peak_rss_bytes"), kCap) << "finish";
+    EXPECT_EQ(jsonNumber(finish.output, "file_bytes"), fs::file_size(staged));
+    EXPECT_EQ(jsonNumber(finish.output, "triangles"), jsonNumber(whole.output, "triangles"));
+    EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
+    for (const auto& entry : fs::directory_iterator(work))
+      EXPECT_EQ(entry.path().string().find(".partial"), std::string::npos) << entry.path();
   }
-  const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
-  EXPECT_EQ(again.exitCode, 0);
-  EXPECT_EQ(again.output, "cells task 1: done already\n");
-
-  const ChildResult finish = runChild({"stage", "finish", "--work", work.string(), "--json"});
-  ASSERT_EQ(finish.exitCode, 0) << finish.output;
-  EXPECT_LE(jsonNumber(finish.output, "peak_rss_bytes"), kCap) << "finish";
-  EXPECT_EQ(jsonNumber(finish.output, "file_bytes"), fs::file_size(staged));
-  EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
-  for (const auto& entry : fs::directory_iterator(work))
-    EXPECT_EQ(entry.path().string().find(".partial"), std::string::npos) << entry.path();
 }
 
 TEST(Stage, AMeshThatFitsIsBuiltByThePlan) {
@@ -114,6 +163,9 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
                                    "`facetree stage plan`)\n");
   const ChildResult unknown = runChild({"stage", "merge"});
   EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_EQ(unknown.output,
+            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, finish) (see facetree "
+            "--help)\n");
 }
 
 }  // namespace

@@ -315,62 +315,109 @@ TEST(OutOfCore, CellTasksGiveTheSameBytes) {
   }
 }
 
-// The stages as tasks of separate processes over one work directory: the plan, each cells task in a
+// Runs every task of the steps `next` lists (and of those the grid lists), each in a child process
+// of its own, the tasks of a step in reverse order; returns the tasks run per step.
+std::map<std::string, uint32_t> runSteps(const ClusterJob& job, const fs::path& work,
+                                         std::vector<StageStep> next) {
+  std::map<std::string, uint32_t> ran;
+  while (!next.empty()) {
+    const StageStep step = next.front();
+    next.erase(next.begin());
+    if (step.name == "finish") break;
+    ran[step.name] = step.tasks;
+    for (uint32_t task = step.tasks; task-- > 0;) {
+      if (step.name == "grid") {
+        next = runStageTask(job, work, "grid", 0).next;
+        continue;
+      }
+      const pid_t child = fork();
+      EXPECT_GE(child, 0);
+      if (child == 0) {
+        int code = 1;
+        try {
+          code = runStageTask(job, work, step.name, task).ran ? 0 : 2;
+        } catch (...) {
+        }
+        _exit(code);
+      }
+      int status = 0;
+      EXPECT_EQ(waitpid(child, &status, 0), child);
+      EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << step.name << " task " << task;
+    }
+  }
+  return ran;
+}
+
+// The stages as tasks of separate processes over one work directory: the plan, each task in a
 // child process of its own (in reverse order), the finish: the bytes of runClusterJob with the same
-// job. A done task is not run again; a finish that misses a task's manifest names it.
+// job, for a binary PLY read in ranges and for a mesh the plan reads whole (--weld). A done task is
+// not run again; a finish that misses a task's manifest names it.
 TEST(OutOfCore, StagesAsTasksInSeparateProcessesGiveTheSameBytes) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
+  for (const bool ranges : {true, false}) {
+    SCOPED_TRACE(ranges ? "read in ranges" : "read whole");
+    ClusterJob job;
+    job.input = mesh;
+    job.forceCellFaces = 4000;
+    job.load.weldPositions = !ranges;
+    job.output = dir / "whole.fch";
+    runClusterJob(job);
+
+    const fs::path work = dir / "work";
+    fs::remove_all(work);
+    job.output = dir / "staged.fch";
+    fs::remove(job.output);
+    job.cellTasks = 4;
+    job.readTasks = 5;
+    const StagePlan plan = planStages(job, work);
+    EXPECT_TRUE(plan.report.outOfCore);
+    EXPECT_FALSE(fs::exists(job.output)) << "the plan writes no file";
+    const std::map<std::string, uint32_t> ran = runSteps(job, work, plan.next);
+    if (ranges) {
+      EXPECT_EQ(plan.cellsTasks, 0u) << "the cells are known after the grid";
+      EXPECT_EQ(ran, (std::map<std::string, uint32_t>{
+                         {"read", 5}, {"count", 5}, {"grid", 1}, {"bin", 5}, {"cells", 4}}));
+    } else {
+      EXPECT_EQ(plan.cellsTasks, 4u);
+      EXPECT_EQ(ran, (std::map<std::string, uint32_t>{{"cells", 4}}));
+    }
+    for (const auto& [step, tasks] : ran) {
+      if (step == "grid") continue;
+      EXPECT_FALSE(runStageTask(job, work, step, tasks - 1).ran) << step << ": a done task is not run again";
+    }
+    const JobReport report = finishStages(job, work);
+    EXPECT_TRUE(report.outOfCore);
+    EXPECT_EQ(report.fileBytes, fs::file_size(job.output));
+    EXPECT_EQ(bytesOf(job.output), bytesOf(dir / "whole.fch"));
+    if (ranges) expectHierarchyOf(job.output, mesh);
+    for (const auto& entry : fs::directory_iterator(work))
+      EXPECT_EQ(entry.path().extension(), entry.path().extension() == ".manifest" ? ".manifest" : ".spill")
+          << entry.path() << ": a partial file left behind";
+    EXPECT_THROW(runStageTask(job, work, ranges ? "bin" : "cells", 9), std::invalid_argument);
+    EXPECT_THROW(runStageTask(job, work, "merge", 0), std::invalid_argument);
+  }
+
+  // Planned again, the same job keeps its plan and its done tasks (the last one above, read
+  // whole); another job starts afresh.
   ClusterJob job;
   job.input = mesh;
   job.forceCellFaces = 4000;
-  job.output = dir / "whole.fch";
-  runClusterJob(job);
-
-  const fs::path work = dir / "work";
+  job.load.weldPositions = true;
   job.output = dir / "staged.fch";
   job.cellTasks = 4;
-  const StagePlan plan = planStages(job, work);
-  ASSERT_EQ(plan.cellsTasks, 4u);
-  EXPECT_TRUE(plan.report.outOfCore);
-  EXPECT_FALSE(fs::exists(job.output)) << "the plan writes no file";
-  for (uint32_t task = plan.cellsTasks; task-- > 0;) {
-    const pid_t child = fork();
-    ASSERT_GE(child, 0);
-    if (child == 0) {
-      int code = 1;
-      try {
-        code = runCellsTask(job, work, task) ? 0 : 2;
-      } catch (...) {
-      }
-      _exit(code);
-    }
-    int status = 0;
-    ASSERT_EQ(waitpid(child, &status, 0), child);
-    ASSERT_TRUE(WIFEXITED(status));
-    EXPECT_EQ(WEXITSTATUS(status), 0) << "cells task " << task;
-  }
-  EXPECT_FALSE(runCellsTask(job, work, 2)) << "a done task is not run again";
-  const JobReport report = finishStages(job, work);
-  EXPECT_TRUE(report.outOfCore);
-  EXPECT_EQ(report.fileBytes, fs::file_size(job.output));
-  EXPECT_EQ(bytesOf(job.output), bytesOf(dir / "whole.fch"));
-  expectHierarchyOf(job.output, mesh);
-  for (const auto& entry : fs::directory_iterator(work))
-    EXPECT_EQ(entry.path().extension(), entry.path().extension() == ".manifest" ? ".manifest" : ".spill")
-        << entry.path() << ": a partial file left behind";
-
-  // Planned again, the same job keeps its plan and its done tasks; another job starts afresh.
+  job.readTasks = 5;
+  const fs::path work = dir / "work";
   const auto planned = fs::last_write_time(work / "plan.manifest");
   EXPECT_EQ(planStages(job, work).cellsTasks, 4u);
   EXPECT_EQ(fs::last_write_time(work / "plan.manifest"), planned);
-  EXPECT_FALSE(runCellsTask(job, work, 0)) << "the same plan keeps the tasks done";
+  EXPECT_FALSE(runStageTask(job, work, "cells", 0).ran) << "the same plan keeps the tasks done";
   ClusterJob other = job;
   other.cellTasks = 3;
   EXPECT_EQ(planStages(other, work).cellsTasks, 3u);
   EXPECT_FALSE(fs::exists(work / "cells-3.manifest")) << "the old plan's tasks go with it";
   EXPECT_FALSE(fs::exists(work / "cells-0.manifest"));
-  for (uint32_t task = 0; task < 3; ++task) EXPECT_TRUE(runCellsTask(other, work, task));
+  for (uint32_t task = 0; task < 3; ++task) EXPECT_TRUE(runStageTask(other, work, "cells", task).ran);
   finishStages(other, work);
   EXPECT_EQ(bytesOf(other.output), bytesOf(dir / "whole.fch"));
 

@@ -1,7 +1,7 @@
 """facetree.distributed: the build's stages as tasks of a dask.distributed LocalCluster give the bytes
-of `facetree build` at the same cap, with 1, 2 or 3 worker processes, and when a worker is killed
-during the cells stage; a task that fails on bad input raises the reader's error at the caller and
-leaves no work directory."""
+of `facetree build` at the same cap, with 1, 2 or 3 worker processes, for a binary PLY read in ranges
+and a mesh read whole, and when a worker is killed during the cells stage; a task that fails on bad
+input raises the reader's error at the caller and leaves no work directory."""
 import os
 import signal
 import subprocess
@@ -61,7 +61,12 @@ def test_two_workers_give_the_bytes_of_build(terrain, tmp_path):
     assert (tmp_path / "dask.fch").read_bytes() == whole
     assert report["out_of_core"] and report["cells_tasks"] >= 8
     assert report["file_bytes"] == len(whole)
-    assert stages[0] == "plan" and stages[-1] == "finish" and stages.count("cells") == report["cells_tasks"]
+    tasks = report["tasks"]
+    assert list(tasks) == ["read", "count", "grid", "bin", "cells", "finish"] and tasks["read"] == 8
+    # Each step's tasks report in turn, after the step before.
+    order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
+    assert order == ["plan", "read", "count", "grid", "bin", "cells", "finish"]
+    assert all(stages.count(step) == count for step, count in tasks.items())
     assert not work.exists(), "the work directory goes with the build"
 
 
@@ -70,11 +75,18 @@ def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
     mesh, whole = small
     client, cluster = local_client(workers)
     try:
-        fd.build(mesh, tmp_path / "dask.fch", client, memory="64M", cell_tasks=7)
+        ranges = fd.build(mesh, tmp_path / "dask.fch", client, memory="64M", cell_tasks=7, read_tasks=3)
+        assert (tmp_path / "dask.fch").read_bytes() == whole
+        assert ranges["tasks"]["read"] == 3 and ranges["tasks"]["cells"] == 7
+        if workers == 1:  # read whole by the plan: the same mesh zstd-compressed
+            compressed = tmp_path / "small.ply.zst"
+            subprocess.run(["zstd", "-q", "-1", str(mesh), "-o", str(compressed)], check=True)
+            one = fd.build(compressed, tmp_path / "dask-zst.fch", client, memory="64M", cell_tasks=7)
+            assert (tmp_path / "dask-zst.fch").read_bytes() == whole
+            assert list(one["tasks"]) == ["cells", "finish"]
     finally:
         client.close()
         cluster.close()
-    assert (tmp_path / "dask.fch").read_bytes() == whole
 
 
 def test_a_worker_killed_during_the_cells_stage_loses_nothing(terrain, tmp_path):
@@ -119,5 +131,26 @@ def test_bad_input_raises_the_readers_error_and_leaves_no_work(cli, shared_data,
         fd.build(truncated, tmp_path / "x.fch", work_dir=work, memory="64M", retries=0)
     assert str(raised.value) == result.stderr[len("facetree: "):].strip()
     assert raised.value.exit_code == 3
+    assert not work.exists()
+    assert not (tmp_path / "x.fch").exists()
+
+
+def test_a_bad_record_read_in_ranges_raises_the_readers_error(cli, small, tmp_path):
+    mesh, _ = small
+    data = bytearray(mesh.read_bytes())
+    header = data.index(b"end_header\n") + len(b"end_header\n")
+    vertices = int(data[:header].split(b"element vertex ")[1].split(b"\n")[0])
+    record = header + 12 * vertices + 13 * 123_456  # a face in the second of three ranges
+    data[record + 5:record + 9] = (vertices + 7).to_bytes(4, "little")
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(bytes(data))
+    result = subprocess.run([str(cli), "build", str(bad), "-o",
+                             str(tmp_path / "x.fch"), "--memory", "64M"], capture_output=True, text=True)
+    assert result.returncode == 3
+    work = tmp_path / "work"
+    with pytest.raises(facetree.InputError) as raised:
+        fd.build(bad, tmp_path / "x.fch", work_dir=work, memory="64M", read_tasks=3, retries=0)
+    assert str(raised.value) == result.stderr[len("facetree: "):].strip()
+    assert f"face 123456: vertex index {vertices + 7} out of range" in str(raised.value)
     assert not work.exists()
     assert not (tmp_path / "x.fch").exists()

@@ -1,0 +1,113 @@
+// Internal to grid/: the work directory of the stages run as tasks (facetree/grid.h planStages,
+// runStageTask, finishStages; docs/out_of_core.md): its files' names, the plan, and what the cells
+// tasks and the finish load of it.
+//
+// Work directory:
+//   plan.manifest               the job's fingerprint and the plan; for a mesh read whole, the
+//                               read's and the bin's results, the grid and the binned spills' index
+//   cell-faces.spill, ghosts.spill          the binned faces (a mesh read whole)
+//   read-I.manifest             read task I of a mesh read in ranges: its triangles' box and counts
+//   count-I.manifest            count task I: its faces' bins
+//   grid.manifest               the grid of every range's faces, the cells tasks' bounds
+//   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
+//   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
+//   cells-T.manifest            its cells' records
+// A task's manifest marks it done.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "out_of_core.h"
+#include "stage_manifest.h"
+
+namespace facetree {
+
+inline constexpr std::string_view kPlanKind = "plan";
+inline constexpr std::string_view kGridKind = "grid";
+
+inline std::filesystem::path planPath(const std::filesystem::path& work) {
+  return work / "plan.manifest";
+}
+inline std::filesystem::path gridPath(const std::filesystem::path& work) {
+  return work / "grid.manifest";
+}
+// The manifest of task `task` of a step of many tasks ("read", "count", "bin", "cells").
+inline std::filesystem::path taskManifestPath(const std::filesystem::path& work, std::string_view step,
+                                              uint32_t task) {
+  return work / (std::string(step) + "-" + std::to_string(task) + ".manifest");
+}
+// The kind its manifest says it is ("cells task").
+inline std::string taskKind(std::string_view step) {
+  return std::string(step) + " task";
+}
+// The stem of bin task `task`'s spills (distributeFaces).
+inline std::string binTaskStem(uint32_t task) {
+  return "bin-" + std::to_string(task) + "-";
+}
+
+// What the file depends on: the input (its path, size and time of change) and every option that
+// shapes the build. A plan of the same job is not made again; any other plan starts afresh.
+std::string jobFingerprint(const ClusterJob& job);
+void putReport(ManifestWriter& out, const JobReport& report);
+void takeReport(ManifestReader& in, JobReport& report);
+// The grid's owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB.
+void putOwners(ManifestWriter& out, std::span<const uint32_t> owners);
+std::vector<uint32_t> takeOwners(ManifestReader& in, const std::filesystem::path& path);
+
+// The plan of a mesh read in ranges (plan.manifest past its common part): the read tasks' faces
+// [faceBounds[i], faceBounds[i + 1]) and vertices likewise (whose non-finite ones they count).
+struct RangePlan {
+  uint64_t memoryCap = 0;
+  OutOfCorePlan plan;  // planCells'; planLeaves once the triangles are counted
+  std::vector<uint64_t> faceBounds, vertexBounds;
+  JobReport report;  // the input's info
+};
+
+// What the cells tasks and the finish need: the plan's manifest, and for a mesh read in ranges the
+// grid's and every bin task's.
+struct PlanState {
+  std::string fingerprint;
+  bool inCore = false;
+  bool ranges = false;
+  uint64_t memoryCap = 0;
+  MeshExtent extent;
+  OutOfCorePlan plan;
+  JobReport report;  // the read's and the bin's part
+  uint32_t cellCount = 0;
+  std::vector<uint32_t> owners;  // the grid's owner table
+  // The binned spills' segments: their files and indexes.
+  std::vector<std::filesystem::path> facesFiles, ghostsFiles;
+  std::vector<std::string> facesIndex, ghostsIndex;
+  std::vector<uint32_t> bounds;  // cells task t: cells [bounds[t], bounds[t + 1])
+  // Ranges only: the plan, the grid's split bins and the faces of each in the ranges before range
+  // i (splitSeen[i * splitBins.size() + k]).
+  RangePlan rangePlan;
+  std::vector<CellGrid::SplitBin> splitBins;
+  std::vector<uint64_t> splitSeen;
+};
+// Throws Error (Input) naming the manifest that is missing or does not fit the others.
+PlanState loadPlan(const std::filesystem::path& work);
+// plan.manifest alone: the fingerprint, and the range plan when there is one.
+PlanState loadPlanManifest(const std::filesystem::path& work);
+
+// The stages of a binary PLY read in ranges (stage_ranges.cpp). planRanges writes the plan when
+// `job` reads such a mesh out of core (else returns false and writes nothing); each task returns
+// false, doing nothing, when its manifest is there already.
+bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
+bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
+// spills when `bins`.
+void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);
+// The steps that follow the grid: bin, cells and finish.
+std::vector<StageStep> stepsAfterGrid(const PlanState& state);
+// The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
+uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
+
+}  // namespace facetree

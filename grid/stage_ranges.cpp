@@ -1,0 +1,382 @@
+// The stages of a binary PLY read in ranges (stage_files.h). Its face records have one size, so
+// task i reads faces [faceBounds[i], faceBounds[i + 1]) straight from the input (readPlyFaceRange)
+// and every step reads its range again rather than spilling it: a range is read three times, each
+// about 60 ns a face, where a spill would cost zstd both ways on 56-byte records.
+//
+//   read   each range's box, counts and largest face id (and its share of the vertices' non-finite
+//          count): the mesh's box, which the grid's bins need, is known once every range is read
+//   count  each range's faces by bin of the mesh's grid, nonzero bins only
+//   grid   the histograms summed, partitioned into cells (CellGrid::partition), the leaves planned;
+//          for a bin split over several cells, the faces each range's predecessors put in it
+//   bin    each range's faces into its cells' buckets, a segment of the binned spills of its own
+//          (distributeFaces): the cells see their faces in file order, as one pass would bin them
+//
+// The tasks of a step depend only on the steps before, so a rerun of any of them gives the same
+// files, and the binned segments in range order are what the single process's one pass makes.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "facetree/grid.h"
+#include "facetree/stream.h"
+#include "out_of_core.h"
+#include "stage_files.h"
+
+namespace facetree {
+namespace {
+
+// Faces a read task takes when the job does not say: a few seconds of one core a step.
+constexpr uint64_t kFacesPerReadTask = uint64_t{1} << 18;
+// A range is read in chunks of about this many bytes of the cap per face (readPlyFaceRange's
+// buffers and the records made of them), a quarter of the cap at most.
+constexpr uint64_t kChunkBytesPerFace = 160;
+
+size_t chunkFaces(uint64_t cap) {
+  return static_cast<size_t>(std::clamp<uint64_t>(cap / 4 / kChunkBytesPerFace, 4096, uint64_t{1} << 20));
+}
+
+PlyFaceRanges reopen(const ClusterJob& job) {
+  std::optional<PlyFaceRanges> file = plyFaceRanges(job.input);
+  if (!file)
+    throw Error(ErrorCategory::Input,
+                job.input.string() + ": no longer a binary PLY read in ranges (changed since the plan)");
+  return std::move(*file);
+}
+
+struct RangeTask {
+  PlanState plan;
+  uint64_t firstFace = 0, faces = 0, firstVertex = 0, vertices = 0;
+};
+RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, uint32_t task) {
+  RangeTask t{loadPlanManifest(work)};
+  const RangePlan& r = t.plan.rangePlan;
+  if (!t.plan.ranges || task + 1 >= r.faceBounds.size())
+    throw std::invalid_argument("no " + std::string(step) + " task " + std::to_string(task) + " in " +
+                                work.string());
+  t.firstFace = r.faceBounds[task];
+  t.faces = r.faceBounds[task + 1] - t.firstFace;
+  t.firstVertex = r.vertexBounds[task];
+  t.vertices = r.vertexBounds[task + 1] - t.firstVertex;
+  return t;
+}
+
+// The range's triangles as the single process's read makes them (FaceRecord: corner positions,
+// vertex ids, face id), those touching a non-finite vertex left out and counted. Returns that count.
+uint64_t forEachRecord(const ClusterJob& job, const char* phase, const PlyFaceRanges& file,
+                       const RangeTask& t, ReadStats& stats,
+                       const std::function<void(std::span<const FaceRecord>)>& take) {
+  std::vector<FaceRecord> records;
+  uint64_t skipped = 0, done = 0;
+  readPlyFaceRange(
+      file, t.firstFace, t.faces, chunkFaces(t.plan.memoryCap),
+      [&](std::span<const Triangle> triangles) {
+        records.clear();
+        for (const Triangle& tri : triangles) {
+          FaceRecord r{};
+          bool finite = true;
+          for (int k = 0; k < 3; ++k) {
+            const glm::vec3& p = tri.position[k];
+            finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+            r.vertex[k] = tri.vertex[k];
+            std::memcpy(&r.position[3 * k], &p, sizeof p);
+          }
+          if (!finite) {
+            ++skipped;
+            continue;
+          }
+          r.face = tri.face;
+          records.push_back(r);
+        }
+        take(records);
+        done += triangles.size();
+        checkJobProgress(job, phase, done, t.faces);
+      },
+      stats);
+  return skipped;
+}
+
+// A read task's results.
+struct RangeRead {
+  glm::vec3 min, max;
+  uint64_t triangles = 0, maxFace = 0;
+  ReadStats stats;  // faces, triangles handed on, degenerate and skipped ones, non-finite vertices
+};
+static_assert(std::is_trivially_copyable_v<RangeRead>);
+
+// Every read task's results, summed: the mesh's extent (framed) and the read's report.
+MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, JobReport& report) {
+  const auto tasks = static_cast<uint32_t>(plan.rangePlan.faceBounds.size() - 1);
+  MeshExtent extent;
+  extent.min = glm::vec3(std::numeric_limits<float>::infinity());
+  extent.max = -extent.min;
+  report = plan.report;
+  for (uint32_t i = 0; i < tasks; ++i) {
+    ManifestReader in(taskManifestPath(work, "read", i), taskKind("read"));
+    const auto r = in.take<RangeRead>();
+    in.finish();
+    extent.min = glm::min(extent.min, r.min);
+    extent.max = glm::max(extent.max, r.max);
+    extent.triangles += r.triangles;
+    extent.maxFace = std::max(extent.maxFace, r.maxFace);
+    report.stats.faces += r.stats.faces;
+    report.stats.triangles += r.stats.triangles;
+    report.stats.degenerateTriangles += r.stats.degenerateTriangles;
+    report.stats.skippedTriangles += r.stats.skippedTriangles;
+    report.stats.nonFiniteVertices += r.stats.nonFiniteVertices;
+  }
+  return extent;
+}
+
+// A count task's nonzero bins and their faces.
+struct RangeCounts {
+  std::vector<uint32_t> bins, faces;
+};
+RangeCounts loadCounts(const std::filesystem::path& work, uint32_t task) {
+  ManifestReader in(taskManifestPath(work, "count", task), taskKind("count"));
+  RangeCounts c{in.takeVector<uint32_t>(), in.takeVector<uint32_t>()};
+  in.finish();
+  if (c.bins.size() != c.faces.size() ||
+      std::any_of(c.bins.begin(), c.bins.end(), [](uint32_t b) { return b >= CellGrid::kBins; }))
+    throw Error(ErrorCategory::Input, taskManifestPath(work, "count", task).string() + ": bins out of range");
+  return c;
+}
+
+std::filesystem::path binFacesPath(const std::filesystem::path& work, uint32_t task) {
+  return work / binnedFile(binTaskStem(task) + "cell-faces");
+}
+std::filesystem::path binGhostsPath(const std::filesystem::path& work, uint32_t task) {
+  return work / binnedFile(binTaskStem(task) + "ghosts");
+}
+
+// The grid manifest's fields, in order; the bin tasks' indexes when `bins`.
+void loadGridManifest(const std::filesystem::path& work, PlanState& s, bool bins) {
+  ManifestReader in(gridPath(work), kGridKind);
+  takeReport(in, s.report);
+  s.extent = in.take<MeshExtent>();
+  s.plan = in.take<OutOfCorePlan>();
+  s.cellCount = in.take<uint32_t>();
+  s.owners = takeOwners(in, gridPath(work));
+  s.splitBins = in.takeVector<CellGrid::SplitBin>();
+  s.splitSeen = in.takeVector<uint64_t>();
+  s.bounds = in.takeVector<uint32_t>();
+  in.finish();
+  const size_t tasks = s.rangePlan.faceBounds.size() - 1;
+  if (s.splitSeen.size() != tasks * s.splitBins.size())
+    throw Error(ErrorCategory::Input, gridPath(work).string() + ": split bins of another plan");
+  if (!bins) return;
+  for (uint32_t i = 0; i < tasks; ++i) {
+    ManifestReader bin(taskManifestPath(work, "bin", i), taskKind("bin"));
+    s.facesFiles.push_back(binFacesPath(work, i));
+    s.ghostsFiles.push_back(binGhostsPath(work, i));
+    s.facesIndex.push_back(bin.takeBytes());
+    s.ghostsIndex.push_back(bin.takeBytes());
+    bin.finish();
+  }
+}
+
+}  // namespace
+
+bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result) {
+  if (job.input == "-" || job.load.weldPositions) return false;
+  std::optional<PlyFaceRanges> file = plyFaceRanges(job.input);
+  if (!file) return false;
+  // Out of core exactly when the single process's read would go out of core (runJob): positions
+  // over their budget, or the in-core estimate over the cap.
+  const uint64_t cap = jobMemoryCap(job);
+  const uint64_t faces = file->faceCount, vertices = file->vertexCount;
+  if (!(job.forceCellFaces > 0 || vertices * sizeof(glm::vec3) > positionsBudget(cap) ||
+        inCoreEstimate(faces, vertices) > cap))
+    return false;
+  checkOutputWritable(job.output);
+  const ClusterJob effective = effectiveJob(job);
+  const OutOfCorePlan plan = planCells(effective, cap);
+  uint64_t tasks = job.readTasks ? job.readTasks : (faces + kFacesPerReadTask - 1) / kFacesPerReadTask;
+  tasks = std::clamp<uint64_t>(tasks, 1, std::max<uint64_t>(faces, 1));
+  std::vector<uint64_t> faceBounds, vertexBounds;
+  for (uint64_t i = 0; i <= tasks; ++i) {
+    faceBounds.push_back(faces * i / tasks);
+    vertexBounds.push_back(vertices * i / tasks);
+  }
+  JobReport& report = result.report;
+  report.outOfCore = true;
+  report.memoryCap = cap;
+  report.info = file->info;
+  report.stats.vertices = vertices;
+  report.stats.inputBytes = file->fileBytes;
+  report.cellFaceLimit = plan.cellFaceLimit;
+  ManifestWriter out;
+  out.putBytes(jobFingerprint(job));
+  out.put(false);
+  putReport(out, report);
+  out.put(true);  // read in ranges
+  out.put(cap);
+  out.put(plan);
+  out.putVector(faceBounds);
+  out.putVector(vertexBounds);
+  out.commit(planPath(work), kPlanKind);
+  const auto n = static_cast<uint32_t>(tasks);
+  result.next = {{"read", n}, {"count", n}, {"grid", 1}};
+  return true;
+}
+
+bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path path = taskManifestPath(work, "read", task);
+  if (std::filesystem::exists(path)) return false;
+  const RangeTask t = rangeTask(work, "read", task);
+  const PlyFaceRanges file = reopen(job);
+  RangeRead r;
+  r.min = glm::vec3(std::numeric_limits<float>::infinity());
+  r.max = -r.min;
+  r.stats.skippedTriangles =
+      forEachRecord(job, "read", file, t, r.stats, [&](std::span<const FaceRecord> records) {
+        for (const FaceRecord& f : records) {
+          for (int i = 0; i < 9; ++i) {
+            r.min[i % 3] = std::min(r.min[i % 3], f.position[i]);
+            r.max[i % 3] = std::max(r.max[i % 3], f.position[i]);
+          }
+          r.maxFace = std::max(r.maxFace, f.face);
+        }
+        r.triangles += records.size();
+      });
+  r.stats.triangles -= r.stats.skippedTriangles;
+  r.stats.nonFiniteVertices = countNonFiniteVertices(file, t.firstVertex, t.vertices);
+  ManifestWriter out;
+  out.put(r);
+  out.commit(path, taskKind("read"));
+  return true;
+}
+
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path path = taskManifestPath(work, "count", task);
+  if (std::filesystem::exists(path)) return false;
+  const RangeTask t = rangeTask(work, "count", task);
+  JobReport report;
+  const MeshExtent extent = readExtent(work, t.plan, report);
+  const PlyFaceRanges file = reopen(job);
+  CellGrid grid(extent.min, extent.max);
+  ReadStats stats;
+  forEachRecord(job, "count", file, t, stats, [&](std::span<const FaceRecord> records) {
+    for (const FaceRecord& r : records) grid.count(grid.faceBin(r.corner(0), r.corner(1), r.corner(2)));
+  });
+  RangeCounts counts;
+  const std::span<const uint32_t> table = grid.ownerTable();  // the counts, before any partition
+  for (uint32_t b = 0; b < table.size(); ++b)
+    if (table[b] != 0) {
+      counts.bins.push_back(b);
+      counts.faces.push_back(table[b]);
+    }
+  ManifestWriter out;
+  out.putVector(counts.bins);
+  out.putVector(counts.faces);
+  out.commit(path, taskKind("count"));
+  return true;
+}
+
+bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
+  if (std::filesystem::exists(gridPath(work))) return false;
+  PlanState state = loadPlanManifest(work);
+  if (!state.ranges)
+    throw std::invalid_argument("no grid step in " + work.string() + ": the plan binned the mesh");
+  const auto tasks = static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1);
+  JobReport report;
+  MeshExtent extent = readExtent(work, state, report);
+  const ClusterJob effective = effectiveJob(job);
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  const StageContext context{effective, temp, state.memoryCap, report, &work};
+  frameExtent(context, extent);
+
+  CellGrid grid(extent.min, extent.max);
+  for (uint32_t i = 0; i < tasks; ++i) {
+    const RangeCounts counts = loadCounts(work, i);
+    for (size_t k = 0; k < counts.bins.size(); ++k) grid.count(counts.bins[k], counts.faces[k]);
+  }
+  const std::vector<uint32_t> binFaces(grid.ownerTable().begin(), grid.ownerTable().end());
+  OutOfCorePlan plan = state.plan;
+  grid.partition(plan.cellFaceLimit);
+  planLeaves(plan, extent.triangles);
+  const uint32_t cells = grid.cellCount();
+  report.cells = cells;
+  report.cellFaceLimit = plan.cellFaceLimit;
+
+  // The faces of each cell, and of each split bin those of the ranges before each range.
+  std::vector<CellGrid::SplitBin> split = grid.splitBins();
+  std::vector<uint64_t> cellFaces(cells, 0);
+  const std::span<const uint32_t> owners = grid.ownerTable();
+  for (uint32_t b = 0; b < CellGrid::kBins; ++b) cellFaces[owners[b]] += binFaces[b];
+  const uint64_t limit = std::max<uint64_t>(plan.cellFaceLimit, 1);
+  for (const CellGrid::SplitBin& s : split) {
+    cellFaces[s.firstCell] -= binFaces[s.bin];
+    for (uint64_t left = binFaces[s.bin], c = s.firstCell; left > 0; ++c) {
+      cellFaces[c] += std::min(left, limit);
+      left -= std::min(left, limit);
+    }
+  }
+  std::vector<uint64_t> seen(size_t{tasks} * split.size(), 0);
+  if (!split.empty()) {
+    std::vector<uint64_t> sum(split.size(), 0);
+    for (uint32_t i = 0; i < tasks; ++i) {
+      const RangeCounts counts = loadCounts(work, i);
+      for (size_t k = 0; k < split.size(); ++k) {
+        seen[size_t{i} * split.size() + k] = sum[k];
+        const auto at = std::lower_bound(counts.bins.begin(), counts.bins.end(), split[k].bin);
+        if (at != counts.bins.end() && *at == split[k].bin)
+          sum[k] += counts.faces[size_t(at - counts.bins.begin())];
+      }
+    }
+  }
+  ManifestWriter out;
+  putReport(out, report);
+  out.put(extent);
+  out.put(plan);
+  out.put(cells);
+  putOwners(out, owners);
+  out.putVector(split);
+  out.putVector(seen);
+  out.putVector(cellTaskBounds(cellFaces, cellsTaskCount(job, cells)));
+  out.commit(gridPath(work), kGridKind);
+  return true;
+}
+
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path path = taskManifestPath(work, "bin", task);
+  if (std::filesystem::exists(path)) return false;
+  RangeTask t = rangeTask(work, "bin", task);
+  loadGridManifest(work, t.plan, /*bins=*/false);
+  const PlanState& state = t.plan;
+  const ClusterJob effective = effectiveJob(job);
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  JobReport report;
+  const StageContext context{effective, temp, state.memoryCap, report, &work};
+  BinnedFaces binned;
+  try {
+    binned.grid = CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
+    std::vector<CellGrid::SplitBin> split = state.splitBins;
+    for (size_t k = 0; k < split.size(); ++k)
+      split[k].seen = state.splitSeen[size_t{task} * split.size() + k];
+    binned.grid->resumeSplitBins(split, state.plan.cellFaceLimit);
+  } catch (const std::invalid_argument& e) {
+    throw Error(ErrorCategory::Input, gridPath(work).string() + ": " + e.what());
+  }
+  const PlyFaceRanges file = reopen(job);
+  ReadStats stats;
+  distributeFaces(context, binned, binTaskStem(task), t.faces,
+                  [&](const auto& take) { forEachRecord(job, "bin", file, t, stats, take); });
+  ManifestWriter out;
+  out.putBytes(binned.faces.front()->index());
+  out.putBytes(binned.ghosts.front()->index());
+  out.commit(path, taskKind("bin"));
+  return true;
+}
+
+void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins) {
+  loadGridManifest(work, state, bins);
+}
+
+std::vector<StageStep> stepsAfterGrid(const PlanState& state) {
+  return {{"bin", static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1)},
+          {"cells", static_cast<uint32_t>(state.bounds.size() - 1)},
+          {"finish", 1}};
+}
+
+}  // namespace facetree
