@@ -27,6 +27,7 @@
 #include "facetree/io.h"
 #include "fch_format.h"
 #include "fch_node_code.h"
+#include "fch_piece.h"
 #include "output_file.h"
 
 namespace facetree {
@@ -278,11 +279,13 @@ struct ClusterFileWriter::State {
   std::optional<CompressorPool> pool;
   std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
   bool stream = false;               // isStreamOutput: the header cannot be written last
+  std::optional<PieceRange> piece;   // WriteOptions::piece: every frame spilled, a piece file written
   Section sections[kSections];
   std::vector<fch::NodeCode> codes;       // a node run's records (addNodeRun)
   std::vector<fch::NodeCode> frameCodes;  // the node frame being gathered
   // Compact boxes: the decoded boxes of the parents of nodes still to come, by child index.
   std::unordered_map<uint32_t, NodeBox> parentBoxes;
+  bool hasRoot = false;  // the root arrived (compact boxes: its box is layout.rootBox)
   std::vector<glm::vec3> vertices;
   std::vector<uint32_t> indices;
   std::vector<uint64_t> ids;
@@ -367,10 +370,8 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
     reject("geometryPerFrame " + str(options.geometryPerFrame) + " out of range 1 ... " +
            str(kMaxGeometryPerFrame));
+  layout = fch::startLayout(info, options);
   FileHeader& h = layout.header;
-  h = info.header;
-  h.version = kFchVersion;
-  h.originalNodeCount = std::max(h.originalNodeCount, h.nodeCount);
   if (h.branching < 2 || h.branching > kMaxBranching)
     reject("branching factor " + str(h.branching) + " out of range 2 ... 8");
   if (h.triangleCount > fch::kMaxTriangles) reject("too many triangles: " + str(h.triangleCount));
@@ -383,12 +384,6 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
            " triangles (at most 3 per triangle)");
   nodeLimit = h.originalNodeCount;
   maxOriginalFace = info.maxOriginalFace;
-  layout.nodesPerFrame = options.nodesPerFrame;
-  layout.geometryPerFrame = options.geometryPerFrame;
-  layout.zstdLevel = options.zstdLevel;
-  layout.originalIdBytes = maxOriginalFace > std::numeric_limits<uint32_t>::max() ? 8 : 4;
-  h.boundsMin = glm::vec3(std::numeric_limits<float>::infinity());
-  h.boundsMax = -h.boundsMin;
 
   section(FchSection::Nodes).declared = h.nodeCount;
   section(FchSection::Vertices).declared = h.vertexCount;
@@ -403,12 +398,28 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
   if (frames > std::numeric_limits<uint32_t>::max()) reject("too many frames: " + str(frames));
   frontBytes = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
 
+  piece = options.piece;
+  if (piece) {
+    const PieceRange& r = *piece;
+    const auto startAt = [&](FchSection sec, uint64_t first, uint64_t end) {
+      if (first > end || end > section(sec).declared || first % perFrame(sec) != 0 ||
+          (end % perFrame(sec) != 0 && end != section(sec).declared))
+        reject(std::string("piece: ") + sectionName(sec) + " " + str(first) + " ... " + str(end) +
+               " not on frame boundaries of " + str(section(sec).declared));
+      section(sec).arrived = first;
+      section(sec).declared = end;
+    };
+    startAt(FchSection::Nodes, r.firstNode, r.endNode);
+    startAt(FchSection::Vertices, r.firstVertex, r.endVertex);
+    startAt(FchSection::Triangles, r.firstTriangle, r.endTriangle);
+    startAt(FchSection::OriginalFaces, r.firstTriangle, r.endTriangle);
+  }
   stream = isStreamOutput(out);
   spillDir = !tmpDir.empty()         ? tmpDir
              : stream                ? std::filesystem::temp_directory_path()
              : out.has_parent_path() ? out.parent_path()
                                      : std::filesystem::path(".");
-  if (!stream) {
+  if (!stream && !piece) {
     // Header and index are known last: a placeholder of their exact size, overwritten by finish().
     output.emplace(out);
     const std::string zeros(static_cast<size_t>(std::min<uint64_t>(frontBytes, kCopyBufferBytes)), '\0');
@@ -479,7 +490,7 @@ void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::str
   h.boundsMin = glm::min(h.boundsMin, bounds.lo);
   h.boundsMax = glm::max(h.boundsMax, bounds.hi);
   frame.offset = sec.bytes;
-  if (s == FchSection::Nodes && !stream) {
+  if (s == FchSection::Nodes && !stream && !piece) {
     output->write(bytes);
   } else {
     if (hook) hook(static_cast<int64_t>(bytes.size()));
@@ -604,7 +615,7 @@ void ClusterFileWriter::State::addNodes(std::span<const FchNode> batch) {
       NodeBox parent, decoded;
       const bool hasParent = takeParentBox(index, parent);
       pushCode(fch::quantizeNode(node, index, precision, hasParent ? &parent : nullptr, &decoded));
-      if (!hasParent) layout.rootBox = decoded;
+      if (!hasParent) layout.rootBox = decoded, hasRoot = true;
       for (unsigned c = 0; c < node.childCount; ++c)
         if (!(node.child[c] & kFaceChild)) keepParentBox(node.child[c], decoded);
     } catch (const std::invalid_argument& e) {
@@ -733,21 +744,25 @@ void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
 }
 
 void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
-                                   const std::function<uint32_t(uint64_t)>& childIndex,
-                                   BoxPrecision records) {
+                                   const std::function<uint32_t(uint64_t)>& childIndex, BoxPrecision records,
+                                   size_t skip, size_t take) {
   State& s = *state_;
   s.guarded("addNodeRun", [&] {
     if (records == BoxPrecision::Compact && s.layout.header.boxes != BoxPrecision::Compact)
       s.reject("addNodeRun: compact records in a file of exact boxes");
-    State::Section& sec = s.arriving(FchSection::Nodes, "nodes", n);
+    // Exact-box records in a compact-box file: quantised here against the parents' decoded boxes.
+    const bool compact = s.layout.header.boxes == BoxPrecision::Compact && records == BoxPrecision::Exact;
+    if (skip > n) s.reject("addNodeRun: skips " + str(skip) + " of a run of " + str(n));
+    take = std::min(take, n - skip);
+    if (compact && (skip > 0 || take < n))
+      s.reject("addNodeRun: part of a run of exact records in a compact-box file");
+    State::Section& sec = s.arriving(FchSection::Nodes, "nodes", take);
     std::vector<fch::NodeCode>& codes = s.codes;
     codes.clear();
     if (std::string error = fch::decodeNodeFrame(run, n, records, s.layout.header.branching, codes);
         !error.empty())
       s.reject("node run: " + error);
-    // Exact-box records in a compact-box file: quantised here against the parents' decoded boxes.
-    const bool compact = s.layout.header.boxes == BoxPrecision::Compact && records == BoxPrecision::Exact;
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = skip; i < skip + take; ++i) {
       fch::NodeCode& code = codes[i];
       const uint64_t index = sec.arrived;
       if (index == 0 && records == BoxPrecision::Compact)
@@ -765,13 +780,18 @@ void ClusterFileWriter::addNodeRun(std::string_view run, size_t n, uint64_t runF
         if (std::string error = fch::compactRunRecord(code, index, hasParent ? &parent : nullptr, decoded);
             !error.empty())
           s.reject("node " + str(index) + ": " + error);
-        if (!hasParent) s.layout.rootBox = decoded;
+        if (!hasParent) s.layout.rootBox = decoded, s.hasRoot = true;
         for (unsigned k = 0; k < code.refCount; ++k)
           s.keepParentBox(static_cast<uint32_t>(index + code.ref[k]), decoded);
       }
       s.pushCode(code);
     }
   });
+}
+
+void ClusterFileWriter::addParentBox(uint64_t child, const NodeBox& decoded) {
+  State& s = *state_;
+  s.guarded("addParentBox", [&] { s.keepParentBox(static_cast<uint32_t>(child), decoded); });
 }
 
 void ClusterFileWriter::addVertices(std::span<const glm::vec3> vertices) {
@@ -854,6 +874,30 @@ uint64_t ClusterFileWriter::finish() {
     if (!missing.empty()) s.reject("finish: only " + missing + " arrived");
 
     FchLayout& layout = s.layout;
+    if (s.piece) {
+      fch::PieceTrailer trailer;
+      trailer.range = *s.piece;
+      trailer.boundsMin = layout.header.boundsMin;
+      trailer.boundsMax = layout.header.boundsMax;
+      trailer.hasRoot = s.hasRoot && layout.header.boxes == BoxPrecision::Compact;
+      trailer.rootBox = layout.rootBox;
+      uint64_t offset = 0;
+      for (State::Section& sec : s.sections) {
+        for (FchFrame& f : sec.frames) trailer.frames.push_back(f), trailer.frames.back().offset += offset;
+        offset += sec.bytes;
+      }
+      s.output.emplace(s.name);
+      std::vector<char> buffer(kCopyBufferBytes);
+      for (State::Section& sec : s.sections) {
+        if (sec.spill) sec.spill->copyTo(*s.output, buffer);
+        s.release(sec);
+      }
+      s.output->write(fch::encodePieceTrailer(trailer));
+      const uint64_t bytes = s.output->bytesWritten();
+      s.output->commit();
+      s.finished = true;
+      return bytes;
+    }
     FileHeader& h = layout.header;
     if (h.vertexCount == 0) h.boundsMin = h.boundsMax = glm::vec3(0.0f);
     uint64_t offset = s.frontBytes;

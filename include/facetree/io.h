@@ -13,10 +13,13 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -145,6 +148,13 @@ uint32_t balancedHeight(uint64_t faces, uint32_t branching);
 inline constexpr int kDefaultZstdLevel = 3;
 
 // How a cluster file is written: frame sizes, zstd level, compression threads.
+// The elements a piece of a cluster file holds: [first, end) of each section, the original ids
+// with their triangles (ClusterFileWriter with WriteOptions::piece, assembleClusterFile).
+struct PieceRange {
+  uint64_t firstNode = 0, endNode = 0;
+  uint64_t firstVertex = 0, endVertex = 0;
+  uint64_t firstTriangle = 0, endTriangle = 0;
+};
 struct WriteOptions {
   uint32_t nodesPerFrame = 4096;      // truncation recompresses at most this many nodes
   uint32_t geometryPerFrame = 65536;  // vertices / triangles / ids per frame
@@ -153,6 +163,10 @@ struct WriteOptions {
   // caller encodes the next one (zstd is ~60% of a write); 1: on the calling thread. The bytes are
   // the same either way.
   unsigned threads = 1;
+  // A piece of the file: the writer takes only these elements, in order, and finish() writes a
+  // piece file (their frames and index entries) at its output instead of a cluster file. Each
+  // range starts on a frame boundary and ends on one or at its section's end.
+  std::optional<PieceRange> piece = std::nullopt;
 };
 // Writes atomically (temporary name + rename). Same input, same bytes. A ClusterFileWriter fed
 // the whole file: the bytes of any other writer given the same elements.
@@ -213,9 +227,15 @@ class ClusterFileWriter {
   // Exact) have their boxes quantised here against their parents' as decoded, which the writer keeps
   // until each child arrives; records that compactNodeRun made (`records` Compact) are taken as
   // they are. References are checked as addNodes checks them.
+  // Nodes skip ... skip + take - 1 of the run only, when a piece starts or ends inside it (exact
+  // boxes, or compact records).
   void addNodeRun(std::string_view run, size_t n, uint64_t runFirst,
                   const std::function<uint32_t(uint64_t)>& childIndex,
-                  BoxPrecision records = BoxPrecision::Exact);
+                  BoxPrecision records = BoxPrecision::Exact, size_t skip = 0,
+                  size_t take = std::numeric_limits<size_t>::max());
+  // A piece of a compact-box file: the decoded box of the parent of node `child`, which another
+  // piece holds (compactDecodedBox gives it).
+  void addParentBox(uint64_t child, const NodeBox& decoded);
   void addVertices(uint64_t count, VertexFill fill);
   void addTriangles(uint64_t count, IndexFill indices, IdFill originalFace);
   uint64_t finish();                    // returns the file size; all counts must have arrived
@@ -230,6 +250,13 @@ class ClusterFileWriter {
   struct State;
   std::unique_ptr<State> state_;
 };
+// The cluster file of `pieces` (ClusterFileWriter piece files, in any order) that together hold
+// every element `info` declares, written atomically at `out`: the bytes one writer given the same
+// elements would write, the frames copied as they are. `options` as the pieces' writers had them.
+// Throws Error (Input) naming a piece file that is not one, or pieces that leave a gap or overlap.
+uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileInfo& info,
+                             const WriteOptions& options, std::span<const std::filesystem::path> pieces);
+
 // Upper bound of the bytes a ClusterFileWriter holds (buffers of one frame per section, their
 // payloads and compressed forms, the zstd context, the output buffer), whatever the counts; the
 // frame index adds 40 bytes per frame. Compact boxes add the decoded box of every node whose

@@ -349,5 +349,125 @@ TEST(FchVersion2, NodeRunsAddedAsRecordsGiveTheBytesOfTheirNodes) {
   }
 }
 
+// A file made in pieces by independent writers (the geometry in one, the nodes in pieces of three
+// frames, node runs cut at the pieces' borders, a compact file's parents in other pieces given by
+// addParentBox) and assembled in any order: the bytes of one writer given the same runs and nodes.
+// Pieces that leave a gap are refused naming the piece.
+TEST(FchVersion2, PiecesAssembleToTheBytesOfOneWriter) {
+  Cleanup cleanup;
+  for (BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact})
+    for (unsigned branching : {2u, 8u}) {
+      SCOPED_TRACE(std::to_string(branching) + (boxes == BoxPrecision::Exact ? " exact" : " compact"));
+      const ClusterFile file = buildFile(foldedGrid(), boxes, branching);
+      const std::span<const FchNode> nodes = file.nodes;
+      WriteOptions options;
+      options.nodesPerFrame = 16;
+      options.geometryPerFrame = 64;
+      const auto identity = [](uint64_t i) { return static_cast<uint32_t>(i); };
+      // The nodes as segments of 1 to 37: added as nodes (the root, every third) or as a run.
+      struct Segment {
+        size_t first, n;
+        bool run;
+      };
+      std::vector<Segment> segments;
+      std::mt19937 rng(branching);
+      for (size_t first = 0, k = 0; first < nodes.size(); ++k) {
+        const size_t n = std::min<size_t>(nodes.size() - first, 1 + rng() % 37);
+        segments.push_back({first, n, first > 0 && k % 3 != 2});
+        first += n;
+      }
+      // Compact: the decoded box of every node's parent as the writer meets them (a run's from its
+      // records, as compactNodeRun makes them ahead).
+      std::vector<NodeBox> parentBox(nodes.size());
+      std::vector<std::string> records(segments.size());
+      for (size_t k = 0; k < segments.size(); ++k) {
+        const Segment& g = segments[k];
+        if (g.run) {
+          records[k] = encodeNodeRun(nodes.subspan(g.first, g.n), g.first, boxes);
+          if (boxes == BoxPrecision::Compact)
+            records[k] = compactNodeRun(records[k], g.n, g.first, parentBox);
+          continue;
+        }
+        if (boxes != BoxPrecision::Compact) continue;
+        for (size_t i = g.first; i < g.first + g.n; ++i) {
+          const NodeBox decoded = compactDecodedBox(nodes[i].box, i == 0 ? nullptr : &parentBox[i]);
+          for (unsigned c = 0; c < nodes[i].childCount; ++c)
+            if (!(nodes[i].child[c] & kFaceChild)) parentBox[nodes[i].child[c]] = decoded;
+        }
+      }
+      // Nodes [first, end) into `writer`, the segments cut to them.
+      const auto addNodes = [&](ClusterFileWriter& writer, size_t first, size_t end) {
+        for (size_t k = 0; k < segments.size(); ++k) {
+          const Segment& g = segments[k];
+          const size_t from = std::max(first, g.first), to = std::min(end, g.first + g.n);
+          if (from >= to) continue;
+          if (!g.run)
+            writer.addNodes(nodes.subspan(from, to - from));
+          else
+            writer.addNodeRun(records[k], g.n, g.first, identity, boxes, from - g.first, to - from);
+        }
+      };
+      const auto whole = cleanup.add(scratch("pieces_whole.fch"));
+      {
+        ClusterFileWriter writer(whole, infoOf(file), options);
+        // Compact: the boxes of parents that came as compact records, which the writer does not decode.
+        if (boxes == BoxPrecision::Compact)
+          for (size_t i = 1; i < nodes.size(); ++i) writer.addParentBox(i, parentBox[i]);
+        addNodes(writer, 0, nodes.size());
+        writer.addVertices(file.vertices);
+        writer.addTriangles(file.indices, file.originalFace);
+        writer.finish();
+      }
+      std::vector<std::filesystem::path> pieces;
+      {
+        PieceRange geometry;
+        geometry.endVertex = file.vertices.size();
+        geometry.endTriangle = file.originalFace.size();
+        WriteOptions o = options;
+        o.piece = geometry;
+        pieces.push_back(cleanup.add(scratch("piece_geometry")));
+        ClusterFileWriter writer(pieces.back(), infoOf(file), o);
+        writer.addVertices(file.vertices);
+        writer.addTriangles(file.indices, file.originalFace);
+        writer.finish();
+      }
+      const size_t per = 3 * options.nodesPerFrame;
+      for (size_t first = 0; first < nodes.size(); first += per) {
+        const size_t end = std::min(nodes.size(), first + per);
+        PieceRange range;
+        range.firstNode = first;
+        range.endNode = end;
+        WriteOptions o = options;
+        o.piece = range;
+        pieces.push_back(cleanup.add(scratch("piece_nodes_" + std::to_string(first))));
+        ClusterFileWriter writer(pieces.back(), infoOf(file), o);
+        if (boxes == BoxPrecision::Compact)  // and those in other pieces
+          for (size_t i = std::max<size_t>(first, 1); i < end; ++i) writer.addParentBox(i, parentBox[i]);
+        addNodes(writer, first, end);
+        writer.finish();
+      }
+      std::shuffle(pieces.begin(), pieces.end(), rng);
+      const auto assembled = cleanup.add(scratch("pieces_assembled.fch"));
+      EXPECT_EQ(assembleClusterFile(assembled, infoOf(file), options, pieces),
+                std::filesystem::file_size(whole));
+      EXPECT_TRUE(slurp(assembled) == slurp(whole));
+      const VerifyResult verified = verifyClusterFile(readClusterFile(assembled));
+      EXPECT_TRUE(verified.ok) << verified.message;
+
+      const std::filesystem::path gone = pieces.back();
+      pieces.pop_back();
+      try {
+        assembleClusterFile(assembled, infoOf(file), options, pieces);
+        ADD_FAILURE() << "assembled without " << gone;
+      } catch (const Error& e) {
+        EXPECT_EQ(e.category(), ErrorCategory::Input);
+        const std::string what = e.what();
+        EXPECT_TRUE(what.find("leave a gap") != std::string::npos ||
+                    what.find("the pieces hold") != std::string::npos)
+            << what;
+      }
+    }
+}
+
 }  // namespace
 }  // namespace facetree

@@ -1,0 +1,234 @@
+// A cluster file from pieces (facetree/io.h assembleClusterFile; fch_piece.h has the piece file):
+// frames are self-contained (docs/FORMAT.md), so pieces written by independent writers, on other
+// machines, join into the file one writer would have written by copying their frames in order
+// under a header and index made from their index entries.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <limits>
+
+#include <xxhash.h>
+#include <glm/common.hpp>
+
+#include "fch_format.h"
+#include "fch_piece.h"
+#include "output_file.h"
+
+namespace facetree {
+namespace fch {
+namespace {
+
+constexpr char kPieceMagic[8] = {'F', 'C', 'H', 'P', 'I', 'E', 'C', 'E'};
+constexpr size_t kTail = 2 * sizeof(uint64_t) + sizeof kPieceMagic;  // size, XXH64, magic
+
+template <class T>
+void put(std::string& out, const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+
+}  // namespace
+
+FchLayout startLayout(const StreamFileInfo& info, const WriteOptions& options) {
+  FchLayout layout;
+  FileHeader& h = layout.header;
+  h = info.header;
+  h.version = kFchVersion;
+  h.originalNodeCount = std::max(h.originalNodeCount, h.nodeCount);
+  layout.nodesPerFrame = options.nodesPerFrame;
+  layout.geometryPerFrame = options.geometryPerFrame;
+  layout.zstdLevel = options.zstdLevel;
+  layout.originalIdBytes = info.maxOriginalFace > std::numeric_limits<uint32_t>::max() ? 8 : 4;
+  h.boundsMin = glm::vec3(std::numeric_limits<float>::infinity());
+  h.boundsMax = -h.boundsMin;
+  return layout;
+}
+
+std::string encodePieceTrailer(const PieceTrailer& t) {
+  std::string out;
+  put(out, t.range);
+  put(out, t.boundsMin);
+  put(out, t.boundsMax);
+  put(out, uint8_t{t.hasRoot});
+  put(out, t.rootBox);
+  put(out, uint64_t{t.frames.size()});
+  for (const FchFrame& f : t.frames) put(out, f);
+  const uint64_t size = out.size() + kTail;
+  put(out, size);
+  put(out, uint64_t{XXH64(out.data(), out.size(), 0)});
+  out.append(kPieceMagic, sizeof kPieceMagic);
+  return out;
+}
+
+}  // namespace fch
+
+namespace {
+
+// A piece file open for reading: its trailer, read and checked.
+class PieceFile {
+ public:
+  explicit PieceFile(const std::filesystem::path& path) : path_(path) {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) fail(std::string("cannot open: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd_, &st) != 0) fail(std::string("cannot stat: ") + std::strerror(errno));
+    const auto size = static_cast<uint64_t>(st.st_size);
+    if (size < fch::kTail) fail("not a cluster file piece (too short)");
+    std::string tail(fch::kTail, '\0');
+    read(size - fch::kTail, tail.data(), tail.size());
+    uint64_t trailerBytes = 0;
+    std::memcpy(&trailerBytes, tail.data(), sizeof trailerBytes);
+    if (std::memcmp(tail.data() + 16, fch::kPieceMagic, sizeof fch::kPieceMagic) != 0 ||
+        trailerBytes > size || trailerBytes < fch::kTail)
+      fail("not a cluster file piece");
+    std::string trailer(trailerBytes, '\0');
+    read(size - trailerBytes, trailer.data(), trailer.size());
+    uint64_t checksum = 0;
+    std::memcpy(&checksum, trailer.data() + trailerBytes - fch::kTail + 8, sizeof checksum);
+    if (XXH64(trailer.data(), trailerBytes - fch::kTail + 8, 0) != checksum)
+      fail("trailer checksum mismatch");
+    dataBytes_ = size - trailerBytes;
+    const char* at = trailer.data();
+    const char* end = trailer.data() + trailerBytes - fch::kTail + 8;
+    const auto take = [&](auto& value) {
+      if (static_cast<size_t>(end - at) < sizeof value) fail("trailer cut short");
+      std::memcpy(&value, at, sizeof value);
+      at += sizeof value;
+    };
+    uint8_t hasRoot = 0;
+    uint64_t frames = 0;
+    take(trailer_.range);
+    take(trailer_.boundsMin);
+    take(trailer_.boundsMax);
+    take(hasRoot);
+    take(trailer_.rootBox);
+    take(frames);
+    trailer_.hasRoot = hasRoot != 0;
+    if (frames > static_cast<uint64_t>(end - at) / sizeof(FchFrame)) fail("trailer cut short");
+    trailer_.frames.resize(frames);
+    for (FchFrame& f : trailer_.frames) take(f);
+    for (const FchFrame& f : trailer_.frames)
+      if (f.offset > dataBytes_ || f.compressedBytes > dataBytes_ - f.offset)
+        fail("a frame past the piece's end");
+  }
+  ~PieceFile() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  PieceFile(const PieceFile&) = delete;
+  PieceFile& operator=(const PieceFile&) = delete;
+
+  const fch::PieceTrailer& trailer() const { return trailer_; }
+  void copy(uint64_t offset, uint64_t bytes, OutputFile& out, std::vector<char>& buffer) const {
+    for (uint64_t done = 0; done < bytes;) {
+      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes - done));
+      read(offset + done, buffer.data(), want);
+      out.write(buffer.data(), want);
+      done += want;
+    }
+  }
+  [[noreturn]] void fail(const std::string& why) const {
+    throw Error(ErrorCategory::Input, path_.string() + ": " + why);
+  }
+
+ private:
+  void read(uint64_t offset, char* out, size_t size) const {
+    for (size_t done = 0; done < size;) {
+      const ssize_t got = ::pread(fd_, out + done, size - done, static_cast<off_t>(offset + done));
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) fail(got == 0 ? "cut short" : std::string("read error: ") + std::strerror(errno));
+      done += static_cast<size_t>(got);
+    }
+  }
+  std::filesystem::path path_;
+  int fd_ = -1;
+  uint64_t dataBytes_ = 0;
+  fch::PieceTrailer trailer_;
+};
+
+}  // namespace
+
+uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileInfo& info,
+                             const WriteOptions& options, std::span<const std::filesystem::path> paths) {
+  std::vector<std::unique_ptr<PieceFile>> pieces;
+  for (const auto& path : paths) pieces.push_back(std::make_unique<PieceFile>(path));
+  FchLayout layout = fch::startLayout(info, options);
+  FileHeader& h = layout.header;
+  const uint64_t declared[4] = {h.nodeCount, h.vertexCount, h.triangleCount, h.triangleCount};
+  const FchSection sections[4] = {FchSection::Nodes, FchSection::Vertices, FchSection::Triangles,
+                                  FchSection::OriginalFaces};
+  const auto rangeOf = [](const PieceRange& r, int s) {
+    return s == 0   ? std::pair(r.firstNode, r.endNode)
+           : s == 1 ? std::pair(r.firstVertex, r.endVertex)
+                    : std::pair(r.firstTriangle, r.endTriangle);
+  };
+  // Where each frame's bytes are: (piece, offset in it), in file order.
+  struct Source {
+    const PieceFile* piece;
+    uint64_t offset, bytes;
+  };
+  std::vector<Source> sources;
+  uint64_t frames = 0;
+  for (const auto& p : pieces) frames += p->trailer().frames.size();
+  for (const auto& p : pieces) {
+    const fch::PieceTrailer& t = p->trailer();
+    h.boundsMin = glm::min(h.boundsMin, t.boundsMin);
+    h.boundsMax = glm::max(h.boundsMax, t.boundsMax);
+    if (t.hasRoot) layout.rootBox = t.rootBox;
+  }
+  if (h.vertexCount == 0) h.boundsMin = h.boundsMax = glm::vec3(0.0f);
+  uint64_t offset = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
+  for (int s = 0; s < 4; ++s) {
+    std::vector<const PieceFile*> order;
+    for (const auto& p : pieces)
+      if (const auto [first, end] = rangeOf(p->trailer().range, s); end > first) order.push_back(p.get());
+    std::sort(order.begin(), order.end(), [&](const PieceFile* a, const PieceFile* b) {
+      return rangeOf(a->trailer().range, s).first < rangeOf(b->trailer().range, s).first;
+    });
+    uint64_t next = 0;
+    for (const PieceFile* p : order) {
+      const auto [first, end] = rangeOf(p->trailer().range, s);
+      if (first != next)
+        p->fail(std::string(sectionName(sections[s])) + " " + std::to_string(first) + " ... where " +
+                std::to_string(next) + " comes next: pieces that leave a gap or overlap");
+      for (const FchFrame& f : p->trailer().frames) {
+        if (f.section != sections[s]) continue;
+        if (f.first != next) p->fail(std::string(sectionName(sections[s])) + " frames out of order");
+        FchFrame placed = f;
+        placed.offset = offset;
+        layout.frames.push_back(placed);
+        sources.push_back({p, f.offset, f.compressedBytes});
+        offset += f.compressedBytes;
+        next += f.count;
+      }
+      if (next != end) p->fail(std::string(sectionName(sections[s])) + " frames short of the piece's range");
+    }
+    if (next != declared[s])
+      throw Error(ErrorCategory::Input, out.string() + ": the pieces hold " + std::to_string(next) + " of " +
+                                            std::to_string(declared[s]) + " " + sectionName(sections[s]));
+  }
+  layout.fileBytes = offset;
+  OutputFile file(out);
+  file.write(fch::encodeHeaderAndIndex(layout));
+  std::vector<char> buffer(size_t{1} << 20);
+  // Consecutive frames of one piece are consecutive in it: copied in one go.
+  for (size_t i = 0; i < sources.size();) {
+    size_t j = i + 1;
+    uint64_t bytes = sources[i].bytes;
+    while (j < sources.size() && sources[j].piece == sources[i].piece &&
+           sources[j].offset == sources[i].offset + bytes)
+      bytes += sources[j++].bytes;
+    sources[i].piece->copy(sources[i].offset, bytes, file, buffer);
+    i = j;
+  }
+  if (file.bytesWritten() != layout.fileBytes)
+    throw std::logic_error("assembleClusterFile: wrote " + std::to_string(file.bytesWritten()) +
+                           " bytes, expected " + std::to_string(layout.fileBytes));
+  file.commit();
+  return layout.fileBytes;
+}
+
+}  // namespace facetree
