@@ -1,4 +1,5 @@
-// facetree stage plan | read | count | grid | bin | cells | finish: the out-of-core build as tasks
+// facetree stage plan | read | count | grid | bin | cells | upper | nodes | finish: the out-of-core
+// build as tasks
 // over a work directory, for an engine that runs them (facetree/grid.h planStages, runStageTask,
 // finishStages). The plan keeps its command line in the work directory, so that the later tasks
 // build the same job from it. The plan and the grid print the steps that follow them, which is all
@@ -100,7 +101,7 @@ std::string stepsText(const std::vector<StageStep>& steps) {
 void printSteps(const std::vector<StageStep>& steps, const std::filesystem::path& work) {
   const char* lead = "next";
   for (const StageStep& step : steps) {
-    if (step.tasks == 1 && (step.name == "grid" || step.name == "finish"))
+    if (step.tasks == 1 && (step.name == "grid" || step.name == "upper" || step.name == "finish"))
       std::printf("%-13s facetree stage %s --work %s\n", lead, step.name.c_str(), work.c_str());
     else
       std::printf("%-13s facetree stage %s --work %s --task I   (I = 0 ... %u, any order)\n", lead,
@@ -143,15 +144,15 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
   return kExitOk;
 }
 
-// One task of a step of many (read, count, bin, cells), or the grid.
+// One task of a step of many (read, count, bin, cells, nodes), or the grid or the upper step.
 int runTask(const std::string& step, const std::vector<std::string>& argv, SignalGuard& signals) {
   const std::string command = "stage " + step;
   const Args args = parseCommand(command, argv);
   if (!args.positional().empty()) throw UsageError(command + " takes no positional arguments");
   const std::filesystem::path work = workOf(args, command.c_str());
-  const bool grid = step == "grid";
-  if (!grid && !args.value("task")) throw UsageError(command + " needs --task I");
-  const uint64_t task = grid ? 0 : args.count("task", 0);
+  const bool single = step == "grid" || step == "upper";
+  if (!single && !args.value("task")) throw UsageError(command + " needs --task I");
+  const uint64_t task = single ? 0 : args.count("task", 0);
   PlannedJob planned = plannedJob(loadArguments(work), signals);
   StageTaskResult result;
   runWithProgress(planned.job, args.flag("json"), signals, [&](const ClusterJob& job) {
@@ -167,13 +168,13 @@ int runTask(const std::string& step, const std::vector<std::string>& argv, Signa
     out.field("step", step);
     out.field("task", task);
     out.field("ran", result.ran);
-    if (grid) out.field("next", stepsText(result.next));
+    if (single) out.field("next", stepsText(result.next));
     out.field("peak_rss_bytes", peakResidentBytes());
     std::fputs(out.finish().c_str(), stdout);
     return kExitOk;
   }
-  if (grid)
-    std::printf("grid: %s\n", result.ran ? "made" : "done already");
+  if (single)
+    std::printf("%s: %s\n", step.c_str(), result.ran ? "done" : "done already");
   else
     std::printf("%s task %llu: %s\n", step.c_str(), static_cast<unsigned long long>(task),
                 result.ran ? "done" : "done already");
@@ -195,12 +196,12 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 }  // namespace
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
-  constexpr const char* kSteps = "plan, read, count, grid, bin, cells, finish";
+  constexpr const char* kSteps = "plan, read, count, grid, bin, cells, upper, nodes, finish";
   if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
-  for (const char* step : {"read", "count", "grid", "bin", "cells"})
+  for (const char* step : {"read", "count", "grid", "bin", "cells", "upper", "nodes"})
     if (argv[0] == step) return runTask(argv[0], rest, signals);
   throw UsageError("unknown stage '" + argv[0] + "' (" + kSteps + ")");
 }

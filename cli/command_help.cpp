@@ -41,13 +41,13 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "every task sees. `stage plan` prints the steps that follow, each a number of tasks that run in\n"
        "any order, anywhere, once the step before is done: a binary PLY whose faces are triangles in\n"
        "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
-       "prints `stage bin`, `stage cells` and `stage finish`); any other mesh is read and binned by the\n"
-       "plan (then `stage cells` and `stage finish`). `stage finish` writes OUT.fch, the bytes `facetree\n"
-       "build` writes with the same options. Each task writes under temporary names and renames when\n"
-       "complete: a task rerun gives the same files, and a task already done is skipped. A plan of the\n"
-       "same job (input, its size and time, options) already in DIR stands; another one replaces it and\n"
-       "every task's outputs. A mesh that fits --memory in core is built by the plan; then only the\n"
-       "finish follows.",
+       "prints `stage bin`, `stage cells` and `stage upper`); any other mesh is read and binned by the\n"
+       "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage nodes` and `stage\n"
+       "finish`, which writes OUT.fch, the bytes `facetree build` writes with the same options. Each\n"
+       "task writes under temporary names and renames when complete: a task rerun gives the same\n"
+       "files, and a task already done is skipped. A plan of the same job (input, its size and time,\n"
+       "options) already in DIR stands; another one replaces it and every task's outputs. A mesh that\n"
+       "fits --memory in core is built by the plan; then only the finish follows.",
        planOptions});
   const auto taskCommand = [&](const char* name, const char* about, const char* details) {
     table.push_back({name,
@@ -76,10 +76,22 @@ void addStageCommands(std::vector<CommandHelp>& table) {
   taskCommand("stage cells", "build the cells of one cells task of a planned build",
               "Reads the plan's options from DIR; holds the plan's --memory. Every bin task (of a mesh read\n"
               "in ranges) must be done first.");
+  table.push_back(
+      {"stage upper",
+       "--work DIR [--json]",
+       "join the cells above them and write the geometry: the file's first piece",
+       "Every cells task must be done. Merges the cells' leaf clusters, writes the geometry as a\n"
+       "piece of the file and the plan of the node tasks, and prints the steps that follow: nodes,\n"
+       "finish.",
+       {{"work", "DIR", "", "the work directory of `stage plan`"},
+        {"json", "", "", "print the result as one JSON object"}}});
+  taskCommand("stage nodes", "write the frames of one range of the file's nodes as a piece",
+              "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
   table.push_back({"stage finish",
                    "--work DIR [--json]",
-                   "join the cells tasks of a planned build and write its cluster file",
-                   "Every cells task must be done. Prints the report `facetree build` prints.",
+                   "assemble the pieces of a planned build into its cluster file",
+                   "Every node task must be done. Copies the pieces' frames under one header and index, and\n"
+                   "prints the report `facetree build` prints.",
                    {{"work", "DIR", "", "the work directory of `stage plan`"},
                     {"json", "", "", "print the report as one JSON object"}}});
 }
@@ -277,7 +289,8 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|read|count|grid|bin|cells|finish [OPTIONS]\n\nA build run as tasks over a "
+      "usage: facetree stage plan|read|count|grid|bin|cells|upper|nodes|finish [OPTIONS]\n\nA build run as "
+      "tasks over a "
       "work directory:\n";
   for (const CommandHelp& c : commands())
     if (std::string_view(c.name).rfind("stage ", 0) == 0)

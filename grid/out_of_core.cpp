@@ -80,24 +80,45 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
   report.temporaryBytesPeak = temp.peakBytes();
 }
 
-void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
-  JobReport& report = context.report;
-  LeafSubtrees subtrees = std::move(cells.subtrees);
+namespace {
+
+// The leaf graph and the merge above the cells, each timed into the report.
+struct Joined {
+  LeafSubtrees subtrees;
   LeafGraph graph;
+  ClusterMergeResult upper;
+};
+Joined joinCells(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  JobReport& report = context.report;
+  Joined j;
+  j.subtrees = std::move(cells.subtrees);
   // The leaf graph's sort joins count with the cells, as they always have.
   timeStage(report, "cells", report.secondsCells, [&] {
-    graph = resolveLeafGraph(context, std::move(cells.records));
+    j.graph = resolveLeafGraph(context, std::move(cells.records));
     releaseFreeMemory();
   });
-
-  ClusterMergeResult upper;
   timeStage(report, "merge", report.secondsMerge, [&] {
-    upper = mergeAbove(context, extent, graph);
+    j.upper = mergeAbove(context, extent, j.graph);
     releaseFreeMemory();  // the merge's stats and edges, before the write's tables take their place
   });
+  return j;
+}
 
-  timeStage(report, "write", report.secondsWrite,
-            [&] { writeOutOfCore(context, extent, std::move(graph), upper, std::move(subtrees)); });
+}  // namespace
+
+WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  Joined j = joinCells(context, extent, std::move(cells));
+  WritePlan plan;
+  timeStage(context.report, "write", context.report.secondsWrite, [&] {
+    plan = writeUpperPieces(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees));
+  });
+  return plan;
+}
+
+void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  Joined j = joinCells(context, extent, std::move(cells));
+  timeStage(context.report, "write", context.report.secondsWrite,
+            [&] { writeOutOfCore(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees)); });
 }
 
 }  // namespace facetree

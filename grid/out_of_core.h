@@ -262,6 +262,31 @@ ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& ext
 void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                     const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
 
+// The write as tasks of the stages (stage_write.cpp): the upper step writes the geometry as a piece
+// of the file, the node order (and for compact boxes the quantised node runs) as named spills in
+// the work directory, and hands the node tasks this plan; each node task writes the frames of a
+// range of node positions as a piece; the finish assembles the pieces (assembleClusterFile).
+inline constexpr const char* kGeometryPieceFile = "geometry.piece";
+inline constexpr const char* kWriteOrderFile = "write-order.spill";
+inline constexpr const char* kWriteNodesFile = "write-nodes.spill";  // compact boxes' quantised runs
+struct WritePlan {
+  StreamFileInfo info;
+  WriteOptions options;
+  BoxPrecision records = BoxPrecision::Exact;   // of the node runs
+  bool compactNodes = false;                    // the runs are in kWriteNodesFile, not the cells tasks'
+  std::vector<SpillBlock> orderBlocks;          // the sorted NodeRefs in kWriteOrderFile
+  std::vector<uint64_t> orderFirst;             // the file position of each block's first node
+  std::vector<uint32_t> runPosition, runFirst;  // per run (global index): file position, first node
+  std::vector<uint32_t> leafOrder;              // leaf id by rank
+  std::vector<uint32_t> leafFirstBlock, leafBlockCount;  // per leaf id: its runs
+  std::vector<FchNode> upperNodes;                       // by file index (reverse creation order)
+  std::vector<uint32_t> upperPosition;                   // likewise
+  std::vector<NodeBox> upperParentBox;        // compact boxes: each upper node's parent's decoded box
+  std::vector<uint32_t> upperParentPosition;  // and its parent's file position (the root: none)
+};
+WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
+                           const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
+
 // Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();
 
@@ -284,5 +309,7 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
 // The rest of the out-of-core build from the cells' outputs: the leaf graph, the merge above and the
 // write, each timed into the report.
 void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
+// The same up to the write's pieces (the stages' upper step): writeUpperPieces' plan.
+WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
 
 }  // namespace facetree

@@ -184,7 +184,7 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
     const auto tasks = static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1);
     return {{"read", tasks}, {"count", tasks}, {"grid", 1}};
   }
-  return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"finish", 1}};
+  return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"upper", 1}};
 }
 
 bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
@@ -249,7 +249,8 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   std::filesystem::remove(planPath(work));
   for (const auto& entry : std::filesystem::directory_iterator(work)) {
     const std::string name = entry.path().filename().string();
-    for (const char* step : {"cells-", "read-", "count-", "grid.", "bin-"})
+    for (const char* step :
+         {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry.", "nodes-"})
       if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
   }
   if (planRanges(job, work, result)) return result;
@@ -280,6 +281,12 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.ran = runCountTask(job, work, task);
   } else if (step == "bin") {
     result.ran = runBinTask(job, work, task);
+  } else if (step == "upper") {
+    if (task != 0) throw std::invalid_argument("the upper step has one task, 0, not " + std::to_string(task));
+    result.ran = runUpperStep(job, work);
+    result.next = stepsAfterUpper(work);
+  } else if (step == "nodes") {
+    result.ran = runNodesTask(job, work, task);
   } else if (step == "grid") {
     if (task != 0) throw std::invalid_argument("the grid has one task, 0, not " + std::to_string(task));
     result.ran = runGridStep(job, work);
@@ -287,18 +294,13 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     loadGrid(work, state, /*bins=*/false);
     result.next = stepsAfterGrid(state);
   } else {
-    throw std::invalid_argument("no stage step '" + std::string(step) + "' (read, count, grid, bin, cells)");
+    throw std::invalid_argument("no stage step '" + std::string(step) +
+                                "' (read, count, grid, bin, cells, upper, nodes)");
   }
   return result;
 }
 
-JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
-  const auto start = std::chrono::steady_clock::now();
-  PlanState state = loadPlan(work);
-  JobReport report = std::move(state.report);
-  if (state.inCore) return report;
-  report.outOfCore = true;
-  if (!job.output.empty()) checkOutputWritable(job.output);
+CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, const PlanState& state) {
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
   std::vector<CellResult> results(state.cellCount);
   for (uint32_t t = 0; t < tasks; ++t) {
@@ -318,15 +320,7 @@ JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work)
     }
     in.finish();
   }
-  const ClusterJob effective = effectiveJob(job);
-  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
-  const StageContext context{effective, temp, state.memoryCap, report, &work};
-  CellsOutput cells = openCellTasks(temp, work, tasks, std::move(results));
-  finishOutOfCore(context, state.extent, std::move(cells));
-  report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, temp.peakBytes());
-  report.seconds = secondsSince(start);
-  report.secondsBuilt = report.seconds - report.secondsWrite;
-  return report;
+  return openCellTasks(temp, work, tasks, std::move(results));
 }
 
 }  // namespace facetree

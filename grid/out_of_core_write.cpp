@@ -14,6 +14,7 @@
 
 #include "external_sort.h"
 #include "facetree/io.h"
+#include "node_order.h"
 #include "out_of_core.h"
 #include "upper_boxes.h"
 #include "upper_tree.h"
@@ -38,135 +39,6 @@ struct FileLayout {
   uint32_t height = 1;
 };
 
-// One entry of the file's node order: an upper node or a run of a leaf's nodes, with where the run's
-// nodes are in the node spill. The order is sorted on disk (ExternalSorter): a leaf's runs take no
-// memory beyond their first nodes and file positions.
-struct NodeRef {
-  float key;
-  uint32_t kind;  // 0: upper node (leafRank = its file index), 1: leaf run
-  uint32_t leafRank;
-  uint32_t run;  // 1: its global run index (a leaf's runs are consecutive, in the leaf's order)
-  uint32_t count, compressedBytes, rawBytes;
-  uint64_t offset;
-  SpillBlock spill() const { return {offset, compressedBytes, rawBytes}; }
-};
-// Decreasing key, upper nodes first at equal keys, then by leaf rank and run: a total order.
-struct ByFileOrder {
-  bool operator()(const NodeRef& x, const NodeRef& y) const {
-    if (x.key != y.key) return x.key > y.key;
-    if (x.kind != y.kind) return x.kind < y.kind;
-    if (x.leafRank != y.leafRank) return x.leafRank < y.leafRank;
-    return x.run < y.run;
-  }
-};
-using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
-// The sorted order is kept in blocks of this many entries (64 KiB) for the node pass.
-constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
-
-// The node pass's input, read ahead on a helper thread: the sorted order's entries in batches, with
-// the batch's leaf runs read and decompressed, one batch being made while the pass takes the one
-// before. The spill's reads and zstd then overlap the pass's placing and the writer (perf: reading
-// was half of the pass's thread on the 14M-face dragon at 64 MiB). Order blocks are given back as
-// read.
-class NodeRunReader {
- public:
-  struct Batch {
-    std::vector<NodeRef> refs;  // consecutive entries of the order
-    std::vector<char> records;  // the leaf runs among them, in turn, their records as spilled
-  };
-  NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs)
-      : order_(order), orderBlocks_(orderBlocks), runs_(runs), slots_(kSlots) {
-    thread_ = std::thread([this] { produce(); });
-  }
-  ~NodeRunReader() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
-  }
-  NodeRunReader(const NodeRunReader&) = delete;
-  NodeRunReader& operator=(const NodeRunReader&) = delete;
-
-  // The next batch (valid until the next call), or null at the end; rethrows the reader's failure.
-  Batch* next() {
-    std::unique_lock lock(mutex_);
-    if (taken_ > 0) ++released_, changed_.notify_all();  // the previous batch's slot is free again
-    changed_.wait(lock, [&] { return made_ > taken_ || finished_; });
-    if (made_ == taken_) {
-      if (failure_) std::rethrow_exception(failure_);
-      return nullptr;
-    }
-    return &slots_[taken_++ % slots_.size()];
-  }
-
- private:
-  // Batches close at this many nodes: a few hundred KiB of records each, so that the reader and the
-  // pass meet a few thousand times for millions of nodes, not once a run.
-  static constexpr size_t kBatchNodes = 2048;
-  static constexpr size_t kSlots = 2;
-
-  void produce() {
-    try {
-      SpillCodec codec;
-      std::vector<std::byte> raw;
-      std::vector<NodeRef> refs;
-      Batch* batch = nullptr;
-      size_t batched = 0;  // run nodes in the batch
-      const auto publish = [&] {
-        std::lock_guard lock(mutex_);
-        ++made_;
-        changed_.notify_all();
-        batch = nullptr;
-        batched = 0;
-      };
-      for (const SpillBlock& block : orderBlocks_) {
-        order_.read(block, raw, codec);
-        order_.discard(block);
-        refs.resize(raw.size() / sizeof(NodeRef));
-        std::memcpy(static_cast<void*>(refs.data()), raw.data(), raw.size());
-        for (const NodeRef& ref : refs) {
-          if (!batch) {
-            std::unique_lock lock(mutex_);
-            changed_.wait(lock, [&] { return made_ - released_ < slots_.size() || stop_; });
-            if (stop_) return;
-            batch = &slots_[made_ % slots_.size()];
-            batch->refs.clear();
-            batch->records.clear();
-          }
-          batch->refs.push_back(ref);
-          if (ref.kind == 1) {
-            runs_.read(ref.spill(), raw, codec);
-            const auto* bytes = reinterpret_cast<const char*>(raw.data());
-            batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
-            batched += ref.count;
-          }
-          if (batched >= kBatchNodes) publish();
-        }
-      }
-      if (batch) publish();
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      failure_ = std::current_exception();
-    }
-    std::lock_guard lock(mutex_);
-    finished_ = true;
-    changed_.notify_all();
-  }
-
-  SpillFile& order_;
-  std::span<const SpillBlock> orderBlocks_;
-  const SpillFile& runs_;
-  std::vector<Batch> slots_;  // a ring: batch i in slots_[i % size]
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  uint64_t made_ = 0, taken_ = 0, released_ = 0;  // batches made, handed out, handed back
-  bool stop_ = false, finished_ = false;
-  std::exception_ptr failure_;
-  std::thread thread_;  // last: starts once the rest exists
-};
-
 class WriteStage {
  public:
   WriteStage(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
@@ -177,9 +49,18 @@ class WriteStage {
         upper_(upper),
         subtrees_(std::move(subtrees)) {}
   void run();
+  // The stages' upper step: the geometry as a piece of the file in `work`, the node order and (for
+  // compact boxes) the quantised runs as named spills there, and what the node tasks need.
+  WritePlan runPieces(const std::filesystem::path& work);
 
  private:
   FileLayout layout() const;
+  StreamFileInfo fileInfo(const FileLayout& layout) const;
+  WriteOptions writeOptions() const;
+  // Upper node j (by file index: reverse creation order) as the file has it.
+  FchNode upperNode(uint32_t j, const FileLayout& layout, const UpperFrames& frames) const;
+  // Compact boxes: every upper node's box as the file decodes it (parents first).
+  std::vector<NodeBox> upperDecodedBoxes(const FileLayout& layout, const UpperFrames& frames) const;
   // The node order, sorted on disk.
   std::unique_ptr<OrderSorter> nodeOrder(const FileLayout& layout);
   // The file position of every upper node (by file index) and of every run's first node; the
@@ -195,6 +76,7 @@ class WriteStage {
   void compactRuns(const FileLayout& layout, const UpperFrames& frames);
 
   const StageContext& context_;
+  const std::filesystem::path* work_ = nullptr;  // runPieces: the spills it hands on are named there
   const MeshExtent& extent_;
   LeafGraph graph_;
   const ClusterMergeResult& upper_;
@@ -205,6 +87,7 @@ class WriteStage {
   std::unique_ptr<SpillFile> order_;               // the sorted node order, in blocks of kOrderBlock
   BoxPrecision runRecords_ = BoxPrecision::Exact;  // the node spill's records (compactRuns)
   std::vector<SpillBlock> orderBlocks_;
+  std::vector<uint64_t> orderFirst_;  // the file position of each order block's first node
 };
 
 FileLayout WriteStage::layout() const {
@@ -326,10 +209,13 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
 void WriteStage::place(OrderSorter& order) {
   runPosition_.resize(graph_.runFirst.size());
   upperPosition_.resize(upper_.nodes.size());
-  order_ = std::make_unique<SpillFile>(context_.temp, "order", /*discardable=*/true, sizeof(NodeRef));
+  order_ = work_ ? std::make_unique<SpillFile>(context_.temp, SpillFile::Named{*work_ / kWriteOrderFile},
+                                               sizeof(NodeRef))
+                 : std::make_unique<SpillFile>(context_.temp, "order", /*discardable=*/true, sizeof(NodeRef));
   std::vector<NodeRef> batch(kOrderBlock);
   uint64_t position = 0;
   for (size_t n; (n = order.read(batch)) > 0;) {
+    orderFirst_.push_back(position);
     for (size_t i = 0; i < n; ++i) {
       const NodeRef& ref = batch[i];
       if (ref.kind == 0) {
@@ -395,15 +281,10 @@ void WriteStage::writeGeometry(ClusterFileWriter& writer, const FileLayout& layo
   graph_.geometry = {};
 }
 
-// Nodes in `order`: upper nodes made from the merge's records and their frames, leaf runs read back
-// with their leaf-local references made global.
-void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
-                            uint64_t& done) {
+FchNode WriteStage::upperNode(uint32_t j, const FileLayout& layout, const UpperFrames& frames) const {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   const UpperRecast& recast = layout.recast;
-  std::vector<FchNode> out;
-  out.reserve(std::min<size_t>(upperCount, 4096));
   const auto childRef = [&](uint32_t c) -> uint32_t {
     if (!(c & kLeafChild)) return upperPosition_[upperCount - 1 - c];
     const uint32_t leaf = c & ~kLeafChild;
@@ -414,26 +295,33 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
     if (!(c & kLeafChild)) return static_cast<uint32_t>(upper[c].stats.faceCount);
     return graph_.leaves[c & ~kLeafChild].faceCount;
   };
-  const auto upperNode = [&](uint32_t j) {
-    const uint32_t i = upperCount - 1 - j;
-    const ClusterMergeNode& u = upper[i];
-    FchNode n;
-    n.first = static_cast<uint32_t>(layout.firstFace[i]);
-    n.count = static_cast<uint32_t>(u.stats.faceCount);
-    n.childCount = recast.childCount[i];
-    for (uint32_t k = 0; k < n.childCount; ++k) {
-      n.child[k] = childRef(recast.children[i][k]);
-      n.childFaces[k] = childFaces(recast.children[i][k]);
-    }
-    n.flags = static_cast<uint8_t>((recast.joined[i] ? kFchJoinsDisjointSurfaces : 0) |
-                                   (frames.flat[i] ? kFchFlatFrame : 0));
-    n.cost = u.cost;
-    n.area = static_cast<float>(u.stats.area);
-    n.perimeter = static_cast<float>(u.stats.perimeter);
-    n.sumNormal = glm::vec3(u.stats.sumNormal);
-    n.box = frames.boxes[i].box();
-    return n;
-  };
+  const uint32_t i = upperCount - 1 - j;
+  const ClusterMergeNode& u = upper[i];
+  FchNode n;
+  n.first = static_cast<uint32_t>(layout.firstFace[i]);
+  n.count = static_cast<uint32_t>(u.stats.faceCount);
+  n.childCount = recast.childCount[i];
+  for (uint32_t k = 0; k < n.childCount; ++k) {
+    n.child[k] = childRef(recast.children[i][k]);
+    n.childFaces[k] = childFaces(recast.children[i][k]);
+  }
+  n.flags = static_cast<uint8_t>((recast.joined[i] ? kFchJoinsDisjointSurfaces : 0) |
+                                 (frames.flat[i] ? kFchFlatFrame : 0));
+  n.cost = u.cost;
+  n.area = static_cast<float>(u.stats.area);
+  n.perimeter = static_cast<float>(u.stats.perimeter);
+  n.sumNormal = glm::vec3(u.stats.sumNormal);
+  n.box = frames.boxes[i].box();
+  return n;
+}
+
+// Nodes in `order`: upper nodes made from the merge's records and their frames, leaf runs read back
+// with their leaf-local references made global.
+void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
+                            uint64_t& done) {
+  std::vector<FchNode> out;
+  out.reserve(std::min<size_t>(upper_.nodes.size(), 4096));
+  const auto upperNode = [&](uint32_t j) { return this->upperNode(j, layout, frames); };
   {
     NodeRunReader reader(*order_, orderBlocks_, *subtrees_.nodes);
     while (NodeRunReader::Batch* batch = reader.next()) {
@@ -463,16 +351,22 @@ void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout,
   order_.reset();
 }
 
-void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames) {
+std::vector<NodeBox> WriteStage::upperDecodedBoxes(const FileLayout& layout,
+                                                   const UpperFrames& frames) const {
   const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
-  // The upper nodes' decoded boxes, parents (created later) first.
   std::vector<NodeBox> upperBox(upperCount);
-  for (uint32_t i = upperCount; i-- > 0;) {
+  for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
     if (!layout.recast.kept[i]) continue;
     const uint32_t parent = layout.nodeParent[i];
     upperBox[i] = compactDecodedBox(frames.boxes[i].box(), parent == kNone ? nullptr : &upperBox[parent]);
   }
-  auto out = std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
+  return upperBox;
+}
+
+void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames) {
+  const std::vector<NodeBox> upperBox = upperDecodedBoxes(layout, frames);
+  auto out = work_ ? std::make_unique<SpillFile>(context_.temp, SpillFile::Named{*work_ / kWriteNodesFile})
+                   : std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
   SpillFile& runs = *subtrees_.nodes;
   std::vector<std::byte> raw, table;
   std::vector<NodeBlock> blocks;
@@ -522,6 +416,25 @@ void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames
   runRecords_ = BoxPrecision::Compact;
 }
 
+StreamFileInfo WriteStage::fileInfo(const FileLayout& fileLayout) const {
+  StreamFileInfo info;
+  FileHeader& h = info.header;
+  h = optionsHeader(context_.job.file);
+  h.memoryCapBytes = context_.memoryCap;  // the cap the build held, given or not
+  h.nodeCount = h.originalNodeCount = fileLayout.nodes;
+  h.triangleCount = fileLayout.faces;
+  h.vertexCount = fileLayout.vertices;
+  info.maxOriginalFace = extent_.maxFace;
+  return info;
+}
+
+WriteOptions WriteStage::writeOptions() const {
+  WriteOptions options;
+  options.zstdLevel = context_.job.zstdLevel ? context_.job.zstdLevel : 3;
+  options.threads = context_.job.threads;  // frames compressed beside the passes' reads
+  return options;
+}
+
 void WriteStage::run() {
   const FileLayout fileLayout = layout();
   JobReport& report = context_.report;
@@ -534,19 +447,8 @@ void WriteStage::run() {
   graph_.corners = {};
 
   const ClusterJob& job = context_.job;
-  StreamFileInfo info;
-  FileHeader& h = info.header;
-  h = optionsHeader(job.file);
-  h.memoryCapBytes = context_.memoryCap;  // the cap the build held, given or not
-  h.nodeCount = h.originalNodeCount = fileLayout.nodes;
-  h.triangleCount = fileLayout.faces;
-  h.vertexCount = fileLayout.vertices;
-  info.maxOriginalFace = extent_.maxFace;
-  WriteOptions writeOptions;
-  writeOptions.zstdLevel = job.zstdLevel ? job.zstdLevel : 3;
-  writeOptions.threads = job.threads;  // frames compressed beside the geometry pass's reads
   TempSpace& temp = context_.temp;
-  ClusterFileWriter writer(job.output, info, writeOptions, temp.path());
+  ClusterFileWriter writer(job.output, fileInfo(fileLayout), writeOptions(), temp.path());
   writer.setTemporaryBytesHook([&temp](int64_t delta) {
     if (delta > 0)
       temp.reserve(static_cast<uint64_t>(delta));
@@ -565,11 +467,85 @@ void WriteStage::run() {
   report.fileBytes = writer.finish();
 }
 
+WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
+  work_ = &work;
+  const FileLayout fileLayout = layout();
+  JobReport& report = context_.report;
+  report.nodes = fileLayout.nodes;
+  report.height = fileLayout.height;
+  report.balancedHeight = balancedHeight(fileLayout.faces, context_.job.file.branching);
+  UpperFrames frames =
+      frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
+  graph_.corners = {};
+
+  WritePlan plan;
+  plan.info = fileInfo(fileLayout);
+  plan.options = writeOptions();
+  {
+    WriteOptions options = plan.options;
+    options.piece = PieceRange{0, 0, 0, fileLayout.vertices, 0, fileLayout.faces};
+    ClusterFileWriter writer(work / kGeometryPieceFile, plan.info, options, context_.temp.path());
+    TempSpace& temp = context_.temp;
+    writer.setTemporaryBytesHook([&temp](int64_t delta) {
+      if (delta > 0)
+        temp.reserve(static_cast<uint64_t>(delta));
+      else
+        temp.release(static_cast<uint64_t>(-delta));
+    });
+    uint64_t done = 0;
+    writeGeometry(writer, fileLayout, frames, done);
+    writer.finish();
+  }
+  releaseFreeMemory();
+  const bool compact = context_.job.build.boxes == BoxPrecision::Compact && !upper_.nodes.empty();
+  if (compact) compactRuns(fileLayout, frames);
+  place(*nodeOrder(fileLayout));
+  order_->commit();
+  if (compact) subtrees_.nodes->commit();
+
+  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
+  plan.records = runRecords_;
+  plan.compactNodes = compact;
+  plan.orderBlocks = std::move(orderBlocks_);
+  plan.orderFirst = std::move(orderFirst_);
+  plan.runPosition = runPosition_;
+  plan.runFirst = graph_.runFirst;
+  plan.leafOrder = fileLayout.leafOrder;
+  plan.leafFirstBlock.resize(graph_.leaves.size());
+  plan.leafBlockCount.resize(graph_.leaves.size());
+  for (size_t l = 0; l < graph_.leaves.size(); ++l) {
+    plan.leafFirstBlock[l] = graph_.leaves[l].firstBlock;
+    plan.leafBlockCount[l] = graph_.leaves[l].blockCount;
+  }
+  plan.upperNodes.resize(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j)
+    if (fileLayout.recast.kept[upperCount - 1 - j]) plan.upperNodes[j] = upperNode(j, fileLayout, frames);
+  plan.upperPosition = upperPosition_;
+  if (context_.job.build.boxes == BoxPrecision::Compact) {
+    // Each upper node's parent's box as decoded, for a node task that holds the node but not its parent.
+    const std::vector<NodeBox> decoded = upperDecodedBoxes(fileLayout, frames);
+    plan.upperParentBox.resize(upperCount);
+    plan.upperParentPosition.assign(upperCount, kNone);
+    for (uint32_t j = 0; j < upperCount; ++j) {
+      const uint32_t i = upperCount - 1 - j, parent = fileLayout.nodeParent[i];
+      if (!fileLayout.recast.kept[i] || parent == kNone) continue;
+      plan.upperParentBox[j] = decoded[parent];
+      plan.upperParentPosition[j] = upperPosition_[upperCount - 1 - parent];
+    }
+  }
+  return plan;
+}
+
 }  // namespace
 
 void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                     const ClusterMergeResult& upper, LeafSubtrees&& subtrees) {
   WriteStage(context, extent, std::move(graph), upper, std::move(subtrees)).run();
+}
+
+WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
+                           const ClusterMergeResult& upper, LeafSubtrees&& subtrees) {
+  return WriteStage(context, extent, std::move(graph), upper, std::move(subtrees)).runPieces(*context.work);
 }
 
 }  // namespace facetree

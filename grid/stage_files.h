@@ -12,7 +12,11 @@
 //   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
 //   cells-T.manifest            its cells' records
-// A task's manifest marks it done.
+//   geometry.piece              the upper step: the file's geometry frames (ClusterFileWriter piece)
+//   write-order.spill, write-nodes.spill   the node order; compact boxes' quantised node runs
+//   write.manifest              the upper step's write plan: what every node task needs
+//   nodes-T.piece               node task T: the frames of its node positions
+// A task's manifest (a node task's piece) marks it done.
 #pragma once
 
 #include <cstdint>
@@ -107,6 +111,13 @@ bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32
 void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);
 // The steps that follow the grid: bin, cells and finish.
 std::vector<StageStep> stepsAfterGrid(const PlanState& state);
+// The cells tasks' outputs opened together, with every cell's records from their manifests.
+CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, const PlanState& state);
+// The write as tasks (stage_write.cpp): the upper step (the cells joined, the geometry piece, the
+// write plan) and the steps it lists; a node task (the frames of a range of node positions).
+bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
+bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 // The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
 uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
 

@@ -376,7 +376,7 @@ void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins) {
 std::vector<StageStep> stepsAfterGrid(const PlanState& state) {
   return {{"bin", static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1)},
           {"cells", static_cast<uint32_t>(state.bounds.size() - 1)},
-          {"finish", 1}};
+          {"upper", 1}};
 }
 
 }  // namespace facetree

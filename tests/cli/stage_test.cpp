@@ -90,14 +90,14 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
                   "64M", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
     ASSERT_EQ(plan.exitCode, 0) << plan.output;
     EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), ranges ? 0u : 3u);
-    EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 finish:1");
+    EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 upper:1");
     EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
     EXPECT_FALSE(fs::exists(staged));
 
-    // Before the tasks are done, the finish names the first manifest missing and writes nothing.
+    // Before the tasks are done, the finish names the first file missing and writes nothing.
     const ChildResult early = runChild({"stage", "finish", "--work", work.string()});
     EXPECT_EQ(early.exitCode, 3);
-    const fs::path missing = work / (ranges ? "grid.manifest" : "cells-0.manifest");
+    const fs::path missing = work / "write.manifest";
     EXPECT_EQ(early.output.rfind("facetree: " + missing.string() + ": cannot open: ", 0), 0u) << early.output;
     EXPECT_FALSE(fs::exists(staged));
 
@@ -109,15 +109,18 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
       ran += step + ":" + std::to_string(tasks) + " ";
       for (uint64_t task = tasks; task-- > 0;) {
         std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
-        if (step != "grid") argv.insert(argv.end(), {"--task", std::to_string(task)});
+        const bool single = step == "grid" || step == "upper";
+        if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
         const ChildResult result = runChild(argv);
         ASSERT_EQ(result.exitCode, 0) << step << " " << task << ": " << result.output;
         EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
         EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
-        if (step == "grid") next = stepsOf(jsonText(result.output, "next"));
+        if (single) next = stepsOf(jsonText(result.output, "next"));
       }
     }
-    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 " : "cells:3 ");
+    // 300k faces: two node tasks of 2^18 nodes.
+    EXPECT_EQ(ran,
+              ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 nodes:2 " : "cells:3 upper:1 nodes:2 ");
     const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
     EXPECT_EQ(again.exitCode, 0);
     EXPECT_EQ(again.output, "cells task 1: done already\n");
@@ -163,9 +166,11 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
                                    "`facetree stage plan`)\n");
   const ChildResult unknown = runChild({"stage", "merge"});
   EXPECT_EQ(unknown.exitCode, 2);
-  EXPECT_EQ(unknown.output,
-            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, finish) (see facetree "
-            "--help)\n");
+  EXPECT_EQ(
+      unknown.output,
+      "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, nodes, finish) (see "
+      "facetree "
+      "--help)\n");
 }
 
 }  // namespace

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # scripts/slurm-build against a stand-in sbatch that runs each job at once (an array's tasks one
 # after the other, in reverse, with SLURM_ARRAY_TASK_ID set): the plan job submits the read and
-# count arrays and the grid, the grid the bin and cells arrays and the finish, each after the one
-# before, and the file is the bytes of `facetree build` with the same options.
+# count arrays and the grid, the grid the bin and cells arrays and the upper step, the upper step
+# the nodes array and the finish, each after the one before, and the file is the bytes of
+# `facetree build` with the same options.
 #   slurm_build_test.sh FACETREE SOURCE_DIR
 set -euo pipefail
 facetree="$1" source="$2"
@@ -43,8 +44,11 @@ for step in read count bin; do
 done
 test "$(grep -c -- '--job-name=facetree-cells --dependency=afterok:[0-9]* --array=0-2 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-grid --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-upper --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-nodes .*--array=0-0 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-finish --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
-for log in logs/read-1.log logs/count-0.log plan.json grid.json logs/bin-1.log logs/cells-0.log logs/finish.log; do
+for log in logs/read-1.log logs/count-0.log plan.json grid.json logs/bin-1.log logs/cells-0.log upper.json \
+  logs/finish.log; do
   test -s "$work/stages/$log"
 done
 echo "slurm-build: plan, read, count, grid, bin and cells as arrays, finish after them; the bytes of facetree build"

@@ -1,0 +1,235 @@
+// The write as tasks of the stages (stage_files.h): after the cells, the upper step joins them
+// (leaf graph, merge above) and writes the geometry as a piece of the file, the node order and a
+// write plan; each node task writes the frames of a range of node positions as a piece, its upper
+// nodes from the plan and its leaves' runs read in place from the cells tasks' spills; the finish
+// assembles the pieces (assembleClusterFile). Node frames are self-contained (docs/FORMAT.md), so
+// the file is the single process's bytes: the same records, cut into the same frames.
+#include <algorithm>
+#include <chrono>
+
+#include "facetree/grid.h"
+#include "node_order.h"
+#include "out_of_core.h"
+#include "stage_files.h"
+
+namespace facetree {
+namespace {
+
+constexpr std::string_view kWriteKind = "write plan";
+// Node frames per node task: 2^18 nodes of 4,096-node frames, about as many tasks as read tasks.
+constexpr uint64_t kFramesPerNodeTask = 64;
+
+std::filesystem::path writePlanPath(const std::filesystem::path& work) {
+  return work / "write.manifest";
+}
+std::filesystem::path nodesPiecePath(const std::filesystem::path& work, uint32_t task) {
+  return work / ("nodes-" + std::to_string(task) + ".piece");
+}
+
+// What the upper step reports beyond the plan's part (the finish prints it all).
+void putUpperReport(ManifestWriter& out, const JobReport& r) {
+  putReport(out, r);
+  for (const uint64_t v :
+       {r.nodes, r.components, r.leaves, r.crossEdges, r.upperComponents, r.temporaryBytesPeak})
+    out.put(v);
+  out.put(r.height);
+  out.put(r.balancedHeight);
+  for (const double v : {r.secondsCells, r.secondsMerge, r.secondsWrite}) out.put(v);
+}
+void takeUpperReport(ManifestReader& in, JobReport& r) {
+  takeReport(in, r);
+  for (uint64_t* v :
+       {&r.nodes, &r.components, &r.leaves, &r.crossEdges, &r.upperComponents, &r.temporaryBytesPeak})
+    *v = in.take<uint64_t>();
+  r.height = in.take<uint32_t>();
+  r.balancedHeight = in.take<uint32_t>();
+  for (double* v : {&r.secondsCells, &r.secondsMerge, &r.secondsWrite}) *v = in.take<double>();
+}
+
+struct LoadedWrite {
+  JobReport report;
+  uint32_t cellsTasks = 0;
+  std::vector<uint64_t> bounds;  // node task t: positions [bounds[t], bounds[t + 1])
+  WritePlan plan;
+};
+
+void saveWritePlan(const std::filesystem::path& work, const JobReport& report, uint32_t cellsTasks,
+                   const WritePlan& p) {
+  const uint64_t nodes = p.info.header.nodeCount;
+  const uint64_t perTask = kFramesPerNodeTask * p.options.nodesPerFrame;
+  std::vector<uint64_t> bounds{0};
+  while (bounds.back() < nodes) bounds.push_back(std::min(nodes, bounds.back() + perTask));
+  if (bounds.size() == 1) bounds.push_back(0);  // no nodes: one task of none
+  ManifestWriter out;
+  putUpperReport(out, report);
+  out.put(cellsTasks);
+  out.putVector(bounds);
+  out.put(p.info.header);
+  out.put(p.info.maxOriginalFace);
+  out.put(p.options.zstdLevel);
+  out.put(p.options.nodesPerFrame);
+  out.put(p.options.geometryPerFrame);
+  out.put(p.records);
+  out.put(p.compactNodes);
+  out.putVector(p.orderBlocks);
+  out.putVector(p.orderFirst);
+  out.putVector(p.runPosition);
+  out.putVector(p.runFirst);
+  out.putVector(p.leafOrder);
+  out.putVector(p.leafFirstBlock);
+  out.putVector(p.leafBlockCount);
+  out.putVector(p.upperNodes);
+  out.putVector(p.upperPosition);
+  out.putVector(p.upperParentBox);
+  out.putVector(p.upperParentPosition);
+  out.commit(writePlanPath(work), kWriteKind);
+}
+
+LoadedWrite loadWritePlan(const std::filesystem::path& work) {
+  ManifestReader in(writePlanPath(work), kWriteKind);
+  LoadedWrite w;
+  takeUpperReport(in, w.report);
+  w.cellsTasks = in.take<uint32_t>();
+  w.bounds = in.takeVector<uint64_t>();
+  WritePlan& p = w.plan;
+  p.info.header = in.take<FileHeader>();
+  p.info.maxOriginalFace = in.take<uint64_t>();
+  p.options.zstdLevel = in.take<int>();
+  p.options.nodesPerFrame = in.take<uint32_t>();
+  p.options.geometryPerFrame = in.take<uint32_t>();
+  p.records = in.take<BoxPrecision>();
+  p.compactNodes = in.take<bool>();
+  p.orderBlocks = in.takeVector<SpillBlock>();
+  p.orderFirst = in.takeVector<uint64_t>();
+  p.runPosition = in.takeVector<uint32_t>();
+  p.runFirst = in.takeVector<uint32_t>();
+  p.leafOrder = in.takeVector<uint32_t>();
+  p.leafFirstBlock = in.takeVector<uint32_t>();
+  p.leafBlockCount = in.takeVector<uint32_t>();
+  p.upperNodes = in.takeVector<FchNode>();
+  p.upperPosition = in.takeVector<uint32_t>();
+  p.upperParentBox = in.takeVector<NodeBox>();
+  p.upperParentPosition = in.takeVector<uint32_t>();
+  in.finish();
+  if (w.bounds.size() < 2 || p.orderBlocks.size() != p.orderFirst.size() ||
+      p.runPosition.size() != p.runFirst.size() || p.leafFirstBlock.size() != p.leafBlockCount.size() ||
+      p.upperNodes.size() != p.upperPosition.size())
+    throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+}  // namespace
+
+bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
+  if (std::filesystem::exists(writePlanPath(work))) return false;
+  PlanState state = loadPlan(work);
+  if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
+  JobReport report = std::move(state.report);
+  report.outOfCore = true;
+  const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
+  const ClusterJob effective = effectiveJob(job);
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  CellsOutput cells = loadCellTasks(temp, work, state);
+  const StageContext context{effective, temp, state.memoryCap, report, &work};
+  const WritePlan plan = finishUpper(context, state.extent, std::move(cells));
+  report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, temp.peakBytes());
+  saveWritePlan(work, report, tasks, plan);
+  return true;
+}
+
+std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
+  const LoadedWrite w = loadWritePlan(work);
+  return {{"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"finish", 1}};
+}
+
+bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path piece = nodesPiecePath(work, task);
+  if (std::filesystem::exists(piece)) return false;
+  const LoadedWrite w = loadWritePlan(work);
+  if (task + 1 >= w.bounds.size())
+    throw std::invalid_argument("no nodes task " + std::to_string(task) + " in " + work.string());
+  const WritePlan& p = w.plan;
+  const uint64_t first = w.bounds[task], end = w.bounds[task + 1];
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  std::unique_ptr<SpillFile> runs;
+  if (p.compactNodes) {
+    runs = SpillFile::open(temp, work / kWriteNodesFile);
+  } else {
+    std::vector<std::filesystem::path> paths;
+    for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Nodes, t));
+    runs = SpillFile::open(temp, paths);
+  }
+  std::unique_ptr<SpillFile> order = SpillFile::open(temp, work / kWriteOrderFile, sizeof(NodeRef));
+
+  WriteOptions options = p.options;
+  options.threads = job.threads;
+  options.piece = PieceRange{first, end, 0, 0, 0, 0};
+  ClusterFileWriter writer(piece, p.info, options, temp.path());
+  const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
+  if (!p.upperParentBox.empty())
+    for (uint32_t j = 0; j < upperCount; ++j)  // parents in earlier pieces
+      if (p.upperPosition[j] >= first && p.upperPosition[j] < end && p.upperParentPosition[j] < first)
+        writer.addParentBox(p.upperPosition[j], p.upperParentBox[j]);
+  // The order blocks that hold positions [first, end).
+  const auto from =
+      std::upper_bound(p.orderFirst.begin(), p.orderFirst.end(), first) - p.orderFirst.begin() - 1;
+  const auto to = std::lower_bound(p.orderFirst.begin(), p.orderFirst.end(), end) - p.orderFirst.begin();
+  const std::span<const SpillBlock> blocks =
+      std::span(p.orderBlocks)
+          .subspan(size_t(std::max<ptrdiff_t>(from, 0)), size_t(to - std::max<ptrdiff_t>(from, 0)));
+  uint64_t position = blocks.empty() ? end : p.orderFirst[size_t(std::max<ptrdiff_t>(from, 0))];
+  const auto nodePosition = [&](uint32_t leaf, uint32_t local) -> uint32_t {
+    const auto begin = p.runFirst.begin() + p.leafFirstBlock[leaf];
+    const auto it = std::upper_bound(begin, begin + p.leafBlockCount[leaf], local) - 1;
+    return p.runPosition[size_t(it - p.runFirst.begin())] + (local - *it);
+  };
+  uint64_t done = 0;
+  NodeRunReader reader(*order, blocks, *runs);
+  while (NodeRunReader::Batch* batch = reader.next()) {
+    const char* records = batch->records.data();
+    for (const NodeRef& ref : batch->refs) {
+      if (position >= end) break;
+      if (ref.kind == 0) {
+        if (position >= first) writer.addNodes(std::span(&p.upperNodes[ref.leafRank], 1));
+        ++position;
+        continue;
+      }
+      const uint64_t runEnd = position + ref.count;
+      if (runEnd > first) {
+        const uint32_t leafId = p.leafOrder[ref.leafRank];
+        const uint64_t skip = first > position ? first - position : 0;
+        writer.addNodeRun(
+            std::string_view(records, ref.rawBytes), ref.count, p.runFirst[ref.run],
+            [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); }, p.records,
+            static_cast<size_t>(skip), static_cast<size_t>(std::min(runEnd, end) - position - skip));
+      }
+      records += ref.rawBytes;
+      position = runEnd;
+    }
+    done = position - std::min(position, first);
+    checkJobProgress(job, "write", done, end - first);
+    if (position >= end) break;
+  }
+  writer.finish();
+  return true;
+}
+
+JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
+  const auto start = std::chrono::steady_clock::now();
+  PlanState state = loadPlanManifest(work);
+  if (state.inCore) return std::move(state.report);
+  if (!job.output.empty()) checkOutputWritable(job.output);
+  LoadedWrite w = loadWritePlan(work);
+  std::vector<std::filesystem::path> pieces{work / kGeometryPieceFile};
+  for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
+  JobReport report = std::move(w.report);
+  report.outOfCore = true;
+  const auto assemble = std::chrono::steady_clock::now();
+  report.fileBytes = assembleClusterFile(job.output, w.plan.info, w.plan.options, pieces);
+  report.secondsWrite += secondsSince(assemble);
+  report.seconds = secondsSince(start);
+  report.secondsBuilt = report.seconds - report.secondsWrite;
+  return report;
+}
+
+}  // namespace facetree
