@@ -1,5 +1,5 @@
-// facetree stage plan | read | count | grid | bin | cells | upper | nodes | finish: the out-of-core
-// build as tasks
+// facetree stage plan | read | count | grid | bin | cells | upper | geometry | nodes | finish: the
+// out-of-core build as tasks
 // over a work directory, for an engine that runs them (facetree/grid.h planStages, runStageTask,
 // finishStages). The plan keeps its command line in the work directory, so that the later tasks
 // build the same job from it. The plan and the grid print the steps that follow them, which is all
@@ -144,7 +144,8 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
   return kExitOk;
 }
 
-// One task of a step of many (read, count, bin, cells, nodes), or the grid or the upper step.
+// One task of a step of many (read, count, bin, cells, geometry, nodes), or the grid or the upper
+// step.
 int runTask(const std::string& step, const std::vector<std::string>& argv, SignalGuard& signals) {
   const std::string command = "stage " + step;
   const Args args = parseCommand(command, argv);
@@ -196,12 +197,12 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 }  // namespace
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
-  constexpr const char* kSteps = "plan, read, count, grid, bin, cells, upper, nodes, finish";
+  constexpr const char* kSteps = "plan, read, count, grid, bin, cells, upper, geometry, nodes, finish";
   if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
-  for (const char* step : {"read", "count", "grid", "bin", "cells", "upper", "nodes"})
+  for (const char* step : {"read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes"})
     if (argv[0] == step) return runTask(argv[0], rest, signals);
   throw UsageError("unknown stage '" + argv[0] + "' (" + kSteps + ")");
 }

@@ -42,12 +42,12 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "any order, anywhere, once the step before is done: a binary PLY whose faces are triangles in\n"
        "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
        "prints `stage bin`, `stage cells` and `stage upper`); any other mesh is read and binned by the\n"
-       "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage nodes` and `stage\n"
-       "finish`, which writes OUT.fch, the bytes `facetree build` writes with the same options. Each\n"
-       "task writes under temporary names and renames when complete: a task rerun gives the same\n"
-       "files, and a task already done is skipped. A plan of the same job (input, its size and time,\n"
-       "options) already in DIR stands; another one replaces it and every task's outputs. A mesh that\n"
-       "fits --memory in core is built by the plan; then only the finish follows.",
+       "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage geometry`, `stage\n"
+       "nodes` and `stage finish`, which writes OUT.fch, the bytes `facetree build` writes with the\n"
+       "same options. Each task writes under temporary names and renames when complete: a task rerun\n"
+       "gives the same files, and a task already done is skipped. A plan of the same job (input, its\n"
+       "size and time, options) already in DIR stands; another one replaces it and every task's\n"
+       "outputs. A mesh that fits --memory in core is built by the plan; then only the finish follows.",
        planOptions});
   const auto taskCommand = [&](const char* name, const char* about, const char* details) {
     table.push_back({name,
@@ -85,6 +85,9 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "finish.",
        {{"work", "DIR", "", "the work directory of `stage plan`"},
         {"json", "", "", "print the result as one JSON object"}}});
+  taskCommand("stage geometry",
+              "write the frames of one range of the file's triangles and vertices as a piece",
+              "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
   taskCommand("stage nodes", "write the frames of one range of the file's nodes as a piece",
               "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
   table.push_back({"stage finish",
@@ -289,7 +292,8 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|read|count|grid|bin|cells|upper|nodes|finish [OPTIONS]\n\nA build run as "
+      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|nodes|finish [OPTIONS]\n\nA build "
+      "run as "
       "tasks over a "
       "work directory:\n";
   for (const CommandHelp& c : commands())

@@ -262,11 +262,11 @@ ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& ext
 void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                     const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
 
-// The write as tasks of the stages (stage_write.cpp): the upper step writes the geometry as a piece
-// of the file, the node order (and for compact boxes the quantised node runs) as named spills in
-// the work directory, and hands the node tasks this plan; each node task writes the frames of a
-// range of node positions as a piece; the finish assembles the pieces (assembleClusterFile).
-inline constexpr const char* kGeometryPieceFile = "geometry.piece";
+// The write as tasks of the stages (stage_write.cpp): the upper step reads the geometry for the
+// upper nodes' boxes and writes the node order (and for compact boxes the quantised node runs) as
+// named spills in the work directory, and hands the tasks this plan; each geometry task writes the
+// frames of a range of triangles and one of vertices as a piece of the file, each node task those
+// of a range of node positions; the finish assembles the pieces (assembleClusterFile).
 inline constexpr const char* kWriteOrderFile = "write-order.spill";
 inline constexpr const char* kWriteNodesFile = "write-nodes.spill";  // compact boxes' quantised runs
 struct WritePlan {
@@ -283,6 +283,10 @@ struct WritePlan {
   std::vector<uint32_t> upperPosition;                   // likewise
   std::vector<NodeBox> upperParentBox;        // compact boxes: each upper node's parent's decoded box
   std::vector<uint32_t> upperParentPosition;  // and its parent's file position (the root: none)
+  // The geometry tasks': every leaf's geometry blocks (LeafGraph::geometry) and, per leaf id, its
+  // first block, block count, vertices and faces.
+  std::vector<SpillBlock> geometry;
+  std::vector<uint32_t> leafFirstGeometry, leafGeometryCount, leafVertices, leafFaces;
 };
 WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                            const ClusterMergeResult& upper, LeafSubtrees&& subtrees);

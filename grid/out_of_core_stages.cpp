@@ -250,7 +250,7 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   for (const auto& entry : std::filesystem::directory_iterator(work)) {
     const std::string name = entry.path().filename().string();
     for (const char* step :
-         {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry.", "nodes-"})
+         {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry-", "nodes-"})
       if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
   }
   if (planRanges(job, work, result)) return result;
@@ -287,6 +287,8 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.next = stepsAfterUpper(work);
   } else if (step == "nodes") {
     result.ran = runNodesTask(job, work, task);
+  } else if (step == "geometry") {
+    result.ran = runGeometryTask(job, work, task);
   } else if (step == "grid") {
     if (task != 0) throw std::invalid_argument("the grid has one task, 0, not " + std::to_string(task));
     result.ran = runGridStep(job, work);
@@ -295,7 +297,7 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.next = stepsAfterGrid(state);
   } else {
     throw std::invalid_argument("no stage step '" + std::string(step) +
-                                "' (read, count, grid, bin, cells, upper, nodes)");
+                                "' (read, count, grid, bin, cells, upper, geometry, nodes)");
   }
   return result;
 }

@@ -67,7 +67,9 @@ class WriteStage {
   // order is kept in order_ for the node pass.
   void place(OrderSorter& order);
   uint32_t nodePosition(uint32_t leaf, uint32_t local) const;
-  void writeGeometry(ClusterFileWriter& writer, const FileLayout& layout, UpperFrames& frames,
+  // The geometry into `writer` leaf by leaf, every upper node's box accumulating on the way; with
+  // no writer, the boxes alone (the stages' geometry tasks write the frames).
+  void writeGeometry(ClusterFileWriter* writer, const FileLayout& layout, UpperFrames& frames,
                      uint64_t& done);
   void writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
                   uint64_t& done);
@@ -238,7 +240,7 @@ uint32_t WriteStage::nodePosition(uint32_t leaf, uint32_t local) const {
 }
 
 // Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
-void WriteStage::writeGeometry(ClusterFileWriter& writer, const FileLayout& layout, UpperFrames& frames,
+void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layout, UpperFrames& frames,
                                uint64_t& done) {
   std::vector<std::byte> raw;
   std::vector<glm::vec3> leafVertices;
@@ -267,18 +269,22 @@ void WriteStage::writeGeometry(ClusterFileWriter& writer, const FileLayout& layo
       at += indices.size() * sizeof(uint32_t);
       ids.resize(header.triangles);
       std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
-      writer.addVertices(std::span(leafVertices).subspan(firstNew));
+      if (writer) writer->addVertices(std::span(leafVertices).subspan(firstNew));
       upperBoxes.add(leafVertices, indices, ancestors);
-      for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
-      writer.addTriangles(indices, ids);
+      if (writer) {
+        for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
+        writer->addTriangles(indices, ids);
+      }
       done += header.triangles;
     }
     vertexBase += leaf.vertexCount;
     context_.checkCancel("write", done, layout.faces + layout.nodes);
   }
   upperBoxes.finish();
-  subtrees_.geometry.reset();
-  graph_.geometry = {};
+  if (writer) {  // else the geometry tasks read it again
+    subtrees_.geometry.reset();
+    graph_.geometry = {};
+  }
 }
 
 FchNode WriteStage::upperNode(uint32_t j, const FileLayout& layout, const UpperFrames& frames) const {
@@ -457,7 +463,7 @@ void WriteStage::run() {
   });
 
   uint64_t done = 0;
-  writeGeometry(writer, fileLayout, frames, done);
+  writeGeometry(&writer, fileLayout, frames, done);
   releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
   // With compact boxes a leaf's boxes depend on their ancestors' only: quantised leaf by leaf here,
   // so that the node pass keeps no box of a node waiting for its children.
@@ -482,19 +488,8 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   plan.info = fileInfo(fileLayout);
   plan.options = writeOptions();
   {
-    WriteOptions options = plan.options;
-    options.piece = PieceRange{0, 0, 0, fileLayout.vertices, 0, fileLayout.faces};
-    ClusterFileWriter writer(work / kGeometryPieceFile, plan.info, options, context_.temp.path());
-    TempSpace& temp = context_.temp;
-    writer.setTemporaryBytesHook([&temp](int64_t delta) {
-      if (delta > 0)
-        temp.reserve(static_cast<uint64_t>(delta));
-      else
-        temp.release(static_cast<uint64_t>(-delta));
-    });
     uint64_t done = 0;
-    writeGeometry(writer, fileLayout, frames, done);
-    writer.finish();
+    writeGeometry(nullptr, fileLayout, frames, done);
   }
   releaseFreeMemory();
   const bool compact = context_.job.build.boxes == BoxPrecision::Compact && !upper_.nodes.empty();
@@ -508,8 +503,12 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   plan.compactNodes = compact;
   plan.orderBlocks = std::move(orderBlocks_);
   plan.orderFirst = std::move(orderFirst_);
-  plan.runPosition = runPosition_;
-  plan.runFirst = graph_.runFirst;
+  // Every upper node's record first: they read the run tables (nodePosition), which move into the plan.
+  plan.upperNodes.resize(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j)
+    if (fileLayout.recast.kept[upperCount - 1 - j]) plan.upperNodes[j] = upperNode(j, fileLayout, frames);
+  plan.runPosition = std::move(runPosition_);
+  plan.runFirst = std::move(graph_.runFirst);
   plan.leafOrder = fileLayout.leafOrder;
   plan.leafFirstBlock.resize(graph_.leaves.size());
   plan.leafBlockCount.resize(graph_.leaves.size());
@@ -517,9 +516,6 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
     plan.leafFirstBlock[l] = graph_.leaves[l].firstBlock;
     plan.leafBlockCount[l] = graph_.leaves[l].blockCount;
   }
-  plan.upperNodes.resize(upperCount);
-  for (uint32_t j = 0; j < upperCount; ++j)
-    if (fileLayout.recast.kept[upperCount - 1 - j]) plan.upperNodes[j] = upperNode(j, fileLayout, frames);
   plan.upperPosition = upperPosition_;
   if (context_.job.build.boxes == BoxPrecision::Compact) {
     // Each upper node's parent's box as decoded, for a node task that holds the node but not its parent.
@@ -532,6 +528,21 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
       plan.upperParentBox[j] = decoded[parent];
       plan.upperParentPosition[j] = upperPosition_[upperCount - 1 - parent];
     }
+  }
+  // The geometry tasks need each leaf's blocks (the geometry spills stay as the cells tasks left
+  // them); here the geometry is only read, for the upper nodes' boxes.
+  plan.geometry = std::move(graph_.geometry);
+  const size_t leaves = graph_.leaves.size();
+  plan.leafFirstGeometry.resize(leaves);
+  plan.leafGeometryCount.resize(leaves);
+  plan.leafVertices.resize(leaves);
+  plan.leafFaces.resize(leaves);
+  for (size_t l = 0; l < leaves; ++l) {
+    const LeafCluster& leaf = graph_.leaves[l];
+    plan.leafFirstGeometry[l] = leaf.firstGeometry;
+    plan.leafGeometryCount[l] = leaf.geometryCount;
+    plan.leafVertices[l] = leaf.vertexCount;
+    plan.leafFaces[l] = leaf.faceCount;
   }
   return plan;
 }

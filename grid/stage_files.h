@@ -12,9 +12,9 @@
 //   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
 //   cells-T.manifest            its cells' records
-//   geometry.piece              the upper step: the file's geometry frames (ClusterFileWriter piece)
-//   write-order.spill, write-nodes.spill   the node order; compact boxes' quantised node runs
-//   write.manifest              the upper step's write plan: what every node task needs
+//   write-order.spill, write-nodes.spill   the upper step's node order; compact boxes' node runs
+//   write.manifest              the upper step's write plan: what every geometry and node task needs
+//   geometry-T.piece            geometry task T: the frames of its triangles and vertices
 //   nodes-T.piece               node task T: the frames of its node positions
 // A task's manifest (a node task's piece) marks it done.
 #pragma once
@@ -118,6 +118,7 @@ CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, co
 bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
 std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 // The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
 uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
 

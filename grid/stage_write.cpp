@@ -6,6 +6,8 @@
 // the file is the single process's bytes: the same records, cut into the same frames.
 #include <algorithm>
 #include <chrono>
+#include <cstring>
+#include <utility>
 
 #include "facetree/grid.h"
 #include "node_order.h"
@@ -18,12 +20,18 @@ namespace {
 constexpr std::string_view kWriteKind = "write plan";
 // Node frames per node task: 2^18 nodes of 4,096-node frames, about as many tasks as read tasks.
 constexpr uint64_t kFramesPerNodeTask = 64;
+// Triangle frames per geometry task: 2^20 triangles of 65,536-triangle frames, and as many tasks'
+// worth of vertex frames.
+constexpr uint64_t kFramesPerGeometryTask = 16;
 
 std::filesystem::path writePlanPath(const std::filesystem::path& work) {
   return work / "write.manifest";
 }
 std::filesystem::path nodesPiecePath(const std::filesystem::path& work, uint32_t task) {
   return work / ("nodes-" + std::to_string(task) + ".piece");
+}
+std::filesystem::path geometryPiecePath(const std::filesystem::path& work, uint32_t task) {
+  return work / ("geometry-" + std::to_string(task) + ".piece");
 }
 
 // What the upper step reports beyond the plan's part (the finish prints it all).
@@ -50,20 +58,38 @@ struct LoadedWrite {
   JobReport report;
   uint32_t cellsTasks = 0;
   std::vector<uint64_t> bounds;  // node task t: positions [bounds[t], bounds[t + 1])
+  // Geometry task t: triangles [triangleBounds[t], + 1) and vertices [vertexBounds[t], + 1).
+  std::vector<uint64_t> triangleBounds, vertexBounds;
   WritePlan plan;
 };
 
+// Each table goes into the manifest's bytes as it leaves the plan: the two never hold it twice.
 void saveWritePlan(const std::filesystem::path& work, const JobReport& report, uint32_t cellsTasks,
-                   const WritePlan& p) {
+                   WritePlan&& p) {
   const uint64_t nodes = p.info.header.nodeCount;
   const uint64_t perTask = kFramesPerNodeTask * p.options.nodesPerFrame;
   std::vector<uint64_t> bounds{0};
   while (bounds.back() < nodes) bounds.push_back(std::min(nodes, bounds.back() + perTask));
   if (bounds.size() == 1) bounds.push_back(0);  // no nodes: one task of none
+  // Geometry tasks on frame boundaries of both sections.
+  const uint64_t triangles = p.info.header.triangleCount, vertices = p.info.header.vertexCount;
+  const uint64_t frame = p.options.geometryPerFrame;
+  const uint64_t geometryTasks = std::max<uint64_t>(
+      1, (triangles + kFramesPerGeometryTask * frame - 1) / (kFramesPerGeometryTask * frame));
+  const uint64_t vertexFrames = (vertices + frame - 1) / frame;
+  std::vector<uint64_t> triangleBounds, vertexBounds;
+  for (uint64_t t = 0; t <= geometryTasks; ++t) {
+    triangleBounds.push_back(std::min(triangles, t * kFramesPerGeometryTask * frame));
+    vertexBounds.push_back(std::min(vertices, vertexFrames * t / geometryTasks * frame));
+  }
+  triangleBounds.back() = triangles;
+  vertexBounds.back() = vertices;
   ManifestWriter out;
   putUpperReport(out, report);
   out.put(cellsTasks);
   out.putVector(bounds);
+  out.putVector(triangleBounds);
+  out.putVector(vertexBounds);
   out.put(p.info.header);
   out.put(p.info.maxOriginalFace);
   out.put(p.options.zstdLevel);
@@ -71,17 +97,22 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   out.put(p.options.geometryPerFrame);
   out.put(p.records);
   out.put(p.compactNodes);
-  out.putVector(p.orderBlocks);
-  out.putVector(p.orderFirst);
-  out.putVector(p.runPosition);
-  out.putVector(p.runFirst);
-  out.putVector(p.leafOrder);
-  out.putVector(p.leafFirstBlock);
-  out.putVector(p.leafBlockCount);
-  out.putVector(p.upperNodes);
-  out.putVector(p.upperPosition);
-  out.putVector(p.upperParentBox);
-  out.putVector(p.upperParentPosition);
+  out.putVector(std::exchange(p.orderBlocks, {}));
+  out.putVector(std::exchange(p.orderFirst, {}));
+  out.putVector(std::exchange(p.runPosition, {}));
+  out.putVector(std::exchange(p.runFirst, {}));
+  out.putVector(std::exchange(p.leafOrder, {}));
+  out.putVector(std::exchange(p.leafFirstBlock, {}));
+  out.putVector(std::exchange(p.leafBlockCount, {}));
+  out.putVector(std::exchange(p.upperNodes, {}));
+  out.putVector(std::exchange(p.upperPosition, {}));
+  out.putVector(std::exchange(p.upperParentBox, {}));
+  out.putVector(std::exchange(p.upperParentPosition, {}));
+  out.putVector(std::exchange(p.geometry, {}));
+  out.putVector(std::exchange(p.leafFirstGeometry, {}));
+  out.putVector(std::exchange(p.leafGeometryCount, {}));
+  out.putVector(std::exchange(p.leafVertices, {}));
+  out.putVector(std::exchange(p.leafFaces, {}));
   out.commit(writePlanPath(work), kWriteKind);
 }
 
@@ -91,6 +122,8 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   takeUpperReport(in, w.report);
   w.cellsTasks = in.take<uint32_t>();
   w.bounds = in.takeVector<uint64_t>();
+  w.triangleBounds = in.takeVector<uint64_t>();
+  w.vertexBounds = in.takeVector<uint64_t>();
   WritePlan& p = w.plan;
   p.info.header = in.take<FileHeader>();
   p.info.maxOriginalFace = in.take<uint64_t>();
@@ -110,10 +143,18 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   p.upperPosition = in.takeVector<uint32_t>();
   p.upperParentBox = in.takeVector<NodeBox>();
   p.upperParentPosition = in.takeVector<uint32_t>();
+  p.geometry = in.takeVector<SpillBlock>();
+  p.leafFirstGeometry = in.takeVector<uint32_t>();
+  p.leafGeometryCount = in.takeVector<uint32_t>();
+  p.leafVertices = in.takeVector<uint32_t>();
+  p.leafFaces = in.takeVector<uint32_t>();
   in.finish();
   if (w.bounds.size() < 2 || p.orderBlocks.size() != p.orderFirst.size() ||
       p.runPosition.size() != p.runFirst.size() || p.leafFirstBlock.size() != p.leafBlockCount.size() ||
-      p.upperNodes.size() != p.upperPosition.size())
+      p.upperNodes.size() != p.upperPosition.size() || w.triangleBounds.size() != w.vertexBounds.size() ||
+      w.triangleBounds.size() < 2 || p.leafFirstGeometry.size() != p.leafFirstBlock.size() ||
+      p.leafGeometryCount.size() != p.leafFirstBlock.size() ||
+      p.leafVertices.size() != p.leafFirstBlock.size() || p.leafFaces.size() != p.leafFirstBlock.size())
     throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
   return w;
 }
@@ -124,6 +165,9 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
   if (std::filesystem::exists(writePlanPath(work))) return false;
   PlanState state = loadPlan(work);
   if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
+  // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
+  state.owners = {};
+  state.facesIndex = state.ghostsIndex = {};
   JobReport report = std::move(state.report);
   report.outOfCore = true;
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
@@ -131,15 +175,17 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   CellsOutput cells = loadCellTasks(temp, work, state);
   const StageContext context{effective, temp, state.memoryCap, report, &work};
-  const WritePlan plan = finishUpper(context, state.extent, std::move(cells));
+  WritePlan plan = finishUpper(context, state.extent, std::move(cells));
   report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, temp.peakBytes());
-  saveWritePlan(work, report, tasks, plan);
+  saveWritePlan(work, report, tasks, std::move(plan));
   return true;
 }
 
 std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
   const LoadedWrite w = loadWritePlan(work);
-  return {{"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"finish", 1}};
+  return {{"geometry", static_cast<uint32_t>(w.triangleBounds.size() - 1)},
+          {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)},
+          {"finish", 1}};
 }
 
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
@@ -214,13 +260,80 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
   return true;
 }
 
+bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path piece = geometryPiecePath(work, task);
+  if (std::filesystem::exists(piece)) return false;
+  const LoadedWrite w = loadWritePlan(work);
+  if (task + 1 >= w.triangleBounds.size())
+    throw std::invalid_argument("no geometry task " + std::to_string(task) + " in " + work.string());
+  const WritePlan& p = w.plan;
+  const uint64_t firstTriangle = w.triangleBounds[task], endTriangle = w.triangleBounds[task + 1];
+  const uint64_t firstVertex = w.vertexBounds[task], endVertex = w.vertexBounds[task + 1];
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  std::vector<std::filesystem::path> paths;
+  for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Geometry, t));
+  const std::unique_ptr<SpillFile> geometry = SpillFile::open(temp, paths, 4);
+  WriteOptions options = p.options;
+  options.threads = job.threads;
+  options.piece = PieceRange{0, 0, firstVertex, endVertex, firstTriangle, endTriangle};
+  ClusterFileWriter writer(piece, p.info, options, temp.path());
+  SpillCodec codec;
+  std::vector<std::byte> raw;
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> indices;
+  std::vector<uint64_t> ids;
+  // The leaves in file order, as the single process's write reads them (out_of_core_write.cpp),
+  // each block's new vertices and its triangles cut to the task's ranges.
+  uint64_t vertexBase = 0, faceBase = 0;
+  for (const uint32_t leaf : p.leafOrder) {
+    if (vertexBase >= endVertex && faceBase >= endTriangle) break;
+    const uint64_t leafVertexEnd = vertexBase + p.leafVertices[leaf],
+                   leafFaceEnd = faceBase + p.leafFaces[leaf];
+    if (leafVertexEnd > firstVertex || leafFaceEnd > firstTriangle) {
+      uint64_t vertex = vertexBase, face = faceBase;
+      for (uint32_t g = 0; g < p.leafGeometryCount[leaf]; ++g) {
+        geometry->read(p.geometry[p.leafFirstGeometry[leaf] + g], raw, codec);
+        GeometryBlockHeader header;
+        std::memcpy(&header, raw.data(), sizeof header);
+        const std::byte* at = raw.data() + sizeof header;
+        vertices.resize(header.newVertices);
+        std::memcpy(vertices.data(), at, vertices.size() * sizeof(glm::vec3));
+        at += vertices.size() * sizeof(glm::vec3);
+        indices.resize(size_t{3} * header.triangles);
+        std::memcpy(indices.data(), at, indices.size() * sizeof(uint32_t));
+        at += indices.size() * sizeof(uint32_t);
+        ids.resize(header.triangles);
+        std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
+        const uint64_t v0 = std::max(vertex, firstVertex), v1 = std::min(vertex + vertices.size(), endVertex);
+        if (v0 < v1) writer.addVertices(std::span(vertices).subspan(size_t(v0 - vertex), size_t(v1 - v0)));
+        const uint64_t f0 = std::max(face, firstTriangle), f1 = std::min(face + ids.size(), endTriangle);
+        if (f0 < f1) {
+          const auto from = size_t(f0 - face), n = size_t(f1 - f0);
+          for (size_t k = 3 * from; k < 3 * (from + n); ++k) indices[k] += static_cast<uint32_t>(vertexBase);
+          writer.addTriangles(std::span(indices).subspan(3 * from, 3 * n), std::span(ids).subspan(from, n));
+        }
+        vertex += vertices.size();
+        face += ids.size();
+      }
+      checkJobProgress(job, "write",
+                       std::min(leafFaceEnd, endTriangle) - std::min(firstTriangle, leafFaceEnd),
+                       endTriangle - firstTriangle);
+    }
+    vertexBase = leafVertexEnd;
+    faceBase = leafFaceEnd;
+  }
+  writer.finish();
+  return true;
+}
+
 JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
   const auto start = std::chrono::steady_clock::now();
   PlanState state = loadPlanManifest(work);
   if (state.inCore) return std::move(state.report);
   if (!job.output.empty()) checkOutputWritable(job.output);
   LoadedWrite w = loadWritePlan(work);
-  std::vector<std::filesystem::path> pieces{work / kGeometryPieceFile};
+  std::vector<std::filesystem::path> pieces;
+  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) pieces.push_back(geometryPiecePath(work, t));
   for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
   JobReport report = std::move(w.report);
   report.outOfCore = true;

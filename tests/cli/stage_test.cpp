@@ -118,9 +118,9 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
         if (single) next = stepsOf(jsonText(result.output, "next"));
       }
     }
-    // 300k faces: two node tasks of 2^18 nodes.
-    EXPECT_EQ(ran,
-              ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 nodes:2 " : "cells:3 upper:1 nodes:2 ");
+    // 300k faces: one geometry task of 2^20 triangles, two node tasks of 2^18 nodes.
+    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 nodes:2 "
+                          : "cells:3 upper:1 geometry:1 nodes:2 ");
     const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
     EXPECT_EQ(again.exitCode, 0);
     EXPECT_EQ(again.output, "cells task 1: done already\n");
@@ -168,7 +168,8 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
   EXPECT_EQ(unknown.exitCode, 2);
   EXPECT_EQ(
       unknown.output,
-      "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, nodes, finish) (see "
+      "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, nodes, finish) "
+      "(see "
       "facetree "
       "--help)\n");
 }

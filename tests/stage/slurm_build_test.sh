@@ -45,7 +45,8 @@ done
 test "$(grep -c -- '--job-name=facetree-cells --dependency=afterok:[0-9]* --array=0-2 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-grid --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-upper --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
-test "$(grep -c -- '--job-name=facetree-nodes .*--array=0-0 ' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-geometry .*--array=0-0 ' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-nodes --dependency=afterok:[0-9]* --array=0-0 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-finish --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 for log in logs/read-1.log logs/count-0.log plan.json grid.json logs/bin-1.log logs/cells-0.log upper.json \
   logs/finish.log; do
