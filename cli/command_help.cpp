@@ -43,11 +43,12 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
        "prints `stage bin`, `stage cells` and `stage upper`); any other mesh is read and binned by the\n"
        "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage geometry`, `stage\n"
-       "nodes` and `stage finish`, which writes OUT.fch, the bytes `facetree build` writes with the\n"
-       "same options. Each task writes under temporary names and renames when complete: a task rerun\n"
-       "gives the same files, and a task already done is skipped. A plan of the same job (input, its\n"
-       "size and time, options) already in DIR stands; another one replaces it and every task's\n"
-       "outputs. A mesh that fits --memory in core is built by the plan; then only the finish follows.",
+       "nodes` and `stage layout`, which prints `stage place` and `stage finish`. OUT.fch is the bytes\n"
+       "`facetree build` writes with the same options. Each task writes under temporary names and\n"
+       "renames when complete: a task rerun gives the same files, and a task already done is skipped.\n"
+       "A plan of the same job (input, its size and time, options) already in DIR stands; another one\n"
+       "replaces it and every task's outputs. A mesh that fits --memory in core is built by the plan;\n"
+       "then only the finish follows.",
        planOptions});
   const auto taskCommand = [&](const char* name, const char* about, const char* details) {
     table.push_back({name,
@@ -90,11 +91,18 @@ void addStageCommands(std::vector<CommandHelp>& table) {
               "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
   taskCommand("stage nodes", "write the frames of one range of the file's nodes as a piece",
               "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
+  table.push_back({"stage layout",
+                   "--work DIR [--json]",
+                   "lay out the cluster file of the pieces and write its header and index",
+                   "Every geometry and node task must be done. Prints the steps that follow: place, finish.",
+                   {{"work", "DIR", "", "the work directory of `stage plan`"},
+                    {"json", "", "", "print the result as one JSON object"}}});
+  taskCommand("stage place", "copy one piece's frames into the cluster file being laid out",
+              "The layout must be done. Each place task syncs what it wrote.");
   table.push_back({"stage finish",
                    "--work DIR [--json]",
-                   "assemble the pieces of a planned build into its cluster file",
-                   "Every node task must be done. Copies the pieces' frames under one header and index, and\n"
-                   "prints the report `facetree build` prints.",
+                   "give the placed cluster file of a planned build its name",
+                   "Every place task must be done. Prints the report `facetree build` prints.",
                    {{"work", "DIR", "", "the work directory of `stage plan`"},
                     {"json", "", "", "print the report as one JSON object"}}});
 }
@@ -292,7 +300,8 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|nodes|finish [OPTIONS]\n\nA build "
+      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|nodes|layout|place|finish "
+      "[OPTIONS]\n\nA build "
       "run as "
       "tasks over a "
       "work directory:\n";

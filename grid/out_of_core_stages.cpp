@@ -249,8 +249,8 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   std::filesystem::remove(planPath(work));
   for (const auto& entry : std::filesystem::directory_iterator(work)) {
     const std::string name = entry.path().filename().string();
-    for (const char* step :
-         {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry-", "nodes-"})
+    for (const char* step : {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry-",
+                             "nodes-", "layout.", "place-", "output."})
       if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
   }
   if (planRanges(job, work, result)) return result;
@@ -289,6 +289,12 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.ran = runNodesTask(job, work, task);
   } else if (step == "geometry") {
     result.ran = runGeometryTask(job, work, task);
+  } else if (step == "layout") {
+    if (task != 0) throw std::invalid_argument("the layout has one task, 0, not " + std::to_string(task));
+    result.ran = runLayoutStep(job, work);
+    result.next = stepsAfterLayout(work);
+  } else if (step == "place") {
+    result.ran = runPlaceTask(job, work, task);
   } else if (step == "grid") {
     if (task != 0) throw std::invalid_argument("the grid has one task, 0, not " + std::to_string(task));
     result.ran = runGridStep(job, work);
@@ -297,7 +303,7 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.next = stepsAfterGrid(state);
   } else {
     throw std::invalid_argument("no stage step '" + std::string(step) +
-                                "' (read, count, grid, bin, cells, upper, geometry, nodes)");
+                                "' (read, count, grid, bin, cells, upper, geometry, nodes, layout, place)");
   }
   return result;
 }

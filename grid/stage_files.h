@@ -16,6 +16,9 @@
 //   write.manifest              the upper step's write plan: what every geometry and node task needs
 //   geometry-T.piece            geometry task T: the frames of its triangles and vertices
 //   nodes-T.piece               node task T: the frames of its node positions
+//   layout.manifest             the file's layout: where every piece's frames go
+//   output.fch.partial          the file being placed (beside the output on another file system)
+//   place-T.manifest            place task T: piece T's frames copied into it
 // A task's manifest (a node task's piece) marks it done.
 #pragma once
 
@@ -119,6 +122,11 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
 std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The file assembled by tasks: the layout step writes its header and index and lists the copies;
+// each place task copies one piece's frames into it; the finish renames it into place.
+bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work);
+bool runPlaceTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 // The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
 uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
 

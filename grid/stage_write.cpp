@@ -4,6 +4,8 @@
 // nodes from the plan and its leaves' runs read in place from the cells tasks' spills; the finish
 // assembles the pieces (assembleClusterFile). Node frames are self-contained (docs/FORMAT.md), so
 // the file is the single process's bytes: the same records, cut into the same frames.
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -185,7 +187,7 @@ std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
   const LoadedWrite w = loadWritePlan(work);
   return {{"geometry", static_cast<uint32_t>(w.triangleBounds.size() - 1)},
           {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)},
-          {"finish", 1}};
+          {"layout", 1}};
 }
 
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
@@ -326,20 +328,109 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
   return true;
 }
 
+namespace {
+
+constexpr std::string_view kLayoutKind = "layout";
+
+std::filesystem::path layoutPath(const std::filesystem::path& work) {
+  return work / "layout.manifest";
+}
+
+// Every piece of the file, geometry tasks' first.
+std::vector<std::filesystem::path> piecePaths(const std::filesystem::path& work, const LoadedWrite& w) {
+  std::vector<std::filesystem::path> pieces;
+  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) pieces.push_back(geometryPiecePath(work, t));
+  for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
+  return pieces;
+}
+
+// The file being assembled: in the work directory when it shares the output's file system (the
+// finish renames it into place; a failed build leaves nothing beside the output), else beside the
+// output.
+std::filesystem::path partialPath(const std::filesystem::path& work, const std::filesystem::path& out) {
+  struct stat a {
+  }, b{};
+  const std::filesystem::path dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
+  if (::stat(work.c_str(), &a) == 0 && ::stat(dir.c_str(), &b) == 0 && a.st_dev == b.st_dev)
+    return work / "output.fch.partial";
+  return std::filesystem::path(out.string() + ".partial");
+}
+
+// The layout manifest: the file being placed, its copies, and the upper step's report for the finish.
+struct Layout {
+  std::string partial;
+  uint64_t fileBytes = 0;
+  uint32_t pieces = 0;
+  std::vector<PieceCopy> copies;
+  JobReport report;
+};
+Layout loadLayout(const std::filesystem::path& work) {
+  ManifestReader in(layoutPath(work), kLayoutKind);
+  Layout l;
+  l.partial = in.takeBytes();
+  l.fileBytes = in.take<uint64_t>();
+  l.pieces = in.take<uint32_t>();
+  l.copies = in.takeVector<PieceCopy>();
+  takeUpperReport(in, l.report);
+  in.finish();
+  return l;
+}
+
+}  // namespace
+
+bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
+  if (std::filesystem::exists(layoutPath(work))) return false;
+  const LoadedWrite w = loadWritePlan(work);
+  checkOutputWritable(job.output);
+  const std::vector<std::filesystem::path> pieces = piecePaths(work, w);
+  const std::filesystem::path partial = partialPath(work, job.output);
+  const ClusterFileAssembly assembly = beginClusterFile(partial, w.plan.info, w.plan.options, pieces);
+  ManifestWriter out;
+  out.putBytes(partial.string());
+  out.put(assembly.fileBytes);
+  out.put(static_cast<uint32_t>(pieces.size()));
+  out.putVector(assembly.copies);
+  putUpperReport(out, w.report);
+  out.commit(layoutPath(work), kLayoutKind);
+  return true;
+}
+
+std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work) {
+  return {{"place", loadLayout(work).pieces}, {"finish", 1}};
+}
+
+bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path manifest = taskManifestPath(work, "place", task);
+  if (std::filesystem::exists(manifest)) return false;
+  const Layout l = loadLayout(work);
+  if (task >= l.pieces)
+    throw std::invalid_argument("no place task " + std::to_string(task) + " in " + work.string());
+  const std::vector<std::filesystem::path> pieces = piecePaths(work, loadWritePlan(work));
+  std::vector<PieceCopy> mine;
+  for (const PieceCopy& c : l.copies)
+    if (c.piece == task) mine.push_back(c);
+  placePieces(l.partial, pieces, mine);
+  ManifestWriter out;
+  out.put(task);
+  out.commit(manifest, taskKind("place"));
+  return true;
+}
+
 JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
   const auto start = std::chrono::steady_clock::now();
   PlanState state = loadPlanManifest(work);
   if (state.inCore) return std::move(state.report);
-  if (!job.output.empty()) checkOutputWritable(job.output);
-  LoadedWrite w = loadWritePlan(work);
-  std::vector<std::filesystem::path> pieces;
-  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) pieces.push_back(geometryPiecePath(work, t));
-  for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
-  JobReport report = std::move(w.report);
+  Layout l = loadLayout(work);
+  for (uint32_t t = 0; t < l.pieces; ++t) {
+    ManifestReader placed(taskManifestPath(work, "place", t), taskKind("place"));
+    if (placed.take<uint32_t>() != t)
+      throw Error(ErrorCategory::Input, taskManifestPath(work, "place", t).string() + ": another task's");
+    placed.finish();
+  }
+  JobReport report = std::move(l.report);
   report.outOfCore = true;
-  const auto assemble = std::chrono::steady_clock::now();
-  report.fileBytes = assembleClusterFile(job.output, w.plan.info, w.plan.options, pieces);
-  report.secondsWrite += secondsSince(assemble);
+  commitClusterFile(l.partial, job.output);
+  report.fileBytes = l.fileBytes;
   report.seconds = secondsSince(start);
   report.secondsBuilt = report.seconds - report.secondsWrite;
   return report;

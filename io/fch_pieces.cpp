@@ -122,6 +122,7 @@ class PieceFile {
   PieceFile& operator=(const PieceFile&) = delete;
 
   const fch::PieceTrailer& trailer() const { return trailer_; }
+  void readAt(uint64_t offset, char* out, size_t size) const { read(offset, out, size); }
   void copy(uint64_t offset, uint64_t bytes, OutputFile& out, std::vector<char>& buffer) const {
     for (uint64_t done = 0; done < bytes;) {
       const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes - done));
@@ -151,8 +152,9 @@ class PieceFile {
 
 }  // namespace
 
-uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileInfo& info,
-                             const WriteOptions& options, std::span<const std::filesystem::path> paths) {
+ClusterFileAssembly beginClusterFile(const std::filesystem::path& partial, const StreamFileInfo& info,
+                                     const WriteOptions& options,
+                                     std::span<const std::filesystem::path> paths) {
   std::vector<std::unique_ptr<PieceFile>> pieces;
   for (const auto& path : paths) pieces.push_back(std::make_unique<PieceFile>(path));
   FchLayout layout = fch::startLayout(info, options);
@@ -165,70 +167,129 @@ uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileI
            : s == 1 ? std::pair(r.firstVertex, r.endVertex)
                     : std::pair(r.firstTriangle, r.endTriangle);
   };
-  // Where each frame's bytes are: (piece, offset in it), in file order.
-  struct Source {
-    const PieceFile* piece;
-    uint64_t offset, bytes;
-  };
-  std::vector<Source> sources;
   uint64_t frames = 0;
-  for (const auto& p : pieces) frames += p->trailer().frames.size();
   for (const auto& p : pieces) {
     const fch::PieceTrailer& t = p->trailer();
+    frames += t.frames.size();
     h.boundsMin = glm::min(h.boundsMin, t.boundsMin);
     h.boundsMax = glm::max(h.boundsMax, t.boundsMax);
     if (t.hasRoot) layout.rootBox = t.rootBox;
   }
   if (h.vertexCount == 0) h.boundsMin = h.boundsMax = glm::vec3(0.0f);
+  ClusterFileAssembly assembly;
   uint64_t offset = fch::kHeaderBytes + uint64_t{fch::kIndexEntryBytes} * frames;
   for (int s = 0; s < 4; ++s) {
-    std::vector<const PieceFile*> order;
-    for (const auto& p : pieces)
-      if (const auto [first, end] = rangeOf(p->trailer().range, s); end > first) order.push_back(p.get());
-    std::sort(order.begin(), order.end(), [&](const PieceFile* a, const PieceFile* b) {
-      return rangeOf(a->trailer().range, s).first < rangeOf(b->trailer().range, s).first;
+    std::vector<uint32_t> order;
+    for (uint32_t i = 0; i < pieces.size(); ++i)
+      if (const auto [first, end] = rangeOf(pieces[i]->trailer().range, s); end > first) order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+      return rangeOf(pieces[a]->trailer().range, s).first < rangeOf(pieces[b]->trailer().range, s).first;
     });
     uint64_t next = 0;
-    for (const PieceFile* p : order) {
-      const auto [first, end] = rangeOf(p->trailer().range, s);
+    for (const uint32_t i : order) {
+      const PieceFile& p = *pieces[i];
+      const auto [first, end] = rangeOf(p.trailer().range, s);
       if (first != next)
-        p->fail(std::string(sectionName(sections[s])) + " " + std::to_string(first) + " ... where " +
-                std::to_string(next) + " comes next: pieces that leave a gap or overlap");
-      for (const FchFrame& f : p->trailer().frames) {
+        p.fail(std::string(sectionName(sections[s])) + " " + std::to_string(first) + " ... where " +
+               std::to_string(next) + " comes next: pieces that leave a gap or overlap");
+      for (const FchFrame& f : p.trailer().frames) {
         if (f.section != sections[s]) continue;
-        if (f.first != next) p->fail(std::string(sectionName(sections[s])) + " frames out of order");
+        if (f.first != next) p.fail(std::string(sectionName(sections[s])) + " frames out of order");
         FchFrame placed = f;
         placed.offset = offset;
         layout.frames.push_back(placed);
-        sources.push_back({p, f.offset, f.compressedBytes});
+        // Consecutive frames of one piece are consecutive in it: one copy.
+        PieceCopy* last = assembly.copies.empty() ? nullptr : &assembly.copies.back();
+        if (last && last->piece == i && last->from + last->bytes == f.offset &&
+            last->to + last->bytes == offset)
+          last->bytes += f.compressedBytes;
+        else
+          assembly.copies.push_back({i, f.offset, offset, f.compressedBytes});
         offset += f.compressedBytes;
         next += f.count;
       }
-      if (next != end) p->fail(std::string(sectionName(sections[s])) + " frames short of the piece's range");
+      if (next != end) p.fail(std::string(sectionName(sections[s])) + " frames short of the piece's range");
     }
     if (next != declared[s])
-      throw Error(ErrorCategory::Input, out.string() + ": the pieces hold " + std::to_string(next) + " of " +
-                                            std::to_string(declared[s]) + " " + sectionName(sections[s]));
+      throw Error(ErrorCategory::Input, partial.string() + ": the pieces hold " + std::to_string(next) +
+                                            " of " + std::to_string(declared[s]) + " " +
+                                            sectionName(sections[s]));
   }
-  layout.fileBytes = offset;
-  OutputFile file(out);
-  file.write(fch::encodeHeaderAndIndex(layout));
+  layout.fileBytes = assembly.fileBytes = offset;
+  const std::string front = fch::encodeHeaderAndIndex(layout);
+  const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const auto fail = [&](const char* what) {
+    const int error = errno;
+    if (fd >= 0) ::close(fd);
+    throw Error(ErrorCategory::Output, partial.string() + ": " + what + ": " + std::strerror(error));
+  };
+  if (fd < 0) fail("cannot create");
+  if (::ftruncate(fd, static_cast<off_t>(offset)) != 0) fail("cannot size");
+  for (size_t done = 0; done < front.size();) {
+    const ssize_t put = ::pwrite(fd, front.data() + done, front.size() - done, static_cast<off_t>(done));
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) fail("cannot write");
+    done += static_cast<size_t>(put);
+  }
+  if (::fdatasync(fd) != 0) fail("cannot sync");
+  ::close(fd);
+  return assembly;
+}
+
+void placePieces(const std::filesystem::path& partial, std::span<const std::filesystem::path> paths,
+                 std::span<const PieceCopy> copies) {
+  const int fd = ::open(partial.c_str(), O_WRONLY | O_CLOEXEC);
+  const auto fail = [&](const char* what) {
+    const int error = errno;
+    if (fd >= 0) ::close(fd);
+    throw Error(ErrorCategory::Output, partial.string() + ": " + what + ": " + std::strerror(error));
+  };
+  if (fd < 0) fail("cannot open");
   std::vector<char> buffer(size_t{1} << 20);
-  // Consecutive frames of one piece are consecutive in it: copied in one go.
-  for (size_t i = 0; i < sources.size();) {
-    size_t j = i + 1;
-    uint64_t bytes = sources[i].bytes;
-    while (j < sources.size() && sources[j].piece == sources[i].piece &&
-           sources[j].offset == sources[i].offset + bytes)
-      bytes += sources[j++].bytes;
-    sources[i].piece->copy(sources[i].offset, bytes, file, buffer);
-    i = j;
+  std::unique_ptr<PieceFile> piece;
+  uint32_t open = UINT32_MAX;
+  for (const PieceCopy& c : copies) {
+    if (c.piece >= paths.size())
+      throw std::invalid_argument("placePieces: no piece " + std::to_string(c.piece));
+    if (c.piece != open) piece = std::make_unique<PieceFile>(paths[c.piece]), open = c.piece;
+    for (uint64_t done = 0; done < c.bytes;) {
+      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), c.bytes - done));
+      piece->readAt(c.from + done, buffer.data(), want);
+      for (size_t put = 0; put < want;) {
+        const ssize_t n =
+            ::pwrite(fd, buffer.data() + put, want - put, static_cast<off_t>(c.to + done + put));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) fail("cannot write");
+        put += static_cast<size_t>(n);
+      }
+      done += want;
+    }
   }
-  if (file.bytesWritten() != layout.fileBytes)
-    throw std::logic_error("assembleClusterFile: wrote " + std::to_string(file.bytesWritten()) +
-                           " bytes, expected " + std::to_string(layout.fileBytes));
-  file.commit();
-  return layout.fileBytes;
+  if (::fdatasync(fd) != 0) fail("cannot sync");
+  ::close(fd);
+}
+
+void commitClusterFile(const std::filesystem::path& partial, const std::filesystem::path& out) {
+  std::error_code error;
+  std::filesystem::rename(partial, out, error);
+  if (error)
+    throw Error(ErrorCategory::Output,
+                out.string() + ": cannot rename " + partial.string() + ": " + error.message());
+}
+
+uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileInfo& info,
+                             const WriteOptions& options, std::span<const std::filesystem::path> pieces) {
+  const std::filesystem::path partial = temporaryOutputPath(out);
+  try {
+    const ClusterFileAssembly assembly = beginClusterFile(partial, info, options, pieces);
+    placePieces(partial, pieces, assembly.copies);
+    commitClusterFile(partial, out);
+    return assembly.fileBytes;
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    throw;
+  }
 }
 
 }  // namespace facetree

@@ -257,6 +257,26 @@ class ClusterFileWriter {
 uint64_t assembleClusterFile(const std::filesystem::path& out, const StreamFileInfo& info,
                              const WriteOptions& options, std::span<const std::filesystem::path> pieces);
 
+// The same file assembled by several tasks: beginClusterFile reads the pieces' trailers, writes the
+// header and index at `partial` (its full size, the frames still to come) and says where each
+// piece's frames go; placePieces copies some of them there (each task its own share, synced);
+// once every copy is placed, commitClusterFile gives `partial` its name `out`. The bytes of
+// assembleClusterFile.
+struct PieceCopy {
+  uint32_t piece = 0;                    // index in the pieces given to beginClusterFile
+  uint64_t from = 0, to = 0, bytes = 0;  // offset in the piece, offset in the file, length
+};
+struct ClusterFileAssembly {
+  uint64_t fileBytes = 0;
+  std::vector<PieceCopy> copies;  // every frame, consecutive frames of a piece merged
+};
+ClusterFileAssembly beginClusterFile(const std::filesystem::path& partial, const StreamFileInfo& info,
+                                     const WriteOptions& options,
+                                     std::span<const std::filesystem::path> pieces);
+void placePieces(const std::filesystem::path& partial, std::span<const std::filesystem::path> pieces,
+                 std::span<const PieceCopy> copies);
+void commitClusterFile(const std::filesystem::path& partial, const std::filesystem::path& out);
+
 // Upper bound of the bytes a ClusterFileWriter holds (buffers of one frame per section, their
 // payloads and compressed forms, the zstd context, the output buffer), whatever the counts; the
 // frame index adds 40 bytes per frame. Compact boxes add the decoded box of every node whose

@@ -97,7 +97,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     // Before the tasks are done, the finish names the first file missing and writes nothing.
     const ChildResult early = runChild({"stage", "finish", "--work", work.string()});
     EXPECT_EQ(early.exitCode, 3);
-    const fs::path missing = work / "write.manifest";
+    const fs::path missing = work / "layout.manifest";
     EXPECT_EQ(early.output.rfind("facetree: " + missing.string() + ": cannot open: ", 0), 0u) << early.output;
     EXPECT_FALSE(fs::exists(staged));
 
@@ -109,7 +109,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
       ran += step + ":" + std::to_string(tasks) + " ";
       for (uint64_t task = tasks; task-- > 0;) {
         std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
-        const bool single = step == "grid" || step == "upper";
+        const bool single = step == "grid" || step == "upper" || step == "layout";
         if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
         const ChildResult result = runChild(argv);
         ASSERT_EQ(result.exitCode, 0) << step << " " << task << ": " << result.output;
@@ -118,9 +118,10 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
         if (single) next = stepsOf(jsonText(result.output, "next"));
       }
     }
-    // 300k faces: one geometry task of 2^20 triangles, two node tasks of 2^18 nodes.
-    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 nodes:2 "
-                          : "cells:3 upper:1 geometry:1 nodes:2 ");
+    // 300k faces: one geometry task of 2^20 triangles, two node tasks of 2^18 nodes, their three
+    // pieces placed by three tasks.
+    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 "
+                          : "cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 ");
     const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
     EXPECT_EQ(again.exitCode, 0);
     EXPECT_EQ(again.output, "cells task 1: done already\n");
@@ -166,12 +167,13 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
                                    "`facetree stage plan`)\n");
   const ChildResult unknown = runChild({"stage", "merge"});
   EXPECT_EQ(unknown.exitCode, 2);
-  EXPECT_EQ(
-      unknown.output,
-      "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, nodes, finish) "
-      "(see "
-      "facetree "
-      "--help)\n");
+  EXPECT_EQ(unknown.output,
+            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, nodes, "
+            "layout, place, "
+            "finish) "
+            "(see "
+            "facetree "
+            "--help)\n");
 }
 
 }  // namespace

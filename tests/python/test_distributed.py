@@ -63,12 +63,12 @@ def test_two_workers_give_the_bytes_of_build(terrain, tmp_path):
     assert report["file_bytes"] == len(whole)
     tasks = report["tasks"]
     assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes",
-                           "finish"]
+                           "layout", "place", "finish"]
     assert tasks["read"] == 8
     # Each step's tasks report in turn, after the step before.
     order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
     assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes",
-                     "finish"]
+                     "layout", "place", "finish"]
     assert all(stages.count(step) == count for step, count in tasks.items())
     assert not work.exists(), "the work directory goes with the build"
 
@@ -86,7 +86,8 @@ def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
             subprocess.run(["zstd", "-q", "-1", str(mesh), "-o", str(compressed)], check=True)
             one = fd.build(compressed, tmp_path / "dask-zst.fch", client, memory="64M", cell_tasks=7)
             assert (tmp_path / "dask-zst.fch").read_bytes() == whole
-            assert list(one["tasks"]) == ["cells", "upper", "geometry", "nodes", "finish"]
+            assert list(one["tasks"]) == ["cells", "upper", "geometry", "nodes", "layout", "place",
+                                          "finish"]
     finally:
         client.close()
         cluster.close()
