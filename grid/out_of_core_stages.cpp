@@ -146,6 +146,15 @@ PlanState loadPlanManifest(const std::filesystem::path& work) {
   return s;
 }
 
+std::unique_ptr<CellGrid> restoreGrid(const PlanState& state, const std::filesystem::path& work) {
+  try {
+    return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
+  } catch (const std::invalid_argument& e) {
+    throw Error(ErrorCategory::Input,
+                (state.ranges ? gridPath(work) : planPath(work)).string() + ": " + e.what());
+  }
+}
+
 PlanState loadPlan(const std::filesystem::path& work) {
   PlanState s = loadPlanManifest(work);
   if (s.ranges) loadGrid(work, s, /*bins=*/true);
@@ -198,12 +207,7 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
   JobReport report;
   const StageContext context{effective, temp, state.memoryCap, report, &work};
   BinnedFaces binned;
-  try {
-    binned.grid = CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
-  } catch (const std::invalid_argument& e) {
-    throw Error(ErrorCategory::Input,
-                (state.ranges ? gridPath(work) : planPath(work)).string() + ": " + e.what());
-  }
+  binned.grid = restoreGrid(state, work);
   for (size_t s = 0; s < state.facesFiles.size(); ++s) {
     binned.faces.push_back(BucketSpill::open(temp, state.facesFiles[s], state.facesIndex[s]));
     binned.ghosts.push_back(BucketSpill::open(temp, state.ghostsFiles[s], state.ghostsIndex[s]));

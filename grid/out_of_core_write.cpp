@@ -55,6 +55,12 @@ class WriteStage {
 
  private:
   FileLayout layout() const;
+  // How both writes start: the layout, its counts in the report, the upper nodes' frames.
+  struct Start {
+    FileLayout layout;
+    UpperFrames frames;
+  };
+  Start start();
   StreamFileInfo fileInfo(const FileLayout& layout) const;
   WriteOptions writeOptions() const;
   // Upper node j (by file index: reverse creation order) as the file has it.
@@ -441,17 +447,22 @@ WriteOptions WriteStage::writeOptions() const {
   return options;
 }
 
-void WriteStage::run() {
-  const FileLayout fileLayout = layout();
+WriteStage::Start WriteStage::start() {
+  Start s{layout(), {}};
   JobReport& report = context_.report;
-  report.nodes = fileLayout.nodes;
-  report.height = fileLayout.height;
-  report.balancedHeight = balancedHeight(fileLayout.faces, context_.job.file.branching);
-
-  UpperFrames frames =
-      frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
+  report.nodes = s.layout.nodes;
+  report.height = s.layout.height;
+  report.balancedHeight = balancedHeight(s.layout.faces, context_.job.file.branching);
+  s.frames = frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
   graph_.corners = {};
+  return s;
+}
 
+void WriteStage::run() {
+  Start begun = start();
+  const FileLayout& fileLayout = begun.layout;
+  UpperFrames& frames = begun.frames;
+  JobReport& report = context_.report;
   const ClusterJob& job = context_.job;
   TempSpace& temp = context_.temp;
   ClusterFileWriter writer(job.output, fileInfo(fileLayout), writeOptions(), temp.path());
@@ -475,14 +486,9 @@ void WriteStage::run() {
 
 WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   work_ = &work;
-  const FileLayout fileLayout = layout();
-  JobReport& report = context_.report;
-  report.nodes = fileLayout.nodes;
-  report.height = fileLayout.height;
-  report.balancedHeight = balancedHeight(fileLayout.faces, context_.job.file.branching);
-  UpperFrames frames =
-      frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
-  graph_.corners = {};
+  Start begun = start();
+  const FileLayout& fileLayout = begun.layout;
+  UpperFrames& frames = begun.frames;
 
   WritePlan plan;
   plan.info = fileInfo(fileLayout);

@@ -349,11 +349,10 @@ bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32
   JobReport report;
   const StageContext context{effective, temp, state.memoryCap, report, &work};
   BinnedFaces binned;
+  binned.grid = restoreGrid(state, work);
+  std::vector<CellGrid::SplitBin> split = state.splitBins;
+  for (size_t k = 0; k < split.size(); ++k) split[k].seen = state.splitSeen[size_t{task} * split.size() + k];
   try {
-    binned.grid = CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
-    std::vector<CellGrid::SplitBin> split = state.splitBins;
-    for (size_t k = 0; k < split.size(); ++k)
-      split[k].seen = state.splitSeen[size_t{task} * split.size() + k];
     binned.grid->resumeSplitBins(split, state.plan.cellFaceLimit);
   } catch (const std::invalid_argument& e) {
     throw Error(ErrorCategory::Input, gridPath(work).string() + ": " + e.what());

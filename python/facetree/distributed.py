@@ -131,6 +131,11 @@ def build(
     except BaseException:
         if futures:
             client.cancel(futures)
+        # The file being placed lives beside the output when the work directory is on another
+        # file system (else in the work directory): a failed build leaves neither.
+        partial = arguments["output"] + ".partial"
+        if os.path.exists(partial):
+            os.remove(partial)
         raise
     finally:
         if own:
