@@ -192,34 +192,63 @@ std::string BucketSpill::index() const {
 
 std::unique_ptr<BucketSpill> BucketSpill::open(TempSpace& space, const std::filesystem::path& path,
                                                std::string_view index) {
-  const auto bad = [&](const std::string& why) {
-    throw Error(ErrorCategory::Input, path.string() + ": bucket index " + why);
-  };
-  uint64_t buckets = 0, recordBytes = 0;
-  if (!take(index, buckets) || !take(index, recordBytes)) bad("cut short");
-  if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes || buckets > index.size() / 12)
-    bad("with " + std::to_string(buckets) + " buckets of " + std::to_string(recordBytes) + "-byte records");
-  std::unique_ptr<SpillFile> file = SpillFile::open(space, path);
-  std::unique_ptr<BucketSpill> spill(
-      new BucketSpill(std::move(file), buckets, recordBytes, recordBytes, 0, false));
-  spill->buffer_.reset();
-  std::vector<uint32_t> counts(buckets);
-  for (size_t bucket = 0; bucket < buckets; ++bucket)
-    if (!take(index, spill->records_[bucket]) || !take(index, counts[bucket])) bad("cut short");
-  for (size_t bucket = 0; bucket < buckets; ++bucket) {
-    uint64_t bytes = 0;
-    for (uint32_t k = 0; k < counts[bucket]; ++k) {
-      SpillBlock block;
-      if (!take(index, block.offset) || !take(index, block.compressedBytes) || !take(index, block.rawBytes))
-        bad("cut short");
-      if (block.rawBytes % recordBytes != 0) bad("with a block of part of a record");
-      bytes += block.rawBytes;
-      spill->blocks_[spill->reserveBlock(bucket)].block = block;
+  std::vector<uint32_t> records;
+  return openSegments(
+      space, std::span(&path, 1), [&](size_t) { return std::string(index); }, 0, SIZE_MAX, records);
+}
+
+std::unique_ptr<BucketSpill> BucketSpill::openSegments(TempSpace& space,
+                                                       std::span<const std::filesystem::path> paths,
+                                                       const std::function<std::string(size_t)>& indexOf,
+                                                       size_t first, size_t end,
+                                                       std::vector<uint32_t>& records) {
+  if (paths.empty()) throw std::invalid_argument("BucketSpill::openSegments: no segments");
+  std::unique_ptr<SpillFile> file = SpillFile::open(space, paths);
+  std::unique_ptr<BucketSpill> spill;
+  std::vector<uint32_t> counts;
+  for (size_t s = 0; s < paths.size(); ++s) {
+    const std::string bytes = indexOf(s);
+    std::string_view index = bytes;
+    const auto bad = [&](const std::string& why) {
+      throw Error(ErrorCategory::Input, paths[s].string() + ": bucket index " + why);
+    };
+    uint64_t buckets = 0, recordBytes = 0;
+    if (!take(index, buckets) || !take(index, recordBytes)) bad("cut short");
+    if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes || buckets > index.size() / 12)
+      bad("with " + std::to_string(buckets) + " buckets of " + std::to_string(recordBytes) + "-byte records");
+    if (!spill) {
+      spill.reset(new BucketSpill(std::move(file), buckets, recordBytes, recordBytes, 0, false));
+      spill->buffer_.reset();
+      records.assign(paths.size() * buckets, 0);
+    } else if (buckets != spill->buckets() || recordBytes != spill->recordBytes_) {
+      bad("of other buckets than the segments before it");
     }
-    if (bytes != spill->records_[bucket] * recordBytes)
-      bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");
+    counts.assign(buckets, 0);
+    for (size_t bucket = 0; bucket < buckets; ++bucket) {
+      uint64_t n = 0;
+      if (!take(index, n) || !take(index, counts[bucket])) bad("cut short");
+      if (n > UINT32_MAX) bad("of a bucket of " + std::to_string(n) + " records");
+      records[s * buckets + bucket] = static_cast<uint32_t>(n);
+      spill->records_[bucket] += n;
+    }
+    for (size_t bucket = 0; bucket < buckets; ++bucket) {
+      uint64_t bytes = 0;
+      for (uint32_t k = 0; k < counts[bucket]; ++k) {
+        SpillBlock block;
+        if (!take(index, block.offset) || !take(index, block.compressedBytes) || !take(index, block.rawBytes))
+          bad("cut short");
+        if (block.rawBytes % recordBytes != 0 || block.offset >> SpillFile::kSegmentShift != 0)
+          bad("with a block of part of a record or of another segment");
+        bytes += block.rawBytes;
+        if (bucket < first || bucket >= end) continue;
+        block.offset |= uint64_t{s} << SpillFile::kSegmentShift;  // this segment in the files opened together
+        spill->blocks_[spill->reserveBlock(bucket)].block = block;
+      }
+      if (bytes != uint64_t{records[s * buckets + bucket]} * recordBytes)
+        bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");
+    }
+    if (!index.empty()) bad("with bytes past its end");
   }
-  if (!index.empty()) bad("with bytes past its end");
   return spill;
 }
 

@@ -39,6 +39,15 @@ class BucketSpill {
   // the file as it is. Throws Error (Input) naming `path` for an index that does not describe it.
   static std::unique_ptr<BucketSpill> open(TempSpace& space, const std::filesystem::path& path,
                                            std::string_view index);
+  // Committed spills of the same buckets (segments: `paths`, whose indexes indexOf(i) gives) read as
+  // one: a bucket's blocks are each segment's in turn. Only buckets [first, end) keep their blocks,
+  // so a reader of a few buckets of many large spills holds no more than those; every bucket keeps
+  // its record count, and `records` gets each segment's, segment by segment (records[i * buckets +
+  // b]).
+  static std::unique_ptr<BucketSpill> openSegments(TempSpace& space,
+                                                   std::span<const std::filesystem::path> paths,
+                                                   const std::function<std::string(size_t)>& indexOf,
+                                                   size_t first, size_t end, std::vector<uint32_t>& records);
   ~BucketSpill();
   BucketSpill(const BucketSpill&) = delete;
   BucketSpill& operator=(const BucketSpill&) = delete;

@@ -103,9 +103,10 @@ void frameExtent(const StageContext& context, MeshExtent& extent);
 void weldArrival(const StageContext& context, ArrivalFaces& arrival);
 
 // bin: the cells, and each cell's faces and ghosts (edges it owns, seen from other cells' faces).
-// The binned faces in segments, one per pass that binned them (the bin tasks of a mesh read in
-// ranges, in the mesh's order; one when one pass binned it): a cell's faces are its bucket of each
-// segment in turn, a ghost's face index counts within its own segment's bucket (faceBase).
+// The binned faces: one spill of each, its buckets the cells. Binned by several passes (the bin
+// tasks of a mesh read in ranges, in the mesh's order), they are read as one (segments, in pass
+// order: BucketSpill::openSegments); a cell's faces are then its faces of each pass in turn, and a
+// ghost's face index counts within its own pass's faces of the cell (faceBase).
 struct BinnedFaces {
   std::unique_ptr<CellGrid> grid;
   std::vector<std::unique_ptr<BucketSpill>> faces;   // FaceRecord, bucket per cell
@@ -113,15 +114,20 @@ struct BinnedFaces {
 
   uint64_t cellFaces(uint32_t cell) const;
   std::vector<uint64_t> cellFaceCounts() const;
-  // The faces of `cell` in segments before `segment`: what a ghost of that segment adds to its index.
+  // Read as one from several passes: each pass's faces and ghosts per cell (pass by pass).
+  void setSegments(size_t segments, std::vector<uint32_t> faceRecords, std::vector<uint32_t> ghostRecords);
+  size_t segments() const { return segments_; }
+  // The faces of `cell` in passes before `segment`: what a ghost of that pass adds to its index.
   uint32_t faceBase(size_t segment, uint32_t cell) const {
     return segment == 0 ? 0 : faceBase_[(segment - 1) * grid->cellCount() + cell];
   }
-  // Called once every segment is there: the faceBase table (segments - 1 rows of the cells).
-  void indexSegments();
+  uint32_t ghostRecords(size_t segment, uint32_t cell) const {
+    return ghostRecords_[segment * grid->cellCount() + cell];
+  }
 
  private:
-  std::vector<uint32_t> faceBase_;
+  size_t segments_ = 1;
+  std::vector<uint32_t> faceBase_, ghostRecords_;
 };
 // The bin stage in one pass over the arrival spill: its histogram, the grid, then distributeFaces.
 BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit);

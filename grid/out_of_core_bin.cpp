@@ -2,6 +2,7 @@
 // face into its cell's spill, and every edge whose owner cell is another cell to that cell as a
 // ghost, so that the owner sees every face on each edge it owns (out_of_core.h, cell_grid.h).
 #include <algorithm>
+#include <stdexcept>
 
 #include "out_of_core.h"
 
@@ -19,12 +20,17 @@ std::vector<uint64_t> BinnedFaces::cellFaceCounts() const {
   return counts;
 }
 
-void BinnedFaces::indexSegments() {
+void BinnedFaces::setSegments(size_t segments, std::vector<uint32_t> faceRecords,
+                              std::vector<uint32_t> ghostRecords) {
   const uint32_t cells = grid->cellCount();
-  faceBase_.assign(faces.size() > 1 ? (faces.size() - 1) * size_t{cells} : 0, 0);
-  for (size_t s = 1; s < faces.size(); ++s)
+  if (faceRecords.size() != segments * cells || ghostRecords.size() != segments * cells)
+    throw std::invalid_argument("BinnedFaces::setSegments: counts of other cells");
+  segments_ = segments;
+  ghostRecords_ = std::move(ghostRecords);
+  faceBase_.assign((segments - 1) * size_t{cells}, 0);
+  for (size_t s = 1; s < segments; ++s)
     for (uint32_t c = 0; c < cells; ++c)
-      faceBase_[(s - 1) * cells + c] = static_cast<uint32_t>(faceBase(s - 1, c) + faces[s - 1]->records(c));
+      faceBase_[(s - 1) * cells + c] = faceBase(s - 1, c) + faceRecords[(s - 1) * cells + c];
 }
 
 BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64_t cellFaceLimit) {

@@ -342,18 +342,22 @@ void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
 
 std::vector<GhostEdge> CellsStage::loadGhosts(uint32_t cell, SpillCodec& codec) {
   size_t total = 0;
-  for (const auto& segment : in_.ghosts) total += segment->records(cell);
+  for (const auto& spill : in_.ghosts) total += spill->records(cell);
   std::vector<GhostEdge> ghosts(total);
   size_t at = 0;
-  for (size_t s = 0; s < in_.ghosts.size(); ++s) {
-    const size_t first = at;
-    in_.ghosts[s]->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+  for (const auto& spill : in_.ghosts)
+    spill->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
       std::memcpy(reinterpret_cast<std::byte*>(ghosts.data() + at), bytes.data(), bytes.size());
       at += bytes.size() / sizeof(GhostEdge);
     });
-    if (s > 0)
-      for (size_t g = first; g < at; ++g) ghosts[g].face += in_.faceBase(s, ghosts[g].cell);
-  }
+  // Several passes: each pass's ghosts in turn, their face indices within the pass's faces.
+  if (in_.segments() > 1)
+    for (size_t s = 0, first = 0; s < in_.segments(); ++s) {
+      const size_t end = first + in_.ghostRecords(s, cell);
+      if (s > 0)
+        for (size_t g = first; g < end; ++g) ghosts[g].face += in_.faceBase(s, ghosts[g].cell);
+      first = end;
+    }
   return ghosts;
 }
 

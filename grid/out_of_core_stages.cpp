@@ -208,12 +208,27 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
   const StageContext context{effective, temp, state.memoryCap, report, &work};
   BinnedFaces binned;
   binned.grid = restoreGrid(state, work);
-  for (size_t s = 0; s < state.facesFiles.size(); ++s) {
-    binned.faces.push_back(BucketSpill::open(temp, state.facesFiles[s], state.facesIndex[s]));
-    binned.ghosts.push_back(BucketSpill::open(temp, state.ghostsFiles[s], state.ghostsIndex[s]));
-  }
-  binned.indexSegments();
   const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
+  std::vector<uint32_t> faceRecords, ghostRecords;
+  if (!state.ranges) {  // the plan's one pass: only this task's cells' blocks held
+    binned.faces.push_back(BucketSpill::openSegments(
+        temp, state.facesFiles, [&](size_t) { return state.facesIndex[0]; }, first, end, faceRecords));
+    binned.ghosts.push_back(BucketSpill::openSegments(
+        temp, state.ghostsFiles, [&](size_t) { return state.ghostsIndex[0]; }, first, end, ghostRecords));
+  } else {
+    // Every bin task's spills read as one, only this task's cells' blocks held.
+    const auto index = [&](size_t segment, bool faces) {
+      ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
+      std::string facesIndex = in.takeBytes(), ghostsIndex = in.takeBytes();
+      in.finish();
+      return faces ? facesIndex : ghostsIndex;
+    };
+    binned.faces.push_back(BucketSpill::openSegments(
+        temp, state.facesFiles, [&](size_t s) { return index(s, true); }, first, end, faceRecords));
+    binned.ghosts.push_back(BucketSpill::openSegments(
+        temp, state.ghostsFiles, [&](size_t s) { return index(s, false); }, first, end, ghostRecords));
+    binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
+  }
   CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);
   ManifestWriter manifest;
   manifest.put(first);

@@ -165,13 +165,11 @@ void loadGridManifest(const std::filesystem::path& work, PlanState& s, bool bins
   if (s.splitSeen.size() != tasks * s.splitBins.size())
     throw Error(ErrorCategory::Input, gridPath(work).string() + ": split bins of another plan");
   if (!bins) return;
+  // The binned spills' files; their indexes stay in the bin tasks' manifests until a cells task
+  // reads its own cells' part of them (BucketSpill::openSegments).
   for (uint32_t i = 0; i < tasks; ++i) {
-    ManifestReader bin(taskManifestPath(work, "bin", i), taskKind("bin"));
     s.facesFiles.push_back(binFacesPath(work, i));
     s.ghostsFiles.push_back(binGhostsPath(work, i));
-    s.facesIndex.push_back(bin.takeBytes());
-    s.ghostsIndex.push_back(bin.takeBytes());
-    bin.finish();
   }
 }
 

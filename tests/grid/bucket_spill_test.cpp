@@ -281,6 +281,47 @@ TEST(BucketSpill, namedSpillIsReadBackFromItsIndex) {
   EXPECT_EQ(error(huge), name.string() + ": bucket index with 1099511627776 buckets of 12-byte records");
 }
 
+// Named spills of the same buckets written by several tasks, read as one: each bucket's records are
+// the segments' in turn; buckets outside the range read keep their counts but no blocks.
+TEST(BucketSpill, segmentsAreReadAsOneSpillForARangeOfBuckets) {
+  test::ScratchDir work;
+  TempSpace space(work.path());
+  constexpr size_t kBuckets = 17;
+  std::vector<std::filesystem::path> paths;
+  std::vector<std::string> indexes;
+  std::vector<std::vector<std::vector<Record>>> written;
+  for (int segment = 0; segment < 3; ++segment) {
+    paths.push_back(work.path() / ("segment-" + std::to_string(segment) + ".spill"));
+    BucketSpill spill(space, SpillFile::Named{paths.back()}, kBuckets, sizeof(Record), 600, kSpillLevel,
+                      /*background=*/false);
+    written.push_back(fill(spill, 5000 + 1000 * segment, 7 + segment));
+    spill.commit();
+    indexes.push_back(spill.index());
+  }
+  TempSpace reader(work.path());
+  SpillCodec codec;
+  std::vector<uint32_t> records;
+  const std::unique_ptr<BucketSpill> opened = BucketSpill::openSegments(
+      reader, paths, [&](size_t s) { return indexes[s]; }, 4, 9, records);
+  ASSERT_EQ(records.size(), 3 * kBuckets);
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<Record> expected;
+    for (size_t s = 0; s < 3; ++s) {
+      EXPECT_EQ(records[s * kBuckets + b], written[s][b].size());
+      expected.insert(expected.end(), written[s][b].begin(), written[s][b].end());
+    }
+    EXPECT_EQ(opened->records(b), expected.size());
+    std::vector<std::byte> bytes;
+    opened->drainBucket(b, codec, [&](std::span<const std::byte> block) {
+      bytes.insert(bytes.end(), block.begin(), block.end());
+    });
+    if (b >= 4 && b < 9)
+      EXPECT_EQ(asRecords(bytes), expected) << "bucket " << b;
+    else
+      EXPECT_TRUE(bytes.empty()) << "bucket " << b << " outside the range read";
+  }
+}
+
 TEST(BucketSpill, memoryBoundCoversTheBuffers) {
   EXPECT_GE(BucketSpill::memoryBound(1000, 12, 65536), 1000u * (65536 / 12) * 12);
   EXPECT_LT(BucketSpill::memoryBound(1000, 12, 65536), 1000u * 65536 + 1000u * 64 + 70000);
