@@ -292,6 +292,11 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
 StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
                              uint32_t task) {
   StageTaskResult result;
+  const auto single = [&] {  // the grid, the upper step and the layout: one task, 0
+    if (task != 0)
+      throw std::invalid_argument("the " + std::string(step) + " step has one task, 0, not " +
+                                  std::to_string(task));
+  };
   if (step == kCellsStep) {
     result.ran = runCellsTask(job, work, task);
   } else if (step == "read") {
@@ -301,7 +306,7 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
   } else if (step == "bin") {
     result.ran = runBinTask(job, work, task);
   } else if (step == "upper") {
-    if (task != 0) throw std::invalid_argument("the upper step has one task, 0, not " + std::to_string(task));
+    single();
     result.ran = runUpperStep(job, work);
     result.next = stepsAfterUpper(work);
   } else if (step == "nodes") {
@@ -309,13 +314,13 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
   } else if (step == "geometry") {
     result.ran = runGeometryTask(job, work, task);
   } else if (step == "layout") {
-    if (task != 0) throw std::invalid_argument("the layout has one task, 0, not " + std::to_string(task));
+    single();
     result.ran = runLayoutStep(job, work);
     result.next = stepsAfterLayout(work);
   } else if (step == "place") {
     result.ran = runPlaceTask(job, work, task);
   } else if (step == "grid") {
-    if (task != 0) throw std::invalid_argument("the grid has one task, 0, not " + std::to_string(task));
+    single();
     result.ran = runGridStep(job, work);
     PlanState state = loadPlanManifest(work);
     loadGrid(work, state, /*bins=*/false);

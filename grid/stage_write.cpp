@@ -360,7 +360,7 @@ std::filesystem::path partialPath(const std::filesystem::path& work, const std::
 struct Layout {
   std::string partial;
   uint64_t fileBytes = 0;
-  uint32_t pieces = 0;
+  uint32_t pieces = 0, geometryPieces = 0;  // piecePaths' order: the geometry tasks' first
   std::vector<PieceCopy> copies;
   JobReport report;
 };
@@ -370,6 +370,7 @@ Layout loadLayout(const std::filesystem::path& work) {
   l.partial = in.takeBytes();
   l.fileBytes = in.take<uint64_t>();
   l.pieces = in.take<uint32_t>();
+  l.geometryPieces = in.take<uint32_t>();
   l.copies = in.takeVector<PieceCopy>();
   takeUpperReport(in, l.report);
   in.finish();
@@ -389,6 +390,7 @@ bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
   out.putBytes(partial.string());
   out.put(assembly.fileBytes);
   out.put(static_cast<uint32_t>(pieces.size()));
+  out.put(static_cast<uint32_t>(w.triangleBounds.size() - 1));
   out.putVector(assembly.copies);
   putUpperReport(out, w.report);
   out.commit(layoutPath(work), kLayoutKind);
@@ -405,11 +407,13 @@ bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t
   const Layout l = loadLayout(work);
   if (task >= l.pieces)
     throw std::invalid_argument("no place task " + std::to_string(task) + " in " + work.string());
-  const std::vector<std::filesystem::path> pieces = piecePaths(work, loadWritePlan(work));
+  // Its one piece, named from the layout alone (the write plan is tens of MB at 56M faces).
+  const std::filesystem::path piece =
+      task < l.geometryPieces ? geometryPiecePath(work, task) : nodesPiecePath(work, task - l.geometryPieces);
   std::vector<PieceCopy> mine;
   for (const PieceCopy& c : l.copies)
-    if (c.piece == task) mine.push_back(c);
-  placePieces(l.partial, pieces, mine);
+    if (c.piece == task) mine.push_back({0, c.from, c.to, c.bytes});
+  placePieces(l.partial, std::span(&piece, 1), mine);
   ManifestWriter out;
   out.put(task);
   out.commit(manifest, taskKind("place"));
