@@ -202,54 +202,79 @@ std::unique_ptr<BucketSpill> BucketSpill::openSegments(TempSpace& space,
                                                        const std::function<std::string(size_t)>& indexOf,
                                                        size_t first, size_t end,
                                                        std::vector<uint32_t>& records) {
-  if (paths.empty()) throw std::invalid_argument("BucketSpill::openSegments: no segments");
-  std::unique_ptr<SpillFile> file = SpillFile::open(space, paths);
-  std::unique_ptr<BucketSpill> spill;
-  std::vector<uint32_t> counts;
-  for (size_t s = 0; s < paths.size(); ++s) {
-    const std::string bytes = indexOf(s);
-    std::string_view index = bytes;
-    const auto bad = [&](const std::string& why) {
-      throw Error(ErrorCategory::Input, paths[s].string() + ": bucket index " + why);
-    };
-    uint64_t buckets = 0, recordBytes = 0;
-    if (!take(index, buckets) || !take(index, recordBytes)) bad("cut short");
-    if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes || buckets > index.size() / 12)
-      bad("with " + std::to_string(buckets) + " buckets of " + std::to_string(recordBytes) + "-byte records");
-    if (!spill) {
-      spill.reset(new BucketSpill(std::move(file), buckets, recordBytes, recordBytes, 0, false));
-      spill->buffer_.reset();
-      records.assign(paths.size() * buckets, 0);
-    } else if (buckets != spill->buckets() || recordBytes != spill->recordBytes_) {
-      bad("of other buckets than the segments before it");
-    }
-    counts.assign(buckets, 0);
-    for (size_t bucket = 0; bucket < buckets; ++bucket) {
-      uint64_t n = 0;
-      if (!take(index, n) || !take(index, counts[bucket])) bad("cut short");
-      if (n > UINT32_MAX) bad("of a bucket of " + std::to_string(n) + " records");
-      records[s * buckets + bucket] = static_cast<uint32_t>(n);
-      spill->records_[bucket] += n;
-    }
-    for (size_t bucket = 0; bucket < buckets; ++bucket) {
-      uint64_t bytes = 0;
-      for (uint32_t k = 0; k < counts[bucket]; ++k) {
-        SpillBlock block;
-        if (!take(index, block.offset) || !take(index, block.compressedBytes) || !take(index, block.rawBytes))
-          bad("cut short");
-        if (block.rawBytes % recordBytes != 0 || block.offset >> SpillFile::kSegmentShift != 0)
-          bad("with a block of part of a record or of another segment");
-        bytes += block.rawBytes;
-        if (bucket < first || bucket >= end) continue;
-        block.offset |= uint64_t{s} << SpillFile::kSegmentShift;  // this segment in the files opened together
-        spill->blocks_[spill->reserveBlock(bucket)].block = block;
-      }
-      if (bytes != uint64_t{records[s * buckets + bucket]} * recordBytes)
-        bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");
-    }
-    if (!index.empty()) bad("with bytes past its end");
+  SegmentReader reader(space, paths, first, end);
+  for (size_t s = 0; s < paths.size(); ++s) reader.add(indexOf(s));
+  return reader.finish(records);
+}
+
+BucketSpill::SegmentReader::SegmentReader(TempSpace& space, std::span<const std::filesystem::path> paths,
+                                          size_t first, size_t end)
+    : paths_(paths.begin(), paths.end()), first_(first), end_(end) {
+  if (paths.empty()) throw std::invalid_argument("BucketSpill::SegmentReader: no segments");
+  file_ = SpillFile::open(space, paths);
+}
+
+BucketSpill::SegmentReader::~SegmentReader() = default;
+
+void BucketSpill::SegmentReader::add(std::string_view index) {
+  const size_t s = added_;
+  if (s >= paths_.size()) throw std::logic_error("BucketSpill::SegmentReader: more indexes than segments");
+  const auto bad = [&](const std::string& why) {
+    throw Error(ErrorCategory::Input, paths_[s].string() + ": bucket index " + why);
+  };
+  uint64_t buckets = 0, recordBytes = 0;
+  if (!take(index, buckets) || !take(index, recordBytes)) bad("cut short");
+  if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes || buckets > index.size() / 12)
+    bad("with " + std::to_string(buckets) + " buckets of " + std::to_string(recordBytes) + "-byte records");
+  if (!spill_) {
+    spill_.reset(new BucketSpill(std::move(file_), buckets, recordBytes, recordBytes, 0, false));
+    spill_->buffer_.reset();
+    records_.assign(paths_.size() * buckets, 0);
+    counts_.assign(buckets, 0);
+  } else if (buckets != spill_->buckets() || recordBytes != spill_->recordBytes_) {
+    bad("of other buckets than the segments before it");
   }
-  return spill;
+  BucketSpill& spill = *spill_;
+  for (size_t bucket = 0; bucket < buckets; ++bucket) {
+    uint64_t n = 0;
+    if (!take(index, n) || !take(index, counts_[bucket])) bad("cut short");
+    if (n > UINT32_MAX) bad("of a bucket of " + std::to_string(n) + " records");
+    records_[s * buckets + bucket] = static_cast<uint32_t>(n);
+    spill.records_[bucket] += n;
+  }
+  // The blocks are bucket by bucket, each kBlockEntry bytes: a reader of a few buckets of many
+  // segments reads only theirs. Every bucket's blocks are checked by the reader that keeps them.
+  constexpr size_t kBlockEntry = sizeof(uint64_t) + 2 * sizeof(uint32_t);
+  uint64_t before = 0, blocks = 0;
+  for (size_t bucket = 0; bucket < buckets; ++bucket) {
+    if (bucket < first_) before += counts_[bucket];
+    blocks += counts_[bucket];
+  }
+  if (index.size() != blocks * kBlockEntry)
+    bad(index.size() < blocks * kBlockEntry ? "cut short" : "with bytes past its end");
+  index.remove_prefix(before * kBlockEntry);
+  for (size_t bucket = first_; bucket < std::min<size_t>(end_, buckets); ++bucket) {
+    uint64_t bytes = 0;
+    for (uint32_t k = 0; k < counts_[bucket]; ++k) {
+      SpillBlock block;
+      take(index, block.offset), take(index, block.compressedBytes), take(index, block.rawBytes);
+      if (block.rawBytes % recordBytes != 0 || block.offset >> SpillFile::kSegmentShift != 0)
+        bad("with a block of part of a record or of another segment");
+      bytes += block.rawBytes;
+      block.offset |= uint64_t{s} << SpillFile::kSegmentShift;  // this segment in the files opened together
+      spill.blocks_[spill.reserveBlock(bucket)].block = block;
+    }
+    if (bytes != uint64_t{records_[s * buckets + bucket]} * recordBytes)
+      bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");
+  }
+  ++added_;
+}
+
+std::unique_ptr<BucketSpill> BucketSpill::SegmentReader::finish(std::vector<uint32_t>& records) {
+  if (added_ != paths_.size())
+    throw std::logic_error("BucketSpill::SegmentReader: a segment without its index");
+  records = std::move(records_);
+  return std::move(spill_);
 }
 
 uint32_t BucketSpill::reserveBlock(size_t bucket) {

@@ -48,6 +48,24 @@ class BucketSpill {
                                                    std::span<const std::filesystem::path> paths,
                                                    const std::function<std::string(size_t)>& indexOf,
                                                    size_t first, size_t end, std::vector<uint32_t>& records);
+  // openSegments a segment at a time: the indexes given in segment order, so that a reader of several
+  // spills of the same segments (a task's faces and ghosts) reads each segment's manifest once.
+  class SegmentReader {
+   public:
+    SegmentReader(TempSpace& space, std::span<const std::filesystem::path> paths, size_t first, size_t end);
+    ~SegmentReader();
+    // The next segment's index; Error (Input) naming its path when it does not describe it.
+    void add(std::string_view index);
+    // Every segment's index added: the spill, and `records` as openSegments gives them.
+    std::unique_ptr<BucketSpill> finish(std::vector<uint32_t>& records);
+
+   private:
+    std::vector<std::filesystem::path> paths_;
+    size_t first_, end_, added_ = 0;
+    std::unique_ptr<SpillFile> file_;
+    std::unique_ptr<BucketSpill> spill_;
+    std::vector<uint32_t> records_, counts_;
+  };
   ~BucketSpill();
   BucketSpill(const BucketSpill&) = delete;
   BucketSpill& operator=(const BucketSpill&) = delete;

@@ -6,11 +6,15 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace facetree {
 
 CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax)
-    : min_(boundsMin), table_(kBins, 0) {
+    : CellGrid(boundsMin, boundsMax, std::vector<uint32_t>(kBins, 0)) {}
+
+CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax, std::vector<uint32_t> table)
+    : min_(boundsMin), table_(std::move(table)) {
   glm::dvec3 extent = glm::dvec3(boundsMax) - min_;
   for (int a = 0; a < 3; ++a)
     if (!(extent[a] > 0) || !std::isfinite(extent[a])) extent[a] = 0;
@@ -133,8 +137,8 @@ std::unique_ptr<CellGrid> CellGrid::restore(const glm::vec3& boundsMin, const gl
     if (owner >= cellCount)
       throw std::invalid_argument("cell grid: a bin of cell " + std::to_string(owner) + " of " +
                                   std::to_string(cellCount));
-  auto grid = std::make_unique<CellGrid>(boundsMin, boundsMax);
-  grid->table_ = std::move(owners);
+  // The owners become the table as they are: a grid restored in every task touches its 8 MiB once.
+  std::unique_ptr<CellGrid> grid(new CellGrid(boundsMin, boundsMax, std::move(owners)));
   grid->cellCount_ = cellCount;
   return grid;
 }

@@ -71,6 +71,8 @@ class CellGrid {
                                            uint32_t cellCount, std::vector<uint32_t> owners);
 
  private:
+  CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax, std::vector<uint32_t> table);
+
   glm::dvec3 min_, scale_;
   glm::dvec3 top_;  // the highest bin coordinate per axis, 2^bits - 1
   std::array<int, 3> bits_{};

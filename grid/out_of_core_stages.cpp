@@ -146,9 +146,9 @@ PlanState loadPlanManifest(const std::filesystem::path& work) {
   return s;
 }
 
-std::unique_ptr<CellGrid> restoreGrid(const PlanState& state, const std::filesystem::path& work) {
+std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work) {
   try {
-    return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
+    return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, std::move(state.owners));
   } catch (const std::invalid_argument& e) {
     throw Error(ErrorCategory::Input,
                 (state.ranges ? gridPath(work) : planPath(work)).string() + ": " + e.what());
@@ -199,7 +199,7 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
 bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
   const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
   if (std::filesystem::exists(manifestPath)) return false;
-  const PlanState state = loadPlan(work);
+  PlanState state = loadPlan(work);
   if (state.inCore || task + 1 >= state.bounds.size())
     throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
   const ClusterJob effective = effectiveJob(job);
@@ -216,17 +216,18 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
     binned.ghosts.push_back(BucketSpill::openSegments(
         temp, state.ghostsFiles, [&](size_t) { return state.ghostsIndex[0]; }, first, end, ghostRecords));
   } else {
-    // Every bin task's spills read as one, only this task's cells' blocks held.
-    const auto index = [&](size_t segment, bool faces) {
+    // Every bin task's spills read as one, only this task's cells' blocks held; each bin task's
+    // manifest read once for both.
+    BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end),
+        ghosts(temp, state.ghostsFiles, first, end);
+    for (size_t segment = 0; segment < state.facesFiles.size(); ++segment) {
       ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
-      std::string facesIndex = in.takeBytes(), ghostsIndex = in.takeBytes();
+      faces.add(in.takeView());
+      ghosts.add(in.takeView());
       in.finish();
-      return faces ? facesIndex : ghostsIndex;
-    };
-    binned.faces.push_back(BucketSpill::openSegments(
-        temp, state.facesFiles, [&](size_t s) { return index(s, true); }, first, end, faceRecords));
-    binned.ghosts.push_back(BucketSpill::openSegments(
-        temp, state.ghostsFiles, [&](size_t s) { return index(s, false); }, first, end, ghostRecords));
+    }
+    binned.faces.push_back(faces.finish(faceRecords));
+    binned.ghosts.push_back(ghosts.finish(ghostRecords));
     binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
   }
   CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);

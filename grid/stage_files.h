@@ -98,9 +98,9 @@ struct PlanState {
 };
 // Throws Error (Input) naming the manifest that is missing or does not fit the others.
 PlanState loadPlan(const std::filesystem::path& work);
-// The plan's grid again (CellGrid::restore); Error (Input) naming the manifest that holds it when
-// it does not fit.
-std::unique_ptr<CellGrid> restoreGrid(const PlanState& state, const std::filesystem::path& work);
+// The plan's grid again (CellGrid::restore), taking the state's owner table; Error (Input) naming
+// the manifest that holds it when it does not fit.
+std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work);
 // plan.manifest alone: the fingerprint, and the range plan when there is one.
 PlanState loadPlanManifest(const std::filesystem::path& work);
 

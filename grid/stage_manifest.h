@@ -50,9 +50,11 @@ class ManifestReader {
     std::memcpy(&value, need(sizeof value), sizeof value);
     return value;
   }
-  std::string takeBytes() {
+  std::string takeBytes() { return std::string(takeView()); }
+  // The bytes of a field in place, valid while the reader lives.
+  std::string_view takeView() {
     const auto n = take<uint64_t>();
-    return std::string(need(n), n);
+    return std::string_view(need(n), n);
   }
   template <class T>
   std::vector<T> takeVector() {

@@ -341,7 +341,7 @@ bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32
   if (std::filesystem::exists(path)) return false;
   RangeTask t = rangeTask(work, "bin", task);
   loadGridManifest(work, t.plan, /*bins=*/false);
-  const PlanState& state = t.plan;
+  PlanState& state = t.plan;
   const ClusterJob effective = effectiveJob(job);
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   JobReport report;
