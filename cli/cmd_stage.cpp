@@ -80,6 +80,7 @@ PlannedJob plannedJob(const std::vector<std::string>& argv, SignalGuard& signals
   planned.job.output = planned.output;
   planned.job.cellTasks = static_cast<uint32_t>(std::min<uint64_t>(args.count("cell-tasks", 0), 65536));
   planned.job.readTasks = static_cast<uint32_t>(std::min<uint64_t>(args.count("read-tasks", 0), 65536));
+  planned.job.nodeTasks = static_cast<uint32_t>(std::min<uint64_t>(args.count("node-tasks", 0), 65536));
   return planned;
 }
 

@@ -23,10 +23,12 @@ void addStageCommands(std::vector<CommandHelp>& table) {
   std::vector<OptionHelp> planOptions = {
       {"work", "DIR", "", "the work directory the tasks share (created; the caller removes it)"},
       {"cell-tasks", "N", "",
-       "cells tasks to cut the cells into (default one per 8 cells); the file does not depend on it"},
+       "cells tasks to cut the cells into (default one per 16 cells); the file does not depend on it"},
       {"read-tasks", "N", "",
-       "read tasks of a binary PLY read in ranges (default one per 2^18 faces); the file does not "
-       "depend on it"}};
+       "read tasks of a binary PLY read in ranges (default one per 2^20 faces); the file does not "
+       "depend on it"},
+      {"node-tasks", "N", "",
+       "node tasks of the write (default one per 2^20 node positions); the file does not depend on it"}};
   for (const OptionHelp& o : build.options) {
     const std::string name = o.name;
     if (name == "mesh-out" || name == "draco-bits" || name == "method" || name == "leaf-size" ||

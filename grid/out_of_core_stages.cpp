@@ -19,8 +19,9 @@ namespace {
 
 constexpr std::string_view kCellsStep = "cells";
 // Cells per task when the job does not say: enough tasks to spread a large mesh over many
-// machines, few enough that each task's fixed cost (opening the binned spills) stays small.
-constexpr uint32_t kCellsPerTask = 8;
+// machines, few enough that each task's fixed cost (a process, the plan and the binned spills'
+// indexes loaded) stays a small part of it.
+constexpr uint32_t kCellsPerTask = 16;
 
 }  // namespace
 
@@ -45,7 +46,7 @@ std::string jobFingerprint(const ClusterJob& job) {
       << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
       << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
       << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
-      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks;
+      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks;
   return out.str();
 }
 

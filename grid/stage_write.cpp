@@ -20,11 +20,12 @@ namespace facetree {
 namespace {
 
 constexpr std::string_view kWriteKind = "write plan";
-// Node frames per node task: 2^18 nodes of 4,096-node frames, about as many tasks as read tasks.
-constexpr uint64_t kFramesPerNodeTask = 64;
-// Triangle frames per geometry task: 2^20 triangles of 65,536-triangle frames, and as many tasks'
+// Node frames per node task: 2^20 nodes of 4,096-node frames, as many tasks as read tasks. A task's
+// fixed cost (a process, the write plan loaded) is about that of writing 2^18 nodes.
+constexpr uint64_t kFramesPerNodeTask = 256;
+// Triangle frames per geometry task: 2^21 triangles of 65,536-triangle frames, and as many tasks'
 // worth of vertex frames.
-constexpr uint64_t kFramesPerGeometryTask = 16;
+constexpr uint64_t kFramesPerGeometryTask = 32;
 
 std::filesystem::path writePlanPath(const std::filesystem::path& work) {
   return work / "write.manifest";
@@ -67,12 +68,16 @@ struct LoadedWrite {
 
 // Each table goes into the manifest's bytes as it leaves the plan: the two never hold it twice.
 void saveWritePlan(const std::filesystem::path& work, const JobReport& report, uint32_t cellsTasks,
-                   WritePlan&& p) {
-  const uint64_t nodes = p.info.header.nodeCount;
-  const uint64_t perTask = kFramesPerNodeTask * p.options.nodesPerFrame;
-  std::vector<uint64_t> bounds{0};
-  while (bounds.back() < nodes) bounds.push_back(std::min(nodes, bounds.back() + perTask));
-  if (bounds.size() == 1) bounds.push_back(0);  // no nodes: one task of none
+                   uint32_t nodeTasks, WritePlan&& p) {
+  // Node tasks on frame boundaries: nodeTasks of them, or one per kFramesPerNodeTask frames.
+  const uint64_t nodes = p.info.header.nodeCount, perFrame = p.options.nodesPerFrame;
+  const uint64_t frames = (nodes + perFrame - 1) / perFrame;
+  const uint64_t nodeTaskCount =
+      std::clamp<uint64_t>(nodeTasks ? nodeTasks : (frames + kFramesPerNodeTask - 1) / kFramesPerNodeTask, 1,
+                           std::max<uint64_t>(frames, 1));
+  std::vector<uint64_t> bounds;
+  for (uint64_t t = 0; t <= nodeTaskCount; ++t)
+    bounds.push_back(std::min(nodes, frames * t / nodeTaskCount * perFrame));
   // Geometry tasks on frame boundaries of both sections.
   const uint64_t triangles = p.info.header.triangleCount, vertices = p.info.header.vertexCount;
   const uint64_t frame = p.options.geometryPerFrame;
@@ -179,7 +184,7 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
   const StageContext context{effective, temp, state.memoryCap, report, &work};
   WritePlan plan = finishUpper(context, state.extent, std::move(cells));
   report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, temp.peakBytes());
-  saveWritePlan(work, report, tasks, std::move(plan));
+  saveWritePlan(work, report, tasks, job.nodeTasks, std::move(plan));
   return true;
 }
 

@@ -95,9 +95,12 @@ struct ClusterJob {
   // the stages run as tasks on several machines do (docs/out_of_core.md). The cluster file is the
   // same bytes for any count; 0 or 1: one task.
   uint32_t cellTasks = 0;
-  // Stages run as tasks (planStages): the read tasks of a mesh read in ranges; 0: one per 2^18
+  // Stages run as tasks (planStages): the read tasks of a mesh read in ranges; 0: one per 2^20
   // faces. The file does not depend on it.
   uint32_t readTasks = 0;
+  // Stages run as tasks: the node tasks of the write; 0: one per 2^20 node positions. The file
+  // does not depend on it.
+  uint32_t nodeTasks = 0;
   // Called between steps; returning false cancels the job (an Error of category Cancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;

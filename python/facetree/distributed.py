@@ -48,6 +48,7 @@ def build(
     cell_faces: int = 0,
     cell_tasks: int = 0,
     read_tasks: int = 0,
+    node_tasks: int = 0,
     retries: int = 2,
     keep_work: bool = False,
     progress: Optional[Callable[[str, Optional[float]], Optional[bool]]] = None,
@@ -61,9 +62,10 @@ def build(
     unless keep_work is true (then a rerun of the same job with the same work_dir makes neither the
     plan nor the cells tasks done again).
     memory: the cap of every task, bytes or a string like "4G" (default: half the memory of the
-    machine running the task). cell_tasks: how many cells tasks (default one per 8 cells);
-    read_tasks: how many ranges a binary PLY is read in (default one per 2^18 faces); the file
-    depends on neither. retries: how many times a failed task is run again. progress: called as
+    machine running the task). cell_tasks: how many cells tasks (default one per 16 cells);
+    read_tasks: how many ranges a binary PLY is read in (default one per 2^20 faces); node_tasks:
+    how many tasks write the nodes (default one per 2^20 node positions); the file depends on none
+    of them. retries: how many times a failed task is run again. progress: called as
     progress(step, fraction) with step "plan", "read", "count", "grid", "bin", "cells" or "finish";
     returning False cancels the build (Cancelled). Other arguments and options as
     facetree.build_file's.
@@ -85,7 +87,7 @@ def build(
         work=os.path.abspath(work), memory=parse_size(memory),
         tmp=os.fspath(tmp) if tmp is not None else "", max_tmp=parse_size(max_tmp),
         zstd_level=zstd_level, cell_faces=cell_faces, cell_tasks=cell_tasks, read_tasks=read_tasks,
-        **options)
+        node_tasks=node_tasks, **options)
 
     own = client is None
     cluster = None

@@ -287,12 +287,13 @@ arrays or options.)") +
       "_stage",
       [](const std::string& step, const std::string& input, const std::string& output,
          const std::string& work, uint32_t task, uint64_t memory, const std::string& tmp, uint64_t maxTmp,
-         int zstdLevel, uint64_t cellFaces, uint32_t cellTasks, uint32_t readTasks,
+         int zstdLevel, uint64_t cellFaces, uint32_t cellTasks, uint32_t readTasks, uint32_t nodeTasks,
          const py::kwargs& options) -> py::object {
         const Settings s = settingsFrom(options, "build");
         ClusterJob job = jobOf(s, input, output, memory, tmp, maxTmp, zstdLevel, cellFaces);
         job.cellTasks = cellTasks;
         job.readTasks = readTasks;
+        job.nodeTasks = nodeTasks;
         Interrupts interrupts;
         job.build.cancelled = [&interrupts] { return interrupts.cancelled(); };
         const auto steps = [](const std::vector<StageStep>& next) {
@@ -327,7 +328,7 @@ arrays or options.)") +
       },
       py::arg("step"), py::arg("input"), py::arg("output"), py::arg("work"), py::arg("task"),
       py::arg("memory"), py::arg("tmp"), py::arg("max_tmp"), py::arg("zstd_level"), py::arg("cell_faces"),
-      py::arg("cell_tasks"), py::arg("read_tasks"),
+      py::arg("cell_tasks"), py::arg("read_tasks"), py::arg("node_tasks"),
       "One task of the build as tasks (facetree.distributed): plan, a task of read, count, grid, bin or\n"
       "cells, or finish. Returns the steps that follow the plan and the grid as (step, tasks) pairs.");
 

@@ -87,7 +87,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     fs::remove(staged);
     const ChildResult plan =
         runChild({"stage", "plan", mesh.string(), "--work", work.string(), "-o", staged.string(), "--memory",
-                  "64M", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
+                  "64M", "--cell-tasks", "3", "--read-tasks", "4", "--node-tasks", "2", "--json"});
     ASSERT_EQ(plan.exitCode, 0) << plan.output;
     EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), ranges ? 0u : 3u);
     EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 upper:1");
@@ -118,7 +118,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
         if (single) next = stepsOf(jsonText(result.output, "next"));
       }
     }
-    // 300k faces: one geometry task of 2^20 triangles, two node tasks of 2^18 nodes, their three
+    // 300k faces: one geometry task of 2^21 triangles, the two node tasks asked for, their three
     // pieces placed by three tasks.
     EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 "
                           : "cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 ");
