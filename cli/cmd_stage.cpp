@@ -1,4 +1,5 @@
-// facetree stage plan | read | count | grid | bin | cells | upper | geometry | nodes | finish: the
+// facetree stage plan | read | count | grid | bin | cells | upper | geometry | boxes | nodes | layout |
+// place | finish: the
 // out-of-core build as tasks
 // over a work directory, for an engine that runs them (facetree/grid.h planStages, runStageTask,
 // finishStages). The plan keeps its command line in the work directory, so that the later tasks
@@ -102,8 +103,8 @@ std::string stepsText(const std::vector<StageStep>& steps) {
 void printSteps(const std::vector<StageStep>& steps, const std::filesystem::path& work) {
   const char* lead = "next";
   for (const StageStep& step : steps) {
-    if (step.tasks == 1 &&
-        (step.name == "grid" || step.name == "upper" || step.name == "layout" || step.name == "finish"))
+    if (step.tasks == 1 && (step.name == "grid" || step.name == "upper" || step.name == "boxes" ||
+                            step.name == "layout" || step.name == "finish"))
       std::printf("%-13s facetree stage %s --work %s\n", lead, step.name.c_str(), work.c_str());
     else
       std::printf("%-13s facetree stage %s --work %s --task I   (I = 0 ... %u, any order)\n", lead,
@@ -153,7 +154,7 @@ int runTask(const std::string& step, const std::vector<std::string>& argv, Signa
   const Args args = parseCommand(command, argv);
   if (!args.positional().empty()) throw UsageError(command + " takes no positional arguments");
   const std::filesystem::path work = workOf(args, command.c_str());
-  const bool single = step == "grid" || step == "upper" || step == "layout";
+  const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
   if (!single && !args.value("task")) throw UsageError(command + " needs --task I");
   const uint64_t task = single ? 0 : args.count("task", 0);
   PlannedJob planned = plannedJob(loadArguments(work), signals);
@@ -200,13 +201,13 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
   constexpr const char* kSteps =
-      "plan, read, count, grid, bin, cells, upper, geometry, nodes, layout, place, finish";
+      "plan, read, count, grid, bin, cells, upper, geometry, boxes, nodes, layout, place, finish";
   if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
   for (const char* step :
-       {"read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes", "layout", "place"})
+       {"read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes", "nodes", "layout", "place"})
     if (argv[0] == step) return runTask(argv[0], rest, signals);
   throw UsageError("unknown stage '" + argv[0] + "' (" + kSteps + ")");
 }

@@ -44,8 +44,9 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "any order, anywhere, once the step before is done: a binary PLY whose faces are triangles in\n"
        "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
        "prints `stage bin`, `stage cells` and `stage upper`); any other mesh is read and binned by the\n"
-       "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage geometry`, `stage\n"
-       "nodes` and `stage layout`, which prints `stage place` and `stage finish`. OUT.fch is the bytes\n"
+       "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage geometry` and `stage\n"
+       "boxes` (which prints `stage nodes` and `stage layout`), or with compact boxes all three;\n"
+       "`stage layout` prints `stage place` and `stage finish`. OUT.fch is the bytes\n"
        "`facetree build` writes with the same options. Each task writes under temporary names and\n"
        "renames when complete: a task rerun gives the same files, and a task already done is skipped.\n"
        "A plan of the same job (input, its size and time, options) already in DIR stands; another one\n"
@@ -82,17 +83,25 @@ void addStageCommands(std::vector<CommandHelp>& table) {
   table.push_back(
       {"stage upper",
        "--work DIR [--json]",
-       "join the cells above them and write the geometry: the file's first piece",
-       "Every cells task must be done. Merges the cells' leaf clusters, writes the geometry as a\n"
-       "piece of the file and the plan of the node tasks, and prints the steps that follow: nodes,\n"
-       "finish.",
+       "join the cells above them and plan the write",
+       "Every cells task must be done. Merges the cells' leaf clusters above them, orders the file's\n"
+       "nodes, writes the plan of the geometry and node tasks, and prints the steps that follow:\n"
+       "geometry and boxes (compact boxes: geometry, nodes and layout).",
        {{"work", "DIR", "", "the work directory of `stage plan`"},
         {"json", "", "", "print the result as one JSON object"}}});
   taskCommand("stage geometry",
               "write the frames of one range of the file's triangles and vertices as a piece",
-              "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
+              "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.\n"
+              "With exact boxes it also accumulates its part of the upper nodes' boxes.");
+  table.push_back({"stage boxes",
+                   "--work DIR [--json]",
+                   "merge the geometry tasks' parts of the upper nodes' boxes",
+                   "Every geometry task must be done. Prints the steps that follow: nodes, layout.",
+                   {{"work", "DIR", "", "the work directory of `stage plan`"},
+                    {"json", "", "", "print the result as one JSON object"}}});
   taskCommand("stage nodes", "write the frames of one range of the file's nodes as a piece",
-              "Reads the plan's options from DIR; holds the plan's --memory. The upper step must be done.");
+              "Reads the plan's options from DIR; holds the plan's --memory. The upper step (with exact\n"
+              "boxes, the boxes step) must be done.");
   table.push_back({"stage layout",
                    "--work DIR [--json]",
                    "lay out the cluster file of the pieces and write its header and index",
@@ -302,7 +311,7 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|nodes|layout|place|finish "
+      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|boxes|nodes|layout|place|finish "
       "[OPTIONS]\n\nA build "
       "run as "
       "tasks over a "

@@ -173,6 +173,9 @@ struct LeafCluster {
   float topKey = 0;            // its first run's key (NodeBlock::key), when it has runs
   uint32_t firstGeometry = 0;  // its geometry, LeafGraph::geometry[firstGeometry, + geometryCount)
   uint32_t geometryCount = 0;
+  // The first corner of its first triangle: the reference vertex of the box of every upper node
+  // whose first leaf it is (BoxAccumulator::setOrigin), known before the geometry is read.
+  glm::vec3 firstCorner{0.0f};
 };
 using BoxCorners = std::array<glm::vec3, 8>;  // of a leaf's root box: points for the upper frames
 
@@ -202,6 +205,14 @@ struct GeometryBlockHeader {
 // A leaf's geometry is spilled in blocks of at most this many triangles, the unit the write reads
 // back.
 inline constexpr size_t kTrianglesPerBlock = 65536;
+// The upper nodes' boxes accumulate in parts of this many triangles of the file's order (a leaf's
+// geometry block in the part of its first triangle), merged part by part (UpperBoxes): the
+// geometry tasks' ranges, so that one process and the tasks give the same bits. A job may ask for
+// another multiple of the geometry frames (ClusterJob::boxPartTriangles).
+inline constexpr uint64_t kBoxPartTriangles = uint64_t{1} << 21;
+inline uint64_t boxPartTriangles(const ClusterJob& job) {
+  return job.boxPartTriangles ? job.boxPartTriangles : kBoxPartTriangles;
+}
 
 // cells: what the write reads back (each leaf's nodes in runs, its geometry in blocks) ...
 struct LeafSubtrees {
@@ -293,6 +304,16 @@ struct WritePlan {
   // first block, block count, vertices and faces.
   std::vector<SpillBlock> geometry;
   std::vector<uint32_t> leafFirstGeometry, leafGeometryCount, leafVertices, leafFaces;
+  // Exact boxes: the geometry tasks accumulate the upper nodes' boxes (upperNodes without them),
+  // each over its part, and the boxes step merges the parts. What they need: per upper node (by
+  // creation index) its box's orientation and reference vertex (upperOrigin, where upperHasOrigin)
+  // and parent, and per leaf id its upper parent (kNone: none).
+  bool boxesInTasks = false;
+  uint64_t boxPart = kBoxPartTriangles;  // triangles per part: per geometry task
+  std::vector<glm::quat> upperOrientation;
+  std::vector<glm::vec3> upperOrigin;
+  std::vector<uint8_t> upperHasOrigin;
+  std::vector<uint32_t> upperParent, leafUpperParent;
 };
 WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                            const ClusterMergeResult& upper, LeafSubtrees&& subtrees);

@@ -578,6 +578,7 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
       }
       leaf.firstGeometry = static_cast<uint32_t>(out.geometry.size());
       const size_t triangles = file.originalFace.size();
+      if (triangles > 0) leaf.firstCorner = file.vertices[file.indices[0]];
       uint32_t verticesSeen = 0;
       for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
         const size_t n = std::min(kTrianglesPerBlock, triangles - at);

@@ -46,7 +46,7 @@ std::string jobFingerprint(const ClusterJob& job) {
       << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
       << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
       << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
-      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks;
+      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks << ' ' << job.boxPartTriangles;
   return out.str();
 }
 
@@ -294,7 +294,7 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
 StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
                              uint32_t task) {
   StageTaskResult result;
-  const auto single = [&] {  // the grid, the upper step and the layout: one task, 0
+  const auto single = [&] {  // the grid, the upper step, the boxes and the layout: one task, 0
     if (task != 0)
       throw std::invalid_argument("the " + std::string(step) + " step has one task, 0, not " +
                                   std::to_string(task));
@@ -315,6 +315,10 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.ran = runNodesTask(job, work, task);
   } else if (step == "geometry") {
     result.ran = runGeometryTask(job, work, task);
+  } else if (step == "boxes") {
+    single();
+    result.ran = runBoxesStep(job, work);
+    result.next = stepsAfterBoxes(work);
   } else if (step == "layout") {
     single();
     result.ran = runLayoutStep(job, work);
@@ -328,8 +332,9 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     loadGrid(work, state, /*bins=*/false);
     result.next = stepsAfterGrid(state);
   } else {
-    throw std::invalid_argument("no stage step '" + std::string(step) +
-                                "' (read, count, grid, bin, cells, upper, geometry, nodes, layout, place)");
+    throw std::invalid_argument(
+        "no stage step '" + std::string(step) +
+        "' (read, count, grid, bin, cells, upper, geometry, boxes, nodes, layout, place)");
   }
   return result;
 }

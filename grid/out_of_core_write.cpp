@@ -252,7 +252,8 @@ void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layo
   std::vector<glm::vec3> leafVertices;
   std::vector<uint32_t> indices, ancestors;
   std::vector<uint64_t> ids;
-  uint64_t vertexBase = 0;
+  uint64_t vertexBase = 0, triangle = 0, part = 0;
+  const uint64_t partTriangles = boxPartTriangles(context_.job);
   UpperBoxes upperBoxes(frames.boxes, context_.job.threads > 1);
   SpillFile& geometry = *subtrees_.geometry;
   for (const uint32_t leafId : layout.leafOrder) {
@@ -276,6 +277,11 @@ void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layo
       ids.resize(header.triangles);
       std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
       if (writer) writer->addVertices(std::span(leafVertices).subspan(firstNew));
+      if (triangle / partTriangles != part) {  // the block starts a part (kBoxPartTriangles)
+        upperBoxes.endPart();
+        part = triangle / partTriangles;
+      }
+      triangle += header.triangles;
       upperBoxes.add(leafVertices, indices, ancestors);
       if (writer) {
         for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
@@ -455,6 +461,18 @@ WriteStage::Start WriteStage::start() {
   report.balancedHeight = balancedHeight(s.layout.faces, context_.job.file.branching);
   s.frames = frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
   graph_.corners = {};
+  // Each upper node's reference vertex is the first corner of its first leaf with triangles, the
+  // first vertex its accumulator would see: set now, the parts of its triangles merge exactly.
+  std::vector<BoxAccumulator>& boxes = s.frames.boxes;
+  std::vector<uint8_t> set(boxes.size(), 0);
+  for (const uint32_t leafId : s.layout.leafOrder) {
+    const LeafCluster& leaf = graph_.leaves[leafId];
+    if (leaf.faceCount == 0 || leaf.geometryCount == 0) continue;
+    for (uint32_t a = s.layout.leafParent[leafId]; a != kNone && !set[a]; a = s.layout.nodeParent[a]) {
+      boxes[a].setOrigin(leaf.firstCorner);
+      set[a] = 1;
+    }
+  }
   return s;
 }
 
@@ -493,7 +511,23 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   WritePlan plan;
   plan.info = fileInfo(fileLayout);
   plan.options = writeOptions();
-  {
+  // Exact boxes: the geometry tasks accumulate the upper nodes' boxes as they read the geometry
+  // (each its part), and the boxes step merges them. Compact boxes are needed here, to quantise
+  // the leaves' runs, so this step reads the geometry for them, in the same parts.
+  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
+  plan.boxesInTasks = context_.job.build.boxes == BoxPrecision::Exact && upperCount > 0;
+  plan.boxPart = boxPartTriangles(context_.job);
+  if (plan.boxesInTasks) {
+    plan.upperOrientation.resize(upperCount);
+    plan.upperOrigin.resize(upperCount);
+    plan.upperHasOrigin.resize(upperCount);
+    for (uint32_t i = 0; i < upperCount; ++i) {
+      plan.upperOrientation[i] = frames.boxes[i].orientation();
+      plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
+    }
+    plan.upperParent = fileLayout.nodeParent;
+    plan.leafUpperParent = fileLayout.leafParent;
+  } else if (upperCount > 0) {
     uint64_t done = 0;
     writeGeometry(nullptr, fileLayout, frames, done);
   }
@@ -504,7 +538,6 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   order_->commit();
   if (compact) subtrees_.nodes->commit();
 
-  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
   plan.records = runRecords_;
   plan.compactNodes = compact;
   plan.orderBlocks = std::move(orderBlocks_);

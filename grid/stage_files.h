@@ -13,8 +13,13 @@
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
 //   cells-T.manifest            its cells' records
 //   write-order.spill, write-nodes.spill   the upper step's node order; compact boxes' node runs
-//   write.manifest              the upper step's write plan: what every geometry and node task needs
+//   write-tables.manifest       the upper step's write plan's tables: what the geometry and node
+//                               tasks need of every leaf and upper node
+//   write.manifest              its head: the tasks' bounds, the file's header, the upper boxes'
+//                               frames (the steps of one task read it alone)
+//   geometry-T.manifest         geometry task T, exact boxes: its part of the upper nodes' boxes
 //   geometry-T.piece            geometry task T: the frames of its triangles and vertices
+//   boxes.manifest              the upper nodes' exact boxes, the parts merged
 //   nodes-T.piece               node task T: the frames of its node positions
 //   layout.manifest             the file's layout: where every piece's frames go
 //   output.fch.partial          the file being placed (beside the output on another file system)
@@ -123,6 +128,9 @@ CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, co
 // write plan) and the steps it lists; a node task (the frames of a range of node positions).
 bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
 std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
+// Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.
+bool runBoxesStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work);
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 // The file assembled by tasks: the layout step writes its header and index and lists the copies;

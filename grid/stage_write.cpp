@@ -1,31 +1,38 @@
 // The write as tasks of the stages (stage_files.h): after the cells, the upper step joins them
-// (leaf graph, merge above) and writes the geometry as a piece of the file, the node order and a
-// write plan; each node task writes the frames of a range of node positions as a piece, its upper
-// nodes from the plan and its leaves' runs read in place from the cells tasks' spills; the finish
-// assembles the pieces (assembleClusterFile). Node frames are self-contained (docs/FORMAT.md), so
-// the file is the single process's bytes: the same records, cut into the same frames.
+// (leaf graph, merge above) and writes the node order and a write plan; each geometry task writes
+// the frames of a range of triangles and vertices as a piece and, with exact boxes, accumulates its
+// part of the upper nodes' boxes, which the boxes step merges; each node task writes the frames of
+// a range of node positions as a piece, its upper nodes from the plan and its leaves' runs read in
+// place from the cells tasks' spills; the layout, place and finish steps assemble the pieces. Node
+// frames are self-contained (docs/FORMAT.md), so the file is the single process's bytes: the same
+// records, cut into the same frames.
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <optional>
 #include <utility>
 
 #include "facetree/grid.h"
 #include "node_order.h"
 #include "out_of_core.h"
 #include "stage_files.h"
+#include "upper_boxes.h"
 
 namespace facetree {
 namespace {
 
 constexpr std::string_view kWriteKind = "write plan";
+constexpr std::string_view kWriteTablesKind = "write tables";
 // Node frames per node task: 2^20 nodes of 4,096-node frames, as many tasks as read tasks. A task's
 // fixed cost (a process, the write plan loaded) is about that of writing 2^18 nodes.
 constexpr uint64_t kFramesPerNodeTask = 256;
-// Triangle frames per geometry task: 2^21 triangles of 65,536-triangle frames, and as many tasks'
-// worth of vertex frames.
-constexpr uint64_t kFramesPerGeometryTask = 32;
+constexpr std::string_view kBoxesKind = "upper boxes";
+
+std::filesystem::path writeTablesPath(const std::filesystem::path& work) {
+  return work / "write-tables.manifest";
+}
 
 std::filesystem::path writePlanPath(const std::filesystem::path& work) {
   return work / "write.manifest";
@@ -78,19 +85,45 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   std::vector<uint64_t> bounds;
   for (uint64_t t = 0; t <= nodeTaskCount; ++t)
     bounds.push_back(std::min(nodes, frames * t / nodeTaskCount * perFrame));
-  // Geometry tasks on frame boundaries of both sections.
+  // Geometry tasks on frame boundaries of both sections: the triangles of a part of the upper
+  // boxes each (WritePlan::boxPart), and as many tasks' worth of vertex frames.
   const uint64_t triangles = p.info.header.triangleCount, vertices = p.info.header.vertexCount;
   const uint64_t frame = p.options.geometryPerFrame;
-  const uint64_t geometryTasks = std::max<uint64_t>(
-      1, (triangles + kFramesPerGeometryTask * frame - 1) / (kFramesPerGeometryTask * frame));
+  const uint64_t part = p.boxPart;
+  if (part == 0 || part % frame != 0)
+    throw std::invalid_argument("box parts of " + std::to_string(part) +
+                                " triangles: not whole geometry frames");
+  const uint64_t geometryTasks = std::max<uint64_t>(1, (triangles + part - 1) / part);
   const uint64_t vertexFrames = (vertices + frame - 1) / frame;
   std::vector<uint64_t> triangleBounds, vertexBounds;
   for (uint64_t t = 0; t <= geometryTasks; ++t) {
-    triangleBounds.push_back(std::min(triangles, t * kFramesPerGeometryTask * frame));
+    triangleBounds.push_back(std::min(triangles, t * part));
     vertexBounds.push_back(std::min(vertices, vertexFrames * t / geometryTasks * frame));
   }
   triangleBounds.back() = triangles;
   vertexBounds.back() = vertices;
+  // The tables first, the head (the step's done marker) last: the steps of one task and the
+  // layout read the head alone.
+  ManifestWriter tables;
+  tables.putVector(std::exchange(p.orderBlocks, {}));
+  tables.putVector(std::exchange(p.orderFirst, {}));
+  tables.putVector(std::exchange(p.runPosition, {}));
+  tables.putVector(std::exchange(p.runFirst, {}));
+  tables.putVector(std::exchange(p.leafOrder, {}));
+  tables.putVector(std::exchange(p.leafFirstBlock, {}));
+  tables.putVector(std::exchange(p.leafBlockCount, {}));
+  tables.putVector(std::exchange(p.upperNodes, {}));
+  tables.putVector(std::exchange(p.upperPosition, {}));
+  tables.putVector(std::exchange(p.upperParentBox, {}));
+  tables.putVector(std::exchange(p.upperParentPosition, {}));
+  tables.putVector(std::exchange(p.geometry, {}));
+  tables.putVector(std::exchange(p.leafFirstGeometry, {}));
+  tables.putVector(std::exchange(p.leafGeometryCount, {}));
+  tables.putVector(std::exchange(p.leafVertices, {}));
+  tables.putVector(std::exchange(p.leafFaces, {}));
+  tables.putVector(std::exchange(p.upperParent, {}));
+  tables.putVector(std::exchange(p.leafUpperParent, {}));
+  tables.commit(writeTablesPath(work), kWriteTablesKind);
   ManifestWriter out;
   putUpperReport(out, report);
   out.put(cellsTasks);
@@ -104,26 +137,16 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   out.put(p.options.geometryPerFrame);
   out.put(p.records);
   out.put(p.compactNodes);
-  out.putVector(std::exchange(p.orderBlocks, {}));
-  out.putVector(std::exchange(p.orderFirst, {}));
-  out.putVector(std::exchange(p.runPosition, {}));
-  out.putVector(std::exchange(p.runFirst, {}));
-  out.putVector(std::exchange(p.leafOrder, {}));
-  out.putVector(std::exchange(p.leafFirstBlock, {}));
-  out.putVector(std::exchange(p.leafBlockCount, {}));
-  out.putVector(std::exchange(p.upperNodes, {}));
-  out.putVector(std::exchange(p.upperPosition, {}));
-  out.putVector(std::exchange(p.upperParentBox, {}));
-  out.putVector(std::exchange(p.upperParentPosition, {}));
-  out.putVector(std::exchange(p.geometry, {}));
-  out.putVector(std::exchange(p.leafFirstGeometry, {}));
-  out.putVector(std::exchange(p.leafGeometryCount, {}));
-  out.putVector(std::exchange(p.leafVertices, {}));
-  out.putVector(std::exchange(p.leafFaces, {}));
+  out.put(p.boxesInTasks);
+  out.putVector(std::exchange(p.upperOrientation, {}));
+  out.putVector(std::exchange(p.upperOrigin, {}));
+  out.putVector(std::exchange(p.upperHasOrigin, {}));
   out.commit(writePlanPath(work), kWriteKind);
 }
 
-LoadedWrite loadWritePlan(const std::filesystem::path& work) {
+// The head of the write plan: the report, the tasks' bounds, the file's header and options, and
+// the upper boxes' frames (no tables).
+LoadedWrite loadWriteHead(const std::filesystem::path& work) {
   ManifestReader in(writePlanPath(work), kWriteKind);
   LoadedWrite w;
   takeUpperReport(in, w.report);
@@ -139,6 +162,23 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   p.options.geometryPerFrame = in.take<uint32_t>();
   p.records = in.take<BoxPrecision>();
   p.compactNodes = in.take<bool>();
+  p.boxesInTasks = in.take<bool>();
+  p.upperOrientation = in.takeVector<glm::quat>();
+  p.upperOrigin = in.takeVector<glm::vec3>();
+  p.upperHasOrigin = in.takeVector<uint8_t>();
+  in.finish();
+  if (w.bounds.size() < 2 || w.triangleBounds.size() != w.vertexBounds.size() ||
+      w.triangleBounds.size() < 2 || p.upperOrigin.size() != p.upperOrientation.size() ||
+      p.upperHasOrigin.size() != p.upperOrientation.size())
+    throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+// The whole write plan: its head and its tables.
+LoadedWrite loadWritePlan(const std::filesystem::path& work) {
+  LoadedWrite w = loadWriteHead(work);
+  WritePlan& p = w.plan;
+  ManifestReader in(writeTablesPath(work), kWriteTablesKind);
   p.orderBlocks = in.takeVector<SpillBlock>();
   p.orderFirst = in.takeVector<uint64_t>();
   p.runPosition = in.takeVector<uint32_t>();
@@ -155,14 +195,18 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   p.leafGeometryCount = in.takeVector<uint32_t>();
   p.leafVertices = in.takeVector<uint32_t>();
   p.leafFaces = in.takeVector<uint32_t>();
+  p.upperParent = in.takeVector<uint32_t>();
+  p.leafUpperParent = in.takeVector<uint32_t>();
   in.finish();
-  if (w.bounds.size() < 2 || p.orderBlocks.size() != p.orderFirst.size() ||
-      p.runPosition.size() != p.runFirst.size() || p.leafFirstBlock.size() != p.leafBlockCount.size() ||
-      p.upperNodes.size() != p.upperPosition.size() || w.triangleBounds.size() != w.vertexBounds.size() ||
-      w.triangleBounds.size() < 2 || p.leafFirstGeometry.size() != p.leafFirstBlock.size() ||
+  if (p.orderBlocks.size() != p.orderFirst.size() || p.runPosition.size() != p.runFirst.size() ||
+      p.leafFirstBlock.size() != p.leafBlockCount.size() || p.upperNodes.size() != p.upperPosition.size() ||
+      p.leafFirstGeometry.size() != p.leafFirstBlock.size() ||
       p.leafGeometryCount.size() != p.leafFirstBlock.size() ||
-      p.leafVertices.size() != p.leafFirstBlock.size() || p.leafFaces.size() != p.leafFirstBlock.size())
-    throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
+      p.leafVertices.size() != p.leafFirstBlock.size() || p.leafFaces.size() != p.leafFirstBlock.size() ||
+      (p.boxesInTasks &&
+       (p.upperOrientation.size() != p.upperNodes.size() || p.upperParent.size() != p.upperNodes.size() ||
+        p.leafUpperParent.size() != p.leafFirstBlock.size())))
+    throw Error(ErrorCategory::Input, writeTablesPath(work).string() + ": tables that do not fit together");
   return w;
 }
 
@@ -189,10 +233,65 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
 }
 
 std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
-  const LoadedWrite w = loadWritePlan(work);
-  return {{"geometry", static_cast<uint32_t>(w.triangleBounds.size() - 1)},
-          {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)},
-          {"layout", 1}};
+  const LoadedWrite w = loadWriteHead(work);
+  const auto geometry = static_cast<uint32_t>(w.triangleBounds.size() - 1);
+  if (w.plan.boxesInTasks) return {{"geometry", geometry}, {"boxes", 1}};
+  return {{"geometry", geometry}, {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
+}
+
+std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work) {
+  const LoadedWrite w = loadWriteHead(work);
+  return {{"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
+}
+
+namespace {
+
+// Every upper node's box accumulator as the upper step framed it: empty, its orientation and
+// reference vertex (by creation index).
+std::vector<BoxAccumulator> upperFrames(const WritePlan& p) {
+  std::vector<BoxAccumulator> boxes;
+  boxes.reserve(p.upperOrientation.size());
+  for (size_t i = 0; i < p.upperOrientation.size(); ++i) {
+    BoxAccumulator& b = boxes.emplace_back(p.upperOrientation[i]);
+    if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
+  }
+  return boxes;
+}
+
+std::filesystem::path boxesPath(const std::filesystem::path& work) {
+  return work / "boxes.manifest";
+}
+
+}  // namespace
+
+bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
+  if (std::filesystem::exists(boxesPath(work))) return false;
+  const LoadedWrite w = loadWriteHead(work);
+  const WritePlan& p = w.plan;
+  if (!p.boxesInTasks) throw std::invalid_argument("no boxes step in " + work.string() + ": compact boxes");
+  // The geometry tasks' parts in task order: the single process's merge (UpperBoxes), the same bits.
+  std::vector<BoxAccumulator> boxes = upperFrames(p);
+  const auto upperCount = static_cast<uint32_t>(boxes.size());
+  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) {
+    const std::filesystem::path path = taskManifestPath(work, "geometry", t);
+    ManifestReader in(path, taskKind("geometry"));
+    const auto nodes = in.takeVector<uint32_t>();
+    const auto sums = in.takeVector<BoxAccumulator::Sums>();
+    in.finish();
+    if (nodes.size() != sums.size())
+      throw Error(ErrorCategory::Input, path.string() + ": box parts that do not fit together");
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      if (nodes[k] >= upperCount || !p.upperHasOrigin[nodes[k]])
+        throw Error(ErrorCategory::Input, path.string() + ": a box part of node " + std::to_string(nodes[k]));
+      boxes[nodes[k]].addSums(sums[k]);
+    }
+  }
+  std::vector<NodeBox> out(upperCount);  // by file index, as WritePlan::upperNodes
+  for (uint32_t j = 0; j < upperCount; ++j) out[j] = boxes[upperCount - 1 - j].box();
+  ManifestWriter manifest;
+  manifest.putVector(out);
+  manifest.commit(boxesPath(work), kBoxesKind);
+  return true;
 }
 
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
@@ -219,6 +318,14 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
   options.piece = PieceRange{first, end, 0, 0, 0, 0};
   ClusterFileWriter writer(piece, p.info, options, temp.path());
   const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
+  std::vector<NodeBox> upperBoxes;  // exact boxes: the boxes step's, by file index
+  if (p.boxesInTasks) {
+    ManifestReader in(boxesPath(work), kBoxesKind);
+    upperBoxes = in.takeVector<NodeBox>();
+    in.finish();
+    if (upperBoxes.size() != upperCount)
+      throw Error(ErrorCategory::Input, boxesPath(work).string() + ": boxes of another plan");
+  }
   if (!p.upperParentBox.empty())
     for (uint32_t j = 0; j < upperCount; ++j)  // parents in earlier pieces
       if (p.upperPosition[j] >= first && p.upperPosition[j] < end && p.upperParentPosition[j] < first)
@@ -243,7 +350,11 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
     for (const NodeRef& ref : batch->refs) {
       if (position >= end) break;
       if (ref.kind == 0) {
-        if (position >= first) writer.addNodes(std::span(&p.upperNodes[ref.leafRank], 1));
+        if (position >= first) {
+          FchNode node = p.upperNodes[ref.leafRank];
+          if (p.boxesInTasks) node.box = upperBoxes[ref.leafRank];
+          writer.addNodes(std::span(&node, 1));
+        }
         ++position;
         continue;
       }
@@ -286,9 +397,23 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
   ClusterFileWriter writer(piece, p.info, options, temp.path());
   SpillCodec codec;
   std::vector<std::byte> raw;
-  std::vector<glm::vec3> vertices;
-  std::vector<uint32_t> indices;
+  std::vector<glm::vec3> vertices, leafVertices;
+  std::vector<uint32_t> indices, ancestors;
   std::vector<uint64_t> ids;
+  // Exact boxes: this task's part of the upper nodes' boxes, the blocks that start in its
+  // triangles (UpperBoxes as the single process runs it, one part).
+  const std::vector<BoxAccumulator> frames = p.boxesInTasks ? upperFrames(p) : std::vector<BoxAccumulator>{};
+  std::vector<uint32_t> partNodes;
+  std::vector<BoxAccumulator::Sums> partSums;
+  std::optional<UpperBoxes> boxes;
+  if (p.boxesInTasks)
+    boxes.emplace(frames, job.threads > 1,
+                  [&](std::span<const uint32_t> nodes, std::span<const BoxAccumulator> parts) {
+                    for (size_t i = 0; i < nodes.size(); ++i) {
+                      partNodes.push_back(nodes[i]);
+                      partSums.push_back(parts[i].sums());
+                    }
+                  });
   // The leaves in file order, as the single process's write reads them (out_of_core_write.cpp),
   // each block's new vertices and its triangles cut to the task's ranges.
   uint64_t vertexBase = 0, faceBase = 0;
@@ -298,6 +423,15 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
                    leafFaceEnd = faceBase + p.leafFaces[leaf];
     if (leafVertexEnd > firstVertex || leafFaceEnd > firstTriangle) {
       uint64_t vertex = vertexBase, face = faceBase;
+      ancestors.clear();
+      if (boxes)
+        for (uint32_t a = p.leafUpperParent[leaf]; a != UINT32_MAX; a = p.upperParent[a]) {
+          if (a >= p.upperParent.size() || ancestors.size() > p.upperParent.size())
+            throw Error(ErrorCategory::Input,
+                        writePlanPath(work).string() + ": an upper tree that is not a tree");
+          ancestors.push_back(a);
+        }
+      leafVertices.clear();
       for (uint32_t g = 0; g < p.leafGeometryCount[leaf]; ++g) {
         geometry->read(p.geometry[p.leafFirstGeometry[leaf] + g], raw, codec);
         GeometryBlockHeader header;
@@ -311,6 +445,10 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
         at += indices.size() * sizeof(uint32_t);
         ids.resize(header.triangles);
         std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
+        if (boxes) {
+          leafVertices.insert(leafVertices.end(), vertices.begin(), vertices.end());
+          if (face >= firstTriangle && face < endTriangle) boxes->add(leafVertices, indices, ancestors);
+        }
         const uint64_t v0 = std::max(vertex, firstVertex), v1 = std::min(vertex + vertices.size(), endVertex);
         if (v0 < v1) writer.addVertices(std::span(vertices).subspan(size_t(v0 - vertex), size_t(v1 - v0)));
         const uint64_t f0 = std::max(face, firstTriangle), f1 = std::min(face + ids.size(), endTriangle);
@@ -328,6 +466,13 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
     }
     vertexBase = leafVertexEnd;
     faceBase = leafFaceEnd;
+  }
+  if (boxes) {  // the part before the piece: a task whose piece exists has both
+    boxes->finish();
+    ManifestWriter out;
+    out.putVector(partNodes);
+    out.putVector(partSums);
+    out.commit(taskManifestPath(work, "geometry", task), taskKind("geometry"));
   }
   writer.finish();
   return true;
@@ -386,7 +531,7 @@ Layout loadLayout(const std::filesystem::path& work) {
 
 bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
   if (std::filesystem::exists(layoutPath(work))) return false;
-  const LoadedWrite w = loadWritePlan(work);
+  const LoadedWrite w = loadWriteHead(work);
   checkOutputWritable(job.output);
   const std::vector<std::filesystem::path> pieces = piecePaths(work, w);
   const std::filesystem::path partial = partialPath(work, job.output);

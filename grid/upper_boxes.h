@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <span>
 #include <thread>
@@ -27,12 +28,30 @@ namespace facetree {
 // block holds at most kTrianglesPerBlock, its ancestors at most the upper tree's height), and one
 // run's scratch. (The ancestors need their own bound: --metric garland's upper trees can be
 // thousands of levels deep, and a batch of small leaves under them lists every level per leaf.)
+//
+// The triangles go in parts (kBoxPartTriangles of the file's order, the geometry tasks' ranges):
+// each part into fresh accumulators of the nodes it reaches, handed to `sink` (or merged into the
+// totals) when it ends, in order. Every node's reference vertex is set beforehand (the first
+// corner of its first leaf), so the parts merge exactly: one process and the geometry tasks sum
+// the same parts in the same order.
 class UpperBoxes {
  public:
   static constexpr size_t kBatchTriangles = 8192;
   static constexpr size_t kBatchAncestors = size_t{1} << 16;
+  // A part's accumulators: nodes[i]'s triangles of the part are in parts[i], nodes in the order
+  // the part first reached them.
+  using Sink = std::function<void(std::span<const uint32_t> nodes, std::span<const BoxAccumulator> parts)>;
 
-  UpperBoxes(std::vector<BoxAccumulator>& boxes, bool helper) : boxes_(boxes) {
+  // `frames`: every upper node's orientation and reference vertex (only read).
+  UpperBoxes(const std::vector<BoxAccumulator>& frames, bool helper, Sink sink)
+      : frames_(frames), sink_(std::move(sink)), slot_(frames.size(), kNoSlot) {
+    if (helper) thread_ = std::thread([this] { run(); });
+  }
+  // The parts merged into `totals` (framed, empty) as they end. A node's first part goes straight
+  // into its total, the same bits as merged into an empty one: only the nodes whose triangles
+  // cross a part's end (a path from the root per end) hold a second accumulator.
+  UpperBoxes(std::vector<BoxAccumulator>& totals, bool helper)
+      : frames_(totals), totals_(&totals), slot_(totals.size(), kNoSlot) {
     if (helper) thread_ = std::thread([this] { run(); });
   }
   ~UpperBoxes() { finish(); }
@@ -51,8 +70,13 @@ class UpperBoxes {
     b.ancestors.insert(b.ancestors.end(), ancestors.begin(), ancestors.end());
     if (b.indices.size() >= 3 * kBatchTriangles || b.ancestors.size() >= kBatchAncestors) hand();
   }
-  // Waits until every triangle added is in its accumulators.
+  // The part so far ends here (an empty part gives the sink nothing).
+  void endPart() { batch_[filling_].partEnds.push_back(batch_[filling_].runs.size()); }
+  // Ends the part, and waits until every part is with the sink.
   void finish() {
+    if (finished_) return;
+    finished_ = true;
+    endPart();
     if (!thread_.joinable()) {
       accumulate(batch_[filling_]);
       return;
@@ -67,6 +91,7 @@ class UpperBoxes {
   }
 
  private:
+  static constexpr uint32_t kNoSlot = UINT32_MAX, kTotal = UINT32_MAX - 1;
   struct Run {
     size_t vertex, vertices, index, indices, ancestor, ancestors;
   };
@@ -75,20 +100,53 @@ class UpperBoxes {
     std::vector<uint32_t> indices;
     std::vector<uint32_t> ancestors;
     std::vector<Run> runs;
+    std::vector<size_t> partEnds;  // a part ends before runs[partEnds[k]]
   };
 
+  void partOf(uint32_t node) {
+    if (slot_[node] != kNoSlot) return;
+    touched_.push_back(node);
+    if (totals_ && (*totals_)[node].empty()) {
+      slot_[node] = kTotal;
+      return;
+    }
+    slot_[node] = static_cast<uint32_t>(partNodes_.size());
+    partNodes_.push_back(node);
+    partBoxes_.push_back(frames_[node].part());
+  }
+  BoxAccumulator* target(uint32_t node) {
+    return slot_[node] == kTotal ? &(*totals_)[node] : &partBoxes_[slot_[node]];
+  }
+  void endPartNow() {
+    if (totals_) {
+      for (size_t i = 0; i < partNodes_.size(); ++i) (*totals_)[partNodes_[i]].merge(partBoxes_[i]);
+    } else if (!partNodes_.empty()) {
+      sink_(partNodes_, partBoxes_);
+    }
+    for (const uint32_t node : touched_) slot_[node] = kNoSlot;
+    touched_.clear();
+    partNodes_.clear();
+    partBoxes_.clear();
+  }
   void accumulate(Batch& b) {
-    for (const Run& r : b.runs) {
+    size_t end = 0;
+    for (size_t i = 0; i < b.runs.size(); ++i) {
+      for (; end < b.partEnds.size() && b.partEnds[end] == i; ++end) endPartNow();
+      const Run& r = b.runs[i];
       run_.assign(std::span(b.vertices).subspan(r.vertex, r.vertices),
                   std::span(b.indices).subspan(r.index, r.indices));
+      // Every ancestor's accumulator first: a new one may move the others.
+      for (size_t k = 0; k < r.ancestors; ++k) partOf(b.ancestors[r.ancestor + k]);
       targets_.clear();
-      for (size_t k = 0; k < r.ancestors; ++k) targets_.push_back(&boxes_[b.ancestors[r.ancestor + k]]);
+      for (size_t k = 0; k < r.ancestors; ++k) targets_.push_back(target(b.ancestors[r.ancestor + k]));
       BoxAccumulator::addRun(run_, targets_);
     }
+    for (; end < b.partEnds.size(); ++end) endPartNow();
     b.vertices.clear();
     b.indices.clear();
     b.ancestors.clear();
     b.runs.clear();
+    b.partEnds.clear();
   }
   // Gives the filled batch to the helper once it is done with the other one, and fills that one next.
   void hand() {
@@ -110,14 +168,21 @@ class UpperBoxes {
       if (!pending_) return;
       Batch& b = batch_[filling_ ^ 1];
       lock.unlock();
-      accumulate(b);  // arithmetic on preallocated accumulators: nothing throws
+      accumulate(b);  // arithmetic, and the parts' accumulators: only allocation can throw
       lock.lock();
       pending_ = false;
       changed_.notify_all();
     }
   }
 
-  std::vector<BoxAccumulator>& boxes_;
+  const std::vector<BoxAccumulator>& frames_;
+  std::vector<BoxAccumulator>* totals_ = nullptr;
+  Sink sink_;
+  std::vector<uint32_t> slot_;             // per node: its accumulator of the part, kTotal or kNoSlot
+  std::vector<uint32_t> touched_;          // the nodes the part reached
+  std::vector<uint32_t> partNodes_;        // those with an accumulator of the part, in order
+  std::vector<BoxAccumulator> partBoxes_;  // and those accumulators
+  bool finished_ = false;
   TriangleRun run_;                       // scratch of accumulate()
   std::vector<BoxAccumulator*> targets_;  // a run's ancestors
   Batch batch_[2];

@@ -135,6 +135,7 @@ void BoxAccumulator::addTriangles(std::span<const glm::vec3> corners) {
     origin_ = corners[0];
     hasOrigin_ = true;
   }
+  added_ = true;
   corners = corners.first(3 * n);
   float lo[3], hi[3];
   scanCorners(corners, lo, hi);
@@ -195,6 +196,7 @@ void BoxAccumulator::addRun(const TriangleRun& run, std::span<BoxAccumulator* co
     return;
   }
   for (BoxAccumulator* box : boxes) {
+    box->added_ = true;
     if (box->hasOrigin_) continue;
     box->origin_ = run.corner(0);
     box->hasOrigin_ = true;
@@ -238,11 +240,16 @@ void BoxAccumulator::merge(const BoxAccumulator& other) {
   if (other.orientation_ != orientation_) {
     throw std::invalid_argument("BoxAccumulator::merge: the accumulators have different orientations");
   }
-  if (!other.hasOrigin_) return;
+  if (!other.added_) return;
   if (!hasOrigin_) {
     *this = other;
     return;
   }
+  if (other.origin_ == origin_) {  // the same reference vertex: nothing shifts
+    addSums(other.sums());
+    return;
+  }
+  added_ = true;
   // Other's projections about our vertex: + (o_other - o) . a_k, in double.
   const glm::dvec3 shift = glm::dvec3(other.origin_) - glm::dvec3(origin_);
   double r2 = 0;  // other's radius about its own vertex (finishBox's bound)
@@ -256,10 +263,44 @@ void BoxAccumulator::merge(const BoxAccumulator& other) {
   mergedError_ = std::max({mergedError_, other.mergedError_, kProjectionError * std::sqrt(r2) * 1.01});
 }
 
+void BoxAccumulator::setOrigin(const glm::vec3& origin) {
+  if (added_) throw std::logic_error("BoxAccumulator::setOrigin: triangles added already");
+  origin_ = origin;
+  hasOrigin_ = true;
+}
+
+BoxAccumulator BoxAccumulator::part() const {
+  BoxAccumulator p = *this;
+  for (int k = 0; k < 3; ++k) p.lo_[k] = INFINITY, p.hi_[k] = -INFINITY;
+  for (double& s : p.side_) s = 0;
+  p.mergedError_ = 0;
+  p.added_ = false;
+  return p;
+}
+
+BoxAccumulator::Sums BoxAccumulator::sums() const {
+  Sums s;
+  for (int k = 0; k < 3; ++k) s.lo[k] = lo_[k], s.hi[k] = hi_[k];
+  for (int k = 0; k < 6; ++k) s.side[k] = side_[k];
+  s.mergedError = mergedError_;
+  return s;
+}
+
+void BoxAccumulator::addSums(const Sums& part) {
+  if (!hasOrigin_) throw std::logic_error("BoxAccumulator::addSums: no reference vertex");
+  for (int k = 0; k < 3; ++k) {
+    lo_[k] = std::min(lo_[k], part.lo[k]);
+    hi_[k] = std::max(hi_[k], part.hi[k]);
+  }
+  for (int k = 0; k < 6; ++k) side_[k] += part.side[k];
+  mergedError_ = std::max(mergedError_, part.mergedError);
+  added_ = true;
+}
+
 NodeBox BoxAccumulator::box() const {
   NodeBox box{};
   box.orientation = orientation_;
-  if (!hasOrigin_) {
+  if (!added_) {
     box.center = glm::vec3(0.0f);
     box.halfExtent = glm::vec3(0.0f);
     return box;

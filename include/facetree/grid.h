@@ -90,6 +90,9 @@ struct ClusterJob {
   int zstdLevel = 0;
   // Testing and benchmarks: force an out-of-core build with cells of at most this many faces.
   uint64_t forceCellFaces = 0;
+  // Testing: the parts the upper nodes' boxes accumulate in, triangles of the file's order (a
+  // multiple of 65,536; 0: 2^21), which are the geometry tasks' ranges. The file depends on it.
+  uint64_t boxPartTriangles = 0;
   // Out of core: the cells stage as this many tasks (runs of consecutive cells of about equal
   // faces), each writing its outputs to named files that the stages after it read together, as
   // the stages run as tasks on several machines do (docs/out_of_core.md). The cluster file is the

@@ -452,7 +452,26 @@ class BoxAccumulator {
   // of the out-of-core write, where every triangle goes to all the upper nodes above its leaf).
   static void addRun(const TriangleRun& run, std::span<BoxAccumulator* const> boxes);
   void merge(const BoxAccumulator& other);  // same orientation (else std::invalid_argument)
-  bool empty() const { return !hasOrigin_; }
+  // The reference vertex chosen before any triangle (else the first one added): the parts of one
+  // node's triangles accumulated apart (by tasks) with the same one merge exactly, the extents as
+  // one accumulator's and the side areas summed part by part.
+  void setOrigin(const glm::vec3& origin);
+  // What a part accumulated, as numbers a task hands on, and those added to an accumulator of the
+  // same orientation and reference vertex (merge() of the part).
+  struct Sums {
+    double lo[3], hi[3], side[6], mergedError;
+  };
+  Sums sums() const;
+  void addSums(const Sums& part);
+  // An empty accumulator of this one's orientation and reference vertex, for a part of its triangles.
+  BoxAccumulator part() const;
+  const glm::quat& orientation() const { return orientation_; }
+  // Its reference vertex into `origin`, if it has one.
+  bool origin(glm::vec3& origin) const {
+    if (hasOrigin_) origin = origin_;
+    return hasOrigin_;
+  }
+  bool empty() const { return !added_; }
   NodeBox box() const;
 
  private:
@@ -464,6 +483,7 @@ class BoxAccumulator {
   glm::vec3 axis_[3];       // mat3_cast(orientation_): the axes the extents are measured along
   glm::vec3 origin_{0.0f};  // the first vertex added: projections are relative to it (box.cpp)
   bool hasOrigin_ = false;
+  bool added_ = false;      // a triangle or a part is in it
   double lo_[3], hi_[3];    // projections of the vertices, relative to origin_
   double side_[6] = {};     // +a0, -a0, +a1, -a1, +a2, -a2
   double mergedError_ = 0;  // float error bound of projections merged from other origins

@@ -109,7 +109,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
       ran += step + ":" + std::to_string(tasks) + " ";
       for (uint64_t task = tasks; task-- > 0;) {
         std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
-        const bool single = step == "grid" || step == "upper" || step == "layout";
+        const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
         if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
         const ChildResult result = runChild(argv);
         ASSERT_EQ(result.exitCode, 0) << step << " " << task << ": " << result.output;
@@ -120,8 +120,10 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     }
     // 300k faces: one geometry task of 2^21 triangles, the two node tasks asked for, their three
     // pieces placed by three tasks.
-    EXPECT_EQ(ran, ranges ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 "
-                          : "cells:3 upper:1 geometry:1 nodes:2 layout:1 place:3 ");
+    EXPECT_EQ(ran,
+              ranges
+                  ? "read:4 count:4 grid:1 bin:4 cells:3 upper:1 geometry:1 boxes:1 nodes:2 layout:1 place:3 "
+                  : "cells:3 upper:1 geometry:1 boxes:1 nodes:2 layout:1 place:3 ");
     const ChildResult again = runChild({"stage", "cells", "--work", work.string(), "--task", "1"});
     EXPECT_EQ(again.exitCode, 0);
     EXPECT_EQ(again.output, "cells task 1: done already\n");
@@ -168,12 +170,8 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
   const ChildResult unknown = runChild({"stage", "merge"});
   EXPECT_EQ(unknown.exitCode, 2);
   EXPECT_EQ(unknown.output,
-            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, nodes, "
-            "layout, place, "
-            "finish) "
-            "(see "
-            "facetree "
-            "--help)\n");
+            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, boxes, "
+            "nodes, layout, place, finish) (see facetree --help)\n");
 }
 
 }  // namespace

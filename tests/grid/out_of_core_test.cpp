@@ -326,7 +326,7 @@ std::map<std::string, uint32_t> runSteps(const ClusterJob& job, const fs::path& 
     if (step.name == "finish") break;
     ran[step.name] = step.tasks;
     for (uint32_t task = step.tasks; task-- > 0;) {
-      if (step.name == "grid" || step.name == "upper" || step.name == "layout") {
+      if (step.name == "grid" || step.name == "upper" || step.name == "boxes" || step.name == "layout") {
         next = runStageTask(job, work, step.name, 0).next;
         continue;
       }
@@ -352,6 +352,31 @@ std::map<std::string, uint32_t> runSteps(const ClusterJob& job, const fs::path& 
 // child process of its own (in reverse order), the finish: the bytes of runClusterJob with the same
 // job, for a binary PLY read in ranges and for a mesh the plan reads whole (--weld). A done task is
 // not run again; a finish that misses a task's manifest names it.
+// The upper nodes' boxes accumulated in several parts (the geometry tasks' ranges) and merged by
+// the boxes step: the staged file is the single process's bytes, and every box holds its faces,
+// touches them and has their side areas (verifyClusterFile).
+TEST(OutOfCore, UpperBoxesInPartsGiveTheBytesOfOneProcess) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 240000, true);
+  ClusterJob job;
+  job.input = mesh;
+  job.forceCellFaces = 20000;
+  job.boxPartTriangles = 65536;
+  job.output = dir / "whole.fch";
+  runClusterJob(job);
+  expectHierarchyOf(job.output, mesh);
+
+  const fs::path work = dir / "work";
+  job.output = dir / "staged.fch";
+  job.cellTasks = 3;
+  job.readTasks = 2;
+  const std::map<std::string, uint32_t> ran = runSteps(job, work, planStages(job, work).next);
+  EXPECT_GE(ran.at("geometry"), 3u) << "parts of 65,536 triangles";
+  EXPECT_EQ(ran.at("boxes"), 1u);
+  finishStages(job, work);
+  EXPECT_EQ(bytesOf(job.output), bytesOf(dir / "whole.fch"));
+}
+
 TEST(OutOfCore, StagesAsTasksInSeparateProcessesGiveTheSameBytes) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
@@ -383,17 +408,22 @@ TEST(OutOfCore, StagesAsTasksInSeparateProcessesGiveTheSameBytes) {
                                                       {"cells", 4},
                                                       {"upper", 1},
                                                       {"geometry", 1},
+                                                      {"boxes", 1},
                                                       {"nodes", 1},
                                                       {"layout", 1},
                                                       {"place", 2}}));
     } else {
       EXPECT_EQ(plan.cellsTasks, 4u);
-      EXPECT_EQ(ran,
-                (std::map<std::string, uint32_t>{
-                    {"cells", 4}, {"upper", 1}, {"geometry", 1}, {"nodes", 1}, {"layout", 1}, {"place", 2}}));
+      EXPECT_EQ(ran, (std::map<std::string, uint32_t>{{"cells", 4},
+                                                      {"upper", 1},
+                                                      {"geometry", 1},
+                                                      {"boxes", 1},
+                                                      {"nodes", 1},
+                                                      {"layout", 1},
+                                                      {"place", 2}}));
     }
     for (const auto& [step, tasks] : ran) {
-      if (step == "grid" || step == "upper" || step == "layout") continue;
+      if (step == "grid" || step == "upper" || step == "boxes" || step == "layout") continue;
       EXPECT_FALSE(runStageTask(job, work, step, tasks - 1).ran) << step << ": a done task is not run again";
     }
     const JobReport report = finishStages(job, work);

@@ -1060,6 +1060,53 @@ TEST(BoxAccumulator, MergedPartsEqualTheWhole) {
   EXPECT_EQ(none.halfExtent, glm::vec3(0.0f));
 }
 
+// Parts that share the whole's reference vertex (setOrigin) merge exactly: the extents are the
+// whole's bits, merged as accumulators or as Sums handed on; only the side areas' sums regroup.
+TEST(BoxAccumulator, PartsOfOneReferenceVertexMergeExactly) {
+  TestMesh far = icosphere(3);
+  for (glm::vec3& p : far.positions) p = 3.0f * p + glm::vec3(-2000.0f, 300.0f, 50.0f);
+  for (const TestMesh& mesh : {bumpyGrid(24, 0.3f, 0.7f), far}) {
+    const Hierarchy h = buildHierarchy(mesh.view(), BuildOptions{});
+    for (uint32_t i = 0; i < h.nodes.size(); i += 11) {
+      const Node& node = h.nodes[i];
+      const std::vector<glm::vec3> corners = nodeCorners(mesh, h, node.first, node.count);
+      if (corners.size() < 9) continue;
+      const glm::quat q = h.boxes[i].orientation;
+      BoxAccumulator whole(q), byParts(q), bySums(q);
+      whole.addTriangles(corners);
+      byParts.setOrigin(corners[0]);
+      bySums.setOrigin(corners[0]);
+      EXPECT_TRUE(byParts.empty()) << "a reference vertex is no triangle";
+      const size_t t = corners.size() / 3;
+      for (const auto& [from, to] :
+           {std::pair{t / 2, t}, std::pair{size_t{0}, t / 2}}) {  // the later part first
+        BoxAccumulator part = byParts.part();
+        EXPECT_TRUE(part.empty());
+        part.addTriangles(std::span(corners).subspan(3 * from, 3 * (to - from)));
+        byParts.merge(part);
+        bySums.addSums(part.sums());
+      }
+      SCOPED_TRACE(::testing::Message() << "node " << i << " of " << node.count << " faces");
+      const NodeBox want = whole.box(), got = byParts.box(), handed = bySums.box();
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_EQ(got.center[k], want.center[k]);
+        EXPECT_EQ(got.halfExtent[k], want.halfExtent[k]);
+        EXPECT_EQ(handed.center[k], got.center[k]);
+        EXPECT_EQ(handed.halfExtent[k], got.halfExtent[k]);
+      }
+      for (int k = 0; k < 6; ++k) {
+        EXPECT_NEAR(got.sideArea[k], want.sideArea[k], 1e-6 * node.area);
+        EXPECT_EQ(handed.sideArea[k], got.sideArea[k]);
+      }
+      checkBox(got, corners);
+    }
+  }
+  BoxAccumulator started(glm::quat(1, 0, 0, 0));
+  started.addTriangle(glm::vec3(0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0));
+  EXPECT_THROW(started.setOrigin(glm::vec3(1)), std::logic_error);
+  EXPECT_THROW(BoxAccumulator(glm::quat(1, 0, 0, 0)).addSums(started.sums()), std::logic_error);
+}
+
 // The bits of a box and of its state, comparable with memcmp (+0 and -0 differ).
 std::vector<uint32_t> boxBits(const BoxAccumulator& acc) {
   const NodeBox b = acc.box();

@@ -56,19 +56,20 @@ def test_two_workers_give_the_bytes_of_build(terrain, tmp_path):
     mesh, whole = terrain
     stages = []
     work = tmp_path / "work"
-    report = fd.build(mesh, tmp_path / "dask.fch", work_dir=work, memory="64M",
-                      progress=lambda stage, fraction: stages.append(stage))
+    # More tasks than the defaults give 2M faces (2 read tasks, 4 cells tasks, 1 node task).
+    report = fd.build(mesh, tmp_path / "dask.fch", work_dir=work, memory="64M", read_tasks=8,
+                      cell_tasks=8, node_tasks=3, progress=lambda stage, fraction: stages.append(stage))
     assert (tmp_path / "dask.fch").read_bytes() == whole
-    assert report["out_of_core"] and report["cells_tasks"] >= 8
+    assert report["out_of_core"] and report["cells_tasks"] == 8
     assert report["file_bytes"] == len(whole)
     tasks = report["tasks"]
-    assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes",
-                           "layout", "place", "finish"]
-    assert tasks["read"] == 8
+    assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
+                           "nodes", "layout", "place", "finish"]
+    assert tasks["read"] == 8 and tasks["nodes"] == 3 and tasks["boxes"] == 1
     # Each step's tasks report in turn, after the step before.
     order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
-    assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "nodes",
-                     "layout", "place", "finish"]
+    assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
+                     "nodes", "layout", "place", "finish"]
     assert all(stages.count(step) == count for step, count in tasks.items())
     assert not work.exists(), "the work directory goes with the build"
 
@@ -86,8 +87,8 @@ def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
             subprocess.run(["zstd", "-q", "-1", str(mesh), "-o", str(compressed)], check=True)
             one = fd.build(compressed, tmp_path / "dask-zst.fch", client, memory="64M", cell_tasks=7)
             assert (tmp_path / "dask-zst.fch").read_bytes() == whole
-            assert list(one["tasks"]) == ["cells", "upper", "geometry", "nodes", "layout", "place",
-                                          "finish"]
+            assert list(one["tasks"]) == ["cells", "upper", "geometry", "boxes", "nodes", "layout",
+                                          "place", "finish"]
     finally:
         client.close()
         cluster.close()

@@ -46,12 +46,13 @@ test "$(grep -c -- '--job-name=facetree-cells --dependency=afterok:[0-9]* --arra
 test "$(grep -c -- '--job-name=facetree-grid --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-upper --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-geometry .*--array=0-0 ' "$work/sbatch.log")" -eq 1
-test "$(grep -c -- '--job-name=facetree-nodes --dependency=afterok:[0-9]* --array=0-0 ' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-boxes --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
+test "$(grep -c -- '--job-name=facetree-nodes .*--array=0-0 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-layout --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-place .*--array=0-1 ' "$work/sbatch.log")" -eq 1
 test "$(grep -c -- '--job-name=facetree-finish --dependency=afterok:[0-9]' "$work/sbatch.log")" -eq 1
 for log in logs/read-1.log logs/count-0.log plan.json grid.json logs/bin-1.log logs/cells-0.log upper.json \
-  layout.json logs/place-1.log logs/finish.log; do
+  boxes.json layout.json logs/place-1.log logs/finish.log; do
   test -s "$work/stages/$log"
 done
 echo "slurm-build: plan, read, count, grid, bin and cells as arrays, finish after them; the bytes of facetree build"
