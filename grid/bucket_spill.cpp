@@ -169,8 +169,10 @@ bool take(std::string_view& in, T& value) {
 }  // namespace
 
 std::string BucketSpill::index() const {
-  if (buffer_)
-    throw std::logic_error("BucketSpill::index: buffers still open (commit or releaseBuffers first)");
+  if (buffer_ || lists_)
+    throw std::logic_error(
+        "BucketSpill::index: buffers still open (commit or releaseBuffers first), or "
+        "the blocks offloaded");
   std::string out;
   put(out, uint64_t{buckets()});
   put(out, uint64_t{recordBytes_});
@@ -329,10 +331,43 @@ void BucketSpill::flushAll() {
   settle();
 }
 
+void BucketSpill::offloadBlocks(TempSpace& space) {
+  if (buffer_)
+    throw std::logic_error("BucketSpill::offloadBlocks: buffers still open (releaseBuffers first)");
+  settle();
+  lists_ = std::make_unique<SpillFile>(space, "bucket-blocks", /*discardable=*/true, sizeof(SpillBlock));
+  listOf_.assign(buckets(), SpillBlock{});
+  std::vector<SpillBlock> list;
+  for (size_t bucket = 0; bucket < buckets(); ++bucket) {
+    list.clear();
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) list.push_back(blocks_[b].block);
+    if (!list.empty()) listOf_[bucket] = lists_->append(std::as_bytes(std::span(list)), writer_);
+    head_[bucket] = tail_[bucket] = kNoBlock;
+  }
+  std::deque<ChainedBlock>().swap(blocks_);
+}
+
+std::vector<SpillBlock> BucketSpill::blockList(size_t bucket, SpillCodec& codec) const {
+  std::vector<SpillBlock> list;
+  if (listOf_[bucket].rawBytes == 0) return list;
+  std::vector<std::byte> raw;
+  lists_->read(listOf_[bucket], raw, codec);
+  list.resize(raw.size() / sizeof(SpillBlock));
+  std::memcpy(list.data(), raw.data(), list.size() * sizeof(SpillBlock));
+  return list;
+}
+
 void BucketSpill::readBucket(size_t bucket, std::vector<std::byte>& out, SpillCodec& codec) const {
   settle();
   size_t at = out.size();
   out.resize(at + records_[bucket] * recordBytes_);
+  if (lists_) {
+    for (const SpillBlock& block : blockList(bucket, codec)) {
+      file_->read(block, std::span<std::byte>(out.data() + at, block.rawBytes), codec);
+      at += block.rawBytes;
+    }
+    return;
+  }
   // Straight into `out`: no block of scratch beyond the codec's compressed one.
   for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
     const SpillBlock& block = blocks_[b].block;

@@ -104,6 +104,8 @@ void distributeFaces(const StageContext& context, BinnedFaces& out, const std::s
   } else {
     faces.releaseBuffers();
     ghosts.releaseBuffers();
+    faces.offloadBlocks(context.temp);
+    ghosts.offloadBlocks(context.temp);
   }
 }
 

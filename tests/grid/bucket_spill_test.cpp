@@ -226,6 +226,38 @@ TEST(BucketSpill, drainBucketReadsOnceAndGivesTheSpaceBack) {
   EXPECT_LE(space.currentBytes(), 2u * 4096) << "of " << before;
 }
 
+// Blocks offloaded (their lists on disk, a block per bucket): every way of reading gives the same
+// records, draining still gives the space back, lists included, and the spill has no index to hand on.
+TEST(BucketSpill, offloadedBlocksReadBackTheSameRecords) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  constexpr size_t kBuckets = 9;
+  BucketSpill spill(space, "cells", kBuckets, sizeof(Record), 600, kSpillLevel, /*discardable=*/true);
+  const auto expected = fill(spill, 40000, 11);
+  spill.releaseBuffers();
+  spill.offloadBlocks(space);
+  EXPECT_THROW(spill.index(), std::logic_error);
+  SpillCodec codec;
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<std::byte> whole, blocks;
+    spill.readBucket(b, whole, codec);
+    spill.forEachBlock(b, codec, [&](std::span<const std::byte> block) {
+      blocks.insert(blocks.end(), block.begin(), block.end());
+    });
+    EXPECT_EQ(asRecords(whole), expected[b]) << "bucket " << b;
+    EXPECT_EQ(asRecords(blocks), expected[b]) << "bucket " << b;
+    EXPECT_EQ(spill.records(b), expected[b].size());
+  }
+  for (size_t b = 0; b < kBuckets; ++b) {
+    std::vector<std::byte> drained;
+    spill.drainBucket(b, codec, [&](std::span<const std::byte> block) {
+      drained.insert(drained.end(), block.begin(), block.end());
+    });
+    EXPECT_EQ(asRecords(drained), expected[b]) << "bucket " << b;
+  }
+  EXPECT_LE(space.currentBytes(), 4u * 4096);
+}
+
 // A named spill as a task of the stages hands it on: committed under its name, described by its
 // index, and read back per bucket in another TempSpace (another process in a real run), drained
 // twice over (draining an opened spill leaves its file as it is). An index that does not describe
