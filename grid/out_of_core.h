@@ -22,6 +22,7 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -202,6 +203,25 @@ struct GeometryBlockHeader {
   uint32_t triangles;
   uint32_t newVertices;
 };
+// A geometry block read back: its new vertices appended to `leafVertices` (its leaf's so far, which
+// its indices number), its indices and its face ids.
+inline GeometryBlockHeader decodeGeometryBlock(std::span<const std::byte> raw,
+                                               std::vector<glm::vec3>& leafVertices,
+                                               std::vector<uint32_t>& indices, std::vector<uint64_t>& ids) {
+  GeometryBlockHeader header;
+  std::memcpy(&header, raw.data(), sizeof header);
+  const std::byte* at = raw.data() + sizeof header;
+  const size_t firstNew = leafVertices.size();
+  leafVertices.resize(firstNew + header.newVertices);
+  std::memcpy(leafVertices.data() + firstNew, at, header.newVertices * sizeof(glm::vec3));
+  at += header.newVertices * sizeof(glm::vec3);
+  indices.resize(size_t{3} * header.triangles);
+  std::memcpy(indices.data(), at, indices.size() * sizeof(uint32_t));
+  at += indices.size() * sizeof(uint32_t);
+  ids.resize(header.triangles);
+  std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
+  return header;
+}
 // A leaf's geometry is spilled in blocks of at most this many triangles, the unit the write reads
 // back.
 inline constexpr size_t kTrianglesPerBlock = 65536;

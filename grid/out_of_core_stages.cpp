@@ -46,7 +46,8 @@ std::string jobFingerprint(const ClusterJob& job) {
       << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
       << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
       << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
-      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks << ' ' << job.boxPartTriangles;
+      << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks
+      << ' ' << job.boxPartTriangles;
   return out.str();
 }
 
@@ -210,27 +211,25 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
   BinnedFaces binned;
   binned.grid = restoreGrid(state, work);
   const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
-  std::vector<uint32_t> faceRecords, ghostRecords;
-  if (!state.ranges) {  // the plan's one pass: only this task's cells' blocks held
-    binned.faces.push_back(BucketSpill::openSegments(
-        temp, state.facesFiles, [&](size_t) { return state.facesIndex[0]; }, first, end, faceRecords));
-    binned.ghosts.push_back(BucketSpill::openSegments(
-        temp, state.ghostsFiles, [&](size_t) { return state.ghostsIndex[0]; }, first, end, ghostRecords));
+  // The binned spills read as one, only this task's cells' blocks held: the plan's one pass, or
+  // every bin task's, each bin task's manifest read once for both.
+  BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end),
+      ghosts(temp, state.ghostsFiles, first, end);
+  if (!state.ranges) {
+    faces.add(state.facesIndex[0]);
+    ghosts.add(state.ghostsIndex[0]);
   } else {
-    // Every bin task's spills read as one, only this task's cells' blocks held; each bin task's
-    // manifest read once for both.
-    BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end),
-        ghosts(temp, state.ghostsFiles, first, end);
     for (size_t segment = 0; segment < state.facesFiles.size(); ++segment) {
       ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
       faces.add(in.takeView());
       ghosts.add(in.takeView());
       in.finish();
     }
-    binned.faces.push_back(faces.finish(faceRecords));
-    binned.ghosts.push_back(ghosts.finish(ghostRecords));
-    binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
   }
+  std::vector<uint32_t> faceRecords, ghostRecords;
+  binned.faces.push_back(faces.finish(faceRecords));
+  binned.ghosts.push_back(ghosts.finish(ghostRecords));
+  binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
   CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);
   ManifestWriter manifest;
   manifest.put(first);

@@ -264,18 +264,8 @@ void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layo
     for (uint32_t g = 0; g < leaf.geometryCount; ++g) {
       geometry.read(graph_.geometry[leaf.firstGeometry + g], raw, codec_);
       geometry.discard(graph_.geometry[leaf.firstGeometry + g]);
-      GeometryBlockHeader header;
-      std::memcpy(&header, raw.data(), sizeof header);
-      const std::byte* at = raw.data() + sizeof header;
       const size_t firstNew = leafVertices.size();
-      leafVertices.resize(firstNew + header.newVertices);
-      std::memcpy(leafVertices.data() + firstNew, at, header.newVertices * sizeof(glm::vec3));
-      at += header.newVertices * sizeof(glm::vec3);
-      indices.resize(size_t{3} * header.triangles);
-      std::memcpy(indices.data(), at, indices.size() * sizeof(uint32_t));
-      at += indices.size() * sizeof(uint32_t);
-      ids.resize(header.triangles);
-      std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
+      const GeometryBlockHeader header = decodeGeometryBlock(raw, leafVertices, indices, ids);
       if (writer) writer->addVertices(std::span(leafVertices).subspan(firstNew));
       if (triangle / partTriangles != part) {  // the block starts a part (kBoxPartTriangles)
         upperBoxes.endPart();

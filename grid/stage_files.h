@@ -13,8 +13,9 @@
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
 //   cells-T.manifest            its cells' records
 //   write-order.spill, write-nodes.spill   the upper step's node order; compact boxes' node runs
-//   write-tables.manifest       the upper step's write plan's tables: what the geometry and node
-//                               tasks need of every leaf and upper node
+//   write-node-tables.manifest, write-geometry-tables.manifest   the upper step's write plan's
+//                               tables: what the node and the geometry tasks need of every leaf
+//                               and upper node
 //   write.manifest              its head: the tasks' bounds, the file's header, the upper boxes'
 //                               frames (the steps of one task read it alone)
 //   geometry-T.manifest         geometry task T, exact boxes: its part of the upper nodes' boxes

@@ -24,14 +24,18 @@ namespace facetree {
 namespace {
 
 constexpr std::string_view kWriteKind = "write plan";
-constexpr std::string_view kWriteTablesKind = "write tables";
+constexpr std::string_view kNodeTablesKind = "write node tables";
+constexpr std::string_view kGeometryTablesKind = "write geometry tables";
 // Node frames per node task: 2^20 nodes of 4,096-node frames, as many tasks as read tasks. A task's
 // fixed cost (a process, the write plan loaded) is about that of writing 2^18 nodes.
 constexpr uint64_t kFramesPerNodeTask = 256;
 constexpr std::string_view kBoxesKind = "upper boxes";
 
-std::filesystem::path writeTablesPath(const std::filesystem::path& work) {
-  return work / "write-tables.manifest";
+std::filesystem::path nodeTablesPath(const std::filesystem::path& work) {
+  return work / "write-node-tables.manifest";
+}
+std::filesystem::path geometryTablesPath(const std::filesystem::path& work) {
+  return work / "write-geometry-tables.manifest";
 }
 
 std::filesystem::path writePlanPath(const std::filesystem::path& work) {
@@ -103,27 +107,30 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   triangleBounds.back() = triangles;
   vertexBounds.back() = vertices;
   // The tables first, the head (the step's done marker) last: the steps of one task and the
-  // layout read the head alone.
-  ManifestWriter tables;
-  tables.putVector(std::exchange(p.orderBlocks, {}));
-  tables.putVector(std::exchange(p.orderFirst, {}));
-  tables.putVector(std::exchange(p.runPosition, {}));
-  tables.putVector(std::exchange(p.runFirst, {}));
-  tables.putVector(std::exchange(p.leafOrder, {}));
-  tables.putVector(std::exchange(p.leafFirstBlock, {}));
-  tables.putVector(std::exchange(p.leafBlockCount, {}));
-  tables.putVector(std::exchange(p.upperNodes, {}));
-  tables.putVector(std::exchange(p.upperPosition, {}));
-  tables.putVector(std::exchange(p.upperParentBox, {}));
-  tables.putVector(std::exchange(p.upperParentPosition, {}));
-  tables.putVector(std::exchange(p.geometry, {}));
-  tables.putVector(std::exchange(p.leafFirstGeometry, {}));
-  tables.putVector(std::exchange(p.leafGeometryCount, {}));
-  tables.putVector(std::exchange(p.leafVertices, {}));
-  tables.putVector(std::exchange(p.leafFaces, {}));
-  tables.putVector(std::exchange(p.upperParent, {}));
-  tables.putVector(std::exchange(p.leafUpperParent, {}));
-  tables.commit(writeTablesPath(work), kWriteTablesKind);
+  // layout read the head alone, the node and geometry tasks their own tables.
+  ManifestWriter geometryTables;
+  geometryTables.putVector(p.leafOrder);
+  geometryTables.putVector(std::exchange(p.geometry, {}));
+  geometryTables.putVector(std::exchange(p.leafFirstGeometry, {}));
+  geometryTables.putVector(std::exchange(p.leafGeometryCount, {}));
+  geometryTables.putVector(std::exchange(p.leafVertices, {}));
+  geometryTables.putVector(std::exchange(p.leafFaces, {}));
+  geometryTables.putVector(std::exchange(p.upperParent, {}));
+  geometryTables.putVector(std::exchange(p.leafUpperParent, {}));
+  geometryTables.commit(geometryTablesPath(work), kGeometryTablesKind);
+  ManifestWriter nodeTables;
+  nodeTables.putVector(std::exchange(p.orderBlocks, {}));
+  nodeTables.putVector(std::exchange(p.orderFirst, {}));
+  nodeTables.putVector(std::exchange(p.runPosition, {}));
+  nodeTables.putVector(std::exchange(p.runFirst, {}));
+  nodeTables.putVector(std::exchange(p.leafOrder, {}));
+  nodeTables.putVector(std::exchange(p.leafFirstBlock, {}));
+  nodeTables.putVector(std::exchange(p.leafBlockCount, {}));
+  nodeTables.putVector(std::exchange(p.upperNodes, {}));
+  nodeTables.putVector(std::exchange(p.upperPosition, {}));
+  nodeTables.putVector(std::exchange(p.upperParentBox, {}));
+  nodeTables.putVector(std::exchange(p.upperParentPosition, {}));
+  nodeTables.commit(nodeTablesPath(work), kNodeTablesKind);
   ManifestWriter out;
   putUpperReport(out, report);
   out.put(cellsTasks);
@@ -174,11 +181,11 @@ LoadedWrite loadWriteHead(const std::filesystem::path& work) {
   return w;
 }
 
-// The whole write plan: its head and its tables.
-LoadedWrite loadWritePlan(const std::filesystem::path& work) {
+// The write plan's head and the tables of the node tasks.
+LoadedWrite loadNodesPlan(const std::filesystem::path& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
-  ManifestReader in(writeTablesPath(work), kWriteTablesKind);
+  ManifestReader in(nodeTablesPath(work), kNodeTablesKind);
   p.orderBlocks = in.takeVector<SpillBlock>();
   p.orderFirst = in.takeVector<uint64_t>();
   p.runPosition = in.takeVector<uint32_t>();
@@ -190,6 +197,20 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   p.upperPosition = in.takeVector<uint32_t>();
   p.upperParentBox = in.takeVector<NodeBox>();
   p.upperParentPosition = in.takeVector<uint32_t>();
+  in.finish();
+  if (p.orderBlocks.size() != p.orderFirst.size() || p.runPosition.size() != p.runFirst.size() ||
+      p.leafFirstBlock.size() != p.leafBlockCount.size() || p.upperNodes.size() != p.upperPosition.size() ||
+      (p.boxesInTasks && p.upperOrientation.size() != p.upperNodes.size()))
+    throw Error(ErrorCategory::Input, nodeTablesPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+// The write plan's head and the tables of the geometry tasks.
+LoadedWrite loadGeometryPlan(const std::filesystem::path& work) {
+  LoadedWrite w = loadWriteHead(work);
+  WritePlan& p = w.plan;
+  ManifestReader in(geometryTablesPath(work), kGeometryTablesKind);
+  p.leafOrder = in.takeVector<uint32_t>();
   p.geometry = in.takeVector<SpillBlock>();
   p.leafFirstGeometry = in.takeVector<uint32_t>();
   p.leafGeometryCount = in.takeVector<uint32_t>();
@@ -198,15 +219,13 @@ LoadedWrite loadWritePlan(const std::filesystem::path& work) {
   p.upperParent = in.takeVector<uint32_t>();
   p.leafUpperParent = in.takeVector<uint32_t>();
   in.finish();
-  if (p.orderBlocks.size() != p.orderFirst.size() || p.runPosition.size() != p.runFirst.size() ||
-      p.leafFirstBlock.size() != p.leafBlockCount.size() || p.upperNodes.size() != p.upperPosition.size() ||
-      p.leafFirstGeometry.size() != p.leafFirstBlock.size() ||
-      p.leafGeometryCount.size() != p.leafFirstBlock.size() ||
-      p.leafVertices.size() != p.leafFirstBlock.size() || p.leafFaces.size() != p.leafFirstBlock.size() ||
+  const size_t leaves = p.leafFirstGeometry.size();
+  if (p.leafGeometryCount.size() != leaves || p.leafVertices.size() != leaves ||
+      p.leafFaces.size() != leaves ||
       (p.boxesInTasks &&
-       (p.upperOrientation.size() != p.upperNodes.size() || p.upperParent.size() != p.upperNodes.size() ||
-        p.leafUpperParent.size() != p.leafFirstBlock.size())))
-    throw Error(ErrorCategory::Input, writeTablesPath(work).string() + ": tables that do not fit together");
+       (p.upperParent.size() != p.upperOrientation.size() || p.leafUpperParent.size() != leaves)))
+    throw Error(ErrorCategory::Input,
+                geometryTablesPath(work).string() + ": tables that do not fit together");
   return w;
 }
 
@@ -297,7 +316,7 @@ bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
 bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
   const std::filesystem::path piece = nodesPiecePath(work, task);
   if (std::filesystem::exists(piece)) return false;
-  const LoadedWrite w = loadWritePlan(work);
+  const LoadedWrite w = loadNodesPlan(work);
   if (task + 1 >= w.bounds.size())
     throw std::invalid_argument("no nodes task " + std::to_string(task) + " in " + work.string());
   const WritePlan& p = w.plan;
@@ -381,7 +400,7 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
 bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
   const std::filesystem::path piece = geometryPiecePath(work, task);
   if (std::filesystem::exists(piece)) return false;
-  const LoadedWrite w = loadWritePlan(work);
+  const LoadedWrite w = loadGeometryPlan(work);
   if (task + 1 >= w.triangleBounds.size())
     throw std::invalid_argument("no geometry task " + std::to_string(task) + " in " + work.string());
   const WritePlan& p = w.plan;
@@ -397,7 +416,7 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
   ClusterFileWriter writer(piece, p.info, options, temp.path());
   SpillCodec codec;
   std::vector<std::byte> raw;
-  std::vector<glm::vec3> vertices, leafVertices;
+  std::vector<glm::vec3> leafVertices;
   std::vector<uint32_t> indices, ancestors;
   std::vector<uint64_t> ids;
   // Exact boxes: this task's part of the upper nodes' boxes, the blocks that start in its
@@ -434,23 +453,13 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
       leafVertices.clear();
       for (uint32_t g = 0; g < p.leafGeometryCount[leaf]; ++g) {
         geometry->read(p.geometry[p.leafFirstGeometry[leaf] + g], raw, codec);
-        GeometryBlockHeader header;
-        std::memcpy(&header, raw.data(), sizeof header);
-        const std::byte* at = raw.data() + sizeof header;
-        vertices.resize(header.newVertices);
-        std::memcpy(vertices.data(), at, vertices.size() * sizeof(glm::vec3));
-        at += vertices.size() * sizeof(glm::vec3);
-        indices.resize(size_t{3} * header.triangles);
-        std::memcpy(indices.data(), at, indices.size() * sizeof(uint32_t));
-        at += indices.size() * sizeof(uint32_t);
-        ids.resize(header.triangles);
-        std::memcpy(ids.data(), at, ids.size() * sizeof(uint64_t));
-        if (boxes) {
-          leafVertices.insert(leafVertices.end(), vertices.begin(), vertices.end());
-          if (face >= firstTriangle && face < endTriangle) boxes->add(leafVertices, indices, ancestors);
-        }
+        const size_t firstNew = leafVertices.size();
+        decodeGeometryBlock(raw, leafVertices, indices, ids);
+        const std::span<const glm::vec3> vertices = std::span(leafVertices).subspan(firstNew);
+        if (boxes && face >= firstTriangle && face < endTriangle)
+          boxes->add(leafVertices, indices, ancestors);
         const uint64_t v0 = std::max(vertex, firstVertex), v1 = std::min(vertex + vertices.size(), endVertex);
-        if (v0 < v1) writer.addVertices(std::span(vertices).subspan(size_t(v0 - vertex), size_t(v1 - v0)));
+        if (v0 < v1) writer.addVertices(vertices.subspan(size_t(v0 - vertex), size_t(v1 - v0)));
         const uint64_t f0 = std::max(face, firstTriangle), f1 = std::min(face + ids.size(), endTriangle);
         if (f0 < f1) {
           const auto from = size_t(f0 - face), n = size_t(f1 - f0);
