@@ -21,19 +21,23 @@ def generate(cli, path, triangles):
                    check=True, capture_output=True)
 
 
-def built(cli, mesh, out):
-    subprocess.run([str(cli), "build", str(mesh), "-o", str(out), "--memory", "64M"], check=True,
-                   capture_output=True)
+def built(cli, mesh, out, options):
+    subprocess.run([str(cli), "build", str(mesh), "-o", str(out), "--memory", "64M", *options],
+                   check=True, capture_output=True)
     return out.read_bytes()
 
 
-def mesh_and_bytes(cli, factory, name, triangles):
+def mesh_and_bytes(cli, factory, name, triangles, options=()):
     """A shuffled terrain of about `triangles` faces and the bytes `facetree build --memory 64M`
-    makes of it."""
+    makes of it with `options`."""
     directory = factory.mktemp(name)
     mesh = directory / f"{name}.ply"
     generate(cli, mesh, triangles)
-    return mesh, built(cli, mesh, directory / "whole.fch")
+    return mesh, built(cli, mesh, directory / "whole.fch", options)
+
+
+# The small mesh fits the cap; cells of at most this many faces take it out of core all the same.
+SMALL_CELL_FACES = 8_000
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +47,8 @@ def terrain(cli, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def small(cli, tmp_path_factory):
-    return mesh_and_bytes(cli, tmp_path_factory, "small", 300_000)
+    return mesh_and_bytes(cli, tmp_path_factory, "small", 100_000,
+                          ["--cell-faces", str(SMALL_CELL_FACES)])
 
 
 def local_client(workers):
@@ -52,50 +57,9 @@ def local_client(workers):
     return distributed.Client(cluster), cluster
 
 
-def test_two_workers_give_the_bytes_of_build(terrain, tmp_path):
+def test_two_workers_one_killed_during_the_cells_stage_give_the_bytes_of_build(terrain, tmp_path):
     mesh, whole = terrain
     stages = []
-    work = tmp_path / "work"
-    # More tasks than the defaults give 2M faces (2 read tasks, 4 cells tasks, 1 node task).
-    report = fd.build(mesh, tmp_path / "dask.fch", work_dir=work, memory="64M", read_tasks=8,
-                      cell_tasks=8, node_tasks=3, progress=lambda stage, fraction: stages.append(stage))
-    assert (tmp_path / "dask.fch").read_bytes() == whole
-    assert report["out_of_core"] and report["cells_tasks"] == 8
-    assert report["file_bytes"] == len(whole)
-    tasks = report["tasks"]
-    assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
-                           "nodes", "layout", "place", "finish"]
-    assert tasks["read"] == 8 and tasks["nodes"] == 3 and tasks["boxes"] == 1
-    # Each step's tasks report in turn, after the step before.
-    order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
-    assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
-                     "nodes", "layout", "place", "finish"]
-    assert all(stages.count(step) == count for step, count in tasks.items())
-    assert not work.exists(), "the work directory goes with the build"
-
-
-@pytest.mark.parametrize("workers", [1, 3])
-def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
-    mesh, whole = small
-    client, cluster = local_client(workers)
-    try:
-        ranges = fd.build(mesh, tmp_path / "dask.fch", client, memory="64M", cell_tasks=7, read_tasks=3)
-        assert (tmp_path / "dask.fch").read_bytes() == whole
-        assert ranges["tasks"]["read"] == 3 and ranges["tasks"]["cells"] == 7
-        if workers == 1:  # read whole by the plan: the same mesh zstd-compressed
-            compressed = tmp_path / "small.ply.zst"
-            subprocess.run(["zstd", "-q", "-1", str(mesh), "-o", str(compressed)], check=True)
-            one = fd.build(compressed, tmp_path / "dask-zst.fch", client, memory="64M", cell_tasks=7)
-            assert (tmp_path / "dask-zst.fch").read_bytes() == whole
-            assert list(one["tasks"]) == ["cells", "upper", "geometry", "boxes", "nodes", "layout",
-                                          "place", "finish"]
-    finally:
-        client.close()
-        cluster.close()
-
-
-def test_a_worker_killed_during_the_cells_stage_loses_nothing(terrain, tmp_path):
-    mesh, whole = terrain
     work = tmp_path / "work"
     client, cluster = local_client(2)
     killed = []
@@ -110,19 +74,55 @@ def test_a_worker_killed_during_the_cells_stage_loses_nothing(terrain, tmp_path)
                 os.kill(pid, signal.SIGKILL)
                 killed.append(pid)
                 return
-            time.sleep(0.05)
+            time.sleep(0.02)
 
     killer = threading.Thread(target=kill_a_worker_once_cells_are_done)
     killer.start()
     try:
-        report = fd.build(mesh, tmp_path / "dask.fch", client, work_dir=work, memory="64M", cell_tasks=24)
+        # More tasks than the defaults give 2M faces (2 read tasks, 4 cells tasks, 1 node task).
+        report = fd.build(mesh, tmp_path / "dask.fch", client, work_dir=work, memory="64M",
+                          read_tasks=8, cell_tasks=16, node_tasks=3,
+                          progress=lambda stage, fraction: stages.append(stage))
     finally:
         killer.join()
         client.close()
         cluster.close()
     assert killed, "no worker was killed: the cells stage ended before the test could"
-    assert report["cells_tasks"] == 24
     assert (tmp_path / "dask.fch").read_bytes() == whole
+    assert report["out_of_core"] and report["cells_tasks"] == 16
+    assert report["file_bytes"] == len(whole)
+    tasks = report["tasks"]
+    assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
+                           "nodes", "layout", "place", "finish"]
+    assert tasks["read"] == 8 and tasks["nodes"] == 3 and tasks["boxes"] == 1
+    # Each step's tasks report in turn, after the step before, once each, the killed one included.
+    order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
+    assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
+                     "nodes", "layout", "place", "finish"]
+    assert all(stages.count(step) == count for step, count in tasks.items())
+    assert not work.exists(), "the work directory goes with the build"
+
+
+@pytest.mark.parametrize("workers", [1, 3])
+def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
+    mesh, whole = small
+    client, cluster = local_client(workers)
+    try:
+        ranges = fd.build(mesh, tmp_path / "dask.fch", client, memory="64M", cell_tasks=7, read_tasks=3,
+                          cell_faces=SMALL_CELL_FACES)
+        assert (tmp_path / "dask.fch").read_bytes() == whole
+        assert ranges["tasks"]["read"] == 3 and ranges["tasks"]["cells"] == 7
+        if workers == 1:  # read whole by the plan: the same mesh zstd-compressed
+            compressed = tmp_path / "small.ply.zst"
+            subprocess.run(["zstd", "-q", "-1", str(mesh), "-o", str(compressed)], check=True)
+            one = fd.build(compressed, tmp_path / "dask-zst.fch", client, memory="64M", cell_tasks=7,
+                           cell_faces=SMALL_CELL_FACES)
+            assert (tmp_path / "dask-zst.fch").read_bytes() == whole
+            assert list(one["tasks"]) == ["cells", "upper", "geometry", "boxes", "nodes", "layout",
+                                          "place", "finish"]
+    finally:
+        client.close()
+        cluster.close()
 
 
 def test_bad_input_raises_the_readers_error_and_leaves_no_work(cli, shared_data, tmp_path):
@@ -145,17 +145,18 @@ def test_a_bad_record_read_in_ranges_raises_the_readers_error(cli, small, tmp_pa
     data = bytearray(mesh.read_bytes())
     header = data.index(b"end_header\n") + len(b"end_header\n")
     vertices = int(data[:header].split(b"element vertex ")[1].split(b"\n")[0])
-    record = header + 12 * vertices + 13 * 123_456  # a face in the second of three ranges
+    record = header + 12 * vertices + 13 * 45_678  # a face in the second of three ranges
     data[record + 5:record + 9] = (vertices + 7).to_bytes(4, "little")
     bad = tmp_path / "bad.ply"
     bad.write_bytes(bytes(data))
-    result = subprocess.run([str(cli), "build", str(bad), "-o",
-                             str(tmp_path / "x.fch"), "--memory", "64M"], capture_output=True, text=True)
+    result = subprocess.run([str(cli), "build", str(bad), "-o", str(tmp_path / "x.fch"), "--memory", "64M",
+                             "--cell-faces", str(SMALL_CELL_FACES)], capture_output=True, text=True)
     assert result.returncode == 3
     work = tmp_path / "work"
     with pytest.raises(facetree.InputError) as raised:
-        fd.build(bad, tmp_path / "x.fch", work_dir=work, memory="64M", read_tasks=3, retries=0)
+        fd.build(bad, tmp_path / "x.fch", work_dir=work, memory="64M", read_tasks=3, retries=0,
+                 cell_faces=SMALL_CELL_FACES)
     assert str(raised.value) == result.stderr[len("facetree: "):].strip()
-    assert f"face 123456: vertex index {vertices + 7} out of range" in str(raised.value)
+    assert f"face 45678: vertex index {vertices + 7} out of range" in str(raised.value)
     assert not work.exists()
     assert not (tmp_path / "x.fch").exists()
