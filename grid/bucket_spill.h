@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "spill_file.h"
@@ -113,7 +114,7 @@ class BucketSpill {
     visitBlocks(bucket, codec, f, [this](const SpillBlock& block) { file_->discard(block); });
     if (lists_) {
       if (listOf_[bucket].rawBytes) lists_->discard(listOf_[bucket]);
-      listOf_[bucket] = {};
+      std::exchange(listOf_[bucket], {});
     }
     head_[bucket] = tail_[bucket] = kNoBlock;
     fill_[bucket] = 0;

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include "out_of_core.h"
 #include "vertex_map.h"
@@ -419,7 +420,7 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
       shared += localPairs[i].shared;
     pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
   }
-  localPairs = {};
+  std::exchange(localPairs, {});
   for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
     const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
     result.pairs.push_back(out_.records.pairs->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
@@ -625,7 +626,7 @@ void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
   std::vector<Incidence> incidences;
   incidences.reserve(ghosts.size() * 2);
   for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
-  ghosts = {};
+  std::exchange(ghosts, {});
   const auto faces = static_cast<uint32_t>(records.size());
   for (uint32_t f = 0; f < faces; ++f) {
     const FaceRecord& r = records[f];
@@ -741,7 +742,7 @@ CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, c
     for (uint32_t c = bounds[t]; c < bounds[t + 1]; ++c)
       results[c] = std::move(parts.back().records.cells[c]);
   }
-  in = {};
+  std::exchange(in, {});
   parts.clear();
   return openCellTasks(context.temp, context.temp.path(), tasks, std::move(results));
 }

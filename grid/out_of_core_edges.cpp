@@ -14,6 +14,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 
 #include "external_sort.h"
 #include "out_of_core.h"
@@ -90,7 +91,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
             pending->push({p.cell[1], p.ref[1], kResolved, a, p.shared});
         }
       }
-      records.cells[c].pairs = {};
+      std::exchange(records.cells[c].pairs, {});
     }
     records.pairs.reset();
   }
@@ -132,7 +133,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
     pending = std::move(next);
   }
   pending.reset();
-  border = {};
+  std::exchange(border, {});
   records.border.reset();
 
   // One edge per pair of leaves: the sum of its pairs, in (leaves, length) order.
@@ -189,7 +190,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
       throw std::logic_error("out-of-core build: more than 2^32 node runs");
   }
   graph.runTables = std::move(records.leaves);
-  records.cells = {};
+  std::exchange(records.cells, {});
   context.report.leaves = graph.leaves.size();
   return graph;
 }

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "external_sort.h"
 #include "out_of_core.h"
@@ -99,7 +100,7 @@ void ArrivalReader::readAll(TriangleReader& reader, PendingTriangles&& pending) 
         corner[k] = deferred ? positions_->memory()[v[k]] : reader.vertices().position(v[k]);
       appendResolved(v, pending.originalFace[t], corner);
     }
-    pending = {};
+    std::exchange(pending, {});
   }
   // STL: the reader's welding table grows with the mesh; the weld pass takes over.
   if (!deferred) soup_ = reader.stopWelding();

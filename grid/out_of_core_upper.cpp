@@ -21,9 +21,9 @@ ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& ext
       mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, build, graph.garland);
   context.report.crossEdges = graph.edges.size();
   context.report.upperComponents = upper.components;
-  graph.edges = {};
-  graph.stats = {};  // the upper nodes carry what the write needs
-  graph.garland = {};
+  std::exchange(graph.edges, {});
+  std::exchange(graph.stats, {});  // the upper nodes carry what the write needs
+  std::exchange(graph.garland, {});
   return upper;
 }
 

@@ -11,6 +11,7 @@
 #include <exception>
 #include <mutex>
 #include <thread>
+#include <utility>
 
 #include "external_sort.h"
 #include "facetree/io.h"
@@ -208,7 +209,7 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
     }
   }
   graph_.runTables.reset();
-  graph_.cellRuns = {};
+  std::exchange(graph_.cellRuns, {});
   order->finish();
   return order;
 }
@@ -285,7 +286,7 @@ void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layo
   upperBoxes.finish();
   if (writer) {  // else the geometry tasks read it again
     subtrees_.geometry.reset();
-    graph_.geometry = {};
+    std::exchange(graph_.geometry, {});
   }
 }
 
@@ -450,7 +451,7 @@ WriteStage::Start WriteStage::start() {
   report.height = s.layout.height;
   report.balancedHeight = balancedHeight(s.layout.faces, context_.job.file.branching);
   s.frames = frameUpper(upper_, graph_.corners, context_.job.build.flatThreshold, context_.job.build.boxes);
-  graph_.corners = {};
+  std::exchange(graph_.corners, {});
   // Each upper node's reference vertex is the first corner of its first leaf with triangles, the
   // first vertex its accumulator would see: set now, the parts of its triangles merge exactly.
   std::vector<BoxAccumulator>& boxes = s.frames.boxes;

@@ -236,8 +236,9 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
   PlanState state = loadPlan(work);
   if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
   // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
-  state.owners = {};
-  state.facesIndex = state.ghostsIndex = {};
+  std::exchange(state.owners, {});
+  std::exchange(state.facesIndex, {});
+  std::exchange(state.ghostsIndex, {});
   JobReport report = std::move(state.report);
   report.outOfCore = true;
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 namespace facetree {
 
@@ -19,7 +20,7 @@ void VertexPositions::append(std::span<const glm::vec3> positions) {
       // Over the budget: everything so far goes to disk in blocks, and so does the rest.
       spill_ = std::make_unique<SpillFile>(space_, "vertices");
       std::vector<glm::vec3> all = std::move(positions_);
-      positions_ = {};
+      std::exchange(positions_, {});
       positions_.reserve(kBlockVertices);
       for (const glm::vec3& q : all) {
         positions_.push_back(q);
@@ -39,7 +40,7 @@ void VertexPositions::spillFull() {
 
 void VertexPositions::finish() {
   if (spill_ && !positions_.empty()) spillFull();
-  if (spill_) positions_ = {};
+  if (spill_) std::exchange(positions_, {});
 }
 
 void VertexPositions::readBlock(size_t b, std::vector<glm::vec3>& out, SpillCodec& codec) const {

@@ -40,9 +40,9 @@ class VertexPositions {
   // Frees the positions, in memory and spilled, once every triangle has its corners: the spill's
   // bytes would otherwise count against the temporary peak of the stages after the read.
   void release() {
-    positions_ = {};
+    std::exchange(positions_, {});
     spill_.reset();
-    blocks_ = {};
+    std::exchange(blocks_, {});
   }
   // Hands over the in-memory positions (when inMemory()), leaving none.
   std::vector<glm::vec3> take() { return std::exchange(positions_, {}); }

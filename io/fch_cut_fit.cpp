@@ -10,6 +10,7 @@
 #include <limits>
 #include <span>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <glm/common.hpp>
@@ -68,7 +69,7 @@ std::vector<uint32_t> mortonOrder(const ClusterFile& file) {
   }
   std::vector<std::pair<uint64_t, uint32_t>> keyed(faces);
   for (size_t t = 0; t < faces; ++t) keyed[t] = {mortonCode(centroid[t], lo, hi), static_cast<uint32_t>(t)};
-  centroid = {};
+  std::exchange(centroid, {});
   std::sort(keyed.begin(), keyed.end());
   std::vector<uint32_t> order(faces);
   for (size_t i = 0; i < faces; ++i) order[i] = keyed[i].second;

@@ -516,7 +516,7 @@ void ClusterFileWriter::State::triangleFrames(std::span<const uint32_t> corners,
   std::string out;
   fch::encodeTriangles(corners, out);
   writeFrame(FchSection::Triangles, first, n, std::move(out));
-  out = {};
+  std::exchange(out, {});
   fch::encodeIds(faces, layout.originalIdBytes, out);
   writeFrame(FchSection::OriginalFaces, first, n, std::move(out));
 }

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <functional>
 #include <thread>
+#include <utility>
 
 #include "dual_graph.h"
 #include "face_geometry.h"
@@ -42,7 +43,7 @@ std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records
     effective[i] = e + 0.0f;
     key[i] = uint64_t{orderedBits(effective[i])} << 32 | i;
   }
-  effective = {};
+  std::exchange(effective, {});
   std::sort(key.begin(), key.end(), std::greater<>());
   std::vector<uint32_t> position(count);
   for (uint32_t p = 0; p < count; ++p) position[static_cast<uint32_t>(key[p])] = p;
@@ -78,7 +79,7 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     node.perimeter = r.perimeter;
     node.sumNormal = glm::vec3(r.sumNormal[0], r.sumNormal[1], r.sumNormal[2]);
   }
-  records = {};
+  std::exchange(records, {});
 
   std::vector<uint32_t> depth(nodes.size(), 0);
   depth[0] = 1;

@@ -50,6 +50,7 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <utility>
 
 #include "balance_guard.h"
 #include "cost.h"
@@ -97,7 +98,7 @@ DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input,
     graph.edges.push_back({{a, b}, {kNone, kNone}, static_cast<float>(shared), 0.0f});
     exact.push_back(shared);
   }
-  sorted = {};
+  std::exchange(sorted, {});
   // Adjacency lists as buildDualGraph links them: pushed to the front, in edge order.
   graph.head.assign(leafCount, kNone);
   for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
@@ -176,12 +177,12 @@ class ClusterMerger {
     while (live_ > 1 && addCandidates(true)) {
       if (drain() == 0) break;
     }
-    exactShared_ = {};
+    std::exchange(exactShared_, {});
     heap_.release();
 
     joinComponents();
     graph_ = DualGraph{};
-    candidate_ = {};
+    std::exchange(candidate_, {});
     result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
     result_.eigenSolves = counters_.eigenSolves;
     result_.normalShortcuts = counters_.normalShortcuts;
@@ -253,7 +254,7 @@ class ClusterMerger {
     std::vector<AxisBox> boxes(live.size());
     for (size_t i = 0; i < live.size(); ++i) boxes[i] = boxes_[live[i]];
     const std::vector<std::pair<uint32_t, uint32_t>> pairs = nearestPairs(boxes, label, kProximityNeighbours);
-    boxes = {};
+    std::exchange(boxes, {});
     final_ = final_ || betweenRoots;
     bool changed = false;
     for (const auto& [p, q] : pairs) {
@@ -546,7 +547,7 @@ class ClusterMerger {
     std::vector<std::pair<uint64_t, uint32_t>> roots;
     roots.reserve(centroids.size());
     for (const auto& [p, c] : centroids) roots.emplace_back(mortonCode(p, lo, hi), c);
-    centroids = {};
+    std::exchange(centroids, {});
     std::sort(roots.begin(), roots.end());
     using Root = std::tuple<uint64_t, uint32_t, uint32_t>;  // (face count, Morton rank, cluster id)
     std::priority_queue<Root, std::vector<Root>, std::greater<Root>> queue;
@@ -554,7 +555,7 @@ class ClusterMerger {
       const uint32_t c = roots[rank].second;
       queue.emplace(clusters_[c].faceCount, rank, c);
     }
-    roots = {};
+    std::exchange(roots, {});
     while (queue.size() > 1) {
       const auto [countA, rankA, a] = queue.top();
       queue.pop();

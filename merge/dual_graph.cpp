@@ -10,6 +10,7 @@
 #include <array>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <glm/geometric.hpp>
 
@@ -247,7 +248,7 @@ DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
     reserveHugePages(graph.edges, edges);
     for (std::vector<DualEdge>& e : blocks) {
       graph.edges.insert(graph.edges.end(), e.begin(), e.end());
-      e = {};
+      std::exchange(e, {});
     }
   }
   linkLists(graph, geometry.faceCount());

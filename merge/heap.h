@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <cstring>
 #include <new>
+#include <utility>
 #include <vector>
 
 #include "huge_pages.h"
@@ -130,7 +131,7 @@ class EdgeHeap {
   void release() {
     hot_.resize(kPad);
     hot_.shrink_to_fit();
-    cold_ = {};
+    std::exchange(cold_, {});
     capacity_ = 0;
   }
 

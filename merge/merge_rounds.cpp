@@ -40,6 +40,7 @@
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 
 #include <glm/geometric.hpp>
 
@@ -349,7 +350,7 @@ class RoundsEngine {
         now_.halves[fill[e.end[0]]++] = {e.end[1], e.shared, e.key};
         now_.halves[fill[e.end[1]]++] = {e.end[0], e.shared, e.key};
       }
-      block = {};
+      std::exchange(block, {});
     }
     forBlocks(threads_, blockCount(), [&](uint32_t block, unsigned) {
       const uint32_t hi = std::min(live_, (block + 1) * kBlock);
@@ -753,8 +754,8 @@ class RoundsEngine {
       }
     }
     liveBoxes(leaves.stats);
-    now_ = {};
-    next_ = {};
+    std::exchange(now_, {});
+    std::exchange(next_, {});
     greedy(leaves, edges);
   }
 
@@ -771,7 +772,7 @@ class RoundsEngine {
     edges.reserve(count);
     for (std::vector<DualEdge>& block : faceEdges_) {
       for (const DualEdge& e : block) edges.push_back({e.end[0], e.end[1], e.shared});
-      block = {};
+      std::exchange(block, {});
     }
     Leaves leaves(n, options_.metric == Metric::Garland);
     for (uint32_t f = 0; f < n; ++f) {

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace facetree {
 
@@ -207,7 +208,7 @@ std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox>
     for (size_t i = 0; i < keep; ++i)
       accepted.emplace_back(std::min(to, from[i].index), std::max(to, from[i].index));
   }
-  proposals = {};
+  std::exchange(proposals, {});
   std::sort(accepted.begin(), accepted.end());
   accepted.erase(std::unique(accepted.begin(), accepted.end()), accepted.end());
   return accepted;

@@ -9,6 +9,7 @@
 #include <bit>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include "read_error.h"
 #include "readers.h"
@@ -41,8 +42,8 @@ class StlReaderBase : public ReaderBase {
 
   bool stopWelding() override {
     soup_ = true;
-    welder_ = {};
-    vertices_ = {};
+    std::exchange(welder_, {});
+    std::exchange(vertices_, {});
     return true;
   }
 

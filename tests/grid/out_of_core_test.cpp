@@ -689,6 +689,22 @@ TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
   }
 }
 
+// Positions that fit their share of the cap (a quarter) stay in memory through the read and must be
+// freed once every triangle has its corners: the stages after the read are sized from the whole cap.
+TEST(OutOfCore, MemoryCapHeldWithPositionsInMemory) {
+  SKIP_PEAK_RSS_CHECKS_UNDER_ASAN();
+  ScratchDir dir;
+  constexpr uint64_t kCap = uint64_t{64} << 20;
+  // 1.0M vertices: 12 MB of positions, within the 16 MiB share.
+  const fs::path mesh = generate(dir, "t.ply", SyntheticKind::Terrain, 2000000, true);
+  const fs::path out = dir / "out.fch";
+  const uint64_t peak = cliPeakRss({"build", mesh.string(), "-o", out.string(), "--memory", "64M"});
+  EXPECT_LE(peak, kCap) << peak / 1048576.0 << " MiB";
+  const ClusterFile file = readClusterFile(out);
+  EXPECT_EQ(file.indices.size() / 3, 2000000u);
+  EXPECT_TRUE(verifyClusterFile(file, {.boxes = false, .statistics = false}).ok);
+}
+
 // --metric garland out of core: the cells build with Garland's
 // cost, the upper merge continues with the leaves' quadrics (mergeClusters), the cap holds although
 // its trees are deep (the upper frames carry a bounded set of hull points instead of every leaf's
