@@ -1,5 +1,8 @@
 // facetree gen grid|sphere|terrain|strip|assembly|subdivide: synthetic meshes for tests and benchmarks.
+#include <cctype>
 #include <cstdio>
+#include <filesystem>
+#include <system_error>
 
 #include "args.h"
 #include "command_help.h"
@@ -9,6 +12,36 @@
 #include "signals.h"
 
 namespace facetree::cli {
+namespace {
+
+bool endsInStl(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".stl";
+}
+
+// The triangles of the PLY at `ply` as a binary STL at `stl`, streamed (the reader holds the
+// vertices).
+void writeStlOf(const std::filesystem::path& ply, uint64_t triangles, const std::string& stl) {
+  auto reader = openMesh(ply);
+  StlWriter out(stl, triangles);
+  std::vector<Triangle> batch(4096);
+  for (size_t got; (got = reader->read(batch)) > 0;)
+    for (size_t i = 0; i < got; ++i)
+      out.addTriangle(batch[i].position[0], batch[i].position[1], batch[i].position[2]);
+  out.finish();
+}
+
+// Removes a file on every path out.
+struct RemovedAtEnd {
+  std::filesystem::path path;
+  ~RemovedAtEnd() {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+};
+
+}  // namespace
 
 int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args = parseCommand("gen", argv);
@@ -26,6 +59,11 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
 
   const std::string& kind = positional[0];
   prepareOutput(signals, *output);
+  // An STL is made of the PLY, written beside it first.
+  const bool stl = endsInStl(*output);
+  const RemovedAtEnd ply{stl ? std::filesystem::path(*output + ".ply.partial") : std::filesystem::path()};
+  if (stl) prepareOutput(signals, ply.path.string());
+  const std::string written = stl ? ply.path.string() : *output;
   GeneratedCounts counts;
   if (kind == "subdivide") {
     if (positional.size() != 2) throw UsageError("gen subdivide takes one input mesh");
@@ -33,7 +71,7 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
     if (levels > 8) throw UsageError("--levels must be at most 8");
     auto reader = openMesh(positional[1]);
     const IndexedMesh mesh = loadMesh(*reader);
-    counts = writeSubdividedMesh(mesh.view(), static_cast<unsigned>(levels), options, *output);
+    counts = writeSubdividedMesh(mesh.view(), static_cast<unsigned>(levels), options, written);
   } else {
     if (positional.size() != 1) throw UsageError("gen " + kind + " takes no input file");
     SyntheticKind shape;
@@ -50,8 +88,9 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
     else
       throw UsageError("unknown mesh kind '" + kind +
                        "' (grid, sphere, terrain, strip, assembly, subdivide)");
-    counts = writeSyntheticMesh(shape, options, *output);
+    counts = writeSyntheticMesh(shape, options, written);
   }
+  if (stl) writeStlOf(ply.path, counts.triangles, *output);
   std::fprintf(stderr, "wrote %s: %llu vertices, %llu triangles\n", output->c_str(),
                static_cast<unsigned long long>(counts.vertices),
                static_cast<unsigned long long>(counts.triangles));

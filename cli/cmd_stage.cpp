@@ -1,10 +1,8 @@
-// facetree stage plan | read | count | grid | bin | cells | upper | geometry | boxes | nodes | layout |
-// place | finish: the
-// out-of-core build as tasks
-// over a work directory, for an engine that runs them (facetree/grid.h planStages, runStageTask,
-// finishStages). The plan keeps its command line in the work directory, so that the later tasks
-// build the same job from it. The plan and the grid print the steps that follow them, which is all
-// an engine needs to run the rest.
+// facetree stage plan | read | count | weld | grid | bin | cells | upper | geometry | boxes | nodes | layout
+// | place | finish: the out-of-core build as tasks over a work directory, for an engine that runs them
+// (facetree/grid.h planStages, runStageTask, finishStages). The plan keeps its command line in the work
+// directory, so that the later tasks build the same job from it. The plan and the grid print the steps that
+// follow them, which is all an engine needs to run the rest.
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -147,7 +145,7 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
   return kExitOk;
 }
 
-// One task of a step of many (read, count, bin, cells, geometry, nodes), or the grid or the upper
+// One task of a step of many (read, count, weld, bin, cells, geometry, nodes), or the grid or the upper
 // step.
 int runTask(const std::string& step, const std::vector<std::string>& argv, SignalGuard& signals) {
   const std::string command = "stage " + step;
@@ -201,13 +199,13 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
   constexpr const char* kSteps =
-      "plan, read, count, grid, bin, cells, upper, geometry, boxes, nodes, layout, place, finish";
+      "plan, read, count, weld, grid, bin, cells, upper, geometry, boxes, nodes, layout, place, finish";
   if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
-  for (const char* step :
-       {"read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes", "nodes", "layout", "place"})
+  for (const char* step : {"read", "count", "weld", "grid", "bin", "cells", "upper", "geometry", "boxes",
+                           "nodes", "layout", "place"})
     if (argv[0] == step) return runTask(argv[0], rest, signals);
   throw UsageError("unknown stage '" + argv[0] + "' (" + kSteps + ")");
 }

@@ -25,8 +25,8 @@ void addStageCommands(std::vector<CommandHelp>& table) {
       {"cell-tasks", "N", "",
        "cells tasks to cut the cells into (default one per 16 cells); the file does not depend on it"},
       {"read-tasks", "N", "",
-       "read tasks of a binary PLY read in ranges (default one per 2^20 faces); the file does not "
-       "depend on it"},
+       "read tasks of a binary PLY or STL read in ranges (default one per 2^20 faces; an STL at least "
+       "one per 12 bytes a face in an eighth of --memory); the file does not depend on it"},
       {"node-tasks", "N", "",
        "node tasks of the write (default one per 2^20 node positions); the file does not depend on it"}};
   for (const OptionHelp& o : build.options) {
@@ -42,8 +42,9 @@ void addStageCommands(std::vector<CommandHelp>& table) {
        "The out-of-core build as tasks of an engine (Dask, a Slurm job array) over a work directory that\n"
        "every task sees. `stage plan` prints the steps that follow, each a number of tasks that run in\n"
        "any order, anywhere, once the step before is done: a binary PLY whose faces are triangles in\n"
-       "records of one size is read in ranges (`stage read`, `stage count`, then `stage grid`, which\n"
-       "prints `stage bin`, `stage cells` and `stage upper`); any other mesh is read and binned by the\n"
+       "records of one size, or a binary STL, is read in ranges (`stage read`, `stage count`, for an\n"
+       "STL `stage weld`, then `stage grid`, which prints `stage bin`, `stage cells` and `stage\n"
+       "upper`); any other mesh is read and binned by the\n"
        "plan (then `stage cells` and `stage upper`). `stage upper` prints `stage geometry` and `stage\n"
        "boxes` (which prints `stage nodes` and `stage layout`), or with compact boxes all three;\n"
        "`stage layout` prints `stage place` and `stage finish`. OUT.fch is the bytes\n"
@@ -62,12 +63,17 @@ void addStageCommands(std::vector<CommandHelp>& table) {
                       {"task", "I", "", "the task, 0 to the step's count less one"},
                       {"json", "", "", "print the result as one JSON object"}}});
   };
-  taskCommand("stage read", "read one range of a binary PLY: its box and counts",
+  taskCommand("stage read", "read one range of a binary PLY or STL: its box and counts",
               "Reads the plan's options from DIR; holds the plan's --memory. Every read task must be done\n"
               "before any count task.");
   taskCommand("stage count", "count one range's faces by cell bin",
               "Reads the plan's options from DIR; holds the plan's --memory. Every count task must be done\n"
-              "before the grid.");
+              "before the weld tasks (an STL) or the grid. An STL's count task also files its corners by\n"
+              "position for the weld tasks.");
+  taskCommand("stage weld", "number one part of an STL's distinct corner positions",
+              "Reads the plan's options from DIR; holds the plan's --memory. The corners of every range\n"
+              "whose positions fall in the task's part are sorted, and each distinct position numbered\n"
+              "as `facetree build` welds them. Every weld task must be done before the grid.");
   table.push_back({"stage grid",
                    "--work DIR [--json]",
                    "cut a mesh read in ranges into cells, and plan the bin and cells tasks",
@@ -177,11 +183,13 @@ std::vector<CommandHelp> makeCommands() {
          "octree: the baseline tightest-fit octree volume clustering (time, nodes, height; no file)"},
         {"leaf-size", "N", "", "most faces in an octree leaf, 1 to 1000000 (--method octree)"}}},
       {"gen",
-       "KIND -o OUT.ply [options]",
+       "KIND -o OUT.ply|OUT.stl [options]",
        "synthetic test meshes, or a mesh subdivided",
        "KIND is grid, sphere, terrain, strip or assembly (-n TRIANGLES), or subdivide MESH (--levels L):\n"
-       "midpoint subdivision, every triangle into 4^L. Shuffles make the dirty orders of real files.",
-       {{"output", "OUT.ply", "-o", "the mesh written (binary PLY)"},
+       "midpoint subdivision, every triangle into 4^L. Shuffles make the dirty orders of real files.\n"
+       "A name ending in .stl gets a binary STL: every triangle with its own corners, as CAD exports\n"
+       "them (made of the PLY, written beside it first).",
+       {{"output", "OUT", "-o", "the mesh written: binary PLY, or binary STL for a name ending in .stl"},
         {"triangles", "N", "-n", "about how many triangles (every kind but subdivide)"},
         {"levels", "L", "", "subdivision levels, 1 to 8 (subdivide)"},
         {"seed", "S", "", "seed of the shuffles and of the random kinds"},
@@ -311,7 +319,8 @@ std::string overviewUsage() {
 
 std::string stageUsage() {
   std::string out =
-      "usage: facetree stage plan|read|count|grid|bin|cells|upper|geometry|boxes|nodes|layout|place|finish "
+      "usage: facetree stage "
+      "plan|read|count|weld|grid|bin|cells|upper|geometry|boxes|nodes|layout|place|finish "
       "[OPTIONS]\n\nA build "
       "run as "
       "tasks over a "

@@ -128,9 +128,12 @@ PlanState loadPlanManifest(const std::filesystem::path& work) {
       r.report = s.report;
       r.faceBounds = in.takeVector<uint64_t>();
       r.vertexBounds = in.takeVector<uint64_t>();
+      r.soup = in.take<bool>();
+      r.weldTasks = in.take<uint32_t>();
       if (r.faceBounds.size() < 2 || r.faceBounds.size() != r.vertexBounds.size() ||
           !std::is_sorted(r.faceBounds.begin(), r.faceBounds.end()) ||
-          !std::is_sorted(r.vertexBounds.begin(), r.vertexBounds.end()))
+          !std::is_sorted(r.vertexBounds.begin(), r.vertexBounds.end()) || (r.soup && r.weldTasks == 0) ||
+          r.faceBounds.size() - 1 > SpillFile::kMaxSegments || r.weldTasks > SpillFile::kMaxSegments)
         throw Error(ErrorCategory::Input,
                     planPath(work).string() + ": read tasks that do not cover the mesh");
     } else {
@@ -186,17 +189,18 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
   out.commit(planPath(*context.work), kPlanKind);
 }
 
-namespace {
-
-// The steps of a plan as planStages returns them.
 std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
   if (state.inCore) return {{"finish", 1}};
   if (state.ranges) {
     const auto tasks = static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1);
+    if (state.rangePlan.soup)
+      return {{"read", tasks}, {"count", tasks}, {"weld", state.rangePlan.weldTasks}, {"grid", 1}};
     return {{"read", tasks}, {"count", tasks}, {"grid", 1}};
   }
   return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"upper", 1}};
 }
+
+namespace {
 
 bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
   const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
@@ -269,8 +273,8 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   std::filesystem::remove(planPath(work));
   for (const auto& entry : std::filesystem::directory_iterator(work)) {
     const std::string name = entry.path().filename().string();
-    for (const char* step : {"cells-", "read-", "count-", "grid.", "bin-", "write-", "write.", "geometry-",
-                             "nodes-", "layout.", "place-", "output."})
+    for (const char* step : {"cells-", "read-", "count-", "weld-", "grid.", "bin-", "write-", "write.",
+                             "geometry-", "nodes-", "layout.", "place-", "output."})
       if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
   }
   if (planRanges(job, work, result)) return result;
@@ -304,6 +308,8 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     result.ran = runReadTask(job, work, task);
   } else if (step == "count") {
     result.ran = runCountTask(job, work, task);
+  } else if (step == "weld") {
+    result.ran = runWeldTask(job, work, task);
   } else if (step == "bin") {
     result.ran = runBinTask(job, work, task);
   } else if (step == "upper") {

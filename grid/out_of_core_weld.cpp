@@ -7,36 +7,17 @@
 // sorted back to arrival order, and the arrival spill is rewritten with them: two sorts of
 // 24- and 16-byte records, each under a sixth of the cap, the same pattern as the position
 // join of out_of_core_read.cpp.
-#include <bit>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 
 #include "external_sort.h"
 #include "out_of_core.h"
+#include "weld_corner.h"
 
 namespace facetree {
 namespace {
 
 constexpr size_t kReadBatch = 4096;
-
-// A corner by position; `input` is the reader's vertex id (kNoVertex in a soup), `slot` is
-// 3 * arrival index + corner.
-struct CornerByPosition {
-  uint32_t bits[3];
-  uint32_t input;
-  uint64_t slot;
-};
-static_assert(sizeof(CornerByPosition) == 24);
-struct PositionOrder {
-  bool operator()(const CornerByPosition& a, const CornerByPosition& b) const {
-    if (a.bits[0] != b.bits[0]) return a.bits[0] < b.bits[0];
-    if (a.bits[1] != b.bits[1]) return a.bits[1] < b.bits[1];
-    if (a.bits[2] != b.bits[2]) return a.bits[2] < b.bits[2];
-    if (a.input != b.input) return a.input < b.input;
-    return a.slot < b.slot;
-  }
-};
 
 struct CornerId {
   uint64_t slot;
@@ -65,10 +46,7 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
       decodeRecords(bytes, records);
       for (const FaceRecord& r : records) {
         for (int k = 0; k < 3; ++k, ++slot) {
-          byPosition.push({{weldBits(r.position[3 * k]), weldBits(r.position[3 * k + 1]),
-                            weldBits(r.position[3 * k + 2])},
-                           r.vertex[k],
-                           slot});
+          byPosition.push({positionBits(r, k), r.vertex[k], slot});
         }
       }
       context.checkCancel("weld", slot / 3, arrival.extent.triangles);
@@ -82,7 +60,7 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
     for (size_t got; (got = byPosition.read(batch)) > 0;) {
       for (size_t i = 0; i < got; ++i) {
         const CornerByPosition& c = batch[i];
-        const bool samePosition = !first && std::memcmp(c.bits, previous.bits, sizeof c.bits) == 0;
+        const bool samePosition = !first && c.position == previous.position;
         if (!samePosition) {
           if (vertices == kNoVertex)
             throw Error(ErrorCategory::Input, context.report.info.name + ": more than " +

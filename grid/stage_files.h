@@ -7,7 +7,11 @@
 //                               read's and the bin's results, the grid and the binned spills' index
 //   cell-faces.spill, ghosts.spill          the binned faces (a mesh read whole)
 //   read-I.manifest             read task I of a mesh read in ranges: its triangles' box and counts
-//   count-I.manifest            count task I: its faces' bins
+//                               (an STL: a sample of its corners' positions)
+//   count-I.manifest            count task I: its faces' bins (an STL: the index of its corners'
+//                               spill, count-I-corners.spill, one bucket per weld task)
+//   weld-B.manifest, weld-B-ids.spill   weld task B of an STL: its distinct positions, and its
+//                               corners' numbers, one bucket per range
 //   grid.manifest               the grid of every range's faces, the cells tasks' bounds
 //   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
 //   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
@@ -36,6 +40,7 @@
 
 #include "out_of_core.h"
 #include "stage_manifest.h"
+#include "weld_corner.h"
 
 namespace facetree {
 
@@ -78,6 +83,9 @@ struct RangePlan {
   OutOfCorePlan plan;  // planCells'; planLeaves once the triangles are counted
   std::vector<uint64_t> faceBounds, vertexBounds;
   JobReport report;  // the input's info
+  // A binary STL (a triangle soup): its corners' positions welded by weldTasks tasks.
+  bool soup = false;
+  uint32_t weldTasks = 0;
 };
 
 // What the cells tasks and the finish need: the plan's manifest, and for a mesh read in ranges the
@@ -110,7 +118,9 @@ std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::p
 // plan.manifest alone: the fingerprint, and the range plan when there is one.
 PlanState loadPlanManifest(const std::filesystem::path& work);
 
-// The stages of a binary PLY read in ranges (stage_ranges.cpp). planRanges writes the plan when
+// The steps of a plan as planStages returns them.
+std::vector<StageStep> stepsAfterPlan(const PlanState& state);
+// The stages of a binary PLY or STL read in ranges (stage_ranges.cpp). planRanges writes the plan when
 // `job` reads such a mesh out of core (else returns false and writes nothing); each task returns
 // false, doing nothing, when its manifest is there already.
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
@@ -118,6 +128,43 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
 bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
 bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
 bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The weld of a binary STL read in ranges (stage_weld.cpp): a read task samples its corners, the
+// count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
+// the grid step counts them and a bin task gives its corners their vertex ids.
+class WeldSampler {
+ public:
+  WeldSampler(const RangePlan& plan, uint64_t faces);  // a range of `faces` triangles
+  void add(std::span<const FaceRecord> records);
+  const std::vector<PositionBits>& sample() const { return sample_; }
+
+ private:
+  uint64_t stride_ = 1, seen_ = 0;
+  std::vector<PositionBits> sample_;
+};
+// The first position of each weld bucket but the first: every read task's sample, sorted, at
+// `buckets` even steps (none for no sample: one bucket takes everything).
+std::vector<PositionBits> weldSplitters(std::vector<PositionBits> sample, uint32_t buckets);
+class WeldPartition {
+ public:
+  WeldPartition(const StageContext& context, const std::filesystem::path& work, uint32_t task,
+                const RangePlan& plan, std::vector<PositionBits> splitters);
+  ~WeldPartition();
+  void add(std::span<const FaceRecord> records);  // the range's finite triangles, in file order
+  std::string commit();                           // the spill's index, for the count manifest
+
+ private:
+  uint32_t task_;
+  uint64_t firstFace_;
+  std::vector<PositionBits> splitters_;
+  std::unique_ptr<BucketSpill> spill_;
+};
+bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The mesh's distinct positions; Error (Input) "NAME: more than 4294967295 distinct vertex positions".
+uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, const std::string& name);
+// Range `range`'s vertex ids: ids[3 * (face - first face) + corner], kNoVertex for a corner not
+// welded (a triangle the read skipped).
+std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
+                              uint32_t range);
 // The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
 // spills when `bins`.
 void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);

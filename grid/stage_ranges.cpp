@@ -1,11 +1,13 @@
-// The stages of a binary PLY read in ranges (stage_files.h). Its face records have one size, so
-// task i reads faces [faceBounds[i], faceBounds[i + 1]) straight from the input (readPlyFaceRange)
-// and every step reads its range again rather than spilling it: a range is read three times, each
-// about 60 ns a face, where a spill would cost zstd both ways on 56-byte records.
+// The stages of a binary PLY or a binary STL read in ranges (stage_files.h). Their face records
+// have one size, so task i reads faces [faceBounds[i], faceBounds[i + 1]) straight from the input
+// (readPlyFaceRange, readStlFaceRange) and every step reads its range again rather than spilling
+// it: a range is read three times, each about 60 ns a face, where a spill would cost zstd both ways
+// on 56-byte records.
 //
 //   read   each range's box, counts and largest face id (and its share of the vertices' non-finite
 //          count): the mesh's box, which the grid's bins need, is known once every range is read
 //   count  each range's faces by bin of the mesh's grid, nonzero bins only
+//   weld   an STL's corners numbered by position, as the single process welds them (stage_weld.cpp)
 //   grid   the histograms summed, partitioned into cells (CellGrid::partition), the leaves planned;
 //          for a bin split over several cells, the faces each range's predecessors put in it
 //   bin    each range's faces into its cells' buckets, a segment of the binned spills of its own
@@ -32,17 +34,29 @@ constexpr uint64_t kFacesPerReadTask = uint64_t{1} << 20;
 // A range is read in chunks of about this many bytes of the cap per face (readPlyFaceRange's
 // buffers and the records made of them), a quarter of the cap at most.
 constexpr uint64_t kChunkBytesPerFace = 160;
+// An STL's bin task holds a vertex id per corner of its range: 12 bytes a face, an eighth of the cap.
+constexpr uint64_t kSoupRangeShare = 8;
 
 size_t chunkFaces(uint64_t cap) {
   return static_cast<size_t>(std::clamp<uint64_t>(cap / 4 / kChunkBytesPerFace, 4096, uint64_t{1} << 20));
 }
 
-PlyFaceRanges reopen(const ClusterJob& job) {
-  std::optional<PlyFaceRanges> file = plyFaceRanges(job.input);
-  if (!file)
-    throw Error(ErrorCategory::Input,
-                job.input.string() + ": no longer a binary PLY read in ranges (changed since the plan)");
-  return std::move(*file);
+// The input of a plan read in ranges: a binary PLY, or a binary STL (plan.soup).
+struct RangeInput {
+  std::optional<PlyFaceRanges> ply;
+  std::optional<StlFaceRanges> stl;
+};
+RangeInput reopen(const ClusterJob& job, const RangePlan& plan) {
+  RangeInput input;
+  if (plan.soup)
+    input.stl = stlFaceRanges(job.input);
+  else
+    input.ply = plyFaceRanges(job.input);
+  if (!input.ply && !input.stl)
+    throw Error(ErrorCategory::Input, job.input.string() + ": no longer a binary " +
+                                          (plan.soup ? "STL" : "PLY") +
+                                          " read in ranges (changed since the plan)");
+  return input;
 }
 
 struct RangeTask {
@@ -64,36 +78,38 @@ RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, ui
 
 // The range's triangles as the single process's read makes them (FaceRecord: corner positions,
 // vertex ids, face id), those touching a non-finite vertex left out and counted. Returns that count.
-uint64_t forEachRecord(const ClusterJob& job, const char* phase, const PlyFaceRanges& file,
-                       const RangeTask& t, ReadStats& stats,
-                       const std::function<void(std::span<const FaceRecord>)>& take) {
+uint64_t forEachRecord(const ClusterJob& job, const char* phase, const RangeInput& file, const RangeTask& t,
+                       ReadStats& stats, const std::function<void(std::span<const FaceRecord>)>& take) {
   std::vector<FaceRecord> records;
   uint64_t skipped = 0, done = 0;
-  readPlyFaceRange(
-      file, t.firstFace, t.faces, chunkFaces(t.plan.memoryCap),
-      [&](std::span<const Triangle> triangles) {
-        records.clear();
-        for (const Triangle& tri : triangles) {
-          FaceRecord r{};
-          bool finite = true;
-          for (int k = 0; k < 3; ++k) {
-            const glm::vec3& p = tri.position[k];
-            finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
-            r.vertex[k] = tri.vertex[k];
-            std::memcpy(&r.position[3 * k], &p, sizeof p);
-          }
-          if (!finite) {
-            ++skipped;
-            continue;
-          }
-          r.face = tri.face;
-          records.push_back(r);
-        }
-        take(records);
-        done += triangles.size();
-        checkJobProgress(job, phase, done, t.faces);
-      },
-      stats);
+  const auto read = [&](const std::function<void(std::span<const Triangle>)>& sink) {
+    if (file.stl)
+      readStlFaceRange(*file.stl, t.firstFace, t.faces, chunkFaces(t.plan.memoryCap), sink, stats);
+    else
+      readPlyFaceRange(*file.ply, t.firstFace, t.faces, chunkFaces(t.plan.memoryCap), sink, stats);
+  };
+  read([&](std::span<const Triangle> triangles) {
+    records.clear();
+    for (const Triangle& tri : triangles) {
+      FaceRecord r{};
+      bool finite = true;
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3& p = tri.position[k];
+        finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+        r.vertex[k] = tri.vertex[k];
+        std::memcpy(&r.position[3 * k], &p, sizeof p);
+      }
+      if (!finite) {
+        ++skipped;
+        continue;
+      }
+      r.face = tri.face;
+      records.push_back(r);
+    }
+    take(records);
+    done += triangles.size();
+    checkJobProgress(job, phase, done, t.faces);
+  });
   return skipped;
 }
 
@@ -105,8 +121,10 @@ struct RangeRead {
 };
 static_assert(std::is_trivially_copyable_v<RangeRead>);
 
-// Every read task's results, summed: the mesh's extent (framed) and the read's report.
-MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, JobReport& report) {
+// Every read task's results, summed: the mesh's extent (framed) and the read's report; their
+// samples of an STL's corners in `sample`, when given.
+MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, JobReport& report,
+                      std::vector<PositionBits>* sample = nullptr) {
   const auto tasks = static_cast<uint32_t>(plan.rangePlan.faceBounds.size() - 1);
   MeshExtent extent;
   extent.min = glm::vec3(std::numeric_limits<float>::infinity());
@@ -115,7 +133,9 @@ MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, 
   for (uint32_t i = 0; i < tasks; ++i) {
     ManifestReader in(taskManifestPath(work, "read", i), taskKind("read"));
     const auto r = in.take<RangeRead>();
+    const std::vector<PositionBits> taken = in.takeVector<PositionBits>();
     in.finish();
+    if (sample) sample->insert(sample->end(), taken.begin(), taken.end());
     extent.min = glm::min(extent.min, r.min);
     extent.max = glm::max(extent.max, r.max);
     extent.triangles += r.triangles;
@@ -136,6 +156,7 @@ struct RangeCounts {
 RangeCounts loadCounts(const std::filesystem::path& work, uint32_t task) {
   ManifestReader in(taskManifestPath(work, "count", task), taskKind("count"));
   RangeCounts c{in.takeVector<uint32_t>(), in.takeVector<uint32_t>()};
+  in.takeView();  // an STL's corners by weld bucket: the weld tasks'
   in.finish();
   if (c.bins.size() != c.faces.size() ||
       std::any_of(c.bins.begin(), c.bins.end(), [](uint32_t b) { return b >= CellGrid::kBins; }))
@@ -178,12 +199,18 @@ void loadGridManifest(const std::filesystem::path& work, PlanState& s, bool bins
 
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result) {
   if (job.input == "-" || job.load.weldPositions) return false;
-  std::optional<PlyFaceRanges> file = plyFaceRanges(job.input);
-  if (!file) return false;
+  RangeInput file;
+  file.ply = plyFaceRanges(job.input);
+  if (!file.ply) file.stl = stlFaceRanges(job.input);
+  if (!file.ply && !file.stl) return false;
+  const bool soup = file.stl.has_value();
   // Out of core exactly when the single process's read would go out of core (runJob): positions
-  // over their budget, or the in-core estimate over the cap.
+  // over their budget, or the in-core estimate over the cap. An STL's vertices are its distinct
+  // positions, unknown until welded: when its triangles alone do not pass the cap, the plan reads
+  // it whole and decides as the single process does.
   const uint64_t cap = jobMemoryCap(job);
-  const uint64_t faces = file->faceCount, vertices = file->vertexCount;
+  const uint64_t faces = soup ? file.stl->faceCount : file.ply->faceCount;
+  const uint64_t vertices = soup ? 0 : file.ply->vertexCount;
   if (!(job.forceCellFaces > 0 || vertices * sizeof(glm::vec3) > positionsBudget(cap) ||
         inCoreEstimate(faces, vertices) > cap))
     return false;
@@ -191,6 +218,10 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   const ClusterJob effective = effectiveJob(job);
   const OutOfCorePlan plan = planCells(effective, cap);
   uint64_t tasks = job.readTasks ? job.readTasks : (faces + kFacesPerReadTask - 1) / kFacesPerReadTask;
+  if (soup) {  // a bin task's vertex ids within its share of the cap
+    const uint64_t rangeFaces = std::max<uint64_t>(cap / kSoupRangeShare / (3 * sizeof(uint32_t)), 1);
+    tasks = std::max(tasks, (faces + rangeFaces - 1) / rangeFaces);
+  }
   tasks = std::clamp<uint64_t>(tasks, 1, std::max<uint64_t>(faces, 1));
   std::vector<uint64_t> faceBounds, vertexBounds;
   for (uint64_t i = 0; i <= tasks; ++i) {
@@ -200,9 +231,9 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   JobReport& report = result.report;
   report.outOfCore = true;
   report.memoryCap = cap;
-  report.info = file->info;
+  report.info = soup ? file.stl->info : file.ply->info;
   report.stats.vertices = vertices;
-  report.stats.inputBytes = file->fileBytes;
+  report.stats.inputBytes = soup ? file.stl->fileBytes : file.ply->fileBytes;
   report.cellFaceLimit = plan.cellFaceLimit;
   ManifestWriter out;
   out.putBytes(jobFingerprint(job));
@@ -213,9 +244,10 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   out.put(plan);
   out.putVector(faceBounds);
   out.putVector(vertexBounds);
+  out.put(soup);
+  out.put(soup ? static_cast<uint32_t>(tasks) : uint32_t{0});  // weld tasks: one per range
   out.commit(planPath(work), kPlanKind);
-  const auto n = static_cast<uint32_t>(tasks);
-  result.next = {{"read", n}, {"count", n}, {"grid", 1}};
+  result.next = stepsAfterPlan(loadPlanManifest(work));
   return true;
 }
 
@@ -223,7 +255,9 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   const std::filesystem::path path = taskManifestPath(work, "read", task);
   if (std::filesystem::exists(path)) return false;
   const RangeTask t = rangeTask(work, "read", task);
-  const PlyFaceRanges file = reopen(job);
+  const RangeInput file = reopen(job, t.plan.rangePlan);
+  std::optional<WeldSampler> sampler;
+  if (file.stl) sampler.emplace(t.plan.rangePlan, t.faces);
   RangeRead r;
   r.min = glm::vec3(std::numeric_limits<float>::infinity());
   r.max = -r.min;
@@ -237,11 +271,13 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
           r.maxFace = std::max(r.maxFace, f.face);
         }
         r.triangles += records.size();
+        if (sampler) sampler->add(records);
       });
   r.stats.triangles -= r.stats.skippedTriangles;
-  r.stats.nonFiniteVertices = countNonFiniteVertices(file, t.firstVertex, t.vertices);
+  if (file.ply) r.stats.nonFiniteVertices = countNonFiniteVertices(*file.ply, t.firstVertex, t.vertices);
   ManifestWriter out;
   out.put(r);
+  out.putVector(sampler ? sampler->sample() : std::vector<PositionBits>{});
   out.commit(path, taskKind("read"));
   return true;
 }
@@ -251,12 +287,22 @@ bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint
   if (std::filesystem::exists(path)) return false;
   const RangeTask t = rangeTask(work, "count", task);
   JobReport report;
-  const MeshExtent extent = readExtent(work, t.plan, report);
-  const PlyFaceRanges file = reopen(job);
+  std::vector<PositionBits> sample;
+  const MeshExtent extent = readExtent(work, t.plan, report, &sample);
+  const RangeInput file = reopen(job, t.plan.rangePlan);
   CellGrid grid(extent.min, extent.max);
+  // An STL's corners go to their weld buckets on the way.
+  const ClusterJob effective = effectiveJob(job);
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  const StageContext context{effective, temp, t.plan.memoryCap, report, &work};
+  std::optional<WeldPartition> weld;
+  if (file.stl)
+    weld.emplace(context, work, task, t.plan.rangePlan,
+                 weldSplitters(std::move(sample), t.plan.rangePlan.weldTasks));
   ReadStats stats;
   forEachRecord(job, "count", file, t, stats, [&](std::span<const FaceRecord> records) {
     for (const FaceRecord& r : records) grid.count(grid.faceBin(r.corner(0), r.corner(1), r.corner(2)));
+    if (weld) weld->add(records);
   });
   RangeCounts counts;
   const std::span<const uint32_t> table = grid.ownerTable();  // the counts, before any partition
@@ -268,6 +314,7 @@ bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint
   ManifestWriter out;
   out.putVector(counts.bins);
   out.putVector(counts.faces);
+  out.putBytes(weld ? weld->commit() : std::string());
   out.commit(path, taskKind("count"));
   return true;
 }
@@ -280,6 +327,7 @@ bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
   const auto tasks = static_cast<uint32_t>(state.rangePlan.faceBounds.size() - 1);
   JobReport report;
   MeshExtent extent = readExtent(work, state, report);
+  if (state.rangePlan.soup) report.stats.vertices = weldVertices(work, state.rangePlan, report.info.name);
   const ClusterJob effective = effectiveJob(job);
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   const StageContext context{effective, temp, state.memoryCap, report, &work};
@@ -356,10 +404,26 @@ bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32
   } catch (const std::invalid_argument& e) {
     throw Error(ErrorCategory::Input, gridPath(work).string() + ": " + e.what());
   }
-  const PlyFaceRanges file = reopen(job);
+  const RangeInput file = reopen(job, state.rangePlan);
+  // An STL's corners take the ids the weld tasks gave their positions.
+  std::vector<uint32_t> ids;
+  if (file.stl) ids = weldIds(temp, work, state.rangePlan, task);
+  std::vector<FaceRecord> welded;
   ReadStats stats;
-  distributeFaces(context, binned, binTaskStem(task), t.faces,
-                  [&](const auto& take) { forEachRecord(job, "bin", file, t, stats, take); });
+  distributeFaces(context, binned, binTaskStem(task), t.faces, [&](const auto& take) {
+    forEachRecord(job, "bin", file, t, stats, [&](std::span<const FaceRecord> records) {
+      if (!file.stl) return take(records);
+      welded.assign(records.begin(), records.end());
+      for (FaceRecord& r : welded)
+        for (int k = 0; k < 3; ++k) {
+          r.vertex[k] = ids[3 * (r.face - t.firstFace) + uint64_t(k)];
+          if (r.vertex[k] == kNoVertex)
+            throw Error(ErrorCategory::Input, work.string() + ": face " + std::to_string(r.face) +
+                                                  " has a corner no weld task numbered");
+        }
+      take(welded);
+    });
+  });
   ManifestWriter out;
   out.putBytes(binned.faces.front()->index());
   out.putBytes(binned.ghosts.front()->index());

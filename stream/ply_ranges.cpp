@@ -17,6 +17,7 @@
 #include "format_detect.h"
 #include "ply_header.h"
 #include "ply_scalar.h"
+#include "positioned_file.h"
 #include "read_error.h"
 #include "readers.h"
 #include "vertex_store.h"
@@ -28,39 +29,6 @@ using stream_detail::Place;
 using stream_detail::PlyScalar;
 
 constexpr uint64_t kVertexBlock = 1024;  // vertex records read at once
-
-// A descriptor closed on every path out.
-class File {
- public:
-  explicit File(const std::string& name) : name_(name), fd_(::open(name.c_str(), O_RDONLY | O_CLOEXEC)) {
-    if (fd_ < 0)
-      stream_detail::throwReadError(name_, Place::byte(0),
-                                    "cannot open: " + stream_detail::systemErrorText(errno));
-  }
-  ~File() { ::close(fd_); }
-  File(const File&) = delete;
-  File& operator=(const File&) = delete;
-
-  // Exactly `size` bytes at `offset`; a short file is an error naming `what` there.
-  void read(uint64_t offset, char* out, size_t size, const std::string& what) const {
-    size_t done = 0;
-    while (done < size) {
-      const ssize_t got = ::pread(fd_, out + done, size - done, static_cast<off_t>(offset + done));
-      if (got > 0) {
-        done += static_cast<size_t>(got);
-      } else if (got == 0) {
-        stream_detail::throwReadError(name_, Place::byte(offset + done), "unexpected end of data in " + what);
-      } else if (errno != EINTR) {
-        stream_detail::throwReadError(name_, Place::byte(offset + done),
-                                      "read error: " + stream_detail::systemErrorText(errno));
-      }
-    }
-  }
-
- private:
-  std::string name_;
-  int fd_;
-};
 
 bool fixedSize(const stream_detail::PlyElement& element, uint64_t& bytes) {
   bytes = 0;
@@ -152,7 +120,7 @@ void readPlyFaceRange(const PlyFaceRanges& file, uint64_t first, uint64_t count,
                       const std::function<void(std::span<const Triangle>)>& sink, ReadStats& stats) {
   if (first > file.faceCount || count > file.faceCount - first)
     throw std::invalid_argument("readPlyFaceRange: faces past the file's " + std::to_string(file.faceCount));
-  const File in(file.info.name);
+  const stream_detail::PositionedFile in(file.info.name);
   chunkFaces = std::max<size_t>(chunkFaces, 1);
   const auto countType = static_cast<PlyScalar>(file.countType);
   const auto indexType = static_cast<PlyScalar>(file.indexType);
@@ -231,7 +199,7 @@ uint64_t countNonFiniteVertices(const PlyFaceRanges& file, uint64_t first, uint6
   if (first > file.vertexCount || count > file.vertexCount - first)
     throw std::invalid_argument("countNonFiniteVertices: vertices past the file's " +
                                 std::to_string(file.vertexCount));
-  const File in(file.info.name);
+  const stream_detail::PositionedFile in(file.info.name);
   constexpr uint64_t kChunk = 64 * kVertexBlock;
   std::vector<char> records;
   uint64_t nonFinite = 0;

@@ -20,6 +20,8 @@ uint32_t weldBits(float value) {
   return bits == kSignBit ? 0u : bits;
 }
 
+}  // namespace
+
 bool zeroArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   // In double the edge differences and the products of the cross product are exact for
   // floats of similar magnitude, so this tests exact collinearity, not "small" area.
@@ -27,7 +29,6 @@ bool zeroArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   const double vx = double{c.x} - a.x, vy = double{c.y} - a.y, vz = double{c.z} - a.z;
   return uy * vz - uz * vy == 0.0 && uz * vx - ux * vz == 0.0 && ux * vy - uy * vx == 0.0;
 }
-}  // namespace
 
 bool isFinite(const glm::vec3& p) {
   return (bitsOf(p.x) & kExponentMask) != kExponentMask && (bitsOf(p.y) & kExponentMask) != kExponentMask &&

@@ -128,6 +128,8 @@ class PositionWelder {
 
 uint64_t hashPosition(const glm::vec3& position);
 bool samePosition(const glm::vec3& a, const glm::vec3& b);
+// Three exactly collinear positions (a degenerate triangle however its corners differ).
+bool zeroArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 
 template <typename AddVertex>
 uint32_t PositionWelder::indexOf(const glm::vec3& position, const VertexStore& store, AddVertex&& add) {

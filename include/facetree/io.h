@@ -488,6 +488,22 @@ class PlyWriter {
   std::unique_ptr<State> state_;
 };
 
+// Streaming binary STL writer (each triangle its three corners' positions, a zero normal), by the
+// rules of PlyWriter: the count given up front, a temporary name renamed on finish().
+class StlWriter {
+ public:
+  StlWriter(const std::filesystem::path& path, uint64_t triangleCount);
+  ~StlWriter();
+  StlWriter(const StlWriter&) = delete;
+  StlWriter& operator=(const StlWriter&) = delete;
+  void addTriangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+  void finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
 // Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
 // memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
 // a keyed bijection so any size can be shuffled while streaming.

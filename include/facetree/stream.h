@@ -168,4 +168,24 @@ void readPlyFaceRange(const PlyFaceRanges& file, uint64_t first, uint64_t count,
 // Vertices among [first, first + count) with a NaN or infinite coordinate.
 uint64_t countNonFiniteVertices(const PlyFaceRanges& file, uint64_t first, uint64_t count);
 
+// --- Binary STL read in face ranges ---
+//
+// An uncompressed binary STL file holds its triangles in records of 50 bytes, each with its three
+// corners' positions, so any range of them can be read by a process of its own. The triangles
+// carry kNoVertex for every vertex id (a soup: the caller welds positions), their positions and
+// their face ids, in file order.
+struct StlFaceRanges {
+  MeshInfo info;
+  uint64_t fileBytes = 0, faceCount = 0;
+};
+// The layout of `path` when it is such a file; std::nullopt for any other mesh, and for a binary
+// STL whose size disagrees with its count or that has no triangles (openMesh names the fault).
+std::optional<StlFaceRanges> stlFaceRanges(const std::filesystem::path& path);
+// Triangles [first, first + count) of `file` (opened again by its name) in chunks of at most
+// `chunkFaces`, non-finite ones included. `stats` gains their faces and triangles, the
+// non-finite corners, and the degenerate triangles among the finite ones (two corners at one
+// position, or no area, as the STL reader counts them). Memory: about 90 bytes per chunk face.
+void readStlFaceRange(const StlFaceRanges& file, uint64_t first, uint64_t count, size_t chunkFaces,
+                      const std::function<void(std::span<const Triangle>)>& sink, ReadStats& stats);
+
 }  // namespace facetree

@@ -1,8 +1,8 @@
 """Builds past one machine: the out-of-core build's stages as tasks of a dask.distributed client.
 
-build() plans the build in a work directory, runs the steps the plan lists (a binary PLY is read,
-counted and binned in ranges, then its cells are built; any other mesh is read and binned by the
-plan) as tasks on the client's workers, and finishes it; the file is the bytes
+build() plans the build in a work directory, runs the steps the plan lists (a binary PLY or STL is
+read, counted and binned in ranges, an STL's corners welded by tasks, then its cells are built; any
+other mesh is read and binned by the plan) as tasks on the client's workers, and finishes it; the file is the bytes
 facetree.build_file writes with the same options and cap. Every worker must see the work directory (on a cluster, a shared file
 system). A task that fails is retried (a worker lost takes its task with it, and a cells task
 already done is skipped); an error of the input reaches the caller as the facetree exception the
@@ -63,10 +63,12 @@ def build(
     plan nor the cells tasks done again).
     memory: the cap of every task, bytes or a string like "4G" (default: half the memory of the
     machine running the task). cell_tasks: how many cells tasks (default one per 16 cells);
-    read_tasks: how many ranges a binary PLY is read in (default one per 2^20 faces); node_tasks:
+    read_tasks: how many ranges a binary PLY or STL is read in (default one per 2^20 faces, for an
+    STL at least enough to keep each range's ids within an eighth of the cap); node_tasks:
     how many tasks write the nodes (default one per 2^20 node positions); the file depends on none
     of them. retries: how many times a failed task is run again. progress: called as
-    progress(step, fraction) with step "plan", "read", "count", "grid", "bin", "cells" or "finish";
+    progress(step, fraction) with the step's name ("plan", "read", "count", "weld", "grid", "bin",
+    "cells", ..., "finish");
     returning False cancels the build (Cancelled). Other arguments and options as
     facetree.build_file's.
 

@@ -7,9 +7,11 @@
 
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -66,6 +68,32 @@ std::vector<std::pair<std::string, uint64_t>> stepsOf(const std::string& text) {
   return steps;
 }
 
+// Every task of the steps `next` lists and those they list in turn, up to the finish, each in a
+// process of its own, a step's tasks in reverse order, every one under the cap. Returns the steps
+// run ("read:4 count:4 ... ").
+std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string, uint64_t>> next) {
+  std::string ran;
+  while (!next.empty() && next.front().first != "finish") {
+    const auto [step, tasks] = next.front();
+    next.erase(next.begin());
+    ran += step + ":" + std::to_string(tasks) + " ";
+    for (uint64_t task = tasks; task-- > 0;) {
+      std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
+      const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
+      if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
+      const ChildResult result = runChild(argv);
+      if (result.exitCode != 0) {
+        ADD_FAILURE() << step << " " << task << ": " << result.output;
+        return ran;
+      }
+      EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
+      EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
+      if (single) next = stepsOf(jsonText(result.output, "next"));
+    }
+  }
+  return ran;
+}
+
 // A binary PLY read in ranges (read, count, grid, bin, cells), and the same mesh zstd-compressed,
 // which the plan reads whole (cells): every task in a process of its own, in reverse order, under
 // the cap; a finish before the tasks names the first manifest missing; the bytes of build.
@@ -101,23 +129,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     EXPECT_EQ(early.output.rfind("facetree: " + missing.string() + ": cannot open: ", 0), 0u) << early.output;
     EXPECT_FALSE(fs::exists(staged));
 
-    std::vector<std::pair<std::string, uint64_t>> next = stepsOf(jsonText(plan.output, "next"));
-    std::string ran;
-    while (!next.empty() && next.front().first != "finish") {
-      const auto [step, tasks] = next.front();
-      next.erase(next.begin());
-      ran += step + ":" + std::to_string(tasks) + " ";
-      for (uint64_t task = tasks; task-- > 0;) {
-        std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
-        const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
-        if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
-        const ChildResult result = runChild(argv);
-        ASSERT_EQ(result.exitCode, 0) << step << " " << task << ": " << result.output;
-        EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
-        EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
-        if (single) next = stepsOf(jsonText(result.output, "next"));
-      }
-    }
+    const std::string ran = runEveryTask(work, stepsOf(jsonText(plan.output, "next")));
     // 300k faces: one geometry task of 2^21 triangles, the two node tasks asked for, their three
     // pieces placed by three tasks.
     EXPECT_EQ(ran,
@@ -137,6 +149,66 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     for (const auto& entry : fs::directory_iterator(work))
       EXPECT_EQ(entry.path().string().find(".partial"), std::string::npos) << entry.path();
   }
+}
+
+// A binary STL is read in ranges too, its corners welded by position as the single process welds
+// them (read, count, weld, grid, bin): here with the dirt of real exports, a triangle with a NaN
+// corner (skipped) and zeros stored as -0.0 beside +0.0 (one position). The same bytes as build.
+TEST(Stage, ABinarySTLIsReadAndWeldedInRanges) {
+  Scratch dir;
+  const fs::path stl = dir.path / "terrain.stl";
+  ASSERT_EQ(runChild({"gen", "terrain", "-n", "200000", "-o", stl.string(), "--shuffle-faces"}).exitCode, 0);
+  std::string bytes = fileBytes(stl);
+  constexpr size_t kPreamble = 84, kRecord = 50;
+  const size_t triangles = (bytes.size() - kPreamble) / kRecord;
+  ASSERT_GT(triangles, 190000u);
+  size_t negativeZeros = 0;
+  for (size_t t = 0; t < triangles; ++t)
+    for (size_t c = 0; c < 9; ++c) {
+      char* at = bytes.data() + kPreamble + t * kRecord + 12 + 4 * c;
+      float v;
+      std::memcpy(&v, at, 4);
+      if (v == 0.0f && (t + c) % 2 == 0) {
+        v = -0.0f;
+        std::memcpy(at, &v, 4);
+        ++negativeZeros;
+      }
+    }
+  ASSERT_GT(negativeZeros, 100u);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(bytes.data() + kPreamble + 123456 * kRecord + 12, &nan, 4);  // in the third of four ranges
+  std::ofstream(stl, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+
+  const ChildResult whole = runChild({"build", stl.string(), "-o", (dir.path / "whole.fch").string(),
+                                      "--memory", "64M", "--cell-faces", "20000", "--json"});
+  ASSERT_EQ(whole.exitCode, 0) << whole.output;
+  EXPECT_EQ(jsonNumber(whole.output, "triangles"), triangles - 1);
+  const fs::path work = dir.path / "work", staged = dir.path / "staged.fch";
+  const ChildResult plan =
+      runChild({"stage", "plan", stl.string(), "--work", work.string(), "-o", staged.string(), "--memory",
+                "64M", "--cell-faces", "20000", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
+  ASSERT_EQ(plan.exitCode, 0) << plan.output;
+  EXPECT_EQ(jsonText(plan.output, "next"), "read:4 count:4 weld:4 grid:1");
+  const std::string ran = runEveryTask(work, stepsOf(jsonText(plan.output, "next")));
+  EXPECT_EQ(ran.rfind("read:4 count:4 weld:4 grid:1 bin:4 cells:3 upper:1 ", 0), 0u) << ran;
+  const ChildResult finish = runChild({"stage", "finish", "--work", work.string(), "--json"});
+  ASSERT_EQ(finish.exitCode, 0) << finish.output;
+  EXPECT_EQ(jsonNumber(finish.output, "triangles"), triangles - 1);
+  EXPECT_EQ(jsonNumber(finish.output, "vertices"), jsonNumber(whole.output, "vertices"));
+  EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
+
+  // Cut short, it is no binary STL read in ranges: the plan reads it whole and fails as build does.
+  bytes.resize(bytes.size() - 7);
+  std::ofstream(stl, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+  const ChildResult build = runChild({"build", stl.string(), "-o", (dir.path / "x.fch").string(), "--memory",
+                                      "64M", "--cell-faces", "20000"});
+  const ChildResult cut =
+      runChild({"stage", "plan", stl.string(), "--work", work.string(), "-o", (dir.path / "x.fch").string(),
+                "--memory", "64M", "--cell-faces", "20000"});
+  EXPECT_EQ(build.exitCode, 3);
+  EXPECT_EQ(cut.exitCode, 3);
+  EXPECT_EQ(cut.output, build.output);
+  EXPECT_EQ(cut.output.rfind("facetree: " + stl.string() + ": ", 0), 0u) << cut.output;
 }
 
 TEST(Stage, AMeshThatFitsIsBuiltByThePlan) {
@@ -169,9 +241,10 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
                                    "`facetree stage plan`)\n");
   const ChildResult unknown = runChild({"stage", "merge"});
   EXPECT_EQ(unknown.exitCode, 2);
-  EXPECT_EQ(unknown.output,
-            "facetree: unknown stage 'merge' (plan, read, count, grid, bin, cells, upper, geometry, boxes, "
-            "nodes, layout, place, finish) (see facetree --help)\n");
+  EXPECT_EQ(
+      unknown.output,
+      "facetree: unknown stage 'merge' (plan, read, count, weld, grid, bin, cells, upper, geometry, boxes, "
+      "nodes, layout, place, finish) (see facetree --help)\n");
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 """facetree.distributed: the build's stages as tasks of a dask.distributed LocalCluster give the bytes
-of `facetree build` at the same cap, with 1, 2 or 3 worker processes, for a binary PLY read in ranges
-and a mesh read whole, and when a worker is killed during the cells stage; a task that fails on bad
+of `facetree build` at the same cap, with 1, 2 or 3 worker processes, for a binary PLY or STL read in
+ranges and a mesh read whole, and when a worker is killed during the cells stage; a task that fails on bad
 input raises the reader's error at the caller and leaves no work directory."""
 import os
 import signal
@@ -27,17 +27,23 @@ def built(cli, mesh, out, options):
     return out.read_bytes()
 
 
-def mesh_and_bytes(cli, factory, name, triangles, options=()):
-    """A shuffled terrain of about `triangles` faces and the bytes `facetree build --memory 64M`
-    makes of it with `options`."""
+def mesh_and_bytes(cli, factory, name, triangles, options=(), suffix=".ply"):
+    """A shuffled terrain of about `triangles` faces (a binary PLY, or STL) and the bytes
+    `facetree build --memory 64M` makes of it with `options`."""
     directory = factory.mktemp(name)
-    mesh = directory / f"{name}.ply"
+    mesh = directory / f"{name}{suffix}"
     generate(cli, mesh, triangles)
     return mesh, built(cli, mesh, directory / "whole.fch", options)
 
 
 # The small mesh fits the cap; cells of at most this many faces take it out of core all the same.
 SMALL_CELL_FACES = 8_000
+
+
+@pytest.fixture(scope="module")
+def small_stl(cli, tmp_path_factory):
+    return mesh_and_bytes(cli, tmp_path_factory, "stl", 100_000, ["--cell-faces", str(SMALL_CELL_FACES)],
+                          suffix=".stl")
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +110,7 @@ def test_two_workers_one_killed_during_the_cells_stage_give_the_bytes_of_build(t
 
 
 @pytest.mark.parametrize("workers", [1, 3])
-def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
+def test_any_number_of_workers_gives_the_same_bytes(small, small_stl, tmp_path, workers):
     mesh, whole = small
     client, cluster = local_client(workers)
     try:
@@ -120,6 +126,13 @@ def test_any_number_of_workers_gives_the_same_bytes(small, tmp_path, workers):
             assert (tmp_path / "dask-zst.fch").read_bytes() == whole
             assert list(one["tasks"]) == ["cells", "upper", "geometry", "boxes", "nodes", "layout",
                                           "place", "finish"]
+        else:  # a binary STL: read in ranges, its corners welded by tasks
+            stl, stl_whole = small_stl
+            soup = fd.build(stl, tmp_path / "dask-stl.fch", client, memory="64M", cell_tasks=5, read_tasks=3,
+                            cell_faces=SMALL_CELL_FACES)
+            assert (tmp_path / "dask-stl.fch").read_bytes() == stl_whole
+            assert list(soup["tasks"])[:5] == ["read", "count", "weld", "grid", "bin"]
+            assert soup["tasks"]["weld"] == 3
     finally:
         client.close()
         cluster.close()
