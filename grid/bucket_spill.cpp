@@ -294,7 +294,8 @@ uint32_t BucketSpill::reserveBlock(size_t bucket) {
 uint64_t BucketSpill::memoryBound(size_t buckets, size_t recordBytes, size_t bufferBytes) {
   const uint64_t buffer = std::max<size_t>(1, bufferBytes / std::max<size_t>(1, recordBytes)) * recordBytes;
   constexpr uint64_t kPerBucket = sizeof(size_t) + sizeof(uint64_t) + 2 * sizeof(uint32_t);
-  // The block list grows by sizeof(ChainedBlock) per flushed block, 0.04% of the data at 64 KiB blocks.
+  // The block list grows by sizeof(ChainedBlock) per flushed block, 0.04% of the data at 64 KiB
+  // blocks, unless offloaded as it grows (offloadBlocks with entries).
   return buckets * (buffer + kPerBucket) + ZSTD_compressBound(buffer);
 }
 
@@ -315,6 +316,7 @@ void BucketSpill::appendMany(size_t bucket, const void* records, size_t n) {
 
 void BucketSpill::flush(size_t bucket) {
   if (fill_[bucket] == 0) return;
+  if (offloadAt_ && blocks_.size() >= offloadAt_) offloadRound();
   const std::span<const std::byte> bytes(buffer_.get() + bucket * bufferBytes_, fill_[bucket]);
   if (background_) {
     const uint32_t index = reserveBlock(bucket);
@@ -331,29 +333,45 @@ void BucketSpill::flushAll() {
   settle();
 }
 
-void BucketSpill::offloadBlocks(TempSpace& space) {
-  if (buffer_)
-    throw std::logic_error("BucketSpill::offloadBlocks: buffers still open (releaseBuffers first)");
-  settle();
-  lists_ = std::make_unique<SpillFile>(space, "bucket-blocks", /*discardable=*/true, sizeof(SpillBlock));
-  listOf_.assign(buckets(), SpillBlock{});
-  std::vector<SpillBlock> list;
+void BucketSpill::offloadBlocks(TempSpace& space, size_t entries) {
+  if (!lists_) {
+    lists_ = std::make_unique<SpillFile>(space, "bucket-blocks", /*discardable=*/true, sizeof(SpillBlock));
+    listOf_.assign(buckets(), SpillBlock{});
+  }
+  offloadAt_ = entries;
+  offloadRound();
+}
+
+void BucketSpill::offloadRound() {
+  settle();  // every block reserved has its handle
+  std::vector<SpillBlock> chunk;
   for (size_t bucket = 0; bucket < buckets(); ++bucket) {
-    list.clear();
-    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) list.push_back(blocks_[b].block);
-    if (!list.empty()) listOf_[bucket] = lists_->append(std::as_bytes(std::span(list)), writer_);
+    if (head_[bucket] == kNoBlock) continue;
+    chunk.assign(1, listOf_[bucket]);
+    for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) chunk.push_back(blocks_[b].block);
+    listOf_[bucket] = lists_->append(std::as_bytes(std::span(chunk)), writer_);
     head_[bucket] = tail_[bucket] = kNoBlock;
   }
   std::deque<ChainedBlock>().swap(blocks_);
 }
 
-std::vector<SpillBlock> BucketSpill::blockList(size_t bucket, SpillCodec& codec) const {
-  std::vector<SpillBlock> list;
-  if (listOf_[bucket].rawBytes == 0) return list;
+std::vector<SpillBlock> BucketSpill::blockList(size_t bucket, SpillCodec& codec,
+                                               std::vector<SpillBlock>* chunks) const {
+  // Backwards from the last chunk, then in order.
+  std::vector<std::vector<SpillBlock>> parts;
   std::vector<std::byte> raw;
-  lists_->read(listOf_[bucket], raw, codec);
-  list.resize(raw.size() / sizeof(SpillBlock));
-  std::memcpy(list.data(), raw.data(), list.size() * sizeof(SpillBlock));
+  for (SpillBlock at = listOf_[bucket]; at.rawBytes != 0;) {
+    if (chunks) chunks->push_back(at);
+    lists_->read(at, raw, codec);
+    if (raw.size() < sizeof(SpillBlock) || raw.size() % sizeof(SpillBlock) != 0)
+      throw std::logic_error("BucketSpill: a chunk of a block list of part of a handle");
+    std::vector<SpillBlock>& part = parts.emplace_back(raw.size() / sizeof(SpillBlock));
+    std::memcpy(part.data(), raw.data(), raw.size());
+    at = part.front();
+  }
+  std::vector<SpillBlock> list;
+  for (auto part = parts.rbegin(); part != parts.rend(); ++part)
+    list.insert(list.end(), part->begin() + 1, part->end());
   return list;
 }
 
@@ -366,7 +384,6 @@ void BucketSpill::readBucket(size_t bucket, std::vector<std::byte>& out, SpillCo
       file_->read(block, std::span<std::byte>(out.data() + at, block.rawBytes), codec);
       at += block.rawBytes;
     }
-    return;
   }
   // Straight into `out`: no block of scratch beyond the codec's compressed one.
   for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {

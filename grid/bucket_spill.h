@@ -89,11 +89,13 @@ class BucketSpill {
   // flushAll(), then frees the buffers (buckets * bufferBytes) and the helper: the spill is read-only
   // afterwards.
   void releaseBuffers();
-  // After releaseBuffers: every bucket's list of blocks goes to a file of `space`, one block of it
-  // per bucket, and the lists' memory (a ChainedBlock per block, which grows with the spill: about
-  // a million blocks for 56M faces in cells of 3 KiB buffers) goes back. Reading a bucket then
-  // reads its list first.
-  void offloadBlocks(TempSpace& space);
+  // Every bucket's list of blocks goes to a file of `space`, a chunk per bucket, and the lists'
+  // memory (a ChainedBlock per block, which grows with the spill: about a million blocks for 56M
+  // faces in cells of 3 KiB buffers) goes back; with `entries`, again whenever the lists in memory
+  // reach that many blocks, so they stay bounded while the spill grows. A bucket's chunks are
+  // chained backwards (each starts with the handle of the one before); reading a bucket reads them
+  // first, then the blocks still listed in memory. Not for a spill whose index is handed on.
+  void offloadBlocks(TempSpace& space, size_t entries = 0);
 
   uint64_t records(size_t bucket) const { return records_[bucket]; }
   size_t recordBytes() const { return recordBytes_; }
@@ -113,7 +115,9 @@ class BucketSpill {
   void drainBucket(size_t bucket, SpillCodec& codec, F&& f) {
     visitBlocks(bucket, codec, f, [this](const SpillBlock& block) { file_->discard(block); });
     if (lists_) {
-      if (listOf_[bucket].rawBytes) lists_->discard(listOf_[bucket]);
+      std::vector<SpillBlock> chunks;
+      blockList(bucket, codec, &chunks);
+      for (const SpillBlock& chunk : chunks) lists_->discard(chunk);
       std::exchange(listOf_[bucket], {});
     }
     head_[bucket] = tail_[bucket] = kNoBlock;
@@ -135,14 +139,13 @@ class BucketSpill {
   void visitBlocks(size_t bucket, SpillCodec& codec, F& f, const After& after) const {
     settle();
     std::vector<std::byte> raw;
-    if (lists_) {  // offloaded: the bucket's list first
+    if (lists_) {  // offloaded: those blocks first
       const std::vector<SpillBlock> list = blockList(bucket, codec);
       for (const SpillBlock& block : list) {
         file_->read(block, raw, codec);
         f(std::span<const std::byte>(raw));
         after(block);
       }
-      return;
     }
     for (uint32_t b = head_[bucket]; b != kNoBlock; b = blocks_[b].next) {
       file_->read(blocks_[b].block, raw, codec);
@@ -163,8 +166,11 @@ class BucketSpill {
   class Writer;
   // Waits for the helper's writes, rethrowing the first that failed.
   void settle() const;
-  // An offloaded bucket's blocks, in order.
-  std::vector<SpillBlock> blockList(size_t bucket, SpillCodec& codec) const;
+  // A bucket's offloaded blocks, in order; its chunks' handles in `chunks`, when given.
+  std::vector<SpillBlock> blockList(size_t bucket, SpillCodec& codec,
+                                    std::vector<SpillBlock>* chunks = nullptr) const;
+  // The lists in memory to the lists' file, each bucket's as a chunk after its last.
+  void offloadRound();
   uint32_t reserveBlock(size_t bucket);
 
   BucketSpill(std::unique_ptr<SpillFile> file, size_t buckets, size_t recordBytes, size_t bufferBytes,
@@ -180,8 +186,9 @@ class BucketSpill {
   std::vector<uint64_t> records_;
   std::vector<uint32_t> head_, tail_;
   std::deque<ChainedBlock> blocks_;
-  std::unique_ptr<SpillFile> lists_;  // offloadBlocks: each bucket's blocks, a block per bucket
-  std::vector<SpillBlock> listOf_;    // and where each bucket's is
+  std::unique_ptr<SpillFile> lists_;  // offloadBlocks: the buckets' offloaded lists, in chunks
+  std::vector<SpillBlock> listOf_;    // each bucket's last chunk
+  size_t offloadAt_ = 0;              // blocks listed in memory that start another round (0: none)
 };
 
 }  // namespace facetree

@@ -54,6 +54,11 @@ BinnedFaces binFaces(const StageContext& context, ArrivalFaces&& arrival, uint64
   return out;
 }
 
+namespace {
+// Blocks a binned spill lists in memory at most before it offloads the lists: 1.5 MiB.
+constexpr size_t kBlockListEntries = 65536;
+}  // namespace
+
 void distributeFaces(const StageContext& context, BinnedFaces& out, const std::string& stem, uint64_t total,
                      const FaceSource& source) {
   const uint32_t cells = out.grid->cellCount();
@@ -73,8 +78,13 @@ void distributeFaces(const StageContext& context, BinnedFaces& out, const std::s
       return std::make_unique<BucketSpill>(context.temp, SpillFile::Named{*context.work / binnedFile(name)},
                                            cells, record, bufferFor(record), kSpillLevel,
                                            context.spillInBackground());
-    return std::make_unique<BucketSpill>(context.temp, name, cells, record, bufferFor(record), kSpillLevel,
-                                         /*discardable=*/true, context.spillInBackground());
+    auto one =
+        std::make_unique<BucketSpill>(context.temp, name, cells, record, bufferFor(record), kSpillLevel,
+                                      /*discardable=*/true, context.spillInBackground());
+    // Blocks grow with the mesh, a list entry each (a million at 56M faces in 64 MiB): their lists
+    // go to disk as they grow.
+    one->offloadBlocks(context.temp, kBlockListEntries);
+    return one;
   };
   BucketSpill& faces = *out.faces.emplace_back(spill(stem + "cell-faces", sizeof(FaceRecord)));
   BucketSpill& ghosts = *out.ghosts.emplace_back(spill(stem + "ghosts", sizeof(GhostEdge)));

@@ -226,13 +226,24 @@ TEST(BucketSpill, drainBucketReadsOnceAndGivesTheSpaceBack) {
   EXPECT_LE(space.currentBytes(), 2u * 4096) << "of " << before;
 }
 
-// Blocks offloaded (their lists on disk, a block per bucket): every way of reading gives the same
-// records, draining still gives the space back, lists included, and the spill has no index to hand on.
-TEST(BucketSpill, offloadedBlocksReadBackTheSameRecords) {
+// Blocks offloaded (their lists on disk in chunks): once the spill is written, or as it grows (every
+// 7 blocks listed, before any is written and with the helper writing in the background), every way
+// of reading gives the same records, draining still gives the space back, lists included, and the
+// spill has no index to hand on.
+class OffloadedBlocks : public ::testing::TestWithParam<std::pair<size_t, bool>> {};
+INSTANTIATE_TEST_SUITE_P(BucketSpill, OffloadedBlocks,
+                         ::testing::Values(std::pair<size_t, bool>{0, false},
+                                           std::pair<size_t, bool>{7, false},
+                                           std::pair<size_t, bool>{7, true}));
+
+TEST_P(OffloadedBlocks, ReadBackTheSameRecords) {
+  const auto [entries, background] = GetParam();
   test::ScratchDir parent;
   TempSpace space(parent.path());
   constexpr size_t kBuckets = 9;
-  BucketSpill spill(space, "cells", kBuckets, sizeof(Record), 600, kSpillLevel, /*discardable=*/true);
+  BucketSpill spill(space, "cells", kBuckets, sizeof(Record), 600, kSpillLevel, /*discardable=*/true,
+                    background);
+  if (entries) spill.offloadBlocks(space, entries);
   const auto expected = fill(spill, 40000, 11);
   spill.releaseBuffers();
   spill.offloadBlocks(space);
