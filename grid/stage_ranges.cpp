@@ -218,8 +218,9 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   const ClusterJob effective = effectiveJob(job);
   const OutOfCorePlan plan = planCells(effective, cap);
   uint64_t tasks = job.readTasks ? job.readTasks : (faces + kFacesPerReadTask - 1) / kFacesPerReadTask;
-  if (soup) {  // a bin task's vertex ids within its share of the cap
-    const uint64_t rangeFaces = std::max<uint64_t>(cap / kSoupRangeShare / (3 * sizeof(uint32_t)), 1);
+  if (soup) {  // a bin task's vertex ids within its share of the cap, its corners numbered in 32 bits
+    const uint64_t rangeFaces =
+        std::clamp<uint64_t>(cap / kSoupRangeShare / (3 * sizeof(uint32_t)), 1, uint64_t{UINT32_MAX} / 3);
     tasks = std::max(tasks, (faces + rangeFaces - 1) / rangeFaces);
   }
   tasks = std::clamp<uint64_t>(tasks, 1, std::max<uint64_t>(faces, 1));

@@ -16,16 +16,6 @@ using test::PlyOptions;
 using test::SimpleMesh;
 using test::TempDir;
 
-// A grid whose faces come in shuffled order, with some repeated-index triangles and a NaN vertex.
-SimpleMesh dirtyGrid(int side, uint32_t seed) {
-  SimpleMesh mesh = test::squareGrid(side, 0.5f, [](int i, int j) { return std::sin(0.3f * i) * float(j); });
-  std::mt19937 random(seed);
-  std::shuffle(mesh.faces.begin(), mesh.faces.end(), random);
-  mesh.faces[3] = {mesh.faces[3][0], mesh.faces[3][0], mesh.faces[3][1]};
-  mesh.vertices[5].y = std::numeric_limits<float>::quiet_NaN();
-  return mesh;
-}
-
 struct WholeRead {
   std::vector<Triangle> triangles;  // positions from the sink
   ReadStats stats;
@@ -86,7 +76,7 @@ void expectRangesMatch(const std::filesystem::path& path, uint64_t pieces, size_
 
 TEST(StreamPlyRanges, PiecesInAnySplitAndChunkGiveTheWholeReadersTriangles) {
   TempDir dir;
-  const SimpleMesh mesh = dirtyGrid(40, 7);
+  const SimpleMesh mesh = test::dirtyGrid(40, 7);
   for (const char* encoding : {"binary_little_endian", "binary_big_endian"}) {
     PlyOptions options;
     options.encoding = encoding;
@@ -102,7 +92,7 @@ TEST(StreamPlyRanges, PiecesInAnySplitAndChunkGiveTheWholeReadersTriangles) {
 
 TEST(StreamPlyRanges, DoubleCoordinatesIntCountsAndUintIndicesAreRead) {
   TempDir dir;
-  const SimpleMesh mesh = dirtyGrid(20, 3);
+  const SimpleMesh mesh = test::dirtyGrid(20, 3);
   PlyOptions options;
   options.encoding = "binary_little_endian";
   options.coordinateType = "double";
@@ -114,7 +104,7 @@ TEST(StreamPlyRanges, DoubleCoordinatesIntCountsAndUintIndicesAreRead) {
 
 TEST(StreamPlyRanges, OtherMeshesAreReadWhole) {
   TempDir dir;
-  const SimpleMesh grid = dirtyGrid(6, 1);
+  const SimpleMesh grid = test::dirtyGrid(6, 1);
   PlyOptions binary;
   binary.encoding = "binary_little_endian";
   PlyOptions lists = binary;
@@ -138,7 +128,7 @@ TEST(StreamPlyRanges, OtherMeshesAreReadWhole) {
 
 TEST(StreamPlyRanges, BadRecordsGiveTheWholeReadersMessage) {
   TempDir dir;
-  SimpleMesh mesh = dirtyGrid(8, 5);
+  SimpleMesh mesh = test::dirtyGrid(8, 5);
   PlyOptions options;
   options.encoding = "binary_little_endian";
   mesh.faces[70][1] = 100000;  // out of range
@@ -162,7 +152,7 @@ TEST(StreamPlyRanges, BadRecordsGiveTheWholeReadersMessage) {
     EXPECT_EQ(std::string(e.what()), whole);
   }
   // A record whose count is not 3 (a quad where a later face has 2 corners, so the sizes add up).
-  std::string bytes = test::writePly(dirtyGrid(8, 5), options);
+  std::string bytes = test::writePly(test::dirtyGrid(8, 5), options);
   const uint64_t record = file->faceStart + 10 * file->faceStride;
   bytes[record] = 4;
   const auto quad = dir.write("quad.ply", bytes);
@@ -182,7 +172,7 @@ TEST(StreamPlyRanges, TruncatedAfterThePlanIsAnErrorNamingTheByte) {
   TempDir dir;
   PlyOptions options;
   options.encoding = "binary_little_endian";
-  const std::string bytes = test::writePly(dirtyGrid(8, 2), options);
+  const std::string bytes = test::writePly(test::dirtyGrid(8, 2), options);
   const auto path = dir.write("cut.ply", bytes);
   const std::optional<PlyFaceRanges> file = plyFaceRanges(path);
   ASSERT_TRUE(file.has_value());

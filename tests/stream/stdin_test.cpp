@@ -6,8 +6,8 @@
 #include <csignal>
 #include <thread>
 
-#include "stream/readers.h"
 #include "facetree/stream.h"
+#include "stream/readers.h"
 #include "test_util.h"
 
 namespace facetree {

@@ -16,17 +16,6 @@ namespace {
 using test::SimpleMesh;
 using test::TempDir;
 
-// A shuffled grid with a repeated-corner triangle, a NaN vertex and zeros of both signs.
-SimpleMesh dirtyGrid(int side, uint32_t seed) {
-  SimpleMesh mesh = test::squareGrid(side, 0.5f, [](int i, int j) { return std::sin(0.3f * i) * float(j); });
-  std::mt19937 random(seed);
-  std::shuffle(mesh.faces.begin(), mesh.faces.end(), random);
-  mesh.faces[3] = {mesh.faces[3][0], mesh.faces[3][0], mesh.faces[3][1]};
-  mesh.vertices[5].y = std::numeric_limits<float>::quiet_NaN();
-  mesh.vertices[7].z = -0.0f;
-  return mesh;
-}
-
 bool sameBits(const glm::vec3& a, const glm::vec3& b) {
   return std::memcmp(&a, &b, sizeof a) == 0;
 }
@@ -39,7 +28,7 @@ bool finite(const Triangle& t) {
 
 TEST(StlRanges, PiecesGiveTheReadersSoup) {
   TempDir dir;
-  const std::filesystem::path path = dir.write("grid.stl", test::writeBinaryStl(dirtyGrid(40, 3)));
+  const std::filesystem::path path = dir.write("grid.stl", test::writeBinaryStl(test::dirtyGrid(40, 3)));
   auto reader = openMesh(path);
   ASSERT_TRUE(reader->stopWelding());
   const std::vector<Triangle> whole = test::readAll(*reader, 100);

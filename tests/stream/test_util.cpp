@@ -4,10 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
+#include <random>
 #include <sstream>
 
 namespace facetree::test {
@@ -51,6 +55,16 @@ SimpleMesh squareGrid(int side, float cell, const std::function<float(int, int)>
       mesh.faces.push_back({v, v + 1, v + side + 2});
       mesh.faces.push_back({v, v + side + 2, v + side + 1});
     }
+  return mesh;
+}
+
+SimpleMesh dirtyGrid(int side, uint32_t seed) {
+  SimpleMesh mesh = squareGrid(side, 0.5f, [](int i, int j) { return std::sin(0.3f * i) * float(j); });
+  std::mt19937 random(seed);
+  std::shuffle(mesh.faces.begin(), mesh.faces.end(), random);
+  mesh.faces[3] = {mesh.faces[3][0], mesh.faces[3][0], mesh.faces[3][1]};
+  mesh.vertices[5].y = std::numeric_limits<float>::quiet_NaN();
+  mesh.vertices[7].z = -0.0f;
   return mesh;
 }
 

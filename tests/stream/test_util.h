@@ -41,6 +41,9 @@ struct SimpleMesh {
 SimpleMesh pyramid();
 // A side x side grid of squares of size `cell`, two triangles each, at heights height(i, j).
 SimpleMesh squareGrid(int side, float cell, const std::function<float(int, int)>& height);
+// squareGrid(side, 0.5, a wave) made dirty: its faces shuffled (seeded), a triangle with a repeated
+// vertex, a NaN vertex and a zero stored as -0.0.
+SimpleMesh dirtyGrid(int side, uint32_t seed);
 // Fan triangulation of `mesh` with positions, as every reader should hand it on.
 std::vector<Triangle> expectedTriangles(const SimpleMesh& mesh);
 
