@@ -8,8 +8,9 @@
 //   cell-faces.spill, ghosts.spill          the binned faces (a mesh read whole)
 //   read-I.manifest             read task I of a mesh read in ranges: its triangles' box and counts
 //                               (an STL: a sample of its corners' positions)
-//   count-I.manifest            count task I: its faces' bins (an STL: the index of its corners'
-//                               spill, count-I-corners.spill, one bucket per weld task)
+//   count-I.manifest            count task I: its faces' bins
+//   count-I-corners.spill, count-I-corners.manifest   an STL's count task I: its corners, one
+//                               bucket per weld task, and their index
 //   weld-B.manifest, weld-B-ids.spill   weld task B of an STL: its distinct positions, and its
 //                               corners' numbers, one bucket per range
 //   grid.manifest               the grid of every range's faces, the cells tasks' bounds
@@ -150,9 +151,10 @@ class WeldPartition {
                 const RangePlan& plan, std::vector<PositionBits> splitters);
   ~WeldPartition();
   void add(std::span<const FaceRecord> records);  // the range's finite triangles, in file order
-  std::string commit();                           // the spill's index, for the count manifest
+  void commit();                                  // the spill, and its index in a manifest of its own
 
  private:
+  std::filesystem::path work_;
   uint32_t task_;
   uint64_t firstFace_;
   std::vector<PositionBits> splitters_;

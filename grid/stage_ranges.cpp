@@ -156,7 +156,6 @@ struct RangeCounts {
 RangeCounts loadCounts(const std::filesystem::path& work, uint32_t task) {
   ManifestReader in(taskManifestPath(work, "count", task), taskKind("count"));
   RangeCounts c{in.takeVector<uint32_t>(), in.takeVector<uint32_t>()};
-  in.takeView();  // an STL's corners by weld bucket: the weld tasks'
   in.finish();
   if (c.bins.size() != c.faces.size() ||
       std::any_of(c.bins.begin(), c.bins.end(), [](uint32_t b) { return b >= CellGrid::kBins; }))
@@ -315,7 +314,7 @@ bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint
   ManifestWriter out;
   out.putVector(counts.bins);
   out.putVector(counts.faces);
-  out.putBytes(weld ? weld->commit() : std::string());
+  if (weld) weld->commit();  // before the count manifest, which marks the task done
   out.commit(path, taskKind("count"));
   return true;
 }

@@ -42,6 +42,11 @@ static_assert(sizeof(WeldedCorner) == 8);
 std::filesystem::path cornersPath(const std::filesystem::path& work, uint32_t countTask) {
   return work / ("count-" + std::to_string(countTask) + "-corners.spill");
 }
+// Its index, apart from the count task's bins: every weld task reads every one of them.
+std::filesystem::path cornersIndexPath(const std::filesystem::path& work, uint32_t countTask) {
+  return work / ("count-" + std::to_string(countTask) + "-corners.manifest");
+}
+constexpr std::string_view kCornersKind = "weld corners";
 std::filesystem::path weldedPath(const std::filesystem::path& work, uint32_t weldTask) {
   return work / ("weld-" + std::to_string(weldTask) + "-ids.spill");
 }
@@ -93,7 +98,7 @@ std::vector<PositionBits> weldSplitters(std::vector<PositionBits> sample, uint32
 
 WeldPartition::WeldPartition(const StageContext& context, const std::filesystem::path& work, uint32_t task,
                              const RangePlan& plan, std::vector<PositionBits> splitters)
-    : task_(task), firstFace_(plan.faceBounds[task]), splitters_(std::move(splitters)) {
+    : work_(work), task_(task), firstFace_(plan.faceBounds[task]), splitters_(std::move(splitters)) {
   spill_ = std::make_unique<BucketSpill>(
       context.temp, SpillFile::Named{cornersPath(work, task)}, plan.weldTasks, sizeof(CornerByPosition),
       bucketBuffer(context.memoryCap, plan.weldTasks, sizeof(CornerByPosition)), kSpillLevel,
@@ -112,9 +117,11 @@ void WeldPartition::add(std::span<const FaceRecord> records) {
     }
 }
 
-std::string WeldPartition::commit() {
+void WeldPartition::commit() {
   spill_->commit();
-  return spill_->index();
+  ManifestWriter out;
+  out.putBytes(spill_->index());
+  out.commit(cornersIndexPath(work_, task_), kCornersKind);
 }
 
 bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
@@ -136,9 +143,7 @@ bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   for (uint32_t i = 0; i < ranges; ++i) paths.push_back(cornersPath(work, i));
   BucketSpill::SegmentReader segments(temp, paths, task, task + 1);
   for (uint32_t i = 0; i < ranges; ++i) {
-    ManifestReader in(taskManifestPath(work, "count", i), taskKind("count"));
-    in.takeView();  // the bins
-    in.takeView();  // their faces
+    ManifestReader in(cornersIndexPath(work, i), kCornersKind);
     segments.add(in.takeView());
     in.finish();
   }

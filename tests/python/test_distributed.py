@@ -87,7 +87,7 @@ def test_two_workers_one_killed_during_the_cells_stage_give_the_bytes_of_build(t
     try:
         # More tasks than the defaults give 2M faces (2 read tasks, 4 cells tasks, 1 node task).
         report = fd.build(mesh, tmp_path / "dask.fch", client, work_dir=work, memory="64M",
-                          read_tasks=8, cell_tasks=16, node_tasks=3,
+                          read_tasks=4, cell_tasks=8, node_tasks=2,
                           progress=lambda stage, fraction: stages.append(stage))
     finally:
         killer.join()
@@ -95,12 +95,12 @@ def test_two_workers_one_killed_during_the_cells_stage_give_the_bytes_of_build(t
         cluster.close()
     assert killed, "no worker was killed: the cells stage ended before the test could"
     assert (tmp_path / "dask.fch").read_bytes() == whole
-    assert report["out_of_core"] and report["cells_tasks"] == 16
+    assert report["out_of_core"] and report["cells_tasks"] == 8
     assert report["file_bytes"] == len(whole)
     tasks = report["tasks"]
     assert list(tasks) == ["read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
                            "nodes", "layout", "place", "finish"]
-    assert tasks["read"] == 8 and tasks["nodes"] == 3 and tasks["boxes"] == 1
+    assert tasks["read"] == 4 and tasks["nodes"] == 2 and tasks["boxes"] == 1
     # Each step's tasks report in turn, after the step before, once each, the killed one included.
     order = [step for i, step in enumerate(stages) if i == 0 or stages[i - 1] != step]
     assert order == ["plan", "read", "count", "grid", "bin", "cells", "upper", "geometry", "boxes",
