@@ -1,6 +1,7 @@
 // Mesh format detection from the first bytes of a stream (format_detect.h): zstd framing, then
 // the PLY, OBJ, STL and Draco signatures.
 #include "format_detect.h"
+#include "stl_layout.h"
 
 #include <array>
 #include <cstring>
@@ -14,8 +15,6 @@ namespace {
 constexpr size_t kDetectBytes = 4096;
 constexpr std::array<unsigned char, 4> kZstdMagic = {0x28, 0xB5, 0x2F, 0xFD};
 constexpr std::string_view kDracoMagic = "DRACO";
-constexpr size_t kStlPreambleBytes = 84;
-constexpr uint64_t kStlTriangleBytes = 50;
 constexpr std::array<std::string_view, 13> kObjKeywords = {"v", "vn", "vt", "vp",     "f",      "o",     "g",
                                                            "s", "l",  "p",  "mtllib", "usemtl", "cstype"};
 
@@ -36,9 +35,7 @@ bool looksLikeText(std::string_view window) {
 
 bool binaryStlSizeMatches(std::string_view window, std::optional<uint64_t> size) {
   if (!size || window.size() < kStlPreambleBytes) return false;
-  const auto* bytes = reinterpret_cast<const unsigned char*>(window.data()) + 80;
-  const uint64_t count =
-      uint64_t{bytes[0]} | uint64_t{bytes[1]} << 8 | uint64_t{bytes[2]} << 16 | uint64_t{bytes[3]} << 24;
+  const uint64_t count = loadLittleEndian32(window.data() + kStlHeaderBytes);
   return kStlPreambleBytes + count * kStlTriangleBytes == *size;
 }
 

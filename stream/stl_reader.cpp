@@ -6,30 +6,18 @@
 // distinct positions, the triangles themselves are streamed. Out-of-core builds stop the
 // welding (stopWelding) and weld with bounded memory themselves.
 #include <algorithm>
-#include <bit>
 #include <cstring>
 #include <string>
 #include <utility>
 
 #include "read_error.h"
 #include "readers.h"
+#include "stl_layout.h"
 #include "text_tokens.h"
 #include "vertex_store.h"
 
 namespace facetree::stream_detail {
 namespace {
-
-constexpr size_t kBinaryHeaderBytes = 80;
-constexpr size_t kBinaryPreambleBytes = kBinaryHeaderBytes + sizeof(uint32_t);
-constexpr size_t kBinaryTriangleBytes = 50;  // normal, 3 vertices (12 floats), uint16 attribute
-constexpr size_t kBinaryFirstVertexOffset = 12;
-
-float loadLittleEndianFloat(const char* bytes) {
-  uint32_t bits;
-  std::memcpy(&bits, bytes, sizeof(bits));
-  if constexpr (std::endian::native == std::endian::big) bits = __builtin_bswap32(bits);
-  return std::bit_cast<float>(bits);
-}
 
 // Base of both: welding.
 class StlReaderBase : public ReaderBase {
@@ -69,39 +57,37 @@ class BinaryStlReader final : public StlReaderBase {
  public:
   BinaryStlReader(std::unique_ptr<InputBuffer> input, MeshInfo info)
       : StlReaderBase(std::move(input), std::move(info), MeshFormat::StlBinary) {
-    if (input_->fill(kBinaryPreambleBytes) < kBinaryPreambleBytes)
+    if (input_->fill(kStlPreambleBytes) < kStlPreambleBytes)
       fail(input_->offset() + input_->available(), "truncated binary stl header");
-    uint32_t count;
-    std::memcpy(&count, input_->data() + kBinaryHeaderBytes, sizeof(count));
-    if constexpr (std::endian::native == std::endian::big) count = __builtin_bswap32(count);
-    input_->consume(kBinaryPreambleBytes);
+    const uint32_t count = loadLittleEndian32(input_->data() + kStlHeaderBytes);
+    input_->consume(kStlPreambleBytes);
     triangleCount_ = count;
     info_.declaredFaces = count;
     if (const std::optional<uint64_t> size = input_->size()) {
-      const uint64_t expected = kBinaryPreambleBytes + triangleCount_ * kBinaryTriangleBytes;
+      const uint64_t expected = kStlPreambleBytes + triangleCount_ * kStlTriangleBytes;
       if (expected != *size)
-        fail(kBinaryHeaderBytes, "binary stl declares " + std::to_string(count) + " triangles (" +
-                                     std::to_string(expected) + " bytes) but the file has " +
-                                     std::to_string(*size) + " bytes");
+        fail(kStlHeaderBytes, "binary stl declares " + std::to_string(count) + " triangles (" +
+                                  std::to_string(expected) + " bytes) but the file has " +
+                                  std::to_string(*size) + " bytes");
     }
-    if (count == 0) fail(kBinaryHeaderBytes, "no faces");
+    if (count == 0) fail(kStlHeaderBytes, "no faces");
   }
 
  protected:
   size_t produce(Triangle* out, size_t capacity) override {
     size_t count = 0;
     while (count < capacity && next_ < triangleCount_) {
-      if (input_->fill(kBinaryTriangleBytes) < kBinaryTriangleBytes)
+      if (input_->fill(kStlTriangleBytes) < kStlTriangleBytes)
         fail(input_->offset() + input_->available(), "unexpected end of data in triangle " +
                                                          std::to_string(next_) + " of " +
                                                          std::to_string(triangleCount_));
       const auto records = static_cast<size_t>(std::min<uint64_t>(
-          {input_->available() / kBinaryTriangleBytes, capacity - count, triangleCount_ - next_}));
+          {input_->available() / kStlTriangleBytes, capacity - count, triangleCount_ - next_}));
       const char* bytes = input_->data();
-      for (size_t r = 0; r < records; ++r, bytes += kBinaryTriangleBytes) {
+      for (size_t r = 0; r < records; ++r, bytes += kStlTriangleBytes) {
         Triangle& triangle = out[count + r];
         for (int corner = 0; corner < 3; ++corner) {
-          const char* vertex = bytes + kBinaryFirstVertexOffset + corner * 3 * sizeof(float);
+          const char* vertex = bytes + kStlFirstCornerOffset + corner * 3 * sizeof(float);
           const glm::vec3 position(loadLittleEndianFloat(vertex), loadLittleEndianFloat(vertex + 4),
                                    loadLittleEndianFloat(vertex + 8));
           triangle.vertex[corner] = weld(position);
@@ -109,7 +95,7 @@ class BinaryStlReader final : public StlReaderBase {
         }
         triangle.face = next_ + r;
       }
-      input_->consume(records * kBinaryTriangleBytes);
+      input_->consume(records * kStlTriangleBytes);
       next_ += records;
       stats_.faces += records;
       count += records;
