@@ -61,7 +61,8 @@ class ManifestReader {
     const auto n = take<uint64_t>();
     if (n % sizeof(T) != 0) fail("a field of part of a record");
     std::vector<T> values(n / sizeof(T));
-    std::memcpy(values.data(), need(n), n);
+    const char* from = need(n);
+    if (n > 0) std::memcpy(values.data(), from, n);  // an empty vector's data() may be null
     return values;
   }
   // Every field taken: the manifest ends here.
