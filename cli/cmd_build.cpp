@@ -26,7 +26,7 @@ ClusterJob jobFromBuildOptions(const Args& args, SignalGuard& signals) {
   settings.garlandWeights[2] = args.number("w-shape", settings.garlandWeights[2]);
   settings.balanceSlack = args.number("balance-slack", settings.balanceSlack);
   settings.threads = static_cast<unsigned>(args.count("threads", settings.threads));
-  settings.spatialTop = static_cast<unsigned>(args.count("spatial-top", settings.spatialTop));
+  settings.top = static_cast<unsigned>(args.count("top", settings.top));
   settings.branching = static_cast<unsigned>(args.count("branching", settings.branching));
   ClusterJob job;
   try {

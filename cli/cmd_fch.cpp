@@ -127,7 +127,7 @@ int runInfo(const std::vector<std::string>& argv) {
                  std::vector<double>{h.garlandWeights[0], h.garlandWeights[1], h.garlandWeights[2]});
       json.field("memory_cap_bytes", h.memoryCapBytes);
       json.field("boxes", boxesName(h.boxes));
-      json.field("spatial_top", h.spatialClusters);
+      json.field("top", h.topClusters);
       json.endObject();
       json.field("bbox_min", std::vector<double>{h.boundsMin.x, h.boundsMin.y, h.boundsMin.z});
       json.field("bbox_max", std::vector<double>{h.boundsMax.x, h.boundsMax.y, h.boundsMax.z});
@@ -151,6 +151,7 @@ int runInfo(const std::vector<std::string>& argv) {
           json.field("sum_area_fit", fits[i].sumAreaFit);
           json.field("sum_box_area", fits[i].sumBoxArea);
           json.field("morton_box_area", fits[i].mortonBoxArea);
+          json.field("small_clusters", fits[i].smallClusters);
           json.endObject();
         }
         json.endObject();
@@ -174,10 +175,9 @@ int runInfo(const std::vector<std::string>& argv) {
       if (s.childHistogram[c])
         std::printf(" %u:%llu", c, static_cast<unsigned long long>(s.childHistogram[c]));
     std::printf("\n");
-    std::printf(
-        "options       metric %s, k %g, flat threshold %g, memory cap %llu, %s boxes, spatial top %u\n",
-        metricName(h.metric), h.k, h.flatThreshold, static_cast<unsigned long long>(h.memoryCapBytes),
-        boxesName(h.boxes), h.spatialClusters);
+    std::printf("options       metric %s, k %g, flat threshold %g, memory cap %llu, %s boxes, top %u\n",
+                metricName(h.metric), h.k, h.flatThreshold, static_cast<unsigned long long>(h.memoryCapBytes),
+                boxesName(h.boxes), h.topClusters);
     std::printf("bounding box  [%g %g %g] - [%g %g %g]\n", h.boundsMin.x, h.boundsMin.y, h.boundsMin.z,
                 h.boundsMax.x, h.boundsMax.y, h.boundsMax.z);
     std::printf("header+index  %llu bytes\n", static_cast<unsigned long long>(overhead));
@@ -190,10 +190,11 @@ int runInfo(const std::vector<std::string>& argv) {
     for (size_t i = 0; i < fits.size(); ++i)
       std::printf(
           "fit cut       %llu asked, %llu clusters: sum eFit %.9g, sum area*eFit %.9g, sum of box areas %.9g "
-          "(%.3f x the Morton runs')\n",
+          "(%.3f x the Morton runs'), %llu under 1%% of the average cluster's area\n",
           static_cast<unsigned long long>(fitCuts[i]), static_cast<unsigned long long>(fits[i].clusters),
           fits[i].sumFit, fits[i].sumAreaFit, fits[i].sumBoxArea,
-          fits[i].mortonBoxArea > 0 ? fits[i].sumBoxArea / fits[i].mortonBoxArea : 0.0);
+          fits[i].mortonBoxArea > 0 ? fits[i].sumBoxArea / fits[i].mortonBoxArea : 0.0,
+          static_cast<unsigned long long>(fits[i].smallClusters));
     return int{kExitOk};
   }();
 }

@@ -162,9 +162,10 @@ std::vector<CommandHelp> makeCommands() {
          "boxes exact in their stored frame (default), or quantised against their parent's in 8 bits a "
          "face (smaller files; a box always contains its faces)"},
         {"no-boxes", "", "", "skip the boxes (no cluster file; statistics only)"},
-        {"spatial-top", "N", "",
-         "the last N clusters (default 1024, at most one per 64 faces) merge by the smallest union box, so "
-         "that the file's first nodes split space compactly; 0: eq. 84 to the root"},
+        {"top", "N", "",
+         "the last N clusters (default 64, at most one per 64 faces) merge by the least increase of the "
+         "fit (the sum of area x eFit), so that the file's first nodes are the cuts that fit best; 0: "
+         "eq. 84's order to the root"},
         {"threads", "N", "",
          "threads of the merge rounds, the box phase and the out-of-core cells (default 0: all cores, at "
          "most 8)"},
@@ -211,7 +212,8 @@ std::vector<CommandHelp> makeCommands() {
        {{"json", "", "", "print the report as one JSON object"},
         {"fit-cuts", "N,N...", "",
          "the fit error of cuts of N clusters (sum of eq. 84's eFit and of area * eFit over the cut) and "
-         "the sum of the cut's box areas against N runs of the faces in Morton order"}}},
+         "the sum of the cut's box areas against N runs of the faces in Morton order, and its balance: the "
+         "clusters under 1% of the average cluster's area"}}},
       {"verify",
        "FILE.fch [MESH] [--json]",
        "check every invariant of a cluster file (exit 3 names the first violation)",

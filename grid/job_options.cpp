@@ -71,7 +71,7 @@ void applyBuildSettings(const BuildSettings& s, OptionSpelling spelling, BuildOp
   build.garlandDirWeight = s.garlandWeights[1];
   build.garlandShapeWeight = s.garlandWeights[2];
   build.threads = s.threads;
-  build.spatialClusters = s.spatialTop;
+  build.topClusters = s.top;
   file.branching = s.branching;
   file.build = build;
 }

@@ -525,10 +525,10 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
   // merge above the cells joins the cells' pieces by proximity when few clusters are left).
   cellBuild.proximityClusters = 0;
   // Its top is cut away at the frontier, and the merge above the cells orders the leaves' merges
-  // and makes the spatial top: every reciprocal pair merges, in as few rounds as can be, by eq. 84
+  // and makes the top: every reciprocal pair merges, in as few rounds as can be, by eq. 84
   // to the cell's root.
   cellBuild.orderedClusters = 0;
-  cellBuild.spatialClusters = 0;
+  cellBuild.topClusters = 0;
   const auto groupCount = static_cast<uint32_t>(groups.start.size() - 1);
   for (uint32_t g = 0; g < groupCount; ++g) {
     const std::span<const uint32_t> members(groups.groupFaces.data() + groups.start[g],

@@ -43,7 +43,7 @@ std::string jobFingerprint(const ClusterJob& job) {
       << job.output.string() << '\n'
       << int(b.metric) << ' ' << int(b.order) << ' ' << b.k << ' ' << b.flatThreshold << ' '
       << b.garlandFitWeight << ' ' << b.garlandDirWeight << ' ' << b.garlandShapeWeight << ' '
-      << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.spatialClusters
+      << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.topClusters
       << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching << ' '
       << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' ' << job.zstdLevel
       << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' ' << job.nodeTasks

@@ -23,6 +23,9 @@ namespace facetree {
 namespace {
 
 constexpr uint32_t kNoLocalVertex = std::numeric_limits<uint32_t>::max();
+// A cut's balance: its clusters under this share of the average cluster's area are slivers that
+// a user of the cut pays a cluster for and gets almost no surface.
+constexpr double kSmallClusterShare = 0.01;
 
 // The moments' one origin for every cluster: the centre of the vertices' bounding box (the header's
 // bounds for a file read from disk; computed, so that an in-memory ClusterFile works too).
@@ -103,6 +106,7 @@ CutFit fitOfCut(const ClusterFile& file, uint64_t clusters, const glm::dvec3& or
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
   CutFit fit;
+  std::vector<double> areas;
   for (size_t begin = 0, end = 0; begin < faces; begin = end) {
     end = begin + 1;
     while (end < faces && cluster[end] == cluster[begin]) ++end;
@@ -123,6 +127,7 @@ CutFit fitOfCut(const ClusterFile& file, uint64_t clusters, const glm::dvec3& or
     const double eFit = surfaceFitError(stats);
     fit.sumFit += eFit;
     fit.sumAreaFit += stats.area * eFit;
+    areas.push_back(stats.area);
     const uint32_t n = node[cluster[begin]];
     if (n != kNoOwner) {
       fit.sumBoxArea += orientedArea(file.nodes[n].box);
@@ -133,6 +138,10 @@ CutFit fitOfCut(const ClusterFile& file, uint64_t clusters, const glm::dvec3& or
     }
     ++fit.clusters;
   }
+  double total = 0;
+  for (const double a : areas) total += a;
+  const double small = kSmallClusterShare * total / std::max<double>(1.0, static_cast<double>(areas.size()));
+  for (const double a : areas) fit.smallClusters += a < small;
   return fit;
 }
 

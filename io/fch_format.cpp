@@ -68,7 +68,7 @@ std::string encodeHeader(const FchLayout& layout, uint64_t indexChecksum, uint32
   for (int a = 0; a < 3; ++a) put<float>(out, h.boundsMax[a]);
   put<uint64_t>(out, indexChecksum);
   put<int32_t>(out, layout.zstdLevel);
-  put<uint32_t>(out, h.version >= 2 ? h.spatialClusters : 0);
+  put<uint32_t>(out, h.version >= 2 ? h.topClusters : 0);
   for (double w : h.garlandWeights) put<double>(out, w);
   if (h.version >= 2 && h.boxes == BoxPrecision::Compact) {
     for (int a = 0; a < 3; ++a) put<float>(out, layout.rootBox.center[a]);
@@ -331,7 +331,7 @@ void SourceFile::readLayout() {
     if (p[71] > static_cast<uint8_t>(BoxPrecision::Compact))
       fail("unknown box precision " + std::to_string(p[71]));
     h.boxes = static_cast<BoxPrecision>(p[71]);
-    h.spatialClusters = get<uint32_t>(p + 132);
+    h.topClusters = get<uint32_t>(p + 132);
     for (int a = 0; a < 3; ++a)
       l.rootBox.center[a] = get<float>(p + 160 + 4 * a),
       l.rootBox.halfExtent[a] = get<float>(p + 172 + 4 * a);

@@ -118,7 +118,7 @@ FileHeader optionsHeader(const FileOptions& options) {
   h.garlandWeights[2] = options.build.garlandShapeWeight;
   h.memoryCapBytes = options.memoryCapBytes;
   h.boxes = options.build.boxes;
-  h.spatialClusters = options.build.metric == Metric::Constant ? 0 : options.build.spatialClusters;
+  h.topClusters = options.build.metric == Metric::Constant ? 0 : options.build.topClusters;
   return h;
 }
 

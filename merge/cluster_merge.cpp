@@ -24,16 +24,20 @@
 //    of a strip bridging it), so near pieces join before far ones and coplanar before crossing
 //    (a mesh edge's ends share a vertex: they pay no gap). A merge along a candidate that no mesh
 //    edge backs is flagged kNodeJoinsDisjointSurfaces.
-//  - The spatial top: once at most BuildOptions::spatialClusters clusters are live (at most one
-//    per kSpatialTopFaces faces), an edge's key is the surface area of the two clusters' union
-//    box (Walter et al. 2008, "Fast Agglomerative Clustering for Rendering": what a ray or a
-//    visibility query pays to enter the cluster), with the same guard, along the same edges and
-//    proximity candidates, so clusters stay connected where the mesh is. Eq. 84 groups coplanar
-//    surfaces however far apart (the floors of a building's rooms); at the coarse cuts a truncated
-//    file keeps, compact boxes matter more. A node records eq. 84 on the union or, when higher,
-//    the highest cost recorded before it: the file, which orders nodes by decreasing effective
-//    cost, keeps the spatial top first and in reverse merge order, so its cut of k <= n clusters
-//    is the spatial top's last k. The cuts of more clusters are eq. 84's.
+//  - The top: once at most BuildOptions::topClusters clusters are live (at most one per
+//    kTopFaces faces), an edge's key is the increase of the fit a cut pays, the sum of area x eFit
+//    of eq. 84 over its clusters: dF = A(a+b) eFit(a+b) - A(a) eFit(a) - A(b) eFit(b) (Ward's
+//    criterion over eq. 84's plane fit), with the same guard, along the same edges and proximity
+//    candidates. Eq. 84's order ends in chains: each of the last merges joins one more piece to a
+//    cluster that already spans the model, so that every coarse cut holds that cluster, non-planar,
+//    and its box the model's; the least increase of the fit splits it where the surface bends. A
+//    merge that adds no fit (a surface without area, coplanar pieces) goes by the area of the
+//    union (kTopTieArea), so that such pieces join the smallest cluster that takes them, not a
+//    peel at the top of the file. A node records eq. 84 on the union or, when higher, the highest
+//    cost recorded before it: the file, which orders nodes by decreasing effective cost, keeps the
+//    top first and in reverse merge order, so its cut of k <= n clusters is the top's last k;
+//    a merge whose union holds under kTopSliverShare of the top's average area keeps its eq. 84
+//    cost and its place among the merges below. The cuts of more clusters are eq. 84's.
 //  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
 //    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
 //    box places are joined Huffman-style by face count, ties by the Morton rank of their
@@ -74,6 +78,14 @@ constexpr size_t kMaxEdges = size_t{0x7FFFFFFF};
 // Candidates each cluster proposes: enough that the pieces' candidate graph is mostly connected
 // at once (what stays apart proposes again when the edges run out).
 constexpr uint32_t kProximityNeighbours = 6;
+// In the top: the weight of the union's area (times the squared diagonal, a fit of the model's
+// size) in a key, far below any fit error a bend in the surface adds: it only orders the merges
+// that add no fit.
+constexpr double kTopTieArea = 1e-9;
+// In the top: a merge whose union holds less than this share of the top's average cluster area
+// keeps eq. 84's cost, so that small pieces (a terrain's islets, a scan's stray patches) sort
+// among the merges below the top rather than in every coarse cut.
+constexpr double kTopSliverShare = 0.1;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -146,11 +158,11 @@ class ClusterMerger {
     }
     live_ = n;
     uint64_t faces = 0;
-    for (const SurfaceStats& leaf : leaves_) faces += leaf.faceCount;
+    double area = 0;
+    for (const SurfaceStats& leaf : leaves_) faces += leaf.faceCount, area += leaf.area;
     // Metric::Constant is the order's worst case (Willmott 2000, Fig. 69) to the root.
-    if (!constant_)
-      spatial_ =
-          static_cast<uint32_t>(std::min<uint64_t>(options_.spatialClusters, faces / kSpatialTopFaces));
+    if (!constant_) top_ = static_cast<uint32_t>(std::min<uint64_t>(options_.topClusters, faces / kTopFaces));
+    if (top_ > 0) sliverArea_ = kTopSliverShare * area / top_;
     result_.nodes.reserve(n > 0 ? n - 1 : 0);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
@@ -170,7 +182,7 @@ class ClusterMerger {
     heap_.heapify();
 
     if (live_ <= options_.proximityClusters) addCandidates(false);
-    if (live_ <= spatial_) enterSpatialTop();
+    if (live_ <= top_) enterTop();
     drain();
     result_.components = candidatesAdded_ ? components_ : live_;
     // The edges ran out or are blocked: the roots propose each other, the guard no longer blocks.
@@ -192,7 +204,7 @@ class ClusterMerger {
  private:
   // Merges the cheapest edge until the heap holds no unblocked key; adds the proximity candidates
   // when the live clusters fall to BuildOptions::proximityClusters and re-keys the edges when they
-  // fall to the spatial top. Returns the merges made.
+  // fall to the top. Returns the merges made.
   uint64_t drain() {
     uint64_t merges = 0;
     while (!heap_.empty()) {
@@ -228,7 +240,7 @@ class ClusterMerger {
           pushEntry(ra.minKey, a);
         }
         if (!candidatesAdded_ && live_ <= options_.proximityClusters) addCandidates(false);
-        if (!spatialTop_ && live_ <= spatial_) enterSpatialTop();
+        if (!inTop_ && live_ <= top_) enterTop();
       }
     }
     return merges;
@@ -338,16 +350,14 @@ class ClusterMerger {
 
   // The key of merging clusters ia and ib: eq. 84 on the union, for a proximity candidate with its
   // perimeter lengthened by twice the gap between their boxes (a mesh edge's ends touch); in the
-  // spatial top the surface area of their union box over 2, over the squared diagonal.
+  // top the increase of the sum of area x eFit, over the squared diagonal squared.
   float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib,
             bool candidate) {
     double c;
-    if (spatialTop_) {
-      const AxisBox u = AxisBox::united(boxes_[ia], boxes_[ib]);
-      const glm::dvec3 d = glm::dvec3(u.hi) - glm::dvec3(u.lo);
-      c = (d.x * d.y + d.y * d.z + d.z * d.x) * boxScale_;
+    ClusterStats m = ClusterStats::merged(a, b, shared);
+    if (inTop_) {
+      c = (fitIncrease(m, a, b) * boxScale_ + kTopTieArea * (a.area + b.area)) * boxScale_;
     } else {
-      ClusterStats m = ClusterStats::merged(a, b, shared);
       if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
       c = cost(m, a, b, ia, ib) * keyScale_;
     }
@@ -359,6 +369,17 @@ class ClusterMerger {
       if (excess > 0) c *= std::pow(kBalancePenaltyBase, excess);
     }
     return toKey(c);
+  }
+
+  // Ward's criterion over eq. 84's fit: what merging a and b into m adds to the sum of area x
+  // eFit of a cut (never negative: eFit takes the sum normal of a flat cluster, not always the
+  // plane of least variance).
+  double fitIncrease(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b) {
+    const auto fit = [&](const ClusterStats& s) {
+      return s.area > 0 ? s.area * willmottFitError(s, flatThreshold_, counters_) : 0.0;
+    };
+    const double increase = fit(m) - fit(a) - fit(b);
+    return increase > 0 ? increase : 0.0;
   }
 
   uint32_t childRef(uint32_t c) const {
@@ -432,9 +453,9 @@ class ClusterMerger {
     node.child[0] = childRef(a);
     node.child[1] = childRef(b);
     node.flags = between == kNone || candidate_[between] ? kNodeJoinsDisjointSurfaces : 0u;
-    node.cost = joining || spatialTop_ ? toKey(cost(merged, stats_[a], stats_[b], a, b))
-                                       : toKey(static_cast<double>(heapKey) / keyScale_);
-    if (spatialTop_) level_ = node.cost = std::max(node.cost, level_);
+    node.cost = joining || inTop_ ? toKey(cost(merged, stats_[a], stats_[b], a, b))
+                                  : toKey(static_cast<double>(heapKey) / keyScale_);
+    if (inTop_ && merged.area >= sliverArea_) level_ = node.cost = std::max(node.cost, level_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
     boxes_[a] = AxisBox::united(boxes_[a], boxes_[b]);
@@ -516,10 +537,10 @@ class ClusterMerger {
     }
   }
 
-  // The spatial top (see the top of the file): every live edge is re-keyed by its union box and
-  // the heap rebuilt; the merges from now on record costs no lower than any before.
-  void enterSpatialTop() {
-    spatialTop_ = true;
+  // The top (see the top of the file): every live edge is re-keyed by the fit it adds and the heap
+  // rebuilt; the merges from now on record costs no lower than any before.
+  void enterTop() {
+    inTop_ = true;
     for (const ClusterMergeNode& node : result_.nodes) level_ = std::max(level_, node.cost);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
@@ -583,9 +604,10 @@ class ClusterMerger {
   std::vector<AxisBox> boxes_;      // per cluster: the box of its faces (clusterBox for a leaf)
   std::vector<uint8_t> candidate_;  // per edge: 1 for a proximity candidate no mesh edge backs
   uint32_t live_ = 0;
-  uint32_t spatial_ = 0;          // live clusters at which the spatial top takes over
-  bool spatialTop_ = false;       // keys are union box areas (times boxScale_)
-  float level_ = 0;               // in the spatial top: the highest node cost so far
+  uint32_t top_ = 0;              // live clusters at which the top takes over
+  bool inTop_ = false;            // keys are increases of the fit (times boxScale_ squared)
+  float level_ = 0;               // in the top: the highest node cost so far
+  double sliverArea_ = 0;         // in the top: unions under this area keep eq. 84's cost
   double boxScale_ = 1.0;         // 1 / diagonalSquared: keys of order 1
   uint32_t components_ = 0;       // of the dual graph when the candidates were added
   bool candidatesAdded_ = false;  // between components, once

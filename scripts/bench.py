@@ -26,7 +26,9 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              every shared mesh): `build MESH -o OUT.fch` with default threads, with --threads 1 and
              with --order exact, and `build --method octree`, interleaved per repetition (whole
              processes: wall, CPU, peak RSS from wait4); phases and rounds from --json; the fit of
-             cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's;
+             cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's; the
+             top's cuts of 12, 100 and 1,000 against eq. 84's order to the root (`--top 0`), and the
+             balance of the cut of 100 (clusters under 1% of the average cluster's area);
              whether --threads 1 and the default give the same bytes; the targets as checks
   python     the Python binding's overhead on dragon_vrip: facetree.build from the arrays read_mesh gives
              (float32, uint32: used in place) against the same library calls from C++ on the same mesh
@@ -116,7 +118,14 @@ FIT_CUTS = [1000, 10_000, 100_000]
 # Coherence of the top: a cut's sum of box surface areas over that of as many Morton runs of the faces
 # (info --fit-cuts), at most these ratios at these cuts, in core and out of core.
 BOX_CUTS = {12: 1.0, 100: 1.0, 1000: 0.5}
-INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS))
+# The top of the tree (the last clusters merged by the least increase of the fit, `--top`): the
+# fit (sum of area x eFit) of its cuts over that of eq. 84's order to the root (`--top 0`), at most
+# these ratios; and the balance of a cut of 100: how many of its clusters hold less than 1% of the
+# average cluster's area (`small_clusters` of info --fit-cuts), at most BALANCE_TARGETS on those meshes.
+TOP_CUTS = {12: 1.10, 100: 1.10, 1000: 1.05}
+BALANCE_CUT = 100
+BALANCE_TARGETS = {"fg_hawaii": 20}
+INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS) | set(TOP_CUTS))
 # The subdivided dragon out of core: (subdivision levels of dragon_vrip, --memory), coherent and with
 # vertices and faces shuffled. The quick run takes the 14M-face one only (about two minutes).
 DRAGON_CASES_QUICK = [(2, "64M")]
@@ -680,6 +689,7 @@ def fit_cuts(args, fch):
     cuts = {int(k): v for k, v in info["fit_cuts"].items()}
     return {"height": info["height"], "balanced_height": info["balanced_height"],
             "cuts": {c: cuts[c] for c in FIT_CUTS},
+            "top_cuts": {c: cuts[c] for c in TOP_CUTS},
             "box_ratio": {c: ratio(cuts[c]["sum_box_area"], cuts[c]["morton_box_area"]) for c in BOX_CUTS}}
 
 
@@ -713,7 +723,7 @@ def bench_rounds(args, meshes, out):
     run([args.facetree, "gen", "assembly", "-n", ASSEMBLY_FACES, "-o", assembly])
     rows = []
     for mesh, path in [(m, mesh_path(m)) for m in meshes] + [(ASSEMBLY_NAME, assembly)]:
-        files = {name: tmp / f"{mesh}.{name}.fch" for name in ("rounds", "one", "exact")}
+        files = {name: tmp / f"{mesh}.{name}.fch" for name in ("rounds", "one", "exact", "eq84")}
         variants = {"rounds": [], "one": ["--threads", "1"], "exact": ["--order", "exact"]}
         runs = {name: [] for name in (*variants, "octree")}
         for _ in range(args.repeat):
@@ -722,9 +732,14 @@ def bench_rounds(args, meshes, out):
             stdout, wall, cpu, rss = run_measured([args.facetree, "build", path, "--method", "octree", "--json"])
             runs["octree"].append({"process_wall_seconds": wall, "process_cpu_seconds": cpu,
                                    "process_peak_rss_bytes": rss, **json.loads(stdout)})
-        infos = {name: fit_cuts(args, files[name]) for name in ("rounds", "exact")}
+        # eq. 84's order to the root, once (its cuts are what the top is measured against).
+        build_job(args, path, files["eq84"], ["--top", "0"])
+        infos = {name: fit_cuts(args, files[name]) for name in ("rounds", "exact", "eq84")}
+        top_fit = {c: ratio(infos["rounds"]["top_cuts"][c]["sum_area_fit"], infos["eq84"]["top_cuts"][c]["sum_area_fit"])
+                   for c in TOP_CUTS}
+        small = {name: infos[name]["top_cuts"][BALANCE_CUT]["small_clusters"] for name in ("rounds", "eq84")}
         fits = {name: {c: v["sum_area_fit"] for c, v in infos[name]["cuts"].items()} for name in infos}
-        box_ratio = {name: infos[name]["box_ratio"] for name in infos}
+        box_ratio = {name: infos[name]["box_ratio"] for name in ("rounds", "exact")}
         same_bytes = files["rounds"].read_bytes() == files["one"].read_bytes()
         for f in files.values():
             f.unlink()
@@ -744,6 +759,7 @@ def bench_rounds(args, meshes, out):
                "fit": fits, "fit_ratio": {c: ratio(fits["rounds"].get(c), fits["exact"].get(c))
                                           for c in FIT_CUTS},
                "box_ratio": box_ratio,
+               "top_fit_ratio": top_fit, "small_clusters": small,
                "same_bytes_threads_1_and_default": same_bytes}
         # Same-run ratios, median of the per-repetition ratios.
         row["ratio_to_exact"] = median(a["process_wall_seconds"] / b["process_wall_seconds"]
@@ -763,6 +779,9 @@ def bench_rounds(args, meshes, out):
         checks["height"] = row["height"] <= 2 * row["balanced_height"]
         checks["fit"] = all(r is None or r <= ROUNDS_FIT_BOUND for r in row["fit_ratio"].values())
         checks["coherence"] = coherent(box_ratio["rounds"]) and coherent(box_ratio["exact"])
+        checks["top_fit"] = all(r is None or r <= TOP_CUTS[c] for c, r in top_fit.items())
+        if mesh in BALANCE_TARGETS:
+            checks["balance"] = small["rounds"] <= BALANCE_TARGETS[mesh]
         checks["same_bytes"] = same_bytes
         row["targets"] = target
         row["checks"] = checks
@@ -771,6 +790,8 @@ def bench_rounds(args, meshes, out):
         fit_text = " ".join(f"{c}:{r:.3f}" for c, r in row["fit_ratio"].items() if r is not None)
         fit_text += "  boxes/Morton " + " ".join(f"{c}:{r:.2f}" for c, r in box_ratio["rounds"].items()
                                                  if r is not None)
+        fit_text += "  top/eq.84 " + " ".join(f"{c}:{r:.2f}" for c, r in top_fit.items() if r is not None)
+        fit_text += f"  small@{BALANCE_CUT} {small['rounds']} (eq.84 {small['eq84']})"
         failed = [k for k, ok in checks.items() if not ok]
         print(f"rounds    {mesh:24s} {row['rounds']['wall_seconds']:6.2f} s (1 thread {row['one']['wall_seconds']:.2f}, "
               f"exact {row['exact']['wall_seconds']:.2f}, octree {row['octree']['wall_seconds']:.2f}; init "

@@ -205,8 +205,8 @@ struct BuildSettings {
   double balanceSlack = BuildOptions{}.balanceSlack;
   double garlandWeights[3] = {1, 1, 1};  // fit, dir, shape
   unsigned branching = 2;
-  unsigned threads = 0;                                  // 0: all cores, at most kMaxJobThreads
-  unsigned spatialTop = BuildOptions{}.spatialClusters;  // 0: eq. 84 to the root
+  unsigned threads = 0;                       // 0: all cores, at most kMaxJobThreads
+  unsigned top = BuildOptions{}.topClusters;  // 0: eq. 84 to the root
 };
 
 // Fills `build` and `file` (file.build too) from `settings`; throws std::invalid_argument, e.g.

@@ -64,7 +64,7 @@ struct FileHeader {
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // of the vertices
   // How boxes are stored (version 2; version 1 files read as Exact): BuildOptions::boxes.
   BoxPrecision boxes = BoxPrecision::Exact;
-  uint32_t spatialClusters = 0;  // BuildOptions::spatialClusters (version 2; 0 in version 1 files)
+  uint32_t topClusters = 0;  // BuildOptions::topClusters (version 2; 0 in version 1 files)
 };
 
 // One node. A child reference is a node index (>= nodes.size() means cut off by truncation) or
@@ -407,6 +407,8 @@ struct CutFit {
   // single face's or a truncation gap's axis-aligned box), and of the axis-aligned boxes of as many runs
   // of equal face count along the Morton order of the face centroids (length^2 both).
   double sumBoxArea = 0, mortonBoxArea = 0;
+  // Balance: the cut's clusters holding less than 1% of the average cluster's area.
+  uint64_t smallClusters = 0;
 };
 // The fit of the cut of `clusters` clusters.
 CutFit cutFit(const ClusterFile& file, uint64_t clusters);

@@ -61,9 +61,9 @@ enum class BoxPrecision : uint8_t {
   Compact,
 };
 
-// Faces per cluster of the spatial top at least (BuildOptions::spatialClusters): a small mesh keeps
-// eq. 84 over all but its last few merges.
-inline constexpr uint64_t kSpatialTopFaces = 64;
+// Faces per cluster of the top at least (BuildOptions::topClusters): a small mesh keeps the merge
+// order of eq. 84 over all but its last few merges.
+inline constexpr uint64_t kTopFaces = 64;
 
 // Options of buildHierarchy and mergeClusters.
 struct BuildOptions {
@@ -88,13 +88,14 @@ struct BuildOptions {
   // them), so that the merges that form the top of the tree come nearer to the greedy's global
   // order; 0: every reciprocal pair in every round.
   uint32_t orderedClusters = 262144;
-  // The last this many clusters (at most one per kSpatialTopFaces faces) merge along their edges
-  // and proximity candidates by the smallest union box (Walter et al. 2008) rather than by eq. 84:
-  // the first nodes of the file, which a truncated file keeps and every cut starts from, then
-  // split space as a ray tracer or a visibility pass needs, even where eq. 84 would join coplanar
-  // surfaces far apart or the mesh is many pieces; every cut of more clusters keeps
-  // eq. 84's. 0: eq. 84 to the root (what a piece of a larger mesh wants). Metric::Constant has none.
-  uint32_t spatialClusters = 1024;
+  // The top: the last this many clusters (at most one per kTopFaces faces) merge along the same
+  // edges and proximity candidates by the least increase of the fit that eq. 84 measures, the sum
+  // of area x eFit over the clusters (Ward's criterion), and the file keeps them first, in reverse
+  // merge order: the first nodes of the file, which a truncated file keeps and every cut starts
+  // from, are then the cuts that fit best step by step, where eq. 84's own order ends in chains
+  // that peel one piece at a time off a cluster spanning the model. 0: eq. 84 to the root (what a
+  // piece of a larger mesh wants). Metric::Constant has none.
+  uint32_t topClusters = 64;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // The box precision the file will have: orientations are rounded to its lattice
   // (latticeOrientation) before the extents are measured along them.

@@ -90,7 +90,7 @@ class BuildOptions(TypedDict, total=False):
     branching: int
     recast: str
     threads: int
-    spatial_top: int
+    top: int
     boxes: str  # "exact" | "compact"
     weld: bool
 

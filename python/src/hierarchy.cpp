@@ -104,7 +104,7 @@ face_order[first:first + count] of its face range; its children partition that r
             d["flat_threshold"] = f.flatThreshold;
             d["memory_cap_bytes"] = f.memoryCapBytes;
             d["boxes"] = boxesName(f.boxes);
-            d["spatial_top"] = f.spatialClusters;
+            d["top"] = f.topClusters;
             d["bounds_min"] = py::make_tuple(f.boundsMin.x, f.boundsMin.y, f.boundsMin.z);
             d["bounds_max"] = py::make_tuple(f.boundsMax.x, f.boundsMax.y, f.boundsMax.z);
             return d;
@@ -241,12 +241,14 @@ face_order[first:first + count] of its face range; its children partition that r
             d["sum_area_fit"] = fit.sumAreaFit;
             d["sum_box_area"] = fit.sumBoxArea;
             d["morton_box_area"] = fit.mortonBoxArea;
+            d["small_clusters"] = fit.smallClusters;
             return d;
           },
           py::arg("clusters"),
           "How well the cut of `clusters` clusters fits the surface: the sums of eFit and area * eFit "
           "(Willmott 2000, eq. 84) over its clusters; lower is better. And how spatially coherent it is: "
-          "the sum of its boxes' surface areas, and that of as many runs of the faces in Morton order.")
+          "the sum of its boxes' surface areas, and that of as many runs of the faces in Morton order. "
+          "And how balanced: small_clusters counts its clusters under 1% of the average cluster's area.")
       .def(
           "truncate",
           [](const PyHierarchy& h, uint64_t nodes) {

@@ -144,9 +144,9 @@ std::string optionsDoc() {
          "    count [" +
          std::to_string(d.threads) +
          "].\n"
-         "  spatial_top: the last clusters (at most one per 64 faces) merge by the smallest union box,\n"
-         "    0 for eq. 84 to the root [" +
-         std::to_string(d.spatialTop) +
+         "  top: the last clusters (at most one per 64 faces) merge by the least increase of the fit,\n"
+         "    0 for eq. 84's order to the root [" +
+         std::to_string(d.top) +
          "].\n"
          "  boxes: \"exact\" (extents exact in the stored frame) or \"compact\" (each box quantised\n"
          "    against its parent's, always containing its faces) [\"" +
@@ -177,7 +177,7 @@ Settings settingsFrom(const py::kwargs& options, const char* function) {
                                                   {"flat_threshold", &named.flatThreshold},
                                                   {"branching", &named.branching},
                                                   {"threads", &named.threads},
-                                                  {"spatial_top", &named.spatialTop},
+                                                  {"top", &named.top},
                                                   {"boxes", &named.boxes},
                                                   {"weld", &weld}};
   for (const auto& [key, value] : options) {

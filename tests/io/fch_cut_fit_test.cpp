@@ -2,6 +2,7 @@
 // cluster file, against the whole mesh, single triangles, planes and a brute-force recount.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <vector>
@@ -96,9 +97,9 @@ TEST(CutFit, EqualsABruteForceRecountOverTheCutsRuns) {
 
 TEST(CutFit, FinerCutsFitBetterDownToZeroForSingleTriangles) {
   const TestMesh mesh = gridMesh(40, 30, 2.0f);
-  // Eq. 84 to the root: the spatial top trades fit for compact boxes (BuildOptions::spatialClusters).
+  // Eq. 84 to the root (BuildOptions::topClusters 0): refining its cuts lowers the fit at every step.
   BuildOptions options;
-  options.spatialClusters = 0;
+  options.topClusters = 0;
   const ClusterFile file =
       makeClusterFile(mesh.view(), {}, buildHierarchy(mesh.view(), options), FileOptions{});
   const uint64_t faces = mesh.faceCount();
@@ -169,6 +170,107 @@ TEST(CutFit, FlatGridFitsExactlyAndGeometryIsRequired) {
   writeClusterFile(path, file);
   EXPECT_THROW(cutFit(readClusterFile(path, /*geometry=*/false), 10), std::invalid_argument);
   EXPECT_EQ(cutFit(readClusterFile(path), 10).clusters, cutFit(file, 10).clusters);
+}
+
+// The balance of a cut: its clusters under 1% of the average cluster's area. Every face of a
+// grid of equal squares holds the same area; three slivers beside it hold a ten-thousandth of one.
+TEST(CutFit, SmallClustersCountsTheClustersUnderOnePercentOfTheAverageArea) {
+  TestMesh mesh = gridMesh(20, 10, 0.0f);
+  const uint32_t grid = mesh.faceCount();
+  for (int i = 0; i < 3; ++i) {
+    const auto base = static_cast<uint32_t>(mesh.positions.size());
+    const glm::vec3 at(30.0f + 2.0f * float(i), 0.0f, 0.0f);
+    mesh.positions.insert(mesh.positions.end(),
+                          {at, at + glm::vec3(0.01f, 0, 0), at + glm::vec3(0, 0.01f, 0)});
+    mesh.add(base, base + 1, base + 2);
+  }
+  const ClusterFile file = fileOf(mesh);
+  EXPECT_EQ(cutFit(file, 1).smallClusters, 0u);
+  const CutFit every = cutFit(file, mesh.faceCount());
+  EXPECT_EQ(every.clusters, grid + 3);
+  EXPECT_EQ(every.smallClusters, 3u);
+}
+
+// A heightfield of ridges and a few pieces without area (degenerate triangles, as scans and
+// terrain tiles carry them) far from it.
+TestMesh ridgesWithSurfacelessPieces(std::vector<uint32_t>& surfaceless) {
+  constexpr int kSide = 96;
+  TestMesh mesh;
+  for (int y = 0; y <= kSide; ++y)
+    for (int x = 0; x <= kSide; ++x)
+      mesh.positions.push_back({float(x), float(y),
+                                6.0f * std::sin(0.11f * float(x)) * std::cos(0.07f * float(y)) +
+                                    2.0f * std::sin(0.37f * float(x + 2 * y))});
+  auto v = [&](int x, int y) { return static_cast<uint32_t>(y * (kSide + 1) + x); };
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) {
+      mesh.add(v(x, y), v(x + 1, y), v(x + 1, y + 1));
+      mesh.add(v(x, y), v(x + 1, y + 1), v(x, y + 1));
+    }
+  for (int i = 0; i < 6; ++i) {
+    const auto base = static_cast<uint32_t>(mesh.positions.size());
+    const glm::vec3 at(-40.0f - 30.0f * float(i % 3), 150.0f * float(i / 3), 20.0f);
+    mesh.positions.insert(mesh.positions.end(), {at, at + glm::vec3(1, 1, 0), at + glm::vec3(2, 2, 0)});
+    surfaceless.push_back(mesh.faceCount());
+    mesh.add(base, base + 1, base + 2);
+  }
+  return mesh;
+}
+
+// The areas of the clusters of the cut of `clusters` (the children of the file's first clusters - 1
+// nodes that are not among them), each a node's or a single face's.
+std::vector<double> cutAreas(const ClusterFile& file, uint64_t clusters) {
+  std::vector<double> areas;
+  for (uint64_t i = 0; i + 1 < clusters && i < file.nodes.size(); ++i) {
+    const FchNode& node = file.nodes[i];
+    for (uint32_t k = 0; k < node.childCount; ++k) {
+      const uint32_t child = node.child[k];
+      if (child & kFaceChild) {
+        const uint32_t* t = &file.indices[3 * size_t{child & ~kFaceChild}];
+        const glm::dvec3 a(file.vertices[t[0]]), b(file.vertices[t[1]]), c(file.vertices[t[2]]);
+        areas.push_back(0.5 * glm::length(glm::cross(b - a, c - a)));
+      } else if (child + 1 >= clusters) {
+        areas.push_back(file.nodes[child].area);
+      }
+    }
+  }
+  return areas;
+}
+
+// The top of the tree (BuildOptions::topClusters): the file's first cuts merge by the least
+// increase of the sum of area x eFit, so that they fit better than eq. 84's own order gives them,
+// are no less balanced, and hold no surfaceless piece.
+TEST(CutFit, TheTopsCoarseCutsFitBetterThanEq84sOrderAndHoldNoSurfacelessCluster) {
+  std::vector<uint32_t> surfaceless;
+  const TestMesh mesh = ridgesWithSurfacelessPieces(surfaceless);
+  for (const MergeOrder order : {MergeOrder::Rounds, MergeOrder::Exact}) {
+    SCOPED_TRACE(int(order));
+    BuildOptions top, eq84;
+    top.order = eq84.order = order;
+    eq84.topClusters = 0;
+    ASSERT_EQ(std::min<uint64_t>(top.topClusters, mesh.faceCount() / kTopFaces), 64u);
+    const ClusterFile withTop =
+        makeClusterFile(mesh.view(), {}, buildHierarchy(mesh.view(), top), FileOptions{});
+    FileOptions eq84File;
+    eq84File.build = eq84;
+    const ClusterFile without = makeClusterFile(mesh.view(), {}, buildHierarchy(mesh.view(), eq84), eq84File);
+    EXPECT_EQ(withTop.header.topClusters, 64u);
+    EXPECT_EQ(without.header.topClusters, 0u);
+    double ratios = 0;
+    for (const uint64_t asked : {4u, 8u, 16u, 32u}) {
+      const CutFit a = cutFit(withTop, asked), b = cutFit(without, asked);
+      EXPECT_LE(a.sumAreaFit, 1.02 * b.sumAreaFit) << asked << " clusters";
+      ratios += a.sumAreaFit / b.sumAreaFit;
+      const std::vector<double> areas = cutAreas(withTop, asked);
+      EXPECT_EQ(areas.size(), a.clusters);
+      EXPECT_GT(*std::min_element(areas.begin(), areas.end()), 0.0) << asked << " clusters";
+      EXPECT_LE(a.smallClusters, b.smallClusters) << asked << " clusters";
+    }
+    EXPECT_LT(ratios / 4, 0.95);
+    // Beyond the top the cuts are eq. 84's.
+    const CutFit a = cutFit(withTop, 1000), b = cutFit(without, 1000);
+    EXPECT_NEAR(a.sumAreaFit, b.sumAreaFit, 0.02 * b.sumAreaFit);
+  }
 }
 
 }  // namespace

@@ -32,8 +32,8 @@ def test_arrays_give_the_cli_bytes(name, cli, shared_data, tmp_path):
     ({"order": "exact"}, ["--order", "exact"]),
     ({"k": 1e-3, "balance_slack": 0}, ["--k", "0.001", "--balance-slack", "0"]),
     ({"weld": True}, ["--weld"]),
-    ({"spatial_top": 0}, ["--spatial-top", "0"]),
-    ({"spatial_top": 64, "order": "exact"}, ["--spatial-top", "64", "--order", "exact"]),
+    ({"top": 0}, ["--top", "0"]),
+    ({"top": 16, "order": "exact"}, ["--top", "16", "--order", "exact"]),
 ])
 def test_options_give_the_cli_bytes(options, flags, cli, shared_data, tmp_path):
     path = shared_data / "gears_cad.ply.zst"
