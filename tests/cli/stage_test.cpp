@@ -94,8 +94,9 @@ std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string
         return ran;
       }
       EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
-      if (kPeakShowsTheCap)
+      if (kPeakShowsTheCap) {
         EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
+      }
       if (single) next = stepsOf(jsonText(result.output, "next"));
     }
   }
@@ -127,7 +128,9 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     ASSERT_EQ(plan.exitCode, 0) << plan.output;
     EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), ranges ? 0u : 3u);
     EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 upper:1");
-    if (kPeakShowsTheCap) EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
+    if (kPeakShowsTheCap) {
+      EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
+    }
     EXPECT_FALSE(fs::exists(staged));
 
     // Before the tasks are done, the finish names the first file missing and writes nothing.
@@ -150,7 +153,9 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
 
     const ChildResult finish = runChild({"stage", "finish", "--work", work.string(), "--json"});
     ASSERT_EQ(finish.exitCode, 0) << finish.output;
-    if (kPeakShowsTheCap) EXPECT_LE(jsonNumber(finish.output, "peak_rss_bytes"), kCap) << "finish";
+    if (kPeakShowsTheCap) {
+      EXPECT_LE(jsonNumber(finish.output, "peak_rss_bytes"), kCap) << "finish";
+    }
     EXPECT_EQ(jsonNumber(finish.output, "file_bytes"), fs::file_size(staged));
     EXPECT_EQ(jsonNumber(finish.output, "triangles"), jsonNumber(whole.output, "triangles"));
     EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
