@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "child_process.h"
+#include "peak_rss.h"
 
 namespace facetree {
 namespace {
@@ -42,13 +43,7 @@ struct Scratch {
 };
 
 constexpr uint64_t kCap = uint64_t{64} << 20;
-// Peak RSS under AddressSanitizer (shadow memory, quarantine) says nothing of the cap: the
-// sanitized build checks every task's exit and bytes, not its peak.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kPeakShowsTheCap = false;
-#else
-constexpr bool kPeakShowsTheCap = true;
-#endif
+using test::kPeakRssShowsTheCap;
 
 // The text after "KEY": " up to the next quote.
 std::string jsonText(const std::string& json, const std::string& key) {
@@ -94,7 +89,7 @@ std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string
         return ran;
       }
       EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
-      if (kPeakShowsTheCap) {
+      if (kPeakRssShowsTheCap) {
         EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
       }
       if (single) next = stepsOf(jsonText(result.output, "next"));
@@ -128,7 +123,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     ASSERT_EQ(plan.exitCode, 0) << plan.output;
     EXPECT_EQ(jsonNumber(plan.output, "cells_tasks"), ranges ? 0u : 3u);
     EXPECT_EQ(jsonText(plan.output, "next"), ranges ? "read:4 count:4 grid:1" : "cells:3 upper:1");
-    if (kPeakShowsTheCap) {
+    if (kPeakRssShowsTheCap) {
       EXPECT_LE(jsonNumber(plan.output, "peak_rss_bytes"), kCap) << "plan";
     }
     EXPECT_FALSE(fs::exists(staged));
@@ -153,7 +148,7 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
 
     const ChildResult finish = runChild({"stage", "finish", "--work", work.string(), "--json"});
     ASSERT_EQ(finish.exitCode, 0) << finish.output;
-    if (kPeakShowsTheCap) {
+    if (kPeakRssShowsTheCap) {
       EXPECT_LE(jsonNumber(finish.output, "peak_rss_bytes"), kCap) << "finish";
     }
     EXPECT_EQ(jsonNumber(finish.output, "file_bytes"), fs::file_size(staged));
