@@ -40,6 +40,13 @@ std::vector<uint64_t> fitCutCounts(const Args& args) {
 
 }  // namespace
 
+ReaderOptions readerOptions(const Args& args) {
+  ReaderOptions options;
+  options.memoryBytes = args.count("memory", 0, true);
+  if (const auto tmp = args.value("tmp")) options.tmp = *tmp;
+  return options;
+}
+
 int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args = parseCommand("truncate", argv);
   if (args.positional().size() != 1) throw UsageError("truncate takes exactly one cluster file");
@@ -84,12 +91,12 @@ int runInfo(const std::vector<std::string>& argv) {
   const std::string& name = args.positional()[0];
   const std::vector<uint64_t> fitCuts = fitCutCounts(args);
   return [&] {
-    const FchLayout layout = readClusterFileLayout(name);
-    ClusterFile file = readClusterFile(name, /*geometry=*/!fitCuts.empty());
-    const std::vector<CutFit> fits = cutFits(file, fitCuts);
-    // branchingStats needs the triangle count only from the indices' size.
-    file.indices.resize(3 * layout.header.triangleCount);
-    const BranchingStats s = branchingStats(file);
+    // The header, the index and one pass over the node frames; the geometry only for the cuts' fits.
+    ClusterFileReader reader(name, readerOptions(args));
+    const FchLayout& layout = reader.layout();
+    const BranchingStats s = branchingStats(reader);
+    std::vector<CutFit> fits;
+    if (!fitCuts.empty()) fits = cutFits(readClusterFile(name), fitCuts);
     const FileHeader& h = layout.header;
     struct SectionBytes {
       uint64_t frames = 0, compressed = 0, raw = 0;

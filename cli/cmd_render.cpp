@@ -1,11 +1,13 @@
 // facetree render / export: a cut through a cluster file as a picture or a coloured mesh.
 #include <cstdio>
+#include <memory>
 #include <sstream>
 
 #include "args.h"
 #include "command_help.h"
 #include "commands.h"
 #include "facetree/io.h"
+#include "fch_commands.h"
 #include "signals.h"
 
 namespace facetree::cli {
@@ -13,11 +15,12 @@ namespace {
 
 constexpr uint64_t kDefaultCut = 64;
 
+// A cut read lazily under --memory: the cluster file's nodes once to find it, its geometry a frame
+// at a time when drawn or written.
 struct CutRequest {
   std::string file;
-  std::vector<uint32_t> faceCluster;
-  uint32_t clusters = 0;
-  ClusterFile clusterFile;
+  std::unique_ptr<ClusterFileReader> reader;
+  std::vector<CutCluster> clusters;
 };
 
 CutRequest readCut(const Args& args, const char* command) {
@@ -26,15 +29,14 @@ CutRequest readCut(const Args& args, const char* command) {
   if (args.value("cut") && args.value("depth")) throw UsageError("give --cut or --depth, not both");
   CutRequest request;
   request.file = args.positional()[0];
-  request.clusterFile = readClusterFile(request.file);
+  request.reader = std::make_unique<ClusterFileReader>(request.file, readerOptions(args));
   if (const auto depth = args.value("depth")) {
-    request.faceCluster = clusterDepthCut(request.clusterFile, static_cast<uint32_t>(args.count("depth", 0)));
+    request.clusters = request.reader->cutByDepth(static_cast<uint32_t>(args.count("depth", 0)));
   } else {
     const uint64_t cut = args.count("cut", kDefaultCut);
     if (cut == 0) throw UsageError("--cut must be at least 1");
-    request.faceCluster = clusterCut(request.clusterFile, cut);
+    request.clusters = request.reader->cut(cut);
   }
-  request.clusters = request.faceCluster.empty() ? 0 : request.faceCluster.back() + 1;
   return request;
 }
 
@@ -63,9 +65,9 @@ int runRender(const std::vector<std::string>& argv, SignalGuard& signals) {
   const double start = nowSeconds();
   prepareOutput(signals, *output);
   const CutRequest cut = readCut(args, "render");
-  renderClustersPng(cut.clusterFile.mesh(), cut.faceCluster, options, *output);
-  std::fprintf(stderr, "rendered %u clusters of %s to %s (%dx%d) in %.2f s\n", cut.clusters, cut.file.c_str(),
-               output->c_str(), options.width, options.height, nowSeconds() - start);
+  renderClustersPng(*cut.reader, cut.clusters, options, *output);
+  std::fprintf(stderr, "rendered %zu clusters of %s to %s (%dx%d) in %.2f s\n", cut.clusters.size(),
+               cut.file.c_str(), output->c_str(), options.width, options.height, nowSeconds() - start);
   return kExitOk;
 }
 
@@ -75,8 +77,9 @@ int runExport(const std::vector<std::string>& argv, SignalGuard& signals) {
   if (!output) throw UsageError("export needs -o OUT.ply");
   prepareOutput(signals, *output);
   const CutRequest cut = readCut(args, "export");
-  writeClusterColouredPly(cut.clusterFile.mesh(), cut.faceCluster, *output);
-  std::fprintf(stderr, "exported %u clusters of %s to %s\n", cut.clusters, cut.file.c_str(), output->c_str());
+  writeClusterColouredPly(*cut.reader, cut.clusters, *output);
+  std::fprintf(stderr, "exported %zu clusters of %s to %s\n", cut.clusters.size(), cut.file.c_str(),
+               output->c_str());
   return kExitOk;
 }
 

@@ -6,9 +6,16 @@
 #include <string>
 #include <vector>
 
+#include "facetree/io.h"
+
 namespace facetree::cli {
 
+class Args;
 class SignalGuard;
+
+// The reader of a cluster file command: --memory (default the cap the file was built under, else
+// the build's default) and --tmp.
+ReaderOptions readerOptions(const Args& args);
 
 // truncate IN.fch -o OUT.fch (--nodes N | --max-bytes B)
 int runTruncate(const std::vector<std::string>& args, SignalGuard& signals);

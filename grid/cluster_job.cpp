@@ -16,12 +16,6 @@ namespace {
 
 constexpr size_t kBatchTriangles = 4096;
 
-uint64_t defaultMemoryCap() {
-  const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || pageSize <= 0) return uint64_t{4} << 30;
-  return static_cast<uint64_t>(pages) * static_cast<uint64_t>(pageSize) / 2;
-}
-
 }  // namespace
 
 void JobReport::recordInCoreBuild(const Hierarchy& hierarchy, const BranchingStats& file) {

@@ -37,46 +37,73 @@ ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up) {
   return basis;
 }
 
-std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
-                                     const ViewBasis& basis, int width, int height) {
-  // Centre on the bounding box in double so meshes far from the origin keep their precision.
-  glm::dvec3 low(std::numeric_limits<double>::infinity()), high(-std::numeric_limits<double>::infinity());
+SampleSpace::SampleSpace(const ViewBasis& basis, int width, int height)
+    : basis_(basis),
+      width_(width),
+      height_(height),
+      low_(std::numeric_limits<double>::infinity()),
+      high_(-std::numeric_limits<double>::infinity()),
+      lowView_(std::numeric_limits<float>::infinity()),
+      highView_(-std::numeric_limits<float>::infinity()) {}
+
+// Centred on the bounding box in double, so that meshes far from the origin keep their precision.
+void SampleSpace::addBounds(std::span<const glm::vec3> positions) {
   for (const glm::vec3& p : positions) {
     if (!isFinite(p)) continue;
-    low = glm::min(low, glm::dvec3(p));
-    high = glm::max(high, glm::dvec3(p));
+    low_ = glm::min(low_, glm::dvec3(p));
+    high_ = glm::max(high_, glm::dvec3(p));
   }
-  const glm::dvec3 centre = low.x <= high.x ? (low + high) * 0.5 : glm::dvec3(0.0);
-  const glm::dvec3 right(basis.right), up(basis.up), forward(basis.forward);
+}
 
-  std::vector<glm::vec3> view(positions.size());
-  for (size_t i = 0; i < positions.size(); ++i) {
-    const glm::dvec3 d = glm::dvec3(positions[i]) - centre;
-    view[i] = glm::vec3(glm::dot(d, right), glm::dot(d, up), glm::dot(d, forward));
-  }
+glm::vec3 SampleSpace::view(const glm::vec3& p) const {
+  const glm::dvec3 d = glm::dvec3(p) - centre_;
+  return glm::vec3(glm::dot(d, glm::dvec3(basis_.right)), glm::dot(d, glm::dvec3(basis_.up)),
+                   glm::dot(d, glm::dvec3(basis_.forward)));
+}
 
-  // Extent of the referenced vertices on the screen plane.
-  glm::vec2 lowView(std::numeric_limits<float>::infinity()),
-      highView(-std::numeric_limits<float>::infinity());
-  for (uint32_t index : indices) {
-    const glm::vec3& v = view[index];
+// The extent of the positions on the screen plane.
+void SampleSpace::addExtent(std::span<const glm::vec3> positions) {
+  if (!centred_) centre_ = low_.x <= high_.x ? (low_ + high_) * 0.5 : glm::dvec3(0.0), centred_ = true;
+  for (const glm::vec3& p : positions) {
+    const glm::vec3 v = view(p);
     if (!isFinite(v)) continue;
-    lowView = glm::min(lowView, glm::vec2(v));
-    highView = glm::max(highView, glm::vec2(v));
+    lowView_ = glm::min(lowView_, glm::vec2(v));
+    highView_ = glm::max(highView_, glm::vec2(v));
   }
-  if (!(lowView.x <= highView.x)) lowView = highView = glm::vec2(0.0f);
-  const glm::vec2 extent = highView - lowView;
-  const float usableWidth = static_cast<float>(width) * (1.0f - 2.0f * kMarginFraction);
-  const float usableHeight = static_cast<float>(height) * (1.0f - 2.0f * kMarginFraction);
-  float scale = std::min(extent.x > 0.0f ? usableWidth / extent.x : std::numeric_limits<float>::infinity(),
-                         extent.y > 0.0f ? usableHeight / extent.y : std::numeric_limits<float>::infinity());
-  if (!std::isfinite(scale)) scale = 1.0f;  // a single point or nothing: any scale will do
-  const glm::vec2 mid = (lowView + highView) * 0.5f;
-  const glm::vec2 imageCentre(static_cast<float>(width) * 0.5f, static_cast<float>(height) * 0.5f);
+}
 
-  for (glm::vec3& v : view) {
-    v = glm::vec3(imageCentre.x + (v.x - mid.x) * scale, imageCentre.y - (v.y - mid.y) * scale, v.z * scale);
+glm::vec3 SampleSpace::map(const glm::vec3& p) {
+  if (!fitted_) {
+    if (!centred_) addExtent({});
+    if (!(lowView_.x <= highView_.x)) lowView_ = highView_ = glm::vec2(0.0f);
+    const glm::vec2 extent = highView_ - lowView_;
+    const float usableWidth = static_cast<float>(width_) * (1.0f - 2.0f * kMarginFraction);
+    const float usableHeight = static_cast<float>(height_) * (1.0f - 2.0f * kMarginFraction);
+    scale_ = std::min(extent.x > 0.0f ? usableWidth / extent.x : std::numeric_limits<float>::infinity(),
+                      extent.y > 0.0f ? usableHeight / extent.y : std::numeric_limits<float>::infinity());
+    if (!std::isfinite(scale_)) scale_ = 1.0f;  // a single point or nothing: any scale will do
+    mid_ = (lowView_ + highView_) * 0.5f;
+    imageCentre_ = glm::vec2(static_cast<float>(width_) * 0.5f, static_cast<float>(height_) * 0.5f);
+    fitted_ = true;
   }
+  const glm::vec3 v = view(p);
+  return glm::vec3(imageCentre_.x + (v.x - mid_.x) * scale_, imageCentre_.y - (v.y - mid_.y) * scale_,
+                   v.z * scale_);
+}
+
+std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
+                                     const ViewBasis& basis, int width, int height) {
+  SampleSpace space(basis, width, height);
+  space.addBounds(positions);
+  // Extent of the referenced vertices only.
+  std::vector<uint8_t> referenced(positions.size(), 0);
+  for (const uint32_t index : indices) referenced[index] = 1;
+  std::vector<glm::vec3> used;
+  for (size_t i = 0; i < positions.size(); ++i)
+    if (referenced[i]) used.push_back(positions[i]);
+  space.addExtent(used);
+  std::vector<glm::vec3> view(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) view[i] = space.map(positions[i]);
   return view;
 }
 

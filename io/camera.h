@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include <glm/ext/vector_double3.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
@@ -33,5 +34,26 @@ ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up);
 // positions fill the image but for a margin, centred; non-finite positions stay non-finite.
 std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
                                      const ViewBasis& basis, int width, int height);
+
+// The same map fitted in passes over positions that arrive in pieces (a file read frame by frame):
+// addBounds over every position (the centre), then addExtent over the referenced ones (the scale),
+// then map; toSampleSpace is the one-piece case, to the bit.
+class SampleSpace {
+ public:
+  SampleSpace(const ViewBasis& basis, int width, int height);
+  void addBounds(std::span<const glm::vec3> positions);
+  void addExtent(std::span<const glm::vec3> positions);
+  // Sample-space position of `p`; the first call ends the fitting.
+  glm::vec3 map(const glm::vec3& p);
+
+ private:
+  glm::vec3 view(const glm::vec3& p) const;
+  ViewBasis basis_;
+  int width_, height_;
+  glm::dvec3 low_, high_, centre_{0.0};
+  glm::vec2 lowView_, highView_, mid_{0.0f}, imageCentre_{0.0f};
+  float scale_ = 1.0f;
+  bool fitted_ = false, centred_ = false;
+};
 
 }  // namespace facetree

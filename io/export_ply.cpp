@@ -66,4 +66,42 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
   out.commit();
 }
 
+void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutCluster> cut,
+                             const std::filesystem::path& path, bool clusterIds) {
+  const FileHeader& header = reader.header();
+  if (header.vertexCount > static_cast<uint64_t>(std::numeric_limits<int32_t>::max()))
+    throw std::invalid_argument("writeClusterColouredPly: " + std::to_string(header.vertexCount) +
+                                " vertices do not fit PLY int indices");
+  OutputFile out(path);
+  out.write("ply\nformat binary_little_endian 1.0\ncomment facetree clusters\nelement vertex " +
+            std::to_string(header.vertexCount) +
+            "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+            std::to_string(header.triangleCount) +
+            "\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\n"
+            "property uchar blue\n" +
+            (clusterIds ? "property uint cluster\n" : "") + "end_header\n");
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> positions) {
+    out.write(positions.data(), positions.size() * kVertexBytes);
+  });
+  const size_t faceBytes = kFaceBytes + (clusterIds ? 4 : 0);
+  std::vector<unsigned char> batch;
+  reader.forEachCutPiece(cut, [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
+    batch.resize(clusterOf.size() * faceBytes);
+    for (size_t t = 0; t < clusterOf.size(); ++t) {
+      unsigned char* record = &batch[t * faceBytes];
+      record[0] = 3;
+      int32_t index[3];
+      for (int c = 0; c < 3; ++c) index[c] = static_cast<int32_t>(piece.vertexIds[piece.indices[3 * t + c]]);
+      std::memcpy(record + 1, index, sizeof index);
+      const glm::u8vec3 colour = clusterColour(clusterOf[t]);
+      record[13] = colour.r;
+      record[14] = colour.g;
+      record[15] = colour.b;
+      if (clusterIds) std::memcpy(record + 16, &clusterOf[t], 4);
+    }
+    out.write(batch.data(), batch.size());
+  });
+  out.commit();
+}
+
 }  // namespace facetree

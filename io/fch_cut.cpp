@@ -9,18 +9,28 @@ namespace {
 
 // Calls visit(first, end, ref) with the face range [first, end) of each child of `node` that has a
 // record, in order: a face child is one position, a node child its range. Children cut off by
-// truncation have none and are skipped; the ranges of the others partition the node's in order,
-// with gaps where skipped children lie.
+// truncation have none and are skipped, unless `cutOff` and their parent gives their face count
+// (version 2 records do); the ranges visited partition the node's in order, with gaps where
+// skipped children lie.
 template <class Visit>
-void forEachChildRange(const ClusterFile& file, const FchNode& node, Visit&& visit) {
+void forEachChildRange(const ClusterFile& file, const FchNode& node, Visit&& visit, bool cutOff = false) {
+  uint64_t cursor = node.first;
+  bool known = true;  // cursor is the start of child c
   for (unsigned c = 0; c < node.childCount; ++c) {
     const uint32_t ref = node.child[c];
     if (ref & kFaceChild) {
       const uint64_t position = ref & ~kFaceChild;
       visit(position, position + 1, ref);
+      cursor = position + 1, known = true;
     } else if (ref < file.nodes.size()) {
       const FchNode& child = file.nodes[ref];
       visit(uint64_t{child.first}, uint64_t{child.first} + child.count, ref);
+      cursor = uint64_t{child.first} + child.count, known = true;
+    } else if (known && node.childFaces[c] > 0) {
+      if (cutOff) visit(cursor, cursor + node.childFaces[c], ref);
+      cursor += node.childFaces[c];
+    } else {
+      known = false;
     }
   }
 }
@@ -57,8 +67,9 @@ namespace {
 // The clusters of a cut are the frontier of the kept nodes (a prefix of the file, or the nodes
 // above a depth): every child of a kept node that is not kept itself, a face or a subtree. Each
 // is one contiguous run of the face order; they are numbered 0, 1, ... along it. Children cut
-// off by truncation have no record: the gaps they leave between known children are one cluster
-// each (exact for binary files, where a gap is one child).
+// off by truncation have no record: their parent's face counts place each of them (version 2);
+// where those are unknown (version 1), the gaps they leave between known children are one
+// cluster each.
 std::vector<uint32_t> frontierClusters(const ClusterFile& file, const std::vector<uint8_t>& kept) {
   const size_t faces = file.indices.size() / 3;
   if (file.nodes.empty() || !kept[0]) return std::vector<uint32_t>(faces, 0);
@@ -70,11 +81,14 @@ std::vector<uint32_t> frontierClusters(const ClusterFile& file, const std::vecto
     if (!kept[j]) continue;
     const FchNode& node = file.nodes[j];
     uint64_t cursor = node.first;
-    forEachChildRange(file, node, [&](uint64_t first, uint64_t end, uint32_t) {
-      if (first > cursor) mark(cursor);  // a gap left by cut-off children
-      mark(first);
-      cursor = end;
-    });
+    forEachChildRange(
+        file, node,
+        [&](uint64_t first, uint64_t end, uint32_t) {
+          if (first > cursor) mark(cursor);  // a gap left by cut-off children of unknown size
+          mark(first);
+          cursor = end;
+        },
+        /*cutOff=*/true);
     if (cursor < rangeEnd(node)) mark(cursor);
     // The end of a node is the start of whatever follows it.
     mark(rangeEnd(node));

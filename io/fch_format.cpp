@@ -2,6 +2,8 @@
 // (docs/FORMAT.md). Shared by fch_writer.cpp, fch_reader.cpp and fch_truncate.cpp.
 #include "fch_format.h"
 
+#include <unistd.h>
+
 #define ZSTD_STATIC_LINKING_ONLY  // ZSTD_estimateCCtxSize_usingCParams, for the memory bound
 #include <xxhash.h>
 #include <zstd.h>
@@ -282,12 +284,24 @@ void SourceFile::fail(const std::string& reason) const {
 }
 
 std::string SourceFile::readAt(uint64_t offset, uint64_t bytes) const {
-  if (offset + bytes > size_) fail("truncated at byte " + std::to_string(size_));
-  std::string out(bytes, '\0');
-  if (::fseeko(file_.get(), static_cast<off_t>(offset), SEEK_SET) != 0 ||
-      std::fread(out.data(), 1, bytes, file_.get()) != bytes)
-    fail("read error at byte " + std::to_string(offset) + ": " + std::strerror(errno));
+  std::string out;
+  readAt(offset, bytes, out);
   return out;
+}
+
+void SourceFile::readAt(uint64_t offset, uint64_t bytes, std::string& out) const {
+  if (offset + bytes > size_) fail("truncated at byte " + std::to_string(size_));
+  out.resize(bytes);
+  // pread: no shared file position, so that a reader's threads read frames side by side.
+  const int fd = ::fileno(file_.get());
+  for (uint64_t done = 0; done < bytes;) {
+    const ssize_t got = ::pread(fd, out.data() + done, bytes - done, static_cast<off_t>(offset + done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0)
+      fail("read error at byte " + std::to_string(offset + done) + ": " +
+           std::strerror(got < 0 ? errno : EIO));
+    done += static_cast<uint64_t>(got);
+  }
 }
 
 void SourceFile::readLayout() {
@@ -438,28 +452,39 @@ std::string SourceFile::where(size_t i) const {
 }
 
 std::string SourceFile::compressedFrame(size_t i) const {
-  const FchFrame& f = layout_.frames[i];
-  std::string bytes = readAt(f.offset, f.compressedBytes);
-  if (xxh64(bytes.data(), bytes.size()) != f.checksum) fail(where(i) + ": checksum mismatch");
+  std::string bytes;
+  compressedFrame(i, bytes);
   return bytes;
 }
 
-std::string SourceFile::rawFrame(size_t i) const {
+void SourceFile::compressedFrame(size_t i, std::string& bytes) const {
   const FchFrame& f = layout_.frames[i];
-  const std::string compressed = compressedFrame(i);
-  if (ZSTD_getFrameContentSize(compressed.data(), compressed.size()) != f.rawBytes)
-    fail(where(i) + ": zstd frame size disagrees with the index");
-  std::string raw(f.rawBytes, '\0');
-  const size_t got = ZSTD_decompress(raw.data(), raw.size(), compressed.data(), compressed.size());
-  if (ZSTD_isError(got)) fail(where(i) + ": corrupt zstd data (" + ZSTD_getErrorName(got) + ")");
-  if (got != f.rawBytes) fail(where(i) + ": decompressed size disagrees with the index");
+  readAt(f.offset, f.compressedBytes, bytes);
+  if (xxh64(bytes.data(), bytes.size()) != f.checksum) fail(where(i) + ": checksum mismatch");
+}
+
+std::string SourceFile::rawFrame(size_t i) const {
+  std::string raw, compressed;
+  rawFrame(i, raw, compressed);
   return raw;
 }
 
-void SourceFile::decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out) const {
+void SourceFile::rawFrame(size_t i, std::string& raw, std::string& compressed) const {
+  const FchFrame& f = layout_.frames[i];
+  compressedFrame(i, compressed);
+  if (ZSTD_getFrameContentSize(compressed.data(), compressed.size()) != f.rawBytes)
+    fail(where(i) + ": zstd frame size disagrees with the index");
+  raw.resize(f.rawBytes);
+  const size_t got = ZSTD_decompress(raw.data(), raw.size(), compressed.data(), compressed.size());
+  if (ZSTD_isError(got)) fail(where(i) + ": corrupt zstd data (" + ZSTD_getErrorName(got) + ")");
+  if (got != f.rawBytes) fail(where(i) + ": decompressed size disagrees with the index");
+}
+
+void SourceFile::decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out,
+                                 bool structure) const {
   const FchFrame& f = layout_.frames[i];
   const std::string error =
-      decodeNodeFrame(raw, f.count, layout_.header.boxes, layout_.header.branching, out);
+      decodeNodeFrame(raw, f.count, layout_.header.boxes, layout_.header.branching, out, structure);
   if (!error.empty()) fail(where(i) + ": " + error);
 }
 
@@ -468,7 +493,8 @@ void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNo
   if (layout_.header.version == 1) return decodeNodesV1(i, raw, out);
   if (out.size() != f.first)
     throw std::logic_error("SourceFile::decodeNodes: node frames are decoded in order into one array");
-  if (f.first == 0) decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.rootBox);
+  if (f.first == 0)
+    decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.rootBox, layout_.nodesPerFrame);
   std::vector<NodeCode> codes;
   codes.reserve(f.count);
   decodeNodeCodes(i, raw, codes);

@@ -99,13 +99,18 @@ class SourceFile {
   const std::string& name() const { return name_; }
   // The compressed bytes of frame `i`, checksum checked.
   std::string compressedFrame(size_t i) const;
+  void compressedFrame(size_t i, std::string& out) const;  // into `out`, whose capacity is reused
   // The decompressed payload of frame `i`, checksum and size checked.
   std::string rawFrame(size_t i) const;
+  // The same into `raw`, with `compressed` as the read buffer; both keep their capacity.
+  void rawFrame(size_t i, std::string& raw, std::string& compressed) const;
   // Decodes node frame `i` (payload `raw`) and appends its nodes to `out`, which holds every
   // earlier node (version 2 derives face ranges and compact boxes from the parents).
   void decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
   // Version 2: the frame's records as stored (truncation re-encodes them unchanged).
-  void decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out) const;
+  // `structure`: S, side areas, orientations and boxes not decoded (decodeNodeFrame).
+  void decodeNodeCodes(size_t i, const std::string& raw, std::vector<NodeCode>& out,
+                       bool structure = false) const;
   void decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const;
   void decodeTriangles(size_t i, const std::string& raw, std::vector<uint32_t>& out) const;
   void decodeIds(size_t i, const std::string& raw, std::vector<uint64_t>& out) const;
@@ -115,6 +120,7 @@ class SourceFile {
 
  private:
   std::string readAt(uint64_t offset, uint64_t bytes) const;
+  void readAt(uint64_t offset, uint64_t bytes, std::string& out) const;
   void decodeNodesV1(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
   void readLayout();
   std::string name_;

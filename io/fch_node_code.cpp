@@ -318,7 +318,7 @@ void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision, st
 }
 
 std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precision, unsigned branching,
-                            std::vector<NodeCode>& out) {
+                            std::vector<NodeCode>& out, bool structure) {
   const uint32_t fixed = nodeFixedBytes(precision);
   if (raw.size() < uint64_t{fixed} * n) return "payload smaller than its nodes' fixed fields";
   const auto* p = reinterpret_cast<const uint8_t*>(raw.data());
@@ -347,6 +347,13 @@ std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precisi
     col.next(n, width);
     for (size_t i = 0; i < n; ++i) set(codes[i], col.at(i));
   };
+  // S, side areas and boxes: passed over when only the tree is asked for.
+  const auto boxColumn = [&](unsigned width, auto set) {
+    if (structure)
+      col.next(n, width);
+    else
+      column(width, set);
+  };
   const auto f32 = [](uint64_t v) { return std::bit_cast<float>(static_cast<uint32_t>(v)); };
   column(1, [](NodeCode& c, uint64_t v) { c.shape = static_cast<uint8_t>(v); });
   column(1, [](NodeCode& c, uint64_t v) { c.faceMask = static_cast<uint8_t>(v); });
@@ -355,22 +362,23 @@ std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precisi
   column(4, [&](NodeCode& c, uint64_t v) { c.area = f32(v); });
   column(4, [&](NodeCode& c, uint64_t v) { c.perimeter = f32(v); });
   for (int a = 0; a < 3; ++a)
-    column(2, [a](NodeCode& c, uint64_t v) { c.sumNormal[a] = static_cast<uint16_t>(v); });
+    boxColumn(2, [a](NodeCode& c, uint64_t v) { c.sumNormal[a] = static_cast<uint16_t>(v); });
   for (int a = 0; a < 3; ++a)
-    column(2, [a](NodeCode& c, uint64_t v) { c.sideSum[a] = static_cast<uint16_t>(v); });
+    boxColumn(2, [a](NodeCode& c, uint64_t v) { c.sideSum[a] = static_cast<uint16_t>(v); });
   const unsigned orientationWidth = precision == BoxPrecision::Compact ? 1 : 2;
   for (int k = 0; k < 3; ++k)
-    column(orientationWidth, [k](NodeCode& c, uint64_t v) { c.orientation[k] = static_cast<uint16_t>(v); });
+    boxColumn(orientationWidth,
+              [k](NodeCode& c, uint64_t v) { c.orientation[k] = static_cast<uint16_t>(v); });
   if (precision == BoxPrecision::Compact) {
     for (int a = 0; a < 3; ++a)
-      column(1, [a](NodeCode& c, uint64_t v) { c.lo[a] = static_cast<uint8_t>(v); });
+      boxColumn(1, [a](NodeCode& c, uint64_t v) { c.lo[a] = static_cast<uint8_t>(v); });
     for (int a = 0; a < 3; ++a)
-      column(1, [a](NodeCode& c, uint64_t v) { c.hi[a] = static_cast<uint8_t>(v); });
+      boxColumn(1, [a](NodeCode& c, uint64_t v) { c.hi[a] = static_cast<uint8_t>(v); });
   } else {
-    column(1, [](NodeCode& c, uint64_t v) { c.scale = static_cast<uint8_t>(v); });
-    for (int a = 0; a < 3; ++a) column(4, [&, a](NodeCode& c, uint64_t v) { c.center[a] = f32(v); });
+    boxColumn(1, [](NodeCode& c, uint64_t v) { c.scale = static_cast<uint8_t>(v); });
+    for (int a = 0; a < 3; ++a) boxColumn(4, [&, a](NodeCode& c, uint64_t v) { c.center[a] = f32(v); });
     for (int a = 0; a < 3; ++a)
-      column(3, [a](NodeCode& c, uint64_t v) { c.half[a] = static_cast<uint32_t>(v); });
+      boxColumn(3, [a](NodeCode& c, uint64_t v) { c.half[a] = static_cast<uint32_t>(v); });
   }
   col.next(refs);
   size_t r = 0;
@@ -421,7 +429,7 @@ std::string decodeExactBox(const NodeCode& code, NodeBox& box) {
 // extents when `exactBox` (else left for the caller); orientation on a lattice of `bits`. Returns
 // an empty string, or why the record is invalid.
 std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, uint32_t count, unsigned bits,
-                         bool exactBox, FchNode& node) {
+                         bool exactBox, bool structure, FchNode& node) {
   node = FchNode{};
   node.first = first;
   node.count = count;
@@ -466,6 +474,7 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
   node.cost = code.cost;
   node.area = code.area;
   node.perimeter = code.perimeter;
+  if (structure) return {};
   NodeBox& box = node.box;
   if (std::string error = decodeOrientationOf(code, bits, box.orientation); !error.empty()) return error;
   glm::dvec3 axis[3];
@@ -508,38 +517,37 @@ std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* pare
   return {};
 }
 
-NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox)
-    : header_(header), rootBox_(rootBox) {}
+NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox, uint32_t nodesPerFrame,
+                         uint64_t budget, const std::filesystem::path& tmp)
+    : header_(header),
+      rootBox_(rootBox),
+      nodesPerFrame_(nodesPerFrame),
+      frontier_(nodesPerFrame, budget, tmp) {}
 
-std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
-  const uint64_t index = out.size();
-  Range range{0, 0, static_cast<uint32_t>(header_.triangleCount)};
-  if (index > 0) {
-    const auto it = pending_.find(static_cast<uint32_t>(index));
-    if (it == pending_.end()) return "no earlier node refers to it";
-    range = it->second;
-    pending_.erase(it);
+std::string NodeDecoder::decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth,
+                                const std::vector<FchNode>* earlier) {
+  if (index != next_) return "decoded out of order";
+  ++next_;
+  const uint64_t frame = index / nodesPerFrame_;
+  if (index % nodesPerFrame_ == 0 || frame != frame_) {
+    frame_ = frame;
+    const uint64_t frameFirst = frame * nodesPerFrame_;
+    slots_ = &frontier_.take(
+        frame, static_cast<uint32_t>(std::min<uint64_t>(nodesPerFrame_, header_.nodeCount - frameFirst)));
   }
-  const bool compact = header_.boxes == BoxPrecision::Compact;
-  FchNode node;
-  if (std::string error =
-          decodeRecord(code, index, range.first, range.count, orientationBits(header_.boxes), !compact, node);
+  PendingChild range{0, static_cast<uint32_t>(header_.triangleCount), 1, 0, 0};
+  if (index > 0) {
+    const PendingChild& slot = (*slots_)[index % nodesPerFrame_];
+    if (slot.depth == 0) return "no earlier node refers to it";
+    if (slot.depth == kAnnouncedTwice) return "child " + std::to_string(index) + " of two nodes";
+    range = slot;
+  }
+  depth = range.depth;
+  const bool compact = header_.boxes == BoxPrecision::Compact && !structure_;
+  if (std::string error = decodeRecord(code, index, range.first, range.count, orientationBits(header_.boxes),
+                                       !compact, structure_, node);
       !error.empty())
     return error;
-  // The node children this record announces, with their face ranges.
-  uint32_t cursor = node.first;
-  for (unsigned c = 0; c < node.childCount; ++c) {
-    const uint32_t child = node.child[c];
-    if (!(child & kFaceChild)) {
-      if (child < header_.nodeCount) {
-        if (!pending_.emplace(child, Range{static_cast<uint32_t>(index), cursor, node.childFaces[c]}).second)
-          return "child " + std::to_string(child) + " of two nodes";
-      } else {
-        node.flags |= kFchTruncated;
-      }
-    }
-    cursor += node.childFaces[c];
-  }
   if (compact) {
     NodeBox& box = node.box;
     for (int a = 0; a < 3; ++a)
@@ -548,11 +556,46 @@ std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out)
       box.center = rootBox_.center;
       box.halfExtent = rootBox_.halfExtent;
     } else {
-      compactBox(out[range.parent].box, box.orientation, code.lo, code.hi, box);
+      if (earlier) {
+        compactBox((*earlier)[range.parent].box, box.orientation, code.lo, code.hi, box);
+      } else {
+        const auto parent = parentBoxes_.find(range.parent);
+        if (parent == parentBoxes_.end()) return "no earlier node refers to it";
+        compactBox(parent->second.box, box.orientation, code.lo, code.hi, box);
+        if (--parent->second.waiting == 0) parentBoxes_.erase(parent);
+      }
     }
   }
-  out.push_back(node);
+  // The node children this record announces, with their face ranges.
+  uint32_t cursor = node.first, announced = 0;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t child = node.child[c];
+    if (!(child & kFaceChild)) {
+      if (child < header_.nodeCount) {
+        frontier_.announce(
+            child, PendingChild{cursor, node.childFaces[c], depth + 1, static_cast<uint32_t>(index), 0});
+        ++announced;
+      } else {
+        node.flags |= kFchTruncated;
+      }
+    }
+    cursor += node.childFaces[c];
+  }
+  if (compact && !earlier && announced > 0)
+    parentBoxes_[static_cast<uint32_t>(index)] = {node.box, announced};
   return {};
+}
+
+std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
+  FchNode node;
+  uint32_t depth = 0;
+  std::string error = decode(code, out.size(), node, depth, &out);
+  if (error.empty()) out.push_back(node);
+  return error;
+}
+
+uint64_t NodeDecoder::heldBytes() const {
+  return frontier_.heldBytes() + parentBoxes_.size() * (sizeof(ParentBox) + 32);
 }
 
 }  // namespace facetree::fch

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <span>
 #include <string>
 #include <string_view>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "facetree/io.h"
+#include "node_frontier.h"
 
 namespace facetree::fch {
 
@@ -65,13 +67,14 @@ NodeCode quantizeNode(const FchNode& node, uint64_t index, BoxPrecision precisio
                       NodeBox* decoded);
 
 // Columns of a frame of codes, and back: decodeNodeFrame appends the frame's `n` codes to `out`
+// (`structure`: their S, side areas, orientations and boxes left zero)
 // and returns an empty string, or why the payload is invalid (its size is checked against the
 // child counts before anything is read).
 std::string encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision);
 void encodeNodeFrame(std::span<const NodeCode> codes, BoxPrecision precision,
                      std::string& out);  // into `out`
 std::string decodeNodeFrame(std::string_view raw, size_t n, BoxPrecision precision, unsigned branching,
-                            std::vector<NodeCode>& out);
+                            std::vector<NodeCode>& out, bool structure = false);
 
 // A spilled node run's record (encodeNodeRun): quantizeNode's fields with the orientation on
 // `precision`'s lattice and the box always as exact boxes store it, whatever `precision` is.
@@ -86,22 +89,43 @@ std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* pare
 // std::logic_error when the box does not fit its parent's.
 NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code);
 
-// Turns codes back into nodes in file order: face ranges follow from the parents' records
-// (the root covers every triangle), compact boxes from the parents' boxes.
+// Turns codes back into nodes in file order: face ranges and depths follow from the parents'
+// records (the root covers every triangle), compact boxes from the parents' boxes. What it holds
+// is the cut of the children announced and not yet decoded (NodeFrontier) and, for compact boxes,
+// the boxes of their parents.
 class NodeDecoder {
  public:
-  NodeDecoder(const FileHeader& header, const NodeBox& rootBox);
-  // Appends node `index` (= out.size(); every earlier node already in `out`). Returns an empty
-  // string, or why the record is invalid.
+  // `budget`, `tmp`: the announced children's share of memory, and where the rest goes (NodeFrontier).
+  NodeDecoder(const FileHeader& header, const NodeBox& rootBox, uint32_t nodesPerFrame, uint64_t budget = 0,
+              const std::filesystem::path& tmp = {});
+  // Decodes node `index` (0, 1, 2, ... in turn) into `node`, and its depth (the root's is 1).
+  // Returns an empty string, or why the record is invalid. Compact boxes take the parent's box
+  // from `earlier` (every node before `index`) when given, else from the boxes of the parents
+  // whose children are still to come, which the decoder keeps.
+  std::string decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth,
+                     const std::vector<FchNode>* earlier = nullptr);
+  // The same, appending node out.size() to `out`, which holds every earlier node.
   std::string decode(const NodeCode& code, std::vector<FchNode>& out);
+  // Bytes held for the children announced and not yet decoded, and written to the temporary file.
+  uint64_t heldBytes() const;
+  uint64_t spilledBytes() const { return frontier_.spilledBytes(); }
+  // From now on, records as NodeFields::Structure gives them: S and the box left zero.
+  void structureOnly() { structure_ = true; }
+  bool structure() const { return structure_; }
 
  private:
-  struct Range {
-    uint32_t parent, first, count;
+  struct ParentBox {
+    NodeBox box;
+    uint32_t waiting = 0;  // node children not yet decoded
   };
   const FileHeader& header_;
   NodeBox rootBox_;
-  std::unordered_map<uint32_t, Range> pending_;  // node children announced by their parents
+  uint32_t nodesPerFrame_;
+  NodeFrontier frontier_;
+  const std::vector<PendingChild>* slots_ = nullptr;  // the current frame's announced children
+  uint64_t next_ = 0, frame_ = ~uint64_t{0};
+  bool structure_ = false;
+  std::unordered_map<uint32_t, ParentBox> parentBoxes_;  // compact boxes only
 };
 
 }  // namespace facetree::fch

@@ -145,4 +145,29 @@ void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceClust
   out.commit();
 }
 
+void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cut,
+                       const RenderOptions& options, const std::filesystem::path& path) {
+  checkOptions(options);
+  const int sampleWidth = options.width * kSupersample, sampleHeight = options.height * kSupersample;
+  // Two passes over the vertices fit the camera as toSampleSpace does; the triangles then come a
+  // frame at a time with their own vertices.
+  SampleSpace space(makeViewBasis(options.viewDirection, options.up), sampleWidth, sampleHeight);
+  reader.forEachVertexFrame(
+      [&](uint64_t, std::span<const glm::vec3> positions) { space.addBounds(positions); });
+  reader.forEachVertexFrame(
+      [&](uint64_t, std::span<const glm::vec3> positions) { space.addExtent(positions); });
+  SampleBuffer buffer(sampleWidth, sampleHeight);
+  std::vector<glm::vec3> points;
+  reader.forEachCutPiece(cut, [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
+    points.resize(piece.vertices.size());
+    for (size_t v = 0; v < points.size(); ++v) points[v] = space.map(piece.vertices[v]);
+    rasterize(MeshView{piece.vertices, piece.indices}, clusterOf, points, buffer);
+  });
+  const std::vector<unsigned char> png =
+      encodePng(resolve(buffer, options.width, options.height), options.width, options.height, path);
+  OutputFile out(path);
+  out.write(png.data(), png.size());
+  out.commit();
+}
+
 }  // namespace facetree

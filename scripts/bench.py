@@ -180,22 +180,31 @@ class ChildCpu:
 CPU = ChildCpu()
 
 
+TIME = "/usr/bin/time"
+
+
 def run_measured(command):
-    """Runs a command; returns (stdout, wall seconds, process CPU seconds, peak RSS bytes) from its own
-    wait4 rusage (ru_maxrss: what /usr/bin/time reports as maximum resident set size). Output goes
-    through temporary files so that the child is reaped here, by wait4, and not by Popen."""
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+    """Runs a command; returns (stdout, wall seconds, process CPU seconds, peak RSS bytes): CPU from
+    wait4's rusage, the peak from /usr/bin/time (its maximum resident set size). Output goes through
+    temporary files so that the child is reaped here, by wait4, and not by Popen."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err, \
+            tempfile.NamedTemporaryFile("r") as peak:
         start = time.perf_counter()
-        process = subprocess.Popen([str(c) for c in command], stdout=out, stderr=err, text=True)
+        # Linux carries a process's peak RSS across exec: a child forked from this interpreter
+        # reports at least the interpreter's own peak. /usr/bin/time forks the command from a small
+        # process, and its %M is the command's own.
+        process = subprocess.Popen([TIME, "-f", "%M", "-o", peak.name, *map(str, command)], stdout=out,
+                                   stderr=err, text=True)
         _, status, usage = os.wait4(process.pid, 0)
         wall = time.perf_counter() - start
         process.returncode = os.waitstatus_to_exitcode(status)
         out.seek(0), err.seek(0)
         stdout, stderr = out.read(), err.read()
+        peak_kib = peak.read().strip().splitlines()
     if process.returncode != 0:
         raise RuntimeError(f"{' '.join(map(str, command))} failed ({process.returncode}): {stderr.strip()}")
     CPU.lap()  # keep the children's CPU clock of the other sections in step
-    return stdout, wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss * 1024
+    return stdout, wall, usage.ru_utime + usage.ru_stime, int(peak_kib[-1]) * 1024
 
 
 def run_json(command):
@@ -1245,6 +1254,9 @@ def main():
         if name in sections:
             report[name] = run()
             section_done(name)
+            # What has run so far, so that a section that fails leaves the others' figures behind
+            # (`--keep-from` takes them).
+            (out / "bench.partial.json").write_text(json.dumps(report, indent=1))
     report["load_average_end"] = os.getloadavg()
     report["wall_seconds"] = time.time() - started
     if args.keep_from:

@@ -345,6 +345,103 @@ struct FchLayout {
 // Header and frame index only (validated; frame contents are not read).
 FchLayout readClusterFileLayout(const std::filesystem::path& path);
 
+// --- Reading under a memory cap ---------------------------------------------------------------
+// A cluster file read lazily: opening reads the header and the frame index only; node records and
+// geometry are decoded frame by frame as asked, every frame checked (checksum, sizes, references)
+// before use, with the errors readClusterFile gives. Version 2 derives a node's face range and depth
+// (and a compact box) from its parent's record, so node frames decode in file order: what a pass
+// holds is the children its nodes announced and not yet reached (at most a quarter of the nodes in
+// the middle of a file, past its share of memory in a temporary file), and decoded frames wait in a
+// cache.
+
+// The triangles of a range of the face order with their own vertex numbering.
+struct FaceRangeMesh {
+  uint64_t first = 0;                  // the range's first face position
+  std::vector<glm::vec3> vertices;     // the vertices the triangles use, in the file's vertex order
+  std::vector<uint32_t> indices;       // 3 per triangle, into `vertices`
+  std::vector<uint64_t> originalFace;  // per triangle: its face index in the input mesh file
+  std::vector<uint64_t> vertexIds;     // per vertex: its index in the file
+};
+
+// One cluster of a cut: a node's whole face range, a single face, or a gap that cut-off children of
+// a truncated file leave (one cluster per gap, as clusterCut counts them).
+inline constexpr uint64_t kNoNode = ~uint64_t{0};
+struct CutCluster {
+  uint64_t node = kNoNode;  // the node whose range it is; kNoNode for a face or a gap
+  uint64_t first = 0;       // face positions [first, first + count)
+  uint64_t count = 0;
+};
+
+// How much a reader holds: a quarter of memoryBytes caches decoded frames, a quarter holds a pass's
+// announced children (the rest go to a temporary file in `tmp`), the rest is left to the caller's
+// use of what it reads and to the process.
+struct ReaderOptions {
+  uint64_t memoryBytes = 0;   // 0: the cap the file was built under, else defaultMemoryCap()
+  std::filesystem::path tmp;  // empty: the system's temporary directory
+};
+// Half the RAM: the default cap of a build and of a reader of a file built without one.
+uint64_t defaultMemoryCap();
+
+// What a pass over the nodes decodes: every field, or the tree alone (face ranges, children, flags,
+// cost, area and perimeter; S and the box left zero), which skips the boxes' decoding.
+enum class NodeFields : uint8_t { All, Structure };
+
+class ClusterFileReader {
+ public:
+  explicit ClusterFileReader(const std::filesystem::path& path, const ReaderOptions& options = {});
+  ~ClusterFileReader();
+  ClusterFileReader(const ClusterFileReader&) = delete;
+  ClusterFileReader& operator=(const ClusterFileReader&) = delete;
+
+  const FchLayout& layout() const;
+  const FileHeader& header() const;
+  uint64_t size() const;  // nodes
+
+  // Node `index` (< size()). In file order each node frame decodes once; a frame that has left the
+  // cache decodes again with the frames before it.
+  FchNode node(uint64_t index);
+  // Calls visit(index, node, depth) for nodes 0, 1, ... (depth: the root's is 1) until it returns
+  // false or the nodes end; one pass that caches nothing. Returns the nodes visited.
+  uint64_t forEachNode(const std::function<bool(uint64_t, const FchNode&, uint32_t)>& visit,
+                       NodeFields fields = NodeFields::All);
+
+  // The cut of at least `clusters` clusters from the shortest node prefix (as clusterCut), in face
+  // order.
+  std::vector<CutCluster> cut(uint64_t clusters);
+  // The cut under the nodes whose effective cost (the largest cost in their subtree) exceeds
+  // `maxCost`: the shortest prefix of the file that holds them.
+  std::vector<CutCluster> cutByCost(double maxCost);
+  // The cut under the nodes of depth below `depth` (the root's is 1): clusterDepthCut's clusters.
+  std::vector<CutCluster> cutByDepth(uint32_t depth);
+
+  // The triangles of face positions [first, first + count): only the geometry frames they touch.
+  FaceRangeMesh faces(uint64_t first, uint64_t count);
+  // Calls visit(cluster, mesh) for the clusters of `cut` in face order.
+  void forEachCluster(std::span<const CutCluster> cut,
+                      const std::function<void(const CutCluster&, const FaceRangeMesh&)>& visit);
+  // The triangles of a cut (which covers every face, in face order, as the cuts above give it) in
+  // pieces of at most one triangle frame, in face order: visit(piece, clusterOf), clusterOf[t] the
+  // position in `cut` of the cluster holding the piece's triangle t. Each triangle and id frame is
+  // decoded once in the pass.
+  void forEachCutPiece(std::span<const CutCluster> cut,
+                       const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit);
+  // The file's vertices in order, a vertex frame at a time: visit(first vertex index, positions).
+  void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit);
+
+  // Bytes the reader holds now (caches, the index, the node() pass's announced children), the most
+  // any pass held, and what passes wrote to temporary files.
+  uint64_t heldBytes() const;
+  uint64_t peakHeldBytes() const;
+  uint64_t spilledBytes() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// branchingStats of a file read in one pass of its nodes.
+BranchingStats branchingStats(ClusterFileReader& reader);
+
 // Keeps the first `nodes` nodes (1 <= nodes; more than the file has keeps all): whole node frames
 // and the geometry are copied, only the last partial node frame is recompressed.
 struct TruncateResult {
@@ -555,6 +652,13 @@ void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceClust
 // Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                              const std::filesystem::path& path);
+// The same pictures and meshes of a cut (ClusterFileReader's, in face order; cluster ids are
+// positions in it) read a frame at a time: the same bytes as the whole-file calls. `clusterIds`
+// adds a uint `cluster` property to every face.
+void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cut,
+                       const RenderOptions& options, const std::filesystem::path& path);
+void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutCluster> cut,
+                             const std::filesystem::path& path, bool clusterIds = false);
 
 // A JSON object written field by field, for reports (`--json` of the command line, the Python
 // package's report): nested objects by beginObject / endObject, numbers as C's %.9g, non-finite

@@ -18,6 +18,7 @@ command-line tool's for the same failure.
 
 from __future__ import annotations
 
+import builtins
 import os
 import shutil
 import tempfile
@@ -34,6 +35,7 @@ from ._facetree import (
     Hierarchy,
     InputError,
     OutputError,
+    Reader,
     ResourceError,
     __version__,
     build,
@@ -44,8 +46,8 @@ from ._facetree import (
 from . import _facetree
 
 __all__ = [
-    "Cancelled", "Error", "Hierarchy", "InputError", "OutputError", "ResourceError", "__version__",
-    "build", "build_file", "cluster_colours", "load", "read_mesh", "parse_size",
+    "Cancelled", "Error", "Hierarchy", "InputError", "OutputError", "Reader", "ResourceError", "__version__",
+    "build", "build_file", "cluster_colours", "load", "open", "read_mesh", "parse_size",
 ]
 
 Path = Union[str, "os.PathLike[str]"]
@@ -71,6 +73,33 @@ def parse_size(size: Union[int, str, None]) -> int:
     if not number.isdigit():
         raise InputError(f"a size must be a whole number with an optional suffix k, M or G, got {size!r}")
     return int(number) * _SUFFIXES[suffix]
+
+
+def open(path: Path, memory: Union[int, str, None] = None, tmp: Optional[Path] = None) -> Reader:
+    """Opens a cluster file (.fch) for reading under a memory cap, without loading it.
+
+    memory: the cap, bytes or "64M" (default: the cap the file was built under, else half the RAM);
+    a quarter caches decoded frames and a quarter holds a pass over the nodes, the rest of which goes
+    to a temporary file in tmp (default the system's). Only the header and the frame index are read
+    here; an unreadable or corrupt frame raises InputError when it is first needed.
+
+        with facetree.open("scan.fch", memory="64M") as f:
+            node_ids, ranges = f.cut(clusters=1000)
+            vertices, triangles, ids = f.mesh(node_ids[0])
+    """
+    return _facetree._open(os.fspath(path), parse_size(memory), os.fspath(tmp) if tmp is not None else "")
+
+
+def _clusters(self: Reader, *, clusters: Optional[int] = None, max_cost: Optional[float] = None,
+              depth: Optional[int] = None):
+    """The clusters of a cut in face order (see cut()): (node_id, first, count, vertices, triangles,
+    original_ids) for each, its triangles decoded as it comes."""
+    node_ids, ranges = self.cut(clusters=clusters, max_cost=max_cost, depth=depth)
+    for node, (first, count) in zip(node_ids.tolist(), ranges.tolist()):
+        yield (node, first, count, *self.faces(first, count))
+
+
+Reader.clusters = _clusters  # type: ignore[attr-defined]
 
 
 def _is_file_object(value: object) -> bool:
@@ -119,7 +148,7 @@ def build_file(
             input_path, output_path, parse_size(memory), os.fspath(tmp) if tmp is not None else "",
             parse_size(max_tmp), zstd_level, progress, cell_faces, **options)
         if output is not None and _is_file_object(output):
-            with open(output_path, "rb") as built:
+            with builtins.open(output_path, "rb") as built:
                 shutil.copyfileobj(built, output, _COPY_BYTES)
     if not isinstance(input, (str, os.PathLike)):
         report["mesh"] = getattr(input, "name", "<file object>")
@@ -139,6 +168,6 @@ def _input_path(input: Union[Path, IO[bytes]], scratch: str) -> str:
     if descriptor is not None and (not input.seekable() or input.tell() == 0):
         return f"/dev/fd/{descriptor}"
     copy = os.path.join(scratch, "input")
-    with open(copy, "wb") as spooled:
+    with builtins.open(copy, "wb") as spooled:
         shutil.copyfileobj(input, spooled, _COPY_BYTES)
     return copy

@@ -54,6 +54,11 @@ struct PyHierarchy {
   py::object report = py::none();
 };
 void registerHierarchy(py::module_& module);
+// The header as a dict (Hierarchy.header, Reader.header).
+py::dict headerDict(const FileHeader& header);
+
+// reader.cpp: facetree.open, a cluster file read lazily under a memory cap.
+void registerReader(py::module_& module);
 
 // job.cpp: build (arrays), build_file (the CLI's whole job), read_mesh, load.
 void registerJob(py::module_& module);

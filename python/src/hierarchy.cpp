@@ -54,6 +54,25 @@ py::array_t<int64_t> byInputFace(const PyHierarchy& h, const std::vector<uint32_
 
 }  // namespace
 
+py::dict headerDict(const FileHeader& f) {
+  py::dict d;
+  d["version"] = f.version;
+  d["node_count"] = f.nodeCount;
+  d["original_node_count"] = f.originalNodeCount;
+  d["triangle_count"] = f.triangleCount;
+  d["vertex_count"] = f.vertexCount;
+  d["branching"] = f.branching;
+  d["metric"] = metricName(f.metric);
+  d["k"] = f.k;
+  d["flat_threshold"] = f.flatThreshold;
+  d["memory_cap_bytes"] = f.memoryCapBytes;
+  d["boxes"] = boxesName(f.boxes);
+  d["top"] = f.topClusters;
+  d["bounds_min"] = py::make_tuple(f.boundsMin.x, f.boundsMin.y, f.boundsMin.z);
+  d["bounds_max"] = py::make_tuple(f.boundsMax.x, f.boundsMax.y, f.boundsMax.z);
+  return d;
+}
+
 void registerHierarchy(py::module_& m) {
   py::class_<PyHierarchy> c(m, "Hierarchy", R"(A face cluster hierarchy and its reordered mesh.
 
@@ -89,26 +108,7 @@ face_order[first:first + count] of its face range; its children partition that r
           "report", [](const PyHierarchy& h) { return h.report; },
           "The build's report (the fields of `facetree build --json`), None for a loaded file.")
       .def_property_readonly(
-          "header",
-          [](const PyHierarchy& h) {
-            const FileHeader& f = h.file.header;
-            py::dict d;
-            d["version"] = f.version;
-            d["node_count"] = f.nodeCount;
-            d["original_node_count"] = f.originalNodeCount;
-            d["triangle_count"] = f.triangleCount;
-            d["vertex_count"] = f.vertexCount;
-            d["branching"] = f.branching;
-            d["metric"] = metricName(f.metric);
-            d["k"] = f.k;
-            d["flat_threshold"] = f.flatThreshold;
-            d["memory_cap_bytes"] = f.memoryCapBytes;
-            d["boxes"] = boxesName(f.boxes);
-            d["top"] = f.topClusters;
-            d["bounds_min"] = py::make_tuple(f.boundsMin.x, f.boundsMin.y, f.boundsMin.z);
-            d["bounds_max"] = py::make_tuple(f.boundsMax.x, f.boundsMax.y, f.boundsMax.z);
-            return d;
-          },
+          "header", [](const PyHierarchy& h) { return headerDict(h.file.header); },
           "The file header: counts and the options the hierarchy was built with.")
       .def_property_readonly(
           "face_ranges", nodeColumn<uint32_t>([](const FchNode& n) { return &n.first; }, 2),

@@ -8,4 +8,5 @@ PYBIND11_MODULE(_facetree, module) {
   facetree::python::registerErrors(module);
   facetree::python::registerHierarchy(module);
   facetree::python::registerJob(module);
+  facetree::python::registerReader(module);
 }

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <sstream>
 
 #include "../cli/run_cli.h"
 #include "fch_test_util.h"
@@ -97,6 +98,86 @@ TEST_F(FchCli, TruncateByNodesAndBytes) {
   r = runCli("truncate " + bad.string() + " -o " + out.string() + " --nodes 3");
   EXPECT_EQ(r.exitCode, 3) << r.out;
   EXPECT_NE(r.out.find("not a facetree cluster file (bad magic)"), std::string::npos) << r.out;
+}
+
+// The fields of a `cut` line this test reads: "node" (-1 for null), "first", "triangles".
+struct CutLine {
+  int64_t node = -1;
+  uint64_t first = 0, triangles = 0;
+  bool hasBox = false;
+};
+std::vector<CutLine> cutLines(const std::string& out) {
+  std::vector<CutLine> lines;
+  std::istringstream in(out);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] != '{') continue;
+    CutLine c;
+    const auto field = [&](const std::string& name) {
+      return line.substr(line.find("\"" + name + "\":") + name.size() + 3);
+    };
+    const std::string node = field("node");
+    c.node = node.rfind("null", 0) == 0 ? -1 : std::stoll(node);
+    c.first = std::stoull(field("first"));
+    c.triangles = std::stoull(field("triangles"));
+    c.hasBox = line.find("\"box\":{\"center\":[") != std::string::npos;
+    lines.push_back(c);
+  }
+  return lines;
+}
+
+TEST_F(FchCli, CutGivesTheClustersOfTheCutInFaceOrderWithTheirNodes) {
+  const ClusterFile file = readClusterFile(fch);
+  truncateClusterFile(fch, out, 40);
+  const ClusterFile truncated = readClusterFile(out);
+  for (const auto& [args, whole] : std::vector<std::pair<std::string, const ClusterFile*>>{
+           {fch.string() + " --clusters 37", &file},
+           {fch.string() + " --depth 3", &file},
+           {fch.string() + " --max-cost 0", &file},
+           {out.string() + " --clusters 1000 --memory 1M", &truncated}}) {
+    SCOPED_TRACE(args);
+    const CliResult r = runCli("cut " + args);
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    const std::vector<CutLine> lines = cutLines(r.out);
+    ASSERT_FALSE(lines.empty());
+    uint64_t next = 0;
+    for (const CutLine& c : lines) {
+      EXPECT_EQ(c.first, next);  // a partition of the face order, in order
+      next += c.triangles;
+      EXPECT_EQ(c.hasBox, c.node >= 0);
+      if (c.node >= 0) {
+        ASSERT_LT(uint64_t(c.node), whole->nodes.size());
+        EXPECT_EQ(whole->nodes[c.node].first, c.first);
+        EXPECT_EQ(whole->nodes[c.node].count, c.triangles);
+      } else if (whole == &file) {
+        EXPECT_EQ(c.triangles, 1u);  // a single face (in a truncated file, also a subtree cut off)
+      }
+    }
+    EXPECT_EQ(next, whole->indices.size() / 3);
+  }
+  EXPECT_GE(cutLines(runCli("cut " + fch.string() + " --clusters 37").out).size(), 37u);
+  // --max-cost 0: every node is above it, the cut is every face.
+  EXPECT_EQ(cutLines(runCli("cut " + fch.string() + " --max-cost 0").out).size(), file.indices.size() / 3);
+  EXPECT_EQ(cutLines(runCli("cut " + fch.string() + " --depth 0").out).size(), 1u);
+  // The mesh of the cut: every face with its cluster.
+  const auto mesh = cleanup.add(scratch("cli_cut.ply"));
+  ASSERT_EQ(runCli("cut " + fch.string() + " --clusters 9 --mesh-out " + mesh.string()).exitCode, 0);
+  const std::string ply = slurp(mesh);
+  EXPECT_NE(ply.find("element face 1200\nproperty list uchar int vertex_indices\nproperty uchar red\n"
+                     "property uchar green\nproperty uchar blue\nproperty uint cluster\nend_header\n"),
+            std::string::npos);
+  // One way to cut, and a readable file.
+  CliResult r = runCli("cut " + fch.string() + " --clusters 3 --depth 2");
+  EXPECT_EQ(r.exitCode, 2) << r.out;
+  EXPECT_NE(r.out.find("cut needs exactly one of --clusters N, --max-cost C and --depth D"),
+            std::string::npos);
+  r = runCli("cut " + fch.string() + " --max-cost nan");
+  EXPECT_EQ(r.exitCode, 2) << r.out;
+  EXPECT_NE(r.out.find("--max-cost needs a finite number, got 'nan'"), std::string::npos) << r.out;
+  spit(bad, "nonsense");
+  r = runCli("cut " + bad.string() + " --clusters 3");
+  EXPECT_EQ(r.exitCode, 3) << r.out;
+  EXPECT_NE(r.out.find(bad.string() + ": not a facetree cluster file (bad magic)"), std::string::npos)
+      << r.out;
 }
 
 }  // namespace

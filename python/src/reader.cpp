@@ -1,0 +1,188 @@
+// facetree.open: a cluster file read lazily under a memory cap (ClusterFileReader), for the next
+// stage of a pipeline: nodes as a structured array, cuts, and the triangles of a node or a face
+// range, decoding only what is asked, with the GIL released while it decodes.
+#include <memory>
+#include <optional>
+
+#include <pybind11/stl.h>
+
+#include "bindings.h"
+
+namespace facetree::python {
+namespace {
+
+// One node as facetree.open's nodes() gives it (NODE_DTYPE in the docstring).
+struct NodeRecord {
+  uint32_t first, count;
+  uint8_t child_count, flags;
+  int64_t children[kMaxBranching];  // node index, -1 for a face, a cut-off child or an empty slot
+  uint32_t child_faces[kMaxBranching];
+  float cost, area, perimeter;
+  float sum_normal[3];
+  float box_center[3], box_half_extents[3], box_orientation[4], box_side_areas[6];
+};
+
+struct PyReader {
+  std::filesystem::path path;
+  std::unique_ptr<ClusterFileReader> reader;
+
+  ClusterFileReader& open() {
+    if (!reader) throw ArgumentError(path.string() + ": the reader is closed");
+    return *reader;
+  }
+};
+
+NodeRecord record(const FchNode& node, uint64_t nodeCount) {
+  NodeRecord r{};
+  r.first = node.first, r.count = node.count, r.child_count = node.childCount, r.flags = node.flags;
+  for (unsigned c = 0; c < kMaxBranching; ++c) {
+    const bool used = c < node.childCount;
+    const uint32_t ref = node.child[c];
+    r.children[c] = used && !(ref & kFaceChild) && ref < nodeCount ? int64_t{ref} : -1;
+    r.child_faces[c] = used ? node.childFaces[c] : 0;
+  }
+  r.cost = node.cost, r.area = node.area, r.perimeter = node.perimeter;
+  const NodeBox& box = node.box;
+  for (int a = 0; a < 3; ++a) {
+    r.sum_normal[a] = node.sumNormal[a];
+    r.box_center[a] = box.center[a];
+    r.box_half_extents[a] = box.halfExtent[a];
+  }
+  const float q[4] = {box.orientation.x, box.orientation.y, box.orientation.z, box.orientation.w};
+  std::copy(q, q + 4, r.box_orientation);
+  std::copy(box.sideArea, box.sideArea + 6, r.box_side_areas);
+  return r;
+}
+
+py::tuple meshTuple(FaceRangeMesh&& mesh) {
+  const auto vertices = static_cast<py::ssize_t>(mesh.vertices.size());
+  const auto triangles = static_cast<py::ssize_t>(mesh.originalFace.size());
+  std::vector<float> positions(3 * mesh.vertices.size());
+  for (size_t v = 0; v < mesh.vertices.size(); ++v)
+    for (int a = 0; a < 3; ++a) positions[3 * v + a] = mesh.vertices[v][a];
+  return py::make_tuple(arrayOwning(std::move(positions), {vertices, 3}),
+                        arrayOwning(std::move(mesh.indices), {triangles, 3}),
+                        arrayOwning(std::move(mesh.originalFace), {triangles}));
+}
+
+}  // namespace
+
+void registerReader(py::module_& m) {
+  PYBIND11_NUMPY_DTYPE(NodeRecord, first, count, child_count, flags, children, child_faces, cost, area,
+                       perimeter, sum_normal, box_center, box_half_extents, box_orientation, box_side_areas);
+  py::class_<PyReader> c(m, "Reader", R"(A cluster file read lazily under a memory cap (facetree.open).
+
+Opening reads the header and the frame index only; nodes and triangles are decoded frame by frame
+as they are asked for, every frame checked first. Use it as a context manager, or call close().)");
+  c.def("__len__", [](PyReader& r) { return r.open().size(); })
+      .def("__enter__", [](py::object self) { return self; })
+      .def("__exit__", [](PyReader& r, py::args) { r.reader.reset(); })
+      .def(
+          "close", [](PyReader& r) { r.reader.reset(); }, "Releases the file and what the reader holds.")
+      .def_property_readonly("closed", [](const PyReader& r) { return !r.reader; })
+      .def_property_readonly(
+          "header", [](PyReader& r) { return headerDict(r.open().header()); },
+          "The file header: counts and the options the hierarchy was built with.")
+      .def(
+          "nodes",
+          [](PyReader& r, uint64_t start, std::optional<uint64_t> stop) {
+            ClusterFileReader& reader = r.open();
+            const uint64_t end = std::min(stop.value_or(reader.size()), reader.size());
+            const uint64_t first = std::min(start, end);
+            std::vector<NodeRecord> records(end - first);
+            {
+              py::gil_scoped_release release;
+              for (uint64_t i = first; i < end; ++i)
+                records[i - first] = record(reader.node(i), reader.size());
+            }
+            py::array_t<NodeRecord> out(static_cast<py::ssize_t>(records.size()));
+            if (!records.empty()) std::copy(records.begin(), records.end(), out.mutable_data());
+            return out;
+          },
+          py::arg("start") = 0, py::arg("stop") = py::none(),
+          R"(Nodes [start, stop) as a NumPy structured array: first and count (the face range), child_count,
+flags, children (8 slots: node index, -1 for a face, a child cut off by truncation or an empty slot),
+child_faces, cost, area, perimeter, sum_normal, and the oriented box: box_center, box_half_extents,
+box_orientation (quaternion x, y, z, w) and box_side_areas. Nodes decode in file order: a slice far
+into the file decodes the frames before it once.)")
+      .def(
+          "cut",
+          [](PyReader& r, std::optional<uint64_t> clusters, std::optional<double> maxCost,
+             std::optional<uint32_t> depth) {
+            ClusterFileReader& reader = r.open();
+            if (int{clusters.has_value()} + int{maxCost.has_value()} + int{depth.has_value()} != 1)
+              throw ArgumentError("cut needs exactly one of clusters, max_cost and depth");
+            if (clusters && *clusters == 0) throw ArgumentError("clusters must be at least 1");
+            std::vector<CutCluster> cut;
+            {
+              py::gil_scoped_release release;
+              cut = clusters  ? reader.cut(*clusters)
+                    : maxCost ? reader.cutByCost(*maxCost)
+                              : reader.cutByDepth(*depth);
+            }
+            std::vector<int64_t> nodes(cut.size());
+            std::vector<uint64_t> ranges(2 * cut.size());
+            for (size_t i = 0; i < cut.size(); ++i) {
+              nodes[i] = cut[i].node == kNoNode ? -1 : static_cast<int64_t>(cut[i].node);
+              ranges[2 * i] = cut[i].first, ranges[2 * i + 1] = cut[i].count;
+            }
+            const auto n = static_cast<py::ssize_t>(cut.size());
+            return py::make_tuple(arrayOwning(std::move(nodes), {n}), arrayOwning(std::move(ranges), {n, 2}));
+          },
+          py::kw_only(), py::arg("clusters") = py::none(), py::arg("max_cost") = py::none(),
+          py::arg("depth") = py::none(),
+          R"(A cut of the hierarchy in face order, by one of: clusters (the shortest prefix of the file whose
+cut has at least that many), max_cost (below every node whose effective cost exceeds it) or depth
+(below the nodes of that depth and less; the root's is 1). Returns (node_ids, face_ranges): (K,) int64,
+-1 for a single face or a subtree that truncation cut off, and (K, 2) uint64 first face and count.)")
+      .def(
+          "mesh",
+          [](PyReader& r, uint64_t node) {
+            ClusterFileReader& reader = r.open();
+            if (node >= reader.size())
+              throw ArgumentError("node " + std::to_string(node) + " past the nodes");
+            FaceRangeMesh mesh;
+            {
+              py::gil_scoped_release release;
+              const FchNode record = reader.node(node);
+              mesh = reader.faces(record.first, record.count);
+            }
+            return meshTuple(std::move(mesh));
+          },
+          py::arg("node"),
+          R"(The triangles of a node: (vertices, triangles, original_ids), (V, 3) float32, (F, 3) uint32 into
+vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids of the input mesh.)")
+      .def(
+          "faces",
+          [](PyReader& r, uint64_t first, uint64_t count) {
+            ClusterFileReader& reader = r.open();
+            const uint64_t triangles = reader.header().triangleCount;
+            if (first > triangles || count > triangles - first)
+              throw ArgumentError("faces [" + std::to_string(first) + ", +" + std::to_string(count) +
+                                  ") past the " + std::to_string(triangles) + " triangles");
+            FaceRangeMesh mesh;
+            {
+              py::gil_scoped_release release;
+              mesh = reader.faces(first, count);
+            }
+            return meshTuple(std::move(mesh));
+          },
+          py::arg("first"), py::arg("count"),
+          "The triangles of face positions [first, first + count), as mesh() gives a node's.");
+
+  m.def(
+      "_open",
+      [](const std::filesystem::path& path, uint64_t memory, const std::filesystem::path& tmp) {
+        PyReader r;
+        r.path = path;
+        ReaderOptions options;
+        options.memoryBytes = memory;
+        options.tmp = tmp;
+        py::gil_scoped_release release;
+        r.reader = std::make_unique<ClusterFileReader>(path, options);
+        return r;
+      },
+      py::arg("path"), py::arg("memory") = 0, py::arg("tmp") = std::filesystem::path());
+}
+
+}  // namespace facetree::python

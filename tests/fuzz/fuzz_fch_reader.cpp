@@ -1,0 +1,113 @@
+// fuzz_fch_reader: the lazy cluster-file reader (ClusterFileReader) driven by random access over
+// corrupted files: nodes in an order the input picks, passes with a frontier budget small enough to
+// go to its temporary file, cuts by count, cost and depth, face ranges and the pieces of a cut. As
+// in fuzz_fch, every input is read as given and with its checksums recomputed. Error (Input) is the
+// documented error; anything else crashes. Where the whole-file reader reads and verifies the file,
+// the lazy reader must give the same nodes and cuts.
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "facetree/io.h"
+#include "fuzz_fch_file.h"
+
+using namespace facetree;
+
+namespace {
+
+using namespace facetree::fuzz;
+
+// A small generator seeded by the input, for the order of the random accesses.
+struct Picks {
+  uint64_t state;
+  uint64_t next(uint64_t bound) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return bound ? (state >> 33) % bound : 0;
+  }
+};
+
+bool sameNode(const FchNode& a, const FchNode& b) {
+  return a.first == b.first && a.count == b.count && a.childCount == b.childCount && a.flags == b.flags &&
+         std::equal(a.child, a.child + a.childCount, b.child) && a.cost == b.cost && a.area == b.area;
+}
+
+// clusterCut's per-face numbering against the reader's clusters.
+bool sameRuns(const std::vector<uint32_t>& label, const std::vector<CutCluster>& cut) {
+  size_t c = 0;
+  for (uint64_t p = 0; p < label.size(); ++p) {
+    if (p > 0 && label[p] != label[p - 1]) ++c;
+    if (c >= cut.size() || p < cut[c].first || p >= cut[c].first + cut[c].count) return false;
+  }
+  return c + 1 == cut.size() || (label.empty() && cut.empty());
+}
+
+void exercise(const std::string& path, Picks picks) {
+  ReaderOptions options;
+  options.memoryBytes = 64 << 10;  // 16 KiB of frontier: larger files spill
+  std::vector<FchNode> nodes;
+  std::vector<CutCluster> cut16, depth3;
+  try {
+    ClusterFileReader reader(path, options);
+    const uint64_t n = reader.size(), triangles = reader.header().triangleCount;
+    reader.forEachNode([&](uint64_t, const FchNode& node, uint32_t depth) {
+      if (depth == 0) fail("a node of depth 0");
+      nodes.push_back(node);
+      return nodes.size() < 200000;
+    });
+    for (int i = 0; i < 16 && n > 0; ++i) (void)reader.node(picks.next(n));
+    cut16 = reader.cut(16);
+    depth3 = reader.cutByDepth(3);
+    if (!nodes.empty()) (void)reader.cutByCost(nodes[picks.next(nodes.size())].cost);
+    uint64_t covered = 0;
+    for (const CutCluster& c : cut16) {
+      if (c.first != covered) fail("cut: clusters not in face order");
+      covered += c.count;
+    }
+    if (covered != triangles) fail("cut: the clusters do not cover the faces");
+    for (int i = 0; i < 4 && triangles > 0; ++i) {
+      const uint64_t first = picks.next(triangles),
+                     count = 1 + picks.next(std::min<uint64_t>(triangles - first, 500));
+      const FaceRangeMesh mesh = reader.faces(first, count);
+      if (mesh.indices.size() != 3 * count || mesh.originalFace.size() != count) fail("faces: wrong counts");
+      for (const uint32_t v : mesh.indices)
+        if (v >= mesh.vertices.size()) fail("faces: a local index past the vertices");
+    }
+    uint64_t pieces = 0;
+    reader.forEachCutPiece(cut16, [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
+      if (clusterOf.size() != piece.originalFace.size()) fail("pieces: a cluster per triangle");
+      pieces += clusterOf.size();
+    });
+    if (pieces != triangles) fail("pieces: the pieces do not cover the faces");
+  } catch (const Error& e) {
+    checkMessage(e.what());
+    return;
+  }
+  // Read and verified whole: the lazy reader's nodes and cuts are the whole file's.
+  ClusterFile file;
+  try {
+    file = readClusterFile(path);
+  } catch (const Error&) {
+    return;  // a frame the lazy reader had no need of
+  }
+  if (!verifyClusterFile(file).ok) return;
+  for (size_t j = 0; j < nodes.size(); ++j)
+    if (!sameNode(nodes[j], file.nodes[j]))
+      fail("node " + std::to_string(j) + " differs from the whole file's");
+  if (!sameRuns(clusterCut(file, 16), cut16)) fail("cut(16) differs from clusterCut");
+  if (!sameRuns(clusterDepthCut(file, 3), depth3)) fail("cutByDepth(3) differs from clusterDepthCut");
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  static MemFile file;
+  const Picks picks{fch::xxh64(data, size)};
+  exercise(file.write(data, size), picks);
+  std::vector<uint8_t> fixed(data, data + size);
+  fixChecksums(fixed);
+  if (fixed.size() >= fch::kHeaderBytes && std::memcmp(fixed.data(), data, size) != 0)
+    exercise(file.write(fixed.data(), fixed.size()), picks);
+  return 0;
+}

@@ -1,0 +1,102 @@
+"""facetree.open against facetree.load: the same nodes, cuts and triangles, read lazily under a cap,
+on a whole file and a truncated one; a closed reader and a corrupt file raise."""
+import threading
+
+import numpy as np
+import pytest
+
+import facetree
+from conftest import run_cli
+
+
+@pytest.fixture(scope="module")
+def files(bunny, tmp_path_factory, cli):
+    vertices, faces, ids, _ = bunny
+    path = tmp_path_factory.mktemp("reader") / "bunny.fch"
+    facetree.build(vertices, faces, face_ids=ids, branching=4).save(str(path))
+    truncated = path.with_name("bunny_cut.fch")
+    run_cli(cli, "truncate", path, "-o", truncated, "--nodes", "5000")
+    return path, truncated
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_nodes_equal_the_loaded_hierarchys(files, which):
+    path = files[which]
+    h = facetree.load(str(path))
+    with facetree.open(path, memory="1M") as f:
+        assert len(f) == len(h) and f.header == h.header
+        nodes = f.nodes()
+        assert nodes.shape == (len(h),)
+        assert np.array_equal(np.stack([nodes["first"], nodes["count"]], axis=1), h.face_ranges)
+        assert np.array_equal(nodes["child_count"], h.child_count)
+        assert np.array_equal(nodes["children"][:, : h.branching], h.children)
+        assert np.array_equal(nodes["cost"], h.cost)
+        assert np.array_equal(nodes["box_center"], h.box_center)
+        assert np.array_equal(nodes["box_half_extents"], h.box_half_extents)
+        # A slice far into the file, after the whole: the same records.
+        assert np.array_equal(f.nodes(len(h) - 10, len(h) + 5), nodes[-10:])
+        assert f.nodes(len(h) + 1).shape == (0,)
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_cuts_and_triangles_equal_the_loaded_hierarchys(files, which):
+    path = files[which]
+    h = facetree.load(str(path))
+    with facetree.open(path) as f:
+        for kwargs in ({"clusters": 50}, {"depth": 4}, {"max_cost": float(h.cost[30])}):
+            node_ids, ranges = f.cut(**kwargs)
+            assert ranges[0, 0] == 0 and (ranges[1:, 0] == ranges[:-1].sum(axis=1)).all()
+            assert ranges[:, 1].sum() == h.face_count
+            kept = node_ids >= 0
+            assert np.array_equal(h.face_ranges[node_ids[kept]], ranges[kept].astype(np.uint32))
+        assert len(f.cut(clusters=50)[0]) >= 50
+        node = int(f.cut(clusters=20)[0][3])
+        vertices, triangles, original = f.mesh(node)
+        first, count = h.face_ranges[node]
+        assert triangles.shape == (count, 3) and original.shape == (count,)
+        assert np.array_equal(original, h.face_order[first: first + count])
+        assert np.array_equal(vertices[triangles], h.vertices[h.triangles[first: first + count]])
+        # The clusters of a cut, in face order, each with its triangles.
+        seen = 0
+        for node_id, start, n, v, t, ids in f.clusters(clusters=30):
+            assert start == seen and t.shape == (n, 3) and ids.shape == (n,)
+            seen += n
+        assert seen == h.face_count
+
+
+def test_decoding_releases_the_gil(files):
+    with facetree.open(files[0]) as f:
+        ticks = []
+        stop = threading.Event()
+        ticker = threading.Thread(
+            target=lambda: [ticks.append(1) or stop.wait(0.001) for _ in iter(stop.is_set, True)])
+        ticker.start()
+        try:
+            for _ in range(5):
+                f.nodes()
+        finally:
+            stop.set()
+            ticker.join()
+        assert len(ticks) > 0
+
+
+def test_closed_reader_bad_arguments_and_corrupt_files_raise(files, tmp_path):
+    f = facetree.open(files[0])
+    with pytest.raises(facetree.InputError, match="exactly one of clusters, max_cost and depth"):
+        f.cut(clusters=3, depth=2)
+    with pytest.raises(facetree.InputError, match="past the"):
+        f.faces(0, f.header["triangle_count"] + 1)
+    f.close()
+    assert f.closed
+    with pytest.raises(facetree.InputError, match="the reader is closed"):
+        len(f)
+    bad = tmp_path / "bad.fch"
+    data = bytearray(files[0].read_bytes())
+    data[-20] ^= 0x40
+    bad.write_bytes(bytes(data))
+    with facetree.open(bad) as f:  # the header and the index are sound
+        with pytest.raises(facetree.InputError, match=": .* frame .*checksum mismatch"):
+            f.faces(0, f.header["triangle_count"])
+    with pytest.raises(facetree.InputError, match="bad magic"):
+        bad.write_bytes(b"nonsense")
+        facetree.open(bad)
