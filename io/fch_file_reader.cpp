@@ -5,6 +5,7 @@
 // bounded in bytes, the least recently used leaving first; the frame in use always stays.
 #include <algorithm>
 #include <condition_variable>
+#include <cstring>
 #include <exception>
 #include <map>
 #include <mutex>
@@ -16,6 +17,7 @@
 
 #include "fch_format.h"
 #include "fch_node_code.h"
+#include "temporary_file.h"
 
 namespace facetree {
 
@@ -156,6 +158,17 @@ struct ClusterFileReader::State {
   // The pass that fills the node cache: node frames decoded so far and their decoder's state.
   std::unique_ptr<fch::NodeDecoder> decoder;
   size_t nextNodeFrame = 0;
+  // The face range and parent of every node of the frames the node() pass has decoded, and with
+  // compact boxes its decoded box, in a temporary file (12 or 52 bytes a node), so that a frame
+  // behind the pass decodes on its own.
+  struct IndexedRange {
+    uint32_t first, count, parent;
+    float center[3], half[3], orientation[4];  // compact boxes only
+  };
+  std::unique_ptr<fch::TemporaryFile> rangeFile;
+  std::vector<IndexedRange> ranges;
+  std::vector<char> rangeBytes;
+
   // Buffers of one node frame, their capacity kept from frame to frame.
   std::string raw, compressed;
   std::vector<fch::NodeCode> codes;
@@ -233,6 +246,68 @@ struct ClusterFileReader::State {
     decodeCodes(k, codes, *nodeDecoder, out, depths);
   }
 
+  uint64_t frameFirst(size_t k) const { return layout().frames[sections[0][k]].first; }
+
+  bool compactBoxes() const { return layout().header.boxes == BoxPrecision::Compact; }
+  size_t rangeStride() const { return compactBoxes() ? sizeof(IndexedRange) : 3 * sizeof(uint32_t); }
+
+  void recordRanges(size_t k, const std::vector<FchNode>& nodes) {
+    if (!rangeFile) rangeFile = std::make_unique<fch::TemporaryFile>(tmp);
+    const std::vector<fch::PendingChild>& slots = decoder->frameRanges();
+    const size_t stride = rangeStride();
+    rangeBytes.resize(nodes.size() * stride);
+    for (size_t j = 0; j < nodes.size(); ++j) {
+      const NodeBox& box = nodes[j].box;
+      const IndexedRange r{nodes[j].first,
+                           nodes[j].count,
+                           j < slots.size() ? slots[j].parent : 0,
+                           {box.center.x, box.center.y, box.center.z},
+                           {box.halfExtent.x, box.halfExtent.y, box.halfExtent.z},
+                           {box.orientation.x, box.orientation.y, box.orientation.z, box.orientation.w}};
+      std::memcpy(&rangeBytes[j * stride], &r, stride);
+    }
+    rangeFile->write(frameFirst(k) * stride, rangeBytes.data(), rangeBytes.size());
+  }
+
+  IndexedRange readRange(uint64_t index) const {
+    IndexedRange r{};
+    rangeFile->read(index * rangeStride(), &r, rangeStride());
+    return r;
+  }
+
+  // Node frame `k`, behind the pass, from its codes and the ranges recorded for it; a compact box
+  // from its parent's as recorded.
+  CachedFrame decodeIndexed(size_t k) {
+    const size_t i = sections[0][k];
+    std::vector<fch::NodeCode> frameCodes;
+    readCodes(k, false, raw, compressed, frameCodes);
+    const size_t stride = rangeStride();
+    std::vector<char> bytes(frameCodes.size() * stride);
+    rangeFile->read(frameFirst(k) * stride, bytes.data(), bytes.size());
+    CachedFrame f;
+    f.nodes.resize(frameCodes.size());
+    for (size_t j = 0; j < frameCodes.size(); ++j) {
+      const uint64_t index = frameFirst(k) + j;
+      IndexedRange r{};
+      std::memcpy(&r, &bytes[j * stride], stride);
+      NodeBox parentBox;
+      if (compactBoxes() && index > 0) {
+        if (r.parent >= index)
+          source.fail(source.where(i) + ": node " + std::to_string(index) + ": bad parent");
+        const IndexedRange p = readRange(r.parent);
+        parentBox.center = glm::vec3(p.center[0], p.center[1], p.center[2]);
+        parentBox.halfExtent = glm::vec3(p.half[0], p.half[1], p.half[2]);
+        parentBox.orientation.x = p.orientation[0], parentBox.orientation.y = p.orientation[1];
+        parentBox.orientation.z = p.orientation[2], parentBox.orientation.w = p.orientation[3];
+      }
+      const std::string error = fch::decodeNodeAt(layout().header, layout().rootBox, frameCodes[j], index,
+                                                  fch::PendingChild{r.first, r.count, 1, r.parent, 0},
+                                                  compactBoxes() ? &parentBox : nullptr, false, f.nodes[j]);
+      if (!error.empty()) source.fail(source.where(i) + ": node " + std::to_string(index) + ": " + error);
+    }
+    return f;
+  }
+
   const std::vector<FchNode>& nodeFrame(size_t k) {
     const size_t i = sections[0][k];
     if (CachedFrame* hit = cached(i)) return hit->nodes;
@@ -241,28 +316,21 @@ struct ClusterFileReader::State {
       decodeNodeFrame(k, nullptr, f.nodes, nullptr);
       return insert(i, std::move(f)).nodes;
     }
-    if (!decoder || k < nextNodeFrame) {  // behind the pass: decode again from the first frame
-      if (decoder) spilled += decoder->spilledBytes();
+    if (k < nextNodeFrame) return insert(i, decodeIndexed(k)).nodes;
+    if (!decoder)
       decoder = std::make_unique<fch::NodeDecoder>(layout().header, layout().rootBox, layout().nodesPerFrame,
                                                    frontierBytes, tmp);
-      nextNodeFrame = 0;
-    }
-    std::vector<FchNode> scratch;
-    for (; nextNodeFrame < k; ++nextNodeFrame) {
-      if (CachedFrame* hit = cached(sections[0][nextNodeFrame])) {
-        // Its records are known, but the decoder must see them to announce their children.
-        decodeNodeFrame(nextNodeFrame, decoder.get(), scratch, nullptr);
-        (void)hit;
-        continue;
-      }
+    for (;; ++nextNodeFrame) {
       CachedFrame f;
       decodeNodeFrame(nextNodeFrame, decoder.get(), f.nodes, nullptr);
-      insert(sections[0][nextNodeFrame], std::move(f));
+      recordRanges(nextNodeFrame, f.nodes);
+      const size_t at = sections[0][nextNodeFrame];
+      if (nextNodeFrame == k) {
+        ++nextNodeFrame;
+        return insert(at, std::move(f)).nodes;
+      }
+      if (!cached(at)) insert(at, std::move(f));
     }
-    CachedFrame f;
-    decodeNodeFrame(k, decoder.get(), f.nodes, nullptr);
-    ++nextNodeFrame;
-    return insert(i, std::move(f)).nodes;
   }
 
   // The elements of geometry section `s` (1 vertices, 2 triangles, 3 ids) in frame `k`.

@@ -524,6 +524,31 @@ NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox, uint3
       nodesPerFrame_(nodesPerFrame),
       frontier_(nodesPerFrame, budget, tmp) {}
 
+std::string decodeNodeAt(const FileHeader& header, const NodeBox& rootBox, const NodeCode& code,
+                         uint64_t index, const PendingChild& range, const NodeBox* parentBox, bool structure,
+                         FchNode& node) {
+  const bool compact = header.boxes == BoxPrecision::Compact && !structure;
+  if (std::string error = decodeRecord(code, index, range.first, range.count, orientationBits(header.boxes),
+                                       !compact, structure, node);
+      !error.empty())
+    return error;
+  if (compact) {
+    NodeBox& box = node.box;
+    for (int a = 0; a < 3; ++a)
+      if (code.lo[a] > code.hi[a]) return "compact box face below its opposite";
+    if (index == 0) {
+      box.center = rootBox.center;
+      box.halfExtent = rootBox.halfExtent;
+    } else {
+      if (!parentBox) return "no earlier node refers to it";
+      compactBox(*parentBox, box.orientation, code.lo, code.hi, box);
+    }
+  }
+  for (unsigned c = 0; c < node.childCount; ++c)
+    if (!(node.child[c] & kFaceChild) && node.child[c] >= header.nodeCount) node.flags |= kFchTruncated;
+  return {};
+}
+
 std::string NodeDecoder::decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth,
                                 const std::vector<FchNode>* earlier) {
   if (index != next_) return "decoded out of order";
@@ -544,40 +569,27 @@ std::string NodeDecoder::decode(const NodeCode& code, uint64_t index, FchNode& n
   }
   depth = range.depth;
   const bool compact = header_.boxes == BoxPrecision::Compact && !structure_;
-  if (std::string error = decodeRecord(code, index, range.first, range.count, orientationBits(header_.boxes),
-                                       !compact, structure_, node);
-      !error.empty())
-    return error;
-  if (compact) {
-    NodeBox& box = node.box;
-    for (int a = 0; a < 3; ++a)
-      if (code.lo[a] > code.hi[a]) return "compact box face below its opposite";
-    if (index == 0) {
-      box.center = rootBox_.center;
-      box.halfExtent = rootBox_.halfExtent;
-    } else {
-      if (earlier) {
-        compactBox((*earlier)[range.parent].box, box.orientation, code.lo, code.hi, box);
-      } else {
-        const auto parent = parentBoxes_.find(range.parent);
-        if (parent == parentBoxes_.end()) return "no earlier node refers to it";
-        compactBox(parent->second.box, box.orientation, code.lo, code.hi, box);
-        if (--parent->second.waiting == 0) parentBoxes_.erase(parent);
-      }
+  const NodeBox* parentBox = nullptr;
+  auto parent = parentBoxes_.end();
+  if (compact && index > 0) {
+    if (earlier) {
+      parentBox = &(*earlier)[range.parent].box;
+    } else if ((parent = parentBoxes_.find(range.parent)) != parentBoxes_.end()) {
+      parentBox = &parent->second.box;
     }
   }
+  if (std::string error = decodeNodeAt(header_, rootBox_, code, index, range, parentBox, structure_, node);
+      !error.empty())
+    return error;
+  if (parent != parentBoxes_.end() && --parent->second.waiting == 0) parentBoxes_.erase(parent);
   // The node children this record announces, with their face ranges.
   uint32_t cursor = node.first, announced = 0;
   for (unsigned c = 0; c < node.childCount; ++c) {
     const uint32_t child = node.child[c];
-    if (!(child & kFaceChild)) {
-      if (child < header_.nodeCount) {
-        frontier_.announce(
-            child, PendingChild{cursor, node.childFaces[c], depth + 1, static_cast<uint32_t>(index), 0});
-        ++announced;
-      } else {
-        node.flags |= kFchTruncated;
-      }
+    if (!(child & kFaceChild) && child < header_.nodeCount) {
+      frontier_.announce(
+          child, PendingChild{cursor, node.childFaces[c], depth + 1, static_cast<uint32_t>(index), 0});
+      ++announced;
     }
     cursor += node.childFaces[c];
   }

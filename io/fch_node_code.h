@@ -89,6 +89,14 @@ std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* pare
 // std::logic_error when the box does not fit its parent's.
 NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code);
 
+// Decodes node `index` on its own from its code and what its parent's record gives it (`range`: face
+// range; `parentBox`: the parent's decoded box, needed by compact boxes but the root's), as
+// NodeDecoder does in file order. `structure`: S and the box left zero. Returns an empty string, or
+// why the record is invalid.
+std::string decodeNodeAt(const FileHeader& header, const NodeBox& rootBox, const NodeCode& code,
+                         uint64_t index, const PendingChild& range, const NodeBox* parentBox, bool structure,
+                         FchNode& node);
+
 // Turns codes back into nodes in file order: face ranges and depths follow from the parents'
 // records (the root covers every triangle), compact boxes from the parents' boxes. What it holds
 // is the cut of the children announced and not yet decoded (NodeFrontier) and, for compact boxes,
@@ -112,6 +120,9 @@ class NodeDecoder {
   // From now on, records as NodeFields::Structure gives them: S and the box left zero.
   void structureOnly() { structure_ = true; }
   bool structure() const { return structure_; }
+  // The ranges its parents gave each node of the frame decoded last, once all its nodes are decoded
+  // (PendingChild by position in the frame; the root's is not there).
+  const std::vector<PendingChild>& frameRanges() const { return *slots_; }
 
  private:
   struct ParentBox {

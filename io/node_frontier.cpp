@@ -1,15 +1,5 @@
 #include "node_frontier.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
-#include <stdexcept>
-#include <string>
-
-#include "facetree/error.h"
-
 namespace facetree::fch {
 
 NodeFrontier::NodeFrontier(uint32_t nodesPerFrame, uint64_t budget, std::filesystem::path tmp)
@@ -58,31 +48,9 @@ void NodeFrontier::announce(uint64_t index, const PendingChild& announced) {
   if (budget_ > 0 && blocksInUse_ * sizeof(Block) > budget_) spill();
 }
 
-std::FILE* NodeFrontier::spillFile() {
-  if (file_) return file_.get();
-  const std::filesystem::path dir = tmp_.empty() ? std::filesystem::temp_directory_path() : tmp_;
-  // An unnamed file where the system has them, else a named one removed at once: nothing is left
-  // behind, whatever ends the process.
-  int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR, 0600);
-  if (fd < 0) {
-    std::string name = (dir / "facetree-frontier-XXXXXX").string();
-    fd = ::mkstemp(name.data());
-    if (fd >= 0) ::unlink(name.c_str());
-  }
-  if (fd < 0)
-    throw Error(ErrorCategory::Output,
-                "cannot create a temporary file in " + dir.string() + ": " + std::strerror(errno));
-  file_.reset(::fdopen(fd, "w+b"));
-  if (!file_) {
-    ::close(fd);
-    throw Error(ErrorCategory::Output, "cannot open a temporary file in " + dir.string());
-  }
-  return file_.get();
-}
-
 // Writes the chains of the frames decoded last, farthest first, until half the budget is free.
 void NodeFrontier::spill() {
-  std::FILE* f = spillFile();
+  if (!file_) file_ = std::make_unique<TemporaryFile>(tmp_);
   for (uint64_t frame = chains_.size(); frame-- > 0 && blocksInUse_ * sizeof(Block) > budget_ / 2;) {
     if (frame == current_) break;
     Chain& chain = chains_[frame];
@@ -96,10 +64,7 @@ void NodeFrontier::spill() {
       b = block.next;
     }
     const uint64_t bytes = buffer_.size() * sizeof(PendingChild);
-    if (::fseeko(f, static_cast<off_t>(fileEnd_), SEEK_SET) != 0 ||
-        std::fwrite(buffer_.data(), 1, bytes, f) != bytes)
-      throw Error(ErrorCategory::Resource,
-                  std::string("cannot write a temporary file (disk full?): ") + std::strerror(errno));
+    file_->write(fileEnd_, buffer_.data(), bytes);
     chain.runs.push_back({fileEnd_, static_cast<uint32_t>(buffer_.size())});
     fileEnd_ += bytes, spilledBytes_ += bytes;
     chain.head = chain.tail = kNone, chain.blocks = 0;
@@ -112,17 +77,9 @@ const std::vector<PendingChild>& NodeFrontier::take(uint64_t frame, uint32_t cou
   if (frame >= chains_.size()) return dense_;
   Chain& chain = chains_[frame];
   if (!chain.runs.empty()) {
-    std::FILE* f = file_.get();
-    if (std::fflush(f) != 0)
-      throw Error(ErrorCategory::Resource,
-                  std::string("cannot write a temporary file (disk full?): ") + std::strerror(errno));
     for (const Run& run : chain.runs) {
       buffer_.resize(run.count);
-      const uint64_t bytes = uint64_t{run.count} * sizeof(PendingChild);
-      if (::fseeko(f, static_cast<off_t>(run.offset), SEEK_SET) != 0 ||
-          std::fread(buffer_.data(), 1, bytes, f) != bytes)
-        throw Error(ErrorCategory::Output,
-                    std::string("cannot read a temporary file: ") + std::strerror(errno));
+      file_->read(run.offset, buffer_.data(), uint64_t{run.count} * sizeof(PendingChild));
       for (const PendingChild& child : buffer_) place(child);
       pending_ -= run.count;
     }

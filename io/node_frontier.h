@@ -9,10 +9,11 @@
 #pragma once
 
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <vector>
+
+#include "temporary_file.h"
 
 namespace facetree::fch {
 
@@ -62,7 +63,6 @@ class NodeFrontier {
   uint32_t newBlock();
   void place(const PendingChild& child);
   void spill();
-  std::FILE* spillFile();
 
   uint32_t nodesPerFrame_;
   uint64_t budget_;
@@ -75,10 +75,7 @@ class NodeFrontier {
   std::vector<PendingChild> dense_;
   uint64_t pending_ = 0, blocksInUse_ = 0;
   uint64_t current_ = ~uint64_t{0};  // the frame whose slots dense_ holds
-  struct Closer {
-    void operator()(std::FILE* f) const { std::fclose(f); }
-  };
-  std::unique_ptr<std::FILE, Closer> file_;
+  std::unique_ptr<TemporaryFile> file_;
   uint64_t fileEnd_ = 0, spilledBytes_ = 0;
   std::vector<PendingChild> buffer_;  // a run on its way to or from the file
 };

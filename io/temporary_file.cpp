@@ -1,0 +1,57 @@
+#include "temporary_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <string>
+
+#include "facetree/error.h"
+
+namespace facetree::fch {
+
+TemporaryFile::TemporaryFile(const std::filesystem::path& dir)
+    : dir_(dir.empty() ? std::filesystem::temp_directory_path() : dir) {
+  fd_ = ::open(dir_.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd_ < 0) {
+    std::string name = (dir_ / "facetree-reader-XXXXXX").string();
+    fd_ = ::mkostemp(name.data(), O_CLOEXEC);
+    if (fd_ >= 0) ::unlink(name.c_str());
+  }
+  if (fd_ < 0)
+    throw Error(ErrorCategory::Output,
+                "cannot create a temporary file in " + dir_.string() + ": " + std::strerror(errno));
+}
+
+TemporaryFile::~TemporaryFile() {
+  ::close(fd_);
+}
+
+void TemporaryFile::write(uint64_t offset, const void* data, uint64_t bytes) {
+  const auto* p = static_cast<const char*>(data);
+  for (uint64_t done = 0; done < bytes;) {
+    const ssize_t n = ::pwrite(fd_, p + done, bytes - done, static_cast<off_t>(offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : ENOSPC;
+      throw Error(error == ENOSPC || error == EDQUOT ? ErrorCategory::Resource : ErrorCategory::Output,
+                  "cannot write a temporary file in " + dir_.string() + ": " + std::strerror(error));
+    }
+    done += static_cast<uint64_t>(n);
+  }
+}
+
+void TemporaryFile::read(uint64_t offset, void* data, uint64_t bytes) const {
+  auto* p = static_cast<char*>(data);
+  for (uint64_t done = 0; done < bytes;) {
+    const ssize_t n = ::pread(fd_, p + done, bytes - done, static_cast<off_t>(offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      throw Error(ErrorCategory::Output, "cannot read a temporary file in " + dir_.string() + ": " +
+                                             std::strerror(n < 0 ? errno : EIO));
+    done += static_cast<uint64_t>(n);
+  }
+}
+
+}  // namespace facetree::fch
