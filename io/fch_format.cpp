@@ -545,6 +545,9 @@ void SourceFile::decodeNodesV1(size_t i, const std::string& raw, std::vector<Fch
   floats([](FchNode& d, float v) { d.cost = v; });
   floats([](FchNode& d, float v) { d.area = v; });
   floats([](FchNode& d, float v) { d.perimeter = v; });
+  for (size_t j = 0; j < n; ++j)
+    if (!std::isfinite(nodes[j].cost) || !std::isfinite(nodes[j].area) || !std::isfinite(nodes[j].perimeter))
+      fail(where(i) + ": node " + std::to_string(f.first + j) + ": cost, area or perimeter not finite");
   for (int a = 0; a < 3; ++a) floats([a](FchNode& d, float v) { d.sumNormal[a] = v; });
   for (int a = 0; a < 3; ++a) floats([a](FchNode& d, float v) { d.box.center[a] = v; });
   for (int a = 0; a < 4; ++a) floats([a](FchNode& d, float v) { d.box.orientation[a] = v; });

@@ -471,6 +471,8 @@ std::string decodeRecord(const NodeCode& code, uint64_t index, uint32_t first, u
     cursor += faces;
   }
 
+  if (!std::isfinite(code.cost) || !std::isfinite(code.area) || !std::isfinite(code.perimeter))
+    return "cost, area or perimeter not finite";
   node.cost = code.cost;
   node.area = code.area;
   node.perimeter = code.perimeter;

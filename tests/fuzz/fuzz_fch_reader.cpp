@@ -5,6 +5,7 @@
 // documented error; anything else crashes. Where the whole-file reader reads and verifies the file,
 // the lazy reader must give the same nodes and cuts.
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -30,7 +31,9 @@ struct Picks {
 
 bool sameNode(const FchNode& a, const FchNode& b) {
   return a.first == b.first && a.count == b.count && a.childCount == b.childCount && a.flags == b.flags &&
-         std::equal(a.child, a.child + a.childCount, b.child) && a.cost == b.cost && a.area == b.area;
+         std::equal(a.child, a.child + a.childCount, b.child) &&
+         std::bit_cast<uint32_t>(a.cost) == std::bit_cast<uint32_t>(b.cost) &&
+         std::bit_cast<uint32_t>(a.area) == std::bit_cast<uint32_t>(b.area);
 }
 
 // clusterCut's per-face numbering against the reader's clusters.

@@ -173,6 +173,17 @@ TEST_F(FchCli, CutGivesTheClustersOfTheCutInFaceOrderWithTheirNodes) {
   r = runCli("cut " + fch.string() + " --max-cost nan");
   EXPECT_EQ(r.exitCode, 2) << r.out;
   EXPECT_NE(r.out.find("--max-cost needs a finite number, got 'nan'"), std::string::npos) << r.out;
+  // A record whose cost is NaN (found by fuzz_fch_reader; its checksums are sound): every reader
+  // names it, and the commands exit 3.
+  const std::string nan =
+      std::string(FACETREE_TEST_DATA) + "/../fuzz/corpus/fuzz_fch_reader/regress_nan_cost.fch";
+  for (const char* command : {"info ", "verify ", "cut --clusters 5 "}) {
+    r = runCli(std::string(command) + nan);
+    EXPECT_EQ(r.exitCode, 3) << command << r.out;
+    EXPECT_NE(r.out.find(nan + ": node frame 0 (nodes 0-20): node 1: cost, area or perimeter not finite"),
+              std::string::npos)
+        << command << r.out;
+  }
   spit(bad, "nonsense");
   r = runCli("cut " + bad.string() + " --clusters 3");
   EXPECT_EQ(r.exitCode, 3) << r.out;
