@@ -11,6 +11,16 @@ namespace {
 
 std::vector<CommandHelp> makeCommands();
 
+// The options of the commands that read a cluster file lazily (ClusterFileReader), after `options`.
+std::vector<OptionHelp> withReaderOptions(std::vector<OptionHelp> options) {
+  options.push_back({"memory", "SIZE", "",
+                     "read under this cap (default the cap the file was built under, else half the RAM): a "
+                     "quarter caches frames, a quarter holds a pass over the nodes, whose rest goes to a "
+                     "temporary file"});
+  options.push_back({"tmp", "DIR", "", "where that temporary file goes (default the system's)"});
+  return options;
+}
+
 const std::vector<CommandHelp>& commands() {
   static const std::vector<CommandHelp> table = makeCommands();
   return table;
@@ -205,70 +215,50 @@ std::vector<CommandHelp> makeCommands() {
         {"nodes", "N", "", "keep N nodes"},
         {"max-bytes", "B", "", "keep the most nodes whose file, geometry included, fits in B bytes"},
         {"json", "", "", "print the result as one JSON object"}}},
-      {"info",
-       "FILE.fch [--json] [--fit-cuts N,N...] [--memory SIZE]",
+      {"info", "FILE.fch [--json] [--fit-cuts N,N...] [--memory SIZE]",
        "counts, height, branching histogram, bytes per section",
        "Reads the header, the frame index and the node frames in one pass; the geometry only for\n"
        "--fit-cuts.",
-       {{"json", "", "", "print the report as one JSON object"},
-        {"fit-cuts", "N,N...", "",
-         "the fit error of cuts of N clusters (sum of eq. 84's eFit and of area * eFit over the cut) and "
-         "the sum of the cut's box areas against N runs of the faces in Morton order, and its balance: the "
-         "clusters under 1% of the average cluster's area"},
-        {"memory", "SIZE", "",
-         "read under this cap (default the cap the file was built under, else half the RAM): a quarter "
-         "caches frames, a quarter holds a pass over the nodes, whose rest goes to a temporary file"},
-        {"tmp", "DIR", "", "where that temporary file goes (default the system's)"}}},
+       withReaderOptions(
+           {{"json", "", "", "print the report as one JSON object"},
+            {"fit-cuts", "N,N...", "",
+             "the fit error of cuts of N clusters (sum of eq. 84's eFit and of area * eFit over the cut) and "
+             "the sum of the cut's box areas against N runs of the faces in Morton order, and its balance: "
+             "the clusters under 1% of the average cluster's area"}})},
       {"verify",
        "FILE.fch [MESH] [--json]",
        "check every invariant of a cluster file (exit 3 names the first violation)",
        "Checks the checksums, the tree, the face ranges, the costs' order and every box against its faces;\n"
        "with MESH also that the file's geometry is that mesh's.",
        {{"json", "", "", "print the result as one JSON object"}}},
-      {"render",
-       "FILE.fch (--cut N | --depth D) -o OUT.png [options]",
-       "flat-shaded picture of the clusters of a cut",
-       "",
-       {{"output", "OUT.png", "-o", "the picture"},
-        {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
-        {"depth", "D", "", "the cut at depth D"},
-        {"width", "W", "", "pixels, 16 to 16384 (default 1024)"},
-        {"height", "H", "", "pixels, 16 to 16384 (default 768)"},
-        {"view", "X,Y,Z", "", "viewing direction (default a three-quarter view)"},
-        {"up", "X,Y,Z", "", "up vector (default 0,0,1)"},
-        {"memory", "SIZE", "",
-         "read under this cap (default the cap the file was built under, else half the RAM): a quarter "
-         "caches frames, a quarter holds a pass over the nodes, whose rest goes to a temporary file"},
-        {"tmp", "DIR", "", "where that temporary file goes (default the system's)"}}},
-      {"export",
-       "FILE.fch (--cut N | --depth D) -o OUT.ply",
-       "the mesh with a colour per cluster of a cut (MeshLab)",
-       "",
-       {{"output", "OUT.ply", "-o", "the coloured mesh"},
-        {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
-        {"depth", "D", "", "the cut at depth D"},
-        {"memory", "SIZE", "",
-         "read under this cap (default the cap the file was built under, else half the RAM): a quarter "
-         "caches frames, a quarter holds a pass over the nodes, whose rest goes to a temporary file"},
-        {"tmp", "DIR", "", "where that temporary file goes (default the system's)"}}},
-      {"cut",
-       "FILE.fch (--clusters N | --max-cost C | --depth D) [--mesh-out OUT.ply]",
+      {"render", "FILE.fch (--cut N | --depth D) -o OUT.png [options]",
+       "flat-shaded picture of the clusters of a cut", "",
+       withReaderOptions({{"output", "OUT.png", "-o", "the picture"},
+                          {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
+                          {"depth", "D", "", "the cut at depth D"},
+                          {"width", "W", "", "pixels, 16 to 16384 (default 1024)"},
+                          {"height", "H", "", "pixels, 16 to 16384 (default 768)"},
+                          {"view", "X,Y,Z", "", "viewing direction (default a three-quarter view)"},
+                          {"up", "X,Y,Z", "", "up vector (default 0,0,1)"}})},
+      {"export", "FILE.fch (--cut N | --depth D) -o OUT.ply",
+       "the mesh with a colour per cluster of a cut (MeshLab)", "",
+       withReaderOptions({{"output", "OUT.ply", "-o", "the coloured mesh"},
+                          {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
+                          {"depth", "D", "", "the cut at depth D"}})},
+      {"cut", "FILE.fch (--clusters N | --max-cost C | --depth D) [--mesh-out OUT.ply]",
        "the clusters of a cut as JSON lines, for scripts downstream",
        "One line per cluster in face order: its position in the cut, its node (null for a single face\n"
        "or a gap that truncation left), its first face and triangle count in the file's face order, and\n"
        "the node's cost, area, perimeter and oriented box (centre, half extents, orientation x, y, z, w).\n"
        "--clusters N: the shortest prefix of the file whose cut has at least N clusters; --max-cost C:\n"
        "the cut below every node whose effective cost exceeds C; --depth D: the cut below depth D.",
-       {{"clusters", "N", "", "the cut of at least N clusters from the top"},
-        {"max-cost", "C", "", "the cut below the nodes of effective cost above C"},
-        {"depth", "D", "", "the cut below the nodes of depth D and less (the root's is 1)"},
-        {"mesh-out", "OUT.ply", "",
-         "also the mesh (every vertex of the file, its triangles in face order) with a colour and a "
-         "uint cluster per face"},
-        {"memory", "SIZE", "",
-         "read under this cap (default the cap the file was built under, else half the RAM): a quarter "
-         "caches frames, a quarter holds a pass over the nodes, whose rest goes to a temporary file"},
-        {"tmp", "DIR", "", "where that temporary file goes (default the system's)"}}},
+       withReaderOptions(
+           {{"clusters", "N", "", "the cut of at least N clusters from the top"},
+            {"max-cost", "C", "", "the cut below the nodes of effective cost above C"},
+            {"depth", "D", "", "the cut below the nodes of depth D and less (the root's is 1)"},
+            {"mesh-out", "OUT.ply", "",
+             "also the mesh (every vertex of the file, its triangles in face order) with a colour and a "
+             "uint cluster per face"}})},
   };
   addStageCommands(table);
   return table;

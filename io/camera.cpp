@@ -61,20 +61,31 @@ glm::vec3 SampleSpace::view(const glm::vec3& p) const {
                    glm::dot(d, glm::dvec3(basis_.forward)));
 }
 
-// The extent of the positions on the screen plane.
-void SampleSpace::addExtent(std::span<const glm::vec3> positions) {
+void SampleSpace::centre() {
   if (!centred_) centre_ = low_.x <= high_.x ? (low_ + high_) * 0.5 : glm::dvec3(0.0), centred_ = true;
-  for (const glm::vec3& p : positions) {
-    const glm::vec3 v = view(p);
-    if (!isFinite(v)) continue;
-    lowView_ = glm::min(lowView_, glm::vec2(v));
-    highView_ = glm::max(highView_, glm::vec2(v));
-  }
+}
+
+// The extent of the positions on the screen plane.
+void SampleSpace::extend(const glm::vec3& p) {
+  const glm::vec3 v = view(p);
+  if (!isFinite(v)) return;
+  lowView_ = glm::min(lowView_, glm::vec2(v));
+  highView_ = glm::max(highView_, glm::vec2(v));
+}
+
+void SampleSpace::addExtent(std::span<const glm::vec3> positions) {
+  centre();
+  for (const glm::vec3& p : positions) extend(p);
+}
+
+void SampleSpace::addExtent(std::span<const glm::vec3> positions, std::span<const uint32_t> indices) {
+  centre();
+  for (const uint32_t index : indices) extend(positions[index]);
 }
 
 glm::vec3 SampleSpace::map(const glm::vec3& p) {
   if (!fitted_) {
-    if (!centred_) addExtent({});
+    centre();
     if (!(lowView_.x <= highView_.x)) lowView_ = highView_ = glm::vec2(0.0f);
     const glm::vec2 extent = highView_ - lowView_;
     const float usableWidth = static_cast<float>(width_) * (1.0f - 2.0f * kMarginFraction);
@@ -95,13 +106,7 @@ std::vector<glm::vec3> toSampleSpace(std::span<const glm::vec3> positions, std::
                                      const ViewBasis& basis, int width, int height) {
   SampleSpace space(basis, width, height);
   space.addBounds(positions);
-  // Extent of the referenced vertices only.
-  std::vector<uint8_t> referenced(positions.size(), 0);
-  for (const uint32_t index : indices) referenced[index] = 1;
-  std::vector<glm::vec3> used;
-  for (size_t i = 0; i < positions.size(); ++i)
-    if (referenced[i]) used.push_back(positions[i]);
-  space.addExtent(used);
+  space.addExtent(positions, indices);
   std::vector<glm::vec3> view(positions.size());
   for (size_t i = 0; i < positions.size(); ++i) view[i] = space.map(positions[i]);
   return view;

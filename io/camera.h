@@ -43,11 +43,15 @@ class SampleSpace {
   SampleSpace(const ViewBasis& basis, int width, int height);
   void addBounds(std::span<const glm::vec3> positions);
   void addExtent(std::span<const glm::vec3> positions);
+  // The same for the positions `indices` refer to.
+  void addExtent(std::span<const glm::vec3> positions, std::span<const uint32_t> indices);
   // Sample-space position of `p`; the first call ends the fitting.
   glm::vec3 map(const glm::vec3& p);
 
  private:
   glm::vec3 view(const glm::vec3& p) const;
+  void centre();
+  void extend(const glm::vec3& p);
   ViewBasis basis_;
   int width_, height_;
   glm::dvec3 low_, high_, centre_{0.0};

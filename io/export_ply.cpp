@@ -19,6 +19,16 @@ constexpr size_t kVertexBytes = 12;  // float x, y, z
 constexpr size_t kFaceBytes = 16;    // uchar 3, int a, b, c, uchar red, green, blue
 constexpr size_t kRecordBatch = 1 << 16;
 static_assert(sizeof(glm::vec3) == kVertexBytes, "positions are copied as packed floats");
+
+// `clusterIds` adds a uint cluster property after the colour.
+std::string plyHeader(uint64_t vertices, uint64_t faces, bool clusterIds) {
+  return "ply\nformat binary_little_endian 1.0\ncomment facetree clusters\nelement vertex " +
+         std::to_string(vertices) + "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+         std::to_string(faces) +
+         "\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\n"
+         "property uchar blue\n" +
+         (clusterIds ? "property uint cluster\n" : "") + "end_header\n";
+}
 }  // namespace
 
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
@@ -29,12 +39,7 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
                                 " vertices do not fit PLY int indices");
   const size_t triangles = mesh.triangleCount();
   OutputFile out(path);
-  out.write("ply\nformat binary_little_endian 1.0\ncomment facetree clusters\nelement vertex " +
-            std::to_string(mesh.positions.size()) +
-            "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-            std::to_string(triangles) +
-            "\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\n"
-            "property uchar blue\nend_header\n");
+  out.write(plyHeader(mesh.positions.size(), triangles, false));
 
   std::vector<unsigned char> batch;
   batch.reserve(kRecordBatch * kFaceBytes);
@@ -73,13 +78,7 @@ void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutClust
     throw std::invalid_argument("writeClusterColouredPly: " + std::to_string(header.vertexCount) +
                                 " vertices do not fit PLY int indices");
   OutputFile out(path);
-  out.write("ply\nformat binary_little_endian 1.0\ncomment facetree clusters\nelement vertex " +
-            std::to_string(header.vertexCount) +
-            "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-            std::to_string(header.triangleCount) +
-            "\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\n"
-            "property uchar blue\n" +
-            (clusterIds ? "property uint cluster\n" : "") + "end_header\n");
+  out.write(plyHeader(header.vertexCount, header.triangleCount, clusterIds));
   reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> positions) {
     out.write(positions.data(), positions.size() * kVertexBytes);
   });

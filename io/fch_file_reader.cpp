@@ -11,9 +11,9 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <unordered_map>
 
 #include <unistd.h>
-#include <unordered_map>
 
 #include "fch_format.h"
 #include "fch_node_code.h"
@@ -141,7 +141,7 @@ struct ClusterFileReader::State {
   State(const std::filesystem::path& path, const ReaderOptions& options)
       : source(path),
         cacheBytes(readerMemory(options, source.layout().header) / 4),
-        frontierBytes(readerMemory(options, source.layout().header) / 4),
+        frontierBytes(cacheBytes),
         tmp(options.tmp) {
     const FchLayout& layout = source.layout();
     for (size_t i = 0; i < layout.frames.size(); ++i)
@@ -166,7 +166,6 @@ struct ClusterFileReader::State {
     float center[3], half[3], orientation[4];  // compact boxes only
   };
   std::unique_ptr<fch::TemporaryFile> rangeFile;
-  std::vector<IndexedRange> ranges;
   std::vector<char> rangeBytes;
 
   // Buffers of one node frame, their capacity kept from frame to frame.

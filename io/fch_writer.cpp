@@ -29,6 +29,7 @@
 #include "fch_node_code.h"
 #include "fch_piece.h"
 #include "output_file.h"
+#include "temporary_file.h"
 
 namespace facetree {
 namespace {
@@ -64,15 +65,13 @@ std::string str(uint64_t v) {
   return std::to_string(v);
 }
 
-// A temporary file of compressed frames, unlinked as soon as it exists: the descriptor keeps it
-// alive, and the kernel frees it when the writer goes, however the process ends.
+// A temporary file of compressed frames that no directory entry names (createUnnamedFile): the
+// descriptor keeps it alive, and the kernel frees it when the writer goes, however the process ends.
 class FrameSpill {
  public:
   FrameSpill(const std::filesystem::path& dir, const std::string& owner) : owner_(owner), dir_(dir) {
-    std::string name = (dir / ".facetree-spill-XXXXXX").string();
-    fd_ = ::mkstemp(name.data());
+    fd_ = fch::createUnnamedFile(dir, ".facetree-spill-");
     if (fd_ < 0) fail("cannot create a temporary file");
-    ::unlink(name.c_str());
   }
   ~FrameSpill() {
     if (fd_ >= 0) ::close(fd_);

@@ -40,11 +40,9 @@ void NodeFrontier::announce(uint64_t index, const PendingChild& announced) {
     else
       blocks_[chain.tail].next = b;
     chain.tail = b;
-    ++chain.blocks;
   }
   Block& block = blocks_[chain.tail];
   block.entries[block.size++] = child;
-  ++pending_;
   if (budget_ > 0 && blocksInUse_ * sizeof(Block) > budget_) spill();
 }
 
@@ -67,7 +65,7 @@ void NodeFrontier::spill() {
     file_->write(fileEnd_, buffer_.data(), bytes);
     chain.runs.push_back({fileEnd_, static_cast<uint32_t>(buffer_.size())});
     fileEnd_ += bytes, spilledBytes_ += bytes;
-    chain.head = chain.tail = kNone, chain.blocks = 0;
+    chain.head = chain.tail = kNone;
   }
 }
 
@@ -81,19 +79,17 @@ const std::vector<PendingChild>& NodeFrontier::take(uint64_t frame, uint32_t cou
       buffer_.resize(run.count);
       file_->read(run.offset, buffer_.data(), uint64_t{run.count} * sizeof(PendingChild));
       for (const PendingChild& child : buffer_) place(child);
-      pending_ -= run.count;
     }
     std::vector<Run>().swap(chain.runs);
   }
   for (uint32_t b = chain.head; b != kNone;) {
     Block& block = blocks_[b];
     for (uint32_t e = 0; e < block.size; ++e) place(block.entries[e]);
-    pending_ -= block.size;
     free_.push_back(b);
     --blocksInUse_;
     b = block.next;
   }
-  chain.head = chain.tail = kNone, chain.blocks = 0;
+  chain.head = chain.tail = kNone;
   return dense_;
 }
 

@@ -42,7 +42,6 @@ class NodeFrontier {
   const std::vector<PendingChild>& take(uint64_t frame, uint32_t count);
   // Bytes held in memory: the blocks in use, the chains and the dense array.
   uint64_t heldBytes() const;
-  uint64_t pending() const { return pending_; }
   uint64_t spilledBytes() const { return spilledBytes_; }  // written to the temporary file so far
 
  private:
@@ -57,7 +56,7 @@ class NodeFrontier {
     uint32_t count;   // entries
   };
   struct Chain {
-    uint32_t head = kNone, tail = kNone, blocks = 0;
+    uint32_t head = kNone, tail = kNone;
     std::vector<Run> runs;  // spilled entries
   };
   uint32_t newBlock();
@@ -73,7 +72,7 @@ class NodeFrontier {
   std::vector<Block> blocks_;
   std::vector<uint32_t> free_;
   std::vector<PendingChild> dense_;
-  uint64_t pending_ = 0, blocksInUse_ = 0;
+  uint64_t blocksInUse_ = 0;
   uint64_t current_ = ~uint64_t{0};  // the frame whose slots dense_ holds
   std::unique_ptr<TemporaryFile> file_;
   uint64_t fileEnd_ = 0, spilledBytes_ = 0;

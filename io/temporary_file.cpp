@@ -11,14 +11,19 @@
 
 namespace facetree::fch {
 
+int createUnnamedFile(const std::filesystem::path& dir, const char* prefix) {
+  int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    std::string name = (dir / (std::string(prefix) + "XXXXXX")).string();
+    fd = ::mkostemp(name.data(), O_CLOEXEC);
+    if (fd >= 0) ::unlink(name.c_str());
+  }
+  return fd;
+}
+
 TemporaryFile::TemporaryFile(const std::filesystem::path& dir)
     : dir_(dir.empty() ? std::filesystem::temp_directory_path() : dir) {
-  fd_ = ::open(dir_.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-  if (fd_ < 0) {
-    std::string name = (dir_ / "facetree-reader-XXXXXX").string();
-    fd_ = ::mkostemp(name.data(), O_CLOEXEC);
-    if (fd_ >= 0) ::unlink(name.c_str());
-  }
+  fd_ = createUnnamedFile(dir_, "facetree-reader-");
   if (fd_ < 0)
     throw Error(ErrorCategory::Output,
                 "cannot create a temporary file in " + dir_.string() + ": " + std::strerror(errno));

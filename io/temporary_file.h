@@ -9,6 +9,10 @@
 
 namespace facetree::fch {
 
+// A file no directory entry names, in `dir`: O_TMPFILE where the file system has it, else a name
+// removed at once. Returns its descriptor, or -1 with errno set.
+int createUnnamedFile(const std::filesystem::path& dir, const char* prefix);
+
 class TemporaryFile {
  public:
   // `dir`: empty for the system's temporary directory. Throws Error (Output) when it cannot be made.

@@ -89,14 +89,13 @@ as they are asked for, every frame checked first. Use it as a context manager, o
             ClusterFileReader& reader = r.open();
             const uint64_t end = std::min(stop.value_or(reader.size()), reader.size());
             const uint64_t first = std::min(start, end);
-            std::vector<NodeRecord> records(end - first);
+            py::array_t<NodeRecord> out(static_cast<py::ssize_t>(end - first));
+            NodeRecord* records = out.mutable_data();
             {
               py::gil_scoped_release release;
               for (uint64_t i = first; i < end; ++i)
                 records[i - first] = record(reader.node(i), reader.size());
             }
-            py::array_t<NodeRecord> out(static_cast<py::ssize_t>(records.size()));
-            if (!records.empty()) std::copy(records.begin(), records.end(), out.mutable_data());
             return out;
           },
           py::arg("start") = 0, py::arg("stop") = py::none(),
