@@ -22,7 +22,9 @@ std::string number(double v) {
 }
 
 std::string triple(float a, float b, float c) {
-  return "[" + number(a) + "," + number(b) + "," + number(c) + "]";
+  std::string out = "[";
+  out.append(number(a)).append(",").append(number(b)).append(",").append(number(c)).append("]");
+  return out;
 }
 
 // One JSON line: the cluster's position in the cut, its node (null for a face or a truncation gap),

@@ -212,27 +212,26 @@ int runVerify(const std::vector<std::string>& argv) {
     throw UsageError("verify takes a cluster file and optionally the mesh it was built from");
   const std::string& name = args.positional()[0];
   return [&] {
-    const ClusterFile file = readClusterFile(name);
-    VerifyResult result = verifyClusterFile(file);
-    if (result.ok && args.positional().size() == 2) {
-      auto reader = openMesh(args.positional()[1]);
-      const IndexedMesh mesh = loadMesh(*reader);
-      result = verifyAgainstMesh(file, mesh.view(), mesh.originalFace);
-    }
+    ClusterFileReader reader(name, readerOptions(args));
+    VerifyResult result = verifyClusterFile(reader);
+    if (result.ok && args.positional().size() == 2)
+      result = verifyAgainstMesh(reader, meshTriangleSource(args.positional()[1], reader.memoryBytes() / 2,
+                                                            reader.temporaryDirectory()));
+    const uint64_t nodes = reader.size(), triangles = reader.header().triangleCount;
     if (args.flag("json")) {
       JsonWriter json;
       json.field("file", name);
       json.field("ok", result.ok);
       json.field("message", result.message);
-      json.field("nodes", static_cast<uint64_t>(file.nodes.size()));
-      json.field("triangles", static_cast<uint64_t>(file.originalFace.size()));
+      json.field("nodes", nodes);
+      json.field("triangles", triangles);
       std::fputs(json.finish().c_str(), stdout);
       if (!result.ok) return int{kExitInput};
     }
     if (!result.ok) return invalid(name + ": invalid: " + result.message);
     if (!args.flag("json"))
-      std::printf("%s: ok: %zu nodes, %zu triangles%s\n", name.c_str(), file.nodes.size(),
-                  file.originalFace.size(),
+      std::printf("%s: ok: %llu nodes, %llu triangles%s\n", name.c_str(),
+                  static_cast<unsigned long long>(nodes), static_cast<unsigned long long>(triangles),
                   args.positional().size() == 2 ? ", geometry matches the mesh" : "");
     return int{kExitOk};
   }();

@@ -226,11 +226,13 @@ std::vector<CommandHelp> makeCommands() {
              "the sum of the cut's box areas against N runs of the faces in Morton order, and its balance: "
              "the clusters under 1% of the average cluster's area"}})},
       {"verify",
-       "FILE.fch [MESH] [--json]",
+       "FILE.fch [MESH] [--json] [--memory SIZE]",
        "check every invariant of a cluster file (exit 3 names the first violation)",
        "Checks the checksums, the tree, the face ranges, the costs' order and every box against its faces;\n"
-       "with MESH also that the file's geometry is that mesh's.",
-       {{"json", "", "", "print the result as one JSON object"}}},
+       "with MESH also that the file's geometry is that mesh's. Streams: the nodes in one pass, then the\n"
+       "faces in order with the nodes over each face, and the mesh's triangles against the file's by\n"
+       "original id, in windows that spill to --tmp.",
+       withReaderOptions({{"json", "", "", "print the result as one JSON object"}})},
       {"render", "FILE.fch (--cut N | --depth D) -o OUT.png [options]",
        "flat-shaded picture of the clusters of a cut", "",
        withReaderOptions({{"output", "OUT.png", "-o", "the picture"},

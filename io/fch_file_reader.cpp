@@ -140,7 +140,8 @@ class CodePipeline {
 struct ClusterFileReader::State {
   State(const std::filesystem::path& path, const ReaderOptions& options)
       : source(path),
-        cacheBytes(readerMemory(options, source.layout().header) / 4),
+        memoryBytes(readerMemory(options, source.layout().header)),
+        cacheBytes(memoryBytes / 4),
         frontierBytes(cacheBytes),
         tmp(options.tmp) {
     const FchLayout& layout = source.layout();
@@ -149,7 +150,7 @@ struct ClusterFileReader::State {
   }
 
   fch::SourceFile source;
-  uint64_t cacheBytes, frontierBytes;
+  uint64_t memoryBytes, cacheBytes, frontierBytes;
   std::filesystem::path tmp;
   uint64_t peakHeld = 0, spilled = 0;
   std::vector<size_t> sections[4];  // layout frame indices of each section, in element order
@@ -411,6 +412,12 @@ const FileHeader& ClusterFileReader::header() const {
 }
 uint64_t ClusterFileReader::size() const {
   return state_->layout().header.nodeCount;
+}
+uint64_t ClusterFileReader::memoryBytes() const {
+  return state_->memoryBytes;
+}
+const std::filesystem::path& ClusterFileReader::temporaryDirectory() const {
+  return state_->tmp;
 }
 
 FchNode ClusterFileReader::node(uint64_t index) {

@@ -3,17 +3,18 @@
 // reporting the first violation by node and check.
 #include "fch_cut.h"
 #include "fch_node_code.h"
+#include "verify_node.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <tuple>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
 namespace facetree {
+namespace fch {
 namespace {
 
 // Tolerances of the geometric checks. Boxes are exact up to float rounding of the stored
@@ -24,18 +25,69 @@ constexpr double kQuaternionTolerance = 1e-3;
 constexpr double kStatisticRelative = 1e-3;  // of the node's area
 constexpr double kStatisticAbsolute = 1e-12;
 
-struct Failure {
-  std::string message;
-};
-
-VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail, uint64_t checked) {
-  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
-}
-
 std::string str(double v) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.9g", v);
   return buffer;
+}
+
+}  // namespace
+
+double modelTolerance(const glm::dvec3& lo, const glm::dvec3& hi, bool empty) {
+  return empty ? 0.0 : kBoxModelRelative * glm::length(hi - lo);
+}
+
+std::optional<NodeCheckFailure> checkNodeGeometry(const NodeBox& box, float nodeArea, const glm::vec3& nodeS,
+                                                  const NodeFaceSums& sums, const double step[3],
+                                                  double modelTolerance, const VerifyOptions& options) {
+  const double qLength = std::sqrt(
+      double(box.orientation.x) * box.orientation.x + double(box.orientation.y) * box.orientation.y +
+      double(box.orientation.z) * box.orientation.z + double(box.orientation.w) * box.orientation.w);
+  if (options.boxes && std::abs(qLength - 1.0) > kQuaternionTolerance)
+    return NodeCheckFailure{"box orientation", "quaternion of length " + str(qLength)};
+  if (options.boxes) {
+    static constexpr const char* kAxis[3] = {"axis 0", "axis 1", "axis 2"};
+    const double size = glm::length(glm::dvec3(box.halfExtent)) + glm::length(sums.center);
+    const double tolerance = kBoxRelative * size + modelTolerance;
+    for (int a = 0; a < 3; ++a) {
+      const double half = box.halfExtent[a];
+      if (sums.hi[a] > half + tolerance || sums.lo[a] < -half - tolerance)
+        return NodeCheckFailure{"box containment", std::string(kAxis[a]) + ": vertices reach [" +
+                                                       str(sums.lo[a]) + ", " + str(sums.hi[a]) +
+                                                       "] beyond half extent " + str(half)};
+      if (sums.hi[a] < half - tolerance - step[a] || sums.lo[a] > -half + tolerance + step[a])
+        return NodeCheckFailure{"box tightness", std::string(kAxis[a]) + ": vertices span [" +
+                                                     str(sums.lo[a]) + ", " + str(sums.hi[a]) +
+                                                     "], half extent " + str(half)};
+    }
+  }
+  if (options.statistics) {
+    const double tolerance = kStatisticRelative * sums.area + kStatisticAbsolute;
+    if (std::abs(sums.area - nodeArea) > tolerance)
+      return NodeCheckFailure{"area", "stored " + str(nodeArea) + ", faces sum to " + str(sums.area)};
+    const double sDifference = glm::length(sums.sumNormal - glm::dvec3(nodeS));
+    if (sDifference > tolerance)
+      return NodeCheckFailure{"sum normal", "stored S differs from the faces' by " + str(sDifference)};
+    for (int k = 0; k < 6; ++k)
+      if (std::abs(sums.side[k] - box.sideArea[k]) > tolerance)
+        return NodeCheckFailure{"side area", "side " + std::to_string(k) + ": stored " +
+                                                 str(box.sideArea[k]) + ", faces give " + str(sums.side[k])};
+  }
+  return std::nullopt;
+}
+
+std::string triangleMismatch(const TriangleKey& file, const TriangleKey& mesh) {
+  return "geometry: triangle " + std::to_string(file.position) + " (original face " +
+         std::to_string(file.id) + ") does not match the mesh's triangle " + std::to_string(mesh.position) +
+         " (original face " + std::to_string(mesh.id) + ")";
+}
+
+}  // namespace fch
+
+namespace {
+
+VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail, uint64_t checked) {
+  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
 }
 
 }  // namespace
@@ -119,76 +171,20 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
   // Geometry per node: O(faces x depth), the price of exact, independent checks.
   glm::dvec3 lo(INFINITY), hi(-INFINITY);
   for (const glm::vec3& p : file.vertices) lo = glm::min(lo, glm::dvec3(p)), hi = glm::max(hi, glm::dvec3(p));
-  const double modelTolerance = file.vertices.empty() ? 0.0 : kBoxModelRelative * glm::length(hi - lo);
+  const double modelTolerance = fch::modelTolerance(lo, hi, file.vertices.empty());
   for (uint64_t j = 0; j < n; ++j) {
     const FchNode& node = nodes[j];
-    const NodeBox& box = node.box;
-    const double qLength = std::sqrt(
-        double(box.orientation.x) * box.orientation.x + double(box.orientation.y) * box.orientation.y +
-        double(box.orientation.z) * box.orientation.z + double(box.orientation.w) * box.orientation.w);
-    if (options.boxes && std::abs(qLength - 1.0) > kQuaternionTolerance)
-      return failAt(j, "box orientation", "quaternion of length " + str(qLength), j);
-    const glm::mat3 m = glm::mat3_cast(box.orientation);
-    const glm::dvec3 axis[3] = {glm::dvec3(m[0]), glm::dvec3(m[1]), glm::dvec3(m[2])};
-    const glm::dvec3 center(box.center);
-    double pLo[3] = {INFINITY, INFINITY, INFINITY}, pHi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    double area = 0, side[6] = {0, 0, 0, 0, 0, 0};
-    glm::dvec3 sumNormal(0.0);
-    for (uint64_t f = node.first; f < uint64_t{node.first} + node.count; ++f) {
-      const glm::dvec3 p[3] = {glm::dvec3(file.vertices[file.indices[3 * f]]),
-                               glm::dvec3(file.vertices[file.indices[3 * f + 1]]),
-                               glm::dvec3(file.vertices[file.indices[3 * f + 2]])};
-      for (const glm::dvec3& q : p)
-        for (int a = 0; a < 3; ++a) {
-          const double d = glm::dot(q - center, axis[a]);
-          pLo[a] = std::min(pLo[a], d), pHi[a] = std::max(pHi[a], d);
-        }
-      const glm::dvec3 areaNormal = 0.5 * glm::cross(p[1] - p[0], p[2] - p[0]);
-      area += glm::length(areaNormal);
-      sumNormal += areaNormal;
-      for (int a = 0; a < 3; ++a) {
-        const double d = glm::dot(areaNormal, axis[a]);
-        side[2 * a] += std::max(d, 0.0), side[2 * a + 1] += std::max(-d, 0.0);
-      }
-    }
-    if (options.boxes) {
-      static constexpr const char* kAxis[3] = {"axis 0", "axis 1", "axis 2"};
-      const double size = glm::length(glm::dvec3(box.halfExtent)) + glm::length(center);
-      const double tolerance = kBoxRelative * size + modelTolerance;
-      // Compact boxes: each face within one step of the parent's grid of a vertex (docs/FORMAT.md).
-      double step[3] = {0, 0, 0};
-      if (h.boxes == BoxPrecision::Compact && h.version >= 2 && j > 0)
-        fch::compactStep(nodes[parent[j]].box, box.orientation, step);
-      for (int a = 0; a < 3; ++a) {
-        const double half = box.halfExtent[a];
-        if (pHi[a] > half + tolerance || pLo[a] < -half - tolerance)
-          return failAt(j, "box containment",
-                        std::string(kAxis[a]) + ": vertices reach [" + str(pLo[a]) + ", " + str(pHi[a]) +
-                            "] beyond half extent " + str(half),
-                        j);
-        if (pHi[a] < half - tolerance - step[a] || pLo[a] > -half + tolerance + step[a])
-          return failAt(j, "box tightness",
-                        std::string(kAxis[a]) + ": vertices span [" + str(pLo[a]) + ", " + str(pHi[a]) +
-                            "], half extent " + str(half),
-                        j);
-      }
-    }
-    if (options.statistics) {
-      const double tolerance = kStatisticRelative * area + kStatisticAbsolute;
-      if (std::abs(area - node.area) > tolerance)
-        return failAt(j, "area", "stored " + str(node.area) + ", faces sum to " + str(area), j);
-      if (glm::length(sumNormal - glm::dvec3(node.sumNormal)) > tolerance)
-        return failAt(
-            j, "sum normal",
-            "stored S differs from the faces' by " + str(glm::length(sumNormal - glm::dvec3(node.sumNormal))),
-            j);
-      for (int k = 0; k < 6; ++k)
-        if (std::abs(side[k] - box.sideArea[k]) > tolerance)
-          return failAt(j, "side area",
-                        "side " + std::to_string(k) + ": stored " + str(box.sideArea[k]) + ", faces give " +
-                            str(side[k]),
-                        j);
-    }
+    fch::NodeFaceSums sums(node.box);
+    for (uint64_t f = node.first; f < uint64_t{node.first} + node.count; ++f)
+      sums.add(fch::VerifyFace(file.vertices[file.indices[3 * f]], file.vertices[file.indices[3 * f + 1]],
+                               file.vertices[file.indices[3 * f + 2]]));
+    // Compact boxes: each face within one step of the parent's grid of a vertex (docs/FORMAT.md).
+    double step[3] = {0, 0, 0};
+    if (h.boxes == BoxPrecision::Compact && h.version >= 2 && j > 0)
+      fch::compactStep(nodes[parent[j]].box, node.box.orientation, step);
+    if (const auto failure =
+            fch::checkNodeGeometry(node.box, node.area, node.sumNormal, sums, step, modelTolerance, options))
+      return failAt(j, failure->check, failure->detail, j);
   }
   return {true, "", n};
 }
@@ -203,39 +199,22 @@ VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
         0};
   if (!meshOriginalFace.empty() && meshOriginalFace.size() != faces)
     return {false, "mesh: original ids do not match its triangles", 0};
-  // (original id, corners rotated to start at the smallest) for both, sorted, compared.
-  using Key = std::tuple<uint64_t, std::array<float, 9>>;
-  auto key = [](uint64_t id, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
-    const std::array<std::array<float, 3>, 3> corner = {{{a.x, a.y, a.z}, {b.x, b.y, b.z}, {c.x, c.y, c.z}}};
-    const auto first = static_cast<int>(std::min_element(corner.begin(), corner.end()) - corner.begin());
-    std::array<float, 9> out;
-    for (int k = 0; k < 3; ++k)
-      for (int a = 0; a < 3; ++a) out[3 * k + a] = corner[(first + k) % 3][a];
-    return Key{id, out};
-  };
-  std::vector<std::pair<Key, uint64_t>> fromFile(faces), fromMesh(faces);
+  std::vector<fch::TriangleKey> fromFile, fromMesh;
+  fromFile.reserve(faces), fromMesh.reserve(faces);
   for (size_t t = 0; t < faces; ++t) {
-    fromFile[t] = {key(file.originalFace[t], file.vertices[file.indices[3 * t]],
-                       file.vertices[file.indices[3 * t + 1]], file.vertices[file.indices[3 * t + 2]]),
-                   t};
+    fromFile.emplace_back(file.originalFace[t], t, file.vertices[file.indices[3 * t]],
+                          file.vertices[file.indices[3 * t + 1]], file.vertices[file.indices[3 * t + 2]]);
     for (int k = 0; k < 3; ++k)
       if (mesh.indices[3 * t + k] >= mesh.positions.size())
         return {false, "mesh: vertex index out of range", 0};
-    fromMesh[t] = {
-        key(meshOriginalFace.empty() ? t : meshOriginalFace[t], mesh.positions[mesh.indices[3 * t]],
-            mesh.positions[mesh.indices[3 * t + 1]], mesh.positions[mesh.indices[3 * t + 2]]),
-        t};
+    fromMesh.emplace_back(meshOriginalFace.empty() ? t : meshOriginalFace[t], t,
+                          mesh.positions[mesh.indices[3 * t]], mesh.positions[mesh.indices[3 * t + 1]],
+                          mesh.positions[mesh.indices[3 * t + 2]]);
   }
   std::sort(fromFile.begin(), fromFile.end());
   std::sort(fromMesh.begin(), fromMesh.end());
   for (size_t i = 0; i < faces; ++i)
-    if (fromFile[i].first != fromMesh[i].first)
-      return {false,
-              "geometry: triangle " + std::to_string(fromFile[i].second) + " (original face " +
-                  std::to_string(std::get<0>(fromFile[i].first)) + ") does not match the mesh's triangle " +
-                  std::to_string(fromMesh[i].second) + " (original face " +
-                  std::to_string(std::get<0>(fromMesh[i].first)) + ")",
-              0};
+    if (!fromFile[i].sameKey(fromMesh[i])) return {false, fch::triangleMismatch(fromFile[i], fromMesh[i]), 0};
   return {true, "", file.nodes.size()};
 }
 

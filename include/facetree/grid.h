@@ -51,6 +51,13 @@ struct LoadOptions {
 // Reads every triangle of `reader` into memory.
 IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options = {});
 
+// The triangles of the mesh file `mesh` as a build reads them (its finite triangles, with their
+// original face ids, in reading order), for verifyAgainstMesh, under `memoryCap`: the vertex
+// positions spill past a quarter of it, the triangles wait in a temporary file in `tmp` (empty: the
+// system's temporary directory). Each call of the source reads the file again.
+MeshTriangleSource meshTriangleSource(const std::filesystem::path& mesh, uint64_t memoryCap,
+                                      const std::filesystem::path& tmp = {});
+
 // Points every index at the lowest-numbered vertex with the same position; returns how many
 // vertices were replaced. Positions are left in place (unreferenced duplicates stay).
 uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices);

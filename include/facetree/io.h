@@ -396,6 +396,9 @@ class ClusterFileReader {
   const FchLayout& layout() const;
   const FileHeader& header() const;
   uint64_t size() const;  // nodes
+  // The cap it holds (ReaderOptions::memoryBytes resolved) and where its temporary files go.
+  uint64_t memoryBytes() const;
+  const std::filesystem::path& temporaryDirectory() const;
 
   // Node `index` (< size()). In file order each node frame decodes once; a frame that has left the
   // cache decodes again with the frames before it.
@@ -472,10 +475,28 @@ struct VerifyOptions {
 };
 // Checks the file against every invariant; the first violation in `message`.
 VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& options = {});
+// The same checks with the same verdicts over a file read under the reader's cap (version 2; a
+// version 1 file, whose records place their children only through the children's own records, is
+// read whole): the nodes in one pass, then the faces in one pass in face order with the nodes open
+// over each face (its ancestors), the nodes waiting for their first face bucketed by it in a
+// temporary file.
+VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& options = {});
 // The geometry against the mesh it was built from: same triangles (by corner positions, corner
 // order kept) under the same original face ids. `meshOriginalFace` empty means the identity.
 VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
                                std::span<const uint64_t> meshOriginalFace);
+// A triangle of the mesh a file was built from: its original face id, its position among the
+// mesh's triangles (as loadMesh keeps them), its corners.
+struct MeshTriangle {
+  uint64_t id = 0, position = 0;
+  glm::vec3 corner[3];
+};
+// The mesh's triangles: source(visit) calls visit(batch) until every triangle went by, in any order.
+using MeshTriangleSource = std::function<void(const std::function<void(std::span<const MeshTriangle>)>&)>;
+// verifyAgainstMesh's checks and verdicts over a file read under the reader's cap: both sides
+// bucketed by original id (in a temporary file past an eighth of the cap), then compared window by
+// window in the order of the whole sort.
+VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh);
 
 // Cuts for pictures: one cluster id per triangle of file.indices (hierarchy order), the cluster of
 // a face being the deepest kept node containing it, ids numbered 0, 1, ... along the face order.

@@ -1,0 +1,207 @@
+// verifyClusterFile over a ClusterFileReader: the checks and verdicts of fch_verify.cpp within the
+// reader's cap. The tree's checks need a node and its children's face counts, which a version 2
+// record holds, so they run in the one pass over the nodes. The geometric checks need each node's
+// faces in its own box frame: O(faces x depth) work, as in memory, but in face order. The nodes
+// over a face are a path from the root (a stack in face order), so one pass over the faces, with
+// every node pushed at its first face and checked at its last, sums each node's faces; the nodes
+// wait for their first face bucketed by windows of faces, in memory or in runs of a temporary file.
+// A window of W faces is the first of at most W - 1 + height nodes, so a window's nodes fit the
+// bound that sets W.
+#include <algorithm>
+#include <cmath>
+
+#include "fch_node_code.h"
+#include "verify_node.h"
+#include "window_buckets.h"
+
+namespace facetree {
+namespace {
+
+// What the face pass needs of a node.
+struct NodeGeometry {
+  uint64_t index;
+  uint32_t first, count;
+  NodeBox box;
+  float area;
+  glm::vec3 sumNormal;
+};
+
+VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail, uint64_t checked) {
+  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
+}
+
+// A version 1 file whole, through the reader.
+ClusterFile wholeFile(ClusterFileReader& reader) {
+  ClusterFile file;
+  file.header = reader.header();
+  reader.forEachNode([&](uint64_t, const FchNode& node, uint32_t) {
+    file.nodes.push_back(node);
+    return true;
+  });
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
+    file.vertices.insert(file.vertices.end(), vertices.begin(), vertices.end());
+  });
+  FaceRangeMesh all = reader.faces(0, reader.header().triangleCount);
+  file.indices.reserve(all.indices.size());
+  for (const uint32_t v : all.indices) file.indices.push_back(static_cast<uint32_t>(all.vertexIds[v]));
+  file.originalFace = std::move(all.originalFace);
+  return file;
+}
+
+}  // namespace
+
+VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& options) {
+  const FileHeader& h = reader.header();
+  if (h.version == 1) return verifyClusterFile(wholeFile(reader), options);
+  const uint64_t n = reader.size(), faces = h.triangleCount;
+  if ((faces >= 2) != (n >= 1))
+    return {false, "root: " + std::to_string(n) + " nodes for " + std::to_string(faces) + " triangles", 0};
+
+  // A window's nodes take an eighth of the cap; so do the buckets before they spill.
+  const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
+  const uint64_t window = std::max<uint64_t>(budget / sizeof(NodeGeometry), 16);
+  const bool geometry = options.boxes || options.statistics;
+  const uint64_t windows = (faces + window - 1) / window;
+  fch::WindowBuckets<NodeGeometry> buckets(
+      budget, std::clamp<uint64_t>(budget / std::max<uint64_t>(windows, 1), 4096, 256 << 10),
+      reader.temporaryDirectory());
+
+  // The tree, as fch_verify.cpp checks it; a node child's range is the one its parent gives it.
+  std::optional<VerifyResult> failure;
+  reader.forEachNode(
+      [&](uint64_t j, const FchNode& node, uint32_t) {
+        const uint64_t end = uint64_t{node.first} + node.count;
+        if (j == 0 && (node.first != 0 || node.count != faces)) {
+          failure = failAt(0, "root range",
+                           std::to_string(node.count) + " faces from face " + std::to_string(node.first) +
+                               ", not all " + std::to_string(faces) + " triangles",
+                           0);
+          return false;
+        }
+        if (node.childCount < 2 || node.childCount > h.branching) {
+          failure = failAt(
+              j, "children",
+              std::to_string(node.childCount) + " children (branching " + std::to_string(h.branching) + ")",
+              j);
+          return false;
+        }
+        if (node.count < 2 || end > faces) {
+          failure = failAt(j, "face range", "bad range of " + std::to_string(node.count) + " faces", j);
+          return false;
+        }
+        uint64_t cursor = node.first, placed = node.first;
+        bool afterCut = false, cut = false;
+        for (unsigned c = 0; c < node.childCount; ++c) {
+          const uint32_t ref = node.child[c];
+          const uint64_t at = placed;
+          placed += node.childFaces[c];
+          uint64_t begin, count;
+          if (ref & kFaceChild) {
+            begin = ref & ~kFaceChild, count = 1;
+          } else if (ref >= n) {
+            if (ref >= std::max(h.originalNodeCount, n)) {
+              failure = failAt(j, "children", "child " + std::to_string(ref) + " beyond the nodes", j);
+              return false;
+            }
+            afterCut = cut = true;
+            continue;
+          } else {
+            if (ref <= j) {
+              failure = failAt(j, "order", "child " + std::to_string(ref) + " stored before its parent", j);
+              return false;
+            }
+            begin = at, count = node.childFaces[c];
+          }
+          if (afterCut ? begin < cursor + 2 : begin != cursor) {
+            failure = failAt(j, "partition",
+                             "child " + std::to_string(c) + " starts at face " + std::to_string(begin) +
+                                 ", expected " + std::to_string(cursor),
+                             j);
+            return false;
+          }
+          cursor = begin + count;
+          afterCut = false;
+        }
+        if (afterCut ? cursor + 2 > end : cursor != end) {
+          failure = failAt(
+              j, "partition",
+              "children end at face " + std::to_string(cursor) + ", range at " + std::to_string(end), j);
+          return false;
+        }
+        if (cut != ((node.flags & kFchTruncated) != 0)) {
+          failure = failAt(j, "flags", "truncated flag disagrees with the children", j);
+          return false;
+        }
+        if (node.flags & ~(kFchJoinsDisjointSurfaces | kFchFlatFrame | kFchTruncated)) {
+          failure = failAt(j, "flags", "unknown flags", j);
+          return false;
+        }
+        if (geometry)
+          buckets.add(node.first / window, {j, node.first, node.count, node.box, node.area, node.sumNormal});
+        return true;
+      },
+      geometry ? NodeFields::All : NodeFields::Structure);
+  if (failure) return *failure;
+  if (!geometry) return {true, "", n};
+
+  glm::dvec3 lo(INFINITY), hi(-INFINITY);
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
+    for (const glm::vec3& p : vertices) lo = glm::min(lo, glm::dvec3(p)), hi = glm::max(hi, glm::dvec3(p));
+  });
+  const double modelTolerance = fch::modelTolerance(lo, hi, h.vertexCount == 0);
+
+  // The faces in order, each summed into the nodes open over it; a node's checks run at its last
+  // face, and the failure of the lowest node index is the verdict, as in memory.
+  struct Open {
+    NodeGeometry node;
+    fch::NodeFaceSums sums;
+    double step[3];
+  };
+  std::vector<Open> open;
+  std::vector<NodeGeometry> pending;
+  size_t next = 0;
+  std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
+  const auto close = [&](uint64_t p) {
+    while (!open.empty() && uint64_t{open.back().node.first} + open.back().node.count <= p) {
+      const Open& o = open.back();
+      if (!first || o.node.index < first->first)
+        if (auto broken = fch::checkNodeGeometry(o.node.box, o.node.area, o.node.sumNormal, o.sums, o.step,
+                                                 modelTolerance, options))
+          first.emplace(o.node.index, std::move(*broken));
+      open.pop_back();
+    }
+  };
+  const bool compact = h.boxes == BoxPrecision::Compact;
+  const CutCluster all[1] = {{n > 0 ? 0 : kNoNode, 0, faces}};
+  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
+                                                                                  std::span<const uint32_t>) {
+    const size_t triangles = piece.indices.size() / 3;
+    for (size_t t = 0; t < triangles; ++t) {
+      const uint64_t p = piece.first + t;
+      if (p % window == 0) {
+        buckets.take(p / window, pending);
+        std::sort(pending.begin(), pending.end(), [](const NodeGeometry& a, const NodeGeometry& b) {
+          return a.first != b.first ? a.first < b.first : a.count > b.count;
+        });
+        next = 0;
+      }
+      close(p);
+      for (; next < pending.size() && pending[next].first == p; ++next) {
+        const NodeGeometry& node = pending[next];
+        Open& o = open.emplace_back(Open{node, fch::NodeFaceSums(node.box), {0, 0, 0}});
+        // The parent is the innermost node open over the child's first face.
+        if (compact && node.index > 0 && open.size() >= 2)
+          fch::compactStep(open[open.size() - 2].node.box, node.box.orientation, o.step);
+      }
+      const fch::VerifyFace face(piece.vertices[piece.indices[3 * t]],
+                                 piece.vertices[piece.indices[3 * t + 1]],
+                                 piece.vertices[piece.indices[3 * t + 2]]);
+      for (Open& o : open) o.sums.add(face);
+    }
+  });
+  close(faces);
+  if (first) return failAt(first->first, first->second.check, first->second.detail, first->first);
+  return {true, "", n};
+}
+
+}  // namespace facetree
