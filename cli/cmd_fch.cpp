@@ -96,7 +96,7 @@ int runInfo(const std::vector<std::string>& argv) {
     const FchLayout& layout = reader.layout();
     const BranchingStats s = branchingStats(reader);
     std::vector<CutFit> fits;
-    if (!fitCuts.empty()) fits = cutFits(readClusterFile(name), fitCuts);
+    if (!fitCuts.empty()) fits = cutFits(reader, fitCuts);
     const FileHeader& h = layout.header;
     struct SectionBytes {
       uint64_t frames = 0, compressed = 0, raw = 0;

@@ -111,6 +111,45 @@ SurfaceStats surfaceStats(const MeshView& piece, FaceAdjacency& adjacency, std::
   });
 }
 
+namespace {
+
+void addTo(SurfaceStats& sum, const ClusterStats& s) {
+  sum.area += s.area;
+  sum.perimeter += s.perimeter;
+  sum.sumNormal += s.sumNormal;
+  sum.firstMoment += s.firstMoment;
+  for (int i = 0; i < 6; ++i) sum.secondMoment[i] += s.secondMoment.m[i];
+}
+
+}  // namespace
+
+void SurfaceStatsSum::add(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  addTo(block_, ClusterStats::fromShiftedTriangle(a, b, c, origin_));
+  for (const glm::vec3* p : {&a, &b, &c}) {
+    const glm::vec3 q(glm::dvec3(*p) - origin_);
+    block_.boundsMin = glm::min(block_.boundsMin, q);
+    block_.boundsMax = glm::max(block_.boundsMax, q);
+  }
+  if (++faces_ % kSumBlock == 0) {
+    addTo(total_, toClusterStats(block_));
+    total_.boundsMin = glm::min(total_.boundsMin, block_.boundsMin);
+    total_.boundsMax = glm::max(total_.boundsMax, block_.boundsMax);
+    block_ = SurfaceStats{};
+  }
+}
+
+SurfaceStats SurfaceStatsSum::stats() const {
+  SurfaceStats out = total_;
+  if (faces_ % kSumBlock != 0) {
+    addTo(out, toClusterStats(block_));
+    out.boundsMin = glm::min(out.boundsMin, block_.boundsMin);
+    out.boundsMax = glm::max(out.boundsMax, block_.boundsMax);
+  }
+  out.faceCount = faces_;
+  out.height = 1;
+  return out;
+}
+
 GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin) {
   if (mesh.triangleCount() == 0) return GarlandQuadrics{};
   const FaceGeometry geometry(mesh);  // validates the indices

@@ -533,6 +533,10 @@ CutFit cutFit(const ClusterFile& file, uint64_t clusters);
 // The fits of several cuts, one per entry of `clusters` (the faces' Morton order sorted once for all);
 // none asked, none given, geometry or not.
 std::vector<CutFit> cutFits(const ClusterFile& file, std::span<const uint64_t> clusters);
+// The same figures from a file read under the reader's cap: passes over the nodes (one per cut, one
+// for the boxes) and over the faces (the centroids' box, then the fits), and the faces' Morton order
+// sorted in runs of a temporary file past an eighth of the cap.
+std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters);
 
 // The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
 // PLY (".ply") or Draco (".drc", sequential connectivity so face order and point ids are kept).

@@ -237,6 +237,21 @@ struct GarlandQuadrics {
 // the shared lengths of the dual graph, exactly as the engine's root would have it), height 1. An empty mesh
 // gives zero statistics; throws std::invalid_argument as buildHierarchy does for invalid indices.
 SurfaceStats surfaceStats(const MeshView& mesh, const glm::dvec3& origin);
+// surfaceStats' sums taken a triangle at a time, for a cluster whose triangles come in pieces:
+// the same triangles in the same order give the same bits, but the perimeter is the triangles' own
+// (the shared lengths need the dual graph), so it serves surfaceFitError, not the cost.
+class SurfaceStatsSum {
+ public:
+  explicit SurfaceStatsSum(const glm::dvec3& origin) : origin_(origin) {}
+  void add(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+  SurfaceStats stats() const;  // of the triangles added so far
+  uint64_t faceCount() const { return faces_; }
+
+ private:
+  glm::dvec3 origin_;
+  SurfaceStats total_, block_;  // the sums of the blocks before and of the open block
+  uint64_t faces_ = 0;
+};
 // Garland's quadrics of all triangles of `mesh`, corners about `origin` (one triangle gives exactly what the
 // engine gives a face); throws std::invalid_argument as buildHierarchy does for invalid indices.
 GarlandQuadrics garlandQuadrics(const MeshView& mesh, const glm::dvec3& origin);

@@ -133,6 +133,31 @@ TEST_P(Reader, CutsAreClusterCutsAndDepthCuts) {
   }
 }
 
+// info --fit-cuts under the cap: every figure to the bit, with the Morton order sorted in runs of
+// the temporary file (a cap of 64 KiB sorts 200 faces a run).
+TEST_P(Reader, CutFitsUnderTheCapAreTheFileInMemorysToTheBit) {
+  for (const auto& file : {path, truncated}) {
+    if (file == truncated) truncateClusterFile(path, truncated, 57);
+    const std::vector<uint64_t> counts = {1, 12, 100, 401, 5000};
+    const std::vector<CutFit> whole = cutFits(readClusterFile(file), counts);
+    ReaderOptions options;
+    options.memoryBytes = 64 << 10;
+    ClusterFileReader reader(file, options);
+    const std::vector<CutFit> read = cutFits(reader, counts);
+    ASSERT_EQ(read.size(), whole.size());
+    for (size_t i = 0; i < whole.size(); ++i) {
+      EXPECT_EQ(read[i].clusters, whole[i].clusters) << i;
+      EXPECT_EQ(read[i].sumFit, whole[i].sumFit) << i;
+      EXPECT_EQ(read[i].sumAreaFit, whole[i].sumAreaFit) << i;
+      EXPECT_EQ(read[i].sumBoxArea, whole[i].sumBoxArea) << i;
+      EXPECT_EQ(read[i].mortonBoxArea, whole[i].mortonBoxArea) << i;
+      EXPECT_EQ(read[i].smallClusters, whole[i].smallClusters) << i;
+      EXPECT_GT(whole[i].mortonBoxArea, 0.0) << i;
+    }
+    EXPECT_GT(whole[1].sumAreaFit, 0.0);
+  }
+}
+
 TEST_P(Reader, FaceRangesGiveTheFilesTrianglesAndIdsWithLocalVertices) {
   const ClusterFile whole = readClusterFile(path);
   ClusterFileReader reader(path, ReaderOptions{16 << 10, {}});

@@ -1,0 +1,143 @@
+// cutFits over a ClusterFileReader: the figures of the file in memory (fch_cut_fit.cpp) from passes
+// under the reader's cap. Each cut comes from the reader (the shortest node prefix), its nodes' boxes
+// from one pass over the nodes; the clusters are runs of the face order, so one pass over the faces
+// sums every cut's open cluster at once. The Morton runs need the faces sorted by the code of their
+// centroid: each face leaves its code and its corners' box to a sort in runs of a temporary file
+// (SortedRuns), and the merged order is cut into the runs of every cut.
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "cut_fit_sums.h"
+#include "sorted_runs.h"
+
+namespace facetree {
+namespace {
+
+// A face in the Morton order: its code, its position (ties) and its corners' box.
+struct MortonFace {
+  uint64_t code;
+  uint32_t face;
+  float lo[3], hi[3];
+};
+struct MortonLess {
+  bool operator()(const MortonFace& a, const MortonFace& b) const {
+    return a.code != b.code ? a.code < b.code : a.face < b.face;
+  }
+};
+
+// Calls visit(piece) for the file's triangles in face order, a triangle frame at a time.
+template <class Visit>
+void forEachFacePiece(ClusterFileReader& reader, Visit&& visit) {
+  const uint64_t faces = reader.header().triangleCount;
+  const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
+  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
+                         [&](const FaceRangeMesh& piece, std::span<const uint32_t>) { visit(piece); });
+}
+
+}  // namespace
+
+std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters) {
+  std::vector<CutFit> fits;
+  if (clusters.empty()) return fits;
+  const uint64_t faces = reader.header().triangleCount;
+  fch::VertexBounds bounds;
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
+    for (const glm::vec3& p : vertices) bounds.add(p);
+  });
+  const glm::dvec3 origin = bounds.centre();
+
+  std::vector<std::vector<CutCluster>> cuts;
+  std::vector<uint64_t> nodes;
+  for (const uint64_t count : clusters) {
+    cuts.push_back(reader.cut(count));
+    for (const CutCluster& c : cuts.back())
+      if (c.node != kNoNode) nodes.push_back(c.node);
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  std::vector<NodeBox> boxes(nodes.size());
+  if (!nodes.empty())
+    reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t) {
+      const auto at = std::lower_bound(nodes.begin(), nodes.end(), index);
+      if (at != nodes.end() && *at == index) boxes[at - nodes.begin()] = node.box;
+      return index < nodes.back();
+    });
+  const auto boxOf = [&](const CutCluster& c) -> const NodeBox* {
+    if (c.node == kNoNode) return nullptr;
+    return &boxes[std::lower_bound(nodes.begin(), nodes.end(), c.node) - nodes.begin()];
+  };
+
+  // The centroids' box, which the Morton codes are taken in.
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+  const auto centroid = [](const FaceRangeMesh& piece, size_t t) {
+    glm::dvec3 p(0.0);
+    for (int k = 0; k < 3; ++k) p += glm::dvec3(piece.vertices[piece.indices[3 * t + k]]);
+    return p / 3.0;
+  };
+  forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
+    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+      const glm::dvec3 c = centroid(piece, t);
+      lo = glm::min(lo, c), hi = glm::max(hi, c);
+    }
+  });
+
+  // Every cut's clusters, and every face into the sort.
+  std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
+  std::vector<size_t> at(cuts.size(), 0);
+  fch::SortedRuns<MortonFace, MortonLess> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
+                                                 reader.temporaryDirectory());
+  forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
+    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+      const glm::vec3* corner[3] = {&piece.vertices[piece.indices[3 * t]],
+                                    &piece.vertices[piece.indices[3 * t + 1]],
+                                    &piece.vertices[piece.indices[3 * t + 2]]};
+      const uint64_t p = piece.first + t;
+      for (size_t i = 0; i < cuts.size(); ++i) {
+        sums[i].add(*corner[0], *corner[1], *corner[2]);
+        if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
+          throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
+        const CutCluster& c = cuts[i][at[i]];
+        if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
+      }
+      MortonFace m{mortonCode(centroid(piece, t), lo, hi), static_cast<uint32_t>(p), {}, {}};
+      for (int a = 0; a < 3; ++a) {
+        m.lo[a] = std::min({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
+        m.hi[a] = std::max({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
+      }
+      sorted.add(m);
+    }
+  });
+  for (fch::CutFitSum& sum : sums) fits.push_back(sum.finish());
+
+  // Run r of a cut of R runs: positions [r F / R, (r + 1) F / R) of the Morton order.
+  struct Runs {
+    uint64_t runs = 0, r = 0, end = 0;
+    fch::AreaBox box;
+  };
+  std::vector<Runs> runs;
+  for (const CutFit& fit : fits) {
+    Runs each;
+    each.runs = std::min<uint64_t>(fit.clusters, faces);
+    each.end = each.runs ? faces / each.runs : 0;
+    runs.push_back(each);
+  }
+  uint64_t rank = 0;
+  sorted.forEachSorted([&](const MortonFace& m) {
+    for (size_t i = 0; i < runs.size(); ++i) {
+      Runs& run = runs[i];
+      run.box.add(glm::vec3(m.lo[0], m.lo[1], m.lo[2]));
+      run.box.add(glm::vec3(m.hi[0], m.hi[1], m.hi[2]));
+      if (rank + 1 == run.end) {
+        fits[i].mortonBoxArea += run.box.area();
+        run.box = fch::AreaBox{};
+        ++run.r;
+        run.end = (run.r + 1) * faces / run.runs;
+      }
+    }
+    ++rank;
+  });
+  return fits;
+}
+
+}  // namespace facetree
