@@ -56,6 +56,10 @@ int runCut(const std::vector<std::string>& argv, SignalGuard& signals) {
   if (ways != 1) throw UsageError("cut needs exactly one of --clusters N, --max-cost C and --depth D");
   const std::string& name = args.positional()[0];
   const auto meshOut = args.value("mesh-out");
+  const auto output = args.value("output");
+  if (output && std::filesystem::path(*output).extension() != ".npz")
+    throw UsageError("cut -o writes NumPy arrays: give OUT.npz, got '" + *output + "'");
+  if (output) prepareOutput(signals, *output);
   if (meshOut) prepareOutput(signals, *meshOut);
   ClusterFileReader reader(name, readerOptions(args));
   std::vector<CutCluster> cut;
@@ -84,9 +88,13 @@ int runCut(const std::vector<std::string>& argv, SignalGuard& signals) {
   std::sort(byNode.begin(), byNode.end(), [&](size_t a, size_t b) { return cut[a].node < cut[b].node; });
   std::vector<FchNode> records(cut.size());
   for (const size_t i : byNode) records[i] = reader.node(cut[i].node);
-  for (size_t i = 0; i < cut.size(); ++i) {
-    const std::string line = clusterLine(i, cut[i], cut[i].node != kNoNode ? &records[i] : nullptr);
-    std::fwrite(line.data(), 1, line.size(), stdout);
+  if (output) {
+    writeCutNpz(*output, cut, records);
+  } else {
+    for (size_t i = 0; i < cut.size(); ++i) {
+      const std::string line = clusterLine(i, cut[i], cut[i].node != kNoNode ? &records[i] : nullptr);
+      std::fwrite(line.data(), 1, line.size(), stdout);
+    }
   }
   if (meshOut) writeClusterColouredPly(reader, cut, *meshOut, /*clusterIds=*/true);
   return kExitOk;

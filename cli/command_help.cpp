@@ -225,8 +225,7 @@ std::vector<CommandHelp> makeCommands() {
              "the fit error of cuts of N clusters (sum of eq. 84's eFit and of area * eFit over the cut) and "
              "the sum of the cut's box areas against N runs of the faces in Morton order, and its balance: "
              "the clusters under 1% of the average cluster's area"}})},
-      {"verify",
-       "FILE.fch [MESH] [--json] [--memory SIZE]",
+      {"verify", "FILE.fch [MESH] [--json] [--memory SIZE]",
        "check every invariant of a cluster file (exit 3 names the first violation)",
        "Checks the checksums, the tree, the face ranges, the costs' order and every box against its faces;\n"
        "with MESH also that the file's geometry is that mesh's. Streams: the nodes in one pass, then the\n"
@@ -247,8 +246,8 @@ std::vector<CommandHelp> makeCommands() {
        withReaderOptions({{"output", "OUT.ply", "-o", "the coloured mesh"},
                           {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
                           {"depth", "D", "", "the cut at depth D"}})},
-      {"cut", "FILE.fch (--clusters N | --max-cost C | --depth D) [--mesh-out OUT.ply]",
-       "the clusters of a cut as JSON lines, for scripts downstream",
+      {"cut", "FILE.fch (--clusters N | --max-cost C | --depth D) [-o OUT.npz] [--mesh-out OUT.ply]",
+       "the clusters of a cut as JSON lines or NumPy arrays, for scripts downstream",
        "One line per cluster in face order: its position in the cut, its node (null for a single face\n"
        "or a gap that truncation left), its first face and triangle count in the file's face order, and\n"
        "the node's cost, area, perimeter and oriented box (centre, half extents, orientation x, y, z, w).\n"
@@ -258,6 +257,9 @@ std::vector<CommandHelp> makeCommands() {
            {{"clusters", "N", "", "the cut of at least N clusters from the top"},
             {"max-cost", "C", "", "the cut below the nodes of effective cost above C"},
             {"depth", "D", "", "the cut below the nodes of depth D and less (the root's is 1)"},
+            {"output", "OUT.npz", "-o",
+             "the clusters as NumPy arrays instead (numpy.load): node (-1 for none), first, triangles, "
+             "cost, area, perimeter, center, half_extents, orientation; NaN where there is no node"},
             {"mesh-out", "OUT.ply", "",
              "also the mesh (every vertex of the file, its triangles in face order) with a colour and a "
              "uint cluster per face"}})},

@@ -674,6 +674,12 @@ glm::u8vec3 clusterColour(uint32_t cluster);
 // Flat-shaded software rendering to PNG (written atomically).
 void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                        const RenderOptions& options, const std::filesystem::path& path);
+// A cut's clusters as NumPy arrays in an uncompressed .npz (numpy.load), written atomically: node
+// (int64, -1 for a single face or a truncation gap), first and triangles (uint64), cost, area and
+// perimeter (float32), center and half_extents (n x 3 float32), orientation (n x 4 float32: x, y, z,
+// w); the float arrays NaN where there is no node. records[i]: the node of cut[i] where it has one.
+void writeCutNpz(const std::filesystem::path& path, std::span<const CutCluster> cut,
+                 std::span<const FchNode> records);
 // Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                              const std::filesystem::path& path);

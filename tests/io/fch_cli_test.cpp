@@ -170,6 +170,23 @@ TEST_F(FchCli, CutGivesTheClustersOfTheCutInFaceOrderWithTheirNodes) {
   EXPECT_EQ(r.exitCode, 2) << r.out;
   EXPECT_NE(r.out.find("cut needs exactly one of --clusters N, --max-cost C and --depth D"),
             std::string::npos);
+  r = runCli("cut " + fch.string() + " --clusters 3 -o " + mesh.string());
+  EXPECT_EQ(r.exitCode, 2) << r.out;
+  EXPECT_NE(r.out.find("cut -o writes NumPy arrays: give OUT.npz, got '" + mesh.string() + "'"),
+            std::string::npos)
+      << r.out;
+  // A .npz of a cut's arrays: members stored, the cut's clusters in them (tests/python/test_reader.py
+  // reads them with NumPy).
+  const auto npz = cleanup.add(scratch("cli_cut.npz"));
+  ASSERT_EQ(runCli("cut " + fch.string() + " --clusters 9 -o " + npz.string()).exitCode, 0);
+  const std::string arrays = slurp(npz);
+  EXPECT_EQ(arrays.substr(0, 4), std::string("PK\x03\x04", 4));
+  for (const char* member : {"node.npy", "first.npy", "triangles.npy", "cost.npy", "orientation.npy"})
+    EXPECT_NE(arrays.find(member), std::string::npos) << member;
+  const size_t clusters = cutLines(runCli("cut " + fch.string() + " --clusters 9").out).size();
+  EXPECT_NE(arrays.find("{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(clusters) +
+                        ", 4), }"),
+            std::string::npos);
   r = runCli("cut " + fch.string() + " --max-cost nan");
   EXPECT_EQ(r.exitCode, 2) << r.out;
   EXPECT_NE(r.out.find("--max-cost needs a finite number, got 'nan'"), std::string::npos) << r.out;

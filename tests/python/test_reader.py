@@ -1,5 +1,6 @@
 """facetree.open against facetree.load: the same nodes, cuts and triangles, read lazily under a cap,
 on a whole file and a truncated one; a closed reader and a corrupt file raise."""
+import json
 import threading
 
 import numpy as np
@@ -100,3 +101,28 @@ def test_closed_reader_bad_arguments_and_corrupt_files_raise(files, tmp_path):
     with pytest.raises(facetree.InputError, match="bad magic"):
         bad.write_bytes(b"nonsense")
         facetree.open(bad)
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_the_cli_cut_as_npz_is_the_readers_cut_and_the_json_lines(files, which, cli, tmp_path):
+    path = files[which]
+    out = tmp_path / "cut.npz"
+    run_cli(cli, "cut", path, "--clusters", "300", "-o", out, "--memory", "4M")
+    lines = [json.loads(line) for line in run_cli(cli, "cut", path, "--clusters", "300").stdout.splitlines()]
+    with facetree.open(path) as f, np.load(out) as arrays:
+        node_ids, ranges = f.cut(clusters=300)
+        assert np.array_equal(arrays["node"], node_ids)
+        assert np.array_equal(np.stack([arrays["first"], arrays["triangles"]], axis=1), ranges)
+        kept = node_ids >= 0
+        nodes = f.nodes()[node_ids[kept]]
+        for name, field in (("cost", "cost"), ("area", "area"), ("perimeter", "perimeter"),
+                            ("center", "box_center"), ("half_extents", "box_half_extents")):
+            assert np.array_equal(arrays[name][kept], nodes[field]), name
+            assert np.isnan(arrays[name][~kept]).all(), name
+        assert len(lines) == len(node_ids)
+        for line, node, first, count, quaternion in zip(lines, arrays["node"], arrays["first"],
+                                                        arrays["triangles"], arrays["orientation"]):
+            assert (line["node"] if line["node"] is not None else -1) == node
+            assert (line["first"], line["triangles"]) == (first, count)
+            if line["node"] is not None:
+                assert np.array_equal(np.float32(line["box"]["orientation"]), quaternion)
