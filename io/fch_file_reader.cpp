@@ -138,8 +138,9 @@ class CodePipeline {
 };
 
 struct ClusterFileReader::State {
-  State(const std::filesystem::path& path, const ReaderOptions& options)
-      : source(path),
+  template <class... Source>
+  explicit State(const ReaderOptions& options, Source&&... from)
+      : source(std::forward<Source>(from)...),
         memoryBytes(readerMemory(options, source.layout().header)),
         cacheBytes(memoryBytes / 4),
         frontierBytes(cacheBytes),
@@ -401,7 +402,9 @@ struct ClusterFileReader::State {
 };
 
 ClusterFileReader::ClusterFileReader(const std::filesystem::path& path, const ReaderOptions& options)
-    : state_(std::make_unique<State>(path, options)) {}
+    : state_(std::make_unique<State>(options, path)) {}
+ClusterFileReader::ClusterFileReader(int fd, const std::string& name, const ReaderOptions& options)
+    : state_(std::make_unique<State>(options, fd, name)) {}
 ClusterFileReader::~ClusterFileReader() = default;
 
 const FchLayout& ClusterFileReader::layout() const {

@@ -2,6 +2,8 @@
 // (docs/FORMAT.md). Shared by fch_writer.cpp, fch_reader.cpp and fch_truncate.cpp.
 #include "fch_format.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #define ZSTD_STATIC_LINKING_ONLY  // ZSTD_estimateCCtxSize_usingCParams, for the memory bound
@@ -274,6 +276,23 @@ SourceFile::SourceFile(const std::filesystem::path& path) : name_(path.string())
   if (std::filesystem::is_directory(path, error)) fail("is a directory");  // fopen accepts one
   size_ = std::filesystem::file_size(path, error);
   if (error) fail("cannot read size: " + error.message());
+  readLayout();
+}
+
+SourceFile::SourceFile(int fd, std::string name) : name_(std::move(name)) {
+  struct stat status {};
+  if (::fstat(fd, &status) != 0)
+    fail(std::string("cannot read descriptor ") + std::to_string(fd) + ": " + std::strerror(errno));
+  if (!S_ISREG(status.st_mode))
+    fail("descriptor " + std::to_string(fd) + " is not a regular file (a cluster file is read at offsets)");
+  const int own = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
+  if (own < 0) fail(std::string("cannot duplicate descriptor: ") + std::strerror(errno));
+  file_.reset(::fdopen(own, "rb"));
+  if (!file_) {
+    ::close(own);
+    fail(std::string("cannot open descriptor: ") + std::strerror(errno));
+  }
+  size_ = static_cast<uint64_t>(status.st_size);
   readLayout();
 }
 

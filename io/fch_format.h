@@ -91,6 +91,9 @@ uint64_t assembledBytes(const std::vector<FrameData>& frames);
 class SourceFile {
  public:
   explicit SourceFile(const std::filesystem::path& path);
+  // An open descriptor of a regular file, read at offsets through a duplicate of it (the caller
+  // keeps and closes its own); `name` in every message.
+  SourceFile(int fd, std::string name);
   ~SourceFile();  // defined where NodeDecoder is complete
   SourceFile(const SourceFile&) = delete;
   SourceFile& operator=(const SourceFile&) = delete;

@@ -389,6 +389,10 @@ enum class NodeFields : uint8_t { All, Structure };
 class ClusterFileReader {
  public:
   explicit ClusterFileReader(const std::filesystem::path& path, const ReaderOptions& options = {});
+  // A file already open (a descriptor handed over by a parent, a sandbox): a regular file, read
+  // through a duplicate of `fd` at offsets; the caller keeps and closes `fd`. `name` stands for
+  // the file in errors.
+  ClusterFileReader(int fd, const std::string& name, const ReaderOptions& options = {});
   ~ClusterFileReader();
   ClusterFileReader(const ClusterFileReader&) = delete;
   ClusterFileReader& operator=(const ClusterFileReader&) = delete;

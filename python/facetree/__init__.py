@@ -75,8 +75,11 @@ def parse_size(size: Union[int, str, None]) -> int:
     return int(number) * _SUFFIXES[suffix]
 
 
-def open(path: Path, memory: Union[int, str, None] = None, tmp: Optional[Path] = None) -> Reader:
+def open(path: Union[Path, int], memory: Union[int, str, None] = None, tmp: Optional[Path] = None) -> Reader:
     """Opens a cluster file (.fch) for reading under a memory cap, without loading it.
+
+    path: a file name, or the descriptor of an open regular file (read through a duplicate of it;
+    the caller keeps and closes its own).
 
     memory: the cap, bytes or "64M" (default: the cap the file was built under, else half the RAM);
     a quarter caches decoded frames and a quarter holds a pass over the nodes, the rest of which goes
@@ -87,7 +90,10 @@ def open(path: Path, memory: Union[int, str, None] = None, tmp: Optional[Path] =
             node_ids, ranges = f.cut(clusters=1000)
             vertices, triangles, ids = f.mesh(node_ids[0])
     """
-    return _facetree._open(os.fspath(path), parse_size(memory), os.fspath(tmp) if tmp is not None else "")
+    directory = os.fspath(tmp) if tmp is not None else ""
+    if isinstance(path, int):
+        return _facetree._open_fd(path, f"descriptor {path}", parse_size(memory), directory)
+    return _facetree._open(os.fspath(path), parse_size(memory), directory)
 
 
 def _clusters(self: Reader, *, clusters: Optional[int] = None, max_cost: Optional[float] = None,

@@ -182,6 +182,19 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
         return r;
       },
       py::arg("path"), py::arg("memory") = 0, py::arg("tmp") = std::filesystem::path());
+  m.def(
+      "_open_fd",
+      [](int fd, const std::string& name, uint64_t memory, const std::filesystem::path& tmp) {
+        PyReader r;
+        r.path = name;
+        ReaderOptions options;
+        options.memoryBytes = memory;
+        options.tmp = tmp;
+        py::gil_scoped_release release;
+        r.reader = std::make_unique<ClusterFileReader>(fd, name, options);
+        return r;
+      },
+      py::arg("fd"), py::arg("name"), py::arg("memory") = 0, py::arg("tmp") = std::filesystem::path());
 }
 
 }  // namespace facetree::python

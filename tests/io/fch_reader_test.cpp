@@ -6,6 +6,9 @@
 #include <cstring>
 #include <random>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include "facetree/error.h"
 #include "fch_test_util.h"
 
@@ -156,6 +159,31 @@ TEST_P(Reader, CutFitsUnderTheCapAreTheFileInMemorysToTheBit) {
     }
     EXPECT_GT(whole[1].sumAreaFit, 0.0);
   }
+}
+
+// A descriptor handed over: the reader reads through its own duplicate, so the caller may close
+// its descriptor at once; a pipe is refused by name.
+TEST_P(Reader, AnOpenDescriptorReadsAsThePath) {
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  ASSERT_GE(fd, 0);
+  ClusterFileReader byDescriptor(fd, "handed-over.fch");
+  ::close(fd);
+  ClusterFileReader byPath(path);
+  ASSERT_EQ(byDescriptor.size(), byPath.size());
+  for (const uint64_t i : {uint64_t{0}, byPath.size() / 2, byPath.size() - 1})
+    EXPECT_TRUE(identical(byDescriptor.node(i), byPath.node(i))) << i;
+  EXPECT_EQ(byDescriptor.cut(40).size(), byPath.cut(40).size());
+  EXPECT_EQ(byDescriptor.faces(10, 50).originalFace, byPath.faces(10, 50).originalFace);
+  int pipe[2];
+  ASSERT_EQ(::pipe(pipe), 0);
+  try {
+    ClusterFileReader fromPipe(pipe[0], "a pipe");
+    ADD_FAILURE() << "a pipe was read";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "a pipe: descriptor " + std::to_string(pipe[0]) +
+                                         " is not a regular file (a cluster file is read at offsets)");
+  }
+  ::close(pipe[0]), ::close(pipe[1]);
 }
 
 TEST_P(Reader, FaceRangesGiveTheFilesTrianglesAndIdsWithLocalVertices) {

@@ -1,6 +1,7 @@
 """facetree.open against facetree.load: the same nodes, cuts and triangles, read lazily under a cap,
 on a whole file and a truncated one; a closed reader and a corrupt file raise."""
 import json
+import os
 import threading
 
 import numpy as np
@@ -126,3 +127,20 @@ def test_the_cli_cut_as_npz_is_the_readers_cut_and_the_json_lines(files, which, 
             assert (line["first"], line["triangles"]) == (first, count)
             if line["node"] is not None:
                 assert np.array_equal(np.float32(line["box"]["orientation"]), quaternion)
+
+
+def test_an_open_descriptor_reads_as_the_path(files):
+    path = files[0]
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        with facetree.open(fd, memory="1M") as by_fd, facetree.open(path) as by_path:
+            assert len(by_fd) == len(by_path)
+            assert np.array_equal(by_fd.nodes(), by_path.nodes())
+    finally:
+        os.close(fd)
+    read, write = os.pipe()
+    try:
+        with pytest.raises(facetree.InputError, match=f"descriptor {read}: descriptor {read} is not a regular file"):
+            facetree.open(read)
+    finally:
+        os.close(read), os.close(write)
