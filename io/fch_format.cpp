@@ -220,12 +220,6 @@ uint64_t compressorMemoryBound(int level, uint64_t rawBytes) {
   return ZSTD_estimateCCtxSize_usingCParams(params);
 }
 
-uint64_t assembledBytes(const std::vector<FrameData>& frames) {
-  uint64_t bytes = kHeaderBytes + uint64_t{kIndexEntryBytes} * frames.size();
-  for (const FrameData& f : frames) bytes += f.compressed.size();
-  return bytes;
-}
-
 std::string encodeHeaderAndIndex(const FchLayout& layout) {
   std::string index;
   index.reserve(kIndexEntryBytes * layout.frames.size());
@@ -244,20 +238,29 @@ std::string encodeHeaderAndIndex(const FchLayout& layout) {
 }
 
 uint64_t writeFrames(const std::filesystem::path& path, FchLayout layout,
-                     const std::vector<FrameData>& frames) {
+                     const std::vector<FrameData>& frames, const SourceFile* source) {
   uint64_t offset = kHeaderBytes + uint64_t{kIndexEntryBytes} * frames.size();
   layout.frames.clear();
   layout.frames.reserve(frames.size());
   for (const FrameData& f : frames) {
     FchFrame& entry = layout.frames.emplace_back(f.entry);
     entry.offset = offset;
-    entry.compressedBytes = static_cast<uint32_t>(f.compressed.size());
-    offset += f.compressed.size();
+    entry.compressedBytes = static_cast<uint32_t>(f.bytes());
+    offset += f.bytes();
   }
   layout.fileBytes = offset;
   OutputFile out(path);
   out.write(encodeHeaderAndIndex(layout));
-  for (const FrameData& f : frames) out.write(f.compressed);
+  std::string copy;
+  for (const FrameData& f : frames) {
+    if (f.copyOf == FrameData::kNoCopy) {
+      out.write(f.compressed);
+    } else {
+      if (!source) throw std::logic_error("writeFrames: a frame to copy and no source");
+      source->compressedFrame(f.copyOf, copy);
+      out.write(copy);
+    }
+  }
   out.commit();
   return offset;
 }

@@ -36,8 +36,13 @@ class NodeDecoder;
 // One frame as assembled for writing: its index entry (offset filled in by writeFrames) and
 // its compressed bytes.
 struct FrameData {
+  static constexpr size_t kNoCopy = ~size_t{0};
   FchFrame entry;
   std::string compressed;
+  // Else frame `copyOf` of the source writeFrames is given, copied as its compressed bytes
+  // (checksum checked) when written: `compressed` stays empty, entry.compressedBytes is its size.
+  size_t copyOf = kNoCopy;
+  uint64_t bytes() const { return copyOf == kNoCopy ? compressed.size() : entry.compressedBytes; }
 };
 
 // Payload encoders (docs/FORMAT.md "Frame payloads").
@@ -82,10 +87,9 @@ std::string encodeHeaderAndIndex(const FchLayout& layout);
 
 // Writes header + index + frames through OutputFile (atomic); `layout` supplies the header
 // fields, the frame offsets and sizes are computed here. Returns the file size.
+class SourceFile;
 uint64_t writeFrames(const std::filesystem::path& path, FchLayout layout,
-                     const std::vector<FrameData>& frames);
-// The size writeFrames would produce.
-uint64_t assembledBytes(const std::vector<FrameData>& frames);
+                     const std::vector<FrameData>& frames, const SourceFile* source = nullptr);
 
 // A cluster file open for reading: validated header and index, frames read on demand.
 class SourceFile {

@@ -1,7 +1,8 @@
 // Truncation of a cluster file (Willmott 2000, sec. 5.5.3): nodes are stored in reverse
 // creation order, so the first K nodes are a valid hierarchy. Whole node frames and the geometry
 // are copied as compressed bytes (checksums checked); only the last partial node frame is
-// decoded and recompressed. Kept records are unchanged: a child index >= K reads as cut off.
+// decoded and recompressed. Kept records are unchanged: a child index >= K reads as cut off. The
+// copies stream from the input to the output a frame at a time.
 #include <stdexcept>
 
 #include "fch_format.h"
@@ -20,10 +21,11 @@ struct Plan {
   uint64_t nodes = 0;
 };
 
+// Frame `i` of the source, copied when the output is written: the output is never in memory.
 FrameData copyFrame(const fch::SourceFile& source, size_t i) {
   FrameData frame;
   frame.entry = source.layout().frames[i];
-  frame.compressed = source.compressedFrame(i);
+  frame.copyOf = i;
   return frame;
 }
 
@@ -72,7 +74,7 @@ TruncateResult finish(const Source& source, const std::filesystem::path& out, st
   for (const size_t i : source.geometryFrames) frames.push_back(copyFrame(source.file, i));
   FchLayout layout = source.file.layout();
   layout.header.nodeCount = nodes;
-  return {nodes, fch::writeFrames(out, layout, frames)};
+  return {nodes, fch::writeFrames(out, layout, frames, &source.file)};
 }
 
 }  // namespace

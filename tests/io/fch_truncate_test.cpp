@@ -1,6 +1,7 @@
 // Truncation (Willmott 2000, sec. 5.5.3): every prefix is a valid hierarchy, by file and in memory.
 #include <gtest/gtest.h>
 
+#include "facetree/error.h"
 #include "fch_test_util.h"
 #include "io/fch_cut.h"
 
@@ -77,6 +78,27 @@ TEST_P(Truncate, TruncatingATruncatedFile) {
   truncateClusterFile(cut, twice, 40);
   truncateClusterFile(full, reference, 40);
   EXPECT_EQ(slurp(twice), slurp(reference));
+}
+
+// The frames are copied from the input as the output is written: a corrupt geometry frame found
+// then fails the truncation by its checksum and leaves no output behind.
+TEST_P(Truncate, ACorruptFrameFoundWhileCopyingLeavesNoOutput) {
+  std::string bytes = slurp(full);
+  bytes[bytes.size() - 3] ^= 0x10;  // the last frame: original ids
+  const auto corrupt = cleanup.add(scratch("corrupt.fch"));
+  spit(corrupt, bytes);
+  for (const bool byBytes : {false, true}) {
+    try {
+      if (byBytes)
+        truncateClusterFileToBytes(corrupt, cut, bytes.size() - 100);
+      else
+        truncateClusterFile(corrupt, cut, 40);
+      ADD_FAILURE() << "a corrupt frame was copied";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("checksum mismatch"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(cut));
+  }
 }
 
 TEST_P(Truncate, MaxBytesKeepsTheLargestPrefixThatFits) {
