@@ -645,6 +645,23 @@ def rounds_markdown(rows):
                    fit(r, 1000), fit(r, 100000), f"{r['ratio_to_exact']:.2f}", f"{r['ratio_to_octree']:.2f}",
                    "yes" if r["same_bytes_threads_1_and_default"] else "**no**",
                    ", ".join(k for k, ok in r["checks"].items() if not ok) or "-"] for r in rows]), ""]
+    if any("top_fit_ratio" in r for r in rows):
+        def cell(values, cut, digits=2):
+            v = (values or {}).get(str(cut), (values or {}).get(cut))
+            return "-" if v is None else f"{v:.{digits}f}"
+        cuts = (12, 100, 1000)
+        out += ["### The top of the tree: the first nodes, cut by cut", "",
+                "What a truncated file keeps. Fit: the sum of area x eFit over the cut of 12, 100 and 1,000 "
+                "clusters, the default build against eq. 84's order to the root (`--top 0`; lower is better). "
+                "Boxes: the sum of the cut's box areas against as many runs of the faces in Morton order. "
+                "Balance: the clusters of the cut of 100 under 1% of the average cluster's area, the default "
+                "build and `--top 0`.", "",
+                table(["mesh", "faces"] + [f"fit {c}" for c in cuts] + [f"boxes {c}" for c in cuts] +
+                      ["small of 100", "small of 100, --top 0"],
+                      [[r["mesh"], f"{r['triangles']:,}"] + [cell(r.get("top_fit_ratio"), c, 3) for c in cuts] +
+                       [cell(r.get("box_ratio", {}).get("rounds"), c) for c in cuts] +
+                       [str(r.get("small_clusters", {}).get("rounds", "-")),
+                        str(r.get("small_clusters", {}).get("eq84", "-"))] for r in rows]), ""]
     return out
 
 
