@@ -583,17 +583,35 @@ FaceRangeMesh ClusterFileReader::faces(uint64_t first, uint64_t count) {
     for (uint64_t q = p; q < end; ++q) mesh.originalFace.push_back(ids.ids[q - k * per]);
     p = end;
   }
-  // Local numbering: the vertices used, in file order.
-  mesh.vertexIds.assign(mesh.indices.begin(), mesh.indices.end());
-  std::sort(mesh.vertexIds.begin(), mesh.vertexIds.end());
-  mesh.vertexIds.erase(std::unique(mesh.vertexIds.begin(), mesh.vertexIds.end()), mesh.vertexIds.end());
-  for (uint32_t& v : mesh.indices)
-    v = static_cast<uint32_t>(std::lower_bound(mesh.vertexIds.begin(), mesh.vertexIds.end(), v) -
-                              mesh.vertexIds.begin());
+  // Local numbering: the vertices used, in file order. Vertices are numbered by first use, so a
+  // range's span little more than the vertices it uses: a table over the span numbers them in
+  // two passes; a span far wider (references to vertices long before) is sorted instead.
+  if (!mesh.indices.empty()) {
+    const auto [low, high] = std::minmax_element(mesh.indices.begin(), mesh.indices.end());
+    const uint32_t lo = *low, span = *high - *low + 1;
+    if (span <= 2 * mesh.indices.size()) {
+      constexpr uint32_t kUnused = ~uint32_t{0};
+      std::vector<uint32_t> local(span, kUnused);
+      for (const uint32_t v : mesh.indices) local[v - lo] = 0;
+      uint32_t next = 0;
+      for (uint32_t i = 0; i < span; ++i)
+        if (local[i] != kUnused) local[i] = next++, mesh.vertexIds.push_back(uint64_t{lo} + i);
+      for (uint32_t& v : mesh.indices) v = local[v - lo];
+    } else {
+      mesh.vertexIds.assign(mesh.indices.begin(), mesh.indices.end());
+      std::sort(mesh.vertexIds.begin(), mesh.vertexIds.end());
+      mesh.vertexIds.erase(std::unique(mesh.vertexIds.begin(), mesh.vertexIds.end()), mesh.vertexIds.end());
+      for (uint32_t& v : mesh.indices)
+        v = static_cast<uint32_t>(std::lower_bound(mesh.vertexIds.begin(), mesh.vertexIds.end(), v) -
+                                  mesh.vertexIds.begin());
+    }
+  }
   mesh.vertices.reserve(mesh.vertexIds.size());
+  const CachedFrame* frame = nullptr;
+  uint64_t frameIndex = ~uint64_t{0};
   for (const uint64_t v : mesh.vertexIds) {
-    const CachedFrame& vertices = s.geometryFrame(1, v / per);
-    mesh.vertices.push_back(vertices.vertices[v % per]);
+    if (v / per != frameIndex) frameIndex = v / per, frame = &s.geometryFrame(1, frameIndex);
+    mesh.vertices.push_back(frame->vertices[v % per]);
   }
   return mesh;
 }

@@ -2,8 +2,9 @@
 // corrupted files: nodes in an order the input picks, passes with a frontier budget small enough to
 // go to its temporary file, cuts by count, cost and depth, face ranges and the pieces of a cut. As
 // in fuzz_fch, every input is read as given and with its checksums recomputed. Error (Input) is the
-// documented error; anything else crashes. Where the whole-file reader reads and verifies the file,
-// the lazy reader must give the same nodes and cuts.
+// documented error; anything else crashes. Where the whole-file reader reads the file, verify under
+// the cap must give its verdict; where it also verifies, the lazy reader must give the same nodes,
+// cuts and cut fits.
 #include <algorithm>
 #include <bit>
 #include <cstddef>
@@ -94,7 +95,27 @@ void exercise(const std::string& path, Picks picks) {
   } catch (const Error&) {
     return;  // a frame the lazy reader had no need of
   }
-  if (!verifyClusterFile(file).ok) return;
+  // verify under the cap gives the verdict of the file in memory, broken or not.
+  const VerifyResult whole = verifyClusterFile(file);
+  {
+    ClusterFileReader reader(path, options);
+    const VerifyResult streamed = verifyClusterFile(reader);
+    if (streamed.ok != whole.ok || streamed.message != whole.message)
+      fail("verify under the cap: '" + streamed.message + "' against '" + whole.message + "'");
+  }
+  if (!whole.ok) return;
+  // The cuts' fits under the cap (the Morton order sorted in runs of the temporary file) to the bit.
+  {
+    const uint64_t counts[] = {1, 16, 300};
+    ClusterFileReader reader(path, options);
+    const std::vector<CutFit> a = cutFits(file, counts), b = cutFits(reader, counts);
+    const auto bits = [](double v) { return std::bit_cast<uint64_t>(v); };
+    for (size_t i = 0; i < a.size(); ++i)
+      if (a[i].clusters != b[i].clusters || bits(a[i].sumFit) != bits(b[i].sumFit) ||
+          bits(a[i].sumAreaFit) != bits(b[i].sumAreaFit) || bits(a[i].sumBoxArea) != bits(b[i].sumBoxArea) ||
+          bits(a[i].mortonBoxArea) != bits(b[i].mortonBoxArea) || a[i].smallClusters != b[i].smallClusters)
+        fail("cutFits under the cap differ from the whole file's at cut " + std::to_string(counts[i]));
+  }
   for (size_t j = 0; j < nodes.size(); ++j)
     if (!sameNode(nodes[j], file.nodes[j]))
       fail("node " + std::to_string(j) + " differs from the whole file's");
