@@ -14,16 +14,14 @@
 namespace facetree {
 namespace {
 
-// A face in the Morton order: its code, its position (ties) and its corners' box.
+// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order and
+// the sort is stable, so equal codes keep face order, as the sort in memory breaks their ties.
 struct MortonFace {
   uint64_t code;
-  uint32_t face;
   float lo[3], hi[3];
 };
 struct MortonLess {
-  bool operator()(const MortonFace& a, const MortonFace& b) const {
-    return a.code != b.code ? a.code < b.code : a.face < b.face;
-  }
+  bool operator()(const MortonFace& a, const MortonFace& b) const { return a.code < b.code; }
 };
 
 // Calls visit(piece) for the file's triangles in face order, a triangle frame at a time.
@@ -100,7 +98,7 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
         const CutCluster& c = cuts[i][at[i]];
         if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
       }
-      MortonFace m{mortonCode(centroid(piece, t), lo, hi), static_cast<uint32_t>(p), {}, {}};
+      MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
       for (int a = 0; a < 3; ++a) {
         m.lo[a] = std::min({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
         m.hi[a] = std::max({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
