@@ -1,23 +1,50 @@
 // verifyAgainstMesh over a ClusterFileReader: the file's triangles and the mesh's, each keyed by
 // original id and corners (fch::TriangleKey), compared in the order of one sort of each side, as in
-// memory. Both sides go into buckets by windows of original ids, so that the sort is one window at
-// a time and the pass holds two windows; the keys of a window that one side lacks carry over to the
-// next, which keeps the comparison that of the whole sort.
+// memory. The file's side goes into buckets by windows of original ids, so that the sort is one
+// window at a time; a mesh read in order is already sorted and is compared as it comes, any other
+// is bucketed the same way, and the keys of a window that one side lacks carry over to the next,
+// which keeps the comparison that of the whole sort.
 #include <deque>
+#include <optional>
+#include <string>
 
 #include "verify_node.h"
 #include "window_buckets.h"
 
 namespace facetree {
 
-VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+namespace {
+
+// The file's triangles keyed and bucketed by windows of `window` original ids.
+void bucketFileTriangles(ClusterFileReader& reader, uint64_t window,
+                         fch::WindowBuckets<fch::TriangleKey>& out) {
+  const uint64_t faces = reader.header().triangleCount;
+  const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
+  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
+                                                                                  std::span<const uint32_t>) {
+    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+      const uint64_t id = piece.originalFace[t];
+      out.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],
+                                            piece.vertices[piece.indices[3 * t + 1]],
+                                            piece.vertices[piece.indices[3 * t + 2]]));
+    }
+  });
+}
+
+// Bytes of a bucket's buffer once they spill: the windows' buffers together take about the budget.
+uint64_t runBytes(uint64_t budget, uint64_t faces, uint64_t window) {
+  return std::clamp<uint64_t>(budget / std::max<uint64_t>(faces / window, 1), 4096, 256 << 10);
+}
+
+// Both sides bucketed and each window sorted: for a mesh whose triangles come in any order.
+VerifyResult compareInWindows(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
   const uint64_t faces = reader.header().triangleCount;
   const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
   const uint64_t window = std::max<uint64_t>(budget / (2 * sizeof(fch::TriangleKey)), 16);
-  const uint64_t runBytes =
-      std::clamp<uint64_t>(budget / std::max<uint64_t>(faces / window, 1), 4096, 256 << 10);
-  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes, reader.temporaryDirectory());
-  fch::WindowBuckets<fch::TriangleKey> fromMesh(budget, runBytes, reader.temporaryDirectory());
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
+  fch::WindowBuckets<fch::TriangleKey> fromMesh(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
 
   uint64_t meshTriangles = 0;
   mesh([&](std::span<const MeshTriangle> batch) {
@@ -30,16 +57,7 @@ VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSour
     return {false,
             "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
             0};
-  const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
-                                                                                  std::span<const uint32_t>) {
-    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
-      const uint64_t id = piece.originalFace[t];
-      fromFile.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],
-                                                 piece.vertices[piece.indices[3 * t + 1]],
-                                                 piece.vertices[piece.indices[3 * t + 2]]));
-    }
-  });
+  bucketFileTriangles(reader, window, fromFile);
 
   std::deque<fch::TriangleKey> fileQueue, meshQueue;
   std::vector<fch::TriangleKey> taken;
@@ -59,6 +77,54 @@ VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSour
       if (!fileQueue.front().sameKey(meshQueue.front()))
         return {false, fch::triangleMismatch(fileQueue.front(), meshQueue.front()), 0};
   }
+  return {true, "", reader.size()};
+}
+
+}  // namespace
+
+VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+  // A mesh read in order hands its triangles over by increasing id, which is the order of the sort:
+  // only the file's side is bucketed, and the mesh's is compared as it comes. The first pair that
+  // differs is kept while the mesh's triangles are counted, since a count that differs is the
+  // verdict first. Ids out of order send the check to the windows of both sides.
+  const uint64_t faces = reader.header().triangleCount;
+  const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
+  const uint64_t window = std::max<uint64_t>(budget / sizeof(fch::TriangleKey), 16);
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
+  bucketFileTriangles(reader, window, fromFile);
+  std::deque<fch::TriangleKey> fileQueue;
+  std::vector<fch::TriangleKey> taken;
+  std::optional<std::string> mismatch;
+  uint64_t meshTriangles = 0, lastId = 0;
+  bool inOrder = true;
+  mesh([&](std::span<const MeshTriangle> batch) {
+    for (const MeshTriangle& t : batch) {
+      ++meshTriangles;
+      if (!inOrder) continue;
+      if (meshTriangles > 1 && t.id <= lastId) {
+        inOrder = false;
+        continue;
+      }
+      lastId = t.id;
+      if (mismatch) continue;
+      while (fileQueue.empty() && !fromFile.empty()) {
+        fromFile.take(fromFile.firstWindow(), taken);
+        std::sort(taken.begin(), taken.end());
+        fileQueue.insert(fileQueue.end(), taken.begin(), taken.end());
+      }
+      if (fileQueue.empty()) continue;  // more triangles than the file: the count says so
+      const fch::TriangleKey key(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]);
+      if (!fileQueue.front().sameKey(key)) mismatch = fch::triangleMismatch(fileQueue.front(), key);
+      fileQueue.pop_front();
+    }
+  });
+  if (!inOrder) return compareInWindows(reader, mesh);
+  if (meshTriangles != faces)
+    return {false,
+            "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
+            0};
+  if (mismatch) return {false, *mismatch, 0};
   return {true, "", reader.size()};
 }
 

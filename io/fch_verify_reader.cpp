@@ -9,6 +9,7 @@
 // bound that sets W.
 #include <algorithm>
 #include <cmath>
+#include <thread>
 
 #include "fch_node_code.h"
 #include "verify_node.h"
@@ -151,55 +152,95 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
   const double modelTolerance = fch::modelTolerance(lo, hi, h.vertexCount == 0);
 
   // The faces in order, each summed into the nodes open over it; a node's checks run at its last
-  // face, and the failure of the lowest node index is the verdict, as in memory.
-  struct Open {
+  // face, and the failure of the lowest node index is the verdict, as in memory. The nodes are
+  // dealt to workers by index, each worker summing its own nodes over every face of a triangle
+  // frame: a node's sums are one worker's, in face order, whatever the workers' count. A compact
+  // box's step comes from its parent's box, the innermost node open over the child's first face on
+  // one stack of every node, kept before the workers run.
+  struct Starting {
     NodeGeometry node;
-    fch::NodeFaceSums sums;
     double step[3];
   };
-  std::vector<Open> open;
-  std::vector<NodeGeometry> pending;
+  struct Open {
+    Starting start;
+    fch::NodeFaceSums sums;
+  };
+  struct Worker {
+    std::vector<Open> open;
+    std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
+  };
+  const unsigned workers = std::clamp(std::thread::hardware_concurrency(), 1u, 4u);
+  std::vector<Worker> team(workers);
+  std::vector<Starting> starts;  // the nodes starting in the piece
+  std::vector<NodeGeometry> windowNodes;
   size_t next = 0;
-  std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
-  const auto close = [&](uint64_t p) {
-    while (!open.empty() && uint64_t{open.back().node.first} + open.back().node.count <= p) {
-      const Open& o = open.back();
-      if (!first || o.node.index < first->first)
-        if (auto broken = fch::checkNodeGeometry(o.node.box, o.node.area, o.node.sumNormal, o.sums, o.step,
+  struct Enclosing {
+    uint64_t end;
+    NodeBox box;
+  };
+  std::vector<Enclosing> enclosing;
+  const bool compact = h.boxes == BoxPrecision::Compact;
+  const auto close = [&](Worker& w, uint64_t p) {
+    while (!w.open.empty() &&
+           uint64_t{w.open.back().start.node.first} + w.open.back().start.node.count <= p) {
+      const Open& o = w.open.back();
+      const NodeGeometry& node = o.start.node;
+      if (!w.first || node.index < w.first->first)
+        if (auto broken = fch::checkNodeGeometry(node.box, node.area, node.sumNormal, o.sums, o.start.step,
                                                  modelTolerance, options))
-          first.emplace(o.node.index, std::move(*broken));
-      open.pop_back();
+          w.first.emplace(node.index, std::move(*broken));
+      w.open.pop_back();
     }
   };
-  const bool compact = h.boxes == BoxPrecision::Compact;
+  // Worker k's share of one piece: its faces, and its nodes of those starting there.
+  const auto sweep = [&](unsigned k, const FaceRangeMesh& piece) {
+    Worker& w = team[k];
+    const size_t triangles = piece.indices.size() / 3;
+    for (size_t t = 0, s = 0; t < triangles; ++t) {
+      const uint64_t p = piece.first + t;
+      close(w, p);
+      for (; s < starts.size() && starts[s].node.first == p; ++s)
+        if (starts[s].node.index % workers == k)
+          w.open.push_back({starts[s], fch::NodeFaceSums(starts[s].node.box)});
+      if (w.open.empty()) continue;
+      const fch::VerifyFace face(piece.vertices[piece.indices[3 * t]],
+                                 piece.vertices[piece.indices[3 * t + 1]],
+                                 piece.vertices[piece.indices[3 * t + 2]]);
+      for (Open& o : w.open) o.sums.add(face);
+    }
+  };
   const CutCluster all[1] = {{n > 0 ? 0 : kNoNode, 0, faces}};
   reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
                                                                                   std::span<const uint32_t>) {
+    // The nodes starting in the piece, in push order, with their steps.
     const size_t triangles = piece.indices.size() / 3;
+    starts.clear();
     for (size_t t = 0; t < triangles; ++t) {
       const uint64_t p = piece.first + t;
       if (p % window == 0) {
-        buckets.take(p / window, pending);
-        std::sort(pending.begin(), pending.end(), [](const NodeGeometry& a, const NodeGeometry& b) {
+        buckets.take(p / window, windowNodes);
+        std::sort(windowNodes.begin(), windowNodes.end(), [](const NodeGeometry& a, const NodeGeometry& b) {
           return a.first != b.first ? a.first < b.first : a.count > b.count;
         });
         next = 0;
       }
-      close(p);
-      for (; next < pending.size() && pending[next].first == p; ++next) {
-        const NodeGeometry& node = pending[next];
-        Open& o = open.emplace_back(Open{node, fch::NodeFaceSums(node.box), {0, 0, 0}});
-        // The parent is the innermost node open over the child's first face.
-        if (compact && node.index > 0 && open.size() >= 2)
-          fch::compactStep(open[open.size() - 2].node.box, node.box.orientation, o.step);
+      while (!enclosing.empty() && enclosing.back().end <= p) enclosing.pop_back();
+      for (; next < windowNodes.size() && windowNodes[next].first == p; ++next) {
+        Starting& start = starts.emplace_back(Starting{windowNodes[next], {0, 0, 0}});
+        if (compact && start.node.index > 0 && !enclosing.empty())
+          fch::compactStep(enclosing.back().box, start.node.box.orientation, start.step);
+        enclosing.push_back({uint64_t{start.node.first} + start.node.count, start.node.box});
       }
-      const fch::VerifyFace face(piece.vertices[piece.indices[3 * t]],
-                                 piece.vertices[piece.indices[3 * t + 1]],
-                                 piece.vertices[piece.indices[3 * t + 2]]);
-      for (Open& o : open) o.sums.add(face);
     }
+    std::vector<std::thread> helpers;
+    for (unsigned k = 1; k < workers; ++k) helpers.emplace_back(sweep, k, std::cref(piece));
+    sweep(0, piece);
+    for (std::thread& helper : helpers) helper.join();
   });
-  close(faces);
+  for (Worker& w : team) close(w, faces);
+  std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
+  for (Worker& w : team)
+    if (w.first && (!first || w.first->first < first->first)) first = std::move(w.first);
   if (first) return failAt(first->first, first->second.check, first->second.detail, first->first);
   return {true, "", n};
 }

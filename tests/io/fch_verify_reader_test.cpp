@@ -111,13 +111,14 @@ TEST_P(StreamingVerify, EachBrokenInvariantGetsTheSameVerdict) {
 TEST_P(StreamingVerify, TheMeshComparisonGetsTheSameVerdict) {
   writeClusterFile(path, file, smallFrames());
   const ClusterFile back = readClusterFile(path);
-  // The mesh as the build had it: the original ids are positions in `mesh`.
-  const auto compare = [&](const TestMesh& other, std::vector<uint64_t> ids) {
+  // The mesh as the build had it: the original ids are positions in `mesh`. Its triangles come in
+  // order (compared as they come) and backwards (bucketed by id like the file's).
+  const auto compareIn = [&](bool backwards, const TestMesh& other, const std::vector<uint64_t>& ids) {
     ClusterFileReader reader(path, tinyCap());
     const MeshTriangleSource source = [&](const std::function<void(std::span<const MeshTriangle>)>& visit) {
       std::vector<MeshTriangle> batch;
-      for (uint64_t t = 0; t < other.faceCount(); ++t) {  // in batches of 50, backwards
-        const uint64_t s = other.faceCount() - 1 - t;
+      for (uint64_t t = 0; t < other.faceCount(); ++t) {  // in batches of 50
+        const uint64_t s = backwards ? other.faceCount() - 1 - t : t;
         batch.push_back({ids.empty() ? s : ids[s],
                          s,
                          {other.positions[other.indices[3 * s]], other.positions[other.indices[3 * s + 1]],
@@ -128,9 +129,13 @@ TEST_P(StreamingVerify, TheMeshComparisonGetsTheSameVerdict) {
     };
     const VerifyResult streamed = verifyAgainstMesh(reader, source);
     const VerifyResult inMemory = verifyAgainstMesh(back, other.view(), ids);
-    EXPECT_EQ(streamed.ok, inMemory.ok);
-    EXPECT_EQ(streamed.message, inMemory.message);
+    EXPECT_EQ(streamed.ok, inMemory.ok) << backwards;
+    EXPECT_EQ(streamed.message, inMemory.message) << backwards;
     return streamed;
+  };
+  const auto compare = [&](const TestMesh& other, const std::vector<uint64_t>& ids) {
+    compareIn(false, other, ids);
+    return compareIn(true, other, ids);
   };
   EXPECT_TRUE(compare(mesh, {}).ok);
   TestMesh moved = mesh;
