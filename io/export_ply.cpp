@@ -84,22 +84,26 @@ void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutClust
   });
   const size_t faceBytes = kFaceBytes + (clusterIds ? 4 : 0);
   std::vector<unsigned char> batch;
-  reader.forEachCutPiece(cut, [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
-    batch.resize(clusterOf.size() * faceBytes);
-    for (size_t t = 0; t < clusterOf.size(); ++t) {
-      unsigned char* record = &batch[t * faceBytes];
-      record[0] = 3;
-      int32_t index[3];
-      for (int c = 0; c < 3; ++c) index[c] = static_cast<int32_t>(piece.vertexIds[piece.indices[3 * t + c]]);
-      std::memcpy(record + 1, index, sizeof index);
-      const glm::u8vec3 colour = clusterColour(clusterOf[t]);
-      record[13] = colour.r;
-      record[14] = colour.g;
-      record[15] = colour.b;
-      if (clusterIds) std::memcpy(record + 16, &clusterOf[t], 4);
-    }
-    out.write(batch.data(), batch.size());
-  });
+  reader.forEachCutPiece(
+      cut,
+      [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
+        batch.resize(clusterOf.size() * faceBytes);
+        for (size_t t = 0; t < clusterOf.size(); ++t) {
+          unsigned char* record = &batch[t * faceBytes];
+          record[0] = 3;
+          int32_t index[3];
+          for (int c = 0; c < 3; ++c)
+            index[c] = static_cast<int32_t>(piece.vertexIds[piece.indices[3 * t + c]]);
+          std::memcpy(record + 1, index, sizeof index);
+          const glm::u8vec3 colour = clusterColour(clusterOf[t]);
+          record[13] = colour.r;
+          record[14] = colour.g;
+          record[15] = colour.b;
+          if (clusterIds) std::memcpy(record + 16, &clusterOf[t], 4);
+        }
+        out.write(batch.data(), batch.size());
+      },
+      FaceFields::Geometry);
   out.commit();
 }
 

@@ -29,8 +29,9 @@ template <class Visit>
 void forEachFacePiece(ClusterFileReader& reader, Visit&& visit) {
   const uint64_t faces = reader.header().triangleCount;
   const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
-                         [&](const FaceRangeMesh& piece, std::span<const uint32_t>) { visit(piece); });
+  reader.forEachCutPiece(
+      std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
+      [&](const FaceRangeMesh& piece, std::span<const uint32_t>) { visit(piece); }, FaceFields::Geometry);
 }
 
 }  // namespace
@@ -74,7 +75,7 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
     return p / 3.0;
   };
   forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
-    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+    for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
       const glm::dvec3 c = centroid(piece, t);
       lo = glm::min(lo, c), hi = glm::max(hi, c);
     }
@@ -86,7 +87,7 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
   fch::SortedRuns<MortonFace, MortonLess> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
                                                  reader.temporaryDirectory());
   forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
-    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+    for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
       const glm::vec3* corner[3] = {&piece.vertices[piece.indices[3 * t]],
                                     &piece.vertices[piece.indices[3 * t + 1]],
                                     &piece.vertices[piece.indices[3 * t + 2]]};

@@ -564,7 +564,7 @@ std::vector<CutCluster> ClusterFileReader::cutByDepth(uint32_t depth) {
   return state_->clusters(children, bounds, header().triangleCount, depth > 0 && n > 0, *this);
 }
 
-FaceRangeMesh ClusterFileReader::faces(uint64_t first, uint64_t count) {
+FaceRangeMesh ClusterFileReader::faces(uint64_t first, uint64_t count, FaceFields fields) {
   State& s = *state_;
   const uint64_t triangles = header().triangleCount;
   if (first > triangles || count > triangles - first)
@@ -572,15 +572,17 @@ FaceRangeMesh ClusterFileReader::faces(uint64_t first, uint64_t count) {
   FaceRangeMesh mesh;
   mesh.first = first;
   mesh.indices.reserve(3 * count);
-  mesh.originalFace.reserve(count);
+  if (fields == FaceFields::All) mesh.originalFace.reserve(count);
   const uint64_t per = s.perFrame();
   for (uint64_t p = first; p < first + count;) {
     const uint64_t k = p / per, end = std::min(first + count, (k + 1) * per);
     const CachedFrame& tri = s.geometryFrame(2, k);
     for (uint64_t q = p; q < end; ++q)
       for (int c = 0; c < 3; ++c) mesh.indices.push_back(tri.indices[3 * (q - k * per) + c]);
-    const CachedFrame& ids = s.geometryFrame(3, k);
-    for (uint64_t q = p; q < end; ++q) mesh.originalFace.push_back(ids.ids[q - k * per]);
+    if (fields == FaceFields::All) {
+      const CachedFrame& ids = s.geometryFrame(3, k);
+      for (uint64_t q = p; q < end; ++q) mesh.originalFace.push_back(ids.ids[q - k * per]);
+    }
     p = end;
   }
   // Local numbering: the vertices used, in file order. Vertices are numbered by first use, so a
@@ -648,13 +650,13 @@ BranchingStats branchingStats(ClusterFileReader& reader) {
 
 void ClusterFileReader::forEachCutPiece(
     std::span<const CutCluster> cut,
-    const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit) {
+    const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit, FaceFields fields) {
   const uint64_t triangles = header().triangleCount, per = state_->perFrame();
   std::vector<uint32_t> clusterOf;
   size_t c = 0;
   for (uint64_t first = 0; first < triangles; first += per) {
     const uint64_t count = std::min(per, triangles - first);
-    const FaceRangeMesh piece = faces(first, count);
+    const FaceRangeMesh piece = faces(first, count, fields);
     clusterOf.resize(count);
     for (uint64_t t = 0; t < count; ++t) {
       const uint64_t p = first + t;

@@ -210,33 +210,36 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
     }
   };
   const CutCluster all[1] = {{n > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
-                                                                                  std::span<const uint32_t>) {
-    // The nodes starting in the piece, in push order, with their steps.
-    const size_t triangles = piece.indices.size() / 3;
-    starts.clear();
-    for (size_t t = 0; t < triangles; ++t) {
-      const uint64_t p = piece.first + t;
-      if (p % window == 0) {
-        buckets.take(p / window, windowNodes);
-        std::sort(windowNodes.begin(), windowNodes.end(), [](const NodeGeometry& a, const NodeGeometry& b) {
-          return a.first != b.first ? a.first < b.first : a.count > b.count;
-        });
-        next = 0;
-      }
-      while (!enclosing.empty() && enclosing.back().end <= p) enclosing.pop_back();
-      for (; next < windowNodes.size() && windowNodes[next].first == p; ++next) {
-        Starting& start = starts.emplace_back(Starting{windowNodes[next], {0, 0, 0}});
-        if (compact && start.node.index > 0 && !enclosing.empty())
-          fch::compactStep(enclosing.back().box, start.node.box.orientation, start.step);
-        enclosing.push_back({uint64_t{start.node.first} + start.node.count, start.node.box});
-      }
-    }
-    std::vector<std::thread> helpers;
-    for (unsigned k = 1; k < workers; ++k) helpers.emplace_back(sweep, k, std::cref(piece));
-    sweep(0, piece);
-    for (std::thread& helper : helpers) helper.join();
-  });
+  reader.forEachCutPiece(
+      std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
+      [&](const FaceRangeMesh& piece, std::span<const uint32_t>) {
+        // The nodes starting in the piece, in push order, with their steps.
+        const size_t triangles = piece.indices.size() / 3;
+        starts.clear();
+        for (size_t t = 0; t < triangles; ++t) {
+          const uint64_t p = piece.first + t;
+          if (p % window == 0) {
+            buckets.take(p / window, windowNodes);
+            std::sort(windowNodes.begin(), windowNodes.end(),
+                      [](const NodeGeometry& a, const NodeGeometry& b) {
+                        return a.first != b.first ? a.first < b.first : a.count > b.count;
+                      });
+            next = 0;
+          }
+          while (!enclosing.empty() && enclosing.back().end <= p) enclosing.pop_back();
+          for (; next < windowNodes.size() && windowNodes[next].first == p; ++next) {
+            Starting& start = starts.emplace_back(Starting{windowNodes[next], {0, 0, 0}});
+            if (compact && start.node.index > 0 && !enclosing.empty())
+              fch::compactStep(enclosing.back().box, start.node.box.orientation, start.step);
+            enclosing.push_back({uint64_t{start.node.first} + start.node.count, start.node.box});
+          }
+        }
+        std::vector<std::thread> helpers;
+        for (unsigned k = 1; k < workers; ++k) helpers.emplace_back(sweep, k, std::cref(piece));
+        sweep(0, piece);
+        for (std::thread& helper : helpers) helper.join();
+      },
+      FaceFields::All);  // verify reads every frame, the original ids' too
   for (Worker& w : team) close(w, faces);
   std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
   for (Worker& w : team)

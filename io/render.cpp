@@ -158,11 +158,14 @@ void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cu
       [&](uint64_t, std::span<const glm::vec3> positions) { space.addExtent(positions); });
   SampleBuffer buffer(sampleWidth, sampleHeight);
   std::vector<glm::vec3> points;
-  reader.forEachCutPiece(cut, [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
-    points.resize(piece.vertices.size());
-    for (size_t v = 0; v < points.size(); ++v) points[v] = space.map(piece.vertices[v]);
-    rasterize(MeshView{piece.vertices, piece.indices}, clusterOf, points, buffer);
-  });
+  reader.forEachCutPiece(
+      cut,
+      [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
+        points.resize(piece.vertices.size());
+        for (size_t v = 0; v < points.size(); ++v) points[v] = space.map(piece.vertices[v]);
+        rasterize(MeshView{piece.vertices, piece.indices}, clusterOf, points, buffer);
+      },
+      FaceFields::Geometry);
   const std::vector<unsigned char> png =
       encodePng(resolve(buffer, options.width, options.height), options.width, options.height, path);
   OutputFile out(path);

@@ -385,6 +385,9 @@ uint64_t defaultMemoryCap();
 // What a pass over the nodes decodes: every field, or the tree alone (face ranges, children, flags,
 // cost, area and perimeter; S and the box left zero), which skips the boxes' decoding.
 enum class NodeFields : uint8_t { All, Structure };
+// What a face range decodes: every field, or the triangles and their vertices alone (the original
+// ids' frames are not read).
+enum class FaceFields : uint8_t { All, Geometry };
 
 class ClusterFileReader {
  public:
@@ -421,8 +424,9 @@ class ClusterFileReader {
   // The cut under the nodes of depth below `depth` (the root's is 1): clusterDepthCut's clusters.
   std::vector<CutCluster> cutByDepth(uint32_t depth);
 
-  // The triangles of face positions [first, first + count): only the geometry frames they touch.
-  FaceRangeMesh faces(uint64_t first, uint64_t count);
+  // The triangles of face positions [first, first + count): only the geometry frames they touch
+  // (FaceFields::Geometry: not the original ids', and originalFace stays empty).
+  FaceRangeMesh faces(uint64_t first, uint64_t count, FaceFields fields = FaceFields::All);
   // Calls visit(cluster, mesh) for the clusters of `cut` in face order.
   void forEachCluster(std::span<const CutCluster> cut,
                       const std::function<void(const CutCluster&, const FaceRangeMesh&)>& visit);
@@ -431,7 +435,8 @@ class ClusterFileReader {
   // position in `cut` of the cluster holding the piece's triangle t. Each triangle and id frame is
   // decoded once in the pass.
   void forEachCutPiece(std::span<const CutCluster> cut,
-                       const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit);
+                       const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit,
+                       FaceFields fields = FaceFields::All);
   // The file's vertices in order, a vertex frame at a time: visit(first vertex index, positions).
   void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit);
 
