@@ -94,9 +94,8 @@ int runInfo(const std::vector<std::string>& argv) {
     // The header, the index and one pass over the node frames; the geometry only for the cuts' fits.
     ClusterFileReader reader(name, readerOptions(args));
     const FchLayout& layout = reader.layout();
-    const BranchingStats s = branchingStats(reader);
-    std::vector<CutFit> fits;
-    if (!fitCuts.empty()) fits = cutFits(reader, fitCuts);
+    BranchingStats s;
+    const std::vector<CutFit> fits = cutFits(reader, fitCuts, &s);  // none asked: branchingStats alone
     const FileHeader& h = layout.header;
     struct SectionBytes {
       uint64_t frames = 0, compressed = 0, raw = 0;

@@ -5,9 +5,12 @@
 // centroid: each face leaves its code and its corners' box to a sort in runs of a temporary file
 // (SortedRuns), and the merged order is cut into the runs of every cut.
 #include <algorithm>
+#include <exception>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
+#include "branching_pass.h"
 #include "cut_fit_sums.h"
 #include "sorted_runs.h"
 
@@ -36,9 +39,13 @@ void forEachFacePiece(ClusterFileReader& reader, Visit&& visit) {
 
 }  // namespace
 
-std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters) {
+std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters,
+                            BranchingStats* branching) {
   std::vector<CutFit> fits;
-  if (clusters.empty()) return fits;
+  if (clusters.empty()) {
+    if (branching) *branching = branchingStats(reader);
+    return fits;
+  }
   const uint64_t faces = reader.header().triangleCount;
   fch::VertexBounds bounds;
   reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
@@ -55,13 +62,18 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
   }
   std::sort(nodes.begin(), nodes.end());
   nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  // The boxes of the cuts' nodes, in a pass that stops after the last of them unless it also
+  // gives the branching statistics.
   std::vector<NodeBox> boxes(nodes.size());
-  if (!nodes.empty())
-    reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t) {
+  fch::BranchingPass pass(reader.header());
+  if (!nodes.empty() || branching)
+    reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t depth) {
+      if (branching) pass.visit(node, depth);
       const auto at = std::lower_bound(nodes.begin(), nodes.end(), index);
       if (at != nodes.end() && *at == index) boxes[at - nodes.begin()] = node.box;
-      return index < nodes.back();
+      return branching || index < nodes.back();
     });
+  if (branching) *branching = pass.stats;
   const auto boxOf = [&](const CutCluster& c) -> const NodeBox* {
     if (c.node == kNoNode) return nullptr;
     return &boxes[std::lower_bound(nodes.begin(), nodes.end(), c.node) - nodes.begin()];
@@ -86,26 +98,45 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
   std::vector<size_t> at(cuts.size(), 0);
   fch::SortedRuns<MortonFace, MortonLess> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
                                                  reader.temporaryDirectory());
+  // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
+  // its own, so the figures are those of one thread.
   forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
-    for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
-      const glm::vec3* corner[3] = {&piece.vertices[piece.indices[3 * t]],
-                                    &piece.vertices[piece.indices[3 * t + 1]],
-                                    &piece.vertices[piece.indices[3 * t + 2]]};
-      const uint64_t p = piece.first + t;
-      for (size_t i = 0; i < cuts.size(); ++i) {
-        sums[i].add(*corner[0], *corner[1], *corner[2]);
-        if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
-          throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
-        const CutCluster& c = cuts[i][at[i]];
-        if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
+    const size_t triangles = piece.indices.size() / 3;
+    const auto corner = [&](size_t t, int k) -> const glm::vec3& {
+      return piece.vertices[piece.indices[3 * t + k]];
+    };
+    std::exception_ptr failed;
+    std::thread morton([&] {
+      try {
+        for (size_t t = 0; t < triangles; ++t) {
+          MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
+          for (int a = 0; a < 3; ++a) {
+            m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+            m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+          }
+          sorted.add(m);
+        }
+      } catch (...) {
+        failed = std::current_exception();
       }
-      MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
-      for (int a = 0; a < 3; ++a) {
-        m.lo[a] = std::min({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
-        m.hi[a] = std::max({(*corner[0])[a], (*corner[1])[a], (*corner[2])[a]});
+    });
+    try {
+      for (size_t t = 0; t < triangles; ++t) {
+        const uint64_t p = piece.first + t;
+        for (size_t i = 0; i < cuts.size(); ++i) {
+          sums[i].add(corner(t, 0), corner(t, 1), corner(t, 2));
+          if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
+            throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
+          const CutCluster& c = cuts[i][at[i]];
+          if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
+        }
       }
-      sorted.add(m);
+    } catch (...) {
+      morton.join();
+      throw;
     }
+    morton.join();
+    if (failed) std::rethrow_exception(failed);
   });
   for (fch::CutFitSum& sum : sums) fits.push_back(sum.finish());
 

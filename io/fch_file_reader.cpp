@@ -15,6 +15,7 @@
 
 #include <unistd.h>
 
+#include "branching_pass.h"
 #include "fch_format.h"
 #include "fch_node_code.h"
 #include "temporary_file.h"
@@ -625,27 +626,14 @@ void ClusterFileReader::forEachCluster(
 }
 
 BranchingStats branchingStats(ClusterFileReader& reader) {
-  const FileHeader& h = reader.header();
-  BranchingStats stats;
-  stats.branching = h.branching;
-  stats.triangles = h.triangleCount;
-  stats.internalNodes = h.nodeCount;
-  stats.eq85Nodes = h.triangleCount > 0 ? double(h.triangleCount - 1) / double(h.branching - 1) : 0.0;
-  stats.height = h.triangleCount > 0 ? 1 : 0;
-  stats.balancedHeight = h.triangleCount > 0 ? balancedHeight(h.triangleCount, h.branching) : 0;
-  // As FileShape: a node with a face below it, or a child cut off, ends a path one below it.
+  fch::BranchingPass pass(reader.header());
   reader.forEachNode(
       [&](uint64_t, const FchNode& node, uint32_t depth) {
-        ++stats.childHistogram[std::min<unsigned>(node.childCount, kMaxBranching)];
-        for (unsigned c = 0; c < node.childCount; ++c)
-          if ((node.child[c] & kFaceChild) || node.child[c] >= h.nodeCount) {
-            stats.height = std::max(stats.height, depth + 1);
-            break;
-          }
+        pass.visit(node, depth);
         return true;
       },
       NodeFields::Structure);
-  return stats;
+  return pass.stats;
 }
 
 void ClusterFileReader::forEachCutPiece(

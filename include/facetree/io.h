@@ -544,8 +544,10 @@ CutFit cutFit(const ClusterFile& file, uint64_t clusters);
 std::vector<CutFit> cutFits(const ClusterFile& file, std::span<const uint64_t> clusters);
 // The same figures from a file read under the reader's cap: passes over the nodes (one per cut, one
 // for the boxes) and over the faces (the centroids' box, then the fits), and the faces' Morton order
-// sorted in runs of a temporary file past an eighth of the cap.
-std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters);
+// sorted in runs of a temporary file past an eighth of the cap. With `branching`, the boxes' pass
+// covers every node and gives branchingStats(reader) too, which saves a pass of its own.
+std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters,
+                            BranchingStats* branching = nullptr);
 
 // The reordered mesh (faces in hierarchy order, vertices by first use — as in the .fch) as binary
 // PLY (".ply") or Draco (".drc", sequential connectivity so face order and point ids are kept).
