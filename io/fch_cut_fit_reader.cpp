@@ -17,14 +17,14 @@
 namespace facetree {
 namespace {
 
-// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order and
-// the sort is stable, so equal codes keep face order, as the sort in memory breaks their ties.
+// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order,
+// which it keeps among equal codes, as the sort in memory breaks their ties.
 struct MortonFace {
   uint64_t code;
   float lo[3], hi[3];
 };
-struct MortonLess {
-  bool operator()(const MortonFace& a, const MortonFace& b) const { return a.code < b.code; }
+struct MortonKey {
+  uint64_t operator()(const MortonFace& m) const { return m.code; }
 };
 
 // Calls visit(piece) for the file's triangles in face order, a triangle frame at a time.
@@ -96,8 +96,8 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
   // Every cut's clusters, and every face into the sort.
   std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
   std::vector<size_t> at(cuts.size(), 0);
-  fch::SortedRuns<MortonFace, MortonLess> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
-                                                 reader.temporaryDirectory());
+  fch::SortedRuns<MortonFace, MortonKey> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
+                                                reader.temporaryDirectory());
   // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
   // its own, so the figures are those of one thread.
   forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {

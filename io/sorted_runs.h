@@ -1,7 +1,9 @@
-// Internal to io/: records sorted under a memory budget (Knuth, TAOCP vol. 3, sec. 5.4.1): a full
-// buffer is sorted and written as a run to an unnamed temporary file, and the runs are merged
-// through a heap, each read in slices of an equal share of the budget. Records that fit the budget
-// never touch the file.
+// Internal to io/: records sorted by a 64-bit key under a memory budget (Knuth, TAOCP vol. 3, sec.
+// 5.4.1): a full buffer is sorted and written as a run to an unnamed temporary file, and the runs are
+// merged through a heap, each read in slices of an equal share of the budget. Records that fit the
+// budget never touch the file. Equal keys keep the order records were added in: a run sorts pairs of
+// (key, position), which std::sort moves far faster than the records, and the heap gives ties to the
+// earlier run.
 #pragma once
 
 #include <algorithm>
@@ -16,13 +18,15 @@
 
 namespace facetree::fch {
 
-template <class Record, class Less>
+template <class Record, class Key>
 class SortedRuns {
   static_assert(std::is_trivially_copyable_v<Record>);
 
  public:
-  SortedRuns(uint64_t budget, std::filesystem::path tmp, Less less = {})
-      : capacity_(std::max<uint64_t>(budget / sizeof(Record), 64)), tmp_(std::move(tmp)), less_(less) {}
+  SortedRuns(uint64_t budget, std::filesystem::path tmp, Key key = {})
+      : capacity_(std::max<uint64_t>(budget / (sizeof(Record) + sizeof(Order)), 64)),
+        tmp_(std::move(tmp)),
+        key_(key) {}
 
   void add(const Record& r) {
     if (buffer_.size() == capacity_) writeRun();
@@ -30,16 +34,17 @@ class SortedRuns {
       buffer_.reserve(capacity_);
     buffer_.push_back(r);
   }
-  // Calls visit(record) for every record in sorted order (equal records in the order added); once.
+  // Calls visit(record) for every record in sorted order (equal keys in the order added); once.
   template <class Visit>
   void forEachSorted(Visit&& visit) {
-    std::stable_sort(buffer_.begin(), buffer_.end(), less_);
     if (runs_.empty()) {
-      for (const Record& r : buffer_) visit(r);
+      sortBuffer();
+      for (const Order& o : order_) visit(buffer_[o.second]);
       return;
     }
-    writeRun(true);
+    writeRun();
     std::vector<Record>().swap(buffer_);
+    std::vector<Order>().swap(order_);
     const uint64_t slice = std::max<uint64_t>(capacity_ / runs_.size(), 16);
     struct Cursor {
       uint64_t next, end;  // records of the run not yet read: [next, end)
@@ -58,7 +63,8 @@ class SortedRuns {
     const auto later = [&](size_t a, size_t b) {
       const Record& x = cursors[a].slice[cursors[a].at];
       const Record& y = cursors[b].slice[cursors[b].at];
-      return less_(y, x) || (!less_(x, y) && a > b);
+      const uint64_t kx = key_(x), ky = key_(y);
+      return ky < kx || (kx == ky && a > b);
     };
     std::priority_queue<size_t, std::vector<size_t>, decltype(later)> heap(later);
     for (size_t i = 0; i < runs_.size(); ++i) {
@@ -75,10 +81,25 @@ class SortedRuns {
   }
 
  private:
-  void writeRun(bool sorted = false) {
-    if (!sorted) std::stable_sort(buffer_.begin(), buffer_.end(), less_);
+  using Order = std::pair<uint64_t, uint32_t>;  // a record's key and its position in the buffer
+  void sortBuffer() {
+    order_.resize(buffer_.size());
+    for (size_t i = 0; i < buffer_.size(); ++i) order_[i] = {key_(buffer_[i]), static_cast<uint32_t>(i)};
+    std::sort(order_.begin(), order_.end());
+  }
+  // The buffer sorted, written as a run in slices gathered through the order.
+  void writeRun() {
+    sortBuffer();
     if (!file_) file_ = std::make_unique<TemporaryFile>(tmp_);
-    file_->write(end_ * sizeof(Record), buffer_.data(), buffer_.size() * sizeof(Record));
+    constexpr size_t kSlice = 4096;
+    std::vector<Record> slice;
+    slice.reserve(std::min(kSlice, buffer_.size()));
+    for (size_t at = 0; at < order_.size(); at += kSlice) {
+      slice.clear();
+      for (size_t i = at; i < std::min(order_.size(), at + kSlice); ++i)
+        slice.push_back(buffer_[order_[i].second]);
+      file_->write((end_ + at) * sizeof(Record), slice.data(), slice.size() * sizeof(Record));
+    }
     runs_.emplace_back(end_, end_ + buffer_.size());
     end_ += buffer_.size();
     buffer_.clear();
@@ -86,8 +107,9 @@ class SortedRuns {
 
   uint64_t capacity_;
   std::filesystem::path tmp_;
-  Less less_;
+  Key key_;
   std::vector<Record> buffer_;
+  std::vector<Order> order_;
   std::vector<std::pair<uint64_t, uint64_t>> runs_;  // records [first, end) of the file
   uint64_t end_ = 0;
   std::unique_ptr<TemporaryFile> file_;
