@@ -13,19 +13,18 @@ constexpr int64_t kHalfSample = int64_t{1} << (kSubpixelBits - 1);
 // Vertices are clamped this many samples beyond the buffer so fixed point cannot overflow.
 constexpr float kGuardBand = 1 << 16;
 
-struct FixedPoint {
-  int64_t x, y;
-};
+using FixedPoint = SampleBuffer::Snapped;
 
-FixedPoint snap(const glm::vec3& p) {
-  const auto fix = [](float v) {
-    return static_cast<int64_t>(std::lround(std::clamp(v, -kGuardBand, kGuardBand) * kSubpixelScale));
-  };
-  return {fix(p.x), fix(p.y)};
+// The samples whose centres can lie in [low, high] along an axis (1/256 sample).
+int64_t firstSample(int64_t low) {
+  return (low - kHalfSample + (1 << kSubpixelBits) - 1) >> kSubpixelBits;
+}
+int64_t lastSample(int64_t high) {
+  return (high - kHalfSample) >> kSubpixelBits;
 }
 
 // Twice the signed area of (a, b, p); positive when p lies to the inside of edge a->b for the
-// triangles as oriented by drawTriangle.
+// triangles as oriented by drawSnapped.
 int64_t edge(const FixedPoint& a, const FixedPoint& b, const FixedPoint& p) {
   return (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
 }
@@ -37,6 +36,20 @@ bool ownsEdge(const FixedPoint& a, const FixedPoint& b) {
 }
 }  // namespace
 
+SampleBuffer::Snapped SampleBuffer::snap(const glm::vec3& p) {
+  const auto fix = [](float v) {
+    return static_cast<int64_t>(std::lround(std::clamp(v, -kGuardBand, kGuardBand) * kSubpixelScale));
+  };
+  return {fix(p.x), fix(p.y), p.z};
+}
+
+bool SampleBuffer::boundsHoldASample(const Snapped& p0, const Snapped& p1, const Snapped& p2) const {
+  return std::max<int64_t>(firstSample(std::min({p0.x, p1.x, p2.x})), 0) <=
+             std::min<int64_t>(lastSample(std::max({p0.x, p1.x, p2.x})), width_ - 1) &&
+         std::max<int64_t>(firstSample(std::min({p0.y, p1.y, p2.y})), 0) <=
+             std::min<int64_t>(lastSample(std::max({p0.y, p1.y, p2.y})), height_ - 1);
+}
+
 SampleBuffer::SampleBuffer(int width, int height)
     : width_(width),
       height_(height),
@@ -44,10 +57,8 @@ SampleBuffer::SampleBuffer(int width, int height)
       cluster_(depth_.size(), 0),
       shade_(depth_.size(), 0) {}
 
-void SampleBuffer::drawTriangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, uint32_t cluster,
-                                uint8_t shade) {
-  FixedPoint p0 = snap(a), p1 = snap(b), p2 = snap(c);
-  float z0 = a.z, z1 = b.z, z2 = c.z;
+void SampleBuffer::drawSnapped(Snapped p0, Snapped p1, Snapped p2, uint32_t cluster, uint8_t shade) {
+  float z0 = p0.z, z1 = p1.z, z2 = p2.z;
   int64_t area = edge(p0, p1, p2);
   if (area == 0) return;
   if (area < 0) {
@@ -57,10 +68,6 @@ void SampleBuffer::drawTriangle(const glm::vec3& a, const glm::vec3& b, const gl
   }
 
   // Samples whose centres can lie inside, clamped to the buffer.
-  const auto firstSample = [](int64_t low) {
-    return (low - kHalfSample + (1 << kSubpixelBits) - 1) >> kSubpixelBits;
-  };
-  const auto lastSample = [](int64_t high) { return (high - kHalfSample) >> kSubpixelBits; };
   const int64_t minX = std::max<int64_t>(firstSample(std::min({p0.x, p1.x, p2.x})), 0);
   const int64_t maxX = std::min<int64_t>(lastSample(std::max({p0.x, p1.x, p2.x})), width_ - 1);
   const int64_t minY = std::max<int64_t>(firstSample(std::min({p0.y, p1.y, p2.y})), 0);
@@ -69,7 +76,7 @@ void SampleBuffer::drawTriangle(const glm::vec3& a, const glm::vec3& b, const gl
 
   // Edge functions at the first sample centre (w0 is opposite p0, and so on); a bias of -1 on
   // edges not owned turns ">= 0" into "> 0" there.
-  const FixedPoint start{(minX << kSubpixelBits) + kHalfSample, (minY << kSubpixelBits) + kHalfSample};
+  const FixedPoint start{(minX << kSubpixelBits) + kHalfSample, (minY << kSubpixelBits) + kHalfSample, 0.0f};
   int64_t row0 = edge(p1, p2, start) - (ownsEdge(p1, p2) ? 0 : 1);
   int64_t row1 = edge(p2, p0, start) - (ownsEdge(p2, p0) ? 0 : 1);
   int64_t row2 = edge(p0, p1, start) - (ownsEdge(p0, p1) ? 0 : 1);

@@ -23,7 +23,18 @@ class SampleBuffer {
   // in integers with the top-left rule, so triangles sharing an edge leave no gaps and cover
   // no sample twice. Triangles with no area are skipped.
   void drawTriangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, uint32_t cluster,
-                    uint8_t shade);
+                    uint8_t shade) {
+    drawSnapped(snap(a), snap(b), snap(c), cluster, shade);
+  }
+  // A point snapped once for the triangles that share it (a mesh's vertex): the same samples.
+  struct Snapped {
+    int64_t x, y;  // 1/256 sample
+    float z;
+  };
+  static Snapped snap(const glm::vec3& p);
+  void drawSnapped(Snapped a, Snapped b, Snapped c, uint32_t cluster, uint8_t shade);
+  // Whether the triangle's bounds hold a sample centre: none, and drawSnapped draws nothing.
+  bool boundsHoldASample(const Snapped& a, const Snapped& b, const Snapped& c) const;
 
   bool covered(size_t sample) const { return depth_[sample] != kEmpty; }
   uint32_t cluster(size_t sample) const { return cluster_[sample]; }

@@ -55,17 +55,25 @@ void rasterize(const MeshView& mesh, std::span<const uint32_t> faceCluster, std:
   // Sample space flips y and keeps x and depth: the light direction follows.
   const glm::vec3 light = glm::normalize(glm::vec3(kLightInView.x, -kLightInView.y, -kLightInView.z));
   const size_t triangles = mesh.triangleCount();
+  // Each vertex snapped once; a triangle whose bounds hold no sample (most, in a mesh far finer
+  // than the picture) is left before its shade.
+  std::vector<SampleBuffer::Snapped> snapped(points.size());
+  for (size_t v = 0; v < points.size(); ++v)
+    if (isFinite(points[v])) snapped[v] = SampleBuffer::snap(points[v]);
   for (size_t t = 0; t < triangles; ++t) {
-    const glm::vec3& a = points[mesh.indices[3 * t]];
-    const glm::vec3& b = points[mesh.indices[3 * t + 1]];
-    const glm::vec3& c = points[mesh.indices[3 * t + 2]];
+    const uint32_t ia = mesh.indices[3 * t], ib = mesh.indices[3 * t + 1], ic = mesh.indices[3 * t + 2];
+    const glm::vec3& a = points[ia];
+    const glm::vec3& b = points[ib];
+    const glm::vec3& c = points[ic];
     if (!isFinite(a) || !isFinite(b) || !isFinite(c)) continue;
+    if (!buffer.boundsHoldASample(snapped[ia], snapped[ib], snapped[ic])) continue;
     const glm::vec3 normal = glm::cross(b - a, c - a);
     const float length = glm::length(normal);
     if (!(length > 0.0f) || !std::isfinite(length)) continue;  // degenerate
     // Two-sided: meshes are not always consistently oriented.
     const float shade = kAmbient + kDiffuse * std::min(std::abs(glm::dot(normal, light)) / length, 1.0f);
-    buffer.drawTriangle(a, b, c, faceCluster[t], static_cast<uint8_t>(std::lround(shade * 255.0f)));
+    buffer.drawSnapped(snapped[ia], snapped[ib], snapped[ic], faceCluster[t],
+                       static_cast<uint8_t>(std::lround(shade * 255.0f)));
   }
 }
 
