@@ -27,16 +27,6 @@ struct MortonKey {
   uint64_t operator()(const MortonFace& m) const { return m.code; }
 };
 
-// Calls visit(piece) for the file's triangles in face order, a triangle frame at a time.
-template <class Visit>
-void forEachFacePiece(ClusterFileReader& reader, Visit&& visit) {
-  const uint64_t faces = reader.header().triangleCount;
-  const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(
-      std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
-      [&](const FaceRangeMesh& piece, std::span<const uint32_t>) { visit(piece); }, FaceFields::Geometry);
-}
-
 }  // namespace
 
 std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters,
@@ -86,12 +76,14 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
     for (int k = 0; k < 3; ++k) p += glm::dvec3(piece.vertices[piece.indices[3 * t + k]]);
     return p / 3.0;
   };
-  forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
-    for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
-      const glm::dvec3 c = centroid(piece, t);
-      lo = glm::min(lo, c), hi = glm::max(hi, c);
-    }
-  });
+  reader.forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
+        for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
+          const glm::dvec3 c = centroid(piece, t);
+          lo = glm::min(lo, c), hi = glm::max(hi, c);
+        }
+      },
+      FaceFields::Geometry);
 
   // Every cut's clusters, and every face into the sort.
   std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
@@ -100,44 +92,46 @@ std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t>
                                                 reader.temporaryDirectory());
   // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
   // its own, so the figures are those of one thread.
-  forEachFacePiece(reader, [&](const FaceRangeMesh& piece) {
-    const size_t triangles = piece.indices.size() / 3;
-    const auto corner = [&](size_t t, int k) -> const glm::vec3& {
-      return piece.vertices[piece.indices[3 * t + k]];
-    };
-    std::exception_ptr failed;
-    std::thread morton([&] {
-      try {
-        for (size_t t = 0; t < triangles; ++t) {
-          MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
-          for (int a = 0; a < 3; ++a) {
-            m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
-            m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+  reader.forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
+        const size_t triangles = piece.indices.size() / 3;
+        const auto corner = [&](size_t t, int k) -> const glm::vec3& {
+          return piece.vertices[piece.indices[3 * t + k]];
+        };
+        std::exception_ptr failed;
+        std::thread morton([&] {
+          try {
+            for (size_t t = 0; t < triangles; ++t) {
+              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
+              for (int a = 0; a < 3; ++a) {
+                m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+                m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+              }
+              sorted.add(m);
+            }
+          } catch (...) {
+            failed = std::current_exception();
           }
-          sorted.add(m);
+        });
+        try {
+          for (size_t t = 0; t < triangles; ++t) {
+            const uint64_t p = piece.first + t;
+            for (size_t i = 0; i < cuts.size(); ++i) {
+              sums[i].add(corner(t, 0), corner(t, 1), corner(t, 2));
+              if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
+                throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
+              const CutCluster& c = cuts[i][at[i]];
+              if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
+            }
+          }
+        } catch (...) {
+          morton.join();
+          throw;
         }
-      } catch (...) {
-        failed = std::current_exception();
-      }
-    });
-    try {
-      for (size_t t = 0; t < triangles; ++t) {
-        const uint64_t p = piece.first + t;
-        for (size_t i = 0; i < cuts.size(); ++i) {
-          sums[i].add(corner(t, 0), corner(t, 1), corner(t, 2));
-          if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
-            throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
-          const CutCluster& c = cuts[i][at[i]];
-          if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
-        }
-      }
-    } catch (...) {
-      morton.join();
-      throw;
-    }
-    morton.join();
-    if (failed) std::rethrow_exception(failed);
-  });
+        morton.join();
+        if (failed) std::rethrow_exception(failed);
+      },
+      FaceFields::Geometry);
   for (fch::CutFitSum& sum : sums) fits.push_back(sum.finish());
 
   // Run r of a cut of R runs: positions [r F / R, (r + 1) F / R) of the Morton order.

@@ -639,23 +639,30 @@ BranchingStats branchingStats(ClusterFileReader& reader) {
 void ClusterFileReader::forEachCutPiece(
     std::span<const CutCluster> cut,
     const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit, FaceFields fields) {
-  const uint64_t triangles = header().triangleCount, per = state_->perFrame();
   std::vector<uint32_t> clusterOf;
   size_t c = 0;
-  for (uint64_t first = 0; first < triangles; first += per) {
-    const uint64_t count = std::min(per, triangles - first);
-    const FaceRangeMesh piece = faces(first, count, fields);
-    clusterOf.resize(count);
-    for (uint64_t t = 0; t < count; ++t) {
-      const uint64_t p = first + t;
-      while (c < cut.size() && cut[c].first + cut[c].count <= p) ++c;
-      if (c == cut.size() || cut[c].first > p)
-        throw std::invalid_argument("ClusterFileReader::forEachCutPiece: the cut does not cover face " +
-                                    std::to_string(p));
-      clusterOf[t] = static_cast<uint32_t>(c);
-    }
-    visit(piece, clusterOf);
-  }
+  forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
+        const size_t count = piece.indices.size() / 3;
+        clusterOf.resize(count);
+        for (size_t t = 0; t < count; ++t) {
+          const uint64_t p = piece.first + t;
+          while (c < cut.size() && cut[c].first + cut[c].count <= p) ++c;
+          if (c == cut.size() || cut[c].first > p)
+            throw std::invalid_argument("ClusterFileReader::forEachCutPiece: the cut does not cover face " +
+                                        std::to_string(p));
+          clusterOf[t] = static_cast<uint32_t>(c);
+        }
+        visit(piece, clusterOf);
+      },
+      fields);
+}
+
+void ClusterFileReader::forEachFacePiece(const std::function<void(const FaceRangeMesh&)>& visit,
+                                         FaceFields fields) {
+  const uint64_t triangles = header().triangleCount, per = state_->perFrame();
+  for (uint64_t first = 0; first < triangles; first += per)
+    visit(faces(first, std::min(per, triangles - first), fields));
 }
 
 void ClusterFileReader::forEachVertexFrame(

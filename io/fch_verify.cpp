@@ -84,14 +84,6 @@ std::string triangleMismatch(const TriangleKey& file, const TriangleKey& mesh) {
 
 }  // namespace fch
 
-namespace {
-
-VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail, uint64_t checked) {
-  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
-}
-
-}  // namespace
-
 VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& options) {
   const std::vector<FchNode>& nodes = file.nodes;
   const uint64_t n = nodes.size();
@@ -108,10 +100,10 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
   if ((faces >= 2) != (n >= 1))
     return {false, "root: " + std::to_string(n) + " nodes for " + std::to_string(faces) + " triangles", 0};
   if (n > 0 && (nodes[0].first != 0 || nodes[0].count != faces))
-    return failAt(0, "root range",
-                  std::to_string(nodes[0].count) + " faces from face " + std::to_string(nodes[0].first) +
-                      ", not all " + std::to_string(faces) + " triangles",
-                  0);
+    return fch::failAt(0, "root range",
+                       std::to_string(nodes[0].count) + " faces from face " + std::to_string(nodes[0].first) +
+                           ", not all " + std::to_string(faces) + " triangles",
+                       0);
 
   // Structure: children partition the range in order; every node but the root has one parent.
   std::vector<uint32_t> parent(n, kNoOwner);
@@ -119,11 +111,11 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
     const FchNode& node = nodes[j];
     const uint64_t end = uint64_t{node.first} + node.count;
     if (node.childCount < 2 || node.childCount > h.branching)
-      return failAt(
+      return fch::failAt(
           j, "children",
           std::to_string(node.childCount) + " children (branching " + std::to_string(h.branching) + ")", j);
     if (node.count < 2 || end > faces)
-      return failAt(j, "face range", "bad range of " + std::to_string(node.count) + " faces", j);
+      return fch::failAt(j, "face range", "bad range of " + std::to_string(node.count) + " faces", j);
     uint64_t cursor = node.first;
     bool afterCut = false, cut = false;
     for (unsigned c = 0; c < node.childCount; ++c) {
@@ -133,38 +125,38 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
         begin = ref & ~kFaceChild, count = 1;
       } else if (ref >= n) {
         if (ref >= std::max(h.originalNodeCount, n))
-          return failAt(j, "children", "child " + std::to_string(ref) + " beyond the nodes", j);
+          return fch::failAt(j, "children", "child " + std::to_string(ref) + " beyond the nodes", j);
         afterCut = cut = true;
         continue;
       } else {
         if (ref <= j)
-          return failAt(j, "order", "child " + std::to_string(ref) + " stored before its parent", j);
+          return fch::failAt(j, "order", "child " + std::to_string(ref) + " stored before its parent", j);
         if (parent[ref] != kNoOwner)
-          return failAt(
+          return fch::failAt(
               ref, "parent",
               "child of both node " + std::to_string(parent[ref]) + " and node " + std::to_string(j), j);
         parent[ref] = static_cast<uint32_t>(j);
         begin = nodes[ref].first, count = nodes[ref].count;
       }
       if (afterCut ? begin < cursor + 2 : begin != cursor)
-        return failAt(j, "partition",
-                      "child " + std::to_string(c) + " starts at face " + std::to_string(begin) +
-                          ", expected " + std::to_string(cursor),
-                      j);
+        return fch::failAt(j, "partition",
+                           "child " + std::to_string(c) + " starts at face " + std::to_string(begin) +
+                               ", expected " + std::to_string(cursor),
+                           j);
       cursor = begin + count;
       afterCut = false;
     }
     if (afterCut ? cursor + 2 > end : cursor != end)
-      return failAt(j, "partition",
-                    "children end at face " + std::to_string(cursor) + ", range at " + std::to_string(end),
-                    j);
+      return fch::failAt(
+          j, "partition",
+          "children end at face " + std::to_string(cursor) + ", range at " + std::to_string(end), j);
     if (cut != ((node.flags & kFchTruncated) != 0))
-      return failAt(j, "flags", "truncated flag disagrees with the children", j);
+      return fch::failAt(j, "flags", "truncated flag disagrees with the children", j);
     if (node.flags & ~(kFchJoinsDisjointSurfaces | kFchFlatFrame | kFchTruncated))
-      return failAt(j, "flags", "unknown flags", j);
+      return fch::failAt(j, "flags", "unknown flags", j);
   }
   for (uint64_t j = 1; j < n; ++j)
-    if (parent[j] == kNoOwner) return failAt(j, "parent", "no node refers to it", n);
+    if (parent[j] == kNoOwner) return fch::failAt(j, "parent", "no node refers to it", n);
 
   if (!options.boxes && !options.statistics) return {true, "", n};
 
@@ -184,7 +176,7 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
       fch::compactStep(nodes[parent[j]].box, node.box.orientation, step);
     if (const auto failure =
             fch::checkNodeGeometry(node.box, node.area, node.sumNormal, sums, step, modelTolerance, options))
-      return failAt(j, failure->check, failure->detail, j);
+      return fch::failAt(j, failure->check, failure->detail, j);
   }
   return {true, "", n};
 }

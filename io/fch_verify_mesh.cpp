@@ -18,10 +18,7 @@ namespace {
 // The file's triangles keyed and bucketed by windows of `window` original ids.
 void bucketFileTriangles(ClusterFileReader& reader, uint64_t window,
                          fch::WindowBuckets<fch::TriangleKey>& out) {
-  const uint64_t faces = reader.header().triangleCount;
-  const CutCluster all[1] = {{reader.size() > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(std::span<const CutCluster>(all, faces > 0 ? 1 : 0), [&](const FaceRangeMesh& piece,
-                                                                                  std::span<const uint32_t>) {
+  reader.forEachFacePiece([&](const FaceRangeMesh& piece) {
     for (size_t t = 0; t < piece.originalFace.size(); ++t) {
       const uint64_t id = piece.originalFace[t];
       out.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],

@@ -27,10 +27,6 @@ struct NodeGeometry {
   glm::vec3 sumNormal;
 };
 
-VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail, uint64_t checked) {
-  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
-}
-
 // A version 1 file whole, through the reader.
 ClusterFile wholeFile(ClusterFileReader& reader) {
   ClusterFile file;
@@ -73,21 +69,22 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
       [&](uint64_t j, const FchNode& node, uint32_t) {
         const uint64_t end = uint64_t{node.first} + node.count;
         if (j == 0 && (node.first != 0 || node.count != faces)) {
-          failure = failAt(0, "root range",
-                           std::to_string(node.count) + " faces from face " + std::to_string(node.first) +
-                               ", not all " + std::to_string(faces) + " triangles",
-                           0);
+          failure =
+              fch::failAt(0, "root range",
+                          std::to_string(node.count) + " faces from face " + std::to_string(node.first) +
+                              ", not all " + std::to_string(faces) + " triangles",
+                          0);
           return false;
         }
         if (node.childCount < 2 || node.childCount > h.branching) {
-          failure = failAt(
+          failure = fch::failAt(
               j, "children",
               std::to_string(node.childCount) + " children (branching " + std::to_string(h.branching) + ")",
               j);
           return false;
         }
         if (node.count < 2 || end > faces) {
-          failure = failAt(j, "face range", "bad range of " + std::to_string(node.count) + " faces", j);
+          failure = fch::failAt(j, "face range", "bad range of " + std::to_string(node.count) + " faces", j);
           return false;
         }
         uint64_t cursor = node.first, placed = node.first;
@@ -101,40 +98,41 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
             begin = ref & ~kFaceChild, count = 1;
           } else if (ref >= n) {
             if (ref >= std::max(h.originalNodeCount, n)) {
-              failure = failAt(j, "children", "child " + std::to_string(ref) + " beyond the nodes", j);
+              failure = fch::failAt(j, "children", "child " + std::to_string(ref) + " beyond the nodes", j);
               return false;
             }
             afterCut = cut = true;
             continue;
           } else {
             if (ref <= j) {
-              failure = failAt(j, "order", "child " + std::to_string(ref) + " stored before its parent", j);
+              failure =
+                  fch::failAt(j, "order", "child " + std::to_string(ref) + " stored before its parent", j);
               return false;
             }
             begin = at, count = node.childFaces[c];
           }
           if (afterCut ? begin < cursor + 2 : begin != cursor) {
-            failure = failAt(j, "partition",
-                             "child " + std::to_string(c) + " starts at face " + std::to_string(begin) +
-                                 ", expected " + std::to_string(cursor),
-                             j);
+            failure = fch::failAt(j, "partition",
+                                  "child " + std::to_string(c) + " starts at face " + std::to_string(begin) +
+                                      ", expected " + std::to_string(cursor),
+                                  j);
             return false;
           }
           cursor = begin + count;
           afterCut = false;
         }
         if (afterCut ? cursor + 2 > end : cursor != end) {
-          failure = failAt(
+          failure = fch::failAt(
               j, "partition",
               "children end at face " + std::to_string(cursor) + ", range at " + std::to_string(end), j);
           return false;
         }
         if (cut != ((node.flags & kFchTruncated) != 0)) {
-          failure = failAt(j, "flags", "truncated flag disagrees with the children", j);
+          failure = fch::failAt(j, "flags", "truncated flag disagrees with the children", j);
           return false;
         }
         if (node.flags & ~(kFchJoinsDisjointSurfaces | kFchFlatFrame | kFchTruncated)) {
-          failure = failAt(j, "flags", "unknown flags", j);
+          failure = fch::failAt(j, "flags", "unknown flags", j);
           return false;
         }
         if (geometry)
@@ -209,10 +207,8 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
       for (Open& o : w.open) o.sums.add(face);
     }
   };
-  const CutCluster all[1] = {{n > 0 ? 0 : kNoNode, 0, faces}};
-  reader.forEachCutPiece(
-      std::span<const CutCluster>(all, faces > 0 ? 1 : 0),
-      [&](const FaceRangeMesh& piece, std::span<const uint32_t>) {
+  reader.forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
         // The nodes starting in the piece, in push order, with their steps.
         const size_t triangles = piece.indices.size() / 3;
         starts.clear();
@@ -244,7 +240,7 @@ VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& o
   std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
   for (Worker& w : team)
     if (w.first && (!first || w.first->first < first->first)) first = std::move(w.first);
-  if (first) return failAt(first->first, first->second.check, first->second.detail, first->first);
+  if (first) return fch::failAt(first->first, first->second.check, first->second.detail, first->first);
   return {true, "", n};
 }
 

@@ -58,6 +58,12 @@ struct NodeFaceSums {
   }
 };
 
+// The verdict of a broken invariant: "node N: CHECK: detail".
+inline VerifyResult failAt(uint64_t node, const std::string& check, const std::string& detail,
+                           uint64_t checked) {
+  return {false, "node " + std::to_string(node) + ": " + check + ": " + detail, checked};
+}
+
 // A broken invariant of a node: the check's name and what was found.
 struct NodeCheckFailure {
   std::string check, detail;

@@ -437,6 +437,10 @@ class ClusterFileReader {
   void forEachCutPiece(std::span<const CutCluster> cut,
                        const std::function<void(const FaceRangeMesh&, std::span<const uint32_t>)>& visit,
                        FaceFields fields = FaceFields::All);
+  // Every triangle of the file in face order, in pieces of one triangle frame (as forEachCutPiece,
+  // without a cut).
+  void forEachFacePiece(const std::function<void(const FaceRangeMesh&)>& visit,
+                        FaceFields fields = FaceFields::All);
   // The file's vertices in order, a vertex frame at a time: visit(first vertex index, positions).
   void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit);
 

@@ -169,30 +169,30 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
           py::arg("first"), py::arg("count"),
           "The triangles of face positions [first, first + count), as mesh() gives a node's.");
 
+  // A reader of `name`, opened by `from` (a path or a descriptor) with the GIL released.
+  const auto open = [](const std::string& name, uint64_t memory, const std::filesystem::path& tmp,
+                       const auto& from) {
+    PyReader r;
+    r.path = name;
+    ReaderOptions options;
+    options.memoryBytes = memory;
+    options.tmp = tmp;
+    py::gil_scoped_release release;
+    r.reader = from(options);
+    return r;
+  };
   m.def(
       "_open",
-      [](const std::filesystem::path& path, uint64_t memory, const std::filesystem::path& tmp) {
-        PyReader r;
-        r.path = path;
-        ReaderOptions options;
-        options.memoryBytes = memory;
-        options.tmp = tmp;
-        py::gil_scoped_release release;
-        r.reader = std::make_unique<ClusterFileReader>(path, options);
-        return r;
+      [open](const std::filesystem::path& path, uint64_t memory, const std::filesystem::path& tmp) {
+        return open(path.string(), memory, tmp,
+                    [&](const ReaderOptions& o) { return std::make_unique<ClusterFileReader>(path, o); });
       },
       py::arg("path"), py::arg("memory") = 0, py::arg("tmp") = std::filesystem::path());
   m.def(
       "_open_fd",
-      [](int fd, const std::string& name, uint64_t memory, const std::filesystem::path& tmp) {
-        PyReader r;
-        r.path = name;
-        ReaderOptions options;
-        options.memoryBytes = memory;
-        options.tmp = tmp;
-        py::gil_scoped_release release;
-        r.reader = std::make_unique<ClusterFileReader>(fd, name, options);
-        return r;
+      [open](int fd, const std::string& name, uint64_t memory, const std::filesystem::path& tmp) {
+        return open(name, memory, tmp,
+                    [&](const ReaderOptions& o) { return std::make_unique<ClusterFileReader>(fd, name, o); });
       },
       py::arg("fd"), py::arg("name"), py::arg("memory") = 0, py::arg("tmp") = std::filesystem::path());
 }
