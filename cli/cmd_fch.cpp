@@ -58,14 +58,13 @@ int runTruncate(const std::vector<std::string>& argv, SignalGuard& signals) {
   prepareOutput(signals, *output);
   return [&] {
     TruncateResult result;
+    const bool byNodes = args.value("nodes").has_value();
+    const uint64_t limit = byNodes ? args.count("nodes", 0) : args.count("max-bytes", 0, true);
+    if (byNodes && limit == 0) throw UsageError("--nodes must be at least 1");
+    ClusterFileReader reader(input, readerOptions(args));
     try {
-      if (args.value("nodes")) {
-        const uint64_t nodes = args.count("nodes", 0);
-        if (nodes == 0) throw UsageError("--nodes must be at least 1");
-        result = truncateClusterFile(input, *output, nodes);
-      } else {
-        result = truncateClusterFileToBytes(input, *output, args.count("max-bytes", 0, true));
-      }
+      result = byNodes ? truncateClusterFile(reader, *output, limit)
+                       : truncateClusterFileToBytes(reader, *output, limit);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }

@@ -206,15 +206,16 @@ std::vector<CommandHelp> makeCommands() {
         {"seed", "S", "", "seed of the shuffles and of the random kinds"},
         {"shuffle-vertices", "", "", "store the vertices in random order"},
         {"shuffle-faces", "", "", "store the faces in random order"}}},
-      {"truncate",
-       "IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json]",
+      {"truncate", "IN.fch -o OUT.fch (--nodes N | --max-bytes B) [--json] [--memory SIZE]",
        "keep the first nodes of a cluster file",
        "Keeps the first nodes, the cheapest merges dropped first; the kept records are copied unchanged\n"
-       "and the geometry kept whole.",
-       {{"output", "OUT.fch", "-o", "the truncated file"},
-        {"nodes", "N", "", "keep N nodes"},
-        {"max-bytes", "B", "", "keep the most nodes whose file, geometry included, fits in B bytes"},
-        {"json", "", "", "print the result as one JSON object"}}},
+       "and the geometry kept whole. Streams: frames are copied a frame at a time, and only the last\n"
+       "partial node frame is decoded.",
+       withReaderOptions(
+           {{"output", "OUT.fch", "-o", "the truncated file"},
+            {"nodes", "N", "", "keep N nodes"},
+            {"max-bytes", "B", "", "keep the most nodes whose file, geometry included, fits in B bytes"},
+            {"json", "", "", "print the result as one JSON object"}})},
       {"info", "FILE.fch [--json] [--fit-cuts N,N...] [--memory SIZE]",
        "counts, height, branching histogram, bytes per section",
        "Reads the header, the frame index and the node frames in one pass; the geometry only for\n"

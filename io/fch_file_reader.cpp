@@ -335,16 +335,33 @@ struct ClusterFileReader::State {
     }
   }
 
-  // The elements of geometry section `s` (1 vertices, 2 triangles, 3 ids) in frame `k`.
-  const CachedFrame& geometryFrame(int s, size_t k) {
+  // Decodes the elements of geometry section `s` (1 vertices, 2 triangles, 3 ids) in frame `k`
+  // into `f`.
+  void decodeGeometry(int s, size_t k, CachedFrame& f) {
     const size_t i = sections[s][k];
-    if (CachedFrame* hit = cached(i)) return *hit;
     source.rawFrame(i, raw, compressed);
-    CachedFrame f;
+    f.vertices.clear(), f.indices.clear(), f.ids.clear();
     if (s == 1) source.decodeVertices(i, raw, f.vertices);
     if (s == 2) source.decodeTriangles(i, raw, f.indices);
     if (s == 3) source.decodeIds(i, raw, f.ids);
+  }
+
+  // Frame `k` of geometry section `s`, through the cache.
+  const CachedFrame& geometryFrame(int s, size_t k) {
+    const size_t i = sections[s][k];
+    if (CachedFrame* hit = cached(i)) return *hit;
+    CachedFrame f;
+    decodeGeometry(s, k, f);
     return insert(i, std::move(f));
+  }
+
+  // Frame `k` of geometry section `s` for a pass that uses each frame once: from the cache if it
+  // is there, else into `buffer`, leaving the cache to what random access put in it.
+  const CachedFrame& passFrame(int s, size_t k, CachedFrame& buffer) {
+    if (CachedFrame* hit = cached(sections[s][k])) return *hit;
+    decodeGeometry(s, k, buffer);
+    peakHeld = std::max(peakHeld, cachedBytes + frameBytes(buffer));
+    return buffer;
   }
 
   uint64_t perFrame() const { return layout().geometryPerFrame; }
@@ -433,8 +450,8 @@ FchNode ClusterFileReader::node(uint64_t index) {
 uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const FchNode&, uint32_t)>& visit,
                                         NodeFields fields) {
   State& s = *state_;
-  fch::NodeDecoder decoder(header(), layout().rootBox, layout().nodesPerFrame, s.frontierBytes, s.tmp);
-  if (fields == NodeFields::Structure) decoder.structureOnly();
+  fch::NodeDecoder decoder(header(), layout().rootBox, layout().nodesPerFrame, s.frontierBytes, s.tmp,
+                           fields == NodeFields::Structure);
   struct Account {  // the pass's peak and spill, whichever way it ends
     State& s;
     fch::NodeDecoder& decoder;
@@ -668,10 +685,26 @@ void ClusterFileReader::forEachFacePiece(const std::function<void(const FaceRang
 void ClusterFileReader::forEachVertexFrame(
     const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit) {
   State& s = *state_;
-  for (size_t k = 0; k < s.sections[1].size(); ++k) {
-    const CachedFrame& frame = s.geometryFrame(1, k);
-    visit(k * s.perFrame(), frame.vertices);
+  CachedFrame buffer;
+  for (size_t k = 0; k < s.sections[1].size(); ++k)
+    visit(k * s.perFrame(), s.passFrame(1, k, buffer).vertices);
+}
+
+void ClusterFileReader::forEachTriangleFrame(
+    const std::function<void(uint64_t, std::span<const uint32_t>, std::span<const uint64_t>)>& visit,
+    FaceFields fields) {
+  State& s = *state_;
+  CachedFrame triangles, ids;
+  for (size_t k = 0; k < s.sections[2].size(); ++k) {
+    const std::span<const uint64_t> frameIds = fields == FaceFields::All
+                                                   ? std::span<const uint64_t>(s.passFrame(3, k, ids).ids)
+                                                   : std::span<const uint64_t>();
+    visit(k * s.perFrame(), s.passFrame(2, k, triangles).indices, frameIds);
   }
+}
+
+const fch::SourceFile& fch::ReaderAccess::source(const ClusterFileReader& reader) {
+  return reader.state_->source;
 }
 
 uint64_t ClusterFileReader::heldBytes() const {

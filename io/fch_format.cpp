@@ -512,23 +512,6 @@ void SourceFile::decodeNodeCodes(size_t i, const std::string& raw, std::vector<N
 
 void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const {
   const FchFrame& f = layout_.frames[i];
-  if (layout_.header.version == 1) return decodeNodesV1(i, raw, out);
-  if (out.size() != f.first)
-    throw std::logic_error("SourceFile::decodeNodes: node frames are decoded in order into one array");
-  if (f.first == 0)
-    decoder_ = std::make_unique<NodeDecoder>(layout_.header, layout_.rootBox, layout_.nodesPerFrame);
-  std::vector<NodeCode> codes;
-  codes.reserve(f.count);
-  decodeNodeCodes(i, raw, codes);
-  for (const NodeCode& code : codes) {
-    const uint64_t index = out.size();
-    const std::string error = decoder_->decode(code, out);
-    if (!error.empty()) fail(where(i) + ": node " + std::to_string(index) + ": " + error);
-  }
-}
-
-void SourceFile::decodeNodesV1(size_t i, const std::string& raw, std::vector<FchNode>& out) const {
-  const FchFrame& f = layout_.frames[i];
   const FileHeader& h = layout_.header;
   const size_t n = f.count;
   Columns col(raw);

@@ -98,7 +98,7 @@ class SourceFile {
   // An open descriptor of a regular file, read at offsets through a duplicate of it (the caller
   // keeps and closes its own); `name` in every message.
   SourceFile(int fd, std::string name);
-  ~SourceFile();  // defined where NodeDecoder is complete
+  ~SourceFile();
   SourceFile(const SourceFile&) = delete;
   SourceFile& operator=(const SourceFile&) = delete;
 
@@ -111,8 +111,8 @@ class SourceFile {
   std::string rawFrame(size_t i) const;
   // The same into `raw`, with `compressed` as the read buffer; both keep their capacity.
   void rawFrame(size_t i, std::string& raw, std::string& compressed) const;
-  // Decodes node frame `i` (payload `raw`) and appends its nodes to `out`, which holds every
-  // earlier node (version 2 derives face ranges and compact boxes from the parents).
+  // Version 1: decodes node frame `i` (payload `raw`) and appends its nodes to `out` (the frames
+  // of version 1 stand on their own; version 2's decode in order through a NodeDecoder).
   void decodeNodes(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
   // Version 2: the frame's records as stored (truncation re-encodes them unchanged).
   // `structure`: S, side areas, orientations and boxes not decoded (decodeNodeFrame).
@@ -128,7 +128,6 @@ class SourceFile {
  private:
   std::string readAt(uint64_t offset, uint64_t bytes) const;
   void readAt(uint64_t offset, uint64_t bytes, std::string& out) const;
-  void decodeNodesV1(size_t i, const std::string& raw, std::vector<FchNode>& out) const;
   void readLayout();
   std::string name_;
   struct Closer {
@@ -137,7 +136,11 @@ class SourceFile {
   std::unique_ptr<std::FILE, Closer> file_;
   uint64_t size_ = 0;
   FchLayout layout_;
-  mutable std::unique_ptr<NodeDecoder> decoder_;  // version 2: the node frames' state, frame to frame
+};
+
+// What io's own code takes from a ClusterFileReader beyond its public face: the frames as stored.
+struct ReaderAccess {
+  static const SourceFile& source(const ClusterFileReader& reader);
 };
 
 }  // namespace facetree::fch

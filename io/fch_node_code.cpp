@@ -520,11 +520,15 @@ std::string compactRunRecord(NodeCode& code, uint64_t index, const NodeBox* pare
 }
 
 NodeDecoder::NodeDecoder(const FileHeader& header, const NodeBox& rootBox, uint32_t nodesPerFrame,
-                         uint64_t budget, const std::filesystem::path& tmp)
+                         uint64_t budget, const std::filesystem::path& tmp, bool structure)
     : header_(header),
       rootBox_(rootBox),
       nodesPerFrame_(nodesPerFrame),
-      frontier_(nodesPerFrame, budget, tmp) {}
+      // A parent's box (48 bytes) goes with each announced child (20 bytes) when boxes are decoded.
+      frontier_(nodesPerFrame, header.boxes == BoxPrecision::Compact && !structure ? budget / 3 : budget,
+                tmp),
+      boxes_(nodesPerFrame, budget - budget / 3, tmp),
+      structure_(structure) {}
 
 std::string decodeNodeAt(const FileHeader& header, const NodeBox& rootBox, const NodeCode& code,
                          uint64_t index, const PendingChild& range, const NodeBox* parentBox, bool structure,
@@ -551,65 +555,59 @@ std::string decodeNodeAt(const FileHeader& header, const NodeBox& rootBox, const
   return {};
 }
 
-std::string NodeDecoder::decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth,
-                                const std::vector<FchNode>* earlier) {
+std::string NodeDecoder::decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth) {
   if (index != next_) return "decoded out of order";
   ++next_;
   const uint64_t frame = index / nodesPerFrame_;
   if (index % nodesPerFrame_ == 0 || frame != frame_) {
     frame_ = frame;
     const uint64_t frameFirst = frame * nodesPerFrame_;
-    slots_ = &frontier_.take(
-        frame, static_cast<uint32_t>(std::min<uint64_t>(nodesPerFrame_, header_.nodeCount - frameFirst)));
+    const auto count =
+        static_cast<uint32_t>(std::min<uint64_t>(nodesPerFrame_, header_.nodeCount - frameFirst));
+    slots_ = &frontier_.take(frame, count);
+    if (compact()) boxSlots_ = &boxes_.take(frame, count);
   }
   PendingChild range{0, static_cast<uint32_t>(header_.triangleCount), 1, 0, 0};
+  NodeBox parentBox{};
   if (index > 0) {
     const PendingChild& slot = (*slots_)[index % nodesPerFrame_];
     if (slot.depth == 0) return "no earlier node refers to it";
     if (slot.depth == kAnnouncedTwice) return "child " + std::to_string(index) + " of two nodes";
     range = slot;
-  }
-  depth = range.depth;
-  const bool compact = header_.boxes == BoxPrecision::Compact && !structure_;
-  const NodeBox* parentBox = nullptr;
-  auto parent = parentBoxes_.end();
-  if (compact && index > 0) {
-    if (earlier) {
-      parentBox = &(*earlier)[range.parent].box;
-    } else if ((parent = parentBoxes_.find(range.parent)) != parentBoxes_.end()) {
-      parentBox = &parent->second.box;
+    if (compact()) {
+      const PendingParentBox& box = (*boxSlots_)[index % nodesPerFrame_];
+      parentBox.center = box.center, parentBox.halfExtent = box.halfExtent;
+      parentBox.orientation = box.orientation;
     }
   }
-  if (std::string error = decodeNodeAt(header_, rootBox_, code, index, range, parentBox, structure_, node);
+  depth = range.depth;
+  if (std::string error = decodeNodeAt(header_, rootBox_, code, index, range,
+                                       compact() && index > 0 ? &parentBox : nullptr, structure_, node);
       !error.empty())
     return error;
-  if (parent != parentBoxes_.end() && --parent->second.waiting == 0) parentBoxes_.erase(parent);
-  // The node children this record announces, with their face ranges.
-  uint32_t cursor = node.first, announced = 0;
+  // The node children this record announces, with their face ranges (and, for compact boxes,
+  // this node's box, which theirs are quantised against).
+  uint32_t cursor = node.first;
   for (unsigned c = 0; c < node.childCount; ++c) {
     const uint32_t child = node.child[c];
     if (!(child & kFaceChild) && child < header_.nodeCount) {
       frontier_.announce(
           child, PendingChild{cursor, node.childFaces[c], depth + 1, static_cast<uint32_t>(index), 0});
-      ++announced;
+      if (compact())
+        boxes_.announce(child, PendingParentBox{node.box.center, node.box.halfExtent, node.box.orientation,
+                                                depth + 1, 0});
     }
     cursor += node.childFaces[c];
   }
-  if (compact && !earlier && announced > 0)
-    parentBoxes_[static_cast<uint32_t>(index)] = {node.box, announced};
   return {};
 }
 
-std::string NodeDecoder::decode(const NodeCode& code, std::vector<FchNode>& out) {
-  FchNode node;
-  uint32_t depth = 0;
-  std::string error = decode(code, out.size(), node, depth, &out);
-  if (error.empty()) out.push_back(node);
-  return error;
+uint64_t NodeDecoder::heldBytes() const {
+  return frontier_.heldBytes() + boxes_.heldBytes();
 }
 
-uint64_t NodeDecoder::heldBytes() const {
-  return frontier_.heldBytes() + parentBoxes_.size() * (sizeof(ParentBox) + 32);
+uint64_t NodeDecoder::spilledBytes() const {
+  return frontier_.spilledBytes() + boxes_.spilledBytes();
 }
 
 }  // namespace facetree::fch

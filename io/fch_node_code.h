@@ -100,43 +100,36 @@ std::string decodeNodeAt(const FileHeader& header, const NodeBox& rootBox, const
 // Turns codes back into nodes in file order: face ranges and depths follow from the parents'
 // records (the root covers every triangle), compact boxes from the parents' boxes. What it holds
 // is the cut of the children announced and not yet decoded (NodeFrontier) and, for compact boxes,
-// the boxes of their parents.
+// each such child's parent box in a second frontier; the two share the budget.
 class NodeDecoder {
  public:
   // `budget`, `tmp`: the announced children's share of memory, and where the rest goes (NodeFrontier).
+  // `structure`: records as NodeFields::Structure gives them (S and the box left zero), so that
+  // compact boxes need no parents' boxes.
   NodeDecoder(const FileHeader& header, const NodeBox& rootBox, uint32_t nodesPerFrame, uint64_t budget = 0,
-              const std::filesystem::path& tmp = {});
+              const std::filesystem::path& tmp = {}, bool structure = false);
   // Decodes node `index` (0, 1, 2, ... in turn) into `node`, and its depth (the root's is 1).
-  // Returns an empty string, or why the record is invalid. Compact boxes take the parent's box
-  // from `earlier` (every node before `index`) when given, else from the boxes of the parents
-  // whose children are still to come, which the decoder keeps.
-  std::string decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth,
-                     const std::vector<FchNode>* earlier = nullptr);
-  // The same, appending node out.size() to `out`, which holds every earlier node.
-  std::string decode(const NodeCode& code, std::vector<FchNode>& out);
+  // Returns an empty string, or why the record is invalid.
+  std::string decode(const NodeCode& code, uint64_t index, FchNode& node, uint32_t& depth);
   // Bytes held for the children announced and not yet decoded, and written to the temporary file.
   uint64_t heldBytes() const;
-  uint64_t spilledBytes() const { return frontier_.spilledBytes(); }
-  // From now on, records as NodeFields::Structure gives them: S and the box left zero.
-  void structureOnly() { structure_ = true; }
+  uint64_t spilledBytes() const;
   bool structure() const { return structure_; }
   // The ranges its parents gave each node of the frame decoded last, once all its nodes are decoded
   // (PendingChild by position in the frame; the root's is not there).
   const std::vector<PendingChild>& frameRanges() const { return *slots_; }
 
  private:
-  struct ParentBox {
-    NodeBox box;
-    uint32_t waiting = 0;  // node children not yet decoded
-  };
+  bool compact() const { return header_.boxes == BoxPrecision::Compact && !structure_; }
   const FileHeader& header_;
   NodeBox rootBox_;
   uint32_t nodesPerFrame_;
-  NodeFrontier frontier_;
-  const std::vector<PendingChild>* slots_ = nullptr;  // the current frame's announced children
+  NodeFrontier<PendingChild> frontier_;
+  NodeFrontier<PendingParentBox> boxes_;                     // compact boxes only
+  const std::vector<PendingChild>* slots_ = nullptr;         // the current frame's announced children
+  const std::vector<PendingParentBox>* boxSlots_ = nullptr;  // and their parents' boxes
   uint64_t next_ = 0, frame_ = ~uint64_t{0};
   bool structure_ = false;
-  std::unordered_map<uint32_t, ParentBox> parentBoxes_;  // compact boxes only
 };
 
 }  // namespace facetree::fch

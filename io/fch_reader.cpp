@@ -1,5 +1,6 @@
-// readClusterFile / readClusterFileLayout: the .fch layout of docs/FORMAT.md back in memory.
-// Arrays grow frame by frame, by what each checksummed frame holds, never from a header count.
+// readClusterFile / readClusterFileLayout: the .fch layout of docs/FORMAT.md back in memory, through
+// a ClusterFileReader. Arrays grow frame by frame, by what each checksummed frame holds, never from
+// a header count.
 #include "fch_format.h"
 
 namespace facetree {
@@ -51,32 +52,31 @@ void fillChildFaces(std::vector<FchNode>& nodes) {
 
 }  // namespace
 
-ClusterFile readClusterFile(const std::filesystem::path& path, bool geometry) {
-  const fch::SourceFile source(path);
-  const FchLayout& layout = source.layout();
+ClusterFile readClusterFile(ClusterFileReader& reader, bool geometry) {
   ClusterFile file;
-  file.header = layout.header;
-  for (size_t i = 0; i < layout.frames.size(); ++i) {
-    const FchSection section = layout.frames[i].section;
-    if (section != FchSection::Nodes && !geometry) continue;
-    const std::string raw = source.rawFrame(i);
-    switch (section) {
-      case FchSection::Nodes:
-        source.decodeNodes(i, raw, file.nodes);
-        break;
-      case FchSection::Vertices:
-        source.decodeVertices(i, raw, file.vertices);
-        break;
-      case FchSection::Triangles:
-        source.decodeTriangles(i, raw, file.indices);
-        break;
-      case FchSection::OriginalFaces:
-        source.decodeIds(i, raw, file.originalFace);
-        break;
-    }
-  }
-  if (layout.header.version == 1) fillChildFaces(file.nodes);
+  file.header = reader.header();
+  reader.forEachNode(
+      [&](uint64_t, const FchNode& node, uint32_t) {
+        file.nodes.push_back(node);
+        return true;
+      },
+      NodeFields::All);
+  if (file.header.version == 1) fillChildFaces(file.nodes);
+  if (!geometry) return file;
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
+    file.vertices.insert(file.vertices.end(), vertices.begin(), vertices.end());
+  });
+  reader.forEachTriangleFrame(
+      [&](uint64_t, std::span<const uint32_t> indices, std::span<const uint64_t> ids) {
+        file.indices.insert(file.indices.end(), indices.begin(), indices.end());
+        file.originalFace.insert(file.originalFace.end(), ids.begin(), ids.end());
+      });
   return file;
+}
+
+ClusterFile readClusterFile(const std::filesystem::path& path, bool geometry) {
+  ClusterFileReader reader(path);
+  return readClusterFile(reader, geometry);
 }
 
 }  // namespace facetree

@@ -34,9 +34,9 @@ int levelOf(const FchLayout& layout) {
   return layout.zstdLevel >= 1 && layout.zstdLevel <= 22 ? layout.zstdLevel : kFallbackLevel;
 }
 
-// Node frames of the input and the decoded nodes of one of them.
+// Node frames of the input (read through its reader) and the decoded nodes of one of them.
 struct Source {
-  explicit Source(const std::filesystem::path& path) : file(path) {
+  explicit Source(const ClusterFileReader& reader) : file(fch::ReaderAccess::source(reader)) {
     for (size_t i = 0; i < file.layout().frames.size(); ++i)
       (file.layout().frames[i].section == FchSection::Nodes ? nodeFrames : geometryFrames).push_back(i);
   }
@@ -65,7 +65,7 @@ struct Source {
     return fch::makeFrame(FchSection::Nodes, first, keep, raw, levelOf(file.layout()),
                           file.layout().header.boxes);
   }
-  fch::SourceFile file;
+  const fch::SourceFile& file;
   std::vector<size_t> nodeFrames, geometryFrames;
 };
 
@@ -79,8 +79,7 @@ TruncateResult finish(const Source& source, const std::filesystem::path& out, st
 
 }  // namespace
 
-TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
-                                   uint64_t nodes) {
+TruncateResult truncateClusterFile(ClusterFileReader& in, const std::filesystem::path& out, uint64_t nodes) {
   if (nodes == 0) throw std::invalid_argument("truncate: keep at least one node");
   const Source source(in);
   const FchLayout& layout = source.file.layout();
@@ -93,7 +92,7 @@ TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::f
   return finish(source, out, std::move(frames), nodes);
 }
 
-TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const std::filesystem::path& out,
+TruncateResult truncateClusterFileToBytes(ClusterFileReader& in, const std::filesystem::path& out,
                                           uint64_t maxBytes) {
   const Source source(in);
   const FchLayout& layout = source.file.layout();
@@ -139,6 +138,18 @@ TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const
   if (layout.header.nodeCount == 0 && fixed > maxBytes)
     throw std::invalid_argument("truncate: the file needs " + std::to_string(fixed) + " bytes");
   return finish(source, out, std::move(frames), nodes);
+}
+
+TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
+                                   uint64_t nodes) {
+  ClusterFileReader reader(in);
+  return truncateClusterFile(reader, out, nodes);
+}
+
+TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const std::filesystem::path& out,
+                                          uint64_t maxBytes) {
+  ClusterFileReader reader(in);
+  return truncateClusterFileToBytes(reader, out, maxBytes);
 }
 
 void truncateInMemory(ClusterFile& file, uint64_t nodes) {

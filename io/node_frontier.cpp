@@ -2,12 +2,15 @@
 
 namespace facetree::fch {
 
-NodeFrontier::NodeFrontier(uint32_t nodesPerFrame, uint64_t budget, std::filesystem::path tmp)
+template <class Entry>
+NodeFrontier<Entry>::NodeFrontier(uint32_t nodesPerFrame, uint64_t budget, std::filesystem::path tmp)
     : nodesPerFrame_(nodesPerFrame), budget_(budget), tmp_(std::move(tmp)) {}
 
-NodeFrontier::~NodeFrontier() = default;
+template <class Entry>
+NodeFrontier<Entry>::~NodeFrontier() = default;
 
-uint32_t NodeFrontier::newBlock() {
+template <class Entry>
+uint32_t NodeFrontier<Entry>::newBlock() {
   ++blocksInUse_;
   if (!free_.empty()) {
     const uint32_t b = free_.back();
@@ -20,15 +23,22 @@ uint32_t NodeFrontier::newBlock() {
 }
 
 // A child of the frame being decoded, into its slot.
-void NodeFrontier::place(const PendingChild& child) {
+template <class Entry>
+void NodeFrontier<Entry>::place(const Entry& child) {
   if (child.offset >= dense_.size()) return;
-  PendingChild& slot = dense_[child.offset];
-  slot = slot.depth ? PendingChild{0, 0, kAnnouncedTwice, 0, child.offset} : child;
+  Entry& slot = dense_[child.offset];
+  if (slot.depth == 0) {
+    slot = child;
+  } else {
+    slot = Entry{};
+    slot.depth = kAnnouncedTwice, slot.offset = child.offset;
+  }
 }
 
-void NodeFrontier::announce(uint64_t index, const PendingChild& announced) {
+template <class Entry>
+void NodeFrontier<Entry>::announce(uint64_t index, const Entry& announced) {
   const uint64_t frame = index / nodesPerFrame_;
-  PendingChild child = announced;
+  Entry child = announced;
   child.offset = static_cast<uint16_t>(index % nodesPerFrame_);
   if (frame == current_) return place(child);  // a child in the frame being decoded
   if (frame >= chains_.size()) chains_.resize(frame + 1);
@@ -47,7 +57,8 @@ void NodeFrontier::announce(uint64_t index, const PendingChild& announced) {
 }
 
 // Writes the chains of the frames decoded last, farthest first, until half the budget is free.
-void NodeFrontier::spill() {
+template <class Entry>
+void NodeFrontier<Entry>::spill() {
   if (!file_) file_ = std::make_unique<TemporaryFile>(tmp_);
   for (uint64_t frame = chains_.size(); frame-- > 0 && blocksInUse_ * sizeof(Block) > budget_ / 2;) {
     if (frame == current_) break;
@@ -61,7 +72,7 @@ void NodeFrontier::spill() {
       --blocksInUse_;
       b = block.next;
     }
-    const uint64_t bytes = buffer_.size() * sizeof(PendingChild);
+    const uint64_t bytes = buffer_.size() * sizeof(Entry);
     file_->write(fileEnd_, buffer_.data(), bytes);
     chain.runs.push_back({fileEnd_, static_cast<uint32_t>(buffer_.size())});
     fileEnd_ += bytes, spilledBytes_ += bytes;
@@ -69,16 +80,17 @@ void NodeFrontier::spill() {
   }
 }
 
-const std::vector<PendingChild>& NodeFrontier::take(uint64_t frame, uint32_t count) {
-  dense_.assign(count, PendingChild{});
+template <class Entry>
+const std::vector<Entry>& NodeFrontier<Entry>::take(uint64_t frame, uint32_t count) {
+  dense_.assign(count, Entry{});
   current_ = frame;
   if (frame >= chains_.size()) return dense_;
   Chain& chain = chains_[frame];
   if (!chain.runs.empty()) {
     for (const Run& run : chain.runs) {
       buffer_.resize(run.count);
-      file_->read(run.offset, buffer_.data(), uint64_t{run.count} * sizeof(PendingChild));
-      for (const PendingChild& child : buffer_) place(child);
+      file_->read(run.offset, buffer_.data(), uint64_t{run.count} * sizeof(Entry));
+      for (const Entry& child : buffer_) place(child);
     }
     std::vector<Run>().swap(chain.runs);
   }
@@ -93,10 +105,14 @@ const std::vector<PendingChild>& NodeFrontier::take(uint64_t frame, uint32_t cou
   return dense_;
 }
 
-uint64_t NodeFrontier::heldBytes() const {
+template <class Entry>
+uint64_t NodeFrontier<Entry>::heldBytes() const {
   return blocks_.size() * sizeof(Block) + chains_.capacity() * sizeof(Chain) +
-         dense_.capacity() * sizeof(PendingChild) + free_.capacity() * sizeof(uint32_t) +
-         buffer_.capacity() * sizeof(PendingChild);
+         dense_.capacity() * sizeof(Entry) + free_.capacity() * sizeof(uint32_t) +
+         buffer_.capacity() * sizeof(Entry);
 }
+
+template class NodeFrontier<PendingChild>;
+template class NodeFrontier<PendingParentBox>;
 
 }  // namespace facetree::fch

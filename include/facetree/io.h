@@ -314,8 +314,9 @@ uint64_t writeClusterFile(const std::filesystem::path& path, const MeshView& mes
                           const FileOptions& options, const WriteOptions& writeOptions = {},
                           BranchingStats* stats = nullptr);
 
-// Reads and checks (checksums, sizes, index ranges) a whole file; `geometry` false skips the
-// vertex, triangle and id frames (their checksums are not checked then).
+// Reads and checks (checksums, sizes, index ranges) a whole file through a ClusterFileReader
+// (below) under the cap the file was built under; `geometry` false skips the vertex, triangle and
+// id frames (their checksums are not checked then).
 ClusterFile readClusterFile(const std::filesystem::path& path, bool geometry = true);
 
 // The sections a cluster file's frames belong to, and their names.
@@ -389,6 +390,9 @@ enum class NodeFields : uint8_t { All, Structure };
 // ids' frames are not read).
 enum class FaceFields : uint8_t { All, Geometry };
 
+namespace fch {
+struct ReaderAccess;
+}
 class ClusterFileReader {
  public:
   explicit ClusterFileReader(const std::filesystem::path& path, const ReaderOptions& options = {});
@@ -443,6 +447,12 @@ class ClusterFileReader {
                         FaceFields fields = FaceFields::All);
   // The file's vertices in order, a vertex frame at a time: visit(first vertex index, positions).
   void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit);
+  // The file's triangles in face order, a triangle frame at a time, as stored: visit(first face
+  // position, corners in the file's vertex numbering (3 per triangle), original ids (empty with
+  // FaceFields::Geometry)).
+  void forEachTriangleFrame(
+      const std::function<void(uint64_t, std::span<const uint32_t>, std::span<const uint64_t>)>& visit,
+      FaceFields fields = FaceFields::All);
 
   // Bytes the reader holds now (caches, the index, the node() pass's announced children), the most
   // any pass held, and what passes wrote to temporary files.
@@ -451,12 +461,15 @@ class ClusterFileReader {
   uint64_t spilledBytes() const;
 
  private:
+  friend struct fch::ReaderAccess;  // the frames as stored, for copying them (truncation)
   struct State;
   std::unique_ptr<State> state_;
 };
 
 // branchingStats of a file read in one pass of its nodes.
 BranchingStats branchingStats(ClusterFileReader& reader);
+// The whole file in memory from a reader: its nodes in one pass, then its geometry frame by frame.
+ClusterFile readClusterFile(ClusterFileReader& reader, bool geometry = true);
 
 // Keeps the first `nodes` nodes (1 <= nodes; more than the file has keeps all): whole node frames
 // and the geometry are copied, only the last partial node frame is recompressed.
@@ -465,10 +478,14 @@ struct TruncateResult {
   uint64_t bytes = 0;  // the truncated file's size
 };
 // Writes the first `nodes` nodes of `in` to `out`.
-TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
-                                   uint64_t nodes);
+TruncateResult truncateClusterFile(ClusterFileReader& in, const std::filesystem::path& out, uint64_t nodes);
 // The largest prefix whose whole output file (geometry included) fits in `maxBytes`; throws
 // std::invalid_argument when not even one node fits.
+TruncateResult truncateClusterFileToBytes(ClusterFileReader& in, const std::filesystem::path& out,
+                                          uint64_t maxBytes);
+// The same from a path, read under the cap the file was built under.
+TruncateResult truncateClusterFile(const std::filesystem::path& in, const std::filesystem::path& out,
+                                   uint64_t nodes);
 TruncateResult truncateClusterFileToBytes(const std::filesystem::path& in, const std::filesystem::path& out,
                                           uint64_t maxBytes);
 // The same in memory: keeps the first `nodes` nodes and marks kFchTruncated.

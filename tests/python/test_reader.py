@@ -144,3 +144,31 @@ def test_an_open_descriptor_reads_as_the_path(files):
             facetree.open(read)
     finally:
         os.close(read), os.close(write)
+
+
+def test_dragon_vrip_built_under_64m_cut_of_1000_gives_the_loaded_arrays(shared_data, cli, tmp_path):
+    """open + cut(clusters=1000) + every cluster's mesh() against load() and its cut, on a file the
+    CLI built under --memory 64M, read under 16M."""
+    path = tmp_path / "dragon.fch"
+    run_cli(cli, "build", shared_data / "dragon_vrip.ply.zst", "-o", path, "--memory", "64M")
+    h = facetree.load(str(path))
+    labels = h.cut(1000)  # the cluster of each input face, numbered along the face order
+    with facetree.open(path, memory="16M") as f:
+        node_ids, ranges = f.cut(clusters=1000)
+        assert len(node_ids) == labels.max() + 1
+        kept = node_ids >= 0
+        assert np.array_equal(h.face_ranges[node_ids[kept]], ranges[kept].astype(np.uint32))
+        seen = 0
+        for k, (node_id, first, count) in enumerate(zip(node_ids, ranges[:, 0], ranges[:, 1])):
+            if node_id >= 0:
+                vertices, triangles, original = f.mesh(int(node_id))
+            else:
+                vertices, triangles, original = f.faces(int(first), int(count))
+            assert first == seen and triangles.shape == (count, 3)
+            assert np.array_equal(original, h.face_order[first: first + count])
+            assert (labels[original] == k).all()
+            assert np.array_equal(vertices[triangles], h.vertices[h.triangles[first: first + count]])
+            # Local numbering: the vertices the cluster uses, each once.
+            assert len(vertices) == len(np.unique(h.triangles[first: first + count]))
+            seen += count
+        assert seen == h.face_count
