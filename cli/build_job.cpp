@@ -110,7 +110,7 @@ int runBuildJob(const Args& args, const std::string& input, const std::string& o
 
 int printJobReport(const JobReport& r, const std::string& input, const std::string& output,
                    const ClusterJob& job, bool json) {
-  const uint64_t peak = peakResidentBytes();
+  const uint64_t peak = std::max(peakResidentBytes(), r.peakRssBytes);  // stages as tasks: the largest task's
   const double ratio = r.balancedHeight ? double(r.height) / r.balancedHeight : 0.0;
   const BuildStats& s = r.inCore;  // in-core jobs only
   // Reports go to stderr when the cluster file goes to standard output.

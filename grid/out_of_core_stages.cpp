@@ -271,14 +271,20 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
     }
   }
   std::filesystem::remove(planPath(work));
+  clearStageTimes(work);
   for (const auto& entry : std::filesystem::directory_iterator(work)) {
     const std::string name = entry.path().filename().string();
     for (const char* step : {"cells-", "read-", "count-", "weld-", "grid.", "bin-", "write-", "write.",
-                             "geometry-", "nodes-", "layout.", "place-", "output."})
+                             "geometry-", "nodes-", "layout.", "place-", "output.", "finished."})
       if (name.rfind(step, 0) == 0) std::filesystem::remove(entry.path());
   }
-  if (planRanges(job, work, result)) return result;
+  const auto start = std::chrono::steady_clock::now();
+  if (planRanges(job, work, result)) {
+    recordStageTime(work, "plan", 0, secondsSince(start));
+    return result;
+  }
   result.report = runJob(job, &work);
+  if (result.report.outOfCore) recordStageTime(work, "plan", 0, secondsSince(start));
   if (!result.report.outOfCore) {  // in core: the file is written; the finish reports it
     ManifestWriter out;
     out.putBytes(jobFingerprint(job));
@@ -294,8 +300,10 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   return result;
 }
 
-StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
-                             uint32_t task) {
+namespace {
+
+StageTaskResult runStep(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
+                        uint32_t task) {
   StageTaskResult result;
   const auto single = [&] {  // the grid, the upper step, the boxes and the layout: one task, 0
     if (task != 0)
@@ -341,6 +349,16 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
         "no stage step '" + std::string(step) +
         "' (read, count, grid, bin, cells, upper, geometry, boxes, nodes, layout, place)");
   }
+  return result;
+}
+
+}  // namespace
+
+StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
+                             uint32_t task) {
+  const auto start = std::chrono::steady_clock::now();
+  StageTaskResult result = runStep(job, work, step, task);
+  if (result.ran) recordStageTime(work, step, task, secondsSince(start));
   return result;
 }
 

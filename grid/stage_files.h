@@ -63,6 +63,13 @@ inline std::filesystem::path taskManifestPath(const std::filesystem::path& work,
 inline std::string taskKind(std::string_view step) {
   return std::string(step) + " task";
 }
+// The tasks' times (stage_times.cpp): a task that ran records its seconds and peak RSS; a new
+// plan clears the records; the finish adds them up by step into its report (its times, the
+// largest peak, the peak of each step).
+void recordStageTime(const std::filesystem::path& work, std::string_view step, uint32_t task, double seconds);
+void clearStageTimes(const std::filesystem::path& work);
+void addStageTimes(const std::filesystem::path& work, JobReport& report);
+
 // The stem of bin task `task`'s spills (distributeFaces).
 inline std::string binTaskStem(uint32_t task) {
   return "bin-" + std::to_string(task) + "-";

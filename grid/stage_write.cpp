@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstring>
 #include <optional>
+#include <random>
 #include <utility>
 
 #include "facetree/grid.h"
@@ -517,7 +518,11 @@ std::filesystem::path partialPath(const std::filesystem::path& work, const std::
 }
 
 // The layout manifest: the file being placed, its copies, and the upper step's report for the finish.
+// Its id is new at every layout: a place task's record and the finish's name the layout they were
+// made for, so that a layout made again (its manifest lost, or its placed file renamed into the
+// output and the output removed since) is placed again rather than taken for done.
 struct Layout {
+  uint64_t id = 0;
   std::string partial;
   uint64_t fileBytes = 0;
   uint32_t pieces = 0, geometryPieces = 0;  // piecePaths' order: the geometry tasks' first
@@ -527,6 +532,7 @@ struct Layout {
 Layout loadLayout(const std::filesystem::path& work) {
   ManifestReader in(layoutPath(work), kLayoutKind);
   Layout l;
+  l.id = in.take<uint64_t>();
   l.partial = in.takeBytes();
   l.fileBytes = in.take<uint64_t>();
   l.pieces = in.take<uint32_t>();
@@ -537,16 +543,54 @@ Layout loadLayout(const std::filesystem::path& work) {
   return l;
 }
 
+constexpr std::string_view kFinishedKind = "finished";
+std::filesystem::path finishedPath(const std::filesystem::path& work) {
+  return work / "finished.manifest";
+}
+
+// Whether the finish renamed layout `l`'s placed file into `output`, and `output` is still that
+// size.
+bool finishedAs(const std::filesystem::path& work, const Layout& l, const std::filesystem::path& output) {
+  if (!std::filesystem::exists(finishedPath(work))) return false;
+  ManifestReader in(finishedPath(work), kFinishedKind);
+  const auto id = in.take<uint64_t>();
+  in.finish();
+  std::error_code error;
+  return id == l.id && std::filesystem::file_size(output, error) == l.fileBytes && !error;
+}
+
+// The id of a layout: another at every run of the step, whatever the work directory holds.
+uint64_t newLayoutId() {
+  std::random_device random;
+  return (uint64_t{random()} << 32) ^ random() ^
+         static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+}
+
+// The place task's record: its task and the layout it placed its piece into.
+uint64_t placedLayout(const std::filesystem::path& manifest, uint32_t task) {
+  ManifestReader placed(manifest, taskKind("place"));
+  if (placed.take<uint32_t>() != task)
+    throw Error(ErrorCategory::Input, manifest.string() + ": another task's");
+  const auto id = placed.take<uint64_t>();
+  placed.finish();
+  return id;
+}
+
 }  // namespace
 
 bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
-  if (std::filesystem::exists(layoutPath(work))) return false;
+  // Done while its placed file waits for the finish, or the finish gave it the output's name.
+  if (std::filesystem::exists(layoutPath(work))) {
+    const Layout l = loadLayout(work);
+    if (std::filesystem::exists(l.partial) || finishedAs(work, l, job.output)) return false;
+  }
   const LoadedWrite w = loadWriteHead(work);
   checkOutputWritable(job.output);
   const std::vector<std::filesystem::path> pieces = piecePaths(work, w);
   const std::filesystem::path partial = partialPath(work, job.output);
   const ClusterFileAssembly assembly = beginClusterFile(partial, w.plan.info, w.plan.options, pieces);
   ManifestWriter out;
+  out.put(newLayoutId());
   out.putBytes(partial.string());
   out.put(assembly.fileBytes);
   out.put(static_cast<uint32_t>(pieces.size()));
@@ -563,10 +607,10 @@ std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work) {
 
 bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t task) {
   const std::filesystem::path manifest = taskManifestPath(work, "place", task);
-  if (std::filesystem::exists(manifest)) return false;
   const Layout l = loadLayout(work);
   if (task >= l.pieces)
     throw std::invalid_argument("no place task " + std::to_string(task) + " in " + work.string());
+  if (std::filesystem::exists(manifest) && placedLayout(manifest, task) == l.id) return false;
   // Its one piece, named from the layout alone (the write plan is tens of MB at 56M faces).
   const std::filesystem::path piece =
       task < l.geometryPieces ? geometryPiecePath(work, task) : nodesPiecePath(work, task - l.geometryPieces);
@@ -576,6 +620,7 @@ bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t
   placePieces(l.partial, std::span(&piece, 1), mine);
   ManifestWriter out;
   out.put(task);
+  out.put(l.id);
   out.commit(manifest, taskKind("place"));
   return true;
 }
@@ -585,18 +630,24 @@ JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work)
   PlanState state = loadPlanManifest(work);
   if (state.inCore) return std::move(state.report);
   Layout l = loadLayout(work);
-  for (uint32_t t = 0; t < l.pieces; ++t) {
-    ManifestReader placed(taskManifestPath(work, "place", t), taskKind("place"));
-    if (placed.take<uint32_t>() != t)
-      throw Error(ErrorCategory::Input, taskManifestPath(work, "place", t).string() + ": another task's");
-    placed.finish();
-  }
+  for (uint32_t t = 0; t < l.pieces; ++t)
+    if (placedLayout(taskManifestPath(work, "place", t), t) != l.id)
+      throw Error(ErrorCategory::Input, taskManifestPath(work, "place", t).string() +
+                                            ": placed into an earlier layout of the file; run place task " +
+                                            std::to_string(t) + " again");
   JobReport report = std::move(l.report);
   report.outOfCore = true;
-  commitClusterFile(l.partial, job.output);
+  if (!finishedAs(work, l, job.output)) {
+    if (!std::filesystem::exists(l.partial))
+      throw Error(ErrorCategory::Input, l.partial + ": the placed file is gone; run the layout step again");
+    commitClusterFile(l.partial, job.output);
+    ManifestWriter finished;
+    finished.put(l.id);
+    finished.commit(finishedPath(work), kFinishedKind);
+  }
   report.fileBytes = l.fileBytes;
-  report.seconds = secondsSince(start);
-  report.secondsBuilt = report.seconds - report.secondsWrite;
+  recordStageTime(work, "finish", 0, secondsSince(start));
+  addStageTimes(work, report);
   return report;
 }
 

@@ -138,6 +138,9 @@ struct JobReport {
   uint64_t temporaryBytesPeak = 0;                             // the most the temporary files held at once
   uint64_t memoryCap = 0;                                      // the cap the job ran under
   std::vector<std::pair<const char*, uint64_t>> peakRssAfter;  // process peak RSS after each phase
+  // Stages run as tasks: the largest peak RSS of the tasks that made the file (peakRssAfter: each
+  // step's); 0 for a job in one process, whose own peak it is.
+  uint64_t peakRssBytes = 0;
   // Per pass; secondsMerge is the whole in-core build (buildHierarchy) for in-core jobs, the merge
   // above the cells out of core; seconds, the whole job.
   double secondsRead = 0, secondsBin = 0, secondsCells = 0, secondsMerge = 0, secondsWrite = 0, seconds = 0;
