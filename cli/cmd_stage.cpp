@@ -3,6 +3,7 @@
 // (facetree/grid.h planStages, runStageTask, finishStages). The plan keeps its command line in the work
 // directory, so that the later tasks build the same job from it. The plan and the grid print the steps that
 // follow them, which is all an engine needs to run the rest.
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -128,6 +129,8 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
     out.field("in_core", !plan.report.outOfCore);
     out.field("cells", plan.report.cells);
     out.field("cells_tasks", plan.cellsTasks);
+    // What the steps' tasks share among them: the triangles read, else the count the input declares.
+    out.field("triangles", std::max(plan.report.triangles, plan.report.info.declaredFaces));
     out.field("next", stepsText(plan.next));
     out.field("peak_rss_bytes", peakResidentBytes());
     std::fputs(out.finish().c_str(), stdout);

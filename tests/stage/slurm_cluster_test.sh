@@ -40,24 +40,29 @@ expect_no_jobs() {
 "$facetree" build "$dir/terrain.ply" -o "$dir/whole.fch" --memory 64M >/dev/null
 options=(--memory 64M --threads 2 --cell-tasks 3 --read-tasks 2)
 
-# Every step of more than one task as a job array (FACETREE_SLURM_INLINE=1), WORK removed after.
-FACETREE="$facetree" FACETREE_SLURM_INLINE=1 "$build" "$dir/terrain.ply" "$dir/arrays.fch" "$dir/work-arrays" \
-  --wait "${options[@]}" >"$dir/arrays.out"
+# Every step of more than one task as a job array (jobs of at most 50,000 of the 199,712
+# triangles).
+FACETREE="$facetree" FACETREE_SLURM_JOB_FACES=50000 "$build" "$dir/terrain.ply" "$dir/arrays.fch" "$dir/work-arrays" \
+  --wait --keep-work "${options[@]}" >"$dir/arrays.out"
 cmp "$dir/whole.fch" "$dir/arrays.fch" || fail "job arrays: not the bytes of facetree build"
+for log in cells-0 cells-1 cells-2 read-0 read-1 bin-0 bin-1; do
+  [ -e "$dir/work-arrays/logs/job-$log.log" ] || fail "job arrays: no job array of $log"
+done
 grep -q "^hierarchy .* nodes" "$dir/arrays.out" || fail "job arrays: no report: $(cat "$dir/arrays.out")"
 # The report's times and peak are the tasks', not the finish's alone.
 grep -q "^time .* cells [0-9.]* s, .* total [0-9.]* s" "$dir/arrays.out" &&
   ! grep -q "cells 0.000 s\|total 0.000 s" "$dir/arrays.out" || fail "job arrays: no times: $(cat "$dir/arrays.out")"
 peak=$(sed -n 's/^peak memory *\([0-9]*\)\..*/\1/p' "$dir/arrays.out")
 [ "${peak:-0}" -ge 16 ] || fail "job arrays: a peak of ${peak:-?} MiB is the finish's own"
-[ ! -e "$dir/work-arrays" ] || fail "job arrays: WORK left after success"
 expect_no_jobs "after the job arrays"
 
-# In as few jobs as the steps allow, WORK kept; the jobs ask for the threads and the cap.
+# In one job (the default: jobs of up to 2^24 triangles), WORK kept; it asks for the threads and the
+# cap.
 work="$dir/work"
 FACETREE="$facetree" "$build" "$dir/terrain.ply" "$dir/out.fch" "$work" --wait --keep-work "${options[@]}" \
   >"$dir/out.out"
 cmp "$dir/whole.fch" "$dir/out.fch" || fail "one job: not the bytes of facetree build"
+[ "$(wc -l <"$work/jobs")" = 1 ] || fail "one job: $(wc -l <"$work/jobs") jobs"
 for id in $(cat "$work/jobs"); do
   scontrol -o show job "$id" | grep -q "NumCPUs=2 " || fail "job $id does not ask for 2 CPUs"
   scontrol -o show job "$id" | grep -q "MinMemoryNode=336M " || fail "job $id does not ask for 64M + 25% + 256M"
@@ -89,13 +94,13 @@ EOF
 chmod +x "$dir/killing-facetree"
 rm -f "$dir/killed.fch"
 status=0
-FACETREE="$dir/killing-facetree" FACETREE_SLURM_INLINE=1 "$build" "$dir/terrain.ply" "$dir/killed.fch" \
+FACETREE="$dir/killing-facetree" FACETREE_SLURM_JOB_FACES=50000 "$build" "$dir/terrain.ply" "$dir/killed.fch" \
   "$dir/work-killed" --wait "${options[@]}" >"$dir/killed.out" 2>"$dir/killed.err" || status=$?
 [ "$status" = 137 ] || fail "killed cells task: slurm-build exits $status, not 137: $(cat "$dir/killed.err")"
 grep -q "cells task 1 failed with status 137" "$dir/killed.err" || fail "killed cells task: $(cat "$dir/killed.err")"
 [ ! -e "$dir/killed.fch" ] || fail "killed cells task: an output was written"
 expect_no_jobs "after a killed cells task"
-FACETREE="$facetree" FACETREE_SLURM_INLINE=1 "$build" "$dir/terrain.ply" "$dir/killed.fch" "$dir/work-killed" \
+FACETREE="$facetree" FACETREE_SLURM_JOB_FACES=50000 "$build" "$dir/terrain.ply" "$dir/killed.fch" "$dir/work-killed" \
   --wait --keep-work "${options[@]}" >"$dir/resumed.out"
 cmp "$dir/whole.fch" "$dir/killed.fch" || fail "resumed after a killed task: not the same bytes"
 grep -q "done already" "$dir/work-killed/logs/cells-0.log" || fail "resume: cells task 0 made again"
@@ -109,7 +114,7 @@ exec $(printf %q "$facetree") "\$@"
 EOF
 chmod +x "$dir/slow-facetree"
 status=0
-FACETREE="$dir/slow-facetree" FACETREE_SLURM_INLINE=1 "$build" "$dir/terrain.ply" "$dir/cancelled.fch" \
+FACETREE="$dir/slow-facetree" FACETREE_SLURM_JOB_FACES=50000 "$build" "$dir/terrain.ply" "$dir/cancelled.fch" \
   "$dir/work-cancelled" --wait "${options[@]}" >"$dir/cancelled.out" 2>"$dir/cancelled.err" &
 waiting=$!
 for ((i = 0; i < 300; i++)); do
@@ -127,6 +132,7 @@ expect_no_jobs "after a cancelled task"
 FACETREE="$facetree" "$build" "$dir/terrain.ply" "$dir/cancelled.fch" "$dir/work-cancelled" --wait \
   "${options[@]}" >/dev/null
 cmp "$dir/whole.fch" "$dir/cancelled.fch" || fail "resumed after a cancelled task: not the same bytes"
+[ ! -e "$dir/work-cancelled" ] || fail "resumed after a cancelled task: WORK left after success"
 
 # A bad input: the plan's error and exit status, no output.
 head -c 20000 "$dir/terrain.ply" >"$dir/short.ply"
