@@ -1,4 +1,6 @@
 // The job report as one JSON object (facetree/grid.h).
+#include <algorithm>
+
 #include "facetree/grid.h"
 #include "facetree/io.h"
 
@@ -53,7 +55,8 @@ std::string jobReportJson(const JobReport& r, const JobReportContext& context) {
   for (const auto& [phase, bytes] : r.peakRssAfter) json.field(phase, bytes);
   json.endObject();
   json.field("memory_cap_bytes", r.memoryCap);
-  json.field("peak_rss_bytes", context.peakRssBytes);
+  json.field("peak_rss_bytes",
+             std::max(context.peakRssBytes, r.peakRssBytes));  // as tasks: the largest task's
   json.field("temporary_bytes_peak", r.temporaryBytesPeak);
   if (context.hasOutput) json.field("file_bytes", r.fileBytes);
   return json.finish();

@@ -138,6 +138,33 @@ def test_any_number_of_workers_gives_the_same_bytes(small, small_stl, tmp_path, 
         cluster.close()
 
 
+def test_reruns_with_keep_work_give_the_same_bytes_and_redo_only_what_is_missing(small, tmp_path):
+    """After success, after the layout manifest is lost, and after the output is removed: the same
+    bytes; the cells tasks are not made again; the report's times are the tasks'."""
+    mesh, whole = small
+    work, out = tmp_path / "work", tmp_path / "dask.fch"
+    options = dict(work_dir=work, memory="64M", cell_tasks=3, read_tasks=2, cell_faces=SMALL_CELL_FACES,
+                   keep_work=True)
+    client, cluster = local_client(2)
+    try:
+        first = fd.build(mesh, out, client, **options)
+        assert out.read_bytes() == whole
+        assert first["seconds"]["cells"] > 0 and first["peak_rss_bytes"] > 16 << 20
+        cells = [(work / f"cells-{t}.manifest").stat().st_mtime_ns for t in range(3)]
+        fd.build(mesh, out, client, **options)
+        assert out.read_bytes() == whole
+        (work / "layout.manifest").unlink()
+        fd.build(mesh, out, client, **options)
+        assert out.read_bytes() == whole
+        out.unlink()
+        fd.build(mesh, out, client, **options)
+        assert out.read_bytes() == whole
+        assert [(work / f"cells-{t}.manifest").stat().st_mtime_ns for t in range(3)] == cells
+    finally:
+        client.close()
+        cluster.close()
+
+
 def test_bad_input_raises_the_readers_error_and_leaves_no_work(cli, shared_data, tmp_path):
     truncated = tmp_path / "truncated.ply"
     truncated.write_bytes((shared_data / "bunny_zipper.ply.zst").read_bytes()[:5000])
