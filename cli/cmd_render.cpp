@@ -7,6 +7,7 @@
 #include "command_help.h"
 #include "commands.h"
 #include "facetree/io.h"
+#include "facetree/query.h"
 #include "fch_commands.h"
 #include "signals.h"
 
@@ -64,6 +65,21 @@ int runRender(const std::vector<std::string>& argv, SignalGuard& signals) {
   if (const auto up = args.value("up")) options.up = parseVector(*up, "up");
   const double start = nowSeconds();
   prepareOutput(signals, *output);
+  if (args.flag("raycast")) {
+    if (args.value("cut") || args.value("depth")) throw UsageError("--raycast takes no --cut or --depth");
+    if (args.positional().size() != 1) throw UsageError("render takes exactly one cluster file");
+    const std::string& file = args.positional()[0];
+    ClusterFileReader reader(file, readerOptions(args));
+    QueryStats stats;
+    renderRaycastPng(reader, options, *output, {static_cast<unsigned>(args.count("threads", 0))}, &stats);
+    const double rays = double(options.width) * options.height, seconds = nowSeconds() - start;
+    std::fprintf(stderr,
+                 "ray cast %s to %s (%dx%d) in %.2f s: %.0f rays a second, %.1f boxes and %.1f triangles "
+                 "tested a ray\n",
+                 file.c_str(), output->c_str(), options.width, options.height, seconds, rays / seconds,
+                 stats.boxTests / rays, stats.triangleTests / rays);
+    return kExitOk;
+  }
   const CutRequest cut = readCut(args, "render");
   renderClustersPng(*cut.reader, cut.clusters, options, *output);
   std::fprintf(stderr, "rendered %zu clusters of %s to %s (%dx%d) in %.2f s\n", cut.clusters.size(),

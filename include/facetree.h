@@ -6,4 +6,5 @@
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
+#include "facetree/query.h"
 #include "facetree/stream.h"

@@ -14,19 +14,9 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include "facetree/io.h"  // ViewBasis
+
 namespace facetree {
-
-// Orthonormal camera frame: `forward` points from the camera towards the model, `up` is the
-// screen's up direction, `right` = forward x up.
-struct ViewBasis {
-  glm::vec3 right;
-  glm::vec3 up;
-  glm::vec3 forward;
-};
-
-// Zero or non-finite `viewDirection` means the default three-quarter view looking down.
-// `up` falls back to +z, and then to +y, when it is zero or (nearly) parallel to the view.
-ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up);
 
 // Positions in sample space for an image of width x height samples: x to the right and y down
 // in samples (sample centres at +0.5), z the distance along `forward` in the same units, so the

@@ -447,6 +447,12 @@ FchNode ClusterFileReader::node(uint64_t index) {
   return state_->nodeFrame(index / per)[index % per];
 }
 
+std::vector<FchNode> ClusterFileReader::nodeFrame(uint64_t frame) {
+  if (frame >= state_->sections[0].size())
+    throw std::out_of_range("ClusterFileReader::nodeFrame: frame past the nodes");
+  return state_->nodeFrame(frame);
+}
+
 uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const FchNode&, uint32_t)>& visit,
                                         NodeFields fields) {
   State& s = *state_;

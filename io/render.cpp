@@ -136,6 +136,17 @@ std::vector<unsigned char> encodePng(const std::vector<unsigned char>& pixels, i
 }
 }  // namespace
 
+void writePng(const std::filesystem::path& path, std::span<const uint8_t> rgb, int width, int height) {
+  if (width <= 0 || height <= 0 || rgb.size() != size_t{3} * width * height)
+    throw std::invalid_argument("writePng: " + std::to_string(rgb.size()) + " bytes for " +
+                                std::to_string(width) + "x" + std::to_string(height) + " pixels");
+  const std::vector<unsigned char> png =
+      encodePng(std::vector<unsigned char>(rgb.begin(), rgb.end()), width, height, path);
+  OutputFile out(path);
+  out.write(png.data(), png.size());
+  out.commit();
+}
+
 void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
                        const RenderOptions& options, const std::filesystem::path& path) {
   checkOptions(options);

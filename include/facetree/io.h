@@ -414,6 +414,9 @@ class ClusterFileReader {
   // Node `index` (< size()). In file order each node frame decodes once; a frame that has left the
   // cache decodes again with the frames before it.
   FchNode node(uint64_t index);
+  // The records of node frame `frame` (< the frames of layout(); nodes frame * nodesPerFrame on),
+  // as node() decodes them.
+  std::vector<FchNode> nodeFrame(uint64_t frame);
   // Calls visit(index, node, depth) for nodes 0, 1, ... (depth: the root's is 1) until it returns
   // false or the nodes end; one pass that caches nothing. Returns the nodes visited.
   uint64_t forEachNode(const std::function<bool(uint64_t, const FchNode&, uint32_t)>& visit,
@@ -697,6 +700,19 @@ struct RenderOptions {
   glm::vec3 viewDirection{0.0f};
   glm::vec3 up{0.0f, 0.0f, 1.0f};
 };
+// Orthonormal camera frame: `forward` points from the camera towards the model, `up` is the
+// screen's up direction, `right` = forward x up.
+struct ViewBasis {
+  glm::vec3 right;
+  glm::vec3 up;
+  glm::vec3 forward;
+};
+// Zero or non-finite `viewDirection` means the default three-quarter view looking down.
+// `up` falls back to +z, and then to +y, when it is zero or (nearly) parallel to the view.
+ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up);
+// Writes `rgb` (3 bytes a pixel, rows from the top) as a PNG at `path`, atomically.
+void writePng(const std::filesystem::path& path, std::span<const uint8_t> rgb, int width, int height);
+
 // Deterministic colour of a cluster id, as the pictures and exports below colour it. Hue advances
 // by the golden angle (137.5 degrees) from one id to the next, so consecutive ids always differ
 // strongly; saturation and value come from a mixed hash of the id, so ids whose hues happen to be

@@ -7,6 +7,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.h"
+#include "facetree/query.h"
 
 namespace facetree::python {
 namespace {
@@ -52,6 +53,42 @@ NodeRecord record(const FchNode& node, uint64_t nodeCount) {
   std::copy(q, q + 4, r.box_orientation);
   std::copy(box.sideArea, box.sideArea + 6, r.box_side_areas);
   return r;
+}
+
+// Rays from (N, 3) origins and directions, with a t range: t_max a number or (N,) array.
+std::vector<Ray> raysFrom(const py::object& origins, const py::object& directions, const py::object& tMax,
+                          float tMin) {
+  using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+  const Floats o = Floats::ensure(origins), d = Floats::ensure(directions);
+  if (!o || o.ndim() != 2 || o.shape(1) != 3) throw ArgumentError("origins: expected an (N, 3) array");
+  if (!d || d.ndim() != 2 || d.shape(1) != 3 || d.shape(0) != o.shape(0))
+    throw ArgumentError("directions: expected an (N, 3) array, as many as the origins");
+  const auto n = static_cast<size_t>(o.shape(0));
+  std::vector<Ray> rays(n);
+  const float* op = o.data();
+  const float* dp = d.data();
+  for (size_t i = 0; i < n; ++i) {
+    rays[i].origin = {op[3 * i], op[3 * i + 1], op[3 * i + 2]};
+    rays[i].direction = {dp[3 * i], dp[3 * i + 1], dp[3 * i + 2]};
+    rays[i].tMin = tMin;
+  }
+  if (!tMax.is_none()) {
+    const Floats t = Floats::ensure(tMax);
+    if (!t || (t.ndim() != 0 && (t.ndim() != 1 || static_cast<size_t>(t.shape(0)) != n)))
+      throw ArgumentError("t_max: expected a number or an (N,) array");
+    for (size_t i = 0; i < n; ++i) rays[i].tMax = t.ndim() == 0 ? t.data()[0] : t.data()[i];
+  }
+  return rays;
+}
+
+// The rays of origins, directions and t range, cast by query(reader, rays) with the GIL released.
+template <class Query>
+auto castRays(PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
+              float tMin, Query&& query) {
+  ClusterFileReader& reader = r.open();
+  const std::vector<Ray> rays = raysFrom(origins, directions, tMax, tMin);
+  py::gil_scoped_release release;
+  return query(reader, rays);
 }
 
 py::tuple meshTuple(FaceRangeMesh&& mesh) {
@@ -167,7 +204,48 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
             return meshTuple(std::move(mesh));
           },
           py::arg("first"), py::arg("count"),
-          "The triangles of face positions [first, first + count), as mesh() gives a node's.");
+          "The triangles of face positions [first, first + count), as mesh() gives a node's.")
+      .def(
+          "intersect",
+          [](PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
+             float tMin, unsigned threads) {
+            const std::vector<RayHit> hits =
+                castRays(r, origins, directions, tMax, tMin,
+                         [&](auto& reader, auto& rays) { return intersect(reader, rays, {threads}); });
+            const auto n = static_cast<py::ssize_t>(hits.size());
+            std::vector<float> t(hits.size()), uv(2 * hits.size());
+            std::vector<int64_t> face(hits.size()), original(hits.size());
+            for (size_t i = 0; i < hits.size(); ++i) {
+              const bool hit = hits[i].face != kNoHit;
+              t[i] = hits[i].t;
+              face[i] = hit ? static_cast<int64_t>(hits[i].face) : -1;
+              original[i] = hit ? static_cast<int64_t>(hits[i].originalFace) : -1;
+              uv[2 * i] = hits[i].u, uv[2 * i + 1] = hits[i].v;
+            }
+            return py::make_tuple(arrayOwning(std::move(t), {n}), arrayOwning(std::move(face), {n}),
+                                  arrayOwning(std::move(original), {n}), arrayOwning(std::move(uv), {n, 2}));
+          },
+          py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,
+          py::arg("threads") = 0,
+          R"(The closest hit of each ray through the hierarchy, decoding frames as the rays reach them under
+the reader's cap: (t, face, original_id, uv), (N,) float32 t (inf for a miss), (N,) int64 positions
+in the file's face order and original face ids (-1 for a miss), (N, 2) float32 barycentrics of the
+hit triangle's corners 1 and 2. origins, directions: (N, 3); t_max: a number or (N,) array. The
+results do not depend on threads (0: all cores, at most 8); the GIL is released.)")
+      .def(
+          "occluded",
+          [](PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
+             float tMin, unsigned threads) {
+            const std::vector<uint8_t> any =
+                castRays(r, origins, directions, tMax, tMin,
+                         [&](auto& reader, auto& rays) { return occluded(reader, rays, {threads}); });
+            py::array_t<bool> out(static_cast<py::ssize_t>(any.size()));
+            for (size_t i = 0; i < any.size(); ++i) out.mutable_data()[i] = any[i] != 0;
+            return out;
+          },
+          py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,
+          py::arg("threads") = 0,
+          "Whether each ray meets a triangle for t in [t_min, t_max]: (N,) bool; as intersect().");
 
   // A reader of `name`, opened by `from` (a path or a descriptor) with the GIL released.
   const auto open = [](const std::string& name, uint64_t memory, const std::filesystem::path& tmp,

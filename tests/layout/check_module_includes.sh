@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The modules' dependencies run one way: cli on grid (and what grid exposes), grid on io, merge and
-# stream, io on merge, merge and stream on nothing. The compiler already refuses another module's
-# internal header (a module sees only include/ and its own folder); this checks which public
-# headers each module includes, and that no source reaches outside its folder by a relative path.
+# The modules' dependencies run one way: cli on grid and query (and what they expose), grid on io,
+# merge and stream, query on io and merge, io on merge, merge and stream on nothing. The compiler
+# already refuses another module's internal header (a module sees only include/ and its own folder);
+# this checks which public headers each module includes, and that no source reaches outside its
+# folder by a relative path.
 # The Python package depends on the library only, never on the command line.
 #   check_module_includes.sh SOURCE_DIR
 set -euo pipefail
@@ -12,8 +13,9 @@ declare -A allowed=(
   [merge]="error merge"
   [io]="error merge io"
   [grid]="error stream merge io grid"
-  [cli]="error stream merge io grid"
-  [python/src]="error stream merge io grid"
+  [query]="error merge io query"
+  [cli]="error stream merge io grid query"
+  [python/src]="error stream merge io grid query"
 )
 failed=0
 for module in "${!allowed[@]}"; do
@@ -54,5 +56,5 @@ for header in "${!below[@]}"; do
     esac
   done < <(sed -n 's/.*#include [<"]facetree\/\([a-z_]*\)\.h[>"].*/\1/p' "include/facetree/$header.h")
 done
-[ "$failed" -eq 0 ] && echo "module includes: one way (stream, merge <- io <- grid <- cli, python)"
+[ "$failed" -eq 0 ] && echo "module includes: one way (stream, merge <- io <- grid, query <- cli, python)"
 exit "$failed"

@@ -172,3 +172,44 @@ def test_dragon_vrip_built_under_64m_cut_of_1000_gives_the_loaded_arrays(shared_
             assert len(vertices) == len(np.unique(h.triangles[first: first + count]))
             seen += count
         assert seen == h.face_count
+
+
+def test_rays_through_the_reader_hit_the_triangles_of_the_loaded_file(files):
+    """f.intersect and f.occluded against a NumPy brute force over load()'s triangles (Moller and
+    Trumbore in float64), on a whole file and a truncated one, for 1 and 2 threads."""
+    for path in files:
+        h = facetree.load(str(path))
+        corners = h.vertices[h.triangles].astype(np.float64)  # (F, 3, 3), in the file's face order
+        lo, hi = h.vertices.min(axis=0), h.vertices.max(axis=0)
+        rng = np.random.default_rng(3)
+        origins = (lo + (hi - lo) * rng.uniform(-1.0, 2.0, (200, 3))).astype(np.float32)
+        targets = lo + (hi - lo) * rng.uniform(0.2, 0.8, (200, 3))
+        directions = (targets - origins).astype(np.float32)
+        with facetree.open(path, memory="2M") as f:
+            t, face, original, uv = f.intersect(origins, directions)
+            assert np.array_equal(f.intersect(origins, directions, threads=1)[1], face)
+            assert np.array_equal(f.occluded(origins, directions), face >= 0)
+            assert np.array_equal(f.occluded(origins, directions, t_max=0.0), np.zeros(200, bool))
+        a, e1, e2 = corners[:, 0], corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+        hits = 0
+        for i in range(len(origins)):
+            o, d = origins[i].astype(np.float64), directions[i].astype(np.float64)
+            p = np.cross(d, e2)
+            det = (e1 * p).sum(axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inv = 1.0 / det
+                s = o - a
+                u = (s * p).sum(axis=1) * inv
+                q = np.cross(s, e1)
+                v = (q * d).sum(axis=1) * inv
+                tt = (e2 * q).sum(axis=1) * inv
+            ok = (det != 0) & (u >= 0) & (u <= 1) & (v >= 0) & (u + v <= 1) & (tt >= 0)
+            if not ok.any():
+                assert face[i] == -1 and np.isinf(t[i])
+                continue
+            hits += 1
+            best = np.flatnonzero(ok)[np.argmin(tt[ok])]
+            assert face[i] == best and t[i] == np.float32(tt[best])
+            assert original[i] == h.face_order[best]
+            assert np.allclose(uv[i], [u[best], v[best]], atol=1e-5)
+        assert 20 < hits < 200

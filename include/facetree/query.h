@@ -1,0 +1,78 @@
+// facetree/query.h: queries through a cluster hierarchy. A face cluster hierarchy exists to bound
+// work by clusters (Willmott 2000, ch. 5): a ray, a box or a point visits the nodes whose oriented
+// boxes it meets, near children first, and tests the triangles of the nodes it reaches. Queries run
+// on any prefix of a file: a node whose children were cut off is a leaf whose face range is tested.
+// Batches run in parallel over fixed blocks of the batch; each result depends on its query alone,
+// so results are the same for every thread count.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "facetree/io.h"
+
+namespace facetree {
+
+// A ray: points origin + t * direction for t in [tMin, tMax]. The direction need not be a unit
+// vector; t is in its units.
+struct Ray {
+  glm::vec3 origin{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, 1.0f};
+  float tMin = 0.0f;
+  float tMax = std::numeric_limits<float>::infinity();
+};
+
+inline constexpr uint64_t kNoHit = ~uint64_t{0};
+
+// The closest hit of a ray: the triangle's position in the file's face order and its face id in
+// the input mesh, t, and the barycentrics of the hit point (weights of corners 1 and 2). Of hits at
+// the same t, the triangle first in the face order.
+struct RayHit {
+  float t = std::numeric_limits<float>::infinity();
+  uint64_t face = kNoHit;          // kNoHit: no triangle met
+  uint64_t originalFace = kNoHit;  // the file's original id of `face`
+  float u = 0.0f, v = 0.0f;
+  glm::vec3 normal{0.0f};  // the triangle's geometric normal, (c1 - c0) x (c2 - c0), not unit
+};
+
+// What a batch cost: oriented boxes and triangles tested, summed over its queries.
+struct QueryStats {
+  uint64_t boxTests = 0;
+  uint64_t triangleTests = 0;
+};
+
+struct QueryOptions {
+  unsigned threads = 0;  // 0: the hardware's, at most 8
+};
+
+// The closest hit of each ray in the file's triangles (the nodes it holds: any prefix). The
+// triangle test is Moller and Trumbore's in double precision; the boxes are met with a margin, so
+// that rounding never hides a triangle a box holds.
+std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays,
+                              const QueryOptions& options = {}, QueryStats* stats = nullptr);
+// Whether each ray meets a triangle at any t in [tMin, tMax]: 1, else 0. Stops at the first.
+std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays,
+                              const QueryOptions& options = {}, QueryStats* stats = nullptr);
+
+// The same through a lazy reader, under its cap: node frames and triangle frames are decoded as
+// the rays reach them and wait in a cache of a quarter of the reader's cap, shared by the threads.
+std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,
+                              const QueryOptions& options = {}, QueryStats* stats = nullptr);
+std::vector<uint8_t> occluded(ClusterFileReader& reader, std::span<const Ray> rays,
+                              const QueryOptions& options = {}, QueryStats* stats = nullptr);
+
+// The same by testing every triangle, for tests and benchmarks: the same hits, bit for bit.
+RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray);
+
+// A picture by ray casting, to check the queries by eye: one ray per pixel, orthographic, along
+// options.viewDirection, framing the file's bounding box; a hit is grey by the angle between its
+// triangle and the view, a miss white. Through the reader, under its cap.
+void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
+                      const std::filesystem::path& path, const QueryOptions& queryOptions = {},
+                      QueryStats* stats = nullptr);
+
+}  // namespace facetree

@@ -1,0 +1,241 @@
+// Rays through a cluster file's hierarchy (facetree/query.h).
+//
+// Willmott 2000, sec. 5.5.1: a node of b children costs a query up to b tests where a binary tree
+// costs 2 per level, so query time may grow by up to b / log2 b with the branching factor; the
+// traversal is the same for every b, so that the files of b = 2, 4 and 8 can be compared by what
+// they cost. Closest hits go near child first: a node's node children are tested against the ray,
+// visited in order of their entry t and skipped once a hit lies before that entry; face children
+// and the face ranges of children cut off by truncation are tested at once. A hit at the same t as
+// the best goes to the triangle first in the face order, as the brute force decides it.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <thread>
+
+#include "facetree/query.h"
+#include "query_source.h"
+#include "ray_tests.h"
+
+namespace facetree {
+namespace {
+
+using query::BoxRay;
+using query::rayBoxEntry;
+using query::rayTriangle;
+using query::TriangleHit;
+
+constexpr size_t kRaysPerBlock = 256;  // the unit of work of a batch: results never depend on it
+
+struct Best {
+  double t = std::numeric_limits<double>::infinity();
+  uint64_t face = kNoHit;
+  double u = 0, v = 0;
+  glm::vec3 normal{0.0f};
+  bool better(double t2, uint64_t face2) const { return t2 < t || (t2 == t && face2 < face); }
+};
+
+// One ray's state: double precision for the triangles, float for the boxes.
+struct RayState {
+  glm::dvec3 origin, direction;
+  double tMin, tMax;
+  BoxRay box;
+  bool valid;
+  explicit RayState(const Ray& r)
+      : origin(r.origin),
+        direction(r.direction),
+        tMin(r.tMin),
+        tMax(r.tMax),
+        box{r.origin, r.direction, r.tMin, r.tMax} {
+    valid = std::isfinite(r.origin.x) && std::isfinite(r.origin.y) && std::isfinite(r.origin.z) &&
+            std::isfinite(r.direction.x) && std::isfinite(r.direction.y) && std::isfinite(r.direction.z) &&
+            r.direction != glm::vec3(0.0f) && !std::isnan(r.tMin) && !std::isnan(r.tMax) && r.tMin <= r.tMax;
+  }
+};
+
+// Tests triangles [first, first + count); returns true on the first hit when `any`.
+template <class View>
+bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, Best& best, bool any,
+               QueryStats& stats) {
+  stats.triangleTests += count;
+  glm::vec3 corner[3];
+  for (uint64_t p = first; p < first + count; ++p) {
+    view.corners(p, corner);
+    TriangleHit hit;
+    const double tMax = any ? ray.tMax : std::min(ray.tMax, best.t);
+    if (!rayTriangle(ray.origin, ray.direction, ray.tMin, tMax, corner[0], corner[1], corner[2], hit))
+      continue;
+    if (best.better(hit.t, p))
+      best = {hit.t, p, hit.u, hit.v, glm::cross(corner[1] - corner[0], corner[2] - corner[0])};
+    if (any) return true;
+  }
+  return false;
+}
+
+// The traversal of one ray; `any`: stop at the first hit.
+template <class Source>
+Best traverse(const Source& source, typename Source::View& view, const RayState& ray, bool any,
+              QueryStats& stats, std::vector<std::pair<float, uint32_t>>& stack) {
+  Best best;
+  if (!ray.valid) return best;
+  if (source.nodeCount() == 0) {
+    testRange(view, ray, 0, source.faceCount(), best, any, stats);
+    return best;
+  }
+  stack.clear();
+  ++stats.boxTests;
+  const float rootEntry = rayBoxEntry(ray.box, view.node(0).box);
+  if (rootEntry == std::numeric_limits<float>::infinity()) return best;
+  stack.push_back({rootEntry, 0});
+  std::pair<float, uint32_t> children[kMaxBranching];
+  while (!stack.empty()) {
+    const auto [entry, index] = stack.back();
+    stack.pop_back();
+    if (static_cast<double>(entry) > best.t) continue;  // a hit before the box: nothing nearer in it
+    // A copy through a reader, whose frames may leave the view as the children are read.
+    decltype(auto) node = view.node(index);
+    unsigned near = 0;
+    uint64_t cursor = node.first;
+    for (unsigned c = 0; c < node.childCount; ++c) {
+      const uint32_t ref = node.child[c];
+      const uint64_t count = node.childFaces[c];
+      if (ref & kFaceChild) {
+        if (testRange(view, ray, ref & ~kFaceChild, 1, best, any, stats)) return best;
+      } else if (view.isCutOff(ref)) {
+        if (testRange(view, ray, cursor, count, best, any, stats)) return best;
+      } else {
+        ++stats.boxTests;
+        const float t = rayBoxEntry(ray.box, view.node(ref).box);
+        if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, ref};
+      }
+      cursor += count;
+    }
+    // Far first onto the stack, so that the nearest comes off next (an insertion sort: at most b).
+    for (unsigned i = 1; i < near; ++i)
+      for (unsigned j = i; j > 0 && (children[j - 1].first < children[j].first ||
+                                     (children[j - 1].first == children[j].first &&
+                                      children[j - 1].second < children[j].second));
+           --j)
+        std::swap(children[j - 1], children[j]);
+    for (unsigned i = 0; i < near; ++i)
+      if (static_cast<double>(children[i].first) <= best.t) stack.push_back(children[i]);
+  }
+  return best;
+}
+
+unsigned threadCount(const QueryOptions& options, size_t blocks) {
+  unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  threads = std::min(threads, 8u);
+  return static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(blocks, 1)));
+}
+
+// Runs body(view, first, end, stats, stack) over the batch's blocks of rays on the options'
+// threads, each with its own view of the source; the statistics are summed, which is the same
+// whatever the order.
+template <class Source, class Body>
+void forEachBlock(Source& source, size_t count, const QueryOptions& options, QueryStats* stats, Body&& body) {
+  const size_t blocks = (count + kRaysPerBlock - 1) / kRaysPerBlock;
+  const unsigned threads = threadCount(options, blocks);
+  std::atomic<size_t> next{0};
+  std::vector<QueryStats> perThread(threads);
+  std::vector<std::exception_ptr> failed(threads);  // a reader's error, thrown to the caller
+  const auto work = [&](unsigned thread) {
+    try {
+      typename Source::View view(source);
+      std::vector<std::pair<float, uint32_t>> stack;
+      stack.reserve(64 * kMaxBranching);
+      for (size_t b; (b = next.fetch_add(1)) < blocks;)
+        body(view, b * kRaysPerBlock, std::min(count, (b + 1) * kRaysPerBlock), perThread[thread], stack);
+    } catch (...) {
+      failed[thread] = std::current_exception();
+      next = blocks;  // the others stop at their next block
+    }
+  };
+  std::vector<std::jthread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  pool.clear();
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
+  if (stats)
+    for (const QueryStats& s : perThread)
+      stats->boxTests += s.boxTests, stats->triangleTests += s.triangleTests;
+}
+
+template <class View>
+RayHit toHit(View& view, const Best& best) {
+  RayHit hit;
+  if (best.face == kNoHit) return hit;
+  hit.t = static_cast<float>(best.t);
+  hit.face = best.face;
+  hit.originalFace = view.originalFace(best.face);
+  hit.u = static_cast<float>(best.u);
+  hit.v = static_cast<float>(best.v);
+  hit.normal = best.normal;
+  return hit;
+}
+
+// Each ray's traversal (`any`: to its first hit), its result out[r] = result(view, best).
+template <class Out, class Source, class Result>
+std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any, const QueryOptions& options,
+                             QueryStats* stats, Result&& result) {
+  std::vector<Out> out(rays.size());
+  forEachBlock(source, rays.size(), options, stats,
+               [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
+                 for (size_t r = first; r < end; ++r)
+                   out[r] = result(view, traverse(source, view, RayState(rays[r]), any, s, stack));
+               });
+  return out;
+}
+
+template <class Source>
+std::vector<RayHit> closestHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
+                                QueryStats* stats) {
+  return traverseAll<RayHit>(source, rays, false, options, stats,
+                             [](auto& view, const Best& best) { return toHit(view, best); });
+}
+
+template <class Source>
+std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
+                             QueryStats* stats) {
+  return traverseAll<uint8_t>(source, rays, true, options, stats,
+                              [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
+}
+
+}  // namespace
+
+std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::FileSource source(file);
+  return closestHits(source, rays, options, stats);
+}
+
+std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::FileSource source(file);
+  return anyHits(source, rays, options, stats);
+}
+
+std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,
+                              const QueryOptions& options, QueryStats* stats) {
+  query::ReaderSource source(reader);
+  return closestHits(source, rays, options, stats);
+}
+
+std::vector<uint8_t> occluded(ClusterFileReader& reader, std::span<const Ray> rays,
+                              const QueryOptions& options, QueryStats* stats) {
+  query::ReaderSource source(reader);
+  return anyHits(source, rays, options, stats);
+}
+
+RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray) {
+  const RayState state(ray);
+  query::FileSource source(file);
+  query::FileSource::View view(source);
+  Best best;
+  QueryStats stats;
+  if (state.valid) testRange(view, state, 0, source.faceCount(), best, false, stats);
+  return toHit(view, best);
+}
+
+}  // namespace facetree
