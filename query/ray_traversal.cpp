@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "facetree/query.h"
+#include "query_blocks.h"
 #include "query_source.h"
 #include "ray_tests.h"
 
@@ -24,8 +25,7 @@ using query::BoxRay;
 using query::rayBoxEntry;
 using query::rayTriangle;
 using query::TriangleHit;
-
-constexpr size_t kRaysPerBlock = 256;  // the unit of work of a batch: results never depend on it
+using Stack = std::vector<std::pair<float, uint32_t>>;
 
 struct Best {
   double t = std::numeric_limits<double>::infinity();
@@ -123,45 +123,6 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
   return best;
 }
 
-unsigned threadCount(const QueryOptions& options, size_t blocks) {
-  unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-  threads = std::min(threads, 8u);
-  return static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(blocks, 1)));
-}
-
-// Runs body(view, first, end, stats, stack) over the batch's blocks of rays on the options'
-// threads, each with its own view of the source; the statistics are summed, which is the same
-// whatever the order.
-template <class Source, class Body>
-void forEachBlock(Source& source, size_t count, const QueryOptions& options, QueryStats* stats, Body&& body) {
-  const size_t blocks = (count + kRaysPerBlock - 1) / kRaysPerBlock;
-  const unsigned threads = threadCount(options, blocks);
-  std::atomic<size_t> next{0};
-  std::vector<QueryStats> perThread(threads);
-  std::vector<std::exception_ptr> failed(threads);  // a reader's error, thrown to the caller
-  const auto work = [&](unsigned thread) {
-    try {
-      typename Source::View view(source);
-      std::vector<std::pair<float, uint32_t>> stack;
-      stack.reserve(64 * kMaxBranching);
-      for (size_t b; (b = next.fetch_add(1)) < blocks;)
-        body(view, b * kRaysPerBlock, std::min(count, (b + 1) * kRaysPerBlock), perThread[thread], stack);
-    } catch (...) {
-      failed[thread] = std::current_exception();
-      next = blocks;  // the others stop at their next block
-    }
-  };
-  std::vector<std::jthread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  pool.clear();
-  for (const std::exception_ptr& e : failed)
-    if (e) std::rethrow_exception(e);
-  if (stats)
-    for (const QueryStats& s : perThread)
-      stats->boxTests += s.boxTests, stats->triangleTests += s.triangleTests;
-}
-
 template <class View>
 RayHit toHit(View& view, const Best& best) {
   RayHit hit;
@@ -180,11 +141,11 @@ template <class Out, class Source, class Result>
 std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any, const QueryOptions& options,
                              QueryStats* stats, Result&& result) {
   std::vector<Out> out(rays.size());
-  forEachBlock(source, rays.size(), options, stats,
-               [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
-                 for (size_t r = first; r < end; ++r)
-                   out[r] = result(view, traverse(source, view, RayState(rays[r]), any, s, stack));
-               });
+  query::forEachBlock(source, rays.size(), options, stats,
+                      [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
+                        for (size_t r = first; r < end; ++r)
+                          out[r] = result(view, traverse(source, view, RayState(rays[r]), any, s, stack));
+                      });
   return out;
 }
 

@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
 #include "facetree/io.h"
@@ -67,6 +68,24 @@ std::vector<uint8_t> occluded(ClusterFileReader& reader, std::span<const Ray> ra
 
 // The same by testing every triangle, for tests and benchmarks: the same hits, bit for bit.
 RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray);
+
+// An oriented box: its centre, its half extents along its axes, and the rotation whose matrix's
+// columns are the axes (identity: axis-aligned).
+struct QueryBox {
+  glm::vec3 center{0.0f};
+  glm::vec3 halfExtent{0.0f};
+  glm::quat orientation{1.0f, 0.0f, 0.0f, 0.0f};
+};
+// The triangles overlapping each box (touching counts), as face positions in increasing order. The
+// triangle test is the separating axis test of Akenine-Moller (2001) in the box's frame, in double
+// precision; a node's oriented box is passed over only when an axis separates it from the query
+// box with a margin, so that rounding never hides a triangle.
+std::vector<std::vector<uint64_t>> overlap(const ClusterFile& file, std::span<const QueryBox> boxes,
+                                           const QueryOptions& options = {}, QueryStats* stats = nullptr);
+std::vector<std::vector<uint64_t>> overlap(ClusterFileReader& reader, std::span<const QueryBox> boxes,
+                                           const QueryOptions& options = {}, QueryStats* stats = nullptr);
+// The same by testing every triangle: the same triangles.
+std::vector<uint64_t> overlapBruteForce(const ClusterFile& file, const QueryBox& box);
 
 // A picture by ray casting, to check the queries by eye: one ray per pixel, orthographic, along
 // options.viewDirection, framing the file's bounding box; a hit is grey by the angle between its

@@ -245,7 +245,40 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
           },
           py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,
           py::arg("threads") = 0,
-          "Whether each ray meets a triangle for t in [t_min, t_max]: (N,) bool; as intersect().");
+          "Whether each ray meets a triangle for t in [t_min, t_max]: (N,) bool; as intersect().")
+      .def(
+          "overlap",
+          [](PyReader& r, const py::object& low, const py::object& high, unsigned threads) {
+            using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+            const Floats lo = Floats::ensure(low), hi = Floats::ensure(high);
+            if (!lo || lo.ndim() != 2 || lo.shape(1) != 3 || !hi || hi.ndim() != 2 || hi.shape(1) != 3 ||
+                hi.shape(0) != lo.shape(0))
+              throw ArgumentError("overlap: lo and hi must be (N, 3) arrays of as many boxes");
+            std::vector<QueryBox> boxes(static_cast<size_t>(lo.shape(0)));
+            for (size_t i = 0; i < boxes.size(); ++i) {
+              const glm::vec3 a(lo.data()[3 * i], lo.data()[3 * i + 1], lo.data()[3 * i + 2]);
+              const glm::vec3 b(hi.data()[3 * i], hi.data()[3 * i + 1], hi.data()[3 * i + 2]);
+              boxes[i].center = 0.5f * (a + b), boxes[i].halfExtent = 0.5f * (b - a);
+            }
+            ClusterFileReader& reader = r.open();
+            std::vector<std::vector<uint64_t>> found;
+            {
+              py::gil_scoped_release release;
+              found = overlap(reader, boxes, {threads});
+            }
+            std::vector<int64_t> offsets(found.size() + 1, 0), faces;
+            for (size_t i = 0; i < found.size(); ++i) {
+              faces.insert(faces.end(), found[i].begin(), found[i].end());
+              offsets[i + 1] = static_cast<int64_t>(faces.size());
+            }
+            const auto n = static_cast<py::ssize_t>(offsets.size()),
+                       m = static_cast<py::ssize_t>(faces.size());
+            return py::make_tuple(arrayOwning(std::move(offsets), {n}), arrayOwning(std::move(faces), {m}));
+          },
+          py::arg("lo"), py::arg("hi"), py::arg("threads") = 0,
+          R"(The triangles overlapping each axis-aligned box [lo[i], hi[i]] (touching counts), through the
+hierarchy under the reader's cap: (offsets, faces), box i's face positions (increasing) being
+faces[offsets[i]:offsets[i + 1]]. The GIL is released.)");
 
   // A reader of `name`, opened by `from` (a path or a descriptor) with the GIL released.
   const auto open = [](const std::string& name, uint64_t memory, const std::filesystem::path& tmp,

@@ -213,3 +213,32 @@ def test_rays_through_the_reader_hit_the_triangles_of_the_loaded_file(files):
             assert original[i] == h.face_order[best]
             assert np.allclose(uv[i], [u[best], v[best]], atol=1e-5)
         assert 20 < hits < 200
+
+
+def test_boxes_through_the_reader_find_the_triangles_a_numpy_scan_finds(files):
+    """f.overlap against the triangles whose corners' bounding box meets the query box and that a
+    dense sampling of the triangle puts inside it: every sampled hit is found, and every triangle
+    found has its bounds meeting the box."""
+    path = files[0]
+    h = facetree.load(str(path))
+    corners = h.vertices[h.triangles]
+    lo_all, hi_all = h.vertices.min(axis=0), h.vertices.max(axis=0)
+    rng = np.random.default_rng(5)
+    centres = lo_all + (hi_all - lo_all) * rng.uniform(0, 1, (60, 3))
+    halves = (hi_all - lo_all) * rng.uniform(0.002, 0.1, (60, 3))
+    lo, hi = (centres - halves).astype(np.float32), (centres + halves).astype(np.float32)
+    with facetree.open(path, memory="2M") as f:
+        offsets, faces = f.overlap(lo, hi)
+        assert np.array_equal(f.overlap(lo, hi, threads=1)[1], faces)
+    w = rng.dirichlet([1, 1, 1], 64)  # points spread over each triangle
+    samples = np.einsum("sk,fkd->fsd", w, corners)
+    found_any = 0
+    for i in range(len(lo)):
+        got = faces[offsets[i]:offsets[i + 1]]
+        assert np.all(np.diff(got) > 0)
+        tri_lo, tri_hi = corners[got].min(axis=1), corners[got].max(axis=1)
+        assert np.all(tri_lo <= hi[i]) and np.all(tri_hi >= lo[i])
+        inside = np.all((samples >= lo[i]) & (samples <= hi[i]), axis=2).any(axis=1)
+        assert set(np.flatnonzero(inside)) <= set(got.tolist())
+        found_any += len(got) > 0
+    assert 10 < found_any < 60

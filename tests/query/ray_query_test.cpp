@@ -12,23 +12,10 @@
 #include "facetree/query.h"
 #include "facetree/stream.h"
 #include "merge/test_meshes.h"
+#include "query_test_util.h"
 
 namespace facetree {
 namespace {
-
-IndexedMesh load(const char* name) {
-  auto reader = openMesh(std::filesystem::path(FACETREE_SHARED_DATA) / name);
-  return loadMesh(*reader);
-}
-
-ClusterFile fileOf(const MeshView& mesh, unsigned branching, BoxPrecision boxes) {
-  BuildOptions build;
-  build.boxes = boxes;
-  FileOptions options;
-  options.branching = branching;
-  options.build = build;
-  return makeClusterFile(mesh, {}, buildHierarchy(mesh, build), options);
-}
 
 // Rays from points around the mesh's box through random points of it (many hit), and rays of
 // random origin and direction (many miss), and some with a short tMax.
@@ -80,8 +67,8 @@ class RayQueries : public ::testing::TestWithParam<std::tuple<const char*, unsig
 
 TEST_P(RayQueries, ClosestAndAnyHitsAreTheBruteForceOnesOnTheFileAndItsPrefixes) {
   const auto [name, branching, boxes] = GetParam();
-  const IndexedMesh mesh = load(name);
-  const ClusterFile whole = fileOf(mesh.view(), branching, boxes);
+  const IndexedMesh mesh = test::loadShared(name);
+  const ClusterFile whole = test::fileOf(mesh.view(), branching, boxes);
   const std::vector<Ray> rays = raysAround(whole, 1500, 17);
   for (const size_t keep : {whole.nodes.size(), whole.nodes.size() / 10, size_t{7}, size_t{1}}) {
     SCOPED_TRACE("nodes kept: " + std::to_string(keep));
@@ -112,7 +99,7 @@ TEST(RayQueries, RaysAlongTheEdgesOfFlatBoxesFindTheBruteForceHits) {
   const test::TestMesh flat = test::grid(40, 0.25f);
   const MeshView view{flat.positions, flat.indices};
   for (const unsigned branching : {2u, 8u}) {
-    const ClusterFile file = fileOf(view, branching, BoxPrecision::Exact);
+    const ClusterFile file = test::fileOf(view, branching, BoxPrecision::Exact);
     std::vector<Ray> rays;
     for (int y = 0; y <= 80; ++y)
       for (int x = -4; x <= 84; ++x) {  // beyond the grid on both sides: misses
@@ -125,9 +112,9 @@ TEST(RayQueries, RaysAlongTheEdgesOfFlatBoxesFindTheBruteForceHits) {
 }
 
 TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
-  const IndexedMesh mesh = load("bunny_npm_lowres.ply.zst");
+  const IndexedMesh mesh = test::loadShared("bunny_npm_lowres.ply.zst");
   for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
-    const ClusterFile file = fileOf(mesh.view(), 4, boxes);
+    const ClusterFile file = test::fileOf(mesh.view(), 4, boxes);
     const auto path =
         std::filesystem::temp_directory_path() / ("facetree_query_" + std::to_string(::getpid()) + ".fch");
     const auto cut = std::filesystem::path(path.string() + ".cut");
@@ -160,8 +147,8 @@ TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
 }
 
 TEST(RayQueries, TheSameResultsAndCountsForOneTwoAndThreeThreads) {
-  const IndexedMesh mesh = load("fandisk.ply.zst");
-  const ClusterFile file = fileOf(mesh.view(), 4, BoxPrecision::Exact);
+  const IndexedMesh mesh = test::loadShared("fandisk.ply.zst");
+  const ClusterFile file = test::fileOf(mesh.view(), 4, BoxPrecision::Exact);
   const std::vector<Ray> rays = raysAround(file, 3000, 5);
   QueryStats one;
   const std::vector<RayHit> reference = intersect(file, rays, {1}, &one);
@@ -182,7 +169,7 @@ TEST(RayQueries, TheSameResultsAndCountsForOneTwoAndThreeThreads) {
 TEST(RayQueries, DegenerateRaysMissAndEmptyBatchesAreEmpty) {
   const test::TestMesh sphere = test::icosphere(3);
   const MeshView view{sphere.positions, sphere.indices};
-  const ClusterFile file = fileOf(view, 2, BoxPrecision::Exact);
+  const ClusterFile file = test::fileOf(view, 2, BoxPrecision::Exact);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const std::vector<Ray> rays = {
       {{0, 0, -5}, {0, 0, 1}},              // through the sphere: hits at t = 4 or so

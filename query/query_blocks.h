@@ -1,0 +1,59 @@
+// Internal to query/: a batch of queries in parallel over fixed blocks of the batch. Each query's
+// result depends on it alone and the statistics are sums, so that nothing depends on the thread
+// count; a thread's error reaches the caller.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "facetree/query.h"
+
+namespace facetree::query {
+
+inline constexpr size_t kQueriesPerBlock = 256;  // the unit of work of a batch
+
+inline unsigned threadCount(const QueryOptions& options, size_t blocks) {
+  unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  threads = std::min(threads, 8u);
+  return static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(blocks, 1)));
+}
+
+// Runs body(view, first, end, stats, stack) over the batch's blocks of queries on the options'
+// threads, each with its own view of the source; the statistics are summed, which is the same
+// whatever the order.
+template <class Source, class Body>
+void forEachBlock(Source& source, size_t count, const QueryOptions& options, QueryStats* stats, Body&& body) {
+  const size_t blocks = (count + kQueriesPerBlock - 1) / kQueriesPerBlock;
+  const unsigned threads = threadCount(options, blocks);
+  std::atomic<size_t> next{0};
+  std::vector<QueryStats> perThread(threads);
+  std::vector<std::exception_ptr> failed(threads);  // a reader's error, thrown to the caller
+  const auto work = [&](unsigned thread) {
+    try {
+      typename Source::View view(source);
+      std::vector<std::pair<float, uint32_t>> stack;
+      stack.reserve(64 * kMaxBranching);
+      for (size_t b; (b = next.fetch_add(1)) < blocks;)
+        body(view, b * kQueriesPerBlock, std::min(count, (b + 1) * kQueriesPerBlock), perThread[thread],
+             stack);
+    } catch (...) {
+      failed[thread] = std::current_exception();
+      next = blocks;  // the others stop at their next block
+    }
+  };
+  std::vector<std::jthread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  pool.clear();
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
+  if (stats)
+    for (const QueryStats& s : perThread)
+      stats->boxTests += s.boxTests, stats->triangleTests += s.triangleTests;
+}
+
+}  // namespace facetree::query
