@@ -130,20 +130,16 @@ std::vector<uint64_t> traverse(const Source& source, typename Source::View& view
     const uint32_t index = stack.back().second;
     stack.pop_back();
     decltype(auto) node = view.node(index);
-    uint64_t cursor = node.first;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      const uint64_t count = node.childFaces[c];
-      if (ref & kFaceChild) {
-        testRange(view, box, ref & ~kFaceChild, 1, out, stats);
-      } else if (view.isCutOff(ref)) {
-        testRange(view, box, cursor, count, out, stats);
-      } else {
-        ++stats.boxTests;
-        if (boxesMayOverlap(box, view.node(ref).box)) stack.push_back({0.0f, ref});
-      }
-      cursor += count;
-    }
+    query::forEachChild(
+        view, node,
+        [&](uint64_t first, uint64_t count) {
+          testRange(view, box, first, count, out, stats);
+          return false;
+        },
+        [&](uint32_t child) {
+          ++stats.boxTests;
+          if (boxesMayOverlap(box, view.node(child).box)) stack.push_back({0.0f, child});
+        });
   }
   std::sort(out.begin(), out.end());
   return out;

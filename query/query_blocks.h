@@ -56,4 +56,40 @@ void forEachBlock(Source& source, size_t count, const QueryOptions& options, Que
       stats->boxTests += s.boxTests, stats->triangleTests += s.triangleTests;
 }
 
+// A node's children in order: faces(first, count) for each face child and each child cut off by
+// truncation (its face range), node(index) for each kept node child. Stops and returns true when
+// faces() returns true.
+template <class View, class Faces, class Node>
+bool forEachChild(View& view, const FchNode& node, Faces&& faces, Node&& nodeChild) {
+  uint64_t cursor = node.first;
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t ref = node.child[c];
+    const uint64_t count = node.childFaces[c];
+    if (ref & kFaceChild) {
+      if (faces(uint64_t{ref & ~kFaceChild}, uint64_t{1})) return true;
+    } else if (view.isCutOff(ref)) {
+      if (faces(cursor, count)) return true;
+    } else {
+      nodeChild(ref);
+    }
+    cursor += count;
+  }
+  return false;
+}
+
+// Pushes the node children (key, index) that `keep` keeps so that the smallest key comes off the
+// stack first, ties to the lower index: an insertion sort of at most b, far first onto the stack.
+template <class Keep>
+void pushNearFirst(std::pair<float, uint32_t>* children, unsigned count,
+                   std::vector<std::pair<float, uint32_t>>& stack, Keep&& keep) {
+  for (unsigned i = 1; i < count; ++i)
+    for (unsigned j = i; j > 0 && (children[j - 1].first < children[j].first ||
+                                   (children[j - 1].first == children[j].first &&
+                                    children[j - 1].second < children[j].second));
+         --j)
+      std::swap(children[j - 1], children[j]);
+  for (unsigned i = 0; i < count; ++i)
+    if (keep(children[i].first)) stack.push_back(children[i]);
+}
+
 }  // namespace facetree::query

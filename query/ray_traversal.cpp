@@ -95,30 +95,17 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
     // A copy through a reader, whose frames may leave the view as the children are read.
     decltype(auto) node = view.node(index);
     unsigned near = 0;
-    uint64_t cursor = node.first;
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      const uint64_t count = node.childFaces[c];
-      if (ref & kFaceChild) {
-        if (testRange(view, ray, ref & ~kFaceChild, 1, best, any, stats)) return best;
-      } else if (view.isCutOff(ref)) {
-        if (testRange(view, ray, cursor, count, best, any, stats)) return best;
-      } else {
-        ++stats.boxTests;
-        const float t = rayBoxEntry(ray.box, view.node(ref).box);
-        if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, ref};
-      }
-      cursor += count;
-    }
-    // Far first onto the stack, so that the nearest comes off next (an insertion sort: at most b).
-    for (unsigned i = 1; i < near; ++i)
-      for (unsigned j = i; j > 0 && (children[j - 1].first < children[j].first ||
-                                     (children[j - 1].first == children[j].first &&
-                                      children[j - 1].second < children[j].second));
-           --j)
-        std::swap(children[j - 1], children[j]);
-    for (unsigned i = 0; i < near; ++i)
-      if (static_cast<double>(children[i].first) <= best.t) stack.push_back(children[i]);
+    const bool stop = query::forEachChild(
+        view, node,
+        [&](uint64_t first, uint64_t count) { return testRange(view, ray, first, count, best, any, stats); },
+        [&](uint32_t child) {
+          ++stats.boxTests;
+          const float t = rayBoxEntry(ray.box, view.node(child).box);
+          if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, child};
+        });
+    if (stop) return best;
+    query::pushNearFirst(children, near, stack,
+                         [&](float entry) { return static_cast<double>(entry) <= best.t; });
   }
   return best;
 }

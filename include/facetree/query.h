@@ -87,6 +87,28 @@ std::vector<std::vector<uint64_t>> overlap(ClusterFileReader& reader, std::span<
 // The same by testing every triangle: the same triangles.
 std::vector<uint64_t> overlapBruteForce(const ClusterFile& file, const QueryBox& box);
 
+// The point of the surface nearest to a query point: its triangle (position in the face order and
+// original id), the point and its distance. Of triangles at the same distance, the one first in
+// the face order. No triangle within the radius: face kNoHit.
+struct NearestHit {
+  uint64_t face = kNoHit;
+  uint64_t originalFace = kNoHit;
+  glm::vec3 point{0.0f};
+  float distance = std::numeric_limits<float>::infinity();
+};
+// The nearest surface point to each point, within `radius` (Ericson's closest point of a triangle,
+// 2005, sec. 5.1.5, in double precision; nodes in order of their boxes' distance, each lowered by
+// a margin of its rounding).
+std::vector<NearestHit> nearest(const ClusterFile& file, std::span<const glm::vec3> points,
+                                float radius = std::numeric_limits<float>::infinity(),
+                                const QueryOptions& options = {}, QueryStats* stats = nullptr);
+std::vector<NearestHit> nearest(ClusterFileReader& reader, std::span<const glm::vec3> points,
+                                float radius = std::numeric_limits<float>::infinity(),
+                                const QueryOptions& options = {}, QueryStats* stats = nullptr);
+// The same by testing every triangle: the same hits.
+NearestHit nearestBruteForce(const ClusterFile& file, const glm::vec3& point,
+                             float radius = std::numeric_limits<float>::infinity());
+
 // A picture by ray casting, to check the queries by eye: one ray per pixel, orthographic, along
 // options.viewDirection, framing the file's bounding box; a hit is grey by the angle between its
 // triangle and the view, a miss white. Through the reader, under its cap.

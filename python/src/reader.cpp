@@ -278,7 +278,42 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
           py::arg("lo"), py::arg("hi"), py::arg("threads") = 0,
           R"(The triangles overlapping each axis-aligned box [lo[i], hi[i]] (touching counts), through the
 hierarchy under the reader's cap: (offsets, faces), box i's face positions (increasing) being
-faces[offsets[i]:offsets[i + 1]]. The GIL is released.)");
+faces[offsets[i]:offsets[i + 1]]. The GIL is released.)")
+      .def(
+          "nearest",
+          [](PyReader& r, const py::object& points, std::optional<float> radius, unsigned threads) {
+            using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+            const Floats p = Floats::ensure(points);
+            if (!p || p.ndim() != 2 || p.shape(1) != 3)
+              throw ArgumentError("nearest: points must be an (N, 3) array");
+            std::vector<glm::vec3> at(static_cast<size_t>(p.shape(0)));
+            for (size_t i = 0; i < at.size(); ++i)
+              at[i] = {p.data()[3 * i], p.data()[3 * i + 1], p.data()[3 * i + 2]};
+            ClusterFileReader& reader = r.open();
+            std::vector<NearestHit> hits;
+            {
+              py::gil_scoped_release release;
+              hits = nearest(reader, at, radius.value_or(std::numeric_limits<float>::infinity()), {threads});
+            }
+            const auto n = static_cast<py::ssize_t>(hits.size());
+            std::vector<float> distance(hits.size()), point(3 * hits.size());
+            std::vector<int64_t> face(hits.size()), original(hits.size());
+            for (size_t i = 0; i < hits.size(); ++i) {
+              const bool hit = hits[i].face != kNoHit;
+              distance[i] = hits[i].distance;
+              face[i] = hit ? static_cast<int64_t>(hits[i].face) : -1;
+              original[i] = hit ? static_cast<int64_t>(hits[i].originalFace) : -1;
+              for (int a = 0; a < 3; ++a) point[3 * i + a] = hits[i].point[a];
+            }
+            return py::make_tuple(arrayOwning(std::move(distance), {n}), arrayOwning(std::move(face), {n}),
+                                  arrayOwning(std::move(original), {n}),
+                                  arrayOwning(std::move(point), {n, 3}));
+          },
+          py::arg("points"), py::arg("radius") = py::none(), py::arg("threads") = 0,
+          R"(The nearest surface point to each of (N, 3) points, within radius (None: any distance), through
+the hierarchy under the reader's cap: (distance, face, original_id, point), (N,) float32 (inf when no
+triangle is within the radius), (N,) int64 positions in the file's face order and original ids (-1
+then), (N, 3) float32 points. The GIL is released.)");
 
   // A reader of `name`, opened by `from` (a path or a descriptor) with the GIL released.
   const auto open = [](const std::string& name, uint64_t memory, const std::filesystem::path& tmp,

@@ -242,3 +242,25 @@ def test_boxes_through_the_reader_find_the_triangles_a_numpy_scan_finds(files):
         assert set(np.flatnonzero(inside)) <= set(got.tolist())
         found_any += len(got) > 0
     assert 10 < found_any < 60
+
+
+def test_nearest_points_through_the_reader_are_on_the_nearest_triangle(files):
+    """f.nearest: each point found lies on its triangle, no triangle corner is nearer than it, and a
+    radius below the distance finds nothing."""
+    path = files[1]
+    h = facetree.load(str(path))
+    corners = h.vertices[h.triangles].astype(np.float64)
+    lo, hi = h.vertices.min(axis=0), h.vertices.max(axis=0)
+    points = (lo + (hi - lo) * np.random.default_rng(8).uniform(-0.2, 1.2, (100, 3))).astype(np.float32)
+    with facetree.open(path, memory="2M") as f:
+        distance, face, original, point = f.nearest(points)
+        assert (face >= 0).all() and np.array_equal(original, h.face_order[face])
+        assert np.allclose(np.linalg.norm(point - points, axis=1), distance, rtol=1e-5)
+        nearest_corner = np.linalg.norm(corners - points[:, None, None, :].astype(np.float64), axis=3).min(axis=(1, 2))
+        assert (distance <= nearest_corner * (1 + 1e-6) + 1e-7).all()
+        for i in range(len(points)):  # the point lies in its triangle's plane, within its bounds
+            tri = corners[face[i]]
+            n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+            assert abs(np.dot(point[i] - tri[0], n)) <= 1e-4 * np.linalg.norm(n) * (np.abs(tri).max() + 1)
+        far, none, _, _ = f.nearest(points, radius=float(distance.min()) * 0.5)
+        assert (none == -1).all() and np.isinf(far).all()
