@@ -69,8 +69,7 @@ void testRange(View& view, const glm::dvec3& p, uint64_t first, uint64_t count, 
     const glm::dvec3 q =
         closestOnTriangle(p, glm::dvec3(corner[0]), glm::dvec3(corner[1]), glm::dvec3(corner[2]));
     const double d2 = glm::dot(q - p, q - p);
-    if (d2 < best.distance2 || (d2 == best.distance2 && best.face != kNoHit && f < best.face) ||
-        (d2 <= best.distance2 && best.face == kNoHit))
+    if (d2 < best.distance2 || (d2 == best.distance2 && (best.face == kNoHit || f < best.face)))
       best = {d2, f, q};
   }
 }

@@ -131,7 +131,7 @@ class ReaderSource {
                    const uint64_t first = k * facesPerFrame_;
                    auto mesh = std::make_shared<FaceRangeMesh>(
                        reader_.faces(first, std::min(facesPerFrame_, faceCount() - first)));
-                   mesh->vertexIds = {};
+                   std::vector<uint64_t>().swap(mesh->vertexIds);  // not needed: its memory goes
                    e.bytes = mesh->vertices.size() * sizeof(glm::vec3) +
                              mesh->indices.size() * sizeof(uint32_t) +
                              mesh->originalFace.size() * sizeof(uint64_t) + 64;

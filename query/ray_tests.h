@@ -45,8 +45,7 @@ inline bool rayTriangle(const glm::dvec3& origin, const glm::dvec3& direction, d
   return true;
 }
 
-// A ray in the frames of boxes: the origin and direction, and 1 / direction per axis of a frame
-// computed per box.
+// A ray as the boxes meet it: in float, with its t range (each box turns it into its own frame).
 struct BoxRay {
   glm::vec3 origin, direction;
   float tMin, tMax;

@@ -31,15 +31,21 @@ void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
   const float pixel = 1.1f * std::max(2 * halfRight / options.width, 2 * halfUp / options.height);
   const float size = pixel > 0 ? pixel : 1.0f;
   // The rays in tiles of 16 x 16 pixels, tile by tile: neighbouring rays visit the same nodes, so
-  // that a batch's block of rays works in a few frames of a file read lazily.
+  // that a batch's block of rays works in a few frames of a file read lazily. The rays are made and
+  // cast in batches of 256 tiles, so that what they hold stays a few MB whatever the picture's size.
   constexpr int kTile = 16;
+  constexpr size_t kBatchTiles = 256;
+  const int tilesAcross = (options.width + kTile - 1) / kTile;
+  const size_t tiles = size_t{1} * tilesAcross * ((options.height + kTile - 1) / kTile);
+  const glm::vec3 start = centre - basis.forward * (depth + size);
+  std::vector<uint8_t> rgb(size_t{3} * options.width * options.height, 255);
   std::vector<Ray> rays;
   std::vector<size_t> pixelOf;
-  rays.reserve(size_t{1} * options.width * options.height);
-  pixelOf.reserve(rays.capacity());
-  const glm::vec3 start = centre - basis.forward * (depth + size);
-  for (int ty = 0; ty < options.height; ty += kTile)
-    for (int tx = 0; tx < options.width; tx += kTile)
+  for (size_t firstTile = 0; firstTile < tiles; firstTile += kBatchTiles) {
+    rays.clear(), pixelOf.clear();
+    for (size_t tile = firstTile; tile < std::min(tiles, firstTile + kBatchTiles); ++tile) {
+      const int tx = static_cast<int>(tile % tilesAcross) * kTile,
+                ty = static_cast<int>(tile / tilesAcross) * kTile;
       for (int y = ty; y < std::min(ty + kTile, options.height); ++y)
         for (int x = tx; x < std::min(tx + kTile, options.width); ++x) {
           Ray r;
@@ -49,19 +55,14 @@ void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
           rays.push_back(r);
           pixelOf.push_back(size_t{1} * y * options.width + x);
         }
-  // In batches of 256 tiles, so that the hits in memory stay a few MB whatever the picture's size.
-  constexpr size_t kBatch = size_t{256} * kTile * kTile;
-  std::vector<uint8_t> rgb(3 * rays.size(), 255);
-  for (size_t first = 0; first < rays.size(); first += kBatch) {
-    const size_t count = std::min(kBatch, rays.size() - first);
-    const std::vector<RayHit> hits =
-        intersect(reader, std::span<const Ray>(rays).subspan(first, count), queryOptions, stats);
-    for (size_t r = 0; r < count; ++r) {
+    }
+    const std::vector<RayHit> hits = intersect(reader, rays, queryOptions, stats);
+    for (size_t r = 0; r < hits.size(); ++r) {
       if (hits[r].face == kNoHit) continue;
       const float length = glm::length(hits[r].normal);
       const float facing = length > 0 ? std::abs(glm::dot(hits[r].normal, basis.forward)) / length : 0.0f;
       const auto grey = static_cast<uint8_t>(std::lround(40.0f + 190.0f * facing));
-      const size_t i = pixelOf[first + r];
+      const size_t i = pixelOf[r];
       rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = grey;
     }
   }

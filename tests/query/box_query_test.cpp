@@ -19,8 +19,7 @@ namespace facetree {
 namespace {
 
 std::vector<QueryBox> boxesAround(const ClusterFile& file, size_t count, uint32_t seed) {
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const glm::vec3& v : file.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  const auto [lo, hi] = test::vertexBounds(file);
   const glm::vec3 extent = hi - lo;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);

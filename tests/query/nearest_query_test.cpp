@@ -16,8 +16,7 @@ namespace facetree {
 namespace {
 
 std::vector<glm::vec3> pointsAround(const ClusterFile& file, size_t count, uint32_t seed) {
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const glm::vec3& v : file.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  const auto [lo, hi] = test::vertexBounds(file);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> unit(-0.5f, 1.5f);
   std::uniform_int_distribution<size_t> vertex(0, file.vertices.size() - 1);
@@ -36,8 +35,7 @@ TEST_P(NearestQueries, TheNearestPointsAreTheBruteForceOnesOnTheFileItsPrefixesA
   const IndexedMesh mesh = test::loadShared(name);
   const ClusterFile whole = test::fileOf(mesh.view(), branching, precision);
   const std::vector<glm::vec3> points = pointsAround(whole, 600, 4);
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-lo);
-  for (const glm::vec3& v : whole.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  const auto [lo, hi] = test::vertexBounds(whole);
   const float radius = 0.02f * glm::length(hi - lo);
   for (const size_t keep : {whole.nodes.size(), whole.nodes.size() / 10, size_t{1}}) {
     SCOPED_TRACE("nodes kept: " + std::to_string(keep));

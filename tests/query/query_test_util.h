@@ -2,6 +2,10 @@
 #pragma once
 
 #include <filesystem>
+#include <limits>
+#include <utility>
+
+#include <glm/common.hpp>
 
 #include "facetree/grid.h"
 #include "facetree/io.h"
@@ -21,6 +25,13 @@ inline ClusterFile fileOf(const MeshView& mesh, unsigned branching, BoxPrecision
   options.branching = branching;
   options.build = build;
   return makeClusterFile(mesh, {}, buildHierarchy(mesh, build), options);
+}
+
+// The box of the file's vertices: (low, high).
+inline std::pair<glm::vec3, glm::vec3> vertexBounds(const ClusterFile& file) {
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const glm::vec3& v : file.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  return {lo, hi};
 }
 
 }  // namespace facetree::test

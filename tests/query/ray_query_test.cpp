@@ -20,8 +20,7 @@ namespace {
 // Rays from points around the mesh's box through random points of it (many hit), and rays of
 // random origin and direction (many miss), and some with a short tMax.
 std::vector<Ray> raysAround(const ClusterFile& file, size_t count, uint32_t seed) {
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const glm::vec3& v : file.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  const auto [lo, hi] = test::vertexBounds(file);
   const glm::vec3 center = 0.5f * (lo + hi), extent = hi - lo;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
