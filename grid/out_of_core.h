@@ -316,7 +316,7 @@ struct WritePlan {
   std::vector<uint32_t> runPosition, runFirst;  // per run (global index): file position, first node
   std::vector<uint32_t> leafOrder;              // leaf id by rank
   std::vector<uint32_t> leafFirstBlock, leafBlockCount;  // per leaf id: its runs
-  std::vector<FchNode> upperNodes;                       // by file index (reverse creation order)
+  std::vector<FchNode> upperNodes;                       // tasks: by file index (reverse creation order)
   std::vector<uint32_t> upperPosition;                   // likewise
   std::vector<NodeBox> upperParentBox;        // compact boxes: each upper node's parent's decoded box
   std::vector<uint32_t> upperParentPosition;  // and its parent's file position (the root: none)
@@ -337,6 +337,32 @@ struct WritePlan {
 };
 WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                            const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
+
+// The write's task bodies (write_ranges.cpp), one implementation for every schedule: each writes
+// into `writer` a piece of the file (a task) or the whole file (one process, the ranges whole).
+// The geometry of triangles [firstTriangle, endTriangle) and vertices [firstVertex, endVertex):
+// with `boxes`, the upper nodes' exact boxes accumulate the blocks that start in the range, a part
+// per WritePlan::boxPart triangles (UpperBoxes::endPart); without `writer`, the boxes alone. With
+// `discard`, each geometry block is given back once read (the range read once, whole). `where`
+// names the plan in errors; `progress` gets the range's triangles done.
+class UpperBoxes;
+struct GeometryRange {
+  uint64_t firstTriangle = 0, endTriangle = 0, firstVertex = 0, endVertex = 0;
+};
+void writeGeometryRange(const WritePlan& plan, SpillFile& geometry, const GeometryRange& range,
+                        ClusterFileWriter* writer, UpperBoxes* boxes, bool discard, const std::string& where,
+                        const std::function<void(uint64_t)>& progress);
+// The nodes at file positions [first, end): upper node j (by file index) as `upperNode` makes it,
+// the leaves' runs from `runs` in `order`.
+void writeNodeRange(const WritePlan& plan, SpillFile& order, SpillFile& runs, uint64_t first, uint64_t end,
+                    ClusterFileWriter& writer, const std::function<FchNode(uint32_t)>& upperNode,
+                    const std::function<void(uint64_t)>& progress);
+// The file position of node `local` of leaf `leaf`, from its run's.
+uint32_t runNodePosition(const WritePlan& plan, uint32_t leaf, uint32_t local);
+// Exact boxes: every upper node's accumulator as the upper step framed it, empty (by creation
+// index), and the merged boxes by file index (WritePlan::upperNodes' order).
+std::vector<BoxAccumulator> upperFrames(const WritePlan& plan);
+std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& boxes);
 
 // Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <utility>
 
@@ -49,9 +50,11 @@ class WriteStage {
         graph_(std::move(graph)),
         upper_(upper),
         subtrees_(std::move(subtrees)) {}
+  // One process: the plan in memory, then the geometry and the nodes straight into the file by
+  // the stages' own task bodies (writeGeometryRange, writeNodeRange), the ranges whole.
   void run();
-  // The stages' upper step: the geometry as a piece of the file in `work`, the node order and (for
-  // compact boxes) the quantised runs as named spills there, and what the node tasks need.
+  // The stages' upper step: the node order and (for compact boxes) the quantised runs as named
+  // spills in `work`, and the plan the geometry, boxes and node tasks take.
   WritePlan runPieces(const std::filesystem::path& work);
 
  private:
@@ -62,10 +65,15 @@ class WriteStage {
     UpperFrames frames;
   };
   Start start();
+  // The write plan. Compact boxes need the upper nodes' boxes to quantise the leaves' runs: the
+  // geometry is read here for them, and written into `writer` on the way when there is one.
+  WritePlan plan(Start& begun, ClusterFileWriter* writer);
   StreamFileInfo fileInfo(const FileLayout& layout) const;
   WriteOptions writeOptions() const;
-  // Upper node j (by file index: reverse creation order) as the file has it.
-  FchNode upperNode(uint32_t j, const FileLayout& layout, const UpperFrames& frames) const;
+  // Upper node j (by file index: reverse creation order) as the file has it, its children placed
+  // by the plan's tables.
+  FchNode upperNode(uint32_t j, const WritePlan& plan, const FileLayout& layout,
+                    const UpperFrames& frames) const;
   // Compact boxes: every upper node's box as the file decodes it (parents first).
   std::vector<NodeBox> upperDecodedBoxes(const FileLayout& layout, const UpperFrames& frames) const;
   // The node order, sorted on disk.
@@ -73,13 +81,8 @@ class WriteStage {
   // The file position of every upper node (by file index) and of every run's first node; the
   // order is kept in order_ for the node pass.
   void place(OrderSorter& order);
-  uint32_t nodePosition(uint32_t leaf, uint32_t local) const;
-  // The geometry into `writer` leaf by leaf, every upper node's box accumulating on the way; with
-  // no writer, the boxes alone (the stages' geometry tasks write the frames).
-  void writeGeometry(ClusterFileWriter* writer, const FileLayout& layout, UpperFrames& frames,
-                     uint64_t& done);
-  void writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
-                  uint64_t& done);
+  // Reports the write's progress: its triangles and nodes done.
+  void progress(uint64_t done) const;
   // Compact boxes: every leaf run's records quantised against their parents' decoded boxes, leaf by
   // leaf in spill order, into a spill that replaces the node spill (and the runs' tables).
   void compactRuns(const FileLayout& layout, const UpperFrames& frames);
@@ -97,6 +100,8 @@ class WriteStage {
   BoxPrecision runRecords_ = BoxPrecision::Exact;  // the node spill's records (compactRuns)
   std::vector<SpillBlock> orderBlocks_;
   std::vector<uint64_t> orderFirst_;  // the file position of each order block's first node
+  bool geometryWritten_ = false;      // plan() wrote the geometry (compact boxes, one process)
+  uint64_t total_ = 0;                // the write's triangles and nodes, for progress
 };
 
 FileLayout WriteStage::layout() const {
@@ -238,66 +243,19 @@ void WriteStage::place(OrderSorter& order) {
   }
 }
 
-uint32_t WriteStage::nodePosition(uint32_t leaf, uint32_t local) const {
-  const LeafCluster& l = graph_.leaves[leaf];
-  const auto begin = graph_.runFirst.begin() + l.firstBlock;
-  const auto it = std::upper_bound(begin, begin + l.blockCount, local) - 1;
-  const auto run = static_cast<size_t>(it - graph_.runFirst.begin());
-  return runPosition_[run] + (local - *it);
+void WriteStage::progress(uint64_t done) const {
+  context_.checkCancel("write", done, total_);
 }
 
-// Geometry, leaf by leaf; the upper ancestors of each leaf see its triangles.
-void WriteStage::writeGeometry(ClusterFileWriter* writer, const FileLayout& layout, UpperFrames& frames,
-                               uint64_t& done) {
-  std::vector<std::byte> raw;
-  std::vector<glm::vec3> leafVertices;
-  std::vector<uint32_t> indices, ancestors;
-  std::vector<uint64_t> ids;
-  uint64_t vertexBase = 0, triangle = 0, part = 0;
-  const uint64_t partTriangles = boxPartTriangles(context_.job);
-  UpperBoxes upperBoxes(frames.boxes, context_.job.threads > 1);
-  SpillFile& geometry = *subtrees_.geometry;
-  for (const uint32_t leafId : layout.leafOrder) {
-    const LeafCluster& leaf = graph_.leaves[leafId];
-    ancestors.clear();
-    for (uint32_t a = layout.leafParent[leafId]; a != kNone; a = layout.nodeParent[a]) ancestors.push_back(a);
-    leafVertices.clear();
-    for (uint32_t g = 0; g < leaf.geometryCount; ++g) {
-      geometry.read(graph_.geometry[leaf.firstGeometry + g], raw, codec_);
-      geometry.discard(graph_.geometry[leaf.firstGeometry + g]);
-      const size_t firstNew = leafVertices.size();
-      const GeometryBlockHeader header = decodeGeometryBlock(raw, leafVertices, indices, ids);
-      if (writer) writer->addVertices(std::span(leafVertices).subspan(firstNew));
-      if (triangle / partTriangles != part) {  // the block starts a part (kBoxPartTriangles)
-        upperBoxes.endPart();
-        part = triangle / partTriangles;
-      }
-      triangle += header.triangles;
-      upperBoxes.add(leafVertices, indices, ancestors);
-      if (writer) {
-        for (uint32_t& v : indices) v += static_cast<uint32_t>(vertexBase);
-        writer->addTriangles(indices, ids);
-      }
-      done += header.triangles;
-    }
-    vertexBase += leaf.vertexCount;
-    context_.checkCancel("write", done, layout.faces + layout.nodes);
-  }
-  upperBoxes.finish();
-  if (writer) {  // else the geometry tasks read it again
-    subtrees_.geometry.reset();
-    std::exchange(graph_.geometry, {});
-  }
-}
-
-FchNode WriteStage::upperNode(uint32_t j, const FileLayout& layout, const UpperFrames& frames) const {
+FchNode WriteStage::upperNode(uint32_t j, const WritePlan& plan, const FileLayout& layout,
+                              const UpperFrames& frames) const {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   const UpperRecast& recast = layout.recast;
   const auto childRef = [&](uint32_t c) -> uint32_t {
-    if (!(c & kLeafChild)) return upperPosition_[upperCount - 1 - c];
+    if (!(c & kLeafChild)) return plan.upperPosition[upperCount - 1 - c];
     const uint32_t leaf = c & ~kLeafChild;
-    return graph_.leaves[leaf].nodeCount ? nodePosition(leaf, 0)
+    return graph_.leaves[leaf].nodeCount ? runNodePosition(plan, leaf, 0)
                                          : kFaceChild | static_cast<uint32_t>(layout.faceBase[leaf]);
   };
   const auto childFaces = [&](uint32_t c) -> uint32_t {
@@ -322,42 +280,6 @@ FchNode WriteStage::upperNode(uint32_t j, const FileLayout& layout, const UpperF
   n.sumNormal = glm::vec3(u.stats.sumNormal);
   n.box = frames.boxes[i].box();
   return n;
-}
-
-// Nodes in `order`: upper nodes made from the merge's records and their frames, leaf runs read back
-// with their leaf-local references made global.
-void WriteStage::writeNodes(ClusterFileWriter& writer, const FileLayout& layout, const UpperFrames& frames,
-                            uint64_t& done) {
-  std::vector<FchNode> out;
-  out.reserve(std::min<size_t>(upper_.nodes.size(), 4096));
-  const auto upperNode = [&](uint32_t j) { return this->upperNode(j, layout, frames); };
-  {
-    NodeRunReader reader(*order_, orderBlocks_, *subtrees_.nodes);
-    while (NodeRunReader::Batch* batch = reader.next()) {
-      const char* records = batch->records.data();
-      for (const NodeRef& ref : batch->refs) {
-        if (ref.kind == 0) {
-          out.push_back(upperNode(ref.leafRank));
-          continue;
-        }
-        if (!out.empty()) {
-          writer.addNodes(out);
-          out.clear();
-        }
-        // The records as they are, their node children placed (and compact boxes quantised).
-        const uint32_t leafId = layout.leafOrder[ref.leafRank];
-        done += ref.count;
-        writer.addNodeRun(
-            std::string_view(records, ref.rawBytes), ref.count, graph_.runFirst[ref.run],
-            [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); }, runRecords_);
-        records += ref.rawBytes;
-      }
-      context_.checkCancel("write", done, layout.faces + layout.nodes);
-    }
-  }
-  writer.addNodes(out);
-  subtrees_.nodes.reset();
-  order_.reset();
 }
 
 std::vector<NodeBox> WriteStage::upperDecodedBoxes(const FileLayout& layout,
@@ -467,100 +389,18 @@ WriteStage::Start WriteStage::start() {
   return s;
 }
 
-void WriteStage::run() {
-  Start begun = start();
+WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
   const FileLayout& fileLayout = begun.layout;
   UpperFrames& frames = begun.frames;
-  JobReport& report = context_.report;
-  const ClusterJob& job = context_.job;
-  TempSpace& temp = context_.temp;
-  ClusterFileWriter writer(job.output, fileInfo(fileLayout), writeOptions(), temp.path());
-  writer.setTemporaryBytesHook([&temp](int64_t delta) {
-    if (delta > 0)
-      temp.reserve(static_cast<uint64_t>(delta));
-    else
-      temp.release(static_cast<uint64_t>(-delta));
-  });
-
-  uint64_t done = 0;
-  writeGeometry(&writer, fileLayout, frames, done);
-  releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
-  // With compact boxes a leaf's boxes depend on their ancestors' only: quantised leaf by leaf here,
-  // so that the node pass keeps no box of a node waiting for its children.
-  if (job.build.boxes == BoxPrecision::Compact && !upper_.nodes.empty()) compactRuns(fileLayout, frames);
-  place(*nodeOrder(fileLayout));
-  writeNodes(writer, fileLayout, frames, done);
-  report.fileBytes = writer.finish();
-}
-
-WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
-  work_ = &work;
-  Start begun = start();
-  const FileLayout& fileLayout = begun.layout;
-  UpperFrames& frames = begun.frames;
-
+  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
+  total_ = fileLayout.faces + fileLayout.nodes;
   WritePlan plan;
   plan.info = fileInfo(fileLayout);
   plan.options = writeOptions();
-  // Exact boxes: the geometry tasks accumulate the upper nodes' boxes as they read the geometry
-  // (each its part), and the boxes step merges them. Compact boxes are needed here, to quantise
-  // the leaves' runs, so this step reads the geometry for them, in the same parts.
-  const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
-  plan.boxesInTasks = context_.job.build.boxes == BoxPrecision::Exact && upperCount > 0;
   plan.boxPart = boxPartTriangles(context_.job);
-  if (plan.boxesInTasks) {
-    plan.upperOrientation.resize(upperCount);
-    plan.upperOrigin.resize(upperCount);
-    plan.upperHasOrigin.resize(upperCount);
-    for (uint32_t i = 0; i < upperCount; ++i) {
-      plan.upperOrientation[i] = frames.boxes[i].orientation();
-      plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
-    }
-    plan.upperParent = fileLayout.nodeParent;
-    plan.leafUpperParent = fileLayout.leafParent;
-  } else if (upperCount > 0) {
-    uint64_t done = 0;
-    writeGeometry(nullptr, fileLayout, frames, done);
-  }
-  releaseFreeMemory();
-  const bool compact = context_.job.build.boxes == BoxPrecision::Compact && !upper_.nodes.empty();
-  if (compact) compactRuns(fileLayout, frames);
-  place(*nodeOrder(fileLayout));
-  order_->commit();
-  if (compact) subtrees_.nodes->commit();
-
-  plan.records = runRecords_;
-  plan.compactNodes = compact;
-  plan.orderBlocks = std::move(orderBlocks_);
-  plan.orderFirst = std::move(orderFirst_);
-  // Every upper node's record first: they read the run tables (nodePosition), which move into the plan.
-  plan.upperNodes.resize(upperCount);
-  for (uint32_t j = 0; j < upperCount; ++j)
-    if (fileLayout.recast.kept[upperCount - 1 - j]) plan.upperNodes[j] = upperNode(j, fileLayout, frames);
-  plan.runPosition = std::move(runPosition_);
-  plan.runFirst = std::move(graph_.runFirst);
+  // The geometry tasks' tables: every leaf's geometry blocks and, per leaf id, its first block,
+  // block count, vertices and faces; the upper tree above the leaves.
   plan.leafOrder = fileLayout.leafOrder;
-  plan.leafFirstBlock.resize(graph_.leaves.size());
-  plan.leafBlockCount.resize(graph_.leaves.size());
-  for (size_t l = 0; l < graph_.leaves.size(); ++l) {
-    plan.leafFirstBlock[l] = graph_.leaves[l].firstBlock;
-    plan.leafBlockCount[l] = graph_.leaves[l].blockCount;
-  }
-  plan.upperPosition = upperPosition_;
-  if (context_.job.build.boxes == BoxPrecision::Compact) {
-    // Each upper node's parent's box as decoded, for a node task that holds the node but not its parent.
-    const std::vector<NodeBox> decoded = upperDecodedBoxes(fileLayout, frames);
-    plan.upperParentBox.resize(upperCount);
-    plan.upperParentPosition.assign(upperCount, kNone);
-    for (uint32_t j = 0; j < upperCount; ++j) {
-      const uint32_t i = upperCount - 1 - j, parent = fileLayout.nodeParent[i];
-      if (!fileLayout.recast.kept[i] || parent == kNone) continue;
-      plan.upperParentBox[j] = decoded[parent];
-      plan.upperParentPosition[j] = upperPosition_[upperCount - 1 - parent];
-    }
-  }
-  // The geometry tasks need each leaf's blocks (the geometry spills stay as the cells tasks left
-  // them); here the geometry is only read, for the upper nodes' boxes.
   plan.geometry = std::move(graph_.geometry);
   const size_t leaves = graph_.leaves.size();
   plan.leafFirstGeometry.resize(leaves);
@@ -574,7 +414,114 @@ WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
     plan.leafVertices[l] = leaf.vertexCount;
     plan.leafFaces[l] = leaf.faceCount;
   }
+  plan.upperParent = fileLayout.nodeParent;
+  plan.leafUpperParent = fileLayout.leafParent;
+  // Exact boxes: the geometry tasks accumulate the upper nodes' boxes as they write the geometry
+  // (each its part), and the boxes step merges them. Compact boxes are needed now, to quantise
+  // the leaves' runs, so the geometry is read here for them, in the same parts.
+  plan.boxesInTasks = context_.job.build.boxes == BoxPrecision::Exact && upperCount > 0;
+  if (plan.boxesInTasks) {
+    plan.upperOrientation.resize(upperCount);
+    plan.upperOrigin.resize(upperCount);
+    plan.upperHasOrigin.resize(upperCount);
+    for (uint32_t i = 0; i < upperCount; ++i) {
+      plan.upperOrientation[i] = frames.boxes[i].orientation();
+      plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
+    }
+  } else if (upperCount > 0) {
+    UpperBoxes boxes(frames.boxes, context_.job.threads > 1);
+    const GeometryRange whole{0, fileLayout.faces, 0, fileLayout.vertices};
+    writeGeometryRange(plan, *subtrees_.geometry, whole, writer, &boxes, /*discard=*/writer != nullptr,
+                       "the write plan", [&](uint64_t done) { progress(done); });
+    boxes.finish();
+    geometryWritten_ = writer != nullptr;
+  }
+  releaseFreeMemory();
+  const bool compact = context_.job.build.boxes == BoxPrecision::Compact && upperCount > 0;
+  // With compact boxes a leaf's boxes depend on their ancestors' only: quantised leaf by leaf here,
+  // so that the node pass keeps no box of a node waiting for its children.
+  if (compact) compactRuns(fileLayout, frames);
+  place(*nodeOrder(fileLayout));
+  releaseFreeMemory();  // the order's sort, before the passes that write the file
+
+  plan.records = runRecords_;
+  plan.compactNodes = compact;
+  plan.orderBlocks = std::move(orderBlocks_);
+  plan.orderFirst = std::move(orderFirst_);
+  plan.runPosition = std::move(runPosition_);
+  plan.runFirst = std::move(graph_.runFirst);
+  plan.leafFirstBlock.resize(leaves);
+  plan.leafBlockCount.resize(leaves);
+  for (size_t l = 0; l < leaves; ++l) {
+    plan.leafFirstBlock[l] = graph_.leaves[l].firstBlock;
+    plan.leafBlockCount[l] = graph_.leaves[l].blockCount;
+  }
+  plan.upperPosition = std::move(upperPosition_);
+  if (!work_) return plan;
+  // The node tasks' upper nodes, made once here (one process makes each as the node pass reaches
+  // it: upperNode).
+  plan.upperNodes.resize(upperCount);
+  for (uint32_t j = 0; j < upperCount; ++j)
+    if (fileLayout.recast.kept[upperCount - 1 - j])
+      plan.upperNodes[j] = upperNode(j, plan, fileLayout, frames);
+  if (context_.job.build.boxes == BoxPrecision::Compact) {
+    // Each upper node's parent's box as decoded, for a node task that holds the node but not its parent.
+    const std::vector<NodeBox> decoded = upperDecodedBoxes(fileLayout, frames);
+    plan.upperParentBox.resize(upperCount);
+    plan.upperParentPosition.assign(upperCount, kNone);
+    for (uint32_t j = 0; j < upperCount; ++j) {
+      const uint32_t i = upperCount - 1 - j, parent = fileLayout.nodeParent[i];
+      if (!fileLayout.recast.kept[i] || parent == kNone) continue;
+      plan.upperParentBox[j] = decoded[parent];
+      plan.upperParentPosition[j] = plan.upperPosition[upperCount - 1 - parent];
+    }
+  }
   return plan;
+}
+
+void WriteStage::run() {
+  Start begun = start();
+  const ClusterJob& job = context_.job;
+  TempSpace& temp = context_.temp;
+  ClusterFileWriter writer(job.output, fileInfo(begun.layout), writeOptions(), temp.path());
+  writer.setTemporaryBytesHook([&temp](int64_t delta) {
+    if (delta > 0)
+      temp.reserve(static_cast<uint64_t>(delta));
+    else
+      temp.release(static_cast<uint64_t>(-delta));
+  });
+  const WritePlan p = plan(begun, &writer);
+  const FileHeader& header = p.info.header;
+  // The geometry tasks, and for exact boxes the boxes step, as one range: the parts merge into the
+  // totals as they end, in the order the boxes step merges the tasks' parts.
+  uint64_t done = 0;
+  if (!geometryWritten_) {
+    std::optional<UpperBoxes> boxes;
+    if (p.boxesInTasks) boxes.emplace(begun.frames.boxes, job.threads > 1);
+    const GeometryRange whole{0, header.triangleCount, 0, header.vertexCount};
+    writeGeometryRange(p, *subtrees_.geometry, whole, &writer, boxes ? &*boxes : nullptr, /*discard=*/true,
+                       "the write plan", [&](uint64_t triangles) { progress(done = triangles); });
+    if (boxes) boxes->finish();
+  }
+  subtrees_.geometry.reset();
+  done = header.triangleCount;
+  releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
+  writeNodeRange(
+      p, *order_, *subtrees_.nodes, 0, header.nodeCount, writer,
+      [&](uint32_t j) { return upperNode(j, p, begun.layout, begun.frames); },
+      [&](uint64_t nodes) { progress(done + nodes); });
+  subtrees_.nodes.reset();
+  order_.reset();
+  context_.report.fileBytes = writer.finish();
+}
+
+WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
+  work_ = &work;
+  Start begun = start();
+  WritePlan p = plan(begun, nullptr);
+  order_->commit();
+  if (p.compactNodes) subtrees_.nodes->commit();
+  return p;
 }
 
 }  // namespace

@@ -267,18 +267,6 @@ std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work) {
 
 namespace {
 
-// Every upper node's box accumulator as the upper step framed it: empty, its orientation and
-// reference vertex (by creation index).
-std::vector<BoxAccumulator> upperFrames(const WritePlan& p) {
-  std::vector<BoxAccumulator> boxes;
-  boxes.reserve(p.upperOrientation.size());
-  for (size_t i = 0; i < p.upperOrientation.size(); ++i) {
-    BoxAccumulator& b = boxes.emplace_back(p.upperOrientation[i]);
-    if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
-  }
-  return boxes;
-}
-
 std::filesystem::path boxesPath(const std::filesystem::path& work) {
   return work / "boxes.manifest";
 }
@@ -307,10 +295,8 @@ bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
       boxes[nodes[k]].addSums(sums[k]);
     }
   }
-  std::vector<NodeBox> out(upperCount);  // by file index, as WritePlan::upperNodes
-  for (uint32_t j = 0; j < upperCount; ++j) out[j] = boxes[upperCount - 1 - j].box();
   ManifestWriter manifest;
-  manifest.putVector(out);
+  manifest.putVector(upperBoxesByFileIndex(boxes));
   manifest.commit(boxesPath(work), kBoxesKind);
   return true;
 }
@@ -351,50 +337,14 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
     for (uint32_t j = 0; j < upperCount; ++j)  // parents in earlier pieces
       if (p.upperPosition[j] >= first && p.upperPosition[j] < end && p.upperParentPosition[j] < first)
         writer.addParentBox(p.upperPosition[j], p.upperParentBox[j]);
-  // The order blocks that hold positions [first, end).
-  const auto from =
-      std::upper_bound(p.orderFirst.begin(), p.orderFirst.end(), first) - p.orderFirst.begin() - 1;
-  const auto to = std::lower_bound(p.orderFirst.begin(), p.orderFirst.end(), end) - p.orderFirst.begin();
-  const std::span<const SpillBlock> blocks =
-      std::span(p.orderBlocks)
-          .subspan(size_t(std::max<ptrdiff_t>(from, 0)), size_t(to - std::max<ptrdiff_t>(from, 0)));
-  uint64_t position = blocks.empty() ? end : p.orderFirst[size_t(std::max<ptrdiff_t>(from, 0))];
-  const auto nodePosition = [&](uint32_t leaf, uint32_t local) -> uint32_t {
-    const auto begin = p.runFirst.begin() + p.leafFirstBlock[leaf];
-    const auto it = std::upper_bound(begin, begin + p.leafBlockCount[leaf], local) - 1;
-    return p.runPosition[size_t(it - p.runFirst.begin())] + (local - *it);
-  };
-  uint64_t done = 0;
-  NodeRunReader reader(*order, blocks, *runs);
-  while (NodeRunReader::Batch* batch = reader.next()) {
-    const char* records = batch->records.data();
-    for (const NodeRef& ref : batch->refs) {
-      if (position >= end) break;
-      if (ref.kind == 0) {
-        if (position >= first) {
-          FchNode node = p.upperNodes[ref.leafRank];
-          if (p.boxesInTasks) node.box = upperBoxes[ref.leafRank];
-          writer.addNodes(std::span(&node, 1));
-        }
-        ++position;
-        continue;
-      }
-      const uint64_t runEnd = position + ref.count;
-      if (runEnd > first) {
-        const uint32_t leafId = p.leafOrder[ref.leafRank];
-        const uint64_t skip = first > position ? first - position : 0;
-        writer.addNodeRun(
-            std::string_view(records, ref.rawBytes), ref.count, p.runFirst[ref.run],
-            [&](uint64_t local) { return nodePosition(leafId, static_cast<uint32_t>(local)); }, p.records,
-            static_cast<size_t>(skip), static_cast<size_t>(std::min(runEnd, end) - position - skip));
-      }
-      records += ref.rawBytes;
-      position = runEnd;
-    }
-    done = position - std::min(position, first);
-    checkJobProgress(job, "write", done, end - first);
-    if (position >= end) break;
-  }
+  writeNodeRange(
+      p, *order, *runs, first, end, writer,
+      [&](uint32_t j) {
+        FchNode node = p.upperNodes[j];
+        if (!upperBoxes.empty()) node.box = upperBoxes[j];
+        return node;
+      },
+      [&](uint64_t done) { checkJobProgress(job, "write", done, end - first); });
   writer.finish();
   return true;
 }
@@ -416,13 +366,8 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
   options.threads = job.threads;
   options.piece = PieceRange{0, 0, firstVertex, endVertex, firstTriangle, endTriangle};
   ClusterFileWriter writer(piece, p.info, options, temp.path());
-  SpillCodec codec;
-  std::vector<std::byte> raw;
-  std::vector<glm::vec3> leafVertices;
-  std::vector<uint32_t> indices, ancestors;
-  std::vector<uint64_t> ids;
   // Exact boxes: this task's part of the upper nodes' boxes, the blocks that start in its
-  // triangles (UpperBoxes as the single process runs it, one part).
+  // triangles.
   const std::vector<BoxAccumulator> frames = p.boxesInTasks ? upperFrames(p) : std::vector<BoxAccumulator>{};
   std::vector<uint32_t> partNodes;
   std::vector<BoxAccumulator::Sums> partSums;
@@ -435,49 +380,10 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
                       partSums.push_back(parts[i].sums());
                     }
                   });
-  // The leaves in file order, as the single process's write reads them (out_of_core_write.cpp),
-  // each block's new vertices and its triangles cut to the task's ranges.
-  uint64_t vertexBase = 0, faceBase = 0;
-  for (const uint32_t leaf : p.leafOrder) {
-    if (vertexBase >= endVertex && faceBase >= endTriangle) break;
-    const uint64_t leafVertexEnd = vertexBase + p.leafVertices[leaf],
-                   leafFaceEnd = faceBase + p.leafFaces[leaf];
-    if (leafVertexEnd > firstVertex || leafFaceEnd > firstTriangle) {
-      uint64_t vertex = vertexBase, face = faceBase;
-      ancestors.clear();
-      if (boxes)
-        for (uint32_t a = p.leafUpperParent[leaf]; a != UINT32_MAX; a = p.upperParent[a]) {
-          if (a >= p.upperParent.size() || ancestors.size() > p.upperParent.size())
-            throw Error(ErrorCategory::Input,
-                        writePlanPath(work).string() + ": an upper tree that is not a tree");
-          ancestors.push_back(a);
-        }
-      leafVertices.clear();
-      for (uint32_t g = 0; g < p.leafGeometryCount[leaf]; ++g) {
-        geometry->read(p.geometry[p.leafFirstGeometry[leaf] + g], raw, codec);
-        const size_t firstNew = leafVertices.size();
-        decodeGeometryBlock(raw, leafVertices, indices, ids);
-        const std::span<const glm::vec3> vertices = std::span(leafVertices).subspan(firstNew);
-        if (boxes && face >= firstTriangle && face < endTriangle)
-          boxes->add(leafVertices, indices, ancestors);
-        const uint64_t v0 = std::max(vertex, firstVertex), v1 = std::min(vertex + vertices.size(), endVertex);
-        if (v0 < v1) writer.addVertices(vertices.subspan(size_t(v0 - vertex), size_t(v1 - v0)));
-        const uint64_t f0 = std::max(face, firstTriangle), f1 = std::min(face + ids.size(), endTriangle);
-        if (f0 < f1) {
-          const auto from = size_t(f0 - face), n = size_t(f1 - f0);
-          for (size_t k = 3 * from; k < 3 * (from + n); ++k) indices[k] += static_cast<uint32_t>(vertexBase);
-          writer.addTriangles(std::span(indices).subspan(3 * from, 3 * n), std::span(ids).subspan(from, n));
-        }
-        vertex += vertices.size();
-        face += ids.size();
-      }
-      checkJobProgress(job, "write",
-                       std::min(leafFaceEnd, endTriangle) - std::min(firstTriangle, leafFaceEnd),
-                       endTriangle - firstTriangle);
-    }
-    vertexBase = leafVertexEnd;
-    faceBase = leafFaceEnd;
-  }
+  writeGeometryRange(
+      p, *geometry, {firstTriangle, endTriangle, firstVertex, endVertex}, &writer, boxes ? &*boxes : nullptr,
+      /*discard=*/false, writePlanPath(work).string(),
+      [&](uint64_t done) { checkJobProgress(job, "write", done, endTriangle - firstTriangle); });
   if (boxes) {  // the part before the piece: a task whose piece exists has both
     boxes->finish();
     ManifestWriter out;
