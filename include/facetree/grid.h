@@ -65,7 +65,7 @@ uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t>
 // ---------------------------------------------------------------------------------------------
 // The whole job: a mesh file (or standard input) to a cluster file (or standard output) under a
 // memory cap. When the face-level build fits the cap it runs in-core (loadMesh, buildHierarchy);
-// otherwise out of core (grid/out_of_core.h): faces are binned into spatial cells spilled to
+// otherwise out of core (grid/stages/stages.h): faces are binned into spatial cells spilled to
 // temporary files, each cell's edge-connected components get their own hierarchy down to single
 // faces, and the greedy merge continues above them on their dual graph (exact adjacency across
 // cells). docs/out_of_core.md describes the stages.

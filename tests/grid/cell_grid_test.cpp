@@ -13,7 +13,7 @@
 
 #include <glm/common.hpp>
 
-#include "grid/cell_grid.h"
+#include "grid/stages/cell_grid.h"
 
 namespace facetree {
 namespace {

@@ -22,7 +22,7 @@
 #include "error_expect.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
-#include "grid/out_of_core.h"
+#include "grid/stages/stages.h"
 #include "peak_rss.h"
 
 namespace facetree {

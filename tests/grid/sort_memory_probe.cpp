@@ -12,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "grid/external_sort.h"
+#include "grid/storage/external_sort.h"
 
 namespace {
 

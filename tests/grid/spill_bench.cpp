@@ -6,8 +6,8 @@
 
 #include <benchmark/benchmark.h>
 
-#include "grid/bucket_spill.h"
-#include "grid/external_sort.h"
+#include "grid/storage/bucket_spill.h"
+#include "grid/storage/external_sort.h"
 
 namespace facetree {
 namespace {

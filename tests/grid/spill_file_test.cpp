@@ -19,8 +19,8 @@
 #include <gtest/gtest.h>
 
 #include "error_expect.h"
-#include "grid/spill_file.h"
-#include "grid/temp_space.h"
+#include "grid/storage/spill_file.h"
+#include "grid/storage/temp_space.h"
 #include "spill_test_util.h"
 
 namespace facetree {

@@ -6,8 +6,8 @@
 
 #include <gtest/gtest.h>
 
-#include "grid/temp_space.h"
-#include "grid/vertex_positions.h"
+#include "grid/storage/temp_space.h"
+#include "grid/stages/vertex_positions.h"
 #include "spill_test_util.h"
 
 namespace facetree {

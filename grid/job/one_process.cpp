@@ -1,0 +1,124 @@
+// The out-of-core build: its stages in order (stages/stages.h), each timed into the report.
+#include "stages/stages.h"
+
+#include <sys/resource.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
+#include <chrono>
+#include <functional>
+#include <string_view>
+
+namespace facetree {
+namespace {
+
+// Peak resident set so far (getrusage), for the per-stage figures of the report.
+uint64_t peakRss() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return uint64_t(usage.ru_maxrss) * 1024;
+}
+
+}  // namespace
+
+void timeStage(JobReport& report, const char* name, double& seconds, const std::function<void()>& run) {
+  const auto start = std::chrono::steady_clock::now();
+  run();
+  seconds += secondsSince(start);
+  // One entry per stage: a stage timed in two parts keeps its later peak.
+  if (!report.peakRssAfter.empty() && std::string_view(report.peakRssAfter.back().first) == name)
+    report.peakRssAfter.back().second = peakRss();
+  else
+    report.peakRssAfter.push_back({name, peakRss()});
+}
+
+void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total) {
+  if ((job.progress && !job.progress(JobProgress{phase, done, total})) ||
+      (job.build.cancelled && job.build.cancelled()))
+    throw cancelledError();
+}
+
+// The cells stage frees its memory in the worker threads' malloc arenas, which the main thread's
+// later allocations do not reuse: trimming between stages keeps the write from stacking its
+// tables on top of the cells' peak (glibc; elsewhere a no-op).
+void releaseFreeMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
+                  std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
+                  JobReport& report, const std::filesystem::path* work) {
+  report.outOfCore = true;
+  const StageContext context{job, temp, memoryCap, report, work};
+  OutOfCorePlan plan = planCells(job, memoryCap);
+  report.cellFaceLimit = plan.cellFaceLimit;
+
+  ArrivalFaces arrival;
+  timeStage(report, "read", report.secondsRead,
+            [&] { arrival = readArrival(context, std::move(reader), positions, std::move(pending)); });
+  const MeshExtent extent = arrival.extent;
+
+  BinnedFaces binned;
+  timeStage(report, "bin", report.secondsBin, [&] {
+    binned = binFaces(context, std::move(arrival), plan.cellFaceLimit);
+    planLeaves(plan, extent.triangles);
+    releaseFreeMemory();
+  });
+  if (work) {
+    savePlanManifest(context, extent, plan, binned);
+    report.temporaryBytesPeak = temp.peakBytes();
+    return;
+  }
+
+  CellsOutput cells;
+  timeStage(report, "cells", report.secondsCells,
+            [&] { cells = buildCells(context, plan, extent, std::move(binned)); });
+  finishOutOfCore(context, extent, std::move(cells));
+  report.temporaryBytesPeak = temp.peakBytes();
+}
+
+namespace {
+
+// The leaf graph and the merge above the cells, each timed into the report.
+struct Joined {
+  LeafSubtrees subtrees;
+  LeafGraph graph;
+  ClusterMergeResult upper;
+};
+Joined joinCells(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  JobReport& report = context.report;
+  Joined j;
+  j.subtrees = std::move(cells.subtrees);
+  // The leaf graph's sort joins count with the cells, as they always have.
+  timeStage(report, "cells", report.secondsCells, [&] {
+    j.graph = resolveLeafGraph(context, std::move(cells.records));
+    releaseFreeMemory();
+  });
+  timeStage(report, "merge", report.secondsMerge, [&] {
+    j.upper = mergeAbove(context, extent, j.graph);
+    releaseFreeMemory();  // the merge's stats and edges, before the write's tables take their place
+  });
+  return j;
+}
+
+}  // namespace
+
+WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  Joined j = joinCells(context, extent, std::move(cells));
+  WritePlan plan;
+  timeStage(context.report, "write", context.report.secondsWrite, [&] {
+    plan = writeUpperPieces(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees));
+  });
+  return plan;
+}
+
+void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+  Joined j = joinCells(context, extent, std::move(cells));
+  timeStage(context.report, "write", context.report.secondsWrite,
+            [&] { writeOutOfCore(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees)); });
+}
+
+}  // namespace facetree

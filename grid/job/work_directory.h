@@ -1,0 +1,217 @@
+// Internal to grid/: the work directory of the stages run as tasks (facetree/grid.h planStages,
+// runStageTask, finishStages; docs/out_of_core.md): its files' names, the plan, and what the cells
+// tasks and the finish load of it.
+//
+// Work directory:
+//   plan.manifest               the job's fingerprint and the plan; for a mesh read whole, the
+//                               read's and the bin's results, the grid and the binned spills' index
+//   cell-faces.spill, ghosts.spill          the binned faces (a mesh read whole)
+//   read-I.manifest             read task I of a mesh read in ranges: its triangles' box and counts
+//                               (an STL: a sample of its corners' positions)
+//   count-I.manifest            count task I: its faces' bins
+//   count-I-corners.spill, count-I-corners.manifest   an STL's count task I: its corners, one
+//                               bucket per weld task, and their index
+//   weld-B.manifest, weld-B-ids.spill   weld task B of an STL: its distinct positions, and its
+//                               corners' numbers, one bucket per range
+//   grid.manifest               the grid of every range's faces, the cells tasks' bounds
+//   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
+//   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
+//   cells-T.manifest            its cells' records
+//   write-order.spill, write-nodes.spill   the upper step's node order; compact boxes' node runs
+//   write-node-tables.manifest, write-geometry-tables.manifest   the upper step's write plan's
+//                               tables: what the node and the geometry tasks need of every leaf
+//                               and upper node
+//   write.manifest              its head: the tasks' bounds, the file's header, the upper boxes'
+//                               frames (the steps of one task read it alone)
+//   geometry-T.manifest         geometry task T, exact boxes: its part of the upper nodes' boxes
+//   geometry-T.piece            geometry task T: the frames of its triangles and vertices
+//   boxes.manifest              the upper nodes' exact boxes, the parts merged
+//   nodes-T.piece               node task T: the frames of its node positions
+//   layout.manifest             the file's layout: where every piece's frames go
+//   output.fch.partial          the file being placed (beside the output on another file system)
+//   place-T.manifest            place task T: piece T's frames copied into it
+// A task's manifest (a node task's piece) marks it done.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "stages/stages.h"
+#include "stages/weld_corner.h"
+#include "storage/manifest.h"
+
+namespace facetree {
+
+inline constexpr std::string_view kPlanKind = "plan";
+inline constexpr std::string_view kGridKind = "grid";
+
+inline std::filesystem::path planPath(const std::filesystem::path& work) {
+  return work / "plan.manifest";
+}
+inline std::filesystem::path gridPath(const std::filesystem::path& work) {
+  return work / "grid.manifest";
+}
+// The manifest of task `task` of a step of many tasks ("read", "count", "bin", "cells").
+inline std::filesystem::path taskManifestPath(const std::filesystem::path& work, std::string_view step,
+                                              uint32_t task) {
+  return work / (std::string(step) + "-" + std::to_string(task) + ".manifest");
+}
+// The kind its manifest says it is ("cells task").
+inline std::string taskKind(std::string_view step) {
+  return std::string(step) + " task";
+}
+// The tasks' times (job/task_times.cpp): a task that ran records its seconds and peak RSS; a new
+// plan clears the records; the finish adds them up by step into its report (its times, the
+// largest peak, the peak of each step).
+void recordStageTime(const std::filesystem::path& work, std::string_view step, uint32_t task, double seconds);
+void clearStageTimes(const std::filesystem::path& work);
+void addStageTimes(const std::filesystem::path& work, JobReport& report);
+
+// The stem of bin task `task`'s spills (distributeFaces).
+inline std::string binTaskStem(uint32_t task) {
+  return "bin-" + std::to_string(task) + "-";
+}
+
+// What the file depends on: the input (its path, size and time of change) and every option that
+// shapes the build. A plan of the same job is not made again; any other plan starts afresh.
+std::string jobFingerprint(const ClusterJob& job);
+void putReport(ManifestWriter& out, const JobReport& report);
+void takeReport(ManifestReader& in, JobReport& report);
+// The grid's owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB.
+void putOwners(ManifestWriter& out, std::span<const uint32_t> owners);
+std::vector<uint32_t> takeOwners(ManifestReader& in, const std::filesystem::path& path);
+
+// The plan of a mesh read in ranges (plan.manifest past its common part): the read tasks' faces
+// [faceBounds[i], faceBounds[i + 1]) and vertices likewise (whose non-finite ones they count).
+struct RangePlan {
+  uint64_t memoryCap = 0;
+  OutOfCorePlan plan;  // planCells'; planLeaves once the triangles are counted
+  std::vector<uint64_t> faceBounds, vertexBounds;
+  JobReport report;  // the input's info
+  // A binary STL (a triangle soup): its corners' positions welded by weldTasks tasks.
+  bool soup = false;
+  uint32_t weldTasks = 0;
+};
+
+// What the cells tasks and the finish need: the plan's manifest, and for a mesh read in ranges the
+// grid's and every bin task's.
+struct PlanState {
+  std::string fingerprint;
+  bool inCore = false;
+  bool ranges = false;
+  uint64_t memoryCap = 0;
+  MeshExtent extent;
+  OutOfCorePlan plan;
+  JobReport report;  // the read's and the bin's part
+  uint32_t cellCount = 0;
+  std::vector<uint32_t> owners;  // the grid's owner table
+  // The binned spills' segments: their files and indexes.
+  std::vector<std::filesystem::path> facesFiles, ghostsFiles;
+  std::vector<std::string> facesIndex, ghostsIndex;
+  std::vector<uint32_t> bounds;  // cells task t: cells [bounds[t], bounds[t + 1])
+  // Ranges only: the plan, the grid's split bins and the faces of each in the ranges before range
+  // i (splitSeen[i * splitBins.size() + k]).
+  RangePlan rangePlan;
+  std::vector<CellGrid::SplitBin> splitBins;
+  std::vector<uint64_t> splitSeen;
+};
+// Throws Error (Input) naming the manifest that is missing or does not fit the others.
+PlanState loadPlan(const std::filesystem::path& work);
+// The plan's grid again (CellGrid::restore), taking the state's owner table; Error (Input) naming
+// the manifest that holds it when it does not fit.
+std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work);
+// plan.manifest alone: the fingerprint, and the range plan when there is one.
+PlanState loadPlanManifest(const std::filesystem::path& work);
+
+// What a task of the stages runs with: the job as the stages see it, a temporary space of its
+// own, and the stages' context over them and `report`, in the work directory.
+struct TaskContext {
+  TaskContext(const ClusterJob& job, uint64_t memoryCap, const std::filesystem::path& work, JobReport& report)
+      : effective(effectiveJob(job)),
+        temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory),
+        stage{effective, temp, memoryCap, report, &work} {}
+  TaskContext(const TaskContext&) = delete;
+  TaskContext& operator=(const TaskContext&) = delete;
+  const ClusterJob effective;
+  TempSpace temp;
+  const StageContext stage;
+};
+// The plan's binned faces' grid (restoreGrid), for a task that reads or writes binned faces.
+BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work);
+
+// The steps of a plan as planStages returns them.
+std::vector<StageStep> stepsAfterPlan(const PlanState& state);
+// The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). planRanges writes the plan when
+// `job` reads such a mesh out of core (else returns false and writes nothing); each task returns
+// false, doing nothing, when its manifest is there already.
+bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
+bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The weld of a binary STL read in ranges (stages/weld_ranges.cpp): a read task samples its corners, the
+// count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
+// the grid step counts them and a bin task gives its corners their vertex ids.
+class WeldSampler {
+ public:
+  WeldSampler(const RangePlan& plan, uint64_t faces);  // a range of `faces` triangles
+  void add(std::span<const FaceRecord> records);
+  const std::vector<PositionBits>& sample() const { return sample_; }
+
+ private:
+  uint64_t stride_ = 1, seen_ = 0;
+  std::vector<PositionBits> sample_;
+};
+// The first position of each weld bucket but the first: every read task's sample, sorted, at
+// `buckets` even steps (none for no sample: one bucket takes everything).
+std::vector<PositionBits> weldSplitters(std::vector<PositionBits> sample, uint32_t buckets);
+class WeldPartition {
+ public:
+  WeldPartition(const StageContext& context, const std::filesystem::path& work, uint32_t task,
+                const RangePlan& plan, std::vector<PositionBits> splitters);
+  ~WeldPartition();
+  void add(std::span<const FaceRecord> records);  // the range's finite triangles, in file order
+  void commit();                                  // the spill, and its index in a manifest of its own
+
+ private:
+  std::filesystem::path work_;
+  uint32_t task_;
+  uint64_t firstFace_;
+  std::vector<PositionBits> splitters_;
+  std::unique_ptr<BucketSpill> spill_;
+};
+bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The mesh's distinct positions; Error (Input) "NAME: more than 4294967295 distinct vertex positions".
+uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, const std::string& name);
+// Range `range`'s vertex ids: ids[3 * (face - first face) + corner], kNoVertex for a corner not
+// welded (a triangle the read skipped).
+std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
+                              uint32_t range);
+// The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
+// spills when `bins`.
+void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);
+// The steps that follow the grid: bin, cells and finish.
+std::vector<StageStep> stepsAfterGrid(const PlanState& state);
+// The cells tasks' outputs opened together, with every cell's records from their manifests.
+CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, const PlanState& state);
+// The write as tasks (job/write_tasks.cpp): the upper step (the cells joined, the geometry piece, the
+// write plan) and the steps it lists; a node task (the frames of a range of node positions).
+bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
+// Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.
+bool runBoxesStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work);
+bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The file assembled by tasks: the layout step writes its header and index and lists the copies;
+// each place task copies one piece's frames into it; the finish renames it into place.
+bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work);
+std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work);
+bool runPlaceTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+// The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
+uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
+
+}  // namespace facetree

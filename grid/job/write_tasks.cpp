@@ -1,0 +1,573 @@
+// The write as tasks of the stages (job/work_directory.h): after the cells, the upper step joins them
+// (leaf graph, merge above) and writes the node order and a write plan; each geometry task writes
+// the frames of a range of triangles and vertices as a piece and, with exact boxes, accumulates its
+// part of the upper nodes' boxes, which the boxes step merges; each node task writes the frames of
+// a range of node positions as a piece, its upper nodes from the plan and its leaves' runs read in
+// place from the cells tasks' spills; the layout, place and finish steps assemble the pieces. Node
+// frames are self-contained (docs/FORMAT.md), so the file is the single process's bytes: the same
+// records, cut into the same frames.
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <optional>
+#include <random>
+#include <type_traits>
+#include <utility>
+
+#include "facetree/grid.h"
+#include "job/work_directory.h"
+#include "stages/node_order.h"
+#include "stages/stages.h"
+#include "stages/upper_boxes.h"
+
+namespace facetree {
+namespace {
+
+constexpr std::string_view kWriteKind = "write plan";
+constexpr std::string_view kNodeTablesKind = "write node tables";
+constexpr std::string_view kGeometryTablesKind = "write geometry tables";
+// Node frames per node task: 2^20 nodes of 4,096-node frames, as many tasks as read tasks. A task's
+// fixed cost (a process, the write plan loaded) is about that of writing 2^18 nodes.
+constexpr uint64_t kFramesPerNodeTask = 256;
+constexpr std::string_view kBoxesKind = "upper boxes";
+
+std::filesystem::path nodeTablesPath(const std::filesystem::path& work) {
+  return work / "write-node-tables.manifest";
+}
+std::filesystem::path geometryTablesPath(const std::filesystem::path& work) {
+  return work / "write-geometry-tables.manifest";
+}
+
+std::filesystem::path writePlanPath(const std::filesystem::path& work) {
+  return work / "write.manifest";
+}
+std::filesystem::path nodesPiecePath(const std::filesystem::path& work, uint32_t task) {
+  return work / ("nodes-" + std::to_string(task) + ".piece");
+}
+std::filesystem::path geometryPiecePath(const std::filesystem::path& work, uint32_t task) {
+  return work / ("geometry-" + std::to_string(task) + ".piece");
+}
+
+// What the upper step reports beyond the plan's part (the finish prints it all).
+void putUpperReport(ManifestWriter& out, const JobReport& r) {
+  putReport(out, r);
+  for (const uint64_t v :
+       {r.nodes, r.components, r.leaves, r.crossEdges, r.upperComponents, r.temporaryBytesPeak})
+    out.put(v);
+  out.put(r.height);
+  out.put(r.balancedHeight);
+  for (const double v : {r.secondsCells, r.secondsMerge, r.secondsWrite}) out.put(v);
+}
+void takeUpperReport(ManifestReader& in, JobReport& r) {
+  takeReport(in, r);
+  for (uint64_t* v :
+       {&r.nodes, &r.components, &r.leaves, &r.crossEdges, &r.upperComponents, &r.temporaryBytesPeak})
+    *v = in.take<uint64_t>();
+  r.height = in.take<uint32_t>();
+  r.balancedHeight = in.take<uint32_t>();
+  for (double* v : {&r.secondsCells, &r.secondsMerge, &r.secondsWrite}) *v = in.take<double>();
+}
+
+// The write plan's scalars, as the head of its manifest keeps them.
+struct WriteHead {
+  FileHeader header;
+  uint64_t maxOriginalFace;
+  int zstdLevel;
+  uint32_t nodesPerFrame, geometryPerFrame;
+  BoxPrecision records;
+  bool compactNodes, boxesInTasks;
+};
+static_assert(std::is_trivially_copyable_v<WriteHead>);
+
+struct LoadedWrite {
+  JobReport report;
+  uint32_t cellsTasks = 0;
+  std::vector<uint64_t> bounds;  // node task t: positions [bounds[t], bounds[t + 1])
+  // Geometry task t: triangles [triangleBounds[t], + 1) and vertices [vertexBounds[t], + 1).
+  std::vector<uint64_t> triangleBounds, vertexBounds;
+  WritePlan plan;
+};
+
+// Each table goes into the manifest's bytes as it leaves the plan: the two never hold it twice.
+void saveWritePlan(const std::filesystem::path& work, const JobReport& report, uint32_t cellsTasks,
+                   uint32_t nodeTasks, WritePlan&& p) {
+  // Node tasks on frame boundaries: nodeTasks of them, or one per kFramesPerNodeTask frames.
+  const uint64_t nodes = p.info.header.nodeCount, perFrame = p.options.nodesPerFrame;
+  const uint64_t frames = (nodes + perFrame - 1) / perFrame;
+  const uint64_t nodeTaskCount =
+      std::clamp<uint64_t>(nodeTasks ? nodeTasks : (frames + kFramesPerNodeTask - 1) / kFramesPerNodeTask, 1,
+                           std::max<uint64_t>(frames, 1));
+  std::vector<uint64_t> bounds;
+  for (uint64_t t = 0; t <= nodeTaskCount; ++t)
+    bounds.push_back(std::min(nodes, frames * t / nodeTaskCount * perFrame));
+  // Geometry tasks on frame boundaries of both sections: the triangles of a part of the upper
+  // boxes each (WritePlan::boxPart), and as many tasks' worth of vertex frames.
+  const uint64_t triangles = p.info.header.triangleCount, vertices = p.info.header.vertexCount;
+  const uint64_t frame = p.options.geometryPerFrame;
+  const uint64_t part = p.boxPart;
+  if (part == 0 || part % frame != 0)
+    throw std::invalid_argument("box parts of " + std::to_string(part) +
+                                " triangles: not whole geometry frames");
+  const uint64_t geometryTasks = std::max<uint64_t>(1, (triangles + part - 1) / part);
+  const uint64_t vertexFrames = (vertices + frame - 1) / frame;
+  std::vector<uint64_t> triangleBounds, vertexBounds;
+  for (uint64_t t = 0; t <= geometryTasks; ++t) {
+    triangleBounds.push_back(std::min(triangles, t * part));
+    vertexBounds.push_back(std::min(vertices, vertexFrames * t / geometryTasks * frame));
+  }
+  triangleBounds.back() = triangles;
+  vertexBounds.back() = vertices;
+  // The tables first, the head (the step's done marker) last: the steps of one task and the
+  // layout read the head alone, the node and geometry tasks their own tables.
+  ManifestWriter geometryTables;
+  geometryTables.putVector(p.leafOrder);
+  geometryTables.putVector(std::exchange(p.geometry, {}));
+  geometryTables.putVector(std::exchange(p.leafFirstGeometry, {}));
+  geometryTables.putVector(std::exchange(p.leafGeometryCount, {}));
+  geometryTables.putVector(std::exchange(p.leafVertices, {}));
+  geometryTables.putVector(std::exchange(p.leafFaces, {}));
+  geometryTables.putVector(std::exchange(p.upperParent, {}));
+  geometryTables.putVector(std::exchange(p.leafUpperParent, {}));
+  geometryTables.commit(geometryTablesPath(work), kGeometryTablesKind);
+  ManifestWriter nodeTables;
+  nodeTables.putVector(std::exchange(p.orderBlocks, {}));
+  nodeTables.putVector(std::exchange(p.orderFirst, {}));
+  nodeTables.putVector(std::exchange(p.runPosition, {}));
+  nodeTables.putVector(std::exchange(p.runFirst, {}));
+  nodeTables.putVector(std::exchange(p.leafOrder, {}));
+  nodeTables.putVector(std::exchange(p.leafFirstBlock, {}));
+  nodeTables.putVector(std::exchange(p.leafBlockCount, {}));
+  nodeTables.putVector(std::exchange(p.upperNodes, {}));
+  nodeTables.putVector(std::exchange(p.upperPosition, {}));
+  nodeTables.putVector(std::exchange(p.upperParentBox, {}));
+  nodeTables.putVector(std::exchange(p.upperParentPosition, {}));
+  nodeTables.commit(nodeTablesPath(work), kNodeTablesKind);
+  ManifestWriter out;
+  putUpperReport(out, report);
+  out.put(cellsTasks);
+  out.putVector(bounds);
+  out.putVector(triangleBounds);
+  out.putVector(vertexBounds);
+  WriteHead head{};  // zeroed, padding too: the manifest's bytes are the plan's alone
+  head.header = p.info.header;
+  head.maxOriginalFace = p.info.maxOriginalFace;
+  head.zstdLevel = p.options.zstdLevel;
+  head.nodesPerFrame = p.options.nodesPerFrame;
+  head.geometryPerFrame = p.options.geometryPerFrame;
+  head.records = p.records;
+  head.compactNodes = p.compactNodes;
+  head.boxesInTasks = p.boxesInTasks;
+  out.put(head);
+  out.putVector(std::exchange(p.upperOrientation, {}));
+  out.putVector(std::exchange(p.upperOrigin, {}));
+  out.putVector(std::exchange(p.upperHasOrigin, {}));
+  out.commit(writePlanPath(work), kWriteKind);
+}
+
+// The head of the write plan: the report, the tasks' bounds, the file's header and options, and
+// the upper boxes' frames (no tables).
+LoadedWrite loadWriteHead(const std::filesystem::path& work) {
+  ManifestReader in(writePlanPath(work), kWriteKind);
+  LoadedWrite w;
+  takeUpperReport(in, w.report);
+  w.cellsTasks = in.take<uint32_t>();
+  w.bounds = in.takeVector<uint64_t>();
+  w.triangleBounds = in.takeVector<uint64_t>();
+  w.vertexBounds = in.takeVector<uint64_t>();
+  WritePlan& p = w.plan;
+  const auto head = in.take<WriteHead>();
+  p.info.header = head.header;
+  p.info.maxOriginalFace = head.maxOriginalFace;
+  p.options.zstdLevel = head.zstdLevel;
+  p.options.nodesPerFrame = head.nodesPerFrame;
+  p.options.geometryPerFrame = head.geometryPerFrame;
+  p.records = head.records;
+  p.compactNodes = head.compactNodes;
+  p.boxesInTasks = head.boxesInTasks;
+  p.upperOrientation = in.takeVector<glm::quat>();
+  p.upperOrigin = in.takeVector<glm::vec3>();
+  p.upperHasOrigin = in.takeVector<uint8_t>();
+  in.finish();
+  if (w.bounds.size() < 2 || w.triangleBounds.size() != w.vertexBounds.size() ||
+      w.triangleBounds.size() < 2 || p.upperOrigin.size() != p.upperOrientation.size() ||
+      p.upperHasOrigin.size() != p.upperOrientation.size())
+    throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+// The write plan's head and the tables of the node tasks.
+LoadedWrite loadNodesPlan(const std::filesystem::path& work) {
+  LoadedWrite w = loadWriteHead(work);
+  WritePlan& p = w.plan;
+  ManifestReader in(nodeTablesPath(work), kNodeTablesKind);
+  p.orderBlocks = in.takeVector<SpillBlock>();
+  p.orderFirst = in.takeVector<uint64_t>();
+  p.runPosition = in.takeVector<uint32_t>();
+  p.runFirst = in.takeVector<uint32_t>();
+  p.leafOrder = in.takeVector<uint32_t>();
+  p.leafFirstBlock = in.takeVector<uint32_t>();
+  p.leafBlockCount = in.takeVector<uint32_t>();
+  p.upperNodes = in.takeVector<FchNode>();
+  p.upperPosition = in.takeVector<uint32_t>();
+  p.upperParentBox = in.takeVector<NodeBox>();
+  p.upperParentPosition = in.takeVector<uint32_t>();
+  in.finish();
+  if (p.orderBlocks.size() != p.orderFirst.size() || p.runPosition.size() != p.runFirst.size() ||
+      p.leafFirstBlock.size() != p.leafBlockCount.size() || p.upperNodes.size() != p.upperPosition.size() ||
+      (p.boxesInTasks && p.upperOrientation.size() != p.upperNodes.size()))
+    throw Error(ErrorCategory::Input, nodeTablesPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+// The write plan's head and the tables of the geometry tasks.
+LoadedWrite loadGeometryPlan(const std::filesystem::path& work) {
+  LoadedWrite w = loadWriteHead(work);
+  WritePlan& p = w.plan;
+  ManifestReader in(geometryTablesPath(work), kGeometryTablesKind);
+  p.leafOrder = in.takeVector<uint32_t>();
+  p.geometry = in.takeVector<SpillBlock>();
+  p.leafFirstGeometry = in.takeVector<uint32_t>();
+  p.leafGeometryCount = in.takeVector<uint32_t>();
+  p.leafVertices = in.takeVector<uint32_t>();
+  p.leafFaces = in.takeVector<uint32_t>();
+  p.upperParent = in.takeVector<uint32_t>();
+  p.leafUpperParent = in.takeVector<uint32_t>();
+  in.finish();
+  const size_t leaves = p.leafFirstGeometry.size();
+  if (p.leafGeometryCount.size() != leaves || p.leafVertices.size() != leaves ||
+      p.leafFaces.size() != leaves ||
+      (p.boxesInTasks &&
+       (p.upperParent.size() != p.upperOrientation.size() || p.leafUpperParent.size() != leaves)))
+    throw Error(ErrorCategory::Input,
+                geometryTablesPath(work).string() + ": tables that do not fit together");
+  return w;
+}
+
+}  // namespace
+
+bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
+  if (std::filesystem::exists(writePlanPath(work))) return false;
+  PlanState state = loadPlan(work);
+  if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
+  // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
+  std::exchange(state.owners, {});
+  std::exchange(state.facesIndex, {});
+  std::exchange(state.ghostsIndex, {});
+  JobReport report = std::move(state.report);
+  report.outOfCore = true;
+  const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
+  TaskContext run(job, state.memoryCap, work, report);
+  CellsOutput cells = loadCellTasks(run.temp, work, state);
+  WritePlan plan = finishUpper(run.stage, state.extent, std::move(cells));
+  report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, run.temp.peakBytes());
+  saveWritePlan(work, report, tasks, job.nodeTasks, std::move(plan));
+  return true;
+}
+
+std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
+  const LoadedWrite w = loadWriteHead(work);
+  const auto geometry = static_cast<uint32_t>(w.triangleBounds.size() - 1);
+  if (w.plan.boxesInTasks) return {{"geometry", geometry}, {"boxes", 1}};
+  return {{"geometry", geometry}, {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
+}
+
+std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work) {
+  const LoadedWrite w = loadWriteHead(work);
+  return {{"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
+}
+
+namespace {
+
+std::filesystem::path boxesPath(const std::filesystem::path& work) {
+  return work / "boxes.manifest";
+}
+
+}  // namespace
+
+bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
+  if (std::filesystem::exists(boxesPath(work))) return false;
+  const LoadedWrite w = loadWriteHead(work);
+  const WritePlan& p = w.plan;
+  if (!p.boxesInTasks) throw std::invalid_argument("no boxes step in " + work.string() + ": compact boxes");
+  // The geometry tasks' parts in task order: the single process's merge (UpperBoxes), the same bits.
+  std::vector<BoxAccumulator> boxes = upperFrames(p);
+  const auto upperCount = static_cast<uint32_t>(boxes.size());
+  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) {
+    const std::filesystem::path path = taskManifestPath(work, "geometry", t);
+    ManifestReader in(path, taskKind("geometry"));
+    const auto nodes = in.takeVector<uint32_t>();
+    const auto sums = in.takeVector<BoxAccumulator::Sums>();
+    in.finish();
+    if (nodes.size() != sums.size())
+      throw Error(ErrorCategory::Input, path.string() + ": box parts that do not fit together");
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      if (nodes[k] >= upperCount || !p.upperHasOrigin[nodes[k]])
+        throw Error(ErrorCategory::Input, path.string() + ": a box part of node " + std::to_string(nodes[k]));
+      boxes[nodes[k]].addSums(sums[k]);
+    }
+  }
+  ManifestWriter manifest;
+  manifest.putVector(upperBoxesByFileIndex(boxes));
+  manifest.commit(boxesPath(work), kBoxesKind);
+  return true;
+}
+
+bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path piece = nodesPiecePath(work, task);
+  if (std::filesystem::exists(piece)) return false;
+  const LoadedWrite w = loadNodesPlan(work);
+  if (task + 1 >= w.bounds.size())
+    throw std::invalid_argument("no nodes task " + std::to_string(task) + " in " + work.string());
+  const WritePlan& p = w.plan;
+  const uint64_t first = w.bounds[task], end = w.bounds[task + 1];
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  std::unique_ptr<SpillFile> runs;
+  if (p.compactNodes) {
+    runs = SpillFile::open(temp, work / kWriteNodesFile);
+  } else {
+    std::vector<std::filesystem::path> paths;
+    for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Nodes, t));
+    runs = SpillFile::open(temp, paths);
+  }
+  std::unique_ptr<SpillFile> order = SpillFile::open(temp, work / kWriteOrderFile, sizeof(NodeRef));
+
+  WriteOptions options = p.options;
+  options.threads = job.threads;
+  options.piece = PieceRange{first, end, 0, 0, 0, 0};
+  ClusterFileWriter writer(piece, p.info, options, temp.path());
+  const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
+  std::vector<NodeBox> upperBoxes;  // exact boxes: the boxes step's, by file index
+  if (p.boxesInTasks) {
+    ManifestReader in(boxesPath(work), kBoxesKind);
+    upperBoxes = in.takeVector<NodeBox>();
+    in.finish();
+    if (upperBoxes.size() != upperCount)
+      throw Error(ErrorCategory::Input, boxesPath(work).string() + ": boxes of another plan");
+  }
+  if (!p.upperParentBox.empty())
+    for (uint32_t j = 0; j < upperCount; ++j)  // parents in earlier pieces
+      if (p.upperPosition[j] >= first && p.upperPosition[j] < end && p.upperParentPosition[j] < first)
+        writer.addParentBox(p.upperPosition[j], p.upperParentBox[j]);
+  writeNodeRange(
+      p, *order, *runs, first, end, writer,
+      [&](uint32_t j) {
+        FchNode node = p.upperNodes[j];
+        if (!upperBoxes.empty()) node.box = upperBoxes[j];
+        return node;
+      },
+      [&](uint64_t done) { checkJobProgress(job, "write", done, end - first); });
+  writer.finish();
+  return true;
+}
+
+bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path piece = geometryPiecePath(work, task);
+  if (std::filesystem::exists(piece)) return false;
+  const LoadedWrite w = loadGeometryPlan(work);
+  if (task + 1 >= w.triangleBounds.size())
+    throw std::invalid_argument("no geometry task " + std::to_string(task) + " in " + work.string());
+  const WritePlan& p = w.plan;
+  const uint64_t firstTriangle = w.triangleBounds[task], endTriangle = w.triangleBounds[task + 1];
+  const uint64_t firstVertex = w.vertexBounds[task], endVertex = w.vertexBounds[task + 1];
+  TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  std::vector<std::filesystem::path> paths;
+  for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Geometry, t));
+  const std::unique_ptr<SpillFile> geometry = SpillFile::open(temp, paths, 4);
+  WriteOptions options = p.options;
+  options.threads = job.threads;
+  options.piece = PieceRange{0, 0, firstVertex, endVertex, firstTriangle, endTriangle};
+  ClusterFileWriter writer(piece, p.info, options, temp.path());
+  // Exact boxes: this task's part of the upper nodes' boxes, the blocks that start in its
+  // triangles.
+  const std::vector<BoxAccumulator> frames = p.boxesInTasks ? upperFrames(p) : std::vector<BoxAccumulator>{};
+  std::vector<uint32_t> partNodes;
+  std::vector<BoxAccumulator::Sums> partSums;
+  std::optional<UpperBoxes> boxes;
+  if (p.boxesInTasks)
+    boxes.emplace(frames, job.threads > 1,
+                  [&](std::span<const uint32_t> nodes, std::span<const BoxAccumulator> parts) {
+                    for (size_t i = 0; i < nodes.size(); ++i) {
+                      partNodes.push_back(nodes[i]);
+                      partSums.push_back(parts[i].sums());
+                    }
+                  });
+  writeGeometryRange(
+      p, *geometry, {firstTriangle, endTriangle, firstVertex, endVertex}, &writer, boxes ? &*boxes : nullptr,
+      /*discard=*/false, writePlanPath(work).string(),
+      [&](uint64_t done) { checkJobProgress(job, "write", done, endTriangle - firstTriangle); });
+  if (boxes) {  // the part before the piece: a task whose piece exists has both
+    boxes->finish();
+    ManifestWriter out;
+    out.putVector(partNodes);
+    out.putVector(partSums);
+    out.commit(taskManifestPath(work, "geometry", task), taskKind("geometry"));
+  }
+  writer.finish();
+  return true;
+}
+
+namespace {
+
+constexpr std::string_view kLayoutKind = "layout";
+
+std::filesystem::path layoutPath(const std::filesystem::path& work) {
+  return work / "layout.manifest";
+}
+
+// Every piece of the file, geometry tasks' first.
+std::vector<std::filesystem::path> piecePaths(const std::filesystem::path& work, const LoadedWrite& w) {
+  std::vector<std::filesystem::path> pieces;
+  for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) pieces.push_back(geometryPiecePath(work, t));
+  for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
+  return pieces;
+}
+
+// The file being assembled: in the work directory when it shares the output's file system (the
+// finish renames it into place; a failed build leaves nothing beside the output), else beside the
+// output.
+std::filesystem::path partialPath(const std::filesystem::path& work, const std::filesystem::path& out) {
+  struct stat a {
+  }, b{};
+  const std::filesystem::path dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
+  if (::stat(work.c_str(), &a) == 0 && ::stat(dir.c_str(), &b) == 0 && a.st_dev == b.st_dev)
+    return work / "output.fch.partial";
+  return std::filesystem::path(out.string() + ".partial");
+}
+
+// The layout manifest: the file being placed, its copies, and the upper step's report for the finish.
+// Its id is new at every layout: a place task's record and the finish's name the layout they were
+// made for, so that a layout made again (its manifest lost, or its placed file renamed into the
+// output and the output removed since) is placed again rather than taken for done.
+struct Layout {
+  uint64_t id = 0;
+  std::string partial;
+  uint64_t fileBytes = 0;
+  uint32_t pieces = 0, geometryPieces = 0;  // piecePaths' order: the geometry tasks' first
+  std::vector<PieceCopy> copies;
+  JobReport report;
+};
+Layout loadLayout(const std::filesystem::path& work) {
+  ManifestReader in(layoutPath(work), kLayoutKind);
+  Layout l;
+  l.id = in.take<uint64_t>();
+  l.partial = in.takeBytes();
+  l.fileBytes = in.take<uint64_t>();
+  l.pieces = in.take<uint32_t>();
+  l.geometryPieces = in.take<uint32_t>();
+  l.copies = in.takeVector<PieceCopy>();
+  takeUpperReport(in, l.report);
+  in.finish();
+  return l;
+}
+
+constexpr std::string_view kFinishedKind = "finished";
+std::filesystem::path finishedPath(const std::filesystem::path& work) {
+  return work / "finished.manifest";
+}
+
+// Whether the finish renamed layout `l`'s placed file into `output`, and `output` is still that
+// size.
+bool finishedAs(const std::filesystem::path& work, const Layout& l, const std::filesystem::path& output) {
+  if (!std::filesystem::exists(finishedPath(work))) return false;
+  ManifestReader in(finishedPath(work), kFinishedKind);
+  const auto id = in.take<uint64_t>();
+  in.finish();
+  std::error_code error;
+  return id == l.id && std::filesystem::file_size(output, error) == l.fileBytes && !error;
+}
+
+// The id of a layout: another at every run of the step, whatever the work directory holds.
+uint64_t newLayoutId() {
+  std::random_device random;
+  return (uint64_t{random()} << 32) ^ random() ^
+         static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+}
+
+// The place task's record: its task and the layout it placed its piece into.
+uint64_t placedLayout(const std::filesystem::path& manifest, uint32_t task) {
+  ManifestReader placed(manifest, taskKind("place"));
+  if (placed.take<uint32_t>() != task)
+    throw Error(ErrorCategory::Input, manifest.string() + ": another task's");
+  const auto id = placed.take<uint64_t>();
+  placed.finish();
+  return id;
+}
+
+}  // namespace
+
+bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
+  // Done while its placed file waits for the finish, or the finish gave it the output's name.
+  if (std::filesystem::exists(layoutPath(work))) {
+    const Layout l = loadLayout(work);
+    if (std::filesystem::exists(l.partial) || finishedAs(work, l, job.output)) return false;
+  }
+  const LoadedWrite w = loadWriteHead(work);
+  checkOutputWritable(job.output);
+  const std::vector<std::filesystem::path> pieces = piecePaths(work, w);
+  const std::filesystem::path partial = partialPath(work, job.output);
+  const ClusterFileAssembly assembly = beginClusterFile(partial, w.plan.info, w.plan.options, pieces);
+  ManifestWriter out;
+  out.put(newLayoutId());
+  out.putBytes(partial.string());
+  out.put(assembly.fileBytes);
+  out.put(static_cast<uint32_t>(pieces.size()));
+  out.put(static_cast<uint32_t>(w.triangleBounds.size() - 1));
+  out.putVector(assembly.copies);
+  putUpperReport(out, w.report);
+  out.commit(layoutPath(work), kLayoutKind);
+  return true;
+}
+
+std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work) {
+  return {{"place", loadLayout(work).pieces}, {"finish", 1}};
+}
+
+bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t task) {
+  const std::filesystem::path manifest = taskManifestPath(work, "place", task);
+  const Layout l = loadLayout(work);
+  if (task >= l.pieces)
+    throw std::invalid_argument("no place task " + std::to_string(task) + " in " + work.string());
+  if (std::filesystem::exists(manifest) && placedLayout(manifest, task) == l.id) return false;
+  // Its one piece, named from the layout alone (the write plan is tens of MB at 56M faces).
+  const std::filesystem::path piece =
+      task < l.geometryPieces ? geometryPiecePath(work, task) : nodesPiecePath(work, task - l.geometryPieces);
+  std::vector<PieceCopy> mine;
+  for (const PieceCopy& c : l.copies)
+    if (c.piece == task) mine.push_back({0, c.from, c.to, c.bytes});
+  placePieces(l.partial, std::span(&piece, 1), mine);
+  ManifestWriter out;
+  out.put(task);
+  out.put(l.id);
+  out.commit(manifest, taskKind("place"));
+  return true;
+}
+
+JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
+  const auto start = std::chrono::steady_clock::now();
+  PlanState state = loadPlanManifest(work);
+  if (state.inCore) return std::move(state.report);
+  Layout l = loadLayout(work);
+  for (uint32_t t = 0; t < l.pieces; ++t)
+    if (placedLayout(taskManifestPath(work, "place", t), t) != l.id)
+      throw Error(ErrorCategory::Input, taskManifestPath(work, "place", t).string() +
+                                            ": placed into an earlier layout of the file; run place task " +
+                                            std::to_string(t) + " again");
+  JobReport report = std::move(l.report);
+  report.outOfCore = true;
+  if (!finishedAs(work, l, job.output)) {
+    if (!std::filesystem::exists(l.partial))
+      throw Error(ErrorCategory::Input, l.partial + ": the placed file is gone; run the layout step again");
+    commitClusterFile(l.partial, job.output);
+    ManifestWriter finished;
+    finished.put(l.id);
+    finished.commit(finishedPath(work), kFinishedKind);
+  }
+  report.fileBytes = l.fileBytes;
+  recordStageTime(work, "finish", 0, secondsSince(start));
+  addStageTimes(work, report);
+  return report;
+}
+
+}  // namespace facetree

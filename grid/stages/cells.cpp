@@ -1,0 +1,768 @@
+// The out-of-core build, cells stage: each cell's faces in memory, split into edge-connected
+// components, one in-core hierarchy per group of components cut at its frontier (the leaf
+// clusters of the merge above the cells), spilled; and the cross-cell dual edges of the edges the
+// cell owns (stages/stages.h). Cells run on as many workers as the plan allows, each building its
+// hierarchies on one thread, so the output does not depend on --threads.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
+
+#include "stages/stages.h"
+#include "stages/vertex_map.h"
+
+namespace facetree {
+namespace {
+
+// A cell with more components than this keeps the largest as leaf clusters and builds the rest
+// as one more leaf (its components joined by the engine, flagged): scans carry thousands of
+// specks, and every leaf costs the upper merge and the writer a little.
+constexpr uint32_t kMaxLeavesPerCell = 256;
+
+// A face on a mesh edge that the cells share: the edge (its two vertex ids, lower first), the
+// face's cell and its CrossPair reference, its sides on the edge (u_f of EdgeShare) and the
+// edge's length.
+struct Incidence {
+  uint64_t key;
+  uint32_t cell, ref;
+  uint32_t sides;
+  float length;
+  bool operator<(const Incidence& o) const {
+    if (key != o.key) return key < o.key;
+    if (cell != o.cell) return cell < o.cell;
+    return ref < o.ref;
+  }
+};
+
+// The faces on one mesh edge and their sides (EdgeShare's u_f and U), and what the dual graph's edge
+// rules have them share in all, in units of the edge's length (EdgeShare::joined).
+struct EdgeSides {
+  uint32_t faces = 0, uses = 0, squares = 0;
+  void add(uint32_t u) {
+    ++faces;
+    uses += u;
+    squares += u * u;
+  }
+  double pairWeight() const { return 0.5 * (double(uses) * uses - squares); }  // sum of u_f u_g
+  double joinedShare() const { return EdgeShare::joined(faces, uses, squares); }
+};
+
+template <class T>
+void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
+  const size_t at = out.size();
+  out.resize(at + count * sizeof(T));
+  if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
+}
+
+// The leaf clusters of a component's hierarchy: its frontier of clusters of at most `faces` faces
+// (a node of more is replaced by its children, largest first), while the metadata the split adds
+// (leafBytes of the children minus the node's) fits `bytes`. Refs: node indices or kFaceChild |
+// face, root alone for a hierarchy without nodes (one face). Ties by node index: deterministic.
+template <class LeafBytes>
+void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, const LeafBytes& leafBytes,
+                std::vector<uint32_t>& frontier) {
+  frontier.clear();
+  if (component.nodes.empty()) {
+    frontier.push_back(kFaceChild);
+    return;
+  }
+  const auto larger = [&](uint32_t a, uint32_t b) {  // heap order: largest count, then lowest index
+    const uint32_t ca = component.nodes[a].count, cb = component.nodes[b].count;
+    return ca != cb ? ca < cb : a > b;
+  };
+  std::vector<uint32_t> open;  // nodes of more than `faces` faces, still on the frontier
+  const auto count = [&](uint32_t ref) -> uint64_t {
+    return (ref & kFaceChild) ? 1 : component.nodes[ref].count;
+  };
+  const auto add = [&](uint32_t ref) {
+    if (!(ref & kFaceChild) && component.nodes[ref].count > faces) {
+      open.push_back(ref);
+      std::push_heap(open.begin(), open.end(), larger);
+    } else {
+      frontier.push_back(ref);
+    }
+  };
+  add(0);
+  while (!open.empty()) {
+    const Node& node = component.nodes[open.front()];
+    const uint64_t added =
+        leafBytes(count(node.child[0])) + leafBytes(count(node.child[1])) - leafBytes(node.count);
+    if (added > bytes) break;
+    bytes -= added;
+    std::pop_heap(open.begin(), open.end(), larger);
+    open.pop_back();
+    for (const uint32_t c : node.child) add(c);
+  }
+  frontier.insert(frontier.end(), open.begin(), open.end());
+}
+
+}  // namespace
+
+// How a leaf's nodes (file order, root first) are cut into the runs the file interleaves
+// (stages/write_plan.cpp merges all leaves' runs by key). A leaf's nodes come by decreasing
+// effective cost (buildHierarchy; Willmott 2000, sec. 5.5.3), so a node's effective cost is the
+// highest cost among it and the nodes after it in the leaf (a suffix maximum), non-increasing
+// along the leaf. A run's key is the log effective cost of its first node, exactly: merging the
+// leaves' runs by it orders every run head as one in-core build orders its nodes. A run holds nodes
+// whose keys fall in one band of kKeyBand (28%), so no node of a run is more than that out of
+// place, and at most max(kNodeBlock, minRun) of them; a run from node f holds at least
+// min(f / 2, minRun) (a shorter one joins the next, under the earlier, higher key), so the top of
+// a leaf, which cuts of a few clusters per leaf take, is cut finest, and the run table (48 B a run
+// from the cells to the write) stays within the plan's budget.
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
+  const uint32_t maxRun = std::max(kNodeBlock, minRun);
+  std::vector<float> key(nodes.size());
+  double level = -std::numeric_limits<double>::infinity();
+  for (size_t i = nodes.size(); i-- > 0;) {
+    level = std::max(level, std::log(std::max(double(nodes[i].cost), 1e-30)));
+    key[i] = static_cast<float>(level);
+  }
+  const auto band = [](float k) { return std::floor(k / static_cast<float>(kKeyBand)); };
+  std::vector<NodeBlock> blocks;
+  for (uint32_t at = 0; at < nodes.size(); ++at) {
+    const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
+    if (blocks.empty() || blocks.back().count == maxRun ||
+        (band(blocks.back().key) != band(key[at]) && blocks.back().count >= minimum))
+      blocks.push_back({key[at], at, 0, 0, 0});
+    ++blocks.back().count;
+  }
+  return blocks;
+}
+
+namespace {
+
+// Dual edges between two of a cell's leaves, summed per pair of leaves before they are spilled.
+struct LocalPair {
+  uint32_t a, b;  // a < b, cell-local leaves
+  double shared;
+  bool operator<(const LocalPair& o) const {
+    return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
+  }
+};
+
+// A cell as an indexed mesh: the input's vertex ids made local.
+struct CellMesh {
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  MeshView view() const { return {positions, indices}; }
+};
+
+// What one cell makes, spilled as the cell ends.
+struct CellLeaves : LeafTables {
+  std::vector<NodeBlock> runs;
+  std::vector<SpillBlock> geometry;
+  std::vector<uint32_t> leafOf;  // per face of the cell (its component, then group, while they are made)
+};
+
+// The faces of a cell grouped for its hierarchies: groupFaces[start[g], start[g + 1]) is group g.
+struct FaceGroups {
+  std::vector<uint32_t> start;
+  std::vector<uint32_t> groupFaces;
+  uint64_t spare = 0;  // the cell's leaf allowance left for the groups' frontiers
+};
+
+// The subtree of `ref` (a node of `component`, or a face) as a hierarchy of its own over the faces
+// component.faceOrder[first, + count).
+Hierarchy subtreeOf(const Hierarchy& component, uint32_t ref, uint32_t first, uint32_t count,
+                    std::vector<uint32_t>& stack, std::vector<uint32_t>& collected,
+                    std::vector<uint32_t>& remap) {
+  Hierarchy sub;
+  sub.stats.height = 1;
+  if (!(ref & kFaceChild)) {
+    collected.clear();
+    stack.assign(1, ref);
+    while (!stack.empty()) {
+      const uint32_t i = stack.back();
+      stack.pop_back();
+      collected.push_back(i);
+      for (const uint32_t c : component.nodes[i].child)
+        if (!(c & kFaceChild)) stack.push_back(c);
+    }
+    std::sort(collected.begin(), collected.end());  // parents before children, as stored
+    remap.resize(component.nodes.size());
+    for (uint32_t k = 0; k < collected.size(); ++k) remap[collected[k]] = k;
+    sub.nodes.reserve(collected.size());
+    sub.boxes.reserve(collected.size());
+    for (const uint32_t i : collected) {
+      Node node = component.nodes[i];
+      node.first -= first;
+      for (uint32_t& c : node.child)
+        c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
+      sub.nodes.push_back(node);
+      sub.boxes.push_back(component.boxes[i]);
+    }
+    std::vector<uint32_t> depth(sub.nodes.size(), 1);
+    for (uint32_t i = 0; i < sub.nodes.size(); ++i)
+      for (const uint32_t c : sub.nodes[i].child) {
+        if (c & kFaceChild)
+          sub.stats.height = std::max(sub.stats.height, depth[i] + 1);
+        else
+          depth[c] = depth[i] + 1;
+      }
+  }
+  sub.faceOrder.resize(count);
+  for (uint32_t k = 0; k < count; ++k) sub.faceOrder[k] = k;
+  return sub;
+}
+
+// The 8 corners of a leaf's root box (its single triangle's corners, repeated, for a lone face).
+BoxCorners rootCorners(const ClusterFile& file) {
+  BoxCorners corners;
+  if (file.nodes.empty()) {
+    for (int c = 0; c < 8; ++c) corners[c] = file.vertices[file.indices[c % 3]];
+    return corners;
+  }
+  const NodeBox& box = file.nodes[0].box;
+  const glm::mat3 axes = glm::mat3_cast(box.orientation);
+  for (int c = 0; c < 8; ++c) {
+    glm::vec3 p = box.center;
+    for (int a = 0; a < 3; ++a) p += axes[a] * (((c >> a) & 1) ? box.halfExtent[a] : -box.halfExtent[a]);
+    corners[c] = p;
+  }
+  return corners;
+}
+
+class CellsStage {
+ public:
+  // Builds cells [first, end) of `in`; with `task`, into that task's named spills (cellTaskFile).
+  CellsStage(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+             BinnedFaces& in, uint32_t first, uint32_t end, const std::optional<uint32_t>& task)
+      : context_(context), plan_(plan), extent_(extent), in_(in), first_(first), end_(end), task_(task) {}
+  CellsOutput run();
+
+ private:
+  void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  void loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  std::vector<GhostEdge> loadGhosts(uint32_t cell, SpillCodec& codec);
+  // Components alone while the cell's leaf allowance pays for them, the rest as one group.
+  FaceGroups groupComponents(uint32_t components, std::vector<uint32_t>& label) const;
+  // One hierarchy per group, cut at its frontier: the cell's leaf clusters, spilled.
+  void buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
+                   std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out);
+  // The dual edges between two leaves of the cell (FaceAdjacency::Share of each shared edge).
+  static void pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
+                         std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs);
+  // The cross-cell dual edges of the edges this cell owns (its ghosts against its own faces), and
+  // the faces that sent ghosts elsewhere.
+  void crossPairs(uint32_t cell, std::span<const FaceRecord> records, std::vector<GhostEdge>&& ghosts,
+                  std::span<const uint32_t> leafOf, std::vector<CrossPair>& pairs,
+                  std::vector<BorderFace>& border) const;
+
+  const StageContext& context_;
+  const OutOfCorePlan& plan_;
+  const MeshExtent& extent_;
+  BinnedFaces& in_;
+  uint32_t first_, end_;
+  std::optional<uint32_t> task_;
+  CellsOutput out_;
+};
+
+}  // namespace
+
+CellsOutput CellsStage::run() {
+  // The write reads the geometry once, in large blocks, and gives them back as it goes, while the
+  // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
+  // scattered over the file, so the node pass does not give them back one by one (the file system's
+  // hole punching would dominate the write, for no lower peak: the peak is the end of the cells);
+  // with compact boxes a pass in spill order rewrites them and gives them back as it goes.
+  // Node runs are in the file's own records (encodeNodeRun: columns of byte planes already);
+  // face records are not shuffled (consecutive faces repeat whole corner positions, which zstd
+  // matches only while the bytes stay together).
+  // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
+  const auto spill = [&](CellSpill kind, bool discardable, size_t recordBytes = 1) {
+    if (!task_)
+      return std::make_unique<SpillFile>(context_.temp, cellSpillName(kind), discardable, recordBytes);
+    return std::make_unique<SpillFile>(
+        context_.temp,
+        SpillFile::Named{cellTaskFile(context_.work ? *context_.work : context_.temp.path(), kind, *task_),
+                         *task_},
+        recordBytes);
+  };
+  out_.subtrees.nodes = spill(CellSpill::Nodes, true);
+  out_.subtrees.geometry = spill(CellSpill::Geometry, true, 4);
+  out_.records.pairs = spill(CellSpill::Pairs, false);
+  out_.records.leaves = spill(CellSpill::Leaves, false);
+  out_.records.border = spill(CellSpill::Border, false);
+  const uint32_t cells = end_;
+  out_.records.cells.assign(in_.grid->cellCount(), {});
+  std::atomic<uint32_t> next{first_};
+  std::atomic<uint64_t> facesDone{0};
+  std::atomic<bool> stop{false};
+  std::exception_ptr failure;
+  std::mutex failureMutex;
+  const auto worker = [&](bool reportProgress) {
+    SpillCodec codec;
+    std::vector<FaceRecord> records;
+    try {
+      for (uint32_t cell; !stop && (cell = next++) < cells;) {
+        buildCell(cell, codec, records);
+        facesDone += records.size();
+        // Progress (and cancellation) from the calling thread only: the callback need not be
+        // thread-safe. The other worker notices `stop`.
+        if (reportProgress) context_.checkCancel("cells", facesDone, extent_.triangles);
+      }
+    } catch (...) {
+      std::lock_guard lock(failureMutex);
+      if (!failure) failure = std::current_exception();
+      stop = true;
+    }
+  };
+  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, end_ - first_));
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
+  worker(true);
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+  if (task_)
+    for (SpillFile* file : {out_.subtrees.nodes.get(), out_.subtrees.geometry.get(), out_.records.pairs.get(),
+                            out_.records.leaves.get(), out_.records.border.get()})
+      file->commit();
+  return std::move(out_);
+}
+
+void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
+  records.clear();
+  records.reserve(in_.cellFaces(cell));
+  for (const auto& segment : in_.faces)
+    segment->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+      const size_t at = records.size();
+      records.resize(at + bytes.size() / sizeof(FaceRecord));
+      std::memcpy(records.data() + at, bytes.data(), bytes.size());
+    });
+}
+
+std::vector<GhostEdge> CellsStage::loadGhosts(uint32_t cell, SpillCodec& codec) {
+  size_t total = 0;
+  for (const auto& spill : in_.ghosts) total += spill->records(cell);
+  std::vector<GhostEdge> ghosts(total);
+  size_t at = 0;
+  for (const auto& spill : in_.ghosts)
+    spill->drainBucket(cell, codec, [&](std::span<const std::byte> bytes) {
+      std::memcpy(reinterpret_cast<std::byte*>(ghosts.data() + at), bytes.data(), bytes.size());
+      at += bytes.size() / sizeof(GhostEdge);
+    });
+  // Several passes: each pass's ghosts in turn, their face indices within the pass's faces.
+  if (in_.segments() > 1)
+    for (size_t s = 0, first = 0; s < in_.segments(); ++s) {
+      const size_t end = first + in_.ghostRecords(s, cell);
+      if (s > 0)
+        for (size_t g = first; g < end; ++g) ghosts[g].face += in_.faceBase(s, ghosts[g].cell);
+      first = end;
+    }
+  return ghosts;
+}
+
+void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
+  CellResult& result = out_.records.cells[cell];
+  loadFaces(cell, codec, records);
+  const auto faces = static_cast<uint32_t>(records.size());
+
+  CellLeaves leaves;
+  std::vector<LocalPair> localPairs;
+  if (faces > 0) {
+    CellMesh mesh;
+    mesh.indices.resize(size_t{3} * faces);
+    {
+      VertexMap map(size_t{3} * faces);
+      for (uint32_t f = 0; f < faces; ++f) {
+        for (int k = 0; k < 3; ++k) {
+          bool inserted = false;
+          const uint32_t id =
+              map.find(records[f].vertex[k], static_cast<uint32_t>(mesh.positions.size()), inserted);
+          if (inserted) mesh.positions.push_back(records[f].corner(k));
+          mesh.indices[size_t{3} * f + k] = id;
+        }
+      }
+    }
+    // Which faces share which edges, found once: for the components, each group's hierarchy, each
+    // leaf's statistics and the pairs of leaves.
+    FaceAdjacency adjacency = buildFaceAdjacency(mesh.view());
+    // Each face's component, then its group, then (buildLeaves) its leaf.
+    const uint32_t components = faceComponents(adjacency, leaves.leafOf);
+    result.components = components;
+    const FaceGroups groups = groupComponents(components, leaves.leafOf);
+    buildLeaves(mesh, adjacency, groups, records, codec, leaves);
+    pairLeaves(mesh, adjacency, leaves.leafOf, localPairs);
+  }
+
+  std::vector<CrossPair> pairs;
+  std::vector<BorderFace> border;
+  crossPairs(cell, records, loadGhosts(cell, codec), leaves.leafOf, pairs, border);
+
+  const auto spill = [&](const auto& items) {
+    return items.empty() ? SpillBlock{} : out_.records.leaves->append(std::as_bytes(std::span(items)), codec);
+  };
+  result.leafCount = static_cast<uint32_t>(leaves.leaves.size());
+  result.leaves = spill(leaves.leaves);
+  result.stats = spill(leaves.stats);
+  result.garland = spill(leaves.garland);
+  result.corners = spill(leaves.corners);
+  result.blocks = spill(leaves.runs);
+  result.geometry = spill(leaves.geometry);
+
+  // Pairs of leaves of this cell, summed in (leaves, length) order: one per pair of leaves
+  // instead of one per mesh edge between them (most of a cell's pairs).
+  std::sort(localPairs.begin(), localPairs.end());
+  for (size_t i = 0; i < localPairs.size();) {
+    const uint32_t a = localPairs[i].a, b = localPairs[i].b;
+    double shared = 0;
+    for (; i < localPairs.size() && localPairs[i].a == a && localPairs[i].b == b; ++i)
+      shared += localPairs[i].shared;
+    pairs.push_back({{cell, cell}, {a | CrossPair::kLeafRef, b | CrossPair::kLeafRef}, shared});
+  }
+  std::exchange(localPairs, {});
+  for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
+    const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
+    result.pairs.push_back(out_.records.pairs->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
+  }
+  if (!border.empty()) result.border = out_.records.border->append(std::as_bytes(std::span(border)), codec);
+}
+
+// The cell's leaves cost at most its allowance of metadata (its faces' share, planLeaves;
+// leafBytes bounds a leaf's cost by its faces). Groups: every component its own, or the largest
+// ones (fewer than kMaxLeavesPerCell) and the rest together, as many as the allowance pays for;
+// what is left is shared among the groups by faces, for their frontiers (frontierOf). On return
+// `label` holds each face's group.
+FaceGroups CellsStage::groupComponents(uint32_t components, std::vector<uint32_t>& label) const {
+  const auto faces = static_cast<uint32_t>(label.size());
+  const auto leafBytes = [this](uint64_t n) { return plan_.leafBytes(n); };
+  const uint64_t allowance = plan_.cellLeafAllowance(faces);
+  std::vector<uint32_t> groupOf(components);
+  uint32_t groups = components;
+  uint64_t groupBytes = 0;  // the groups' leaves before their frontiers split them
+  std::vector<uint32_t> size(components, 0);
+  for (uint32_t f = 0; f < faces; ++f) ++size[label[f]];
+  std::vector<uint32_t> order(components);
+  for (uint32_t c = 0; c < components; ++c) order[c] = c;
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return size[a] > size[b]; });
+  // kept: the largest that stay alone (all of them, if so many fit); the rest is one group.
+  uint32_t kept = 0;
+  {
+    uint64_t keptBytes = 0, keptFaces = 0;
+    const uint32_t most = components <= kMaxLeavesPerCell ? components : kMaxLeavesPerCell - 1;
+    for (uint32_t k = 0;; ++k) {
+      const uint64_t cost = keptBytes + (k < components ? leafBytes(faces - keptFaces) : 0);
+      if (k > 0 && cost > allowance) break;  // k = 0 (one leaf) is always taken
+      kept = k, groupBytes = cost;
+      if (k == most) break;
+      keptBytes += leafBytes(size[order[k]]);
+      keptFaces += size[order[k]];
+    }
+  }
+  if (kept < components) {
+    std::vector<bool> alone(components, false);
+    for (uint32_t i = 0; i < kept; ++i) alone[order[i]] = true;
+    groups = 0;
+    for (uint32_t c = 0; c < components; ++c)
+      if (alone[c]) groupOf[c] = groups++;
+    for (uint32_t c = 0; c < components; ++c)
+      if (!alone[c]) groupOf[c] = groups;
+    ++groups;
+  } else {
+    for (uint32_t c = 0; c < components; ++c) groupOf[c] = c;
+  }
+  FaceGroups out;
+  out.start.assign(groups + 1, 0);
+  for (uint32_t f = 0; f < faces; ++f) ++out.start[groupOf[label[f]] + 1];
+  for (uint32_t g = 0; g < groups; ++g) out.start[g + 1] += out.start[g];
+  out.groupFaces.resize(faces);
+  std::vector<uint32_t> fill(out.start.begin(), out.start.end() - 1);
+  for (uint32_t f = 0; f < faces; ++f) {
+    const uint32_t g = groupOf[label[f]];
+    label[f] = g;
+    out.groupFaces[fill[g]++] = f;
+  }
+  out.spare = allowance > groupBytes ? allowance - groupBytes : 0;
+  return out;
+}
+
+// Each component's hierarchy is cut at its frontier of clusters of at most plan.frontierFaces
+// faces: those are the leaf clusters (the upper merge redoes what lies above them, with the
+// neighbours across the cell's borders in view, and with pieces of similar sizes).
+void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
+                             std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out) {
+  const auto faces = static_cast<uint32_t>(records.size());
+  const auto leafBytes = [this](uint64_t n) { return plan_.leafBytes(n); };
+  std::vector<uint32_t> subId(mesh.positions.size(), kNoVertex);
+  std::vector<glm::vec3> subPositions;
+  std::vector<uint32_t> subIndices, leafFaces, frontier, remap, stack, collected;
+  std::vector<uint64_t> subFaces;
+  std::vector<std::byte> block;
+  // A mesh of the given cell faces, in that order.
+  const auto makeMesh = [&](std::span<const uint32_t> cellFaces) {
+    subPositions.clear();
+    subIndices.clear();
+    subFaces.clear();
+    for (const uint32_t f : cellFaces) {
+      for (int k = 0; k < 3; ++k) {
+        uint32_t& id = subId[mesh.indices[size_t{3} * f + k]];
+        if (id == kNoVertex) {
+          id = static_cast<uint32_t>(subPositions.size());
+          subPositions.push_back(mesh.positions[mesh.indices[size_t{3} * f + k]]);
+        }
+        subIndices.push_back(id);
+      }
+      subFaces.push_back(records[f].face);
+    }
+    for (const uint32_t f : cellFaces)
+      for (int k = 0; k < 3; ++k) subId[mesh.indices[size_t{3} * f + k]] = kNoVertex;
+    return MeshView{subPositions, subIndices};
+  };
+  // The cells already run on the job's threads: each builds on its own (the same hierarchy).
+  BuildOptions cellBuild = context_.job.build;
+  cellBuild.threads = 1;
+  // A cell is the bottom of a larger tree: its pieces propose each other only once whole (the
+  // merge above the cells joins the cells' pieces by proximity when few clusters are left).
+  cellBuild.proximityClusters = 0;
+  // Its top is cut away at the frontier, and the merge above the cells orders the leaves' merges
+  // and makes the top: every reciprocal pair merges, in as few rounds as can be, by eq. 84
+  // to the cell's root.
+  cellBuild.orderedClusters = 0;
+  cellBuild.topClusters = 0;
+  const auto groupCount = static_cast<uint32_t>(groups.start.size() - 1);
+  for (uint32_t g = 0; g < groupCount; ++g) {
+    const std::span<const uint32_t> members(groups.groupFaces.data() + groups.start[g],
+                                            groups.start[g + 1] - groups.start[g]);
+    const Hierarchy component = buildHierarchy(makeMesh(members), adjacency, members, cellBuild);
+    // Its share of the allowance left: the groups' shares sum to at most `spare`.
+    const auto share = static_cast<uint64_t>(double(groups.spare) * double(members.size()) / double(faces));
+    frontierOf(component, plan_.frontierFaces, share, leafBytes, frontier);
+    const auto firstOf = [&](uint32_t ref) {
+      return (ref & kFaceChild) ? ref & ~kFaceChild : component.nodes[ref].first;
+    };
+    std::sort(frontier.begin(), frontier.end(),
+              [&](uint32_t a, uint32_t b) { return firstOf(a) < firstOf(b); });
+
+    for (const uint32_t ref : frontier) {
+      const uint32_t first = firstOf(ref), count = (ref & kFaceChild) ? 1 : component.nodes[ref].count;
+      const Hierarchy sub = subtreeOf(component, ref, first, count, stack, collected, remap);
+      leafFaces.resize(count);
+      for (uint32_t k = 0; k < count; ++k) leafFaces[k] = members[component.faceOrder[first + k]];
+
+      const auto leafIndex = static_cast<uint32_t>(out.leaves.size());
+      for (const uint32_t f : leafFaces) out.leafOf[f] = leafIndex;
+      const MeshView leafMesh = makeMesh(leafFaces);
+      LeafCluster& leaf = out.leaves.emplace_back();
+      leaf.faceCount = count;
+      leaf.height = sub.stats.height;
+      SurfaceStats& stats =
+          out.stats.emplace_back(surfaceStats(leafMesh, adjacency, leafFaces, extent_.origin));
+      stats.height = leaf.height;
+      if (context_.job.build.metric == Metric::Garland)
+        out.garland.push_back(garlandQuadrics(leafMesh, extent_.origin));
+      BranchingStats shape;
+      const ClusterFile file = makeClusterFile(leafMesh, subFaces, sub, context_.job.file, &shape);
+      leaf.fileHeight = shape.height;
+      leaf.nodeCount = static_cast<uint32_t>(file.nodes.size());
+      leaf.vertexCount = static_cast<uint32_t>(file.vertices.size());
+      out.corners.push_back(rootCorners(file));
+      leaf.firstBlock = static_cast<uint32_t>(out.runs.size());
+      for (NodeBlock b : nodeBlocks(file.nodes, plan_.minNodeRun)) {
+        const std::string run =
+            encodeNodeRun(std::span(file.nodes).subspan(b.first, b.count), b.first, context_.job.build.boxes);
+        const SpillBlock spill = out_.subtrees.nodes->append(std::as_bytes(std::span(run)), codec);
+        b.offset = spill.offset;
+        b.compressedBytes = spill.compressedBytes;
+        b.rawBytes = spill.rawBytes;
+        out.runs.push_back(b);
+        ++leaf.blockCount;
+      }
+      leaf.firstGeometry = static_cast<uint32_t>(out.geometry.size());
+      const size_t triangles = file.originalFace.size();
+      if (triangles > 0) leaf.firstCorner = file.vertices[file.indices[0]];
+      uint32_t verticesSeen = 0;
+      for (size_t at = 0; at < triangles; at += kTrianglesPerBlock) {
+        const size_t n = std::min(kTrianglesPerBlock, triangles - at);
+        uint32_t end = verticesSeen;
+        for (size_t i = 3 * at; i < 3 * (at + n); ++i) end = std::max(end, file.indices[i] + 1);
+        const GeometryBlockHeader header{static_cast<uint32_t>(n), end - verticesSeen};
+        block.clear();
+        appendBytes(block, &header, 1);
+        appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
+        appendBytes(block, file.indices.data() + 3 * at, 3 * n);
+        appendBytes(block, file.originalFace.data() + at, n);
+        out.geometry.push_back(out_.subtrees.geometry->append(block, codec));
+        ++leaf.geometryCount;
+        verticesSeen = end;
+      }
+    }
+  }
+}
+
+void CellsStage::pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
+                            std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs) {
+  const auto faces = static_cast<uint32_t>(leafOf.size());
+  for (uint32_t f = 0; f < faces; ++f) {
+    for (const FaceAdjacency::Link& link : adjacency.links(f)) {
+      const uint32_t lf = leafOf[f], lg = leafOf[link.face];
+      if (link.face < f || lf == lg) continue;  // each edge once, from its lower face
+      for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
+        const glm::vec3 a = mesh.positions[mesh.indices[size_t{3} * f + share.corner]];
+        const glm::vec3 b = mesh.positions[mesh.indices[size_t{3} * f + (share.corner + 1) % 3]];
+        const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
+        localPairs.push_back({std::min(lf, lg), std::max(lf, lg), share.of(length)});
+      }
+    }
+  }
+}
+
+void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
+                            std::vector<GhostEdge>&& ghosts, std::span<const uint32_t> leafOf,
+                            std::vector<CrossPair>& pairs, std::vector<BorderFace>& border) const {
+  std::vector<uint64_t> ghostKeys(ghosts.size());
+  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
+  std::sort(ghostKeys.begin(), ghostKeys.end());
+  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
+  std::vector<Incidence> incidences;
+  incidences.reserve(ghosts.size() * 2);
+  for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
+  std::exchange(ghosts, {});
+  const auto faces = static_cast<uint32_t>(records.size());
+  for (uint32_t f = 0; f < faces; ++f) {
+    const FaceRecord& r = records[f];
+    bool sentGhosts = false;
+    forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
+      const glm::vec3 pLow = r.corner(lowCorner);
+      if (in_.grid->ownerCell(in_.grid->bin(pLow)) != cell) {
+        sentGhosts = true;
+        return;
+      }
+      const uint64_t key = (uint64_t{low} << 32) | high;
+      if (ghostKeys.empty() || !std::binary_search(ghostKeys.begin(), ghostKeys.end(), key)) return;
+      const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
+      incidences.push_back({key, cell, leafOf[f] | CrossPair::kLeafRef, sides, static_cast<float>(length)});
+    });
+    if (sentGhosts) border.push_back({f, leafOf[f]});
+  }
+  std::sort(incidences.begin(), incidences.end());
+  // Shared lengths under the dual graph's edge rules (EdgeShare). Each cell has already joined its
+  // own faces on the edge by those rules over its own sides (its FaceAdjacency), so the cross-cell
+  // pairs get what the whole edge shares in the whole mesh's graph minus what the cells shared
+  // inside: merging every face of the edge then removes exactly what it removes in core, and the
+  // root's perimeter is the in-core one, however the cells cut the non-manifold edges.
+  for (size_t i = 0; i < incidences.size();) {
+    size_t j = i;
+    EdgeSides whole;
+    bool mixed = false;
+    for (; j < incidences.size() && incidences[j].key == incidences[i].key; ++j) {
+      whole.add(incidences[j].sides);
+      mixed |= incidences[j].cell != incidences[i].cell;
+    }
+    if (mixed && whole.uses >= 2) {
+      double inside = 0, crossWeight = 0;  // shares within the cells; sum of u_a u_b over cross pairs
+      uint32_t cellRuns = 0;
+      for (size_t a = i; a < j;) {
+        EdgeSides own;
+        size_t b = a;
+        for (; b < j && incidences[b].cell == incidences[a].cell; ++b) own.add(incidences[b].sides);
+        inside += own.joinedShare();
+        crossWeight -= own.pairWeight();
+        ++cellRuns;
+        a = b;
+      }
+      crossWeight += whole.pairWeight();
+      const double length = incidences[i].length;
+      const double cross = std::max(0.0, whole.joinedShare() - inside) * length;
+      if (whole.faces <= kMaxFacesJoinedPairwise) {
+        for (size_t a = i; a < j; ++a)
+          for (size_t b = a + 1; b < j; ++b) {
+            if (incidences[a].cell == incidences[b].cell) continue;
+            const double weight = double(incidences[a].sides) * incidences[b].sides;
+            pairs.push_back({{incidences[a].cell, incidences[b].cell},
+                             {incidences[a].ref, incidences[b].ref},
+                             crossWeight > 0 ? cross * weight / crossWeight : 0.0});
+          }
+      } else {
+        // A chain: each cell's faces are linked by its own adjacency, the cells' runs by one link each.
+        for (size_t a = i; a + 1 < j; ++a) {
+          if (incidences[a].cell == incidences[a + 1].cell) continue;
+          pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
+                           {incidences[a].ref, incidences[a + 1].ref},
+                           cross / (cellRuns - 1)});
+        }
+      }
+    }
+    i = j;
+  }
+}
+
+const char* cellSpillName(CellSpill kind) {
+  constexpr const char* kNames[] = {"nodes", "geometry", "pairs", "leaves", "border"};  // CellSpill's order
+  return kNames[static_cast<size_t>(kind)];
+}
+
+std::filesystem::path cellTaskFile(const std::filesystem::path& dir, CellSpill kind, uint32_t task) {
+  return dir / ("cells-" + std::to_string(task) + "-" + cellSpillName(kind) + ".spill");
+}
+
+std::vector<uint32_t> cellTaskBounds(std::span<const uint64_t> cellFaces, uint32_t tasks) {
+  const auto cells = static_cast<uint32_t>(cellFaces.size());
+  uint64_t total = 0;
+  for (uint32_t c = 0; c < cells; ++c) total += cellFaces[c];
+  tasks = std::clamp<uint32_t>(tasks, 1, std::max(1u, cells));
+  // Task t ends at the first cell whose faces so far reach t + 1 shares of the total.
+  std::vector<uint32_t> bounds{0};
+  uint64_t sum = 0;
+  for (uint32_t c = 0; c < cells; ++c) {
+    sum += cellFaces[c];
+    const uint64_t t = bounds.size();
+    if (t < tasks && sum * tasks >= t * total && cells - (c + 1) >= tasks - t) bounds.push_back(c + 1);
+  }
+  while (bounds.size() < size_t{tasks} + 1) bounds.push_back(cells);
+  bounds.back() = cells;
+  return bounds;
+}
+
+CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                       BinnedFaces&& binned) {
+  BinnedFaces in = std::move(binned);  // the grid's 8 MiB table serves this stage's lookups only
+  const uint32_t cells = in.grid->cellCount();
+  if (context.job.cellTasks <= 1) return CellsStage(context, plan, extent, in, 0, cells, std::nullopt).run();
+
+  // The cells as tasks, one after the other here, each into its named spills; the stages after read
+  // their segments together by the handles the tasks made, and take each cell's records from the task
+  // that built it.
+  const std::vector<uint32_t> bounds = cellTaskBounds(in.cellFaceCounts(), context.job.cellTasks);
+  const auto tasks = static_cast<uint32_t>(bounds.size() - 1);
+  std::vector<CellResult> results(cells);
+  // Each task's files stay accounted by their writers until every task is done, then by the reader.
+  std::vector<CellsOutput> parts;
+  for (uint32_t t = 0; t < tasks; ++t) {
+    parts.push_back(CellsStage(context, plan, extent, in, bounds[t], bounds[t + 1], t).run());
+    for (uint32_t c = bounds[t]; c < bounds[t + 1]; ++c)
+      results[c] = std::move(parts.back().records.cells[c]);
+  }
+  std::exchange(in, {});
+  parts.clear();
+  return openCellTasks(context.temp, context.temp.path(), tasks, std::move(results));
+}
+
+CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                          BinnedFaces& binned, uint32_t first, uint32_t end, uint32_t task) {
+  return CellsStage(context, plan, extent, binned, first, end, task).run();
+}
+
+CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uint32_t tasks,
+                          std::vector<CellResult> results) {
+  const auto open = [&](CellSpill kind, size_t recordBytes = 1) {
+    std::vector<std::filesystem::path> paths;
+    for (uint32_t t = 0; t < tasks; ++t) paths.push_back(cellTaskFile(dir, kind, t));
+    return SpillFile::open(temp, paths, recordBytes);
+  };
+  CellsOutput out;
+  out.subtrees.nodes = open(CellSpill::Nodes);
+  out.subtrees.geometry = open(CellSpill::Geometry, 4);
+  out.records.pairs = open(CellSpill::Pairs);
+  out.records.leaves = open(CellSpill::Leaves);
+  out.records.border = open(CellSpill::Border);
+  out.records.cells = std::move(results);
+  return out;
+}
+
+}  // namespace facetree
