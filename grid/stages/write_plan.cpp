@@ -50,8 +50,9 @@ class WriteStage {
         graph_(std::move(graph)),
         upper_(upper),
         subtrees_(std::move(subtrees)) {}
-  // One process: the plan in memory, then the geometry and the nodes straight into the file by
-  // the stages' own task bodies (writeGeometryRange, writeNodeRange), the ranges whole.
+  // One process: the plan in memory, the geometry written on the way, then the nodes, straight
+  // into the file by the stages' own task bodies (writeGeometryRange, writeNodeRange), the ranges
+  // whole.
   void run();
   // The stages' upper step: the node order and (for compact boxes) the quantised runs as named
   // spills in `work`, and the plan the geometry, boxes and node tasks take.
@@ -66,7 +67,8 @@ class WriteStage {
   };
   Start start();
   // The write plan. Compact boxes need the upper nodes' boxes to quantise the leaves' runs: the
-  // geometry is read here for them, and written into `writer` on the way when there is one.
+  // geometry is read here for them. With `writer` (one process), the geometry is written into it
+  // here, and the upper boxes accumulate on the way, exact or compact.
   WritePlan plan(Start& begun, ClusterFileWriter* writer);
   StreamFileInfo fileInfo(const FileLayout& layout) const;
   WriteOptions writeOptions() const;
@@ -75,9 +77,10 @@ class WriteStage {
   FchNode upperNode(uint32_t j, const WritePlan& plan, const FileLayout& layout,
                     const UpperFrames& frames) const;
   // Compact boxes: every upper node's box as the file decodes it (parents first).
-  std::vector<NodeBox> upperDecodedBoxes(const FileLayout& layout, const UpperFrames& frames) const;
+  std::vector<NodeBox> upperDecodedBoxes(const WritePlan& plan, const FileLayout& layout,
+                                         const UpperFrames& frames) const;
   // The node order, sorted on disk.
-  std::unique_ptr<OrderSorter> nodeOrder(const FileLayout& layout);
+  std::unique_ptr<OrderSorter> nodeOrder(const WritePlan& plan, const FileLayout& layout);
   // The file position of every upper node (by file index) and of every run's first node; the
   // order is kept in order_ for the node pass.
   void place(OrderSorter& order);
@@ -85,7 +88,7 @@ class WriteStage {
   void progress(uint64_t done) const;
   // Compact boxes: every leaf run's records quantised against their parents' decoded boxes, leaf by
   // leaf in spill order, into a spill that replaces the node spill (and the runs' tables).
-  void compactRuns(const FileLayout& layout, const UpperFrames& frames);
+  void compactRuns(const WritePlan& plan, const FileLayout& layout, const UpperFrames& frames);
 
   const StageContext& context_;
   const std::filesystem::path* work_ = nullptr;  // runPieces: the spills it hands on are named there
@@ -100,7 +103,6 @@ class WriteStage {
   BoxPrecision runRecords_ = BoxPrecision::Exact;  // the node spill's records (compactRuns)
   std::vector<SpillBlock> orderBlocks_;
   std::vector<uint64_t> orderFirst_;  // the file position of each order block's first node
-  bool geometryWritten_ = false;      // plan() wrote the geometry (compact boxes, one process)
   uint64_t total_ = 0;                // the write's triangles and nodes, for progress
 };
 
@@ -171,7 +173,7 @@ FileLayout WriteStage::layout() const {
 // children's keys (its upper children's, its leaf children's first runs'). Keys never increase from
 // parent to child, so children follow their parents and a prefix refines the leaves as the in-core
 // order refines the mesh.
-std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
+std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const WritePlan& plan, const FileLayout& layout) {
   const auto& upper = upper_.nodes;
   const auto upperCount = static_cast<uint32_t>(upper.size());
   const uint64_t budget = std::max<uint64_t>(context_.memoryCap / kEdgeSortShare, uint64_t{1} << 20);
@@ -194,7 +196,7 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const FileLayout& layout) {
         order->push({upperKey[upperCount - 1 - j], 0, j, 0, 0, 0, 0, 0});
   }
   std::vector<uint32_t> rank(graph_.leaves.size());
-  for (uint32_t r = 0; r < layout.leafOrder.size(); ++r) rank[layout.leafOrder[r]] = r;
+  for (uint32_t r = 0; r < plan.leafOrder.size(); ++r) rank[plan.leafOrder[r]] = r;
   std::vector<std::byte> raw;
   std::vector<NodeBlock> runs;
   for (size_t c = 0; c < graph_.cellRuns.size(); ++c) {
@@ -255,12 +257,12 @@ FchNode WriteStage::upperNode(uint32_t j, const WritePlan& plan, const FileLayou
   const auto childRef = [&](uint32_t c) -> uint32_t {
     if (!(c & kLeafChild)) return plan.upperPosition[upperCount - 1 - c];
     const uint32_t leaf = c & ~kLeafChild;
-    return graph_.leaves[leaf].nodeCount ? runNodePosition(plan, leaf, 0)
-                                         : kFaceChild | static_cast<uint32_t>(layout.faceBase[leaf]);
+    return plan.leafBlockCount[leaf] ? runNodePosition(plan, leaf, 0)
+                                     : kFaceChild | static_cast<uint32_t>(layout.faceBase[leaf]);
   };
   const auto childFaces = [&](uint32_t c) -> uint32_t {
     if (!(c & kLeafChild)) return static_cast<uint32_t>(upper[c].stats.faceCount);
-    return graph_.leaves[c & ~kLeafChild].faceCount;
+    return plan.leafFaces[c & ~kLeafChild];
   };
   const uint32_t i = upperCount - 1 - j;
   const ClusterMergeNode& u = upper[i];
@@ -282,20 +284,20 @@ FchNode WriteStage::upperNode(uint32_t j, const WritePlan& plan, const FileLayou
   return n;
 }
 
-std::vector<NodeBox> WriteStage::upperDecodedBoxes(const FileLayout& layout,
+std::vector<NodeBox> WriteStage::upperDecodedBoxes(const WritePlan& plan, const FileLayout& layout,
                                                    const UpperFrames& frames) const {
   const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
   std::vector<NodeBox> upperBox(upperCount);
   for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
     if (!layout.recast.kept[i]) continue;
-    const uint32_t parent = layout.nodeParent[i];
+    const uint32_t parent = plan.upperParent[i];
     upperBox[i] = compactDecodedBox(frames.boxes[i].box(), parent == kNone ? nullptr : &upperBox[parent]);
   }
   return upperBox;
 }
 
-void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames) {
-  const std::vector<NodeBox> upperBox = upperDecodedBoxes(layout, frames);
+void WriteStage::compactRuns(const WritePlan& plan, const FileLayout& layout, const UpperFrames& frames) {
+  const std::vector<NodeBox> upperBox = upperDecodedBoxes(plan, layout, frames);
   auto out = work_ ? std::make_unique<SpillFile>(context_.temp, SpillFile::Named{*work_ / kWriteNodesFile})
                    : std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
   SpillFile& runs = *subtrees_.nodes;
@@ -325,7 +327,7 @@ void WriteStage::compactRuns(const FileLayout& layout, const UpperFrames& frames
       const LeafCluster& leaf = graph_.leaves[leafId];
       if (leaf.blockCount == 0) continue;
       parentBox.assign(leaf.nodeCount, NodeBox{});
-      parentBox[0] = upperBox[layout.leafParent[leafId]];
+      parentBox[0] = upperBox[plan.leafUpperParent[leafId]];
       for (uint32_t b = 0; b < leaf.blockCount; ++b) {
         NodeBlock& block = blocks[leaf.firstBlock - cellFirst + b];
         const SpillBlock at = block.spill();
@@ -390,7 +392,7 @@ WriteStage::Start WriteStage::start() {
 }
 
 WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
-  const FileLayout& fileLayout = begun.layout;
+  FileLayout& fileLayout = begun.layout;
   UpperFrames& frames = begun.frames;
   const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
   total_ = fileLayout.faces + fileLayout.nodes;
@@ -400,7 +402,7 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
   plan.boxPart = boxPartTriangles(context_.job);
   // The geometry tasks' tables: every leaf's geometry blocks and, per leaf id, its first block,
   // block count, vertices and faces; the upper tree above the leaves.
-  plan.leafOrder = fileLayout.leafOrder;
+  plan.leafOrder = std::move(fileLayout.leafOrder);
   plan.geometry = std::move(graph_.geometry);
   const size_t leaves = graph_.leaves.size();
   plan.leafFirstGeometry.resize(leaves);
@@ -414,11 +416,13 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
     plan.leafVertices[l] = leaf.vertexCount;
     plan.leafFaces[l] = leaf.faceCount;
   }
-  plan.upperParent = fileLayout.nodeParent;
-  plan.leafUpperParent = fileLayout.leafParent;
+  plan.upperParent = std::move(fileLayout.nodeParent);
+  plan.leafUpperParent = std::move(fileLayout.leafParent);
   // Exact boxes: the geometry tasks accumulate the upper nodes' boxes as they write the geometry
   // (each its part), and the boxes step merges them. Compact boxes are needed now, to quantise
-  // the leaves' runs, so the geometry is read here for them, in the same parts.
+  // the leaves' runs, so the geometry is read here for them, in the same parts. One process writes
+  // the geometry here, whichever the boxes, as one range (the geometry tasks' body over the whole
+  // file): the parts merge into the totals as they end, in the order the boxes step merges them.
   plan.boxesInTasks = context_.job.build.boxes == BoxPrecision::Exact && upperCount > 0;
   if (plan.boxesInTasks) {
     plan.upperOrientation.resize(upperCount);
@@ -428,20 +432,28 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
       plan.upperOrientation[i] = frames.boxes[i].orientation();
       plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
     }
-  } else if (upperCount > 0) {
-    UpperBoxes boxes(frames.boxes, context_.job.threads > 1);
-    const GeometryRange whole{0, fileLayout.faces, 0, fileLayout.vertices};
-    writeGeometryRange(plan, *subtrees_.geometry, whole, writer, &boxes, /*discard=*/writer != nullptr,
-                       "the write plan", [&](uint64_t done) { progress(done); });
-    boxes.finish();
-    geometryWritten_ = writer != nullptr;
   }
-  releaseFreeMemory();
+  if (writer || (upperCount > 0 && !plan.boxesInTasks)) {
+    std::optional<UpperBoxes> boxes;
+    if (upperCount > 0) boxes.emplace(frames.boxes, context_.job.threads > 1);
+    const GeometryRange whole{0, fileLayout.faces, 0, fileLayout.vertices};
+    writeGeometryRange(plan, *subtrees_.geometry, whole, writer, boxes ? &*boxes : nullptr,
+                       /*discard=*/writer != nullptr, "the write plan",
+                       [&](uint64_t done) { progress(done); });
+    if (boxes) boxes->finish();
+  }
+  if (writer) {  // else the geometry tasks read it
+    subtrees_.geometry.reset();
+    for (auto* table : {&plan.leafFirstGeometry, &plan.leafGeometryCount, &plan.leafVertices})
+      std::exchange(*table, {});
+    std::exchange(plan.geometry, {});
+  }
+  releaseFreeMemory();  // the geometry pass's batches and buffers, before the order's sort
   const bool compact = context_.job.build.boxes == BoxPrecision::Compact && upperCount > 0;
   // With compact boxes a leaf's boxes depend on their ancestors' only: quantised leaf by leaf here,
   // so that the node pass keeps no box of a node waiting for its children.
-  if (compact) compactRuns(fileLayout, frames);
-  place(*nodeOrder(fileLayout));
+  if (compact) compactRuns(plan, fileLayout, frames);
+  place(*nodeOrder(plan, fileLayout));
   releaseFreeMemory();  // the order's sort, before the passes that write the file
 
   plan.records = runRecords_;
@@ -457,6 +469,7 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
     plan.leafBlockCount[l] = graph_.leaves[l].blockCount;
   }
   plan.upperPosition = std::move(upperPosition_);
+  std::exchange(graph_.leaves, {});  // the plan has what the passes need of them
   if (!work_) return plan;
   // The node tasks' upper nodes, made once here (one process makes each as the node pass reaches
   // it: upperNode).
@@ -466,11 +479,11 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
       plan.upperNodes[j] = upperNode(j, plan, fileLayout, frames);
   if (context_.job.build.boxes == BoxPrecision::Compact) {
     // Each upper node's parent's box as decoded, for a node task that holds the node but not its parent.
-    const std::vector<NodeBox> decoded = upperDecodedBoxes(fileLayout, frames);
+    const std::vector<NodeBox> decoded = upperDecodedBoxes(plan, fileLayout, frames);
     plan.upperParentBox.resize(upperCount);
     plan.upperParentPosition.assign(upperCount, kNone);
     for (uint32_t j = 0; j < upperCount; ++j) {
-      const uint32_t i = upperCount - 1 - j, parent = fileLayout.nodeParent[i];
+      const uint32_t i = upperCount - 1 - j, parent = plan.upperParent[i];
       if (!fileLayout.recast.kept[i] || parent == kNone) continue;
       plan.upperParentBox[j] = decoded[parent];
       plan.upperParentPosition[j] = plan.upperPosition[upperCount - 1 - parent];
@@ -491,23 +504,9 @@ void WriteStage::run() {
       temp.release(static_cast<uint64_t>(-delta));
   });
   const WritePlan p = plan(begun, &writer);
-  const FileHeader& header = p.info.header;
-  // The geometry tasks, and for exact boxes the boxes step, as one range: the parts merge into the
-  // totals as they end, in the order the boxes step merges the tasks' parts.
-  uint64_t done = 0;
-  if (!geometryWritten_) {
-    std::optional<UpperBoxes> boxes;
-    if (p.boxesInTasks) boxes.emplace(begun.frames.boxes, job.threads > 1);
-    const GeometryRange whole{0, header.triangleCount, 0, header.vertexCount};
-    writeGeometryRange(p, *subtrees_.geometry, whole, &writer, boxes ? &*boxes : nullptr, /*discard=*/true,
-                       "the write plan", [&](uint64_t triangles) { progress(done = triangles); });
-    if (boxes) boxes->finish();
-  }
-  subtrees_.geometry.reset();
-  done = header.triangleCount;
-  releaseFreeMemory();  // the geometry pass's batches and buffers, before the nodes pass's
+  const uint64_t done = p.info.header.triangleCount;
   writeNodeRange(
-      p, *order_, *subtrees_.nodes, 0, header.nodeCount, writer,
+      p, *order_, *subtrees_.nodes, 0, p.info.header.nodeCount, writer,
       [&](uint32_t j) { return upperNode(j, p, begun.layout, begun.frames); },
       [&](uint64_t nodes) { progress(done + nodes); });
   subtrees_.nodes.reset();
