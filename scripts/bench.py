@@ -46,6 +46,16 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              the pipeline's targets as checks (time, faces/s, cap, temporary peak against the file);
              and every shared mesh of 1M faces or more at --memory 64M against in core (cut fits
              within 10%, heights within 1.25x, as checks)
+  queries    queries through the hierarchy (tests/query/query_bench, built with -DFACETREE_QUERY_BENCH=ON
+             against Debian's libembree-dev): the branching experiment (Willmott 2000, sec. 5.5.1) for
+             b = 2, 4 and 8 on every shared mesh, whole and truncated to 10% and 1% of its nodes:
+             closest and any hits of camera and random rays, box overlap and nearest points on one
+             thread, queries a second, boxes and triangles tested a query; then Embree 3.13
+             (rtcIntersect1 over a scene built at medium quality) on the same rays at the best b:
+             the same triangle and t on every shared mesh, and the time on dragon_vrip with 1M camera
+             and 1M random rays on one thread and on two, alternating, with the targets as checks;
+             in the full run, 1M rays on the 56M-face dragon's file through the lazy reader under
+             --memory 256M (rays a second, peak RSS)
   speed      with --baseline-facetree BIN (an earlier build, e.g. the previous commit's): dragon_vrip
              in core (quick and full) and the 14M-face dragon at --memory 64M (full), built by both
              binaries alternately in one run, medians of whole processes' wall and CPU; the ratio
@@ -989,7 +999,7 @@ def bench_outofcore(args, out):
 
 
 SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore",
-            "python", "speed", "format"]
+            "python", "queries", "speed", "format"]
 
 
 PYTHON_BUILD = r"""
@@ -1023,6 +1033,105 @@ for _ in range(runs):
 SPEED_BOUND = 1.10
 SPEED_CASES_FULL = [("dragon_vrip in core", 0, [], 7), ("14M-face dragon at 64M", 2, ["--memory", "64M"], 5)]
 SPEED_CASES_QUICK = [("dragon_vrip in core", 0, [], 3)]
+
+
+
+# Queries (issue targets): Embree peer on dragon_vrip at most this many times its time, closest
+# hits, 1M camera and 1M random rays, one thread and two; on every shared mesh at least this share
+# of rays on the same triangle as Embree's, and every t within 1e-5 relative.
+QUERY_PREFIXES = (0.01, 0.1, 1.0)
+QUERY_EMBREE_RATIO = 4.0
+QUERY_SAME_TRIANGLE = 0.9999
+QUERY_T_RELATIVE = 1e-5
+QUERY_DRAGON56 = (3, "256M")  # gen subdivide dragon_vrip --levels 3, read under this cap
+
+
+def query_bench_binary(args):
+    binary = pathlib.Path(args.facetree).resolve().parent.parent / "tests" / "query" / "query_bench"
+    if not binary.exists():
+        raise RuntimeError(f"{binary} is missing: configure with -DFACETREE_QUERY_BENCH=ON (scripts/bench does)")
+    return binary
+
+
+def query_run(args, fch, *options):
+    stdout, _ = run([query_bench_binary(args), fch, *options])
+    return json.loads(stdout)
+
+
+def bench_queries(args, meshes, out):
+    tmp = out / "queries"
+    tmp.mkdir(exist_ok=True)
+    rays, queries = (1 << 13, 1 << 11) if args.quick else (1 << 16, 1 << 13)
+    files = {}
+    experiment = []
+    for mesh in meshes:
+        for b in (2, 4, 8):
+            fch = files[(mesh, b)] = tmp / f"{mesh}-b{b}.fch"
+            run([args.facetree, "build", mesh_path(mesh), "-o", fch, "--branching", b])
+            for prefix in QUERY_PREFIXES:
+                r = query_run(args, fch, "--prefix", prefix, "--rays", rays, "--queries", queries, "--threads", 1,
+                              "--repeat", 1)
+                experiment.append({"mesh": mesh, "branching": b, "prefix": prefix, **r})
+    # The best b for each kind of query: the highest median over the meshes of its rate against
+    # b = 2's on the same mesh, whole files.
+    kinds = {"camera": ("camera", "rays_per_second"), "random": ("random", "rays_per_second"),
+             "boxes": ("boxes", "queries_per_second"), "nearest": ("nearest", "queries_per_second")}
+    best = {}
+    for kind, (key, rate) in kinds.items():
+        relative = {b: median([r[key][rate] / next(q[key][rate] for q in experiment if q["mesh"] == r["mesh"]
+                                                    and q["branching"] == 2 and q["prefix"] == 1.0)
+                               for r in experiment if r["branching"] == b and r["prefix"] == 1.0])
+                    for b in (2, 4, 8)}
+        best[kind] = {"branching": max(relative, key=relative.get), "rate_against_b2": relative}
+    b = best["camera"]["branching"]
+    # The same hits as Embree's on every mesh, at the best b for camera rays.
+    agreement = []
+    for mesh in meshes:
+        r = query_run(args, files[(mesh, b)], "--embree", "--only", "rays", "--rays", rays * 4, "--threads", 2,
+                      "--repeat", 1)
+        agreement.append({"mesh": mesh, **r})
+    # Speed against Embree on dragon_vrip, 1M rays of each kind, one thread and two.
+    speed = []
+    dragon = files.get(("dragon_vrip", b))
+    if dragon:
+        for threads in (1, 2):
+            r = query_run(args, dragon, "--embree", "--only", "rays", "--rays", 1 << 20, "--threads", threads,
+                          "--repeat", args.repeat)
+            speed.append(r)
+    # Rays through the lazy reader on the 56M-face dragon's file (full run).
+    reader = None
+    if not args.quick:
+        levels, cap = QUERY_DRAGON56
+        mesh, fch = tmp / "dragon56.ply", tmp / "dragon56.fch"
+        run([args.facetree, "gen", "subdivide", mesh_path("dragon_vrip"), "--levels", levels, "-o", mesh])
+        run([args.facetree, "build", mesh, "-o", fch, "--memory", cap, "--branching", b])
+        mesh.unlink()
+        stdout, wall, cpu, peak = run_measured([query_bench_binary(args), fch, "--reader-memory", cap_bytes(cap),
+                                                "--only", "rays", "--rays", 1 << 20, "--threads", 2, "--repeat", 1])
+        reader = {**json.loads(stdout), "cap": cap, "peak_rss_bytes": peak, "wall_seconds": wall,
+                  "cpu_seconds": cpu, "file_bytes": fch.stat().st_size}
+        fch.unlink()
+    for fch in files.values():
+        fch.unlink()
+    checks = {
+        "same_triangle_every_mesh": all(a[k]["same_triangle"] >= QUERY_SAME_TRIANGLE
+                                        for a in agreement for k in ("camera", "random")),
+        "t_within_1e-5_every_mesh": all(a[k]["t_outside_1e-5"] == 0 for a in agreement for k in ("camera", "random")),
+        # where a t differs by more, whether Embree's is the one further from the plane's exact t
+        "t_differences_embree_rounding": all(a[k]["t_outside_1e-5"] == a[k]["t_outside_1e-5_embree_further_from_exact"]
+                                             for a in agreement for k in ("camera", "random")),
+        "facetree_t_within_1e-6_of_exact": all(a[k]["facetree_worst_t_against_exact"] <= 1e-6
+                                               for a in agreement for k in ("camera", "random")),
+        "closest_within_4x_embree": bool(speed) and all(r[k]["closest_ratio"] <= QUERY_EMBREE_RATIO
+                                                        for r in speed for k in ("camera", "random")),
+    }
+    result = {"rays": rays, "queries": queries, "experiment": experiment, "best": best, "embree_branching": b,
+              "agreement": agreement, "speed": speed, "reader": reader, "checks": checks}
+    print("queries: best b", {k: v["branching"] for k, v in best.items()}, "checks", checks)
+    for r in speed:
+        print(f"  dragon_vrip {r['threads']} thread(s): camera {r['camera']['closest_ratio']:.2f}x Embree, "
+              f"random {r['random']['closest_ratio']:.2f}x; Embree build {r['embree_build_seconds']:.2f} s")
+    return result
 
 
 def bench_speed(args, out):
@@ -1247,6 +1356,7 @@ def main():
         "rounds": lambda: bench_rounds(args, meshes, out),
         "outofcore": lambda: bench_outofcore(args, out),
         "python": lambda: bench_python(args),
+        "queries": lambda: bench_queries(args, meshes, out),
         "speed": lambda: bench_speed(args, out),
         "format": lambda: bench_format(args, meshes, out),
     }

@@ -388,6 +388,120 @@ def without_boxes(report, octree_row):
     return ""
 
 
+
+QUERY_KINDS = [("camera", "rays_per_second", "camera rays, closest hit"),
+               ("random", "rays_per_second", "random rays, closest hit"),
+               ("boxes", "queries_per_second", "box overlap"),
+               ("nearest", "queries_per_second", "nearest point")]
+
+
+def query_relative(q, kind, field, b, prefix):
+    """The median over the meshes of a figure at branching b against b = 2's, same mesh and prefix."""
+    values = []
+    for r in q["experiment"]:
+        if r["branching"] != b or r["prefix"] != prefix:
+            continue
+        base = next(x for x in q["experiment"] if x["mesh"] == r["mesh"] and x["branching"] == 2
+                    and x["prefix"] == prefix)
+        if base[kind][field]:
+            values.append(r[kind][field] / base[kind][field])
+    values.sort()
+    return values[len(values) // 2] if values else float("nan")
+
+
+def query_work(record):
+    return record.get("boxes_per_ray", record.get("boxes_per_query", 0)) + \
+        record.get("triangles_per_ray", record.get("triangles_per_query", 0))
+
+
+def plot_queries(q, path):
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.6))
+    bs = [2, 4, 8]
+    bound = [(b / math.log2(b)) / 2 for b in bs]
+    for ax, (kind, rate, title) in zip(axes, QUERY_KINDS):
+        for prefix, color in zip((0.01, 0.1, 1.0), ("tab:orange", "tab:green", "tab:blue")):
+            time = [1 / query_relative(q, kind, rate, b, prefix) for b in bs]
+            ax.plot(bs, time, "o-", color=color, label=f"time, {prefix:g} of the nodes")
+            boxes = [query_relative(q, kind, "boxes_per_ray" if "rays" in rate else "boxes_per_query", b, prefix)
+                     for b in bs]
+            ax.plot(bs, boxes, "x--", color=color, alpha=0.6, label=f"boxes tested, {prefix:g}")
+        ax.plot(bs, bound, "k:", label="bound (b / log2 b) / 2")
+        ax.set_xticks(bs)
+        describe(ax, title, "branching b", "against b = 2 (median over meshes)", legend_size=6)
+    save(fig, path)
+
+
+def queries_markdown(q, rel):
+    out = ["## Queries and the branching factor (Willmott 2000, sec. 5.5.1)", "",
+           f"Every shared mesh built with b = 2, 4 and 8 and read in memory, whole and truncated to 10% and 1% "
+           f"of its nodes (a cut-off node's faces are tested). {q['rays']:,} camera rays (a pinhole camera "
+           f"outside the bounding sphere) and {q['rays']:,} random rays (origins in the box grown by a tenth, "
+           f"directions uniform) for closest hits; {q['queries']:,} boxes about surface points (a hundredth "
+           "of the diagonal, one in ten oriented) and as many nearest-point queries from random points; one "
+           "thread (`tests/query/query_bench`). Figures are medians over the meshes of the ratio to b = 2 on "
+           "the same mesh and prefix: query time, and oriented boxes tested. Sec. 5.5.1 bounds the query "
+           "time of a b-ary tree against the binary one by b / log b: b children tested at each of "
+           "log_b n levels against 2 at each of log_2 n, (b / log2 b) / 2, 1.00 for b = 4 and 1.33 for "
+           "b = 8.", ""]
+    rows = []
+    for kind, rate, title in QUERY_KINDS:
+        for prefix in (1.0, 0.1, 0.01):
+            row = [title, f"{prefix:g}"]
+            for b in (4, 8):
+                row.append(f"{1 / query_relative(q, kind, rate, b, prefix):.2f}")
+                field = "boxes_per_ray" if "rays" in rate else "boxes_per_query"
+                row.append(f"{query_relative(q, kind, field, b, prefix):.2f}")
+            rows.append(row)
+    out += [table(["query", "share of nodes", "time b=4", "boxes b=4", "time b=8", "boxes b=8"], rows), ""]
+    best = q["best"]
+    out += ["Best b (highest median rate against b = 2, whole files): " +
+            ", ".join(f"{title} **b = {best[kind]['branching']}**" for kind, _, title in QUERY_KINDS) + ".", ""]
+    out += [f"![queries]({rel}/queries.png)", ""]
+    whole = [r for r in q["experiment"] if r["prefix"] == 1.0 and r["branching"] == q["embree_branching"]]
+    out += [f"Per mesh at b = {q['embree_branching']}, whole files, one thread:", "",
+            table(["mesh", "triangles", "camera rays/s", "boxes / tris a ray", "random rays/s", "boxes / tris a ray",
+                   "boxes/s", "nearest/s"],
+                  [[r["mesh"], f"{r['triangles']:,}", f"{r['camera']['rays_per_second']:,.0f}",
+                    f"{r['camera']['boxes_per_ray']:.1f} / {r['camera']['triangles_per_ray']:.1f}",
+                    f"{r['random']['rays_per_second']:,.0f}",
+                    f"{r['random']['boxes_per_ray']:.1f} / {r['random']['triangles_per_ray']:.1f}",
+                    f"{r['boxes']['queries_per_second']:,.0f}", f"{r['nearest']['queries_per_second']:,.0f}"]
+                   for r in whole]), ""]
+    out += ["### Against Embree", "",
+            f"Embree 3.13 (Debian's libembree-dev), `rtcIntersect1` and `rtcOccluded1` over a scene of the "
+            f"file's triangles built at medium quality, the same rays, b = {q['embree_branching']}; times "
+            "alternate with facetree's, medians. Agreement on every shared mesh (rays that hit different "
+            "triangles, and hits whose t differ by more than 1e-5 relative):", "",
+            table(["mesh", "camera: same triangle", "different", "t > 1e-5", "random: same triangle", "different",
+                   "t > 1e-5", "worst t", "facetree's t from exact"],
+                  [[a["mesh"], f"{a['camera']['same_triangle']:.6f}", a["camera"]["different_triangle"],
+                    a["camera"]["t_outside_1e-5"], f"{a['random']['same_triangle']:.6f}",
+                    a["random"]["different_triangle"], a["random"]["t_outside_1e-5"],
+                    f"{max(a['camera']['worst_t_relative'], a['random']['worst_t_relative']):.1e}",
+                    f"{max(a['camera']['facetree_worst_t_against_exact'], a['random']['facetree_worst_t_against_exact']):.1e}"]
+                   for a in q["agreement"]]), "",
+            "Where the two t differ by more than 1e-5, each is set against the exact t of its own triangle's "
+            "plane (long double): the check `t_differences_embree_rounding` says whether Embree's is the one "
+            "further from it every time.", ""]
+    if q["speed"]:
+        out += ["dragon_vrip, 1M rays of each kind (closest hit, any hit; facetree time over Embree's):", "",
+                table(["threads", "rays", "facetree s", "Embree s", "ratio", "any: facetree s", "Embree s", "ratio",
+                       "Embree build s", "facetree load s"],
+                      [[r["threads"], kind, f"{r[kind]['closest_seconds']:.3f}", f"{r[kind]['embree_closest_seconds']:.3f}",
+                        f"**{r[kind]['closest_ratio']:.2f}**", f"{r[kind]['any_seconds']:.3f}",
+                        f"{r[kind]['embree_any_seconds']:.3f}", f"{r[kind]['any_ratio']:.2f}",
+                        f"{r['embree_build_seconds']:.2f}", f"{r['load_seconds']:.2f}"]
+                       for r in q["speed"] for kind in ("camera", "random")]), ""]
+    if q.get("reader"):
+        r = q["reader"]
+        out += [f"The 56M-face dragon's file ({r['file_bytes'] / 1e9:.2f} GB) through the lazy reader under "
+                f"--memory {r['cap']}, two threads: camera rays {r['camera']['rays_per_second']:,.0f} a second, "
+                f"random rays {r['random']['rays_per_second']:,.0f}; peak RSS {r['peak_rss_bytes'] / 2**20:.0f} MiB.", ""]
+    checks = q["checks"]
+    out += ["Checks: " + ", ".join(f"{k} {'yes' if v else '**no**'}" for k, v in checks.items()) + ".", ""]
+    return out
+
+
 def markdown(report, figures, rel):
     out = ["# Benchmarks", "",
            "Generated by `scripts/bench" + (" --quick" if report.get("quick") else "") + "` and `scripts/plot`; "
@@ -527,6 +641,8 @@ def markdown(report, figures, rel):
 
     if "outofcore" in report:
         out += outofcore_markdown(report["outofcore"], rel)
+    if "queries" in report:
+        out += queries_markdown(report["queries"], rel)
     out += ["## Regenerating", "",
             "```sh",
             "scripts/bench --quick        # or without --quick: every shared mesh, larger generated ones",
@@ -786,6 +902,8 @@ def main():
         plot_branching(report["branching"], figures / "branching.png")
     if "flat" in report:
         plot_flat(report["flat"], figures / "flat.png")
+    if "queries" in report:
+        plot_queries(report["queries"], figures / "queries.png")
     if "outofcore" in report and report["outofcore"].get("rows"):
         plot_outofcore(report["outofcore"], figures / "outofcore.png")
     md = pathlib.Path(args.markdown)
