@@ -27,6 +27,7 @@ class FileSource {
   class View {
    public:
     explicit View(const FileSource& source) : file_(source.file_) {}
+    uint64_t faceCount() const { return file_.indices.size() / 3; }
     const FchNode& node(uint32_t index) { return file_.nodes[index]; }
     bool isCutOff(uint32_t ref) const { return file_.isCutOff(ref); }
     void corners(uint64_t p, glm::vec3 (&out)[3]) {

@@ -51,16 +51,17 @@ struct BoxRay {
   float tMin, tMax;
 };
 
-// The entry t of the ray into `box` (its interval clipped to [tMin, tMax]), or +infinity when it
-// misses.
-inline float rayBoxEntry(const BoxRay& ray, const NodeBox& box) {
-  const glm::mat3 axes = glm::mat3_cast(box.orientation);  // columns: the box's axes
-  const glm::vec3 offset = ray.origin - box.center;
+// The entry t of the ray into the box of `center`, `orientation` and `halfExtent` (its interval
+// clipped to [tMin, tMax]), or +infinity when it misses.
+inline float rayBoxEntry(const BoxRay& ray, const glm::vec3& center, const glm::quat& orientation,
+                         const glm::vec3& halfExtent) {
+  const glm::mat3 axes = glm::mat3_cast(orientation);  // columns: the box's axes
+  const glm::vec3 offset = ray.origin - center;
   const glm::vec3 o = glm::transpose(axes) * offset, d = glm::transpose(axes) * ray.direction;
   const float reach = std::abs(offset.x) + std::abs(offset.y) + std::abs(offset.z);
   float near = ray.tMin, far = ray.tMax;
   for (int a = 0; a < 3; ++a) {
-    const float h = box.halfExtent[a] * (1.0f + 1e-5f) + 1e-5f * reach;
+    const float h = halfExtent[a] * (1.0f + 1e-5f) + 1e-5f * reach;
     if (d[a] == 0.0f) {
       if (std::abs(o[a]) > h) return std::numeric_limits<float>::infinity();
       continue;
@@ -75,6 +76,9 @@ inline float rayBoxEntry(const BoxRay& ray, const NodeBox& box) {
     if (near > far) return std::numeric_limits<float>::infinity();
   }
   return near;
+}
+inline float rayBoxEntry(const BoxRay& ray, const NodeBox& box) {
+  return rayBoxEntry(ray, box.center, box.orientation, box.halfExtent);
 }
 
 }  // namespace facetree::query

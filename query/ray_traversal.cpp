@@ -3,10 +3,12 @@
 // Willmott 2000, sec. 5.5.1: a node of b children costs a query up to b tests where a binary tree
 // costs 2 per level, so query time may grow by up to b / log2 b with the branching factor; the
 // traversal is the same for every b, so that the files of b = 2, 4 and 8 can be compared by what
-// they cost. Closest hits go near child first: a node's node children are tested against the ray,
-// visited in order of their entry t and skipped once a hit lies before that entry; face children
-// and the face ranges of children cut off by truncation are tested at once. A hit at the same t as
-// the best goes to the triangle first in the face order, as the brute force decides it.
+// they cost. At a node, its face children and the face ranges of children cut off by truncation
+// are tested first; then its node children's boxes, and the children met are visited near first, in
+// order of their entry t (ties to the lower node index), and skipped once a hit lies before that
+// entry. A hit at the same t as the best goes to the triangle first in the face order, as the brute
+// force decides it. A file in memory is traversed through a layout for rays (ray_index.h), the same
+// tests in the same order.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -16,6 +18,7 @@
 #include "facetree/query.h"
 #include "query_blocks.h"
 #include "query_source.h"
+#include "ray_index.h"
 #include "ray_tests.h"
 
 namespace facetree {
@@ -94,16 +97,58 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
     if (static_cast<double>(entry) > best.t) continue;  // a hit before the box: nothing nearer in it
     // A copy through a reader, whose frames may leave the view as the children are read.
     decltype(auto) node = view.node(index);
+    if (query::forEachChild(
+            view, node,
+            [&](uint64_t first, uint64_t count) {
+              return testRange(view, ray, first, count, best, any, stats);
+            },
+            [](uint32_t) {}))
+      return best;
     unsigned near = 0;
-    const bool stop = query::forEachChild(
-        view, node,
-        [&](uint64_t first, uint64_t count) { return testRange(view, ray, first, count, best, any, stats); },
+    query::forEachChild(
+        view, node, [](uint64_t, uint64_t) { return false; },
         [&](uint32_t child) {
           ++stats.boxTests;
           const float t = rayBoxEntry(ray.box, view.node(child).box);
           if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, child};
         });
-    if (stop) return best;
+    query::pushNearFirst(children, near, stack,
+                         [&](float entry) { return static_cast<double>(entry) <= best.t; });
+  }
+  return best;
+}
+
+// The same traversal over a file's layout for rays: stack entries are positions in the index,
+// which order siblings as their node indices do.
+Best traverseIndex(const query::RayIndex& index, query::FileSource::View& view, const RayState& ray, bool any,
+                   QueryStats& stats, Stack& stack) {
+  Best best;
+  if (!ray.valid) return best;
+  if (index.empty()) {
+    testRange(view, ray, 0, view.faceCount(), best, any, stats);
+    return best;
+  }
+  stack.clear();
+  ++stats.boxTests;
+  const query::RayNode& root = index.root();
+  const float rootEntry = rayBoxEntry(ray.box, root.center, root.orientation, root.halfExtent);
+  if (rootEntry == std::numeric_limits<float>::infinity()) return best;
+  stack.push_back({rootEntry, 0});
+  std::pair<float, uint32_t> children[kMaxBranching];
+  while (!stack.empty()) {
+    const auto [entry, at] = stack.back();
+    stack.pop_back();
+    if (static_cast<double>(entry) > best.t) continue;
+    const query::RayNode& node = index.node(at);
+    for (uint32_t r = node.firstRange; r < node.firstRange + node.rangeCount; ++r)
+      if (testRange(view, ray, index.range(r).first, index.range(r).count, best, any, stats)) return best;
+    unsigned near = 0;
+    stats.boxTests += node.childCount;
+    for (uint32_t c = node.firstChild; c < node.firstChild + node.childCount; ++c) {
+      const query::RayNode& child = index.node(c);
+      const float t = rayBoxEntry(ray.box, child.center, child.orientation, child.halfExtent);
+      if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, c};
+    }
     query::pushNearFirst(children, near, stack,
                          [&](float entry) { return static_cast<double>(entry) <= best.t; });
   }
@@ -136,6 +181,21 @@ std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any
   return out;
 }
 
+// The rays over a file in memory, through its layout for rays.
+template <class Out, class Result>
+std::vector<Out> traverseFile(const ClusterFile& file, std::span<const Ray> rays, bool any,
+                              const QueryOptions& options, QueryStats* stats, Result&& result) {
+  query::FileSource source(file);
+  const query::RayIndex index(file);
+  std::vector<Out> out(rays.size());
+  query::forEachBlock(source, rays.size(), options, stats,
+                      [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
+                        for (size_t r = first; r < end; ++r)
+                          out[r] = result(view, traverseIndex(index, view, RayState(rays[r]), any, s, stack));
+                      });
+  return out;
+}
+
 template <class Source>
 std::vector<RayHit> closestHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
                                 QueryStats* stats) {
@@ -154,14 +214,14 @@ std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const Qu
 
 std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  query::FileSource source(file);
-  return closestHits(source, rays, options, stats);
+  return traverseFile<RayHit>(file, rays, false, options, stats,
+                              [](auto& view, const Best& best) { return toHit(view, best); });
 }
 
 std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  query::FileSource source(file);
-  return anyHits(source, rays, options, stats);
+  return traverseFile<uint8_t>(file, rays, true, options, stats,
+                               [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
 }
 
 std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,

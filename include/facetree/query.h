@@ -52,7 +52,9 @@ struct QueryOptions {
 
 // The closest hit of each ray in the file's triangles (the nodes it holds: any prefix). The
 // triangle test is Moller and Trumbore's in double precision; the boxes are met with a margin, so
-// that rounding never hides a triangle a box holds.
+// that rounding never hides a triangle a box holds. Each batch first lays the hierarchy out for
+// rays, each node's children's boxes side by side (O(nodes): 56 ms for dragon_vrip's 871k nodes at
+// b = 4), so that rays come in large batches best.
 std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays,
                               const QueryOptions& options = {}, QueryStats* stats = nullptr);
 // Whether each ray meets a triangle at any t in [tMin, tMax]: 1, else 0. Stops at the first.
