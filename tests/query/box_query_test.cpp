@@ -63,15 +63,14 @@ TEST_P(BoxQueries, TheTrianglesOfEachBoxAreTheBruteForceOnesOnTheFileItsPrefixes
     EXPECT_EQ(overlap(file, boxes, {3}), found);
   }
   // Through a lazy reader with a small cap.
-  const auto path =
-      std::filesystem::temp_directory_path() / ("facetree_boxq_" + std::to_string(::getpid()) + ".fch");
+  test::TemporaryFiles files;
+  const auto path = files.add("boxq.fch");
   WriteOptions write;
   write.nodesPerFrame = 64;
   write.geometryPerFrame = 512;
   writeClusterFile(path, whole, write);
   ClusterFileReader reader(path, ReaderOptions{256 << 10, {}});
   EXPECT_EQ(overlap(reader, boxes, {2}), overlap(readClusterFile(path), boxes, {1}));
-  std::filesystem::remove(path);
 }
 
 INSTANTIATE_TEST_SUITE_P(MeshesBranchingBoxes, BoxQueries,

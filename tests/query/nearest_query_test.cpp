@@ -63,8 +63,8 @@ TEST_P(NearestQueries, TheNearestPointsAreTheBruteForceOnesOnTheFileItsPrefixesA
       for (size_t i = 0; i < points.size(); ++i) EXPECT_EQ(three[i].face, found[i].face);
     }
   }
-  const auto path =
-      std::filesystem::temp_directory_path() / ("facetree_nearq_" + std::to_string(::getpid()) + ".fch");
+  test::TemporaryFiles files;
+  const auto path = files.add("nearq.fch");
   WriteOptions write;
   write.nodesPerFrame = 64;
   write.geometryPerFrame = 512;
@@ -76,7 +76,6 @@ TEST_P(NearestQueries, TheNearestPointsAreTheBruteForceOnesOnTheFileItsPrefixesA
     EXPECT_EQ(lazy[i].face, inMemory[i].face);
     EXPECT_EQ(lazy[i].originalFace, inMemory[i].originalFace);
   }
-  std::filesystem::remove(path);
 }
 
 INSTANTIATE_TEST_SUITE_P(MeshesBranchingBoxes, NearestQueries,

@@ -1,9 +1,13 @@
 // Test helpers of the queries: a shared mesh loaded whole, and its cluster file in memory.
 #pragma once
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <limits>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <glm/common.hpp>
 
@@ -12,6 +16,25 @@
 #include "facetree/stream.h"
 
 namespace facetree::test {
+
+// Files in the temporary directory named for this process, removed when it goes, whatever a
+// failed assertion skips.
+class TemporaryFiles {
+ public:
+  std::filesystem::path add(const std::string& name) {
+    return paths_.emplace_back(std::filesystem::temp_directory_path() /
+                               ("facetree_" + std::to_string(::getpid()) + "_" + name));
+  }
+  ~TemporaryFiles() {
+    for (const auto& path : paths_) {
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);
+    }
+  }
+
+ private:
+  std::vector<std::filesystem::path> paths_;
+};
 
 inline IndexedMesh loadShared(const char* name) {
   auto reader = openMesh(std::filesystem::path(FACETREE_SHARED_DATA) / name);

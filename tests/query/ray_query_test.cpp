@@ -114,9 +114,8 @@ TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
   const IndexedMesh mesh = test::loadShared("bunny_npm_lowres.ply.zst");
   for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
     const ClusterFile file = test::fileOf(mesh.view(), 4, boxes);
-    const auto path =
-        std::filesystem::temp_directory_path() / ("facetree_query_" + std::to_string(::getpid()) + ".fch");
-    const auto cut = std::filesystem::path(path.string() + ".cut");
+    test::TemporaryFiles files;
+    const auto path = files.add("query.fch"), cut = files.add("query.cut.fch");
     WriteOptions write;
     write.nodesPerFrame = 64;  // many frames: the rays move between them
     write.geometryPerFrame = 512;
@@ -140,8 +139,6 @@ TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
       expectSameHits(whole, rays, lazy);
       EXPECT_EQ(occluded(reader, rays, {3}), occluded(whole, rays));
     }
-    std::filesystem::remove(path);
-    std::filesystem::remove(cut);
   }
 }
 

@@ -14,6 +14,7 @@
 #include "../cli/run_cli.h"
 #include "facetree/query.h"
 #include "merge/test_meshes.h"
+#include "query_test_util.h"
 
 namespace facetree {
 namespace {
@@ -23,9 +24,9 @@ TEST(RaycastPicture, ASphereIsAGreyDiscBrightestAtItsCentre) {
   const MeshView view{sphere.positions, sphere.indices};
   BuildOptions build;
   const ClusterFile file = makeClusterFile(view, {}, buildHierarchy(view, build), FileOptions{});
-  const auto dir = std::filesystem::temp_directory_path();
-  const auto fch = dir / ("facetree_raycast_" + std::to_string(::getpid()) + ".fch");
-  const auto png = dir / ("facetree_raycast_" + std::to_string(::getpid()) + ".png");
+  test::TemporaryFiles files;
+  const auto fch = files.add("raycast.fch"), png = files.add("raycast.png"),
+             cli = files.add("raycast_cli.png");
   writeClusterFile(fch, file);
   ClusterFileReader reader(fch, ReaderOptions{1 << 20, {}});
   RenderOptions options;
@@ -54,15 +55,11 @@ TEST(RaycastPicture, ASphereIsAGreyDiscBrightestAtItsCentre) {
   EXPECT_GT(stats.boxTests, 0u);
   EXPECT_LT(stats.triangleTests, 101u * 101u * 30u);  // the boxes prune: the sphere has 5,120 triangles
   // The command line writes the same picture.
-  const auto cli = dir / ("facetree_raycast_cli_" + std::to_string(::getpid()) + ".png");
   const test::CliResult run = test::runCli("render " + fch.string() + " --raycast --width 101 --height 101 " +
                                            "--view 0,0,-1 --up 0,1,0 -o " + cli.string());
   EXPECT_EQ(run.exitCode, 0) << run.out;
   EXPECT_NE(run.out.find("rays a second"), std::string::npos) << run.out;
   EXPECT_EQ(test::runCli("render " + fch.string() + " --raycast --cut 5 -o " + cli.string()).exitCode, 2);
-  std::filesystem::remove(fch);
-  std::filesystem::remove(png);
-  std::filesystem::remove(cli);
 }
 
 }  // namespace
