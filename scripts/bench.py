@@ -1125,7 +1125,8 @@ def bench_queries(args, meshes, out):
         "closest_within_4x_embree": bool(speed) and all(r[k]["closest_ratio"] <= QUERY_EMBREE_RATIO
                                                         for r in speed for k in ("camera", "random")),
     }
-    result = {"rays": rays, "queries": queries, "experiment": experiment, "best": best, "embree_branching": b,
+    result = {"date": time.strftime("%Y-%m-%d %H:%M"), "rays": rays, "queries": queries, "experiment": experiment,
+              "best": best, "embree_branching": b,
               "agreement": agreement, "speed": speed, "reader": reader, "checks": checks}
     print("queries: best b", {k: v["branching"] for k, v in best.items()}, "checks", checks)
     for r in speed:

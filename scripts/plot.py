@@ -433,7 +433,7 @@ def plot_queries(q, path):
 
 def queries_markdown(q, rel):
     out = ["## Queries and the branching factor (Willmott 2000, sec. 5.5.1)", "",
-           f"Every shared mesh built with b = 2, 4 and 8 and read in memory, whole and truncated to 10% and 1% "
+           (f"Measured {q['date']}. " if q.get("date") else "") + f"Every shared mesh built with b = 2, 4 and 8 and read in memory, whole and truncated to 10% and 1% "
            f"of its nodes (a cut-off node's faces are tested). {q['rays']:,} camera rays (a pinhole camera "
            f"outside the bounding sphere) and {q['rays']:,} random rays (origins in the box grown by a tenth, "
            f"directions uniform) for closest hits; {q['queries']:,} boxes about surface points (a hundredth "
