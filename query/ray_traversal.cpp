@@ -168,72 +168,71 @@ RayHit toHit(View& view, const Best& best) {
   return hit;
 }
 
-// Each ray's traversal (`any`: to its first hit), its result out[r] = result(view, best).
-template <class Out, class Source, class Result>
+// Each ray's traversal, walk(view, ray, any, stats, stack) (`any`: to its first hit), its result
+// out[r] = result(view, best).
+template <class Out, class Source, class Walk, class Result>
 std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any, const QueryOptions& options,
-                             QueryStats* stats, Result&& result) {
+                             QueryStats* stats, Walk&& walk, Result&& result) {
   std::vector<Out> out(rays.size());
   query::forEachBlock(source, rays.size(), options, stats,
                       [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
                         for (size_t r = first; r < end; ++r)
-                          out[r] = result(view, traverse(source, view, RayState(rays[r]), any, s, stack));
+                          out[r] = result(view, walk(view, RayState(rays[r]), any, s, stack));
                       });
   return out;
 }
 
-// The rays over a file in memory, through its layout for rays.
-template <class Out, class Result>
-std::vector<Out> traverseFile(const ClusterFile& file, std::span<const Ray> rays, bool any,
-                              const QueryOptions& options, QueryStats* stats, Result&& result) {
-  query::FileSource source(file);
-  const query::RayIndex index(file);
-  std::vector<Out> out(rays.size());
-  query::forEachBlock(source, rays.size(), options, stats,
-                      [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
-                        for (size_t r = first; r < end; ++r)
-                          out[r] = result(view, traverseIndex(index, view, RayState(rays[r]), any, s, stack));
-                      });
-  return out;
-}
-
-template <class Source>
+template <class Source, class Walk>
 std::vector<RayHit> closestHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
-                                QueryStats* stats) {
-  return traverseAll<RayHit>(source, rays, false, options, stats,
+                                QueryStats* stats, Walk&& walk) {
+  return traverseAll<RayHit>(source, rays, false, options, stats, walk,
                              [](auto& view, const Best& best) { return toHit(view, best); });
 }
 
-template <class Source>
+template <class Source, class Walk>
 std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
-                             QueryStats* stats) {
-  return traverseAll<uint8_t>(source, rays, true, options, stats,
+                             QueryStats* stats, Walk&& walk) {
+  return traverseAll<uint8_t>(source, rays, true, options, stats, walk,
                               [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
+}
+
+// A file in memory is walked through its layout for rays, a reader's file node by node.
+auto indexWalk(const query::RayIndex& index) {
+  return [&index](query::FileSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
+    return traverseIndex(index, view, ray, any, s, stack);
+  };
+}
+auto readerWalk(const query::ReaderSource& source) {
+  return [&source](query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& s,
+                   Stack& stack) { return traverse(source, view, ray, any, s, stack); };
 }
 
 }  // namespace
 
 std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  return traverseFile<RayHit>(file, rays, false, options, stats,
-                              [](auto& view, const Best& best) { return toHit(view, best); });
+  query::FileSource source(file);
+  const query::RayIndex index(file);
+  return closestHits(source, rays, options, stats, indexWalk(index));
 }
 
 std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  return traverseFile<uint8_t>(file, rays, true, options, stats,
-                               [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
+  query::FileSource source(file);
+  const query::RayIndex index(file);
+  return anyHits(source, rays, options, stats, indexWalk(index));
 }
 
 std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,
                               const QueryOptions& options, QueryStats* stats) {
   query::ReaderSource source(reader);
-  return closestHits(source, rays, options, stats);
+  return closestHits(source, rays, options, stats, readerWalk(source));
 }
 
 std::vector<uint8_t> occluded(ClusterFileReader& reader, std::span<const Ray> rays,
                               const QueryOptions& options, QueryStats* stats) {
   query::ReaderSource source(reader);
-  return anyHits(source, rays, options, stats);
+  return anyHits(source, rays, options, stats, readerWalk(source));
 }
 
 RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray) {
