@@ -1,8 +1,11 @@
 // facetree.open: a cluster file read lazily under a memory cap (ClusterFileReader), for the next
 // stage of a pipeline: nodes as a structured array, cuts, and the triangles of a node or a face
 // range, decoding only what is asked, with the GIL released while it decodes.
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include <pybind11/stl.h>
 
@@ -100,6 +103,64 @@ py::tuple meshTuple(FaceRangeMesh&& mesh) {
   return py::make_tuple(arrayOwning(std::move(positions), {vertices, 3}),
                         arrayOwning(std::move(mesh.indices), {triangles, 3}),
                         arrayOwning(std::move(mesh.originalFace), {triangles}));
+}
+
+using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// The triangles overlapping each box, with the GIL released: (offsets, faces) arrays.
+py::tuple overlapTuple(PyReader& r, const std::vector<QueryBox>& boxes, unsigned threads) {
+  ClusterFileReader& reader = r.open();
+  std::vector<std::vector<uint64_t>> found;
+  {
+    py::gil_scoped_release release;
+    found = overlap(reader, boxes, {threads});
+  }
+  std::vector<int64_t> offsets(found.size() + 1, 0), faces;
+  for (size_t i = 0; i < found.size(); ++i) {
+    faces.insert(faces.end(), found[i].begin(), found[i].end());
+    offsets[i + 1] = static_cast<int64_t>(faces.size());
+  }
+  const auto n = static_cast<py::ssize_t>(offsets.size()), m = static_cast<py::ssize_t>(faces.size());
+  return py::make_tuple(arrayOwning(std::move(offsets), {n}), arrayOwning(std::move(faces), {m}));
+}
+
+// Oriented boxes from centres, half extents and rotation matrices whose columns are the axes. A
+// matrix that is not a rotation (orthonormal columns, determinant +1, within 1e-4) is refused:
+// its quaternion would silently describe another box.
+std::vector<QueryBox> orientedBoxes(const py::object& centers, const py::object& halfExtents,
+                                    const py::object& axes) {
+  const Floats c = Floats::ensure(centers), h = Floats::ensure(halfExtents), a = Floats::ensure(axes);
+  if (!c || c.ndim() != 2 || c.shape(1) != 3)
+    throw ArgumentError("overlap_oriented: centers must be an (N, 3) array");
+  if (!h || h.ndim() != 2 || h.shape(1) != 3 || h.shape(0) != c.shape(0))
+    throw ArgumentError("overlap_oriented: half_extents must be an (N, 3) array, as many as the centers");
+  if (!a || a.ndim() != 3 || a.shape(1) != 3 || a.shape(2) != 3 || a.shape(0) != c.shape(0))
+    throw ArgumentError("overlap_oriented: axes must be an (N, 3, 3) array, as many as the centers");
+  constexpr double kRotationTolerance = 1e-4;
+  std::vector<QueryBox> boxes(static_cast<size_t>(c.shape(0)));
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    glm::mat3 m;
+    for (int row = 0; row < 3; ++row)
+      for (int col = 0; col < 3; ++col) m[col][row] = a.data()[9 * i + 3 * row + col];
+    const glm::dmat3 d(m);
+    const glm::dmat3 g = glm::transpose(d) * d;
+    double worst = std::abs(glm::determinant(d) - 1.0);
+    for (int x = 0; x < 3; ++x)
+      for (int y = 0; y < 3; ++y) worst = std::max(worst, std::abs(g[x][y] - (x == y ? 1.0 : 0.0)));
+    if (!(worst <= kRotationTolerance))
+      throw ArgumentError("overlap_oriented: axes[" + std::to_string(i) +
+                          "] is not a rotation (orthonormal columns, determinant 1)");
+    for (int k = 0; k < 3; ++k) {
+      const float e = h.data()[3 * i + k];
+      if (!(e >= 0.0f) || !std::isfinite(e))
+        throw ArgumentError("overlap_oriented: half_extents[" + std::to_string(i) +
+                            "] must be finite and >= 0");
+    }
+    boxes[i].center = {c.data()[3 * i], c.data()[3 * i + 1], c.data()[3 * i + 2]};
+    boxes[i].halfExtent = {h.data()[3 * i], h.data()[3 * i + 1], h.data()[3 * i + 2]};
+    boxes[i].orientation = glm::normalize(glm::quat_cast(m));
+  }
+  return boxes;
 }
 
 }  // namespace
@@ -249,7 +310,6 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
       .def(
           "overlap",
           [](PyReader& r, const py::object& low, const py::object& high, unsigned threads) {
-            using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
             const Floats lo = Floats::ensure(low), hi = Floats::ensure(high);
             if (!lo || lo.ndim() != 2 || lo.shape(1) != 3 || !hi || hi.ndim() != 2 || hi.shape(1) != 3 ||
                 hi.shape(0) != lo.shape(0))
@@ -260,25 +320,22 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
               const glm::vec3 b(hi.data()[3 * i], hi.data()[3 * i + 1], hi.data()[3 * i + 2]);
               boxes[i].center = 0.5f * (a + b), boxes[i].halfExtent = 0.5f * (b - a);
             }
-            ClusterFileReader& reader = r.open();
-            std::vector<std::vector<uint64_t>> found;
-            {
-              py::gil_scoped_release release;
-              found = overlap(reader, boxes, {threads});
-            }
-            std::vector<int64_t> offsets(found.size() + 1, 0), faces;
-            for (size_t i = 0; i < found.size(); ++i) {
-              faces.insert(faces.end(), found[i].begin(), found[i].end());
-              offsets[i + 1] = static_cast<int64_t>(faces.size());
-            }
-            const auto n = static_cast<py::ssize_t>(offsets.size()),
-                       m = static_cast<py::ssize_t>(faces.size());
-            return py::make_tuple(arrayOwning(std::move(offsets), {n}), arrayOwning(std::move(faces), {m}));
+            return overlapTuple(r, boxes, threads);
           },
           py::arg("lo"), py::arg("hi"), py::arg("threads") = 0,
           R"(The triangles overlapping each axis-aligned box [lo[i], hi[i]] (touching counts), through the
 hierarchy under the reader's cap: (offsets, faces), box i's face positions (increasing) being
 faces[offsets[i]:offsets[i + 1]]. The GIL is released.)")
+      .def(
+          "overlap_oriented",
+          [](PyReader& r, const py::object& centers, const py::object& halfExtents, const py::object& axes,
+             unsigned threads) {
+            return overlapTuple(r, orientedBoxes(centers, halfExtents, axes), threads);
+          },
+          py::arg("centers"), py::arg("half_extents"), py::arg("axes"), py::arg("threads") = 0,
+          R"(The triangles overlapping each oriented box: centre centers[i], half extents half_extents[i]
+along the box's axes, the columns of the rotation axes[i] ((N, 3, 3); a box's point is
+centers[i] + axes[i] @ s with |s| <= half_extents[i]). Touching counts; the result is as overlap()'s.)")
       .def(
           "nearest",
           [](PyReader& r, const py::object& points, std::optional<float> radius, unsigned threads) {

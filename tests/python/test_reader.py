@@ -244,6 +244,47 @@ def test_boxes_through_the_reader_find_the_triangles_a_numpy_scan_finds(files):
     assert 10 < found_any < 60
 
 
+def test_oriented_boxes_through_the_reader_find_the_triangles_a_numpy_scan_finds(files):
+    """f.overlap_oriented: with identity axes it finds what f.overlap finds; with rotated boxes every
+    triangle with a sampled point inside the box is found, and every triangle found meets the box
+    on each of the box's own axes. Axes that are not a rotation are refused."""
+    path = files[0]
+    h = facetree.load(str(path))
+    corners = h.vertices[h.triangles].astype(np.float64)
+    lo_all, hi_all = h.vertices.min(axis=0), h.vertices.max(axis=0)
+    rng = np.random.default_rng(11)
+    n = 40
+    centres = (lo_all + (hi_all - lo_all) * rng.uniform(0, 1, (n, 3))).astype(np.float32)
+    halves = ((hi_all - lo_all).max() * rng.uniform(0.01, 0.15, (n, 3))).astype(np.float32)
+    q, r = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    axes = q * np.sign(np.diagonal(r, axis1=1, axis2=2))[:, None, :]
+    axes[np.linalg.det(axes) < 0, :, 2] *= -1
+    axes = axes.astype(np.float32)
+    identity = np.repeat(np.eye(3, dtype=np.float32)[None], n, axis=0)
+    w = rng.dirichlet([1, 1, 1], 64)
+    samples = np.einsum("sk,fkd->fsd", w, corners)
+    with facetree.open(path, memory="2M") as f:
+        same = f.overlap_oriented(centres, halves, identity)
+        expected = f.overlap(centres - halves, centres + halves)
+        assert np.array_equal(same[0], expected[0]) and np.array_equal(same[1], expected[1])
+        offsets, faces = f.overlap_oriented(centres, halves, axes)
+        assert np.array_equal(f.overlap_oriented(centres, halves, axes, threads=1)[1], faces)
+        with pytest.raises(ValueError, match=r"overlap_oriented: axes\[0\] is not a rotation"):
+            f.overlap_oriented(centres[:1], halves[:1], 2 * identity[:1])
+    found_any = 0
+    for i in range(n):
+        got = faces[offsets[i]:offsets[i + 1]]
+        assert np.all(np.diff(got) > 0)
+        local = np.einsum("dk,fsd->fsk", axes[i].astype(np.float64), samples - centres[i])
+        inside = np.all(np.abs(local) <= halves[i], axis=2).any(axis=1)
+        assert set(np.flatnonzero(inside)) <= set(got.tolist())
+        along = np.einsum("dk,fcd->fck", axes[i].astype(np.float64), corners[got] - centres[i])
+        assert np.all(along.min(axis=1) <= halves[i] * (1 + 1e-5) + 1e-6)
+        assert np.all(along.max(axis=1) >= -halves[i] * (1 + 1e-5) - 1e-6)
+        found_any += len(got) > 0
+    assert 5 < found_any <= n
+
+
 def test_nearest_points_through_the_reader_are_on_the_nearest_triangle(files):
     """f.nearest: each point found lies on its triangle, no triangle corner is nearer than it, and a
     radius below the distance finds nothing."""
