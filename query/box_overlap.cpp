@@ -115,7 +115,7 @@ void testRange(View& view, const BoxFrame& box, uint64_t first, uint64_t count, 
 
 template <class Source>
 std::vector<uint64_t> traverse(const Source& source, typename Source::View& view, const QueryBox& query,
-                               QueryStats& stats, std::vector<std::pair<float, uint32_t>>& stack) {
+                               QueryStats& stats, query::Stack& stack) {
   std::vector<uint64_t> out;
   const BoxFrame box(query);
   if (!box.valid) return out;
@@ -125,18 +125,18 @@ std::vector<uint64_t> traverse(const Source& source, typename Source::View& view
   }
   stack.clear();
   ++stats.boxTests;
-  if (boxesMayOverlap(box, view.node(0).box)) stack.push_back({0.0f, 0});
+  if (boxesMayOverlap(box, view.node(source.root()).box)) stack.push_back({0.0f, source.root()});
   while (!stack.empty()) {
-    const uint32_t index = stack.back().second;
+    const query::NodeRef ref = stack.back().second;
     stack.pop_back();
-    decltype(auto) node = view.node(index);
+    decltype(auto) node = view.node(ref);
     query::forEachChild(
         view, node,
         [&](uint64_t first, uint64_t count) {
           testRange(view, box, first, count, out, stats);
           return false;
         },
-        [&](uint32_t child) {
+        [&](const query::NodeRef& child) {
           ++stats.boxTests;
           if (boxesMayOverlap(box, view.node(child).box)) stack.push_back({0.0f, child});
         });
@@ -165,10 +165,16 @@ std::vector<std::vector<uint64_t>> overlap(const ClusterFile& file, std::span<co
   return overlapAll(source, boxes, options, stats);
 }
 
+std::vector<std::vector<uint64_t>> overlap(ReaderQueryIndex& index, std::span<const QueryBox> boxes,
+                                           const QueryOptions& options, QueryStats* stats) {
+  query::ReaderSource source(index);
+  return overlapAll(source, boxes, options, stats);
+}
+
 std::vector<std::vector<uint64_t>> overlap(ClusterFileReader& reader, std::span<const QueryBox> boxes,
                                            const QueryOptions& options, QueryStats* stats) {
-  query::ReaderSource source(reader);
-  return overlapAll(source, boxes, options, stats);
+  ReaderQueryIndex index(reader);
+  return overlap(index, boxes, options, stats);
 }
 
 std::vector<uint64_t> overlapBruteForce(const ClusterFile& file, const QueryBox& box) {

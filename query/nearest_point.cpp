@@ -18,7 +18,7 @@
 namespace facetree {
 namespace {
 
-using Stack = std::vector<std::pair<float, uint32_t>>;
+using query::Stack;
 
 // The point of triangle (a, b, c) nearest to p (Ericson 2005, sec. 5.1.5).
 glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
@@ -88,14 +88,14 @@ Best traverse(const Source& source, typename Source::View& view, const glm::vec3
   const auto within = [&](float d) { return static_cast<double>(d) * d <= best.distance2; };
   stack.clear();
   ++stats.boxTests;
-  const float rootDistance = boxDistance(point, view.node(0).box);
-  if (within(rootDistance)) stack.push_back({rootDistance, 0});
-  std::pair<float, uint32_t> children[kMaxBranching];
+  const float rootDistance = boxDistance(point, view.node(source.root()).box);
+  if (within(rootDistance)) stack.push_back({rootDistance, source.root()});
+  std::pair<float, query::NodeRef> children[kMaxBranching];
   while (!stack.empty()) {
-    const auto [distance, index] = stack.back();
+    const auto [distance, ref] = stack.back();
     stack.pop_back();
     if (!within(distance)) continue;
-    decltype(auto) node = view.node(index);
+    decltype(auto) node = view.node(ref);
     unsigned near = 0;
     query::forEachChild(
         view, node,
@@ -103,7 +103,7 @@ Best traverse(const Source& source, typename Source::View& view, const glm::vec3
           testRange(view, p, first, count, best, stats);
           return false;
         },
-        [&](uint32_t child) {
+        [&](const query::NodeRef& child) {
           ++stats.boxTests;
           const float d = boxDistance(point, view.node(child).box);
           if (within(d)) children[near++] = {d, child};
@@ -144,10 +144,16 @@ std::vector<NearestHit> nearest(const ClusterFile& file, std::span<const glm::ve
   return nearestAll(source, points, radius, options, stats);
 }
 
+std::vector<NearestHit> nearest(ReaderQueryIndex& index, std::span<const glm::vec3> points, float radius,
+                                const QueryOptions& options, QueryStats* stats) {
+  query::ReaderSource source(index);
+  return nearestAll(source, points, radius, options, stats);
+}
+
 std::vector<NearestHit> nearest(ClusterFileReader& reader, std::span<const glm::vec3> points, float radius,
                                 const QueryOptions& options, QueryStats* stats) {
-  query::ReaderSource source(reader);
-  return nearestAll(source, points, radius, options, stats);
+  ReaderQueryIndex index(reader);
+  return nearest(index, points, radius, options, stats);
 }
 
 NearestHit nearestBruteForce(const ClusterFile& file, const glm::vec3& point, float radius) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "facetree/query.h"
+#include "node_pages.h"
 
 namespace facetree::query {
 
@@ -21,6 +22,9 @@ inline unsigned threadCount(const QueryOptions& options, size_t blocks) {
   threads = std::min(threads, 8u);
   return static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(blocks, 1)));
 }
+
+// A traversal's stack: (key, node) entries, the smallest key on top.
+using Stack = std::vector<std::pair<float, NodeRef>>;
 
 // Runs body(view, first, end, stats, stack) over the batch's blocks of queries on the options'
 // threads, each with its own view of the source; the statistics are summed, which is the same
@@ -35,11 +39,13 @@ void forEachBlock(Source& source, size_t count, const QueryOptions& options, Que
   const auto work = [&](unsigned thread) {
     try {
       typename Source::View view(source);
-      std::vector<std::pair<float, uint32_t>> stack;
+      Stack stack;
       stack.reserve(64 * kMaxBranching);
+      // Counted on this thread's stack, not in perThread, whose entries share a cache line.
+      QueryStats counted;
       for (size_t b; (b = next.fetch_add(1)) < blocks;)
-        body(view, b * kQueriesPerBlock, std::min(count, (b + 1) * kQueriesPerBlock), perThread[thread],
-             stack);
+        body(view, b * kQueriesPerBlock, std::min(count, (b + 1) * kQueriesPerBlock), counted, stack);
+      perThread[thread] = counted;
     } catch (...) {
       failed[thread] = std::current_exception();
       next = blocks;  // the others stop at their next block
@@ -57,8 +63,8 @@ void forEachBlock(Source& source, size_t count, const QueryOptions& options, Que
 }
 
 // A node's children in order: faces(first, count) for each face child and each child cut off by
-// truncation (its face range), node(index) for each kept node child. Stops and returns true when
-// faces() returns true.
+// truncation (its face range), node(ref) for each kept node child (its index and face range). Stops and
+// returns true when faces() returns true.
 template <class View, class Faces, class Node>
 bool forEachChild(View& view, const FchNode& node, Faces&& faces, Node&& nodeChild) {
   uint64_t cursor = node.first;
@@ -70,7 +76,7 @@ bool forEachChild(View& view, const FchNode& node, Faces&& faces, Node&& nodeChi
     } else if (view.isCutOff(ref)) {
       if (faces(cursor, count)) return true;
     } else {
-      nodeChild(ref);
+      nodeChild(NodeRef{ref, static_cast<uint32_t>(cursor), static_cast<uint32_t>(count)});
     }
     cursor += count;
   }
@@ -80,8 +86,7 @@ bool forEachChild(View& view, const FchNode& node, Faces&& faces, Node&& nodeChi
 // Pushes the node children (key, index) that `keep` keeps so that the smallest key comes off the
 // stack first, ties to the lower index: an insertion sort of at most b, far first onto the stack.
 template <class Keep>
-void pushNearFirst(std::pair<float, uint32_t>* children, unsigned count,
-                   std::vector<std::pair<float, uint32_t>>& stack, Keep&& keep) {
+void pushNearFirst(std::pair<float, NodeRef>* children, unsigned count, Stack& stack, Keep&& keep) {
   for (unsigned i = 1; i < count; ++i)
     for (unsigned j = i; j > 0 && (children[j - 1].first < children[j].first ||
                                    (children[j - 1].first == children[j].first &&

@@ -1,34 +1,43 @@
 // Internal to query/: what a traversal reads, from a ClusterFile in memory or through a
-// ClusterFileReader. A source hands each thread a view: node(i) (a reference or a copy),
-// isCutOff(ref), corners(p, out) and originalFace(p) for face positions p.
+// ClusterFileReader. A source gives the root (root()) and hands each thread a view: node(ref) (a
+// reference or a copy), isCutOff(ref), corners(p, out) and originalFace(p) for face positions p.
 //
-// Through a reader, node frames and whole triangle frames (with their vertices, as faces() gives
-// them) wait in one cache shared by the threads, bounded in bytes, the least recently used leaving
-// first; a view keeps the frames it used last, so that a traversal that stays in a frame takes no
-// lock. The reader itself is used under the cache's lock: it is not thread-safe.
+// Through a reader, nodes and triangles come from its query index's pages and blocks
+// (node_pages.h), cached for all threads; a view keeps the pages and the block it used last, so
+// that a traversal that stays in them takes no lock. The reader itself is read only while the
+// index is built.
 #pragma once
 
 #include <cstdint>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <vector>
 
 #include "facetree/io.h"
+#include "facetree/query.h"
+#include "node_pages.h"
 
-namespace facetree::query {
+namespace facetree {
+
+struct ReaderQueryIndex::State {
+  explicit State(ClusterFileReader& r) : reader(r), pages(r, r.memoryBytes() / 4) {}
+  ClusterFileReader& reader;
+  query::NodePages pages;
+};
+
+namespace query {
 
 class FileSource {
  public:
   explicit FileSource(const ClusterFile& file) : file_(file) {}
   uint64_t nodeCount() const { return file_.nodes.size(); }
   uint64_t faceCount() const { return file_.indices.size() / 3; }
+  NodeRef root() const { return {0, 0, static_cast<uint32_t>(faceCount())}; }
 
   class View {
    public:
     explicit View(const FileSource& source) : file_(source.file_) {}
     uint64_t faceCount() const { return file_.indices.size() / 3; }
-    const FchNode& node(uint32_t index) { return file_.nodes[index]; }
+    const FchNode& node(const NodeRef& ref) { return file_.nodes[ref.index]; }
     bool isCutOff(uint32_t ref) const { return file_.isCutOff(ref); }
     void corners(uint64_t p, glm::vec3 (&out)[3]) {
       for (int c = 0; c < 3; ++c) out[c] = file_.vertices[file_.indices[3 * p + c]];
@@ -45,109 +54,41 @@ class FileSource {
 
 class ReaderSource {
  public:
-  // `budget`: the bytes the frames may hold (0: a quarter of the reader's cap).
-  explicit ReaderSource(ClusterFileReader& reader, uint64_t budget = 0)
-      : reader_(reader),
-        budget_(budget ? budget : reader.memoryBytes() / 4),
-        nodesPerFrame_(reader.layout().nodesPerFrame),
-        facesPerFrame_(reader.layout().geometryPerFrame) {}
-  uint64_t nodeCount() const { return reader_.size(); }
-  uint64_t faceCount() const { return reader_.header().triangleCount; }
-  uint64_t peakBytes() const { return peak_; }
+  explicit ReaderSource(ReaderQueryIndex& index) : pages_(index.state_->pages) {}
+  uint64_t nodeCount() const { return pages_.nodeCount(); }
+  uint64_t faceCount() const { return pages_.faceCount(); }
+  NodeRef root() const { return pages_.root(); }
 
   class View {
    public:
-    explicit View(ReaderSource& source) : source_(source) {}
-    FchNode node(uint32_t index) {
-      const uint64_t k = index / source_.nodesPerFrame_;
-      if (!nodes_ || k != nodeFrame_) nodes_ = source_.nodeFrame(k), nodeFrame_ = k;
-      return (*nodes_)[index % source_.nodesPerFrame_];
+    explicit View(ReaderSource& source) : pages_(source.pages_) {}
+    FchNode node(const NodeRef& ref) {
+      const uint32_t id = pages_.pageOf(ref);
+      Slot& slot = slots_[pages_.inTop(ref) ? 0 : 1];  // a top chunk, a subtree page
+      if (!slot.page || slot.id != id) slot.page = pages_.page(id), slot.id = id;
+      return pages_.find(*slot.page, ref);
     }
-    bool isCutOff(uint32_t ref) const { return !(ref & kFaceChild) && ref >= source_.nodeCount(); }
-    void corners(uint64_t p, glm::vec3 (&out)[3]) {
-      const FaceRangeMesh& frame = faces(p);
-      const uint64_t t = p - frame.first;
-      for (int c = 0; c < 3; ++c) out[c] = frame.vertices[frame.indices[3 * t + c]];
-    }
-    uint64_t originalFace(uint64_t p) {
-      const FaceRangeMesh& frame = faces(p);
-      return frame.originalFace[p - frame.first];
-    }
+    bool isCutOff(uint32_t ref) const { return !(ref & kFaceChild) && ref >= pages_.nodeCount(); }
+    void corners(uint64_t p, glm::vec3 (&out)[3]) { NodePages::corners(block(p), p, out); }
+    uint64_t originalFace(uint64_t p) { return NodePages::originalFace(block(p), p); }
 
    private:
-    const FaceRangeMesh& faces(uint64_t p) {
-      const uint64_t k = p / source_.facesPerFrame_;
-      if (!faces_ || k != faceFrame_) faces_ = source_.faceFrame(k), faceFrame_ = k;
-      return *faces_;
+    struct Slot {
+      NodePages::Page page;
+      uint64_t id = 0;
+    };
+    const MappedBytes& block(uint64_t p) {
+      const uint64_t b = p / NodePages::kBlockTriangles;
+      if (!triangles_.page || triangles_.id != b) triangles_.page = pages_.block(b), triangles_.id = b;
+      return *triangles_.page;
     }
-    ReaderSource& source_;
-    std::shared_ptr<const std::vector<FchNode>> nodes_;
-    std::shared_ptr<const FaceRangeMesh> faces_;
-    uint64_t nodeFrame_ = 0, faceFrame_ = 0;
+    NodePages& pages_;
+    Slot slots_[2], triangles_;
   };
 
  private:
-  struct Entry {
-    std::shared_ptr<const std::vector<FchNode>> nodes;
-    std::shared_ptr<const FaceRangeMesh> faces;
-    uint64_t bytes = 0, lastUse = 0;
-  };
-  // Keys: node frames k as 2k, triangle frames as 2k + 1.
-  // A copy of the entry (its frames shared), taken under the lock: another thread may evict it.
-  template <class Make>
-  Entry entry(uint64_t key, Make&& make) {
-    std::lock_guard lock(mutex_);
-    auto it = cache_.find(key);
-    if (it == cache_.end()) {
-      Entry e = make();
-      held_ += e.bytes;
-      it = cache_.emplace(key, std::move(e)).first;
-      while (held_ > budget_ && cache_.size() > 1) {  // the least recently used other frame leaves
-        auto oldest = cache_.end();
-        for (auto j = cache_.begin(); j != cache_.end(); ++j)
-          if (j != it && (oldest == cache_.end() || j->second.lastUse < oldest->second.lastUse)) oldest = j;
-        held_ -= oldest->second.bytes;
-        cache_.erase(oldest);
-      }
-      peak_ = std::max(peak_, held_);
-    }
-    it->second.lastUse = ++clock_;
-    return it->second;
-  }
-  std::shared_ptr<const std::vector<FchNode>> nodeFrame(uint64_t k) {
-    return entry(2 * k,
-                 [&] {
-                   Entry e;
-                   auto nodes = std::make_shared<std::vector<FchNode>>(reader_.nodeFrame(k));
-                   e.bytes = nodes->size() * sizeof(FchNode) + 64;
-                   e.nodes = std::move(nodes);
-                   return e;
-                 })
-        .nodes;
-  }
-  std::shared_ptr<const FaceRangeMesh> faceFrame(uint64_t k) {
-    return entry(2 * k + 1,
-                 [&] {
-                   Entry e;
-                   const uint64_t first = k * facesPerFrame_;
-                   auto mesh = std::make_shared<FaceRangeMesh>(
-                       reader_.faces(first, std::min(facesPerFrame_, faceCount() - first)));
-                   std::vector<uint64_t>().swap(mesh->vertexIds);  // not needed: its memory goes
-                   e.bytes = mesh->vertices.size() * sizeof(glm::vec3) +
-                             mesh->indices.size() * sizeof(uint32_t) +
-                             mesh->originalFace.size() * sizeof(uint64_t) + 64;
-                   e.faces = std::move(mesh);
-                   return e;
-                 })
-        .faces;
-  }
-
-  ClusterFileReader& reader_;
-  uint64_t budget_;
-  uint64_t nodesPerFrame_, facesPerFrame_;
-  std::mutex mutex_;
-  std::map<uint64_t, Entry> cache_;
-  uint64_t held_ = 0, peak_ = 0, clock_ = 0;
+  NodePages& pages_;
 };
 
-}  // namespace facetree::query
+}  // namespace query
+}  // namespace facetree

@@ -25,10 +25,11 @@ namespace facetree {
 namespace {
 
 using query::BoxRay;
+using query::NodeRef;
 using query::rayBoxEntry;
 using query::rayTriangle;
+using query::Stack;
 using query::TriangleHit;
-using Stack = std::vector<std::pair<float, uint32_t>>;
 
 struct Best {
   double t = std::numeric_limits<double>::infinity();
@@ -78,7 +79,7 @@ bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, 
 // The traversal of one ray; `any`: stop at the first hit.
 template <class Source>
 Best traverse(const Source& source, typename Source::View& view, const RayState& ray, bool any,
-              QueryStats& stats, std::vector<std::pair<float, uint32_t>>& stack) {
+              QueryStats& stats, Stack& stack) {
   Best best;
   if (!ray.valid) return best;
   if (source.nodeCount() == 0) {
@@ -87,27 +88,27 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
   }
   stack.clear();
   ++stats.boxTests;
-  const float rootEntry = rayBoxEntry(ray.box, view.node(0).box);
+  const float rootEntry = rayBoxEntry(ray.box, view.node(source.root()).box);
   if (rootEntry == std::numeric_limits<float>::infinity()) return best;
-  stack.push_back({rootEntry, 0});
-  std::pair<float, uint32_t> children[kMaxBranching];
+  stack.push_back({rootEntry, source.root()});
+  std::pair<float, NodeRef> children[kMaxBranching];
   while (!stack.empty()) {
-    const auto [entry, index] = stack.back();
+    const auto [entry, ref] = stack.back();
     stack.pop_back();
     if (static_cast<double>(entry) > best.t) continue;  // a hit before the box: nothing nearer in it
-    // A copy through a reader, whose frames may leave the view as the children are read.
-    decltype(auto) node = view.node(index);
+    // A copy through a reader, whose pages may leave the view as the children are read.
+    decltype(auto) node = view.node(ref);
     if (query::forEachChild(
             view, node,
             [&](uint64_t first, uint64_t count) {
               return testRange(view, ray, first, count, best, any, stats);
             },
-            [](uint32_t) {}))
+            [](const NodeRef&) {}))
       return best;
     unsigned near = 0;
     query::forEachChild(
         view, node, [](uint64_t, uint64_t) { return false; },
-        [&](uint32_t child) {
+        [&](const NodeRef& child) {
           ++stats.boxTests;
           const float t = rayBoxEntry(ray.box, view.node(child).box);
           if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, child};
@@ -120,34 +121,37 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
 
 // The same traversal over a file's layout for rays: stack entries are positions in the index,
 // which order siblings as their node indices do.
-Best traverseIndex(const query::RayIndex& index, query::FileSource::View& view, const RayState& ray, bool any,
-                   QueryStats& stats, Stack& stack) {
+Best traverseIndex(const query::RayIndex& index, const RayState& ray, bool any, QueryStats& stats,
+                   Stack& stack) {
   Best best;
   if (!ray.valid) return best;
   if (index.empty()) {
-    testRange(view, ray, 0, view.faceCount(), best, any, stats);
+    testRange(index, ray, 0, index.faceCount(), best, any, stats);
     return best;
   }
   stack.clear();
   ++stats.boxTests;
-  const query::RayNode& root = index.root();
-  const float rootEntry = rayBoxEntry(ray.box, root.center, root.orientation, root.halfExtent);
+  const float rootEntry = query::rayBoxEntry4(ray.box, index.rootBox())[0];
   if (rootEntry == std::numeric_limits<float>::infinity()) return best;
-  stack.push_back({rootEntry, 0});
-  std::pair<float, uint32_t> children[kMaxBranching];
+  stack.push_back({rootEntry, NodeRef{}});
+  std::pair<float, NodeRef> children[kMaxBranching];
   while (!stack.empty()) {
     const auto [entry, at] = stack.back();
     stack.pop_back();
     if (static_cast<double>(entry) > best.t) continue;
-    const query::RayNode& node = index.node(at);
+    const query::RayNode& node = index.node(at.index);
     for (uint32_t r = node.firstRange; r < node.firstRange + node.rangeCount; ++r)
-      if (testRange(view, ray, index.range(r).first, index.range(r).count, best, any, stats)) return best;
+      if (testRange(index, ray, index.range(r).first, index.range(r).count, best, any, stats)) return best;
     unsigned near = 0;
     stats.boxTests += node.childCount;
-    for (uint32_t c = node.firstChild; c < node.firstChild + node.childCount; ++c) {
-      const query::RayNode& child = index.node(c);
-      const float t = rayBoxEntry(ray.box, child.center, child.orientation, child.halfExtent);
-      if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, c};
+    for (unsigned k = 0; k < node.childCount; k += 4) {
+      const uint32_t packet = node.firstPacket + k / 4;
+      const query::Float4 t = query::rayBoxEntry4(ray.box, index.boxes(packet));
+      for (unsigned lane = 0; lane < 4 && k + lane < node.childCount; ++lane)
+        if (t[lane] != std::numeric_limits<float>::infinity()) {
+          children[near++] = {t[lane], NodeRef{4 * packet + lane}};
+          index.prefetchChildren(4 * packet + lane);
+        }
     }
     query::pushNearFirst(children, near, stack,
                          [&](float entry) { return static_cast<double>(entry) <= best.t; });
@@ -196,10 +200,11 @@ std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const Qu
                               [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
 }
 
-// A file in memory is walked through its layout for rays, a reader's file node by node.
+// A file in memory is walked through its layout for rays (its boxes and its triangles' corners), a
+// reader's file node by node.
 auto indexWalk(const query::RayIndex& index) {
-  return [&index](query::FileSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    return traverseIndex(index, view, ray, any, s, stack);
+  return [&index](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
+    return traverseIndex(index, ray, any, s, stack);
   };
 }
 auto readerWalk(const query::ReaderSource& source) {
@@ -209,30 +214,58 @@ auto readerWalk(const query::ReaderSource& source) {
 
 }  // namespace
 
+struct RayLayoutAccess {
+  static const query::RayIndex& index(const RayLayout& layout) { return *layout.index_; }
+};
+
+RayLayout::RayLayout(const ClusterFile& file)
+    : file_(file), index_(std::make_unique<query::RayIndex>(file)) {}
+RayLayout::~RayLayout() = default;
+
+std::vector<RayHit> intersect(const RayLayout& layout, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::FileSource source(layout.file());
+  return closestHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout)));
+}
+
+std::vector<uint8_t> occluded(const RayLayout& layout, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::FileSource source(layout.file());
+  return anyHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout)));
+}
+
 std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  query::FileSource source(file);
-  const query::RayIndex index(file);
-  return closestHits(source, rays, options, stats, indexWalk(index));
+  return intersect(RayLayout(file), rays, options, stats);
 }
 
 std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
-  query::FileSource source(file);
-  const query::RayIndex index(file);
-  return anyHits(source, rays, options, stats, indexWalk(index));
+  return occluded(RayLayout(file), rays, options, stats);
+}
+
+std::vector<RayHit> intersect(ReaderQueryIndex& index, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::ReaderSource source(index);
+  return closestHits(source, rays, options, stats, readerWalk(source));
+}
+
+std::vector<uint8_t> occluded(ReaderQueryIndex& index, std::span<const Ray> rays, const QueryOptions& options,
+                              QueryStats* stats) {
+  query::ReaderSource source(index);
+  return anyHits(source, rays, options, stats, readerWalk(source));
 }
 
 std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,
                               const QueryOptions& options, QueryStats* stats) {
-  query::ReaderSource source(reader);
-  return closestHits(source, rays, options, stats, readerWalk(source));
+  ReaderQueryIndex index(reader);
+  return intersect(index, rays, options, stats);
 }
 
 std::vector<uint8_t> occluded(ClusterFileReader& reader, std::span<const Ray> rays,
                               const QueryOptions& options, QueryStats* stats) {
-  query::ReaderSource source(reader);
-  return anyHits(source, rays, options, stats, readerWalk(source));
+  ReaderQueryIndex index(reader);
+  return occluded(index, rays, options, stats);
 }
 
 RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray) {

@@ -31,7 +31,7 @@ void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
   const float pixel = 1.1f * std::max(2 * halfRight / options.width, 2 * halfUp / options.height);
   const float size = pixel > 0 ? pixel : 1.0f;
   // The rays in tiles of 16 x 16 pixels, tile by tile: neighbouring rays visit the same nodes, so
-  // that a batch's block of rays works in a few frames of a file read lazily. The rays are made and
+  // that a batch's block of rays works in a few pages of a file read lazily. The rays are made and
   // cast in batches of 256 tiles, so that what they hold stays a few MB whatever the picture's size.
   constexpr int kTile = 16;
   constexpr size_t kBatchTiles = 256;
@@ -41,6 +41,7 @@ void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
   std::vector<uint8_t> rgb(size_t{3} * options.width * options.height, 255);
   std::vector<Ray> rays;
   std::vector<size_t> pixelOf;
+  ReaderQueryIndex index(reader);  // one pass over the nodes for every batch
   for (size_t firstTile = 0; firstTile < tiles; firstTile += kBatchTiles) {
     rays.clear(), pixelOf.clear();
     for (size_t tile = firstTile; tile < std::min(tiles, firstTile + kBatchTiles); ++tile) {
@@ -56,7 +57,7 @@ void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
           pixelOf.push_back(size_t{1} * y * options.width + x);
         }
     }
-    const std::vector<RayHit> hits = intersect(reader, rays, queryOptions, stats);
+    const std::vector<RayHit> hits = intersect(index, rays, queryOptions, stats);
     for (size_t r = 0; r < hits.size(); ++r) {
       if (hits[r].face == kNoHit) continue;
       const float length = glm::length(hits[r].normal);

@@ -29,10 +29,20 @@ struct NodeRecord {
 struct PyReader {
   std::filesystem::path path;
   std::unique_ptr<ClusterFileReader> reader;
+  std::unique_ptr<ReaderQueryIndex> index;  // built by the first query, kept for the next ones
 
   ClusterFileReader& open() {
     if (!reader) throw ArgumentError(path.string() + ": the reader is closed");
     return *reader;
+  }
+  // The reader's query index (a pass over the nodes the first time): called with the GIL released.
+  ReaderQueryIndex& queries() {
+    if (!index) index = std::make_unique<ReaderQueryIndex>(open());
+    return *index;
+  }
+  void close() {
+    index.reset();
+    reader.reset();
   }
 };
 
@@ -88,10 +98,10 @@ std::vector<Ray> raysFrom(const py::object& origins, const py::object& direction
 template <class Query>
 auto castRays(PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
               float tMin, Query&& query) {
-  ClusterFileReader& reader = r.open();
+  r.open();
   const std::vector<Ray> rays = raysFrom(origins, directions, tMax, tMin);
   py::gil_scoped_release release;
-  return query(reader, rays);
+  return query(r.queries(), rays);
 }
 
 py::tuple meshTuple(FaceRangeMesh&& mesh) {
@@ -109,11 +119,11 @@ using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 // The triangles overlapping each box, with the GIL released: (offsets, faces) arrays.
 py::tuple overlapTuple(PyReader& r, const std::vector<QueryBox>& boxes, unsigned threads) {
-  ClusterFileReader& reader = r.open();
+  r.open();
   std::vector<std::vector<uint64_t>> found;
   {
     py::gil_scoped_release release;
-    found = overlap(reader, boxes, {threads});
+    found = overlap(r.queries(), boxes, {threads});
   }
   std::vector<int64_t> offsets(found.size() + 1, 0), faces;
   for (size_t i = 0; i < found.size(); ++i) {
@@ -174,9 +184,9 @@ Opening reads the header and the frame index only; nodes and triangles are decod
 as they are asked for, every frame checked first. Use it as a context manager, or call close().)");
   c.def("__len__", [](PyReader& r) { return r.open().size(); })
       .def("__enter__", [](py::object self) { return self; })
-      .def("__exit__", [](PyReader& r, py::args) { r.reader.reset(); })
+      .def("__exit__", [](PyReader& r, py::args) { r.close(); })
       .def(
-          "close", [](PyReader& r) { r.reader.reset(); }, "Releases the file and what the reader holds.")
+          "close", [](PyReader& r) { r.close(); }, "Releases the file and what the reader holds.")
       .def_property_readonly("closed", [](const PyReader& r) { return !r.reader; })
       .def_property_readonly(
           "header", [](PyReader& r) { return headerDict(r.open().header()); },
@@ -272,7 +282,7 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
              float tMin, unsigned threads) {
             const std::vector<RayHit> hits =
                 castRays(r, origins, directions, tMax, tMin,
-                         [&](auto& reader, auto& rays) { return intersect(reader, rays, {threads}); });
+                         [&](auto& index, auto& rays) { return intersect(index, rays, {threads}); });
             const auto n = static_cast<py::ssize_t>(hits.size());
             std::vector<float> t(hits.size()), uv(2 * hits.size());
             std::vector<int64_t> face(hits.size()), original(hits.size());
@@ -288,8 +298,9 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
           },
           py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,
           py::arg("threads") = 0,
-          R"(The closest hit of each ray through the hierarchy, decoding frames as the rays reach them under
-the reader's cap: (t, face, original_id, uv), (N,) float32 t (inf for a miss), (N,) int64 positions
+          R"(The closest hit of each ray through the hierarchy under the reader's cap. The first query lays
+the nodes out by subtree in pages of a temporary file (one pass over the nodes; the reader keeps
+them for the next queries, until close()). Returns (t, face, original_id, uv), (N,) float32 t (inf for a miss), (N,) int64 positions
 in the file's face order and original face ids (-1 for a miss), (N, 2) float32 barycentrics of the
 hit triangle's corners 1 and 2. origins, directions: (N, 3); t_max: a number or (N,) array. The
 results do not depend on threads (0: all cores, at most 8); the GIL is released.)")
@@ -299,7 +310,7 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
              float tMin, unsigned threads) {
             const std::vector<uint8_t> any =
                 castRays(r, origins, directions, tMax, tMin,
-                         [&](auto& reader, auto& rays) { return occluded(reader, rays, {threads}); });
+                         [&](auto& index, auto& rays) { return occluded(index, rays, {threads}); });
             py::array_t<bool> out(static_cast<py::ssize_t>(any.size()));
             for (size_t i = 0; i < any.size(); ++i) out.mutable_data()[i] = any[i] != 0;
             return out;
@@ -346,11 +357,12 @@ centers[i] + axes[i] @ s with |s| <= half_extents[i]). Touching counts; the resu
             std::vector<glm::vec3> at(static_cast<size_t>(p.shape(0)));
             for (size_t i = 0; i < at.size(); ++i)
               at[i] = {p.data()[3 * i], p.data()[3 * i + 1], p.data()[3 * i + 2]};
-            ClusterFileReader& reader = r.open();
+            r.open();
             std::vector<NearestHit> hits;
             {
               py::gil_scoped_release release;
-              hits = nearest(reader, at, radius.value_or(std::numeric_limits<float>::infinity()), {threads});
+              hits = nearest(r.queries(), at, radius.value_or(std::numeric_limits<float>::infinity()),
+                             {threads});
             }
             const auto n = static_cast<py::ssize_t>(hits.size());
             std::vector<float> distance(hits.size()), point(3 * hits.size());

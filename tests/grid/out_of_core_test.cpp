@@ -672,6 +672,15 @@ TEST(OutOfCore, MemoryCapHeldCoherentAndShuffled) {
           {"build", mesh.string(), "-o", compactOut.string(), "--memory", "64M", "--boxes", "compact"});
       EXPECT_LE(compactPeak, kCap) << "compact boxes: " << compactPeak / 1048576.0 << " MiB";
     }
+    // The file ray cast through the reader under the same cap: its query index (pages of nodes
+    // and blocks of triangles in a temporary file) and caches held within it.
+    if (!shuffle) {
+      const fs::path picture = dir / "raycast.png";
+      const uint64_t castPeak = cliPeakRss(
+          {"render", out.string(), "--raycast", "--memory", "64M", "--threads", "2", "-o", picture.string()});
+      EXPECT_LE(castPeak, kCap) << "ray cast: " << castPeak / 1048576.0 << " MiB";
+      EXPECT_GT(fs::file_size(picture), 1000u);
+    }
     {
       const ClusterFile file = readClusterFile(out);
       EXPECT_EQ(file.indices.size() / 3, 3001250u);

@@ -237,17 +237,17 @@ struct EmbreeScene {
   }
 };
 
-// The rays through facetree: the file in memory, or a reader under its cap.
+// The rays through facetree: the file in memory, or a reader's query index under its cap.
 struct Tracer {
-  const ClusterFile* file = nullptr;
-  facetree::ClusterFileReader* reader = nullptr;
+  const facetree::RayLayout* layout = nullptr;
+  facetree::ReaderQueryIndex* index = nullptr;
   std::vector<RayHit> intersect(const std::vector<Ray>& rays, unsigned threads, QueryStats* s) const {
     const facetree::QueryOptions o{threads};
-    return reader ? facetree::intersect(*reader, rays, o, s) : facetree::intersect(*file, rays, o, s);
+    return index ? facetree::intersect(*index, rays, o, s) : facetree::intersect(*layout, rays, o, s);
   }
   std::vector<uint8_t> occluded(const std::vector<Ray>& rays, unsigned threads, QueryStats* s) const {
     const facetree::QueryOptions o{threads};
-    return reader ? facetree::occluded(*reader, rays, o, s) : facetree::occluded(*file, rays, o, s);
+    return index ? facetree::occluded(*index, rays, o, s) : facetree::occluded(*layout, rays, o, s);
   }
 };
 
@@ -328,15 +328,15 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
       anySame += blocked[k] == peerBlocked[k];
       if (h.face == e.face) ++same;
       if (h.face != facetree::kNoHit)
-        worstExact = std::max(worstExact, relative(h.t, exactT(*tracer.file, rays[k], h.face)));
+        worstExact = std::max(worstExact, relative(h.t, exactT(tracer.layout->file(), rays[k], h.face)));
       if (h.face == facetree::kNoHit || e.face == facetree::kNoHit) continue;
       const double rel = relative(h.t, e.t);
       worstT = std::max(worstT, rel);
       grazing += h.face != e.face && rel <= 1e-6;
       if (rel > 1e-5) {
         ++tOutside;
-        outsideEmbreeFurther += relative(e.t, exactT(*tracer.file, rays[k], e.face)) >
-                                relative(h.t, exactT(*tracer.file, rays[k], h.face));
+        outsideEmbreeFurther += relative(e.t, exactT(tracer.layout->file(), rays[k], e.face)) >
+                                relative(h.t, exactT(tracer.layout->file(), rays[k], h.face));
       }
     }
     out += ", \"embree_closest_seconds\": " + number(median(embreeClosest)) +
@@ -422,8 +422,13 @@ int main(int argc, char** argv) try {
       b.lo = glm::min(b.lo, p);
       b.hi = glm::max(b.hi, p);
     }
-    const Tracer tracer{nullptr, &reader};
-    json += ", \"reader_memory\": " + std::to_string(a.readerMemory) + ", " +
+    const auto indexStart = Clock::now();
+    facetree::ReaderQueryIndex index(reader);
+    const double indexSeconds = seconds(indexStart);
+    const Tracer tracer{nullptr, &index};
+    json += ", \"reader_memory\": " + std::to_string(a.readerMemory) +
+            ", \"index_seconds\": " + number(indexSeconds) +
+            ", \"index_temporary_bytes\": " + std::to_string(index.temporaryBytes()) + ", " +
             rayBatch("camera", cameraRays(b, a.rays), tracer, nullptr, a) + ", " +
             rayBatch("random", randomRays(b, a.rays, 1), tracer, nullptr, a);
     std::printf("%s}\n", json.c_str());
@@ -444,7 +449,10 @@ int main(int argc, char** argv) try {
     embree = std::make_unique<EmbreeScene>(f, a.threads);
     json += ", \"embree_build_seconds\": " + number(embree->buildSeconds);
   }
-  const Tracer tracer{&f, nullptr};
+  const auto layoutStart = Clock::now();
+  const facetree::RayLayout layout(f);
+  json += ", \"layout_seconds\": " + number(seconds(layoutStart));
+  const Tracer tracer{&layout, nullptr};
   json += ", " + rayBatch("camera", cameraRays(b, a.rays), tracer, embree.get(), a) + ", " +
           rayBatch("random", randomRays(b, a.rays, 1), tracer, embree.get(), a);
   if (!a.raysOnly) json += ", " + boxAndNearest(f, b, a);

@@ -1,0 +1,344 @@
+// A reader's nodes laid out for queries (node_pages.h).
+#include "node_pages.h"
+
+#include "query_source.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <new>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace facetree::query {
+
+namespace {
+
+constexpr size_t kRecordHead = 56;  // index, first, count, childCount, flags, box
+constexpr size_t kCornerBytes = 3 * sizeof(glm::vec3);
+constexpr size_t kTriangleBytes = kCornerBytes + sizeof(uint64_t);  // corners and original id
+
+// What a mapping of `bytes` takes: whole pages of the system.
+uint64_t mappedBytes(size_t bytes) {
+  return (uint64_t{bytes} + 4095) & ~uint64_t{4095};
+}
+
+std::string systemError(const std::string& what) {
+  return what + ": " + std::strerror(errno);
+}
+
+void encode(uint32_t index, const FchNode& node, unsigned branching, std::byte* out) {
+  const uint32_t head[3] = {index, node.first, node.count};
+  std::memcpy(out, head, 12);
+  out[12] = std::byte{node.childCount};
+  out[13] = std::byte{node.flags};
+  out[14] = out[15] = std::byte{0};
+  const float box[10] = {node.box.center.x,      node.box.center.y,      node.box.center.z,
+                         node.box.halfExtent.x,  node.box.halfExtent.y,  node.box.halfExtent.z,
+                         node.box.orientation.x, node.box.orientation.y, node.box.orientation.z,
+                         node.box.orientation.w};
+  std::memcpy(out + 16, box, sizeof box);
+  std::memcpy(out + kRecordHead, node.child, 4 * branching);
+  std::memcpy(out + kRecordHead + 4 * branching, node.childFaces, 4 * branching);
+}
+
+uint32_t recordIndex(const std::byte* record) {
+  uint32_t index;
+  std::memcpy(&index, record, 4);
+  return index;
+}
+
+FchNode decode(const std::byte* in, unsigned branching) {
+  FchNode node;
+  std::memcpy(&node.first, in + 4, 4);
+  std::memcpy(&node.count, in + 8, 4);
+  node.childCount = static_cast<uint8_t>(in[12]);
+  node.flags = static_cast<uint8_t>(in[13]);
+  float box[10];
+  std::memcpy(box, in + 16, sizeof box);
+  node.box.center = {box[0], box[1], box[2]};
+  node.box.halfExtent = {box[3], box[4], box[5]};
+  node.box.orientation.x = box[6], node.box.orientation.y = box[7], node.box.orientation.z = box[8];
+  node.box.orientation.w = box[9];
+  std::memcpy(node.child, in + kRecordHead, 4 * branching);
+  std::memcpy(node.childFaces, in + kRecordHead + 4 * branching, 4 * branching);
+  return node;
+}
+
+}  // namespace
+
+MappedBytes::MappedBytes(size_t bytes) : size_(bytes) {
+  if (bytes == 0) return;
+  void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) throw std::bad_alloc();
+  data_ = static_cast<std::byte*>(p);
+}
+
+MappedBytes::~MappedBytes() {
+  if (data_) ::munmap(data_, size_);
+}
+
+PageFile::PageFile(const std::filesystem::path& directory)
+    : directory_(directory.empty() ? std::filesystem::temp_directory_path() : directory) {
+  fd_ = ::open(directory_.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd_ < 0) {  // a file system without O_TMPFILE: a named file, unlinked at once
+    std::string name = (directory_ / "facetree-query-XXXXXX").string();
+    fd_ = ::mkstemp(name.data());
+    if (fd_ >= 0) ::unlink(name.c_str());
+  }
+  if (fd_ < 0) throw std::runtime_error(systemError(directory_.string() + ": cannot create the query pages"));
+}
+
+PageFile::~PageFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void PageFile::write(uint64_t offset, const void* data, size_t bytes) {
+  const char* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    const ssize_t n = ::pwrite(fd_, p, bytes, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw std::runtime_error(systemError(directory_.string() + ": cannot write the query pages"));
+    p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
+  }
+}
+
+void PageFile::read(uint64_t offset, void* data, size_t bytes) const {
+  char* p = static_cast<char*>(data);
+  while (bytes > 0) {
+    const ssize_t n = ::pread(fd_, p, bytes, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw std::runtime_error(systemError(directory_.string() + ": cannot read the query pages"));
+    if (n == 0) throw std::runtime_error(directory_.string() + ": the query pages end early");
+    p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
+  }
+}
+
+NodePages::NodePages(ClusterFileReader& reader, uint64_t budget, uint32_t pageFaces, uint32_t topRecords)
+    : pageFaces_(pageFaces),
+      topRecords_(std::max<uint32_t>(topRecords, 1)),
+      branching_(reader.header().branching),
+      file_(reader.temporaryDirectory()),
+      budget_(std::max<uint64_t>(budget, 1)) {
+  stride_ = kRecordHead + 8 * size_t{branching_};
+  build(reader, std::max<uint64_t>(budget / 2, stride_ * 64));
+  writeTriangles(reader);
+}
+
+// In file order every node's parent comes first, so its page root is known when it arrives: the
+// subtree pages found so far are disjoint face ranges, and the one holding the node's first face
+// holds the node (ranges nest), else the node is a new page's root.
+void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
+  std::map<uint32_t, uint32_t> roots;  // first face -> page id, for the pages found so far
+  std::vector<std::byte> stage;        // records waiting to be written, and their pages
+  std::vector<uint32_t> stagePage;
+  std::vector<uint32_t> order;
+  std::vector<std::byte> run;
+  const auto reserve = [&](uint32_t capacity) {
+    pages_.push_back({fileBytes_, capacity, 0});
+    fileBytes_ += uint64_t{capacity} * stride_;
+    return static_cast<uint32_t>(pages_.size() - 1);
+  };
+  const auto flush = [&] {
+    order.resize(stagePage.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return stagePage[a] < stagePage[b]; });
+    for (size_t i = 0; i < order.size();) {
+      const uint32_t id = stagePage[order[i]];
+      size_t j = i;
+      run.clear();
+      for (; j < order.size() && stagePage[order[j]] == id; ++j) {
+        const std::byte* r = &stage[size_t{order[j]} * stride_];
+        run.insert(run.end(), r, r + stride_);
+      }
+      PageEntry& page = pages_[id];
+      const uint64_t count = j - i;
+      if (page.records + count > page.capacity)
+        throw std::runtime_error("node " + std::to_string(recordIndex(run.data())) +
+                                 ": more nodes under its page root than its faces allow");
+      file_.write(page.offset + uint64_t{page.records} * stride_, run.data(), run.size());
+      page.records += static_cast<uint32_t>(count);
+      i = j;
+    }
+    stage.clear(), stagePage.clear();
+  };
+  uint32_t topInChunk = topRecords_;
+  const size_t stageRecords = std::max<size_t>(1, stageBytes / stride_);
+  stage.reserve(std::min<size_t>(stageRecords, 1 << 16) * stride_);
+  reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t) {
+    if (index == 0) rootCount_ = node.count;
+    uint32_t id;
+    if (node.count > pageFaces_) {
+      if (topInChunk == topRecords_) {
+        topPage_.push_back(reserve(topRecords_));
+        topFirstIndex_.push_back(static_cast<uint32_t>(index));
+        topInChunk = 0;
+      }
+      id = topPage_.back();
+      ++topInChunk;
+    } else {
+      auto it = roots.upper_bound(node.first);
+      if (it != roots.begin()) --it;
+      const bool inside =
+          it != roots.end() && it->first <= node.first &&
+          uint64_t{node.first} + node.count <=
+              uint64_t{it->first} + pages_[it->second].capacity;  // capacity = the root's faces
+      if (inside) {
+        id = it->second;
+      } else {
+        id = reserve(std::max<uint32_t>(node.count, 1));
+        if (!roots.emplace(node.first, id).second)
+          throw std::runtime_error("node " + std::to_string(index) + ": its face range starts another's");
+      }
+    }
+    const size_t at = stage.size();
+    stage.resize(at + stride_);
+    encode(static_cast<uint32_t>(index), node, branching_, &stage[at]);
+    stagePage.push_back(id);
+    ++nodes_;
+    if (stagePage.size() >= stageRecords) flush();
+    return true;
+  });
+  flush();
+  std::vector<std::byte>().swap(stage);
+  std::vector<uint32_t>().swap(stagePage);
+  std::vector<uint32_t>().swap(order);
+  std::vector<std::byte>().swap(run);
+
+  // The subtree pages by their roots' ranges.
+  rootFirst_.reserve(roots.size()), rootEnd_.reserve(roots.size()), rootPage_.reserve(roots.size());
+  for (const auto& [first, id] : roots) {
+    rootFirst_.push_back(first);
+    rootEnd_.push_back(first + pages_[id].capacity);
+    rootPage_.push_back(id);
+  }
+}
+
+uint32_t NodePages::pageOf(const NodeRef& ref) const {
+  if (inTop(ref)) {
+    const auto it = std::upper_bound(topFirstIndex_.begin(), topFirstIndex_.end(), ref.index);
+    if (it == topFirstIndex_.begin())
+      throw std::runtime_error("node " + std::to_string(ref.index) + ": not in the top");
+    return topPage_[static_cast<size_t>(it - topFirstIndex_.begin() - 1)];
+  }
+  const auto it = std::upper_bound(rootFirst_.begin(), rootFirst_.end(), ref.first);
+  const size_t k = static_cast<size_t>(it - rootFirst_.begin());
+  if (k == 0 || ref.first >= rootEnd_[k - 1])
+    throw std::runtime_error("node " + std::to_string(ref.index) + ": its faces lie in no page");
+  return rootPage_[k - 1];
+}
+
+NodePages::Page NodePages::page(uint32_t id) {
+  const PageEntry& entry = pages_[id];
+  return cached(id, entry.offset, size_t{entry.records} * stride_);
+}
+
+NodePages::Page NodePages::block(uint64_t b) {
+  const uint64_t first = b * kBlockTriangles;
+  if (first >= faces_) throw std::runtime_error("face " + std::to_string(first) + " past the triangles");
+  const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - first);
+  return cached(pages_.size() + b, trianglesOffset_ + b * kBlockTriangles * kTriangleBytes,
+                n * kTriangleBytes);
+}
+
+void NodePages::corners(const MappedBytes& block, uint64_t p, glm::vec3 (&out)[3]) {
+  std::memcpy(out, block.data() + (p % kBlockTriangles) * kCornerBytes, kCornerBytes);
+}
+
+uint64_t NodePages::originalFace(const MappedBytes& block, uint64_t p) {
+  const uint64_t n = block.size() / kTriangleBytes;  // the block's triangles
+  uint64_t id;
+  std::memcpy(&id, block.data() + n * kCornerBytes + (p % kBlockTriangles) * 8, 8);
+  return id;
+}
+
+NodePages::Page NodePages::cached(uint64_t key, uint64_t offset, size_t bytes) {
+  std::lock_guard lock(mutex_);
+  auto it = cache_.find(key);
+  if (it == cache_.end()) {
+    auto mapped = std::make_shared<MappedBytes>(bytes);
+    file_.read(offset, mapped->data(), mapped->size());
+    held_ += mappedBytes(mapped->size());
+    it = cache_.emplace(key, Cached{std::move(mapped), 0}).first;
+    while (held_ > budget_ && cache_.size() > 1) {  // the least recently used other entry leaves
+      auto oldest = cache_.end();
+      for (auto j = cache_.begin(); j != cache_.end(); ++j)
+        if (j != it && (oldest == cache_.end() || j->second.lastUse < oldest->second.lastUse)) oldest = j;
+      held_ -= mappedBytes(oldest->second.bytes->size());
+      cache_.erase(oldest);
+    }
+    peak_ = std::max(peak_, held_);
+  }
+  it->second.lastUse = ++clock_;
+  return it->second.bytes;
+}
+
+// The triangle frames in face order, each triangle's corners and id into its block.
+void NodePages::writeTriangles(ClusterFileReader& reader) {
+  faces_ = reader.header().triangleCount;
+  trianglesOffset_ = fileBytes_;
+  std::vector<std::byte> block(size_t{kBlockTriangles} * kTriangleBytes);
+  uint64_t next = 0;  // the next face position to place
+  const auto put = [&](uint64_t p, const glm::vec3(&corner)[3], uint64_t id) {
+    if (p != next)
+      throw std::runtime_error("face " + std::to_string(p) + ": out of order in the triangle pass");
+    const uint64_t first = p - p % kBlockTriangles;
+    const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - first);
+    const uint64_t k = p % kBlockTriangles;
+    std::memcpy(&block[k * kCornerBytes], corner, kCornerBytes);
+    std::memcpy(&block[n * kCornerBytes + k * 8], &id, 8);
+    if (k + 1 == n) file_.write(trianglesOffset_ + first * kTriangleBytes, block.data(), n * kTriangleBytes);
+    ++next;
+  };
+  reader.forEachFacePiece([&](const FaceRangeMesh& piece) {
+    const size_t triangles = piece.indices.size() / 3;
+    for (size_t t = 0; t < triangles; ++t) {
+      glm::vec3 corner[3];
+      for (int c = 0; c < 3; ++c) corner[c] = piece.vertices[piece.indices[3 * t + c]];
+      put(piece.first + t, corner, t < piece.originalFace.size() ? piece.originalFace[t] : piece.first + t);
+    }
+  });
+  if (next != faces_)
+    throw std::runtime_error("the triangle pass gave " + std::to_string(next) + " of " +
+                             std::to_string(faces_) + " triangles");
+  fileBytes_ += faces_ * kTriangleBytes;
+}
+
+FchNode NodePages::find(const MappedBytes& page, const NodeRef& ref) const {
+  const std::byte* records = page.data();
+  size_t lo = 0, hi = page.size() / stride_;
+  while (lo < hi) {
+    const size_t mid = (lo + hi) / 2;
+    if (recordIndex(&records[mid * stride_]) < ref.index)
+      lo = mid + 1;
+    else
+      hi = mid;
+  }
+  if (lo == page.size() / stride_ || recordIndex(&records[lo * stride_]) != ref.index)
+    throw std::runtime_error("node " + std::to_string(ref.index) + ": not in the page of its face range");
+  return decode(&records[lo * stride_], branching_);
+}
+
+}  // namespace facetree::query
+
+namespace facetree {
+
+ReaderQueryIndex::ReaderQueryIndex(ClusterFileReader& reader) : state_(std::make_unique<State>(reader)) {}
+ReaderQueryIndex::~ReaderQueryIndex() = default;
+ClusterFileReader& ReaderQueryIndex::reader() const {
+  return state_->reader;
+}
+uint64_t ReaderQueryIndex::temporaryBytes() const {
+  return state_->pages.temporaryBytes();
+}
+uint64_t ReaderQueryIndex::peakPageBytes() const {
+  return state_->pages.peakBytes();
+}
+
+}  // namespace facetree

@@ -1,0 +1,144 @@
+// Internal to query/: a reader's nodes laid out for queries.
+//
+// The file orders nodes by decreasing cost, so that any prefix is a hierarchy; a query walking
+// down the tree meets a different node frame at nearly every level, and a frame decodes whole.
+// Here nodes are grouped by subtree instead: a node whose face range holds at most kPageFaces
+// faces lies in the page of its page root, the highest such node above it (or itself), so that a
+// query that enters a subtree reads that subtree once; the nodes above the pages (the top) lie in
+// chunks of kTopRecords in index order. Both are written to one temporary file by a single pass
+// over the nodes (ClusterFileReader::forEachNode) and read a page at a time, the pages waiting in
+// a cache shared by the threads, bounded in bytes, the least recently used leaving first.
+//
+// A node is found from what its parent knows: its index, the first face of its range (which page
+// root holds it) and its face count (top or page). Pages hold their records in index order, so a
+// node is a binary search in its page. A record is the node's structure and box, 56 + 8 b bytes.
+//
+// The triangles follow, in face order, in blocks of kBlockTriangles: each triangle's corners (36
+// bytes) and then the block's original ids (8 bytes each), written by a pass over the triangle
+// frames. A leaf's faces are a run of face positions, so that a query reads a block or two for
+// them where a triangle frame of the file decodes whole.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <vector>
+
+#include "facetree/io.h"
+
+namespace facetree::query {
+
+// A node as its parent sees it: its index, and the first face and face count of its range.
+struct NodeRef {
+  uint32_t index = 0;
+  uint32_t first = 0;
+  uint32_t count = 0;
+  friend bool operator<(const NodeRef& a, const NodeRef& b) { return a.index < b.index; }
+};
+
+// Bytes in a mapping of their own, given back to the system when they go. The cached pages and
+// triangle frames come and go on every thread; from the allocator's arenas, their freed pages
+// would stay resident (a third more than the caches held on the 56M-face dragon, two threads).
+class MappedBytes {
+ public:
+  explicit MappedBytes(size_t bytes);
+  ~MappedBytes();
+  MappedBytes(const MappedBytes&) = delete;
+  MappedBytes& operator=(const MappedBytes&) = delete;
+  std::byte* data() const { return data_; }
+  size_t size() const { return size_; }
+
+ private:
+  std::byte* data_ = nullptr;  // the mapping (not owned by the pointer: munmap'd by the destructor)
+  size_t size_ = 0;
+};
+
+// A temporary file, unlinked while open, read and written at offsets.
+class PageFile {
+ public:
+  explicit PageFile(const std::filesystem::path& directory);
+  ~PageFile();
+  PageFile(const PageFile&) = delete;
+  PageFile& operator=(const PageFile&) = delete;
+  void write(uint64_t offset, const void* data, size_t bytes);
+  void read(uint64_t offset, void* data, size_t bytes) const;
+
+ private:
+  std::filesystem::path directory_;
+  int fd_ = -1;
+};
+
+class NodePages {
+ public:
+  // Subtrees of at most this many faces are a page: for b = 2 at most 2,047 nodes of
+  // 72 bytes, 144 KiB.
+  static constexpr uint32_t kPageFaces = 2048;
+  // Top records per chunk.
+  static constexpr uint32_t kTopRecords = 1024;
+  // Triangles per block: 44 KiB.
+  static constexpr uint32_t kBlockTriangles = 1024;
+
+  // One pass over the reader's nodes and one over its triangles; `budget`: the bytes the cache
+  // may hold, and half of it for the records waiting to be written while the nodes' pass runs.
+  NodePages(ClusterFileReader& reader, uint64_t budget, uint32_t pageFaces = kPageFaces,
+            uint32_t topRecords = kTopRecords);
+
+  using Page = std::shared_ptr<const MappedBytes>;
+  uint64_t nodeCount() const { return nodes_; }
+  uint64_t faceCount() const { return faces_; }
+  bool inTop(const NodeRef& ref) const { return ref.count > pageFaces_; }
+  // The page that holds `ref` (a page id) and the page itself, read or from the cache.
+  uint32_t pageOf(const NodeRef& ref) const;
+  Page page(uint32_t id);
+  // The node `ref` in `page` (which pageOf(ref) named).
+  FchNode find(const MappedBytes& page, const NodeRef& ref) const;
+  // Block b of the triangles (face positions b * kBlockTriangles on), read or from the cache, and
+  // a triangle's corners and original id in it.
+  Page block(uint64_t b);
+  static void corners(const MappedBytes& block, uint64_t p, glm::vec3 (&out)[3]);
+  static uint64_t originalFace(const MappedBytes& block, uint64_t p);
+  // The root as the queries start from it.
+  NodeRef root() const { return {0, 0, rootCount_}; }
+
+  uint64_t temporaryBytes() const { return fileBytes_; }
+  uint64_t peakBytes() const { return peak_; }
+
+ private:
+  struct PageEntry {
+    uint64_t offset = 0;    // bytes into the file
+    uint32_t capacity = 0;  // records reserved
+    uint32_t records = 0;   // records written
+  };
+  struct Cached {
+    Page bytes;
+    uint64_t lastUse = 0;
+  };
+  void build(ClusterFileReader& reader, uint64_t stageBytes);
+  void writeTriangles(ClusterFileReader& reader);
+  Page cached(uint64_t key, uint64_t offset, size_t bytes);
+
+  uint32_t pageFaces_, topRecords_;
+  size_t stride_ = 0;
+  unsigned branching_ = 2;
+  uint64_t nodes_ = 0;
+  uint32_t rootCount_ = 0;
+  PageFile file_;
+  uint64_t fileBytes_ = 0;
+  std::vector<PageEntry> pages_;         // top chunks and subtree pages, in the order begun
+  std::vector<uint32_t> topPage_;        // the top's chunks in index order: their page ids
+  std::vector<uint32_t> topFirstIndex_;  // ... and their first node indices
+  std::vector<uint32_t> rootFirst_;      // the subtree pages by their roots' first face, ascending
+  std::vector<uint32_t> rootEnd_;        // ... and their ranges' ends
+  std::vector<uint32_t> rootPage_;       // ... and their page ids
+  uint64_t budget_;
+  std::mutex mutex_;
+  uint64_t faces_ = 0, trianglesOffset_ = 0;  // the blocks start at trianglesOffset_
+  std::map<uint64_t, Cached> cache_;          // keys: page ids, then pages_.size() + block
+  uint64_t held_ = 0, peak_ = 0, clock_ = 0;
+};
+
+}  // namespace facetree::query
