@@ -20,8 +20,6 @@ namespace facetree::query {
 namespace {
 
 constexpr size_t kRecordHead = 56;  // index, first, count, childCount, flags, box
-constexpr size_t kCornerBytes = 3 * sizeof(glm::vec3);
-constexpr size_t kTriangleBytes = kCornerBytes + sizeof(uint64_t);  // corners and original id
 
 // What a mapping of `bytes` takes: whole pages of the system.
 uint64_t mappedBytes(size_t bytes) {

@@ -81,6 +81,9 @@ class NodePages {
   static constexpr uint32_t kTopRecords = 1024;
   // Triangles per block: 44 KiB.
   static constexpr uint32_t kBlockTriangles = 1024;
+  // A triangle in a block: its corners, then (with the block's others) its original id.
+  static constexpr size_t kCornerBytes = 3 * sizeof(glm::vec3);
+  static constexpr size_t kTriangleBytes = kCornerBytes + sizeof(uint64_t);
 
   // One pass over the reader's nodes and one over its triangles; `budget`: the bytes the cache
   // may hold, and half of it for the records waiting to be written while the nodes' pass runs.
@@ -104,7 +107,9 @@ class NodePages {
   // The root as the queries start from it.
   NodeRef root() const { return {0, 0, rootCount_}; }
 
-  uint64_t temporaryBytes() const { return fileBytes_; }
+  // The bytes written: each page reserves a record per face of its root, and what it does not
+  // fill stays a hole of the file, on disk nothing.
+  uint64_t temporaryBytes() const { return nodes_ * stride_ + faces_ * kTriangleBytes; }
   uint64_t peakBytes() const { return peak_; }
 
  private:

@@ -1120,6 +1120,12 @@ def bench_queries(args, meshes, out):
         # where a t differs by more, whether Embree's is the one further from the plane's exact t
         "t_differences_embree_rounding": all(a[k]["t_outside_1e-5"] == a[k]["t_outside_1e-5_embree_further_from_exact"]
                                              for a in agreement for k in ("camera", "random")),
+        # where the two differ (another triangle, or t by more than 1e-5), whether facetree's answer is the
+        # exact one: the true nearest of the two triangles by a long-double test, or the t nearer the plane's
+        "facetree_exact_where_they_differ": all(
+            a[k].get("different_triangle_facetree_exact", -1) == a[k]["different_triangle"]
+            and a[k].get("t_outside_1e-5_facetree_exact", -1) == a[k]["t_outside_1e-5"]
+            for a in agreement for k in ("camera", "random")),
         "facetree_t_within_1e-6_of_exact": all(a[k]["facetree_worst_t_against_exact"] <= 1e-6
                                                for a in agreement for k in ("camera", "random")),
         "closest_within_4x_embree": bool(speed) and all(r[k]["closest_ratio"] <= QUERY_EMBREE_RATIO

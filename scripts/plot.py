@@ -486,17 +486,23 @@ def queries_markdown(q, rel):
     if q["speed"]:
         out += ["dragon_vrip, 1M rays of each kind (closest hit, any hit; facetree time over Embree's):", "",
                 table(["threads", "rays", "facetree s", "Embree s", "ratio", "any: facetree s", "Embree s", "ratio",
-                       "Embree build s", "facetree load s"],
+                       "Embree build s", "facetree load s", "layout for rays s"],
                       [[r["threads"], kind, f"{r[kind]['closest_seconds']:.3f}", f"{r[kind]['embree_closest_seconds']:.3f}",
                         f"**{r[kind]['closest_ratio']:.2f}**", f"{r[kind]['any_seconds']:.3f}",
                         f"{r[kind]['embree_any_seconds']:.3f}", f"{r[kind]['any_ratio']:.2f}",
-                        f"{r['embree_build_seconds']:.2f}", f"{r['load_seconds']:.2f}"]
+                        f"{r['embree_build_seconds']:.2f}", f"{r['load_seconds']:.2f}",
+                        f"{r['layout_seconds']:.3f}" if "layout_seconds" in r else ""]
                        for r in q["speed"] for kind in ("camera", "random")]), ""]
     if q.get("reader"):
         r = q["reader"]
         out += [f"The 56M-face dragon's file ({r['file_bytes'] / 1e9:.2f} GB) through the lazy reader under "
                 f"--memory {r['cap']}, two threads: camera rays {r['camera']['rays_per_second']:,.0f} a second, "
-                f"random rays {r['random']['rays_per_second']:,.0f}; peak RSS {r['peak_rss_bytes'] / 2**20:.0f} MiB.", ""]
+                f"random rays {r['random']['rays_per_second']:,.0f}; peak RSS {r['peak_rss_bytes'] / 2**20:.0f} MiB"
+                + (f", of which the 1M rays and their hits held by the benchmark "
+                   f"{r['rays_bytes'] / 2**20:.0f} MiB" if "rays_bytes" in r else "")
+                + (f"; the query index {r['index_seconds']:.1f} s, {r['index_temporary_bytes'] / 1e9:.2f} GB of "
+                   "temporary files (nodes by subtree, the triangles' corners)" if "index_seconds" in r else "")
+                + ".", ""]
     checks = q["checks"]
     out += ["Checks: " + ", ".join(f"{k} {'yes' if v else '**no**'}" for k, v in checks.items()) + ".", ""]
     return out

@@ -280,6 +280,33 @@ double exactT(const ClusterFile& f, const Ray& r, uint64_t face) {
   return double(num / den);
 }
 
+// The t at which the ray meets triangle `face` in long double, where the exact barycentrics lie in
+// the triangle (edges included), else infinity: which of two answers is the true nearest hit.
+long double exactHit(const ClusterFile& f, const Ray& r, uint64_t face) {
+  using V = long double;
+  V p[3][3], o[3], d[3];
+  for (int c = 0; c < 3; ++c)
+    for (int k = 0; k < 3; ++k) p[c][k] = f.vertices[f.indices[3 * face + uint64_t(c)]][k];
+  for (int k = 0; k < 3; ++k) o[k] = r.origin[k], d[k] = r.direction[k];
+  const auto cross = [](const V* a, const V* b, V* out) {
+    out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2],
+    out[2] = a[0] * b[1] - a[1] * b[0];
+  };
+  const auto dot = [](const V* a, const V* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  V e1[3], e2[3], s[3], pv[3], qv[3];
+  for (int k = 0; k < 3; ++k) e1[k] = p[1][k] - p[0][k], e2[k] = p[2][k] - p[0][k], s[k] = o[k] - p[0][k];
+  cross(d, e2, pv);
+  const V det = dot(e1, pv);
+  const V inf = std::numeric_limits<V>::infinity();
+  if (det == 0) return inf;
+  const V u = dot(s, pv) / det;
+  cross(s, e1, qv);
+  const V v = dot(d, qv) / det;
+  if (u < 0 || v < 0 || u + v > 1) return inf;
+  const V t = dot(e2, qv) / det;
+  return t >= r.tMin && t <= r.tMax ? t : inf;
+}
+
 // One batch of rays: facetree's closest and any hits (and Embree's, alternating), their times,
 // the boxes and triangles tested a ray, and the hits compared.
 std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Tracer& tracer,
@@ -321,12 +348,24 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
     // The same triangle, or both missing; t within 1e-5 relative where both hit. Where the two t
     // differ by more, each against the exact t of its own triangle (the plane's, in long double):
     // whose rounding it is.
-    uint64_t same = 0, grazing = 0, tOutside = 0, outsideEmbreeFurther = 0, anySame = 0;
+    uint64_t same = 0, grazing = 0, tOutside = 0, outsideEmbreeFurther = 0, anySame = 0, differentExact = 0,
+             outsideFacetreeExact = 0;
     double worstT = 0, worstExact = 0;
     for (size_t k = 0; k < rays.size(); ++k) {
       const RayHit &h = hits[k], &e = peer[k];
       anySame += blocked[k] == peerBlocked[k];
       if (h.face == e.face) ++same;
+      // Rays on different triangles (or one missing): whether facetree's is the true nearest of the
+      // two, by the exact test of both.
+      bool facetreeExact = true;  // on different triangles: facetree's the true nearest of the two
+      if (h.face != e.face) {
+        const ClusterFile& file = tracer.layout->file();
+        const long double inf = std::numeric_limits<long double>::infinity();
+        const long double ours = h.face == facetree::kNoHit ? inf : exactHit(file, rays[k], h.face);
+        const long double theirs = e.face == facetree::kNoHit ? inf : exactHit(file, rays[k], e.face);
+        facetreeExact = h.face == facetree::kNoHit ? theirs == inf : ours < inf && ours <= theirs;
+        differentExact += facetreeExact;
+      }
       if (h.face != facetree::kNoHit)
         worstExact = std::max(worstExact, relative(h.t, exactT(tracer.layout->file(), rays[k], h.face)));
       if (h.face == facetree::kNoHit || e.face == facetree::kNoHit) continue;
@@ -335,12 +374,17 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
       grazing += h.face != e.face && rel <= 1e-6;
       if (rel > 1e-5) {
         ++tOutside;
-        outsideEmbreeFurther += relative(e.t, exactT(tracer.layout->file(), rays[k], e.face)) >
-                                relative(h.t, exactT(tracer.layout->file(), rays[k], h.face));
+        const bool embreeFurther = relative(e.t, exactT(tracer.layout->file(), rays[k], e.face)) >
+                                   relative(h.t, exactT(tracer.layout->file(), rays[k], h.face));
+        outsideEmbreeFurther += embreeFurther;
+        // Same triangle: the t nearer the exact one; different triangles: the true nearest hit.
+        outsideFacetreeExact += h.face == e.face ? embreeFurther : facetreeExact;
       }
     }
     out += ", \"embree_closest_seconds\": " + number(median(embreeClosest)) +
            ", \"embree_any_seconds\": " + number(median(embreeAny)) +
+           ", \"different_triangle_facetree_exact\": " + std::to_string(differentExact) +
+           ", \"t_outside_1e-5_facetree_exact\": " + std::to_string(outsideFacetreeExact) +
            ", \"closest_ratio\": " + number(median(closest) / median(embreeClosest)) +
            ", \"any_ratio\": " + number(median(any) / median(embreeAny)) +
            ", \"same_triangle\": " + number(double(same) / n) +
@@ -428,7 +472,10 @@ int main(int argc, char** argv) try {
     const Tracer tracer{nullptr, &index};
     json += ", \"reader_memory\": " + std::to_string(a.readerMemory) +
             ", \"index_seconds\": " + number(indexSeconds) +
-            ", \"index_temporary_bytes\": " + std::to_string(index.temporaryBytes()) + ", " +
+            ", \"index_temporary_bytes\": " + std::to_string(index.temporaryBytes()) +
+            // What the benchmark itself holds beside the reader: both kinds of rays and one batch's
+            // closest hits and any hits.
+            ", \"rays_bytes\": " + std::to_string(a.rays * (2 * sizeof(Ray) + sizeof(RayHit) + 1)) + ", " +
             rayBatch("camera", cameraRays(b, a.rays), tracer, nullptr, a) + ", " +
             rayBatch("random", randomRays(b, a.rays, 1), tracer, nullptr, a);
     std::printf("%s}\n", json.c_str());
