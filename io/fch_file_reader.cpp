@@ -441,6 +441,10 @@ const std::filesystem::path& ClusterFileReader::temporaryDirectory() const {
   return state_->tmp;
 }
 
+const std::string& ClusterFileReader::name() const {
+  return state_->source.name();
+}
+
 FchNode ClusterFileReader::node(uint64_t index) {
   if (index >= size()) throw std::out_of_range("ClusterFileReader::node: index past the nodes");
   const uint64_t per = layout().nodesPerFrame;

@@ -580,7 +580,7 @@ void SourceFile::decodeNodes(size_t i, const std::string& raw, std::vector<FchNo
     }
   }
   // Version 1 stores no child face counts: those of node children come from their own records,
-  // once read (fillChildFaces).
+  // once read (fillVersion1ChildFaces).
 }
 
 void SourceFile::decodeVertices(size_t i, const std::string& raw, std::vector<glm::vec3>& out) const {

@@ -23,34 +23,30 @@ FchLayout readClusterFileLayout(const std::filesystem::path& path) {
   return fch::SourceFile(path).layout();
 }
 
-namespace {
-
 // Version 1 records hold no child face counts: a kept node child's is its own count, a cut-off
 // child's the gap its kept neighbours leave in the parent's range.
-void fillChildFaces(std::vector<FchNode>& nodes) {
-  for (FchNode& node : nodes) {
-    uint64_t cursor = node.first;
-    int open = -1;  // a cut-off child whose end is the next child's start
-    for (unsigned c = 0; c < node.childCount; ++c) {
-      const uint32_t ref = node.child[c];
-      uint64_t start, count;
-      if (ref & kFaceChild)
-        start = ref & ~kFaceChild, count = 1;
-      else if (ref < nodes.size())
-        start = nodes[ref].first, count = nodes[ref].count;
-      else {
-        open = static_cast<int>(c);
-        continue;
-      }
-      if (open >= 0) node.childFaces[open] = static_cast<uint32_t>(start - cursor), open = -1;
-      node.childFaces[c] = static_cast<uint32_t>(count);
-      cursor = start + count;
+void fillVersion1ChildFaces(FchNode& node, uint64_t nodeCount,
+                            const std::function<std::pair<uint32_t, uint32_t>(uint32_t)>& rangeOf) {
+  uint64_t cursor = node.first;
+  int open = -1;  // a cut-off child whose end is the next child's start
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t ref = node.child[c];
+    uint64_t start, count;
+    if (ref & kFaceChild) {
+      start = ref & ~kFaceChild, count = 1;
+    } else if (ref < nodeCount) {
+      const auto [first, faces] = rangeOf(ref);
+      start = first, count = faces;
+    } else {
+      open = static_cast<int>(c);
+      continue;
     }
-    if (open >= 0) node.childFaces[open] = static_cast<uint32_t>(uint64_t{node.first} + node.count - cursor);
+    if (open >= 0) node.childFaces[open] = static_cast<uint32_t>(start - cursor), open = -1;
+    node.childFaces[c] = static_cast<uint32_t>(count);
+    cursor = start + count;
   }
+  if (open >= 0) node.childFaces[open] = static_cast<uint32_t>(uint64_t{node.first} + node.count - cursor);
 }
-
-}  // namespace
 
 ClusterFile readClusterFile(ClusterFileReader& reader, bool geometry) {
   ClusterFile file;
@@ -61,7 +57,11 @@ ClusterFile readClusterFile(ClusterFileReader& reader, bool geometry) {
         return true;
       },
       NodeFields::All);
-  if (file.header.version == 1) fillChildFaces(file.nodes);
+  if (file.header.version == 1)
+    for (FchNode& node : file.nodes)
+      fillVersion1ChildFaces(node, file.nodes.size(), [&](uint32_t child) {
+        return std::pair{file.nodes[child].first, file.nodes[child].count};
+      });
   if (!geometry) return file;
   reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
     file.vertices.insert(file.vertices.end(), vertices.begin(), vertices.end());

@@ -12,8 +12,9 @@
 #include <cstring>
 #include <new>
 #include <numeric>
-#include <stdexcept>
 #include <string>
+
+#include "facetree/error.h"
 
 namespace facetree::query {
 
@@ -26,8 +27,14 @@ uint64_t mappedBytes(size_t bytes) {
   return (uint64_t{bytes} + 4095) & ~uint64_t{4095};
 }
 
-std::string systemError(const std::string& what) {
-  return what + ": " + std::strerror(errno);
+// The temporary file failing (a full disk, a vanished directory): a resource error.
+Error systemError(const std::string& what) {
+  return Error(ErrorCategory::Resource, what + ": " + std::strerror(errno));
+}
+
+// A file whose structure the pages cannot hold (face ranges that do not nest).
+Error badStructure(const std::string& name, uint64_t node, const std::string& reason) {
+  return Error(ErrorCategory::Input, name + ": node " + std::to_string(node) + ": " + reason);
 }
 
 void encode(uint32_t index, const FchNode& node, unsigned branching, std::byte* out) {
@@ -89,7 +96,7 @@ PageFile::PageFile(const std::filesystem::path& directory)
     fd_ = ::mkstemp(name.data());
     if (fd_ >= 0) ::unlink(name.c_str());
   }
-  if (fd_ < 0) throw std::runtime_error(systemError(directory_.string() + ": cannot create the query pages"));
+  if (fd_ < 0) throw systemError(directory_.string() + ": cannot create the query pages");
 }
 
 PageFile::~PageFile() {
@@ -101,7 +108,7 @@ void PageFile::write(uint64_t offset, const void* data, size_t bytes) {
   while (bytes > 0) {
     const ssize_t n = ::pwrite(fd_, p, bytes, static_cast<off_t>(offset));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw std::runtime_error(systemError(directory_.string() + ": cannot write the query pages"));
+    if (n <= 0) throw systemError(directory_.string() + ": cannot write the query pages");
     p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
   }
 }
@@ -111,8 +118,8 @@ void PageFile::read(uint64_t offset, void* data, size_t bytes) const {
   while (bytes > 0) {
     const ssize_t n = ::pread(fd_, p, bytes, static_cast<off_t>(offset));
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw std::runtime_error(systemError(directory_.string() + ": cannot read the query pages"));
-    if (n == 0) throw std::runtime_error(directory_.string() + ": the query pages end early");
+    if (n < 0) throw systemError(directory_.string() + ": cannot read the query pages");
+    if (n == 0) throw Error(ErrorCategory::Resource, directory_.string() + ": the query pages end early");
     p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
   }
 }
@@ -158,8 +165,8 @@ void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
       PageEntry& page = pages_[id];
       const uint64_t count = j - i;
       if (page.records + count > page.capacity)
-        throw std::runtime_error("node " + std::to_string(recordIndex(run.data())) +
-                                 ": more nodes under its page root than its faces allow");
+        throw badStructure(name_, recordIndex(run.data()),
+                           "more nodes under its page root than its faces allow");
       file_.write(page.offset + uint64_t{page.records} * stride_, run.data(), run.size());
       page.records += static_cast<uint32_t>(count);
       i = j;
@@ -169,7 +176,39 @@ void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
   uint32_t topInChunk = topRecords_;
   const size_t stageRecords = std::max<size_t>(1, stageBytes / stride_);
   stage.reserve(std::min<size_t>(stageRecords, 1 << 16) * stride_);
-  reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t) {
+  // Version 1 records lack their node children's face counts: a first pass keeps every node's
+  // range in a temporary file, read back for each node child.
+  std::unique_ptr<PageFile> ranges;
+  const uint64_t nodeCount = reader.size();
+  if (reader.header().version == 1) {
+    ranges = std::make_unique<PageFile>(reader.temporaryDirectory());
+    std::vector<uint32_t> run;
+    const auto flushRanges = [&](uint64_t next) {
+      ranges->write((next - run.size() / 2) * 8, run.data(), run.size() * 4);
+      run.clear();
+    };
+    reader.forEachNode(
+        [&](uint64_t index, const FchNode& node, uint32_t) {
+          run.push_back(node.first), run.push_back(node.count);
+          if (run.size() == 2 * 8192) flushRanges(index + 1);
+          return true;
+        },
+        NodeFields::Structure);
+    flushRanges(nodeCount);
+  }
+  FchNode filled;
+  reader.forEachNode([&](uint64_t index, const FchNode& read, uint32_t) {
+    const FchNode* source = &read;
+    if (ranges) {
+      filled = read;
+      fillVersion1ChildFaces(filled, nodeCount, [&](uint32_t child) {
+        uint32_t range[2];
+        ranges->read(uint64_t{child} * 8, range, 8);
+        return std::pair{range[0], range[1]};
+      });
+      source = &filled;
+    }
+    const FchNode& node = *source;
     if (index == 0) rootCount_ = node.count;
     uint32_t id;
     if (node.count > pageFaces_) {
@@ -192,7 +231,7 @@ void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
       } else {
         id = reserve(std::max<uint32_t>(node.count, 1));
         if (!roots.emplace(node.first, id).second)
-          throw std::runtime_error("node " + std::to_string(index) + ": its face range starts another's");
+          throw badStructure(name_, index, "its face range starts another's");
       }
     }
     const size_t at = stage.size();
@@ -221,14 +260,13 @@ void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
 uint32_t NodePages::pageOf(const NodeRef& ref) const {
   if (inTop(ref)) {
     const auto it = std::upper_bound(topFirstIndex_.begin(), topFirstIndex_.end(), ref.index);
-    if (it == topFirstIndex_.begin())
-      throw std::runtime_error("node " + std::to_string(ref.index) + ": not in the top");
+    if (it == topFirstIndex_.begin()) throw badStructure(name_, ref.index, "not in the top");
     return topPage_[static_cast<size_t>(it - topFirstIndex_.begin() - 1)];
   }
   const auto it = std::upper_bound(rootFirst_.begin(), rootFirst_.end(), ref.first);
   const size_t k = static_cast<size_t>(it - rootFirst_.begin());
   if (k == 0 || ref.first >= rootEnd_[k - 1])
-    throw std::runtime_error("node " + std::to_string(ref.index) + ": its faces lie in no page");
+    throw badStructure(name_, ref.index, "its faces lie in no page");
   return rootPage_[k - 1];
 }
 
@@ -239,7 +277,8 @@ NodePages::Page NodePages::page(uint32_t id) {
 
 NodePages::Page NodePages::block(uint64_t b) {
   const uint64_t first = b * kBlockTriangles;
-  if (first >= faces_) throw std::runtime_error("face " + std::to_string(first) + " past the triangles");
+  if (first >= faces_)
+    throw Error(ErrorCategory::Input, name_ + ": face " + std::to_string(first) + " past the triangles");
   const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - first);
   return cached(pages_.size() + b, trianglesOffset_ + b * kBlockTriangles * kTriangleBytes,
                 n * kTriangleBytes);
@@ -285,7 +324,8 @@ void NodePages::writeTriangles(ClusterFileReader& reader) {
   uint64_t next = 0;  // the next face position to place
   const auto put = [&](uint64_t p, const glm::vec3(&corner)[3], uint64_t id) {
     if (p != next)
-      throw std::runtime_error("face " + std::to_string(p) + ": out of order in the triangle pass");
+      throw Error(ErrorCategory::Input,
+                  name_ + ": face " + std::to_string(p) + ": out of order in the triangle pass");
     const uint64_t first = p - p % kBlockTriangles;
     const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - first);
     const uint64_t k = p % kBlockTriangles;
@@ -303,8 +343,8 @@ void NodePages::writeTriangles(ClusterFileReader& reader) {
     }
   });
   if (next != faces_)
-    throw std::runtime_error("the triangle pass gave " + std::to_string(next) + " of " +
-                             std::to_string(faces_) + " triangles");
+    throw Error(ErrorCategory::Input, name_ + ": the triangle pass gave " + std::to_string(next) + " of " +
+                                          std::to_string(faces_) + " triangles");
   fileBytes_ += faces_ * kTriangleBytes;
 }
 
@@ -319,7 +359,7 @@ FchNode NodePages::find(const MappedBytes& page, const NodeRef& ref) const {
       hi = mid;
   }
   if (lo == page.size() / stride_ || recordIndex(&records[lo * stride_]) != ref.index)
-    throw std::runtime_error("node " + std::to_string(ref.index) + ": not in the page of its face range");
+    throw badStructure(name_, ref.index, "not in the page of its face range");
   return decode(&records[lo * stride_], branching_);
 }
 

@@ -26,6 +26,7 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "facetree/io.h"
@@ -126,6 +127,7 @@ class NodePages {
   void writeTriangles(ClusterFileReader& reader);
   Page cached(uint64_t key, uint64_t offset, size_t bytes);
 
+  std::string name_;  // the file, for the messages
   uint32_t pageFaces_, topRecords_;
   size_t stride_ = 0;
   unsigned branching_ = 2;

@@ -24,6 +24,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/ext/vector_uint3_sized.hpp>
@@ -410,6 +411,8 @@ class ClusterFileReader {
   // The cap it holds (ReaderOptions::memoryBytes resolved) and where its temporary files go.
   uint64_t memoryBytes() const;
   const std::filesystem::path& temporaryDirectory() const;
+  // The file as its messages name it (the path, or the name given with a descriptor).
+  const std::string& name() const;
 
   // Node `index` (< size()). In file order each node frame decodes once; a frame that has left the
   // cache decodes again with the frames before it.
@@ -471,6 +474,11 @@ class ClusterFileReader {
 
 // branchingStats of a file read in one pass of its nodes.
 BranchingStats branchingStats(ClusterFileReader& reader);
+// A version 1 node's childFaces, which its record does not hold (readers fill them in): a kept node
+// child's is its own count, rangeOf(child) giving that child's (first, count); a cut-off child's the
+// gap its neighbours leave in the node's range. Version 2 records hold them.
+void fillVersion1ChildFaces(FchNode& node, uint64_t nodeCount,
+                            const std::function<std::pair<uint32_t, uint32_t>(uint32_t)>& rangeOf);
 // The whole file in memory from a reader: its nodes in one pass, then its geometry frame by frame.
 ClusterFile readClusterFile(ClusterFileReader& reader, bool geometry = true);
 

@@ -1,6 +1,7 @@
 // fuzz_fch_reader: the lazy cluster-file reader (ClusterFileReader) driven by random access over
 // corrupted files: nodes in an order the input picks, passes with a frontier budget small enough to
-// go to its temporary file, cuts by count, cost and depth, face ranges and the pieces of a cut. As
+// go to its temporary file, cuts by count, cost and depth, face ranges, the pieces of a cut and the
+// queries through a query index (rays, boxes, nearest points). As
 // in fuzz_fch, every input is read as given and with its checksums recomputed. Error (Input) is the
 // documented error; anything else crashes. Where the whole-file reader reads the file, verify under
 // the cap must give its verdict; where it also verifies, the lazy reader must give the same nodes,
@@ -9,10 +10,12 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "facetree/io.h"
+#include "facetree/query.h"
 #include "fuzz_fch_file.h"
 
 using namespace facetree;
@@ -47,11 +50,38 @@ bool sameRuns(const std::vector<uint32_t>& label, const std::vector<CutCluster>&
   return c + 1 == cut.size() || (label.empty() && cut.empty());
 }
 
+// Rays through the header's bounding box, boxes and points about it, chosen by the input.
+struct Queries {
+  std::vector<Ray> rays;
+  std::vector<QueryBox> boxes;
+  std::vector<glm::vec3> points;
+};
+
+Queries queriesFor(const FileHeader& header, Picks& picks) {
+  Queries q;
+  const auto unit = [&] { return float(picks.next(1000)) / 1000.0f; };
+  const glm::vec3 lo = header.boundsMin, extent = header.boundsMax - header.boundsMin;
+  const auto point = [&](float grow) {
+    return lo - grow * extent + (1.0f + 2.0f * grow) * glm::vec3(unit(), unit(), unit()) * extent;
+  };
+  for (int i = 0; i < 8; ++i) {
+    Ray r;
+    r.origin = point(1.0f);
+    r.direction = point(0.0f) - r.origin;
+    q.rays.push_back(r);
+    q.boxes.push_back({point(0.1f), 0.1f * extent * unit(), glm::quat(1, 0, 0, 0)});
+    q.points.push_back(point(0.5f));
+  }
+  return q;
+}
+
 void exercise(const std::string& path, Picks picks) {
   ReaderOptions options;
   options.memoryBytes = 64 << 10;  // 16 KiB of frontier: larger files spill
   std::vector<FchNode> nodes;
   std::vector<CutCluster> cut16, depth3;
+  std::vector<RayHit> hits;
+  Queries queries;
   try {
     ClusterFileReader reader(path, options);
     const uint64_t n = reader.size(), triangles = reader.header().triangleCount;
@@ -84,6 +114,12 @@ void exercise(const std::string& path, Picks picks) {
       pieces += clusterOf.size();
     });
     if (pieces != triangles) fail("pieces: the pieces do not cover the faces");
+    ReaderQueryIndex index(reader);
+    queries = queriesFor(reader.header(), picks);
+    hits = intersect(index, queries.rays, {2});
+    (void)occluded(index, queries.rays, {1});
+    (void)overlap(index, queries.boxes, {2});
+    (void)nearest(index, queries.points, std::numeric_limits<float>::infinity(), {1});
   } catch (const Error& e) {
     checkMessage(e.what());
     return;
@@ -120,6 +156,12 @@ void exercise(const std::string& path, Picks picks) {
     if (!sameNode(nodes[j], file.nodes[j]))
       fail("node " + std::to_string(j) + " differs from the whole file's");
   if (!sameRuns(clusterCut(file, 16), cut16)) fail("cut(16) differs from clusterCut");
+  // The closest hits through the reader's index are the file in memory's.
+  const std::vector<RayHit> inMemory = intersect(file, queries.rays, {1});
+  for (size_t i = 0; i < hits.size(); ++i)
+    if (hits[i].face != inMemory[i].face ||
+        std::bit_cast<uint32_t>(hits[i].t) != std::bit_cast<uint32_t>(inMemory[i].t))
+      fail("ray " + std::to_string(i) + ": the reader's hit differs from the file in memory's");
   if (!sameRuns(clusterDepthCut(file, 3), depth3)) fail("cutByDepth(3) differs from clusterDepthCut");
 }
 

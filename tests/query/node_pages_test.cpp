@@ -78,7 +78,7 @@ TEST(NodePages, EveryNodeIsFoundFromItsParentThroughSmallPagesOnWholeAndTruncate
         for (int c = 0; c < 3; ++c) ASSERT_EQ(corner[c], whole.vertices[whole.indices[3 * p + c]]) << p;
         ASSERT_EQ(query::NodePages::originalFace(*block, p), whole.originalFace[p]) << p;
       }
-      EXPECT_THROW(pages.block(faces / query::NodePages::kBlockTriangles + 1), std::runtime_error);
+      EXPECT_THROW(pages.block(faces / query::NodePages::kBlockTriangles + 1), Error);
       // Written: records of 56 + 8 b bytes, 44 bytes a triangle.
       EXPECT_EQ(pages.temporaryBytes(), whole.nodes.size() * (56 + 8 * branching) + faces * 44);
       // The cache within its budget but for the entry that came last (a block of 44 KiB).
