@@ -482,7 +482,10 @@ def queries_markdown(q, rel):
                    for a in q["agreement"]]), "",
             "Where the two t differ by more than 1e-5, each is set against the exact t of its own triangle's "
             "plane (long double): the check `t_differences_embree_rounding` says whether Embree's is the one "
-            "further from it every time.", ""]
+            "further from it every time. Where they hit different triangles, or their t differ by more than "
+            "1e-5, both answers are tested exactly (long double): the check `facetree_exact_where_they_differ` "
+            "says whether facetree's is the true nearest of the two triangles, or the t nearer its plane's, on "
+            "every such ray.", ""]
     if q["speed"]:
         out += ["dragon_vrip, 1M rays of each kind (closest hit, any hit; facetree time over Embree's):", "",
                 table(["threads", "rays", "facetree s", "Embree s", "ratio", "any: facetree s", "Embree s", "ratio",
