@@ -21,9 +21,13 @@ int createUnnamedFile(const std::filesystem::path& dir, const char* prefix) {
   return fd;
 }
 
+}  // namespace facetree::fch
+
+namespace facetree {
+
 TemporaryFile::TemporaryFile(const std::filesystem::path& dir)
     : dir_(dir.empty() ? std::filesystem::temp_directory_path() : dir) {
-  fd_ = createUnnamedFile(dir_, "facetree-reader-");
+  fd_ = fch::createUnnamedFile(dir_, "facetree-reader-");
   if (fd_ < 0)
     throw Error(ErrorCategory::Output,
                 "cannot create a temporary file in " + dir_.string() + ": " + std::strerror(errno));
@@ -59,4 +63,4 @@ void TemporaryFile::read(uint64_t offset, void* data, uint64_t bytes) const {
   }
 }
 
-}  // namespace facetree::fch
+}  // namespace facetree

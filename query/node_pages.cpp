@@ -3,12 +3,9 @@
 
 #include "query_source.h"
 
-#include <fcntl.h>
 #include <sys/mman.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstring>
 #include <new>
 #include <numeric>
@@ -25,11 +22,6 @@ constexpr size_t kRecordHead = 56;  // index, first, count, childCount, flags, b
 // What a mapping of `bytes` takes: whole pages of the system.
 uint64_t mappedBytes(size_t bytes) {
   return (uint64_t{bytes} + 4095) & ~uint64_t{4095};
-}
-
-// The temporary file failing (a full disk, a vanished directory): a resource error.
-Error systemError(const std::string& what) {
-  return Error(ErrorCategory::Resource, what + ": " + std::strerror(errno));
 }
 
 // A file whose structure the pages cannot hold (face ranges that do not nest).
@@ -88,42 +80,6 @@ MappedBytes::~MappedBytes() {
   if (data_) ::munmap(data_, size_);
 }
 
-PageFile::PageFile(const std::filesystem::path& directory)
-    : directory_(directory.empty() ? std::filesystem::temp_directory_path() : directory) {
-  fd_ = ::open(directory_.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-  if (fd_ < 0) {  // a file system without O_TMPFILE: a named file, unlinked at once
-    std::string name = (directory_ / "facetree-query-XXXXXX").string();
-    fd_ = ::mkstemp(name.data());
-    if (fd_ >= 0) ::unlink(name.c_str());
-  }
-  if (fd_ < 0) throw systemError(directory_.string() + ": cannot create the query pages");
-}
-
-PageFile::~PageFile() {
-  if (fd_ >= 0) ::close(fd_);
-}
-
-void PageFile::write(uint64_t offset, const void* data, size_t bytes) {
-  const char* p = static_cast<const char*>(data);
-  while (bytes > 0) {
-    const ssize_t n = ::pwrite(fd_, p, bytes, static_cast<off_t>(offset));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw systemError(directory_.string() + ": cannot write the query pages");
-    p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
-  }
-}
-
-void PageFile::read(uint64_t offset, void* data, size_t bytes) const {
-  char* p = static_cast<char*>(data);
-  while (bytes > 0) {
-    const ssize_t n = ::pread(fd_, p, bytes, static_cast<off_t>(offset));
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw systemError(directory_.string() + ": cannot read the query pages");
-    if (n == 0) throw Error(ErrorCategory::Resource, directory_.string() + ": the query pages end early");
-    p += n, offset += static_cast<uint64_t>(n), bytes -= static_cast<size_t>(n);
-  }
-}
-
 NodePages::NodePages(ClusterFileReader& reader, uint64_t budget, uint32_t pageFaces, uint32_t topRecords)
     : pageFaces_(pageFaces),
       topRecords_(std::max<uint32_t>(topRecords, 1)),
@@ -178,10 +134,10 @@ void NodePages::build(ClusterFileReader& reader, uint64_t stageBytes) {
   stage.reserve(std::min<size_t>(stageRecords, 1 << 16) * stride_);
   // Version 1 records lack their node children's face counts: a first pass keeps every node's
   // range in a temporary file, read back for each node child.
-  std::unique_ptr<PageFile> ranges;
+  std::unique_ptr<TemporaryFile> ranges;
   const uint64_t nodeCount = reader.size();
   if (reader.header().version == 1) {
-    ranges = std::make_unique<PageFile>(reader.temporaryDirectory());
+    ranges = std::make_unique<TemporaryFile>(reader.temporaryDirectory());
     std::vector<uint32_t> run;
     const auto flushRanges = [&](uint64_t next) {
       ranges->write((next - run.size() / 2) * 8, run.data(), run.size() * 4);

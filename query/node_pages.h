@@ -58,21 +58,6 @@ class MappedBytes {
   size_t size_ = 0;
 };
 
-// A temporary file, unlinked while open, read and written at offsets.
-class PageFile {
- public:
-  explicit PageFile(const std::filesystem::path& directory);
-  ~PageFile();
-  PageFile(const PageFile&) = delete;
-  PageFile& operator=(const PageFile&) = delete;
-  void write(uint64_t offset, const void* data, size_t bytes);
-  void read(uint64_t offset, void* data, size_t bytes) const;
-
- private:
-  std::filesystem::path directory_;
-  int fd_ = -1;
-};
-
 class NodePages {
  public:
   // Subtrees of at most this many faces are a page: for b = 2 at most 2,047 nodes of
@@ -133,7 +118,7 @@ class NodePages {
   unsigned branching_ = 2;
   uint64_t nodes_ = 0;
   uint32_t rootCount_ = 0;
-  PageFile file_;
+  TemporaryFile file_;
   uint64_t fileBytes_ = 0;
   std::vector<PageEntry> pages_;         // top chunks and subtree pages, in the order begun
   std::vector<uint32_t> topPage_;        // the top's chunks in index order: their page ids
