@@ -55,7 +55,8 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              the same triangle and t on every shared mesh, and the time on dragon_vrip with 1M camera
              and 1M random rays on one thread and on two, alternating, with the targets as checks;
              in the full run, 1M rays on the 56M-face dragon's file through the lazy reader under
-             --memory 256M (rays a second, peak RSS)
+             --memory 256M, sent 65,536 at a time (rays a second, the process's peak RSS against
+             the cap)
   speed      with --baseline-facetree BIN (an earlier build, e.g. the previous commit's): dragon_vrip
              in core (quick and full) and the 14M-face dragon at --memory 64M (full), built by both
              binaries alternately in one run, medians of whole processes' wall and CPU; the ratio
@@ -1131,6 +1132,9 @@ def bench_queries(args, meshes, out):
         "closest_within_4x_embree": bool(speed) and all(r[k]["closest_ratio"] <= QUERY_EMBREE_RATIO
                                                         for r in speed for k in ("camera", "random")),
     }
+    if reader:
+        # the whole process, index, reader and the benchmark's batch of rays, under the reader's cap
+        checks["reader_peak_within_cap"] = reader["peak_rss_bytes"] <= cap_bytes(reader["cap"])
     result = {"date": time.strftime("%Y-%m-%d %H:%M"), "rays": rays, "queries": queries, "experiment": experiment,
               "best": best, "embree_branching": b,
               "agreement": agreement, "speed": speed, "reader": reader, "checks": checks}

@@ -501,7 +501,9 @@ def queries_markdown(q, rel):
         out += [f"The 56M-face dragon's file ({r['file_bytes'] / 1e9:.2f} GB) through the lazy reader under "
                 f"--memory {r['cap']}, two threads: camera rays {r['camera']['rays_per_second']:,.0f} a second, "
                 f"random rays {r['random']['rays_per_second']:,.0f}; peak RSS {r['peak_rss_bytes'] / 2**20:.0f} MiB"
-                + (f", of which the 1M rays and their hits held by the benchmark "
+                + (f", the rays sent {r['batch']:,} at a time (a batch's rays and hits: "
+                   f"{r['rays_bytes'] / 2**20:.1f} MiB)" if "batch" in r else
+                   f", of which the 1M rays and their hits held by the benchmark "
                    f"{r['rays_bytes'] / 2**20:.0f} MiB" if "rays_bytes" in r else "")
                 + (f"; the query index {r['index_seconds']:.1f} s, {r['index_temporary_bytes'] / 1e9:.2f} GB of "
                    "temporary files (nodes by subtree, the triangles' corners)" if "index_seconds" in r else "")

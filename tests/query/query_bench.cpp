@@ -4,13 +4,14 @@
 // Embree is the peer of the benchmark alone: the library never links it.
 //
 //   query_bench FILE.fch [--rays N] [--queries N] [--threads T] [--repeat R] [--prefix F]
-//               [--embree] [--reader-memory BYTES] [--only rays|all]
+//               [--embree] [--reader-memory BYTES [--batch N]] [--only rays|all]
 //
 // Camera rays: a pinhole camera outside the bounding sphere looking at its centre, sqrt(N) x
 // sqrt(N) pixels over the sphere. Random rays: origins uniform in the box grown by a tenth of its
 // diagonal, directions uniform on the sphere. --prefix keeps the first F of the nodes (a truncated
 // file: its cut-off children are leaves whose faces are tested). With --reader-memory the rays go
-// through a ClusterFileReader under that cap instead of the file in memory. Every timing is the
+// through a ClusterFileReader under that cap instead of the file in memory, N at a time (65,536 by
+// default), as a consumer streaming its rays would send them, and are timed once. Every timing is the
 // median of R runs, facetree and Embree alternating. Prints one JSON object.
 #include <embree3/rtcore.h>
 
@@ -47,7 +48,7 @@ struct Args {
   unsigned threads = 1, repeat = 3;
   double prefix = 1.0;
   bool embree = false, raysOnly = false;
-  uint64_t readerMemory = 0;
+  uint64_t readerMemory = 0, batch = 1 << 16;
 };
 
 Args parse(int argc, char** argv) {
@@ -72,6 +73,8 @@ Args parse(int argc, char** argv) {
       a.embree = true;
     else if (s == "--reader-memory")
       a.readerMemory = std::stoull(value());
+    else if (s == "--batch")
+      a.batch = std::max<uint64_t>(1, std::stoull(value()));
     else if (s == "--only")
       a.raysOnly = value() == "rays";
     else if (a.file.empty() && s[0] != '-')
@@ -118,7 +121,8 @@ Bounds bounds(const std::vector<glm::vec3>& v) {
   return b;
 }
 
-std::vector<Ray> cameraRays(const Bounds& b, uint64_t n) {
+// Camera rays [begin, end) of the sqrt(n) x sqrt(n) picture, in scan order.
+std::vector<Ray> cameraRays(const Bounds& b, uint64_t n, uint64_t begin = 0, uint64_t end = UINT64_MAX) {
   const auto side = uint32_t(std::max(1.0, std::floor(std::sqrt(double(n)))));
   const glm::vec3 centre = b.centre(), view = glm::normalize(glm::vec3(-0.55f, -0.35f, -0.76f));
   const float radius = 0.5f * b.diagonal();
@@ -126,19 +130,25 @@ std::vector<Ray> cameraRays(const Bounds& b, uint64_t n) {
   const glm::vec3 right = glm::normalize(glm::cross(view, glm::vec3(0.0f, 1.0f, 0.0f)));
   const glm::vec3 up = glm::cross(right, view);
   const float half = radius / (3.0f * radius) * 1.05f;  // the sphere's half angle, a margin
+  end = std::min<uint64_t>(end, uint64_t(side) * side);
   std::vector<Ray> rays;
-  rays.reserve(size_t(side) * side);
-  for (uint32_t y = 0; y < side; ++y)
-    for (uint32_t x = 0; x < side; ++x) {
-      const float sx = ((float(x) + 0.5f) / float(side) * 2.0f - 1.0f) * half;
-      const float sy = ((float(y) + 0.5f) / float(side) * 2.0f - 1.0f) * half;
-      rays.push_back({eye, glm::normalize(view + sx * right + sy * up)});
-    }
+  rays.reserve(end > begin ? end - begin : 0);
+  for (uint64_t k = begin; k < end; ++k) {
+    const auto x = uint32_t(k % side), y = uint32_t(k / side);
+    const float sx = ((float(x) + 0.5f) / float(side) * 2.0f - 1.0f) * half;
+    const float sy = ((float(y) + 0.5f) / float(side) * 2.0f - 1.0f) * half;
+    rays.push_back({eye, glm::normalize(view + sx * right + sy * up)});
+  }
   return rays;
 }
 
-std::vector<Ray> randomRays(const Bounds& b, uint64_t n, uint64_t seed) {
-  std::mt19937_64 rng(seed);
+uint64_t cameraRayCount(uint64_t n) {
+  const auto side = uint64_t(std::max(1.0, std::floor(std::sqrt(double(n)))));
+  return side * side;
+}
+
+// The next n random rays from `rng`: successive calls continue one sequence.
+std::vector<Ray> randomRays(const Bounds& b, uint64_t n, std::mt19937_64& rng) {
   const glm::vec3 grow(0.1f * b.diagonal());
   const glm::vec3 lo = b.lo - grow, size = (b.hi + grow) - lo;
   std::vector<Ray> rays(n);
@@ -147,6 +157,11 @@ std::vector<Ray> randomRays(const Bounds& b, uint64_t n, uint64_t seed) {
     r.direction = onSphere(rng);
   }
   return rays;
+}
+
+std::vector<Ray> randomRays(const Bounds& b, uint64_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  return randomRays(b, n, rng);
 }
 
 // Runs f(begin, end) over blocks of `count` on `threads` threads.
@@ -350,7 +365,7 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
     // whose rounding it is.
     uint64_t same = 0, grazing = 0, tOutside = 0, outsideEmbreeFurther = 0, anySame = 0, differentExact = 0,
              outsideFacetreeExact = 0;
-    double worstT = 0, worstExact = 0;
+    double worstT = 0, worstExact = 0, embreeWorstExact = 0;
     for (size_t k = 0; k < rays.size(); ++k) {
       const RayHit &h = hits[k], &e = peer[k];
       anySame += blocked[k] == peerBlocked[k];
@@ -368,6 +383,9 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
       }
       if (h.face != facetree::kNoHit)
         worstExact = std::max(worstExact, relative(h.t, exactT(tracer.layout->file(), rays[k], h.face)));
+      if (e.face != facetree::kNoHit)
+        embreeWorstExact =
+            std::max(embreeWorstExact, relative(e.t, exactT(tracer.layout->file(), rays[k], e.face)));
       if (h.face == facetree::kNoHit || e.face == facetree::kNoHit) continue;
       const double rel = relative(h.t, e.t);
       worstT = std::max(worstT, rel);
@@ -394,9 +412,39 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
            ", \"t_outside_1e-5_embree_further_from_exact\": " + std::to_string(outsideEmbreeFurther) +
            ", \"worst_t_relative\": " + number(worstT) +
            ", \"facetree_worst_t_against_exact\": " + number(worstExact) +
+           ", \"embree_worst_t_against_exact\": " + number(embreeWorstExact) +
            ", \"same_any\": " + number(double(anySame) / n);
   }
   return out + "}";
+}
+
+// Rays through the reader, generated and traced `a.batch` at a time, so the benchmark holds one
+// batch's rays and hits beside the reader, not all of them: the process's peak is the reader's.
+std::string streamedRays(const char* name, uint64_t count,
+                         const std::function<std::vector<Ray>(uint64_t, uint64_t)>& generate,
+                         const Tracer& tracer, const Args& a) {
+  double closest = 0, any = 0;
+  uint64_t hit = 0;
+  QueryStats closestStats, anyStats;
+  for (uint64_t begin = 0; begin < count; begin += a.batch) {
+    const uint64_t end = std::min(count, begin + a.batch);
+    const std::vector<Ray> rays = generate(begin, end);
+    auto start = Clock::now();
+    const std::vector<RayHit> hits = tracer.intersect(rays, a.threads, &closestStats);
+    closest += seconds(start);
+    start = Clock::now();
+    tracer.occluded(rays, a.threads, &anyStats);
+    any += seconds(start);
+    for (const RayHit& h : hits) hit += h.face != facetree::kNoHit;
+  }
+  const double n = double(count);
+  return std::string("\"") + name + "\": {\"rays\": " + std::to_string(count) +
+         ", \"hit\": " + std::to_string(hit) + ", \"closest_seconds\": " + number(closest) +
+         ", \"any_seconds\": " + number(any) + ", \"rays_per_second\": " + number(n / closest) +
+         ", \"boxes_per_ray\": " + number(double(closestStats.boxTests) / n) +
+         ", \"triangles_per_ray\": " + number(double(closestStats.triangleTests) / n) +
+         ", \"any_boxes_per_ray\": " + number(double(anyStats.boxTests) / n) +
+         ", \"any_triangles_per_ray\": " + number(double(anyStats.triangleTests) / n) + "}";
 }
 
 // Boxes about random surface points (a tenth of them oriented at random), a hundredth of the
@@ -473,11 +521,18 @@ int main(int argc, char** argv) try {
     json += ", \"reader_memory\": " + std::to_string(a.readerMemory) +
             ", \"index_seconds\": " + number(indexSeconds) +
             ", \"index_temporary_bytes\": " + std::to_string(index.temporaryBytes()) +
-            // What the benchmark itself holds beside the reader: both kinds of rays and one batch's
-            // closest hits and any hits.
-            ", \"rays_bytes\": " + std::to_string(a.rays * (2 * sizeof(Ray) + sizeof(RayHit) + 1)) + ", " +
-            rayBatch("camera", cameraRays(b, a.rays), tracer, nullptr, a) + ", " +
-            rayBatch("random", randomRays(b, a.rays, 1), tracer, nullptr, a);
+            // What the benchmark itself holds beside the reader: one batch's rays, closest hits and
+            // any hits.
+            ", \"batch\": " + std::to_string(a.batch) +
+            ", \"rays_bytes\": " + std::to_string(a.batch * (sizeof(Ray) + sizeof(RayHit) + 1)) + ", ";
+    std::mt19937_64 rng(1);
+    json += streamedRays(
+                "camera", cameraRayCount(a.rays),
+                [&](uint64_t begin, uint64_t end) { return cameraRays(b, a.rays, begin, end); }, tracer, a) +
+            ", " +
+            streamedRays(
+                "random", a.rays,
+                [&](uint64_t begin, uint64_t end) { return randomRays(b, end - begin, rng); }, tracer, a);
     std::printf("%s}\n", json.c_str());
     return 0;
   }
