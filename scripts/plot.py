@@ -473,12 +473,14 @@ def queries_markdown(q, rel):
             "alternate with facetree's, medians. Agreement on every shared mesh (rays that hit different "
             "triangles, and hits whose t differ by more than 1e-5 relative):", "",
             table(["mesh", "camera: same triangle", "different", "t > 1e-5", "random: same triangle", "different",
-                   "t > 1e-5", "worst t", "facetree's t from exact"],
+                   "t > 1e-5", "worst t", "facetree's t from exact", "Embree's t from exact"],
                   [[a["mesh"], f"{a['camera']['same_triangle']:.6f}", a["camera"]["different_triangle"],
                     a["camera"]["t_outside_1e-5"], f"{a['random']['same_triangle']:.6f}",
                     a["random"]["different_triangle"], a["random"]["t_outside_1e-5"],
                     f"{max(a['camera']['worst_t_relative'], a['random']['worst_t_relative']):.1e}",
-                    f"{max(a['camera']['facetree_worst_t_against_exact'], a['random']['facetree_worst_t_against_exact']):.1e}"]
+                    f"{max(a['camera']['facetree_worst_t_against_exact'], a['random']['facetree_worst_t_against_exact']):.1e}",
+                    f"{max(a['camera']['embree_worst_t_against_exact'], a['random']['embree_worst_t_against_exact']):.1e}"
+                    if "embree_worst_t_against_exact" in a["camera"] else ""]
                    for a in q["agreement"]]), "",
             "Where the two t differ by more than 1e-5, each is set against the exact t of its own triangle's "
             "plane (long double): the check `t_differences_embree_rounding` says whether Embree's is the one "
