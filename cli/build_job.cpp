@@ -125,8 +125,9 @@ int printJobReport(const JobReport& r, const std::string& input, const std::stri
   if (job.load.weldPositions)
     std::fprintf(out, ", %llu vertices welded", static_cast<unsigned long long>(r.weldedVertices));
   std::fputc('\n', out);
-  std::fprintf(out, "mode          %s, memory cap %.0f MiB\n", r.outOfCore ? "out of core" : "in core",
-               r.memoryCap / 1048576.0);
+  std::fprintf(out, "mode          %s", r.outOfCore ? "out of core" : "in core");
+  if (r.readRanges > 0) std::fprintf(out, ", read in %u range%s", r.readRanges, r.readRanges == 1 ? "" : "s");
+  std::fprintf(out, ", memory cap %.0f MiB\n", r.memoryCap / 1048576.0);
   if (r.outOfCore)
     std::fprintf(out,
                  "cells         %llu (at most %llu faces each): %llu leaf clusters, %llu dual edges between "

@@ -59,6 +59,13 @@ JobReport runJob(const ClusterJob& job, const std::filesystem::path* work) {
   // Positions of PLY and OBJ inputs go through VertexPositions, which spills them past a quarter
   // of the cap (the reader would hold them all).
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
+  // A mesh read in ranges runs the stages' own tasks, here on a pool of threads.
+  if (!work && !job.output.empty() && job.meshOut.empty() && runRangesHere(job, temp, report)) {
+    report.memoryCap = cap;
+    report.seconds = secondsSince(start);
+    report.secondsBuilt = report.seconds - report.secondsWrite;
+    return report;
+  }
   VertexPositions positions(temp, positionsBudget(cap));
   ReadOptions readOptions;
   readOptions.vertexSink = [&positions](std::span<const glm::vec3> p) { positions.append(p); };

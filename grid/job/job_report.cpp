@@ -33,6 +33,7 @@ std::string jobReportJson(const JobReport& r, const JobReportContext& context) {
   json.field("cross_edges", r.crossEdges);
   json.field("upper_components", r.upperComponents);
   json.field("cell_face_limit", r.cellFaceLimit);
+  json.field("read_ranges", r.readRanges);
   // "build" is the time from the start to the finished hierarchy; the others are phases.
   json.beginObject("seconds");
   json.field("read", r.secondsRead);

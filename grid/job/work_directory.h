@@ -144,14 +144,21 @@ BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work);
 
 // The steps of a plan as planStages returns them.
 std::vector<StageStep> stepsAfterPlan(const PlanState& state);
-// The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). planRanges writes the plan when
-// `job` reads such a mesh out of core (else returns false and writes nothing); each task returns
-// false, doing nothing, when its manifest is there already.
+// The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). readsInRanges: whether
+// `job` reads such a mesh out of core; planRanges then writes the plan (else returns false and
+// writes nothing); each task returns false, doing nothing, when its manifest is there already.
+// `sharing`: how many tasks share the cap in this process, each sizing its buffers from its share
+// (the plan, and so every output, stays the plan's).
+enum class RangedInput { None, Ply, Stl };
+RangedInput readsInRanges(const ClusterJob& job);
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
-bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
-bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+                 unsigned sharing = 1);
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+                  unsigned sharing = 1);
 bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+                unsigned sharing = 1);
 // The weld of a binary STL read in ranges (stages/weld_ranges.cpp): a read task samples its corners, the
 // count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
 // the grid step counts them and a bin task gives its corners their vertex ids.

@@ -75,9 +75,9 @@ void distributeFaces(const StageContext& context, BinnedFaces& out, const std::s
   // Run as tasks, they are named files of the work directory that the cells tasks read.
   const auto spill = [&](const std::string& name, size_t record) {
     if (context.work)
-      return std::make_unique<BucketSpill>(context.temp, SpillFile::Named{*context.work / binnedFile(name)},
-                                           cells, record, bufferFor(record), kSpillLevel,
-                                           context.spillInBackground());
+      return std::make_unique<BucketSpill>(
+          context.temp, SpillFile::Named{*context.work / binnedFile(name), 0, context.job.syncTaskFiles},
+          cells, record, bufferFor(record), kSpillLevel, context.spillInBackground());
     auto one =
         std::make_unique<BucketSpill>(context.temp, name, cells, record, bufferFor(record), kSpillLevel,
                                       /*discardable=*/true, context.spillInBackground());

@@ -280,8 +280,9 @@ CellsOutput CellsStage::run() {
       return std::make_unique<SpillFile>(context_.temp, cellSpillName(kind), discardable, recordBytes);
     return std::make_unique<SpillFile>(
         context_.temp,
+        // In one process's temporary directory the files die with it: no sync.
         SpillFile::Named{cellTaskFile(context_.work ? *context_.work : context_.temp.path(), kind, *task_),
-                         *task_},
+                         *task_, context_.work && context_.job.syncTaskFiles},
         recordBytes);
   };
   out_.subtrees.nodes = spill(CellSpill::Nodes, true);

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 
 #include "facetree/grid.h"
 #include "facetree/stream.h"
@@ -63,8 +64,10 @@ struct RangeTask {
   PlanState plan;
   uint64_t firstFace = 0, faces = 0, firstVertex = 0, vertices = 0;
 };
-RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, uint32_t task) {
+RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, uint32_t task,
+                    unsigned sharing) {
   RangeTask t{loadPlanManifest(work)};
+  t.plan.memoryCap /= std::max(1u, sharing);  // the task's share, for its buffers; the plan is the plan's
   const RangePlan& r = t.plan.rangePlan;
   if (!t.plan.ranges || task + 1 >= r.faceBounds.size())
     throw std::invalid_argument("no " + std::string(step) + " task " + std::to_string(task) + " in " +
@@ -196,23 +199,42 @@ void loadGridManifest(const std::filesystem::path& work, PlanState& s, bool bins
 
 }  // namespace
 
-bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result) {
-  if (job.input == "-" || job.load.weldPositions) return false;
+namespace {
+
+// The input when `job` reads it in ranges: a binary PLY or STL that the single process's read would
+// take out of core (runJob): positions over their budget, or the in-core estimate over the cap. An
+// STL's vertices are its distinct positions, unknown until welded: when its triangles alone do not
+// pass the cap, the mesh is read whole and the cap decided as the single process decides it.
+std::optional<RangeInput> rangedInput(const ClusterJob& job) {
+  if (job.input == "-" || job.load.weldPositions) return std::nullopt;
   RangeInput file;
   file.ply = plyFaceRanges(job.input);
   if (!file.ply) file.stl = stlFaceRanges(job.input);
-  if (!file.ply && !file.stl) return false;
+  if (!file.ply && !file.stl) return std::nullopt;
+  const uint64_t cap = jobMemoryCap(job);
+  const uint64_t faces = file.stl ? file.stl->faceCount : file.ply->faceCount;
+  const uint64_t vertices = file.stl ? 0 : file.ply->vertexCount;
+  if (!(job.forceCellFaces > 0 || vertices * sizeof(glm::vec3) > positionsBudget(cap) ||
+        inCoreEstimate(faces, vertices) > cap))
+    return std::nullopt;
+  return file;
+}
+
+}  // namespace
+
+RangedInput readsInRanges(const ClusterJob& job) {
+  const std::optional<RangeInput> input = rangedInput(job);
+  return !input ? RangedInput::None : input->stl ? RangedInput::Stl : RangedInput::Ply;
+}
+
+bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result) {
+  const std::optional<RangeInput> input = rangedInput(job);
+  if (!input) return false;
+  const RangeInput& file = *input;
   const bool soup = file.stl.has_value();
-  // Out of core exactly when the single process's read would go out of core (runJob): positions
-  // over their budget, or the in-core estimate over the cap. An STL's vertices are its distinct
-  // positions, unknown until welded: when its triangles alone do not pass the cap, the plan reads
-  // it whole and decides as the single process does.
   const uint64_t cap = jobMemoryCap(job);
   const uint64_t faces = soup ? file.stl->faceCount : file.ply->faceCount;
   const uint64_t vertices = soup ? 0 : file.ply->vertexCount;
-  if (!(job.forceCellFaces > 0 || vertices * sizeof(glm::vec3) > positionsBudget(cap) ||
-        inCoreEstimate(faces, vertices) > cap))
-    return false;
   checkOutputWritable(job.output);
   const ClusterJob effective = effectiveJob(job);
   const OutOfCorePlan plan = planCells(effective, cap);
@@ -251,10 +273,10 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   return true;
 }
 
-bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
   const std::filesystem::path path = taskManifestPath(work, "read", task);
   if (std::filesystem::exists(path)) return false;
-  const RangeTask t = rangeTask(work, "read", task);
+  const RangeTask t = rangeTask(work, "read", task, sharing);
   const RangeInput file = reopen(job, t.plan.rangePlan);
   std::optional<WeldSampler> sampler;
   if (file.stl) sampler.emplace(t.plan.rangePlan, t.faces);
@@ -282,10 +304,10 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   return true;
 }
 
-bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
   const std::filesystem::path path = taskManifestPath(work, "count", task);
   if (std::filesystem::exists(path)) return false;
-  const RangeTask t = rangeTask(work, "count", task);
+  const RangeTask t = rangeTask(work, "count", task, sharing);
   JobReport report;
   std::vector<PositionBits> sample;
   const MeshExtent extent = readExtent(work, t.plan, report, &sample);
@@ -383,10 +405,10 @@ bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
   return true;
 }
 
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
   const std::filesystem::path path = taskManifestPath(work, "bin", task);
   if (std::filesystem::exists(path)) return false;
-  RangeTask t = rangeTask(work, "bin", task);
+  RangeTask t = rangeTask(work, "bin", task, sharing);
   loadGridManifest(work, t.plan, /*bins=*/false);
   PlanState& state = t.plan;
   JobReport report;

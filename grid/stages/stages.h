@@ -384,6 +384,10 @@ JobReport runJob(const ClusterJob& job, const std::filesystem::path* work);
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report, const std::filesystem::path* work = nullptr);
+// A binary PLY or STL that runJob would take out of core: the stages' read, count, weld, grid and
+// bin tasks on a pool of job.threads, then the rest here (job/ranges_here.cpp). False, having done
+// nothing, for any other input.
+bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report);
 // The plan stage's manifest: what the cells tasks and the finish need of the read and the bin.
 void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
                       const BinnedFaces& binned);

@@ -210,10 +210,11 @@ std::unique_ptr<BucketSpill> BucketSpill::openSegments(TempSpace& space,
 }
 
 BucketSpill::SegmentReader::SegmentReader(TempSpace& space, std::span<const std::filesystem::path> paths,
-                                          size_t first, size_t end)
-    : paths_(paths.begin(), paths.end()), first_(first), end_(end) {
+                                          size_t first, size_t end, bool owned)
+    : paths_(paths.begin(), paths.end()), first_(first), end_(end), owned_(owned) {
   if (paths.empty()) throw std::invalid_argument("BucketSpill::SegmentReader: no segments");
   file_ = SpillFile::open(space, paths);
+  if (owned_) file_->ownOpened();
 }
 
 BucketSpill::SegmentReader::~SegmentReader() = default;
@@ -265,6 +266,7 @@ void BucketSpill::SegmentReader::add(std::string_view index) {
       bytes += block.rawBytes;
       block.offset |= uint64_t{s} << SpillFile::kSegmentShift;  // this segment in the files opened together
       spill.blocks_[spill.reserveBlock(bucket)].block = block;
+      if (owned_) spill.file_->countBlock(block);
     }
     if (bytes != uint64_t{records_[s * buckets + bucket]} * recordBytes)
       bad("of bucket " + std::to_string(bucket) + ": its blocks do not hold its records");

@@ -53,7 +53,10 @@ class BucketSpill {
   // spills of the same segments (a task's faces and ghosts) reads each segment's manifest once.
   class SegmentReader {
    public:
-    SegmentReader(TempSpace& space, std::span<const std::filesystem::path> paths, size_t first, size_t end);
+    // `owned`: the segments are this run's alone, so draining a bucket gives their pages back
+    // (SpillFile::ownOpened).
+    SegmentReader(TempSpace& space, std::span<const std::filesystem::path> paths, size_t first, size_t end,
+                  bool owned = false);
     ~SegmentReader();
     // The next segment's index; Error (Input) naming its path when it does not describe it.
     void add(std::string_view index);
@@ -63,6 +66,7 @@ class BucketSpill {
    private:
     std::vector<std::filesystem::path> paths_;
     size_t first_, end_, added_ = 0;
+    bool owned_ = false;
     std::unique_ptr<SpillFile> file_;
     std::unique_ptr<BucketSpill> spill_;
     std::vector<uint32_t> records_, counts_;

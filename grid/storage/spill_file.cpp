@@ -159,7 +159,7 @@ SpillFile::SpillFile(TempSpace& space, std::string_view stem, bool discardable, 
 }
 
 SpillFile::SpillFile(TempSpace& space, Named name, size_t recordBytes)
-    : space_(space), path_(std::move(name.path)), recordBytes_(recordBytes) {
+    : space_(space), path_(std::move(name.path)), recordBytes_(recordBytes), sync_(name.sync) {
   if (name.segment >= kMaxSegments) throw std::invalid_argument("SpillFile: segment past 65535");
   base_ = uint64_t{name.segment} << kSegmentShift;
   partial_ = path_;
@@ -220,7 +220,7 @@ void SpillFile::commit() {
   const auto fail = [&](int error) {
     throw Error(ErrorCategory::Output, path_.string() + ": cannot commit: " + std::strerror(error));
   };
-  if (::fsync(fd_) != 0) fail(errno);
+  if (sync_ && ::fsync(fd_) != 0) fail(errno);
   if (::rename(partial_.c_str(), path_.c_str()) != 0) fail(errno);
   partial_.clear();
   readOnly_ = true;  // its handles are handed on: the blocks are final
@@ -274,8 +274,36 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
   return {base_ + offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
 }
 
+void SpillFile::ownOpened() {
+  openedLive_.clear();
+  for (Segment& segment : opened_) {
+    // Punching holes needs a descriptor open for writing; without one the pages stay, accounted.
+    const int fd = ::open(segment.path.c_str(), O_RDWR | O_CLOEXEC);
+    if (fd >= 0) {
+      ::close(segment.fd);
+      segment.fd = fd;
+    }
+    openedLive_.emplace_back((segment.bytes + kPageBytes - 1) / kPageBytes, 0);
+  }
+}
+
+void SpillFile::countBlock(const SpillBlock& block) {
+  if (openedLive_.empty() || block.compressedBytes == 0) return;
+  const uint64_t segment = block.offset >> kSegmentShift;
+  const uint64_t offset = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
+  if (segment >= opened_.size() || offset + block.compressedBytes > opened_[segment].bytes)
+    corrupt(block, "no such segment");
+  std::vector<uint16_t>& live = openedLive_[segment];
+  for (uint64_t page = offset / kPageBytes; page <= (offset + block.compressedBytes - 1) / kPageBytes; ++page)
+    if (++live[page] == 0) throw std::length_error("SpillFile: more than 65535 blocks on a page");
+}
+
 void SpillFile::discard(const SpillBlock& block) {
-  if (!opened_.empty()) return;  // the task outputs of a run of stages stay for a rerun
+  if (!opened_.empty()) {
+    // The task outputs of a run of stages stay for a rerun, unless this run owns them.
+    if (!openedLive_.empty()) discardOpened(block);
+    return;
+  }
   if (!discardable_) throw std::logic_error("SpillFile::discard: the file was not made discardable");
   if (block.compressedBytes == 0) return;
   std::lock_guard lock(writeMutex_);
@@ -299,6 +327,41 @@ void SpillFile::discard(const SpillBlock& block) {
   };
   for (uint64_t page = first; page <= last; ++page) {
     if (--live_[page] != 0 || page >= tail) {
+      punch();
+      continue;
+    }
+    if (runPages == 0) runStart = page;
+    ++runPages;
+  }
+  punch();
+}
+
+void SpillFile::discardOpened(const SpillBlock& block) {
+  if (block.compressedBytes == 0) return;
+  const uint64_t segment = block.offset >> kSegmentShift;
+  const uint64_t offset = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
+  if (segment >= opened_.size() || offset + block.compressedBytes > opened_[segment].bytes)
+    throw std::invalid_argument("SpillFile::discard: not a block of this file");
+  std::lock_guard lock(writeMutex_);
+  const Segment& file = opened_[segment];
+  std::vector<uint16_t>& live = openedLive_[segment];
+  // The pages freed, in runs, each punched once; a page is the file's bytes on it (the last one
+  // may be short).
+  uint64_t runStart = 0, runPages = 0;
+  const auto punch = [&] {
+    if (runPages == 0) return;
+    const uint64_t bytes = std::min(runPages * kPageBytes, file.bytes - runStart * kPageBytes);
+    if (::fallocate(file.fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                    static_cast<off_t>(runStart * kPageBytes),
+                    static_cast<off_t>(runPages * kPageBytes)) == 0) {
+      held_ -= bytes;
+      space_.release(bytes);
+    }  // else the pages keep their space, still accounted
+    runPages = 0;
+  };
+  for (uint64_t page = offset / kPageBytes; page <= (offset + block.compressedBytes - 1) / kPageBytes;
+       ++page) {
+    if (live[page] == 0 || --live[page] != 0) {
       punch();
       continue;
     }

@@ -90,9 +90,12 @@ class SpillFile {
   // that fails or is killed before commit leaves no file under the final name.
   // Its handles carry `segment` in their offsets' top bits (kSegmentShift), so that the files of
   // several tasks, opened together, read by the handles each task handed on as they are.
+  // `sync`: commit puts its bytes on the disk (fsync) first, for a later task on another machine
+  // or after a crash; a private work directory that lives and dies with one process does without.
   struct Named {
     std::filesystem::path path;
     uint32_t segment = 0;
+    bool sync = true;
   };
   static constexpr unsigned kSegmentShift = 48;
   static constexpr uint32_t kMaxSegments = 1u << 16;
@@ -130,7 +133,14 @@ class SpillFile {
   // would dominate a pass over small blocks). Blocks on those pages read back as corrupt.
   void discardBefore(uint64_t end);
 
-  // A named file: its bytes reach the disk (fsync) and it takes its final name. Throws Error
+  // Opened segments that are this run's alone (a work directory inside its temporary directory):
+  // discard gives their pages back as it does a discardable file's, once every block on a page
+  // that countBlock counted is discarded. Call before countBlock.
+  void ownOpened();
+  void countBlock(const SpillBlock& block);
+
+  // A named file: its bytes reach the disk (fsync; not for Named::sync false) and it takes its
+  // final name. Throws Error
   // (Output) "PATH: cannot commit: REASON".
   void commit();
 
@@ -148,6 +158,7 @@ class SpillFile {
     uint64_t bytes = 0;
   };
   SpillFile(TempSpace& space, std::vector<Segment> segments, size_t recordBytes);
+  void discardOpened(const SpillBlock& block);
 
   TempSpace& space_;
   std::filesystem::path path_;
@@ -159,12 +170,14 @@ class SpillFile {
   bool readOnly_ = false;          // a committed named file: its blocks are final
   bool discardable_ = false;
   size_t recordBytes_ = 1;
+  bool sync_ = true;  // a named file: commit syncs it
   mutable std::mutex writeMutex_;
   // Of the file it appends to, written under writeMutex_, read by read() without it.
   std::atomic<uint64_t> bytes_{0};
-  uint64_t held_ = 0;            // accounted in the TempSpace, under writeMutex_
-  std::vector<uint16_t> live_;   // discardable: blocks not yet discarded on each page
-  uint64_t discardedBelow_ = 0;  // discardBefore: every page below this is given back
+  uint64_t held_ = 0;                              // accounted in the TempSpace, under writeMutex_
+  std::vector<uint16_t> live_;                     // discardable: blocks not yet discarded on each page
+  std::vector<std::vector<uint16_t>> openedLive_;  // ownOpened: the same, per opened segment
+  uint64_t discardedBelow_ = 0;                    // discardBefore: every page below this is given back
 };
 
 }  // namespace facetree

@@ -111,6 +111,10 @@ struct ClusterJob {
   // Stages run as tasks: the node tasks of the write; 0: one per 2^20 node positions. The file
   // does not depend on it.
   uint32_t nodeTasks = 0;
+  // Stages run as tasks: each task's files reach the disk (fsync) before it names them done, so
+  // that a task on another machine, or a rerun after a crash, finds them whole. One process's own
+  // schedule of the tasks turns it off for its private work directory.
+  bool syncTaskFiles = true;
   // Called between steps; returning false cancels the job (an Error of category Cancelled is thrown after the
   // temporary files and the partial output are removed).
   std::function<bool(const JobProgress&)> progress;
@@ -133,6 +137,8 @@ struct JobReport {
   // Out of core: the cells and their face limit; the leaf clusters the upper merge started from,
   // the dual edges between them, and the roots it joined (flagged) for want of edges.
   uint64_t cells = 0, cellFaceLimit = 0;
+  // Out of core: the ranges the stages' tasks read the input in (a binary PLY), 0 when read whole.
+  uint32_t readRanges = 0;
   uint64_t leaves = 0, crossEdges = 0, upperComponents = 0;    // of the upper merge
   uint64_t fileBytes = 0;                                      // the cluster file's size
   uint64_t temporaryBytesPeak = 0;                             // the most the temporary files held at once

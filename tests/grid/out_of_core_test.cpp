@@ -6,6 +6,7 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <bit>
@@ -268,6 +269,53 @@ TEST(OutOfCore, ByteIdenticalAcrossThreadsUnderACap) {
   const std::string a = bytesOf(dir / "a.fch");
   EXPECT_GT(a.size(), 1000u);
   EXPECT_EQ(a, bytesOf(dir / "b.fch"));
+}
+
+// A binary PLY out of core: one process runs the stages' read, count, grid and bin tasks on a pool
+// of threads, each task on its share of the cap. The same bytes for any pool and any number of
+// ranges, and the same as the mesh compressed, which the whole-file read and bin take; the work
+// directory goes with the run's temporary directory, and the binned pages go back as the cells
+// drain them, so the temporary peak stays that of the whole-file read.
+TEST(OutOfCore, BinaryPlyInRangesGivesTheBytesOfTheWholeRead) {
+  ScratchDir dir;
+  const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
+  const fs::path packed = dir / "terrain.ply.zst";
+  {
+    const std::string raw = bytesOf(mesh);
+    std::string compressed(ZSTD_compressBound(raw.size()), '\0');
+    const size_t n = ZSTD_compress(compressed.data(), compressed.size(), raw.data(), raw.size(), 1);
+    ASSERT_FALSE(ZSTD_isError(n));
+    std::ofstream(packed, std::ios::binary).write(compressed.data(), static_cast<std::streamsize>(n));
+  }
+  const fs::path tmp = dir / "tmp";
+  fs::create_directories(tmp);
+  ClusterJob job;
+  job.forceCellFaces = 4000;
+  job.tmpDir = tmp;
+  job.input = packed;
+  job.output = dir / "whole.fch";
+  const JobReport whole = runClusterJob(job);
+  ASSERT_TRUE(whole.outOfCore);
+  EXPECT_EQ(whole.readRanges, 0u);
+  const std::string reference = bytesOf(job.output);
+  ASSERT_GT(reference.size(), 1000u);
+  job.input = mesh;
+  for (const auto& [readTasks, threads] : {std::pair{0u, 1u}, {5u, 1u}, {5u, 2u}, {5u, 3u}, {7u, 2u}}) {
+    SCOPED_TRACE(std::to_string(readTasks) + " read tasks, " + std::to_string(threads) + " threads");
+    job.readTasks = readTasks;
+    job.threads = threads;
+    job.output = dir / "ranges.fch";
+    const JobReport ranged = runClusterJob(job);
+    EXPECT_EQ(ranged.readRanges, std::max(readTasks, 1u));
+    EXPECT_EQ(bytesOf(job.output), reference);
+    EXPECT_EQ(ranged.triangles, whole.triangles);
+    EXPECT_EQ(ranged.cells, whole.cells);
+    EXPECT_EQ(ranged.stats.faces, whole.stats.faces);
+    EXPECT_EQ(ranged.stats.vertices, whole.stats.vertices);
+    EXPECT_GT(ranged.secondsRead, 0.0);
+    EXPECT_LE(ranged.temporaryBytesPeak, whole.temporaryBytesPeak + whole.temporaryBytesPeak / 10);
+    EXPECT_TRUE(fs::is_empty(tmp));
+  }
 }
 
 // The cells stage as tasks, each into its own named files read together by the stages after it:

@@ -1,0 +1,192 @@
+// The one-process schedule of a binary PLY read in ranges (out of core): the stages' own read,
+// count, grid and bin tasks (stages/read_ranges.cpp) on a pool of threads over a work directory
+// inside the run's temporary directory, then the cells and the rest of the build in this process
+// from the bin tasks' spills, as runOutOfCore goes on after its own bin. A mesh read whole takes
+// the same read and bin whatever runs it (the plan task is runJob); this one takes the same tasks.
+// A binary STL, which the stages also read in ranges, is read whole here: its weld as tasks holds
+// more than the arrival's weld (stages/weld_arrival.cpp) under the same cap.
+//
+// The tasks of a step share the cap: each sizes its buffers from its share, and runs on one
+// thread (its spills compress on that thread), so the step's peak is the cap's whatever the pool.
+// Their outputs depend on the plan alone, so the file is the same bytes for any pool.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "facetree/grid.h"
+#include "job/work_directory.h"
+#include "stages/stages.h"
+
+namespace facetree {
+namespace {
+
+// The job's hooks for the tasks of one phase, called one at a time: `done` is summed over the
+// tasks (each reports its own range's), against the phase's `total`.
+class PhaseHooks {
+ public:
+  PhaseHooks(const ClusterJob& job, const char* phase, uint64_t total, size_t tasks)
+      : job_(job), phase_(phase), total_(total), done_(tasks, 0) {}
+
+  // The job as task `slot` runs it: one thread, hooks through this object.
+  ClusterJob taskJob(size_t slot, unsigned threads, uint64_t base) {
+    ClusterJob j = job_;
+    j.threads = threads;
+    j.progress = [this, slot, base](const JobProgress& p) { return report(slot, base + p.done); };
+    j.build.cancelled = [this] {
+      const std::lock_guard lock(mutex_);
+      return job_.build.cancelled && job_.build.cancelled();
+    };
+    return j;
+  }
+
+ private:
+  bool report(size_t slot, uint64_t done) {
+    const std::lock_guard lock(mutex_);
+    sum_ += done - done_[slot];
+    done_[slot] = done;
+    return !job_.progress || job_.progress(JobProgress{phase_, sum_, total_});
+  }
+
+  const ClusterJob& job_;
+  const char* phase_;
+  uint64_t total_, sum_ = 0;
+  std::vector<uint64_t> done_;
+  std::mutex mutex_;
+};
+
+// Runs task(i, sharing) for i in [0, count) on `workers` threads, this one among them; the first
+// exception stops the others at their next task and is rethrown. The tasks at once share half the
+// cap for their buffers: the other half holds what each task has whatever its share (the grid of
+// the bins, the reader's), so that the read and bin stay under the cells' peak as the whole-file
+// read's do (2M-face terrain at 64M: 32.5 MiB against its cells' 41.9; with the whole cap 41.3).
+void runTasks(uint32_t count, unsigned workers, const std::function<void(uint32_t, unsigned)>& task) {
+  workers = std::clamp<unsigned>(workers, 1, std::max(1u, count));
+  std::atomic<uint32_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  std::mutex errorMutex;
+  const auto work = [&] {
+    for (uint32_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
+      try {
+        task(i, 2 * workers);
+      } catch (...) {
+        const std::lock_guard lock(errorMutex);
+        if (!error) error = std::current_exception();
+        failed = true;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace
+
+bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
+  if (readsInRanges(job) != RangedInput::Ply) return false;
+  const std::filesystem::path work = temp.path() / "ranges";
+  std::filesystem::create_directories(work);
+  // Each task beside the others holds its own grid of the bins (a count task's histogram, a bin
+  // task's owners: 8 MiB) besides its share of the cap: as many at once as half the cap holds.
+  const uint64_t taskFixedBytes = CellGrid::kBins * sizeof(uint32_t) + (uint64_t{4} << 20);
+  const auto memoryWorkers =
+      static_cast<unsigned>(std::max<uint64_t>(1, jobMemoryCap(job) / 2 / taskFixedBytes));
+  const unsigned workers = std::clamp(job.threads, 1u, memoryWorkers);
+  // One range a worker unless the job says (a cell's faces come from a bucket of every range's
+  // segment), and the tasks' files unsynced: they live and die with this run.
+  ClusterJob local = job;
+  if (local.readTasks == 0) local.readTasks = workers;
+  local.syncTaskFiles = false;
+  StagePlan planned;
+  if (!planRanges(local, work, planned)) return false;
+  PlanState state = loadPlanManifest(work);
+  const RangePlan& ranges = state.rangePlan;
+  const auto rangeCount = static_cast<uint32_t>(ranges.faceBounds.size() - 1);
+  const uint64_t faces = ranges.faceBounds.back();
+  // Tasks alone on the pool keep the job's threads; several each take one.
+  const auto taskThreads = [&](uint32_t count) { return std::min(workers, count) > 1 ? 1u : job.threads; };
+
+  // The tasks' files are this run's temporary files: a write they cannot make is the temporary
+  // space's failure, not the output's.
+  const auto asTemporary = [](const std::function<void()>& step) {
+    try {
+      step();
+    } catch (const Error& e) {
+      if (e.category() != ErrorCategory::Output) throw;
+      throw Error(ErrorCategory::Resource, e.what());
+    }
+  };
+  timeStage(report, "read", report.secondsRead, [&] {
+    asTemporary([&] {
+      // The read and count passes count as one phase of twice the faces.
+      PhaseHooks read(local, "read", 2 * faces, rangeCount);
+      runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
+        runReadTask(read.taskJob(i, taskThreads(rangeCount), 0), work, i, sharing);
+      });
+      runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
+        const uint64_t base = ranges.faceBounds[i + 1] - ranges.faceBounds[i];
+        runCountTask(read.taskJob(i, taskThreads(rangeCount), base), work, i, sharing);
+      });
+      runGridStep(local, work);
+    });
+  });
+  timeStage(report, "bin", report.secondsBin, [&] {
+    asTemporary([&] {
+      PhaseHooks bin(local, "bin", faces, rangeCount);
+      runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
+        runBinTask(bin.taskJob(i, taskThreads(rangeCount), 0), work, i, sharing);
+      });
+    });
+    releaseFreeMemory();  // the tasks' buffers, freed in the pool's arenas
+  });
+
+  // The plan and the grid as the tasks left them: the read's report, the mesh's extent, the cells.
+  state = loadPlan(work);
+  const JobReport read = state.report;
+  report.outOfCore = true;
+  report.info = read.info;
+  report.stats = read.stats;
+  report.triangles = read.triangles;
+  report.cells = read.cells;
+  report.cellFaceLimit = read.cellFaceLimit;
+  report.readRanges = rangeCount;
+  // The read's and count's manifests are spent.
+  for (uint32_t i = 0; i < rangeCount; ++i)
+    for (const char* step : {"read", "count"}) std::filesystem::remove(taskManifestPath(work, step, i));
+
+  const ClusterJob effective = effectiveJob(job);
+  const StageContext context{effective, temp, state.memoryCap, report, nullptr};
+  BinnedFaces binnedFaces = restoredBins(state, work);
+  const uint32_t cellCount = binnedFaces.grid->cellCount();
+  // Owned: the cells give the binned faces' pages back as they drain them, as from the arrival's bin.
+  BucketSpill::SegmentReader facesReader(temp, state.facesFiles, 0, cellCount, /*owned=*/true),
+      ghostsReader(temp, state.ghostsFiles, 0, cellCount, /*owned=*/true);
+  for (uint32_t segment = 0; segment < rangeCount; ++segment) {
+    ManifestReader in(taskManifestPath(work, "bin", segment), taskKind("bin"));
+    facesReader.add(in.takeView());
+    ghostsReader.add(in.takeView());
+    in.finish();
+  }
+  std::vector<uint32_t> faceRecords, ghostRecords;
+  binnedFaces.faces.push_back(facesReader.finish(faceRecords));
+  binnedFaces.ghosts.push_back(ghostsReader.finish(ghostRecords));
+  binnedFaces.setSegments(rangeCount, std::move(faceRecords), std::move(ghostRecords));
+
+  OutOfCorePlan plan = state.plan;
+  CellsOutput cells;
+  timeStage(report, "cells", report.secondsCells,
+            [&] { cells = buildCells(context, plan, state.extent, std::move(binnedFaces)); });
+  finishOutOfCore(context, state.extent, std::move(cells));
+  report.temporaryBytesPeak = temp.peakBytes();
+  return true;
+}
+
+}  // namespace facetree
