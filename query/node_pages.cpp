@@ -231,10 +231,13 @@ NodePages::Page NodePages::page(uint32_t id) {
   return cached(id, entry.offset, size_t{entry.records} * stride_);
 }
 
+void NodePages::pastTriangles(uint64_t p) const {
+  throw Error(ErrorCategory::Input, name_ + ": face " + std::to_string(p) + " past the triangles");
+}
+
 NodePages::Page NodePages::block(uint64_t b) {
   const uint64_t first = b * kBlockTriangles;
-  if (first >= faces_)
-    throw Error(ErrorCategory::Input, name_ + ": face " + std::to_string(first) + " past the triangles");
+  if (first >= faces_) pastTriangles(first);
   const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - first);
   return cached(pages_.size() + b, trianglesOffset_ + b * kBlockTriangles * kTriangleBytes,
                 n * kTriangleBytes);

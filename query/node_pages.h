@@ -88,6 +88,8 @@ class NodePages {
   // Block b of the triangles (face positions b * kBlockTriangles on), read or from the cache, and
   // a triangle's corners and original id in it.
   Page block(uint64_t b);
+  // Error (Input) "NAME: face P past the triangles": a range of a damaged file reaching past them.
+  [[noreturn]] void pastTriangles(uint64_t p) const;
   static void corners(const MappedBytes& block, uint64_t p, glm::vec3 (&out)[3]);
   static uint64_t originalFace(const MappedBytes& block, uint64_t p);
   // The root as the queries start from it.

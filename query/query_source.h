@@ -78,6 +78,8 @@ class ReaderSource {
       uint64_t id = 0;
     };
     const MappedBytes& block(uint64_t p) {
+      // The last block holds fewer: a position past the triangles would read past it.
+      if (p >= pages_.faceCount()) pages_.pastTriangles(p);
       const uint64_t b = p / NodePages::kBlockTriangles;
       if (!triangles_.page || triangles_.id != b) triangles_.page = pages_.block(b), triangles_.id = b;
       return *triangles_.page;

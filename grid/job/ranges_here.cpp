@@ -6,9 +6,9 @@
 // A binary STL, which the stages also read in ranges, is read whole here: its weld as tasks holds
 // more than the arrival's weld (stages/weld_arrival.cpp) under the same cap.
 //
-// The tasks of a step share the cap: each sizes its buffers from its share, and runs on one
-// thread (its spills compress on that thread), so the step's peak is the cap's whatever the pool.
-// Their outputs depend on the plan alone, so the file is the same bytes for any pool.
+// The tasks at once share half the cap for their buffers, each on one thread (its spills compress
+// on that thread). Their outputs depend on the plan alone, so the file is the same bytes for any
+// pool.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -26,7 +26,8 @@ namespace facetree {
 namespace {
 
 // The job's hooks for the tasks of one phase, called one at a time: `done` is summed over the
-// tasks (each reports its own range's), against the phase's `total`.
+// tasks (each reports its own range's), against the phase's `total`. Once a hook asked to stop,
+// neither is called again: the other tasks stop at their next check without asking.
 class PhaseHooks {
  public:
   PhaseHooks(const ClusterJob& job, const char* phase, uint64_t total, size_t tasks)
@@ -39,7 +40,8 @@ class PhaseHooks {
     j.progress = [this, slot, base](const JobProgress& p) { return report(slot, base + p.done); };
     j.build.cancelled = [this] {
       const std::lock_guard lock(mutex_);
-      return job_.build.cancelled && job_.build.cancelled();
+      if (!stopped_ && job_.build.cancelled) stopped_ = job_.build.cancelled();
+      return stopped_;
     };
     return j;
   }
@@ -49,13 +51,15 @@ class PhaseHooks {
     const std::lock_guard lock(mutex_);
     sum_ += done - done_[slot];
     done_[slot] = done;
-    return !job_.progress || job_.progress(JobProgress{phase_, sum_, total_});
+    if (!stopped_ && job_.progress) stopped_ = !job_.progress(JobProgress{phase_, sum_, total_});
+    return !stopped_;
   }
 
   const ClusterJob& job_;
   const char* phase_;
   uint64_t total_, sum_ = 0;
   std::vector<uint64_t> done_;
+  bool stopped_ = false;
   std::mutex mutex_;
 };
 
