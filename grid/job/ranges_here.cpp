@@ -168,21 +168,8 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
 
   const ClusterJob effective = effectiveJob(job);
   const StageContext context{effective, temp, state.memoryCap, report, nullptr};
-  BinnedFaces binnedFaces = restoredBins(state, work);
-  const uint32_t cellCount = binnedFaces.grid->cellCount();
   // Owned: the cells give the binned faces' pages back as they drain them, as from the arrival's bin.
-  BucketSpill::SegmentReader facesReader(temp, state.facesFiles, 0, cellCount, /*owned=*/true),
-      ghostsReader(temp, state.ghostsFiles, 0, cellCount, /*owned=*/true);
-  for (uint32_t segment = 0; segment < rangeCount; ++segment) {
-    ManifestReader in(taskManifestPath(work, "bin", segment), taskKind("bin"));
-    facesReader.add(in.takeView());
-    ghostsReader.add(in.takeView());
-    in.finish();
-  }
-  std::vector<uint32_t> faceRecords, ghostRecords;
-  binnedFaces.faces.push_back(facesReader.finish(faceRecords));
-  binnedFaces.ghosts.push_back(ghostsReader.finish(ghostRecords));
-  binnedFaces.setSegments(rangeCount, std::move(faceRecords), std::move(ghostRecords));
+  BinnedFaces binnedFaces = openBinned(temp, work, state, 0, state.cellCount, /*owned=*/true);
 
   OutOfCorePlan plan = state.plan;
   CellsOutput cells;

@@ -157,6 +157,29 @@ BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work) {
   return binned;
 }
 
+BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanState& state, uint32_t first,
+                       uint32_t end, bool owned) {
+  BinnedFaces binned = restoredBins(state, work);
+  BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end, owned),
+      ghosts(temp, state.ghostsFiles, first, end, owned);
+  if (!state.ranges) {
+    faces.add(state.facesIndex[0]);
+    ghosts.add(state.ghostsIndex[0]);
+  } else {
+    for (size_t segment = 0; segment < state.facesFiles.size(); ++segment) {
+      ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
+      faces.add(in.takeView());
+      ghosts.add(in.takeView());
+      in.finish();
+    }
+  }
+  std::vector<uint32_t> faceRecords, ghostRecords;
+  binned.faces.push_back(faces.finish(faceRecords));
+  binned.ghosts.push_back(ghosts.finish(ghostRecords));
+  binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
+  return binned;
+}
+
 std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work) {
   try {
     return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, std::move(state.owners));
@@ -218,27 +241,9 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
   TaskContext run(job, state.memoryCap, work, report);
   const StageContext& context = run.stage;
   TempSpace& temp = run.temp;
-  BinnedFaces binned = restoredBins(state, work);
   const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
-  // The binned spills read as one, only this task's cells' blocks held: the plan's one pass, or
-  // every bin task's, each bin task's manifest read once for both.
-  BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end),
-      ghosts(temp, state.ghostsFiles, first, end);
-  if (!state.ranges) {
-    faces.add(state.facesIndex[0]);
-    ghosts.add(state.ghostsIndex[0]);
-  } else {
-    for (size_t segment = 0; segment < state.facesFiles.size(); ++segment) {
-      ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
-      faces.add(in.takeView());
-      ghosts.add(in.takeView());
-      in.finish();
-    }
-  }
-  std::vector<uint32_t> faceRecords, ghostRecords;
-  binned.faces.push_back(faces.finish(faceRecords));
-  binned.ghosts.push_back(ghosts.finish(ghostRecords));
-  binned.setSegments(state.facesFiles.size(), std::move(faceRecords), std::move(ghostRecords));
+  // Only this task's cells' blocks held.
+  BinnedFaces binned = openBinned(temp, work, state, first, end);
   CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);
   ManifestWriter manifest;
   manifest.put(first);

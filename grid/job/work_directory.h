@@ -141,6 +141,12 @@ struct TaskContext {
 };
 // The plan's binned faces' grid (restoreGrid), for a task that reads or writes binned faces.
 BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work);
+// The plan's binned faces (loadPlan's state) with cells [first, end)'s blocks of the binned spills
+// read as one: the plan's one pass, or every bin task's segment, each bin task's manifest read
+// once for both. `owned`: the spills are this run's alone, given back as drained
+// (BucketSpill::SegmentReader).
+BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanState& state, uint32_t first,
+                       uint32_t end, bool owned = false);
 
 // The steps of a plan as planStages returns them.
 std::vector<StageStep> stepsAfterPlan(const PlanState& state);

@@ -287,21 +287,56 @@ void SpillFile::ownOpened() {
   }
 }
 
-void SpillFile::countBlock(const SpillBlock& block) {
-  if (openedLive_.empty() || block.compressedBytes == 0) return;
+std::pair<uint64_t, uint64_t> SpillFile::openedPlace(const SpillBlock& block) const {
   const uint64_t segment = block.offset >> kSegmentShift;
   const uint64_t offset = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
   if (segment >= opened_.size() || offset + block.compressedBytes > opened_[segment].bytes)
     corrupt(block, "no such segment");
+  return {segment, offset};
+}
+
+void SpillFile::countBlock(const SpillBlock& block) {
+  if (openedLive_.empty() || block.compressedBytes == 0) return;
+  const auto [segment, offset] = openedPlace(block);
   std::vector<uint16_t>& live = openedLive_[segment];
   for (uint64_t page = offset / kPageBytes; page <= (offset + block.compressedBytes - 1) / kPageBytes; ++page)
     if (++live[page] == 0) throw std::length_error("SpillFile: more than 65535 blocks on a page");
 }
 
+void SpillFile::releasePages(int fd, std::vector<uint16_t>& live, uint64_t offset, uint64_t bytes,
+                             uint64_t keepFrom, uint64_t fileBytes) {
+  // The pages freed, in runs, each punched once.
+  uint64_t runStart = 0, runPages = 0;
+  const auto punch = [&] {
+    if (runPages == 0) return;
+    const uint64_t released = std::min(runPages * kPageBytes, fileBytes - runStart * kPageBytes);
+    if (::fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(runStart * kPageBytes),
+                    static_cast<off_t>(runPages * kPageBytes)) == 0) {
+      held_ -= released;
+      space_.release(released);
+    }  // else (EOPNOTSUPP and the like) the pages keep their space, still accounted
+    runPages = 0;
+  };
+  for (uint64_t page = offset / kPageBytes; page <= (offset + bytes - 1) / kPageBytes; ++page) {
+    if (live[page] == 0 || --live[page] != 0 || page >= keepFrom) {
+      punch();
+      continue;
+    }
+    if (runPages == 0) runStart = page;
+    ++runPages;
+  }
+  punch();
+}
+
 void SpillFile::discard(const SpillBlock& block) {
   if (!opened_.empty()) {
-    // The task outputs of a run of stages stay for a rerun, unless this run owns them.
-    if (!openedLive_.empty()) discardOpened(block);
+    // The task outputs of a run of stages stay for a rerun, unless this run owns them: a page of
+    // one of them is the file's bytes on it (the last one may be short).
+    if (openedLive_.empty() || block.compressedBytes == 0) return;
+    const auto [segment, offset] = openedPlace(block);
+    std::lock_guard lock(writeMutex_);
+    releasePages(opened_[segment].fd, openedLive_[segment], offset, block.compressedBytes, UINT64_MAX,
+                 opened_[segment].bytes);
     return;
   }
   if (!discardable_) throw std::logic_error("SpillFile::discard: the file was not made discardable");
@@ -310,65 +345,10 @@ void SpillFile::discard(const SpillBlock& block) {
   if (block.offset + block.compressedBytes > bytes_.load(std::memory_order_relaxed))
     throw std::invalid_argument("SpillFile::discard: not a block of this file");
   // Every page before the one holding the end of the file is covered by blocks end to end, so a
-  // page none of whose blocks is live holds exactly kPageBytes of accounted bytes.
-  const uint64_t tail = bytes_.load(std::memory_order_relaxed) / kPageBytes;
-  const uint64_t first = block.offset / kPageBytes;
-  const uint64_t last = (block.offset + block.compressedBytes - 1) / kPageBytes;
-  uint64_t runStart = 0, runPages = 0;
-  const auto punch = [&] {
-    if (runPages == 0) return;
-    if (::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
-                    static_cast<off_t>(runStart * kPageBytes),
-                    static_cast<off_t>(runPages * kPageBytes)) == 0) {
-      held_ -= runPages * kPageBytes;
-      space_.release(runPages * kPageBytes);
-    }  // else (EOPNOTSUPP and the like) the pages keep their space, still accounted
-    runPages = 0;
-  };
-  for (uint64_t page = first; page <= last; ++page) {
-    if (--live_[page] != 0 || page >= tail) {
-      punch();
-      continue;
-    }
-    if (runPages == 0) runStart = page;
-    ++runPages;
-  }
-  punch();
-}
-
-void SpillFile::discardOpened(const SpillBlock& block) {
-  if (block.compressedBytes == 0) return;
-  const uint64_t segment = block.offset >> kSegmentShift;
-  const uint64_t offset = block.offset & ((uint64_t{1} << kSegmentShift) - 1);
-  if (segment >= opened_.size() || offset + block.compressedBytes > opened_[segment].bytes)
-    throw std::invalid_argument("SpillFile::discard: not a block of this file");
-  std::lock_guard lock(writeMutex_);
-  const Segment& file = opened_[segment];
-  std::vector<uint16_t>& live = openedLive_[segment];
-  // The pages freed, in runs, each punched once; a page is the file's bytes on it (the last one
-  // may be short).
-  uint64_t runStart = 0, runPages = 0;
-  const auto punch = [&] {
-    if (runPages == 0) return;
-    const uint64_t bytes = std::min(runPages * kPageBytes, file.bytes - runStart * kPageBytes);
-    if (::fallocate(file.fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
-                    static_cast<off_t>(runStart * kPageBytes),
-                    static_cast<off_t>(runPages * kPageBytes)) == 0) {
-      held_ -= bytes;
-      space_.release(bytes);
-    }  // else the pages keep their space, still accounted
-    runPages = 0;
-  };
-  for (uint64_t page = offset / kPageBytes; page <= (offset + block.compressedBytes - 1) / kPageBytes;
-       ++page) {
-    if (live[page] == 0 || --live[page] != 0) {
-      punch();
-      continue;
-    }
-    if (runPages == 0) runStart = page;
-    ++runPages;
-  }
-  punch();
+  // page none of whose blocks is live holds exactly kPageBytes of accounted bytes; the page at the
+  // end stays until the file is complete past it.
+  releasePages(fd_, live_, block.offset, block.compressedBytes,
+               bytes_.load(std::memory_order_relaxed) / kPageBytes, UINT64_MAX);
 }
 
 void SpillFile::discardBefore(uint64_t end) {

@@ -10,6 +10,7 @@
 #include <mutex>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "storage/temp_space.h"
@@ -158,7 +159,12 @@ class SpillFile {
     uint64_t bytes = 0;
   };
   SpillFile(TempSpace& space, std::vector<Segment> segments, size_t recordBytes);
-  void discardOpened(const SpillBlock& block);
+  // An opened block's segment and offset in it; Error (Input) when it lies in none.
+  std::pair<uint64_t, uint64_t> openedPlace(const SpillBlock& block) const;
+  // Under writeMutex_: the blocks on the pages of [offset, + bytes) one fewer each; the pages left
+  // with none below `keepFrom` punched out of `fd` and their bytes (up to `fileBytes`) released.
+  void releasePages(int fd, std::vector<uint16_t>& live, uint64_t offset, uint64_t bytes, uint64_t keepFrom,
+                    uint64_t fileBytes);
 
   TempSpace& space_;
   std::filesystem::path path_;

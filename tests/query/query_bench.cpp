@@ -322,6 +322,20 @@ long double exactHit(const ClusterFile& f, const Ray& r, uint64_t face) {
   return t >= r.tMin && t <= r.tMax ? t : inf;
 }
 
+// A batch's object, opened: its rays and hits, the closest and any hits' times, and the boxes and
+// triangles tested a ray.
+std::string rayFields(const char* name, uint64_t rays, uint64_t hit, double closest, double any,
+                      const QueryStats& closestStats, const QueryStats& anyStats) {
+  const double n = double(rays);
+  return std::string("\"") + name + "\": {\"rays\": " + std::to_string(rays) +
+         ", \"hit\": " + std::to_string(hit) + ", \"closest_seconds\": " + number(closest) +
+         ", \"any_seconds\": " + number(any) + ", \"rays_per_second\": " + number(n / closest) +
+         ", \"boxes_per_ray\": " + number(double(closestStats.boxTests) / n) +
+         ", \"triangles_per_ray\": " + number(double(closestStats.triangleTests) / n) +
+         ", \"any_boxes_per_ray\": " + number(double(anyStats.boxTests) / n) +
+         ", \"any_triangles_per_ray\": " + number(double(anyStats.triangleTests) / n);
+}
+
 // One batch of rays: facetree's closest and any hits (and Embree's, alternating), their times,
 // the boxes and triangles tested a ray, and the hits compared.
 std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Tracer& tracer,
@@ -351,14 +365,7 @@ std::string rayBatch(const char* name, const std::vector<Ray>& rays, const Trace
   const double n = double(rays.size());
   uint64_t hit = 0;
   for (const RayHit& h : hits) hit += h.face != facetree::kNoHit;
-  std::string out =
-      std::string("\"") + name + "\": {\"rays\": " + std::to_string(rays.size()) +
-      ", \"hit\": " + std::to_string(hit) + ", \"closest_seconds\": " + number(median(closest)) +
-      ", \"any_seconds\": " + number(median(any)) + ", \"rays_per_second\": " + number(n / median(closest)) +
-      ", \"boxes_per_ray\": " + number(double(closestStats.boxTests) / n) +
-      ", \"triangles_per_ray\": " + number(double(closestStats.triangleTests) / n) +
-      ", \"any_boxes_per_ray\": " + number(double(anyStats.boxTests) / n) +
-      ", \"any_triangles_per_ray\": " + number(double(anyStats.triangleTests) / n);
+  std::string out = rayFields(name, rays.size(), hit, median(closest), median(any), closestStats, anyStats);
   if (embree) {
     // The same triangle, or both missing; t within 1e-5 relative where both hit. Where the two t
     // differ by more, each against the exact t of its own triangle (the plane's, in long double):
@@ -437,14 +444,7 @@ std::string streamedRays(const char* name, uint64_t count,
     any += seconds(start);
     for (const RayHit& h : hits) hit += h.face != facetree::kNoHit;
   }
-  const double n = double(count);
-  return std::string("\"") + name + "\": {\"rays\": " + std::to_string(count) +
-         ", \"hit\": " + std::to_string(hit) + ", \"closest_seconds\": " + number(closest) +
-         ", \"any_seconds\": " + number(any) + ", \"rays_per_second\": " + number(n / closest) +
-         ", \"boxes_per_ray\": " + number(double(closestStats.boxTests) / n) +
-         ", \"triangles_per_ray\": " + number(double(closestStats.triangleTests) / n) +
-         ", \"any_boxes_per_ray\": " + number(double(anyStats.boxTests) / n) +
-         ", \"any_triangles_per_ray\": " + number(double(anyStats.triangleTests) / n) + "}";
+  return rayFields(name, count, hit, closest, any, closestStats, anyStats) + "}";
 }
 
 // Boxes about random surface points (a tenth of them oriented at random), a hundredth of the
