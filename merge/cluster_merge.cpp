@@ -38,6 +38,13 @@
 //    top first and in reverse merge order, so its cut of k <= n clusters is the top's last k;
 //    a merge whose union holds under kTopSliverShare of the top's average area keeps its eq. 84
 //    cost and its place among the merges below. The cuts of more clusters are eq. 84's.
+//  - The top's boxes (BuildOptions::topBoxLimit): the least increase of the fit alone joins
+//    coplanar pieces however far apart (a scan's floor across every room), and a cut of such
+//    clusters holds boxes larger than any spatial grouping would. Each merge of the top that
+//    leaves k >= kTopBoxCuts clusters is the cheapest by the fit among those that keep the sum of
+//    the live clusters' axis-aligned box areas within kTopBoxMargin of k Morton runs of the leaves
+//    (morton_runs.cpp), and when none does, the one that leaves the smallest sum. The top then
+//    scans its few live edges at each merge rather than the heap.
 //  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
 //    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
 //    box places are joined Huffman-style by face count, ties by the Morton rank of their
@@ -86,6 +93,16 @@ constexpr double kTopTieArea = 1e-9;
 // keeps eq. 84's cost, so that small pieces (a terrain's islets, a scan's stray patches) sort
 // among the merges below the top rather than in every coarse cut.
 constexpr double kTopSliverShare = 0.1;
+// In the top: the cuts of fewer clusters than this are left to the fit. Below 8 runs the Morton
+// runs are slabs and quarters of the model, which no partition of a closed surface by its shape
+// follows: holding a cut of a handful of clusters to them costs several times its fit for a few
+// percent of box area (docs/benchmarks.md).
+constexpr uint32_t kTopBoxCuts = 8;
+// In the top: the share of the Morton runs' box areas that a cut's boxes keep to. The runs are
+// taken over the leaves' boxes, not the faces', and a node's exact oriented box can exceed its
+// axis-aligned one: both make the reference a few percent larger than what `info --fit-cuts`
+// measures.
+constexpr double kTopBoxMargin = 0.95;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -163,6 +180,10 @@ class ClusterMerger {
     // Metric::Constant is the order's worst case (Willmott 2000, Fig. 69) to the root.
     if (!constant_) top_ = static_cast<uint32_t>(std::min<uint64_t>(options_.topClusters, faces / kTopFaces));
     if (top_ > 0) sliverArea_ = kTopSliverShare * area / top_;
+    if (options_.topBoxLimit && top_ > kTopBoxCuts) {
+      boxLimit_ = mortonRunAreas(leaves_, top_);
+      for (double& limit : boxLimit_) limit *= kTopBoxMargin;
+    }
     result_.nodes.reserve(n > 0 ? n - 1 : 0);
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
@@ -206,6 +227,7 @@ class ClusterMerger {
   // when the live clusters fall to BuildOptions::proximityClusters and re-keys the edges when they
   // fall to the top. Returns the merges made.
   uint64_t drain() {
+    if (inTop_ && !boxLimit_.empty()) return drainTop();
     uint64_t merges = 0;
     while (!heap_.empty()) {
       if (++steps_ % kCancelPollSteps == 0 && options_.cancelled && options_.cancelled())
@@ -241,9 +263,55 @@ class ClusterMerger {
         }
         if (!candidatesAdded_ && live_ <= options_.proximityClusters) addCandidates(false);
         if (!inTop_ && live_ <= top_) enterTop();
+        if (inTop_ && !boxLimit_.empty()) return merges + drainTop();
       }
     }
     return merges;
+  }
+
+  // The top under its box limit (see the top of the file): one scan of the live edges a merge.
+  // Returns the merges made; stops when every edge left is blocked by the guard.
+  uint64_t drainTop() {
+    uint64_t merges = 0;
+    while (live_ > 1) {
+      const double limit = live_ - 1 >= kTopBoxCuts && live_ - 1 < boxLimit_.size()
+                               ? boxLimit_[live_ - 1]
+                               : std::numeric_limits<double>::infinity();
+      uint32_t best = kNone, fallback = kNone;
+      double fallbackSum = 0;
+      size_t kept = 0;
+      for (const uint32_t e : topEdges_) {
+        const DualEdge& edge = graph_.edges[e];
+        if (edge.end[0] == kNone) continue;
+        topEdges_[kept++] = e;
+        if (edge.key == kBlockedKey) continue;
+        const uint32_t a = edge.end[0], b = edge.end[1];
+        const double sum = boxSum_ + unionGrowth(a, b);
+        const auto cheaper = [&](uint32_t other) {
+          const float k = graph_.edges[other].key;
+          return edge.key < k || (edge.key == k && e < other);
+        };
+        if (sum <= limit) {
+          if (best == kNone || cheaper(best)) best = e;
+        } else if (fallback == kNone || sum < fallbackSum || (sum == fallbackSum && cheaper(fallback))) {
+          fallback = e;
+          fallbackSum = sum;
+        }
+      }
+      topEdges_.resize(kept);
+      const uint32_t e = best != kNone ? best : fallback;
+      if (e == kNone) break;
+      const DualEdge& edge = graph_.edges[e];
+      merge(edge.end[0], edge.end[1], e, edge.key);
+      ++merges;
+      ++edgeMerges_;
+    }
+    return merges;
+  }
+
+  // What merging clusters a and b adds to the sum of the live clusters' axis-aligned box areas.
+  double unionGrowth(uint32_t a, uint32_t b) const {
+    return AxisBox::united(boxes_[a], boxes_[b]).area() - boxes_[a].area() - boxes_[b].area();
   }
 
   // Proximity candidates (see the top of the file) between the live clusters of different
@@ -280,6 +348,7 @@ class ClusterMerger {
       graph_.edges[e].key = key(stats_[a], stats_[b], 0.0, a, b, true);
       exactShared_.push_back(0.0);
       candidate_.push_back(1);
+      if (inTop_) topEdges_.push_back(e);
       changed = true;
     }
     if (betweenRoots) {
@@ -458,6 +527,7 @@ class ClusterMerger {
     if (inTop_ && merged.area >= sliverArea_) level_ = node.cost = std::max(node.cost, level_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
+    if (inTop_ && !boxLimit_.empty()) boxSum_ += unionGrowth(a, b);
     boxes_[a] = AxisBox::united(boxes_[a], boxes_[b]);
     node.stats = toSurfaceStats(kept, ra.faceCount, ra.height);
     node.stats.boundsMin = boxes_[a].lo;
@@ -542,6 +612,12 @@ class ClusterMerger {
   void enterTop() {
     inTop_ = true;
     for (const ClusterMergeNode& node : result_.nodes) level_ = std::max(level_, node.cost);
+    if (!boxLimit_.empty()) {
+      for (uint32_t c = 0; c < clusters_.size(); ++c)
+        if (clusters_[c].node != kDead) boxSum_ += boxes_[c].area();
+      for (uint32_t e = 0; e < graph_.edgeCount(); ++e)
+        if (graph_.edges[e].end[0] != kNone) topEdges_.push_back(e);
+    }
     for (uint32_t e = 0; e < graph_.edgeCount(); ++e) {
       DualEdge& edge = graph_.edges[e];
       if (edge.end[0] == kNone) continue;
@@ -604,14 +680,17 @@ class ClusterMerger {
   std::vector<AxisBox> boxes_;      // per cluster: the box of its faces (clusterBox for a leaf)
   std::vector<uint8_t> candidate_;  // per edge: 1 for a proximity candidate no mesh edge backs
   uint32_t live_ = 0;
-  uint32_t top_ = 0;              // live clusters at which the top takes over
-  bool inTop_ = false;            // keys are increases of the fit (times boxScale_ squared)
-  float level_ = 0;               // in the top: the highest node cost so far
-  double sliverArea_ = 0;         // in the top: unions under this area keep eq. 84's cost
-  double boxScale_ = 1.0;         // 1 / diagonalSquared: keys of order 1
-  uint32_t components_ = 0;       // of the dual graph when the candidates were added
-  bool candidatesAdded_ = false;  // between components, once
-  bool final_ = false;            // the edges ran out: the guard penalises but never blocks
+  uint32_t top_ = 0;                // live clusters at which the top takes over
+  bool inTop_ = false;              // keys are increases of the fit (times boxScale_ squared)
+  float level_ = 0;                 // in the top: the highest node cost so far
+  double sliverArea_ = 0;           // in the top: unions under this area keep eq. 84's cost
+  std::vector<double> boxLimit_;    // per live count k: the top's box limit (empty: none)
+  double boxSum_ = 0;               // in the top: the live clusters' axis-aligned box areas
+  std::vector<uint32_t> topEdges_;  // in the top under a box limit: its live edges (and dead ones)
+  double boxScale_ = 1.0;           // 1 / diagonalSquared: keys of order 1
+  uint32_t components_ = 0;         // of the dual graph when the candidates were added
+  bool candidatesAdded_ = false;    // between components, once
+  bool final_ = false;              // the edges ran out: the guard penalises but never blocks
   uint64_t steps_ = 0;
   uint64_t edgeMerges_ = 0;
   double degreeSum_ = 0;

@@ -5,6 +5,8 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
+#include <vector>
 
 #include <glm/vec3.hpp>
 
@@ -24,5 +26,9 @@ inline uint64_t spreadMortonBits(uint64_t x) {
   x = (x | x << 2) & 0x1249249249249249ull;
   return x;
 }
+
+// For every k in 1..maxRuns, areas[k]: the sum of the axis-aligned box areas of k runs of the leaves'
+// faces in Morton order, runs of equal face count (morton_runs.cpp); areas[0] is 0.
+std::vector<double> mortonRunAreas(std::span<const SurfaceStats> leaves, uint32_t maxRuns);
 
 }  // namespace facetree

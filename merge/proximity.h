@@ -33,6 +33,12 @@ struct AxisBox {
     return {glm::min(a.lo, b.lo), glm::max(a.hi, b.hi)};
   }
   glm::vec3 centre() const { return 0.5f * (lo + hi); }
+  // The box's surface area (0 when empty), in double.
+  double area() const {
+    if (empty()) return 0.0;
+    const glm::dvec3 d = glm::dvec3(hi) - glm::dvec3(lo);
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+  }
 };
 
 // The squared distance between two boxes (0 when they touch or overlap), a lower bound of that

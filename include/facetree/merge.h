@@ -96,6 +96,10 @@ struct BuildOptions {
   // that peel one piece at a time off a cluster spanning the model. 0: eq. 84 to the root (what a
   // piece of a larger mesh wants). Metric::Constant has none.
   uint32_t topClusters = 64;
+  // The top keeps each cut of 8 or more clusters within the box areas of as many runs of the
+  // surface in Morton order where a merge allows it, taking the merge that adds the least fit among
+  // those that do (cluster_merge.cpp); false: the least increase of the fit alone.
+  bool topBoxLimit = true;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // The box precision the file will have: orientations are rounded to its lattice
   // (latticeOrientation) before the extents are measured along them.

@@ -551,6 +551,41 @@ TEST(OutOfCore, TinyCellsOnATerrainFitNearInCore) {
   }
 }
 
+// The top's boxes (BuildOptions::topBoxLimit), on a scan whose top by the least increase of the fit
+// alone joins coplanar floor and wall pieces across rooms: matterport_cedar_creek under 64 MiB.
+// Without the limit its cut of 12 clusters holds more box area than 12 Morton runs of the faces;
+// with it, less, and no cut of the top of 8 clusters or more fits worse than eq. 84's own order by
+// more than 10% or holds more than 1.05 times the runs' box area.
+TEST(OutOfCore, TheTopsCutsKeepTheirBoxesWithinMortonRuns) {
+  ScratchDir dir;
+  const fs::path mesh = fs::path(FACETREE_SHARED_DATA) / "matterport_cedar_creek.ply.zst";
+  const auto buildWith = [&](const std::string& name, uint32_t topClusters, bool topBoxLimit) {
+    ClusterJob job;
+    job.input = mesh;
+    job.output = dir / name;
+    job.memoryCap = uint64_t{64} << 20;
+    job.build.topClusters = topClusters;
+    job.build.topBoxLimit = topBoxLimit;
+    EXPECT_TRUE(runClusterJob(job).outOfCore);
+    return readClusterFile(job.output);
+  };
+  const ClusterFile limited = buildWith("limited.fch", 64, true);
+  const ClusterFile fitAlone = buildWith("fit.fch", 64, false);
+  const ClusterFile eq84 = buildWith("eq84.fch", 0, true);
+  const std::vector<uint64_t> cuts = {8, 12, 16, 24, 32, 48, 64};
+  const std::vector<CutFit> a = cutFits(limited, cuts), b = cutFits(fitAlone, cuts), c = cutFits(eq84, cuts);
+  EXPECT_GT(b[1].sumBoxArea, b[1].mortonBoxArea);
+  EXPECT_LE(a[1].sumBoxArea, a[1].mortonBoxArea);
+  for (size_t i = 0; i < cuts.size(); ++i) {
+    SCOPED_TRACE(::testing::Message()
+                 << "cut of " << cuts[i] << ": fit " << a[i].sumAreaFit / c[i].sumAreaFit
+                 << "x eq. 84's, boxes " << a[i].sumBoxArea / a[i].mortonBoxArea << "x the Morton runs'");
+    EXPECT_EQ(a[i].clusters, cuts[i]);
+    EXPECT_LE(a[i].sumAreaFit, 1.10 * c[i].sumAreaFit);
+    EXPECT_LE(a[i].sumBoxArea, 1.05 * a[i].mortonBoxArea);
+  }
+}
+
 // An assembly of boxes in two groups far apart, out of core in cells of 1,000 faces (each box
 // spread over several cells, cell fragments of a box joined through proximity candidates): the
 // root's children are the two groups, as in core, and the top is as spatially coherent as in core.
