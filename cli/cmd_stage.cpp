@@ -23,6 +23,9 @@
 namespace facetree::cli {
 namespace {
 
+// `--alongside`: more range tasks at once than a machine has cores gains nothing.
+constexpr uint64_t kMaxAlongside = 1024;
+
 // The plan's arguments, NUL-separated (a path may hold any other byte).
 std::filesystem::path argumentsPath(const std::filesystem::path& work) {
   return work / "plan.args";
@@ -158,11 +161,16 @@ int runTask(const std::string& step, const std::vector<std::string>& argv, Signa
   const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
   if (!single && !args.value("task")) throw UsageError(command + " needs --task I");
   const uint64_t task = single ? 0 : args.count("task", 0);
+  const uint64_t alongside = args.count("alongside", 1);
+  if (alongside < 1 || alongside > kMaxAlongside)
+    throw UsageError(command + " --alongside takes 1 to " + std::to_string(kMaxAlongside) + " tasks, not " +
+                     std::to_string(alongside));
   PlannedJob planned = plannedJob(loadArguments(work), signals);
   StageTaskResult result;
   runWithProgress(planned.job, args.flag("json"), signals, [&](const ClusterJob& job) {
     try {
-      result = runStageTask(job, work, step, static_cast<uint32_t>(std::min<uint64_t>(task, UINT32_MAX)));
+      result = runStageTask(job, work, step, static_cast<uint32_t>(std::min<uint64_t>(task, UINT32_MAX)),
+                            static_cast<unsigned>(alongside));
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }

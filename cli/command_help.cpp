@@ -73,13 +73,26 @@ void addStageCommands(std::vector<CommandHelp>& table) {
                       {"task", "I", "", "the task, 0 to the step's count less one"},
                       {"json", "", "", "print the result as one JSON object"}}});
   };
-  taskCommand("stage read", "read one range of a binary PLY or STL: its box and counts",
-              "Reads the plan's options from DIR; holds the plan's --memory. Every read task must be done\n"
-              "before any count task.");
-  taskCommand("stage count", "count one range's faces by cell bin",
-              "Reads the plan's options from DIR; holds the plan's --memory. Every count task must be done\n"
-              "before the weld tasks (an STL) or the grid. An STL's count task also files its corners by\n"
-              "position for the weld tasks.");
+  // The range steps' tasks can share the cap: a scheduler runs several at once on one machine.
+  const auto rangeTaskCommand = [&](const char* name, const char* about, const char* details) {
+    taskCommand(name, about, details);
+    table.back().synopsis = "--work DIR --task I [--alongside N] [--json]";
+    table.back().options.insert(
+        table.back().options.end() - 1,
+        {"alongside", "N", "",
+         "N tasks of the step run at once on this machine, this one among them (default 1): "
+         "the task takes one thread and half the plan's --memory over N for its "
+         "buffers, so that together they hold the cap (the same outputs)"});
+  };
+  rangeTaskCommand(
+      "stage read", "read one range of a binary PLY or STL: its box and counts",
+      "Reads the plan's options from DIR; holds the plan's --memory. Every read task must be done\n"
+      "before any count task.");
+  rangeTaskCommand(
+      "stage count", "count one range's faces by cell bin",
+      "Reads the plan's options from DIR; holds the plan's --memory. Every count task must be done\n"
+      "before the weld tasks (an STL) or the grid. An STL's count task also files its corners by\n"
+      "position for the weld tasks.");
   taskCommand("stage weld", "number one part of an STL's distinct corner positions",
               "Reads the plan's options from DIR; holds the plan's --memory. The corners of every range\n"
               "whose positions fall in the task's part are sorted, and each distinct position numbered\n"
@@ -90,9 +103,10 @@ void addStageCommands(std::vector<CommandHelp>& table) {
                    "Sums the count tasks' bins and prints the steps that follow: bin, cells, finish.",
                    {{"work", "DIR", "", "the work directory of `stage plan`"},
                     {"json", "", "", "print the result as one JSON object"}}});
-  taskCommand("stage bin", "put one range's faces into their cells",
-              "Reads the plan's options from DIR; holds the plan's --memory. Every bin task must be done\n"
-              "before any cells task.");
+  rangeTaskCommand(
+      "stage bin", "put one range's faces into their cells",
+      "Reads the plan's options from DIR; holds the plan's --memory. Every bin task must be done\n"
+      "before any cells task.");
   taskCommand("stage cells", "build the cells of one cells task of a planned build",
               "Reads the plan's options from DIR; holds the plan's --memory. Every bin task (of a mesh read\n"
               "in ranges) must be done first.");

@@ -313,8 +313,12 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
 namespace {
 
 StageTaskResult runStep(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
-                        uint32_t task) {
+                        uint32_t task, unsigned alongside) {
   StageTaskResult result;
+  // Several range tasks at once share half the cap, one thread each (ranges_here.cpp's pool).
+  const unsigned sharing = alongside > 1 ? 2 * alongside : 1;
+  ClusterJob shared = job;
+  if (alongside > 1) shared.threads = 1;
   const auto single = [&] {  // the grid, the upper step, the boxes and the layout: one task, 0
     if (task != 0)
       throw std::invalid_argument("the " + std::string(step) + " step has one task, 0, not " +
@@ -323,13 +327,13 @@ StageTaskResult runStep(const ClusterJob& job, const std::filesystem::path& work
   if (step == kCellsStep) {
     result.ran = runCellsTask(job, work, task);
   } else if (step == "read") {
-    result.ran = runReadTask(job, work, task);
+    result.ran = runReadTask(shared, work, task, sharing);
   } else if (step == "count") {
-    result.ran = runCountTask(job, work, task);
+    result.ran = runCountTask(shared, work, task, sharing);
   } else if (step == "weld") {
     result.ran = runWeldTask(job, work, task);
   } else if (step == "bin") {
-    result.ran = runBinTask(job, work, task);
+    result.ran = runBinTask(shared, work, task, sharing);
   } else if (step == "upper") {
     single();
     result.ran = runUpperStep(job, work);
@@ -364,10 +368,18 @@ StageTaskResult runStep(const ClusterJob& job, const std::filesystem::path& work
 
 }  // namespace
 
+bool stageTasksShareTheCap(std::string_view step) {
+  return step == "read" || step == "count" || step == "bin";
+}
+
 StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
-                             uint32_t task) {
+                             uint32_t task, unsigned alongside) {
+  if (alongside > 1 && !stageTasksShareTheCap(step))
+    throw std::invalid_argument("the " + std::string(step) +
+                                " step's tasks hold the whole cap each: only read, count and bin tasks run "
+                                "alongside others");
   const auto start = std::chrono::steady_clock::now();
-  StageTaskResult result = runStep(job, work, step, task);
+  StageTaskResult result = runStep(job, work, step, task, alongside);
   if (result.ran) recordStageTime(work, step, task, secondsSince(start));
   return result;
 }

@@ -153,8 +153,8 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state);
 // The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). readsInRanges: whether
 // `job` reads such a mesh out of core; planRanges then writes the plan (else returns false and
 // writes nothing); each task returns false, doing nothing, when its manifest is there already.
-// `sharing`: how many tasks share the cap in this process, each sizing its buffers from its share
-// (the plan, and so every output, stays the plan's).
+// `sharing`: how many shares of the cap the tasks at once on this machine make, each task sizing its
+// buffers from one (the plan, and so every output, stays the plan's).
 enum class RangedInput { None, Ply, Stl };
 RangedInput readsInRanges(const ClusterJob& job);
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);

@@ -198,9 +198,15 @@ struct StageTaskResult {
 // Runs task `task` of step `step` of `work`'s plan ("read", "count", "grid", "bin", "cells"; the
 // grid's one task is 0). A task whose manifest is there already is not run again (a rerun picks
 // up where the last one stopped). Throws std::invalid_argument for a step or task the plan does
-// not have, Error (Input) naming a manifest of the steps before that is missing.
+// not have, Error (Input) naming a manifest of the steps before that is missing. `alongside`: the
+// tasks of the step that run at once on this machine, this one among them; a read, count or bin
+// task among several takes one thread and half the cap over that many for its buffers, as one
+// process runs them (the same bytes), so that they hold the cap together.
 StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
-                             uint32_t task);
+                             uint32_t task, unsigned alongside = 1);
+// The steps whose tasks take a share of the cap when several run at once (runStageTask's
+// `alongside`): "read", "count" and "bin".
+bool stageTasksShareTheCap(std::string_view step);
 // Throws Error (Input) naming the manifest of a task that is not done.
 JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work);
 

@@ -71,9 +71,11 @@ std::vector<std::pair<std::string, uint64_t>> stepsOf(const std::string& text) {
 }
 
 // Every task of the steps `next` lists and those they list in turn, up to the finish, each in a
-// process of its own, a step's tasks in reverse order, every one under the cap. Returns the steps
-// run ("read:4 count:4 ... ").
-std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string, uint64_t>> next) {
+// process of its own, a step's tasks in reverse order, every one under the cap. With `alongside`
+// N > 1 the read, count and bin tasks run as N at once would (`--alongside N`), each under its
+// share: N of them together hold the cap. Returns the steps run ("read:4 count:4 ... ").
+std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string, uint64_t>> next,
+                         unsigned alongside = 1) {
   std::string ran;
   while (!next.empty() && next.front().first != "finish") {
     const auto [step, tasks] = next.front();
@@ -83,6 +85,8 @@ std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string
       std::vector<std::string> argv = {"stage", step, "--work", work.string(), "--json"};
       const bool single = step == "grid" || step == "upper" || step == "boxes" || step == "layout";
       if (!single) argv.insert(argv.end(), {"--task", std::to_string(task)});
+      const bool shares = alongside > 1 && (step == "read" || step == "count" || step == "bin");
+      if (shares) argv.insert(argv.end(), {"--alongside", std::to_string(alongside)});
       const ChildResult result = runChild(argv);
       if (result.exitCode != 0) {
         ADD_FAILURE() << step << " " << task << ": " << result.output;
@@ -90,7 +94,8 @@ std::string runEveryTask(const fs::path& work, std::vector<std::pair<std::string
       }
       EXPECT_NE(result.output.find("\"ran\": true"), std::string::npos) << result.output;
       if (kPeakRssShowsTheCap) {
-        EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), kCap) << step << " task " << task;
+        EXPECT_LE(jsonNumber(result.output, "peak_rss_bytes"), shares ? kCap / alongside : kCap)
+            << step << " task " << task;
       }
       if (single) next = stepsOf(jsonText(result.output, "next"));
     }
@@ -157,6 +162,29 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
     for (const auto& entry : fs::directory_iterator(work))
       EXPECT_EQ(entry.path().string().find(".partial"), std::string::npos) << entry.path();
   }
+
+  // The range tasks as a scheduler runs them three at once on one machine, each under a third of
+  // the cap: the same bytes.
+  const fs::path work = dir.path / "alongside", staged = dir.path / "alongside.fch";
+  const ChildResult plan =
+      runChild({"stage", "plan", ply.string(), "--work", work.string(), "-o", staged.string(), "--memory",
+                "64M", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
+  ASSERT_EQ(plan.exitCode, 0) << plan.output;
+  EXPECT_EQ(
+      runEveryTask(work, stepsOf(jsonText(plan.output, "next")), 3).rfind("read:4 count:4 grid:1 bin:4 ", 0),
+      0u);
+  ASSERT_EQ(runChild({"stage", "finish", "--work", work.string()}).exitCode, 0);
+  EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
+  // Only the range steps' tasks share the cap.
+  const ChildResult cells =
+      runChild({"stage", "cells", "--work", work.string(), "--task", "0", "--alongside", "2"});
+  EXPECT_EQ(cells.exitCode, 2);
+  EXPECT_EQ(cells.output, "facetree: unknown option '--alongside' (see facetree stage cells --help)\n");
+  const ChildResult none =
+      runChild({"stage", "bin", "--work", work.string(), "--task", "0", "--alongside", "0"});
+  EXPECT_EQ(none.exitCode, 2);
+  EXPECT_EQ(none.output,
+            "facetree: stage bin --alongside takes 1 to 1024 tasks, not 0 (see facetree stage bin --help)\n");
 }
 
 // A binary STL is read in ranges too, its corners welded by position as the single process welds
@@ -204,6 +232,15 @@ TEST(Stage, ABinarySTLIsReadAndWeldedInRanges) {
   EXPECT_EQ(jsonNumber(finish.output, "triangles"), triangles - 1);
   EXPECT_EQ(jsonNumber(finish.output, "vertices"), jsonNumber(whole.output, "vertices"));
   EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
+  // Its read, count and bin tasks two at once, each under half the cap: the same bytes.
+  const fs::path twoWork = dir.path / "two", two = dir.path / "two.fch";
+  const ChildResult twoPlan =
+      runChild({"stage", "plan", stl.string(), "--work", twoWork.string(), "-o", two.string(), "--memory",
+                "64M", "--cell-faces", "20000", "--cell-tasks", "3", "--read-tasks", "4", "--json"});
+  ASSERT_EQ(twoPlan.exitCode, 0) << twoPlan.output;
+  runEveryTask(twoWork, stepsOf(jsonText(twoPlan.output, "next")), 2);
+  ASSERT_EQ(runChild({"stage", "finish", "--work", twoWork.string()}).exitCode, 0);
+  EXPECT_EQ(fileBytes(two), fileBytes(dir.path / "whole.fch"));
 
   // Cut short, it is no binary STL read in ranges: the plan reads it whole and fails as build does.
   bytes.resize(bytes.size() - 7);
