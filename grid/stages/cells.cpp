@@ -10,6 +10,7 @@
 #include <exception>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <thread>
 #include <utility>
@@ -290,9 +291,16 @@ CellsOutput CellsStage::run() {
   out_.records.pairs = spill(CellSpill::Pairs, false);
   out_.records.leaves = spill(CellSpill::Leaves, false);
   out_.records.border = spill(CellSpill::Border, false);
-  const uint32_t cells = end_;
   out_.records.cells.assign(in_.grid->cellCount(), {});
-  std::atomic<uint32_t> next{first_};
+  // The largest cells first, so that the workers run out of cells together rather than one
+  // finishing the last large cell alone: a task's tail is idle time on every task. Each cell's
+  // results go to its own record, so the order changes no output.
+  std::vector<uint32_t> order(end_ - first_);
+  std::iota(order.begin(), order.end(), first_);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](uint32_t a, uint32_t b) { return in_.cellFaces(a) > in_.cellFaces(b); });
+  const auto cells = static_cast<uint32_t>(order.size());
+  std::atomic<uint32_t> next{0};
   std::atomic<uint64_t> facesDone{0};
   std::atomic<bool> stop{false};
   std::exception_ptr failure;
@@ -301,8 +309,8 @@ CellsOutput CellsStage::run() {
     SpillCodec codec;
     std::vector<FaceRecord> records;
     try {
-      for (uint32_t cell; !stop && (cell = next++) < cells;) {
-        buildCell(cell, codec, records);
+      for (uint32_t i; !stop && (i = next++) < cells;) {
+        buildCell(order[i], codec, records);
         facesDone += records.size();
         // Progress (and cancellation) from the calling thread only: the callback need not be
         // thread-safe. The other worker notices `stop`.
