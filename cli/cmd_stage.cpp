@@ -132,6 +132,7 @@ int runPlan(const std::vector<std::string>& argv, SignalGuard& signals) {
     out.field("in_core", !plan.report.outOfCore);
     out.field("cells", plan.report.cells);
     out.field("cells_tasks", plan.cellsTasks);
+    out.field("range_tasks_at_once", plan.rangeTasksAtOnce);
     // What the steps' tasks share among them: the triangles read, else the count the input declares.
     out.field("triangles", std::max(plan.report.triangles, plan.report.info.declaredFaces));
     out.field("next", stepsText(plan.next));

@@ -81,7 +81,7 @@ void addStageCommands(std::vector<CommandHelp>& table) {
         table.back().options.end() - 1,
         {"alongside", "N", "",
          "N tasks of the step run at once on this machine, this one among them (default 1): "
-         "the task takes one thread and half the plan's --memory over N for its "
+         "the task takes one thread and half the plan's cap over N for its "
          "buffers, so that together they hold the cap (the same outputs)"});
   };
   rangeTaskCommand(

@@ -98,12 +98,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   if (readsInRanges(job) != RangedInput::Ply) return false;
   const std::filesystem::path work = temp.path() / "ranges";
   std::filesystem::create_directories(work);
-  // Each task beside the others holds its own grid of the bins (a count task's histogram, a bin
-  // task's owners: 8 MiB) besides its share of the cap: as many at once as half the cap holds.
-  const uint64_t taskFixedBytes = CellGrid::kBins * sizeof(uint32_t) + (uint64_t{4} << 20);
-  const auto memoryWorkers =
-      static_cast<unsigned>(std::max<uint64_t>(1, jobMemoryCap(job) / 2 / taskFixedBytes));
-  const unsigned workers = std::clamp(job.threads, 1u, memoryWorkers);
+  const unsigned workers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), false));
   // One range a worker unless the job says (a cell's faces come from a bucket of every range's
   // segment), and the tasks' files unsynced: they live and die with this run.
   ClusterJob local = job;

@@ -158,6 +158,11 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state);
 enum class RangedInput { None, Ply, Stl };
 RangedInput readsInRanges(const ClusterJob& job);
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
+// How many read, count or bin tasks at once hold a plan's cap together on one machine: each holds its
+// own grid of the bins (a count task's histogram, a bin task's owners) and reader besides its share
+// of half the cap, so as many as half the cap holds; a binary STL's one at a time (a bin task holds
+// an id per corner of its range, up to an eighth of the cap).
+unsigned rangeTasksAtOnce(uint64_t cap, bool stl);
 bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
                  unsigned sharing = 1);
 bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,

@@ -273,6 +273,12 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   return true;
 }
 
+unsigned rangeTasksAtOnce(uint64_t cap, bool stl) {
+  if (stl) return 1;
+  const uint64_t taskFixedBytes = CellGrid::kBins * sizeof(uint32_t) + (uint64_t{4} << 20);
+  return static_cast<unsigned>(std::clamp<uint64_t>(cap / 2 / taskFixedBytes, 1, 1024));
+}
+
 bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
   const std::filesystem::path path = taskManifestPath(work, "read", task);
   if (std::filesystem::exists(path)) return false;

@@ -186,7 +186,10 @@ struct StagePlan {
   // wrote the file itself.
   std::vector<StageStep> next;
   uint32_t cellsTasks = 0;  // when the plan knows them (it read the mesh), else 0
-  JobReport report;         // of the read and the bin (of the whole job when it ran in core)
+  // A mesh read in ranges: how many read, count or bin tasks at once hold the cap together on one
+  // machine (runStageTask's `alongside`); 1 otherwise.
+  uint32_t rangeTasksAtOnce = 1;
+  JobReport report;  // of the read and the bin (of the whole job when it ran in core)
 };
 // A plan of the same job (the input's path, size and time of change, every option) in `work`
 // stands and is returned as it is; any other is replaced, with every task's outputs.
@@ -201,7 +204,8 @@ struct StageTaskResult {
 // not have, Error (Input) naming a manifest of the steps before that is missing. `alongside`: the
 // tasks of the step that run at once on this machine, this one among them; a read, count or bin
 // task among several takes one thread and half the cap over that many for its buffers, as one
-// process runs them (the same bytes), so that they hold the cap together.
+// process runs them (the same bytes), so that they hold the cap together (std::invalid_argument
+// past StagePlan::rangeTasksAtOnce).
 StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
                              uint32_t task, unsigned alongside = 1);
 // The steps whose tasks take a share of the cap when several run at once (runStageTask's
