@@ -165,6 +165,10 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   const StageContext context{effective, temp, state.memoryCap, report, nullptr};
   // Owned: the cells give the binned faces' pages back as they drain them, as from the arrival's bin.
   BinnedFaces binnedFaces = openBinned(temp, work, state, 0, state.cellCount, /*owned=*/true);
+  // Every cell's list of blocks to a file of the temporary space, as the whole-file bin's go: in
+  // memory the lists of every cell hold an entry per block of every segment through the cells.
+  for (auto* spills : {&binnedFaces.faces, &binnedFaces.ghosts})
+    for (const std::unique_ptr<BucketSpill>& spill : *spills) spill->offloadBlocks(temp);
 
   OutOfCorePlan plan = state.plan;
   CellsOutput cells;
