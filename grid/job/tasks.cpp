@@ -272,8 +272,7 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
       PlanState plan = loadPlanManifest(work);
       if (plan.fingerprint == jobFingerprint(job)) {
         if (!plan.inCore && !plan.ranges) result.cellsTasks = static_cast<uint32_t>(plan.bounds.size() - 1);
-        if (plan.ranges)
-          result.rangeTasksAtOnce = rangeTasksAtOnce(plan.memoryCap, plan.rangePlan.weldTasks > 0);
+        if (plan.ranges) result.rangeTasksAtOnce = rangeTasksAtOnce(plan);
         result.next = stepsAfterPlan(plan);
         result.report = std::move(plan.report);
         result.report.outOfCore = !plan.inCore;
@@ -293,8 +292,6 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
   const auto start = std::chrono::steady_clock::now();
   if (planRanges(job, work, result)) {
     recordStageTime(work, "plan", 0, secondsSince(start));
-    const PlanState plan = loadPlanManifest(work);
-    result.rangeTasksAtOnce = rangeTasksAtOnce(plan.memoryCap, plan.rangePlan.weldTasks > 0);
     return result;
   }
   result.report = runJob(job, &work);
@@ -382,9 +379,10 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
     throw std::invalid_argument("the " + std::string(step) +
                                 " step's tasks hold the whole cap each: only read, count and bin tasks run "
                                 "alongside others");
+  // Before a task done already says so: the same answer whether or not it ran.
   if (alongside > 1) {
     const PlanState plan = loadPlanManifest(work);
-    const unsigned limit = rangeTasksAtOnce(plan.memoryCap, plan.rangePlan.weldTasks > 0);
+    const unsigned limit = rangeTasksAtOnce(plan);
     if (alongside > limit)
       throw std::invalid_argument("the plan's cap of " + std::to_string(plan.memoryCap >> 20) +
                                   " MiB holds at most " + std::to_string(limit) + " " + std::string(step) +

@@ -163,6 +163,7 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
 // of half the cap, so as many as half the cap holds; a binary STL's one at a time (a bin task holds
 // an id per corner of its range, up to an eighth of the cap).
 unsigned rangeTasksAtOnce(uint64_t cap, bool stl);
+unsigned rangeTasksAtOnce(const PlanState& plan);  // a plan of ranges: its cap, its input
 bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
                  unsigned sharing = 1);
 bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,

@@ -60,6 +60,20 @@ RangeInput reopen(const ClusterJob& job, const RangePlan& plan) {
   return input;
 }
 
+}  // namespace
+
+unsigned rangeTasksAtOnce(uint64_t cap, bool stl) {
+  if (stl) return 1;
+  const uint64_t taskFixedBytes = CellGrid::kBins * sizeof(uint32_t) + (uint64_t{4} << 20);
+  return static_cast<unsigned>(std::clamp<uint64_t>(cap / 2 / taskFixedBytes, 1, 1024));
+}
+
+unsigned rangeTasksAtOnce(const PlanState& plan) {
+  return rangeTasksAtOnce(plan.memoryCap, plan.rangePlan.weldTasks > 0);
+}
+
+namespace {
+
 struct RangeTask {
   PlanState plan;
   uint64_t firstFace = 0, faces = 0, firstVertex = 0, vertices = 0;
@@ -67,11 +81,11 @@ struct RangeTask {
 RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, uint32_t task,
                     unsigned sharing) {
   RangeTask t{loadPlanManifest(work)};
-  t.plan.memoryCap /= std::max(1u, sharing);  // the task's share, for its buffers; the plan is the plan's
   const RangePlan& r = t.plan.rangePlan;
   if (!t.plan.ranges || task + 1 >= r.faceBounds.size())
     throw std::invalid_argument("no " + std::string(step) + " task " + std::to_string(task) + " in " +
                                 work.string());
+  t.plan.memoryCap /= std::max(1u, sharing);  // the task's share, for its buffers; the plan is the plan's
   t.firstFace = r.faceBounds[task];
   t.faces = r.faceBounds[task + 1] - t.firstFace;
   t.firstVertex = r.vertexBounds[task];
@@ -270,13 +284,8 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   out.put(soup ? static_cast<uint32_t>(tasks) : uint32_t{0});  // weld tasks: one per range
   out.commit(planPath(work), kPlanKind);
   result.next = stepsAfterPlan(loadPlanManifest(work));
+  result.rangeTasksAtOnce = rangeTasksAtOnce(cap, soup);
   return true;
-}
-
-unsigned rangeTasksAtOnce(uint64_t cap, bool stl) {
-  if (stl) return 1;
-  const uint64_t taskFixedBytes = CellGrid::kBins * sizeof(uint32_t) + (uint64_t{4} << 20);
-  return static_cast<unsigned>(std::clamp<uint64_t>(cap / 2 / taskFixedBytes, 1, 1024));
 }
 
 bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {

@@ -70,6 +70,11 @@ std::vector<std::pair<std::string, uint64_t>> stepsOf(const std::string& text) {
   return steps;
 }
 
+// Task 0 of `step` run as one of `n` at once (`--alongside N`).
+ChildResult runAlongside(const fs::path& work, const std::string& step, const std::string& n) {
+  return runChild({"stage", step, "--work", work.string(), "--task", "0", "--alongside", n});
+}
+
 // Every task of the steps `next` lists and those they list in turn, up to the finish, each in a
 // process of its own, a step's tasks in reverse order, every one under the cap. With `alongside`
 // N > 1 the read, count and bin tasks run as N at once would (`--alongside N`), each under its
@@ -178,19 +183,16 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
   ASSERT_EQ(runChild({"stage", "finish", "--work", work.string()}).exitCode, 0);
   EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
   // Only the range steps' tasks share the cap.
-  const ChildResult cells =
-      runChild({"stage", "cells", "--work", work.string(), "--task", "0", "--alongside", "2"});
+  const ChildResult cells = runAlongside(work, "cells", "2");
   EXPECT_EQ(cells.exitCode, 2);
   EXPECT_EQ(cells.output, "facetree: unknown option '--alongside' (see facetree stage cells --help)\n");
-  const ChildResult three =
-      runChild({"stage", "bin", "--work", work.string(), "--task", "0", "--alongside", "3"});
+  const ChildResult three = runAlongside(work, "bin", "3");
   EXPECT_EQ(three.exitCode, 2);
   EXPECT_EQ(
       three.output,
       "facetree: the plan's cap of 64 MiB holds at most 2 bin tasks at once, not 3 (see facetree stage bin "
       "--help)\n");
-  const ChildResult none =
-      runChild({"stage", "bin", "--work", work.string(), "--task", "0", "--alongside", "0"});
+  const ChildResult none = runAlongside(work, "bin", "0");
   EXPECT_EQ(none.exitCode, 2);
   EXPECT_EQ(none.output,
             "facetree: stage bin --alongside takes 1 to 1024 tasks, not 0 (see facetree stage bin --help)\n");
@@ -243,8 +245,7 @@ TEST(Stage, ABinarySTLIsReadAndWeldedInRanges) {
   EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
   // Its range tasks run one at a time (a bin task holds an id per corner of its range).
   EXPECT_EQ(jsonNumber(plan.output, "range_tasks_at_once"), 1u);
-  const ChildResult two =
-      runChild({"stage", "read", "--work", work.string(), "--task", "0", "--alongside", "2"});
+  const ChildResult two = runAlongside(work, "read", "2");
   EXPECT_EQ(two.exitCode, 2);
   EXPECT_EQ(
       two.output,
