@@ -44,7 +44,9 @@
 //    leaves k >= kTopBoxCuts clusters is the cheapest by the fit among those that keep the sum of
 //    the live clusters' axis-aligned box areas within kTopBoxMargin of k Morton runs of the leaves
 //    (morton_runs.cpp), and when none does, the one that leaves the smallest sum. The top then
-//    scans its few live edges at each merge rather than the heap.
+//    scans its few live edges at each merge rather than the heap. The last kTopBoxCuts - 1 merges
+//    go in the order whose worst cut is least over its box limit or over the fit of the merges
+//    one at a time, chosen over every order of the last clusters (top_partitions.cpp).
 //  - When the edges run out (or are blocked by the guard), the roots left propose their nearest
 //    roots in turn, and the guard only penalises from then on, until one root is left. Roots no
 //    box places are joined Huffman-style by face count, ties by the Morton rank of their
@@ -72,6 +74,7 @@
 #include "morton.h"
 #include "proximity.h"
 #include "surface_stats.h"
+#include "top_partitions.h"
 
 namespace facetree {
 
@@ -93,11 +96,12 @@ constexpr double kTopTieArea = 1e-9;
 // keeps eq. 84's cost, so that small pieces (a terrain's islets, a scan's stray patches) sort
 // among the merges below the top rather than in every coarse cut.
 constexpr double kTopSliverShare = 0.1;
-// In the top: the cuts of fewer clusters than this are left to the fit. Below 8 runs the Morton
-// runs are slabs and quarters of the model, which no partition of a closed surface by its shape
-// follows: holding a cut of a handful of clusters to them costs several times its fit for a few
-// percent of box area (docs/benchmarks.md).
-constexpr uint32_t kTopBoxCuts = 8;
+// In the top: the last merges, from this many clusters, are chosen over every order of them
+// (top_partitions.cpp). Below 8 runs the Morton runs are slabs and quarters of the model, which
+// no partition of a closed surface by its shape follows: holding each merge to them costs a cut
+// of a handful of clusters several times its fit (docs/benchmarks.md), where the search over
+// every order finds the one whose worst cut is least over on either measure.
+constexpr uint32_t kTopBoxCuts = kMaxPartitionClusters;
 // In the top: the share of the Morton runs' box areas that a cut's boxes keep to. The runs are
 // taken over the leaves' boxes, not the faces', and a node's exact oriented box can exceed its
 // axis-aligned one: both make the reference a few percent larger than what `info --fit-cuts`
@@ -274,6 +278,10 @@ class ClusterMerger {
   uint64_t drainTop() {
     uint64_t merges = 0;
     while (live_ > 1) {
+      if (live_ <= kTopBoxCuts && !partitionsTried_) {
+        partitionsTried_ = true;
+        if (const uint64_t last = mergeLastByPartitions(); last > 0) return merges + last;
+      }
       const double limit = live_ - 1 >= kTopBoxCuts && live_ - 1 < boxLimit_.size()
                                ? boxLimit_[live_ - 1]
                                : std::numeric_limits<double>::infinity();
@@ -305,6 +313,46 @@ class ClusterMerger {
       merge(edge.end[0], edge.end[1], e, edge.key);
       ++merges;
       ++edgeMerges_;
+    }
+    return merges;
+  }
+
+  // The last live clusters (at most kMaxPartitionClusters) to one, in the order
+  // lastMergesByPartitions chooses over every order (top_partitions.cpp). Returns the merges made:
+  // none where the merges one at a time do as well.
+  uint64_t mergeLastByPartitions() {
+    std::vector<uint32_t> ids;
+    for (uint32_t c = 0; c < clusters_.size(); ++c)
+      if (clusters_[c].node != kDead) ids.push_back(c);
+    const int n = static_cast<int>(ids.size());
+    const size_t subsets = size_t{1} << n;
+    std::vector<ClusterStats> unions(subsets);
+    std::vector<AxisBox> boxes(subsets);
+    std::vector<double> fit(subsets, 0.0), boxArea(subsets, 0.0);
+    for (size_t mask = 1; mask < subsets; ++mask) {
+      const uint32_t c = ids[std::countr_zero(mask)];
+      const size_t rest = mask & (mask - 1);
+      unions[mask] = rest ? ClusterStats::merged(unions[rest], stats_[c], 0.0) : stats_[c];
+      boxes[mask] = rest ? AxisBox::united(boxes[rest], boxes_[c]) : boxes_[c];
+      fit[mask] = areaFit(unions[mask]);
+      boxArea[mask] = boxes[mask].area();
+    }
+    std::vector<double> limit(size_t(n) + 1, 0.0);
+    for (int k = 2; k < n; ++k) limit[k] = size_t(k) < boxLimit_.size() ? boxLimit_[k] : 0.0;
+    uint32_t cluster[256] = {};
+    for (int i = 0; i < n; ++i) cluster[1u << i] = ids[i];
+    std::vector<uint8_t> adjacent(size_t(n), 0);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        if (i != j && edgeBetween(ids[i], ids[j]) != kNone) adjacent[i] |= uint8_t(1u << j);
+    uint64_t merges = 0;
+    for (const auto& [x, y] : lastMergesByPartitions(n, fit, boxArea, limit, adjacent)) {
+      const uint32_t a = cluster[x], b = cluster[y];
+      const uint32_t e = edgeBetween(a, b);
+      merge(a, b, e, 0.0f);
+      cluster[x | y] = a;
+      ++merges;
+      if (e != kNone) ++edgeMerges_;
     }
     return merges;
   }
@@ -443,11 +491,12 @@ class ClusterMerger {
   // Ward's criterion over eq. 84's fit: what merging a and b into m adds to the sum of area x
   // eFit of a cut (never negative: eFit takes the sum normal of a flat cluster, not always the
   // plane of least variance).
+  // A cluster's term of eq. 84's cut sum: area x eFit.
+  double areaFit(const ClusterStats& s) {
+    return s.area > 0 ? s.area * willmottFitError(s, flatThreshold_, counters_) : 0.0;
+  }
   double fitIncrease(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b) {
-    const auto fit = [&](const ClusterStats& s) {
-      return s.area > 0 ? s.area * willmottFitError(s, flatThreshold_, counters_) : 0.0;
-    };
-    const double increase = fit(m) - fit(a) - fit(b);
+    const double increase = areaFit(m) - areaFit(a) - areaFit(b);
     return increase > 0 ? increase : 0.0;
   }
 
@@ -682,6 +731,7 @@ class ClusterMerger {
   uint32_t live_ = 0;
   uint32_t top_ = 0;                // live clusters at which the top takes over
   bool inTop_ = false;              // keys are increases of the fit (times boxScale_ squared)
+  bool partitionsTried_ = false;    // the last merges were offered to lastMergesByPartitions
   float level_ = 0;                 // in the top: the highest node cost so far
   double sliverArea_ = 0;           // in the top: unions under this area keep eq. 84's cost
   std::vector<double> boxLimit_;    // per live count k: the top's box limit (empty: none)
