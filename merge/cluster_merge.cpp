@@ -341,12 +341,12 @@ class ClusterMerger {
     for (int k = 2; k < n; ++k) limit[k] = size_t(k) < boxLimit_.size() ? boxLimit_[k] : 0.0;
     uint32_t cluster[256] = {};
     for (int i = 0; i < n; ++i) cluster[1u << i] = ids[i];
-    std::vector<uint8_t> adjacent(size_t(n), 0);
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j)
-        if (i != j && edgeBetween(ids[i], ids[j]) != kNone) adjacent[i] |= uint8_t(1u << j);
+    std::vector<uint32_t> height(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) height[i] = clusters_[ids[i]].height;
+    const std::vector<std::pair<uint8_t, uint8_t>> alone = topOrder(ids, unions);
+    if (alone.size() + 1 != ids.size()) return 0;
     uint64_t merges = 0;
-    for (const auto& [x, y] : lastMergesByPartitions(n, fit, boxArea, limit, adjacent)) {
+    for (const auto& [x, y] : lastMergesByPartitions(n, fit, boxArea, limit, alone, height)) {
       const uint32_t a = cluster[x], b = cluster[y];
       const uint32_t e = edgeBetween(a, b);
       merge(a, b, e, 0.0f);
@@ -355,6 +355,51 @@ class ClusterMerger {
       if (e != kNone) ++edgeMerges_;
     }
     return merges;
+  }
+
+  // The merges the top takes from the live clusters ids (at most kMaxPartitionClusters) without a
+  // box limit, as pairs of subset masks over ids: its key (topKey) along the clusters' edges and
+  // candidates, ties to the first pair; when the guard blocks every one, any two, the guard then
+  // penalising only (as addCandidates between roots). unions[mask]: the union's stats.
+  std::vector<std::pair<uint8_t, uint8_t>> topOrder(std::span<const uint32_t> ids,
+                                                    std::span<const ClusterStats> unions) {
+    struct Block {
+      uint8_t mask, touch;
+      uint32_t height;
+      uint64_t faces;
+    };
+    std::vector<Block> live;
+    for (size_t i = 0; i < ids.size(); ++i) {
+      uint8_t touch = 0;
+      for (size_t j = 0; j < ids.size(); ++j)
+        if (j != i && edgeBetween(ids[i], ids[j]) != kNone) touch |= uint8_t(1u << j);
+      live.push_back({uint8_t(1u << i), touch, clusters_[ids[i]].height, clusters_[ids[i]].faceCount});
+    }
+    std::vector<std::pair<uint8_t, uint8_t>> order;
+    bool anyPair = final_;
+    while (live.size() > 1) {
+      size_t bi = 0, bj = 0;
+      float least = kBlockedKey;
+      for (size_t i = 0; i < live.size(); ++i) {
+        for (size_t j = i + 1; j < live.size(); ++j) {
+          if (!anyPair && !(live[i].touch & live[j].mask)) continue;
+          const Block &x = live[i], &y = live[j];
+          const float k = topKey(unions[x.mask | y.mask], unions[x.mask], unions[y.mask], x.height, y.height,
+                                 x.faces + y.faces, anyPair);
+          if (k < least) least = k, bi = i, bj = j;
+        }
+      }
+      if (least == kBlockedKey) {
+        if (anyPair) break;
+        anyPair = true;
+        continue;
+      }
+      order.emplace_back(live[bi].mask, live[bj].mask);
+      live[bi] = {uint8_t(live[bi].mask | live[bj].mask), uint8_t(live[bi].touch | live[bj].touch),
+                  std::max(live[bi].height, live[bj].height) + 1, live[bi].faces + live[bj].faces};
+      live.erase(live.begin() + std::ptrdiff_t(bj));
+    }
+    return order;
   }
 
   // What merging clusters a and b adds to the sum of the live clusters' axis-aligned box areas.
@@ -470,19 +515,27 @@ class ClusterMerger {
   // top the increase of the sum of area x eFit, over the squared diagonal squared.
   float key(const ClusterStats& a, const ClusterStats& b, double shared, uint32_t ia, uint32_t ib,
             bool candidate) {
-    double c;
+    const Record& x = clusters_[ia];
+    const Record& y = clusters_[ib];
     ClusterStats m = ClusterStats::merged(a, b, shared);
-    if (inTop_) {
-      c = (fitIncrease(m, a, b) * boxScale_ + kTopTieArea * (a.area + b.area)) * boxScale_;
-    } else {
-      if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
-      c = cost(m, a, b, ia, ib) * keyScale_;
-    }
+    if (inTop_) return topKey(m, a, b, x.height, y.height, x.faceCount + y.faceCount, final_);
+    if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
+    return guarded(cost(m, a, b, ia, ib) * keyScale_, x.height, y.height, x.faceCount + y.faceCount, final_);
+  }
+
+  // The top's key of merging a and b into m: the increase of the fit (see the top of the file).
+  float topKey(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b, uint32_t heightA,
+               uint32_t heightB, uint64_t faces, bool unblocked) {
+    return guarded((fitIncrease(m, a, b) * boxScale_ + kTopTieArea * (a.area + b.area)) * boxScale_, heightA,
+                   heightB, faces, unblocked);
+  }
+
+  // A key under the balance guard: penalised by the height the merge adds past the balanced one,
+  // blocked past kBalanceBlockExcess unless `unblocked`.
+  float guarded(double c, uint32_t heightA, uint32_t heightB, uint64_t faces, bool unblocked) const {
     if (guard_) {
-      const Record& x = clusters_[ia];
-      const Record& y = clusters_[ib];
-      const double excess = balanceExcess(x.height, y.height, x.faceCount + y.faceCount, balanceSlack_);
-      if (excess > kBalanceBlockExcess && !final_) return kBlockedKey;
+      const double excess = balanceExcess(heightA, heightB, faces, balanceSlack_);
+      if (excess > kBalanceBlockExcess && !unblocked) return kBlockedKey;
       if (excess > 0) c *= std::pow(kBalancePenaltyBase, excess);
     }
     return toKey(c);

@@ -11,13 +11,15 @@
 // (area x eFit, eq. 84) and box area of each of the 2^n unions. Each cut of k clusters, 1 < k < n,
 // has two terms:
 //  - its box areas over the limit for k (the Morton runs', morton_runs.cpp);
-//  - its fit over the fit of the cut the merges one at a time reach (the least increase of the
-//    fit, along the clusters' edges first, as the top merges above), so that the search departs
-//    from that order only to lower its worst term.
+//  - its fit over the fit of the cut the top's own order reaches, one merge at a time by the least
+//    increase of the fit (the caller's), so that the search departs from that order only to lower
+//    its worst term.
 // A chain's terms, each at least 1 (within a limit is within it), compare worst first, and then
 // by the sum of the raw terms: the chain kept is the one whose worst excess on either measure is
-// least, and so on down, with neither measure paid for the other. Costs O(Bell(n) x n^2) with
-// partitions as sorted bytes packed in 64 bits, under a millisecond.
+// least, and so on down, with neither measure paid for the other. No chain is taken whose root
+// is higher than the order one at a time's, and that order stands unless another chain is
+// strictly better. Costs O(Bell(n) x n^2) with partitions as sorted bytes packed in 64 bits,
+// about 2 ms.
 #include "top_partitions.h"
 
 #include <algorithm>
@@ -107,49 +109,53 @@ struct Score {
   }
 };
 
-// The merges one at a time by the least increase of the fit, a pair that shares an edge before
-// any that does not, as the top's edges come before its proximity candidates, and among equal
-// increases (coplanar pieces) the least growth of the boxes: each cut's partition, by k.
-std::vector<Packed> greedyChain(int n, std::span<const double> fit, std::span<const double> boxArea,
-                                std::span<const uint8_t> adjacent) {
+// The partitions a list of merges passes through, by k; throws unless each merge joins two
+// blocks of the partition before it.
+std::vector<Packed> chainOf(int n, std::span<const std::pair<uint8_t, uint8_t>> merges) {
+  if (merges.size() != size_t(std::max(n - 1, 0)))
+    throw std::invalid_argument("lastMergesByPartitions: the order one at a time has the wrong length");
   std::vector<Packed> chain(size_t(n) + 1, 0);
-  std::vector<uint8_t> live, touch;
-  for (int i = 0; i < n; ++i) {
-    live.push_back(uint8_t(1u << i));
-    touch.push_back(adjacent[i]);
-  }
+  std::vector<uint8_t> live;
+  for (int i = 0; i < n; ++i) live.push_back(uint8_t(1u << i));
   chain[n] = pack(live);
-  while (live.size() > 1) {
-    size_t bi = 0, bj = 1;
-    double least = std::numeric_limits<double>::infinity(), leastGrowth = least;
-    bool near = false;
-    for (size_t i = 0; i < live.size(); ++i) {
-      for (size_t j = i + 1; j < live.size(); ++j) {
-        const uint8_t u = live[i] | live[j];
-        const bool joined = (touch[i] & live[j]) != 0;
-        const double up = std::max(0.0, fit[u] - fit[live[i]] - fit[live[j]]);
-        const double growth = boxArea[u] - boxArea[live[i]] - boxArea[live[j]];
-        if ((joined && !near) || (joined == near && (up < least || (up == least && growth < leastGrowth))))
-          least = up, leastGrowth = growth, bi = i, bj = j, near = joined;
-      }
-    }
-    live[bi] |= live[bj];
-    touch[bi] |= touch[bj];
-    live.erase(live.begin() + std::ptrdiff_t(bj));
-    touch.erase(touch.begin() + std::ptrdiff_t(bj));
+  for (const auto& [a, b] : merges) {
+    const auto ia = std::find(live.begin(), live.end(), a), ib = std::find(live.begin(), live.end(), b);
+    if (a == b || ia == live.end() || ib == live.end())
+      throw std::invalid_argument("lastMergesByPartitions: the order one at a time joins no two clusters");
+    *ia = uint8_t(a | b);
+    live.erase(ib);
     chain[live.size()] = pack(live);
   }
   return chain;
 }
 
+// The root height of a chain of partitions (by k) over clusters of these heights.
+uint32_t chainHeight(int n, const std::vector<Packed>& chain, std::span<const uint32_t> height) {
+  std::vector<uint32_t> h(size_t{1} << n, 0);
+  for (int i = 0; i < n; ++i) h[size_t{1} << i] = height[i];
+  for (int c = n - 1; c >= 1; --c) {
+    // The block of chain[c] that chain[c + 1] does not hold joins two of its blocks.
+    for (int i = 0; i < blockCount(chain[c]); ++i) {
+      const uint8_t b = block(chain[c], i);
+      if (h[b] != 0 || std::popcount(unsigned(b)) == 1) continue;
+      uint32_t top = 0;
+      for (int j = 0; j < blockCount(chain[c + 1]); ++j) {
+        const uint8_t part = block(chain[c + 1], j);
+        if ((part & b) == part) top = std::max(top, h[part]);
+      }
+      h[b] = top + 1;
+    }
+  }
+  return h[(size_t{1} << n) - 1];
+}
+
 }  // namespace
 
-std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(int n, std::span<const double> fit,
-                                                                std::span<const double> boxArea,
-                                                                std::span<const double> boxLimit,
-                                                                std::span<const uint8_t> adjacent) {
+std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
+    int n, std::span<const double> fit, std::span<const double> boxArea, std::span<const double> boxLimit,
+    std::span<const std::pair<uint8_t, uint8_t>> alone, std::span<const uint32_t> height) {
   if (n < 1 || n > kMaxPartitionClusters || fit.size() != (size_t{1} << n) || boxArea.size() != fit.size() ||
-      boxLimit.size() < size_t(n) + 1 || adjacent.size() != size_t(n))
+      boxLimit.size() < size_t(n) + 1 || height.size() != size_t(n))
     throw std::invalid_argument("lastMergesByPartitions: bad sizes");
   std::vector<Packed> parts;
   std::vector<uint8_t> scratch;
@@ -166,9 +172,9 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(int n, std::span
   const auto indexOf = [&](Packed packed) {
     return size_t(std::lower_bound(parts.begin(), parts.end(), packed) - parts.begin());
   };
-  const std::vector<Packed> greedy = greedyChain(n, fit, boxArea, adjacent);
+  const std::vector<Packed> aloneChain = chainOf(n, alone);
   std::vector<double> reference(size_t(n) + 1);
-  for (int c = 1; c <= n; ++c) reference[c] = fitSum[indexOf(greedy[c])];
+  for (int c = 1; c <= n; ++c) reference[c] = fitSum[indexOf(aloneChain[c])];
   // The cut's own terms: the first and last partitions (n and 1 blocks) are fixed and free.
   const auto own = [&](size_t p) {
     Score s;
@@ -179,59 +185,80 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(int n, std::span
     s.add(least > 0 ? fitSum[p] / least : (fitSum[p] > 0 ? std::numeric_limits<double>::max() : 1.0));
     return s;
   };
-  // best[p]: the best chain from p to one block; next[p]: its next partition. Partitions by
-  // block count ascending, so each one's coarsenings are scored before it.
+  // Forward, n blocks to one: best[p] the best chain from the singletons to p, its blocks'
+  // heights (in p's block order) and the partition before it. A chain's score is the multiset of
+  // its cuts' terms, so the best chain through p starts with the best chain to p. A join is taken
+  // only while the blocks can still be joined to one within the root height of the order one at a
+  // time: sum of 2^height <= 2^root (Kraft's inequality), so the search never raises the tree.
+  struct State {
+    Score score;
+    std::array<uint32_t, kMaxPartitionClusters> height{};
+    size_t before = 0;
+    bool reached = false;
+  };
+  std::vector<State> best(count);
   std::vector<size_t> order(count);
   for (size_t p = 0; p < count; ++p) order[p] = p;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return k[a] < k[b]; });
-  std::vector<Score> best(count);
-  std::vector<size_t> next(count, count);
-  std::vector<uint8_t> blocks;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return k[a] > k[b]; });
+  const size_t start = indexOf(aloneChain[n]);
+  best[start].reached = true;
+  for (int i = 0; i < n; ++i)
+    best[start].height[i] = height[std::countr_zero(unsigned(block(parts[start], i)))];
+  const uint32_t bound = chainHeight(n, aloneChain, height);
+  const double root = std::ldexp(1.0, int(bound));
+  std::vector<std::pair<uint8_t, uint32_t>> blocks;
   for (const size_t p : order) {
-    const Score mine = own(p);
-    if (k[p] == 1) {
-      best[p] = mine;
-      continue;
-    }
-    bool found = false;
+    if (!best[p].reached || k[p] == 1) continue;
     for (int i = 0; i < k[p]; ++i) {
       for (int j = i + 1; j < k[p]; ++j) {
         blocks.clear();
         for (int b = 0; b < k[p]; ++b)
-          if (b != i && b != j) blocks.push_back(block(parts[p], b));
-        blocks.push_back(block(parts[p], i) | block(parts[p], j));
-        const size_t q = indexOf(pack(blocks));
-        const Score chain = mine.with(best[q]);
-        if (!found || chain < best[p]) best[p] = chain, next[p] = q, found = true;
+          if (b != i && b != j) blocks.emplace_back(block(parts[p], b), best[p].height[b]);
+        blocks.emplace_back(block(parts[p], i) | block(parts[p], j),
+                            std::max(best[p].height[i], best[p].height[j]) + 1);
+        double kraft = 0;
+        for (const auto& [mask, h] : blocks) kraft += std::ldexp(1.0, int(h));
+        if (kraft > root) continue;
+        std::sort(blocks.begin(), blocks.end(), std::greater<>());
+        Packed packed = 0;
+        for (size_t b = 0; b < blocks.size(); ++b) packed |= Packed{blocks[b].first} << (8 * b);
+        const size_t q = indexOf(packed);
+        const Score chain = best[p].score.with(own(q));
+        if (best[q].reached && !(chain < best[q].score)) continue;
+        best[q].score = chain;
+        best[q].before = p;
+        best[q].reached = true;
+        for (size_t b = 0; b < blocks.size(); ++b) best[q].height[b] = blocks[b].second;
       }
     }
   }
-  std::vector<std::pair<uint8_t, uint8_t>> merges;
   // The merges one at a time stand unless another order is strictly better: where the measures
   // tie (coplanar pieces, boxes that tile the same area), their order, with the top's ties by
   // area and edge, is the caller's.
-  size_t p = indexOf(greedy[n]);
-  Score alone;
-  for (int c = 1; c < n; ++c) alone = alone.with(own(indexOf(greedy[c])));
-  if (!(best[p] < alone)) return {};
-  while (k[p] > 1) {
-    const size_t q = next[p];
-    // The block of q that p does not hold is the union; its two halves are p's blocks inside it.
+  Score taken;
+  for (int c = 1; c < n; ++c) taken = taken.with(own(indexOf(aloneChain[c])));
+  size_t p = indexOf(aloneChain[1]);
+  if (!best[p].reached || !(best[p].score < taken)) return {};
+  std::vector<std::pair<uint8_t, uint8_t>> merges;
+  while (p != start) {
+    const size_t q = best[p].before;
+    // The block of p that q does not hold is the union; its two halves are q's blocks inside it.
     uint8_t joined = 0;
-    for (int i = 0; i < k[q]; ++i) {
-      const uint8_t b = block(parts[q], i);
-      bool inP = false;
-      for (int j = 0; j < k[p]; ++j) inP = inP || block(parts[p], j) == b;
-      if (!inP) joined = b;
+    for (int i = 0; i < k[p]; ++i) {
+      const uint8_t b = block(parts[p], i);
+      bool inQ = false;
+      for (int j = 0; j < k[q]; ++j) inQ = inQ || block(parts[q], j) == b;
+      if (!inQ) joined = b;
     }
     uint8_t first = 0, second = 0;
-    for (int j = 0; j < k[p]; ++j) {
-      const uint8_t b = block(parts[p], j);
+    for (int j = 0; j < k[q]; ++j) {
+      const uint8_t b = block(parts[q], j);
       if ((b & joined) == b) (first == 0 ? first : second) = b;
     }
     merges.emplace_back(first, second);
     p = q;
   }
+  std::reverse(merges.begin(), merges.end());
   return merges;
 }
 

@@ -1,7 +1,8 @@
 // The order of the top's last merges (merge/top_partitions.cpp): the merges join every cluster
-// once into one; without box limits no cut fits worse than the merges one at a time by the least
-// increase of the fit; a cut that order leaves over its box limit is split another way when one
-// keeps both measures closer, and that order stands when nothing beats it.
+// once into one; without box limits no cut fits worse than the caller's order one at a time by
+// the least increase of the fit; a cut that order leaves over its box limit is split another way
+// when one keeps both measures closer, and that order stands when nothing beats it; no order
+// raises the root.
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -14,6 +15,8 @@
 
 namespace facetree::test {
 namespace {
+
+using Merges = std::vector<std::pair<uint8_t, uint8_t>>;
 
 // The cuts a list of merges passes through, from n clusters to one: blocks[k] the masks of the
 // cut of k clusters.
@@ -62,51 +65,88 @@ std::vector<double> circleFits(int n, std::mt19937& random) {
 }
 
 // The cut fits of merging one pair at a time by the least increase of the fit, adjacent pairs
-// first (as the search's reference).
-std::vector<double> greedyCutFits(int n, const std::vector<double>& fit,
-                                  const std::vector<uint8_t>& adjacent) {
+// first (as the search's reference), equal increases by the least box growth; the root's height
+// in rootHeight.
+std::vector<double> greedyCutFits(int n, const std::vector<double>& fit, const std::vector<uint8_t>& adjacent,
+                                  const std::vector<double>& box = {}, std::vector<uint32_t> height = {},
+                                  uint32_t* rootHeight = nullptr, Merges* order = nullptr) {
   std::vector<double> out(size_t(n) + 1);
+  if (height.empty()) height.assign(size_t(n), 0);
   std::vector<uint8_t> live, touch;
   for (int i = 0; i < n; ++i) live.push_back(uint8_t(1u << i)), touch.push_back(adjacent[size_t(i)]);
   out[n] = sum(live, fit);
   while (live.size() > 1) {
     size_t bi = 0, bj = 1;
-    double least = INFINITY;
+    double least = INFINITY, leastGrowth = INFINITY;
     bool near = false;
     for (size_t i = 0; i < live.size(); ++i)
       for (size_t j = i + 1; j < live.size(); ++j) {
+        const uint8_t u = live[i] | live[j];
         const bool joined = (touch[i] & live[j]) != 0;
-        const double up = std::max(0.0, fit[live[i] | live[j]] - fit[live[i]] - fit[live[j]]);
-        if ((joined && !near) || (joined == near && up < least)) least = up, bi = i, bj = j, near = joined;
+        const double up = std::max(0.0, fit[u] - fit[live[i]] - fit[live[j]]);
+        const double growth = box.empty() ? 0.0 : box[u] - box[live[i]] - box[live[j]];
+        if ((joined && !near) || (joined == near && (up < least || (up == least && growth < leastGrowth))))
+          least = up, leastGrowth = growth, bi = i, bj = j, near = joined;
       }
+    if (order) order->emplace_back(live[bi], live[bj]);
     live[bi] |= live[bj];
     touch[bi] |= touch[bj];
+    height[bi] = std::max(height[bi], height[bj]) + 1;
     live.erase(live.begin() + std::ptrdiff_t(bj));
     touch.erase(touch.begin() + std::ptrdiff_t(bj));
+    height.erase(height.begin() + std::ptrdiff_t(bj));
     out[live.size()] = sum(live, fit);
   }
+  if (rootHeight) *rootHeight = height[0];
   return out;
+}
+
+// The order one at a time (greedyCutFits) as merges: the caller's order the search starts from.
+Merges greedyOrder(int n, const std::vector<double>& fit, const std::vector<uint8_t>& adjacent,
+                   const std::vector<double>& box = {}, const std::vector<uint32_t>& height = {}) {
+  Merges order;
+  greedyCutFits(n, fit, adjacent, box, height, nullptr, &order);
+  return order;
+}
+
+// The root's height after the merges, from the clusters' heights.
+uint32_t replayHeight(int n, const std::vector<std::pair<uint8_t, uint8_t>>& merges,
+                      const std::vector<uint32_t>& height) {
+  std::vector<uint32_t> h(size_t{1} << n, 0);
+  for (int i = 0; i < n; ++i) h[size_t{1} << i] = height[size_t(i)];
+  uint8_t last = 1;
+  for (const auto& [a, b] : merges) last = uint8_t(a | b), h[last] = std::max(h[a], h[b]) + 1;
+  return h[last];
 }
 
 TEST(TopPartitions, TheMergesJoinEveryClusterOnceIntoOne) {
   std::mt19937 random(5);
+  int taken = 0;
   for (int n = 1; n <= kMaxPartitionClusters; ++n) {
-    const std::vector<double> fit = circleFits(n, random);
-    // Boxes of no spatial sense and tight limits: the merges one at a time are not the best.
-    std::uniform_real_distribution<double> area(1.0, 3.0);
-    std::vector<double> box(fit.size());
-    for (double& b : box) b = area(random);
-    const std::vector<double> limit(size_t(n) + 1, 2.0);
-    const std::vector<uint8_t> adjacent(size_t(n), 0);
-    const auto merges = lastMergesByPartitions(n, fit, box, limit, adjacent);
-    if (n < 4) continue;  // no cut between the first and the last to score
-    ASSERT_EQ(merges.size(), size_t(n - 1)) << n << " clusters";
-    const auto cuts = replay(n, merges);
-    ASSERT_EQ(cuts[1].size(), 1u);
-    EXPECT_EQ(cuts[1][0], uint8_t((1u << n) - 1));
+    for (int trial = 0; trial < 5; ++trial) {
+      const std::vector<double> fit = circleFits(n, random);
+      // Boxes of no spatial sense and tight limits: the merges one at a time are seldom the best.
+      std::uniform_real_distribution<double> area(1.0, 3.0);
+      std::vector<double> box(fit.size());
+      for (double& b : box) b = area(random);
+      const std::vector<double> limit(size_t(n) + 1, 2.0);
+      const std::vector<uint8_t> adjacent(size_t(n), 0);
+      // Tall enough a bound that any order fits under it.
+      std::vector<uint32_t> height(static_cast<size_t>(n), 0);
+      height[0] = uint32_t(n);
+      const auto merges =
+          lastMergesByPartitions(n, fit, box, limit, greedyOrder(n, fit, adjacent, box, height), height);
+      if (merges.empty()) continue;
+      ++taken;
+      ASSERT_EQ(merges.size(), size_t(n - 1)) << n << " clusters";
+      const auto cuts = replay(n, merges);
+      ASSERT_EQ(cuts[1].size(), 1u);
+      EXPECT_EQ(cuts[1][0], uint8_t((1u << n) - 1));
+    }
   }
+  EXPECT_GT(taken, 15);
   EXPECT_THROW(lastMergesByPartitions(9, std::vector<double>(512), std::vector<double>(512),
-                                      std::vector<double>(10), std::vector<uint8_t>(9)),
+                                      std::vector<double>(10), Merges(8), std::vector<uint32_t>(9)),
                std::invalid_argument);
 }
 
@@ -122,10 +162,12 @@ TEST(TopPartitions, WithoutBoxLimitsNoCutFitsWorseThanTheMergesOneAtATime) {
         adjacent[size_t(i)] |= uint8_t(1u << ((i + 1) % n));
         adjacent[size_t((i + 1) % n)] |= uint8_t(1u << i);
       }
-    const auto merges = lastMergesByPartitions(n, fit, box, limit, adjacent);
+    const std::vector<uint32_t> height(static_cast<size_t>(n), 3);
+    const auto merges =
+        lastMergesByPartitions(n, fit, box, limit, greedyOrder(n, fit, adjacent, box), height);
     if (merges.empty()) continue;  // the merges one at a time stand
     const auto cuts = replay(n, merges);
-    const std::vector<double> reference = greedyCutFits(n, fit, adjacent);
+    const std::vector<double> reference = greedyCutFits(n, fit, adjacent, box);
     for (int k = 2; k < n; ++k)
       EXPECT_LE(sum(cuts[k], fit), reference[k] * (1 + 1e-12)) << "trial " << trial << ", cut of " << k;
   }
@@ -156,14 +198,44 @@ TEST(TopPartitions, ACutOverItsBoxLimitIsSplitAnotherWay) {
   ASSERT_DOUBLE_EQ(reference[3], 4.0);  // {A+D, B, C}, box 30
   ASSERT_DOUBLE_EQ(reference[2], 4.5);  // {A+D, B+C}, box 28
 
-  const auto cuts = replay(n, lastMergesByPartitions(n, fit, box, limit, none));
+  const std::vector<uint32_t> flat(size_t(n), 0);
+  const Merges alone = greedyOrder(n, fit, none);
+  const auto cuts = replay(n, lastMergesByPartitions(n, fit, box, limit, alone, flat));
   for (int k = 2; k <= 3; ++k) {
     EXPECT_LE(sum(cuts[k], box), limit[k]) << "cut of " << k;
     EXPECT_LE(sum(cuts[k], fit), 1.125 * reference[k] + 1e-12) << "cut of " << k;
     for (const uint8_t m : cuts[k]) EXPECT_NE(m, A | D) << "cut of " << k;
   }
   // Without the limits the merges one at a time stand.
-  EXPECT_TRUE(lastMergesByPartitions(n, fit, box, std::vector<double>(size_t(n) + 1, 0.0), none).empty());
+  EXPECT_TRUE(
+      lastMergesByPartitions(n, fit, box, std::vector<double>(size_t(n) + 1, 0.0), alone, flat).empty());
+}
+
+// No order is taken whose root is higher than the caller's own order makes it.
+TEST(TopPartitions, NoOrderMakesTheTreeTaller) {
+  std::mt19937 random(23);
+  std::uniform_real_distribution<double> area(1.0, 3.0);
+  std::uniform_int_distribution<uint32_t> tall(0, 5);
+  const int n = kMaxPartitionClusters;
+  int taken = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    const std::vector<double> fit = circleFits(n, random);
+    std::vector<double> box(fit.size());
+    for (double& b : box) b = area(random);
+    std::vector<uint32_t> height(static_cast<size_t>(n));
+    for (uint32_t& h : height) h = tall(random);
+    const std::vector<double> limit(size_t(n) + 1, 2.0);
+    const std::vector<uint8_t> none(size_t(n), 0);
+    const auto merges =
+        lastMergesByPartitions(n, fit, box, limit, greedyOrder(n, fit, none, box, height), height);
+    if (merges.empty()) continue;
+    ++taken;
+    replay(n, merges);
+    uint32_t greedyHeight = 0;
+    greedyCutFits(n, fit, none, box, height, &greedyHeight);
+    EXPECT_LE(replayHeight(n, merges, height), greedyHeight) << "trial " << trial;
+  }
+  EXPECT_GT(taken, 20);  // the limits are tight: another order is nearly always better
 }
 
 }  // namespace
