@@ -536,7 +536,7 @@ def markdown(report, figures, rel):
                for name, seconds in report["section_seconds"].items())]] if report.get("section_seconds") else []) + [
            ] + ([[f"sections {', '.join(k['sections'])}", f"kept from the run of {k['date']} (load "
                   f"{k['load_average_start'][0]:.1f} / {k['load_average_end'][0]:.1f}, "
-                  f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) else [])), ""]
+                  f"{k['wall_seconds'] / 60:.1f} min)"]] if (k := report.get("kept_from")) and k.get("sections") else [])), ""]
     out += headline_markdown(report)
 
     if "rounds" in report:
