@@ -28,7 +28,8 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              processes: wall, CPU, peak RSS from wait4); phases and rounds from --json; the fit of
              cuts of 1,000 and 100,000 clusters (`info --fit-cuts`) against the exact order's; the
              top's cuts of 12, 100 and 1,000 against eq. 84's order to the root (`--top 0`), and the
-             balance of the cut of 100 (clusters under 1% of the average cluster's area);
+             balance of the cut of 100 (clusters under 1% of the average cluster's area); the worst
+             fit and boxes over every cut of 2 to 64 clusters, and how many are over 1.10 and 1.0;
              whether --threads 1 and the default give the same bytes; the targets as checks
   python     the Python binding's overhead on dragon_vrip: facetree.build from the arrays read_mesh gives
              (float32, uint32: used in place) against the same library calls from C++ on the same mesh
@@ -136,7 +137,13 @@ BOX_CUTS = {12: 1.0, 100: 1.0, 1000: 0.5}
 TOP_CUTS = {12: 1.10, 100: 1.10, 1000: 1.05}
 BALANCE_CUT = 100
 BALANCE_TARGETS = {"fg_hawaii": 20}
-INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS) | set(TOP_CUTS))
+# Every cut of the top (a truncated file keeps its first nodes): the worst fit over eq. 84's order
+# and the worst boxes over the Morton runs among the cuts of 2 to 64 clusters, and how many are over
+# the TOP_EVERY_FIT and TOP_EVERY_BOXES bounds (reported, not checked).
+TOP_EVERY_CUTS = range(2, 65)
+TOP_EVERY_FIT = 1.10
+TOP_EVERY_BOXES = 1.0
+INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS) | set(TOP_CUTS) | set(TOP_EVERY_CUTS))
 # The subdivided dragon out of core: (subdivision levels of dragon_vrip, --memory), coherent and with
 # vertices and faces shuffled. The quick run takes the 14M-face one only (about two minutes).
 DRAGON_CASES_QUICK = [(2, "64M")]
@@ -710,7 +717,25 @@ def fit_cuts(args, fch):
     return {"height": info["height"], "balanced_height": info["balanced_height"],
             "cuts": {c: cuts[c] for c in FIT_CUTS},
             "top_cuts": {c: cuts[c] for c in TOP_CUTS},
+            "every_cut": {c: cuts[c] for c in TOP_EVERY_CUTS if c in cuts},
             "box_ratio": {c: ratio(cuts[c]["sum_box_area"], cuts[c]["morton_box_area"]) for c in BOX_CUTS}}
+
+
+def top_every_cut(mine, eq84):
+    """The worst fit (over eq. 84's order's cut of as many clusters) and the worst boxes (over the
+    Morton runs') among the top's cuts, where they are, and how many are over the bounds."""
+    fits = {c: ratio(mine[c]["sum_area_fit"], eq84[c]["sum_area_fit"]) for c in mine
+            if c in eq84 and eq84[c]["sum_area_fit"]}
+    boxes = {c: ratio(mine[c]["sum_box_area"], mine[c]["morton_box_area"]) for c in mine}
+    fits = {c: r for c, r in fits.items() if r is not None}
+    boxes = {c: r for c, r in boxes.items() if r is not None}
+    worst_fit = max(fits, key=fits.get, default=None)
+    worst_boxes = max(boxes, key=boxes.get, default=None)
+    return {"cuts": [min(mine, default=0), max(mine, default=0)],
+            "fit": fits.get(worst_fit), "fit_cut": worst_fit,
+            "fit_over": sum(r > TOP_EVERY_FIT for r in fits.values()),
+            "boxes": boxes.get(worst_boxes), "boxes_cut": worst_boxes,
+            "boxes_over": sum(r > TOP_EVERY_BOXES for r in boxes.values())}
 
 
 def coherent(box_ratio):
@@ -758,6 +783,7 @@ def bench_rounds(args, meshes, out):
         top_fit = {c: ratio(infos["rounds"]["top_cuts"][c]["sum_area_fit"], infos["eq84"]["top_cuts"][c]["sum_area_fit"])
                    for c in TOP_CUTS}
         small = {name: infos[name]["top_cuts"][BALANCE_CUT]["small_clusters"] for name in ("rounds", "eq84")}
+        every = top_every_cut(infos["rounds"]["every_cut"], infos["eq84"]["every_cut"])
         fits = {name: {c: v["sum_area_fit"] for c, v in infos[name]["cuts"].items()} for name in infos}
         box_ratio = {name: infos[name]["box_ratio"] for name in ("rounds", "exact")}
         same_bytes = files["rounds"].read_bytes() == files["one"].read_bytes()
@@ -779,7 +805,7 @@ def bench_rounds(args, meshes, out):
                "fit": fits, "fit_ratio": {c: ratio(fits["rounds"].get(c), fits["exact"].get(c))
                                           for c in FIT_CUTS},
                "box_ratio": box_ratio,
-               "top_fit_ratio": top_fit, "small_clusters": small,
+               "top_fit_ratio": top_fit, "small_clusters": small, "top_every_cut": every,
                "same_bytes_threads_1_and_default": same_bytes}
         # Same-run ratios, median of the per-repetition ratios.
         row["ratio_to_exact"] = median(a["process_wall_seconds"] / b["process_wall_seconds"]
@@ -812,6 +838,10 @@ def bench_rounds(args, meshes, out):
                                                  if r is not None)
         fit_text += "  top/eq.84 " + " ".join(f"{c}:{r:.2f}" for c, r in top_fit.items() if r is not None)
         fit_text += f"  small@{BALANCE_CUT} {small['rounds']} (eq.84 {small['eq84']})"
+        if every["fit"] is not None:
+            fit_text += (f"  cuts 2-64: fit worst {every['fit']:.2f} at {every['fit_cut']}, {every['fit_over']} over "
+                         f"{TOP_EVERY_FIT}; boxes worst {every['boxes']:.2f} at {every['boxes_cut']}, "
+                         f"{every['boxes_over']} over {TOP_EVERY_BOXES}")
         failed = [k for k, ok in checks.items() if not ok]
         print(f"rounds    {mesh:24s} {row['rounds']['wall_seconds']:6.2f} s (1 thread {row['one']['wall_seconds']:.2f}, "
               f"exact {row['exact']['wall_seconds']:.2f}, octree {row['octree']['wall_seconds']:.2f}; init "

@@ -784,14 +784,26 @@ def rounds_markdown(rows):
                 "clusters, the default build against eq. 84's order to the root (`--top 0`; lower is better). "
                 "Boxes: the sum of the cut's box areas against as many runs of the faces in Morton order. "
                 "Balance: the clusters of the cut of 100 under 1% of the average cluster's area, the default "
-                "build and `--top 0`.", "",
+                "build and `--top 0`. Every cut of 2 to 64 clusters: the worst fit over eq. 84's order's and "
+                "the worst boxes over the Morton runs', at that cut, and how many of the 63 cuts are over 1.10 "
+                "in fit and over 1.0 in boxes.", "",
                 table(["mesh", "faces"] + [f"fit {c}" for c in cuts] + [f"boxes {c}" for c in cuts] +
-                      ["small of 100", "small of 100, --top 0"],
+                      ["small of 100", "small of 100, --top 0", "cuts 2-64: worst fit (cut)", "over 1.10",
+                       "worst boxes (cut)", "over 1.0"],
                       [[r["mesh"], f"{r['triangles']:,}"] + [cell(r.get("top_fit_ratio"), c, 3) for c in cuts] +
                        [cell(r.get("box_ratio", {}).get("rounds"), c) for c in cuts] +
                        [str(r.get("small_clusters", {}).get("rounds", "-")),
-                        str(r.get("small_clusters", {}).get("eq84", "-"))] for r in rows]), ""]
+                        str(r.get("small_clusters", {}).get("eq84", "-"))] + every_cells(r.get("top_every_cut"))
+                       for r in rows]), ""]
     return out
+
+
+def every_cells(e):
+    """The worst fit and boxes over the top's cuts of 2 to 64 (bench_rounds' top_every_cut)."""
+    if not e or e.get("fit") is None:
+        return ["-"] * 4
+    return [f"{e['fit']:.2f} ({e['fit_cut']})", str(e["fit_over"]), f"{e['boxes']:.2f} ({e['boxes_cut']})",
+            str(e["boxes_over"])]
 
 
 def outofcore_markdown(o, rel):
