@@ -343,7 +343,7 @@ class ClusterMerger {
     for (int i = 0; i < n; ++i) cluster[1u << i] = ids[i];
     std::vector<uint32_t> height(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) height[i] = clusters_[ids[i]].height;
-    const std::vector<std::pair<uint8_t, uint8_t>> alone = topOrder(ids, unions);
+    const std::vector<std::pair<uint8_t, uint8_t>> alone = topOrder(ids, unions, fit);
     if (alone.size() + 1 != ids.size()) return 0;
     uint64_t merges = 0;
     for (const auto& [x, y] : lastMergesByPartitions(n, fit, boxArea, limit, alone, height)) {
@@ -360,9 +360,11 @@ class ClusterMerger {
   // The merges the top takes from the live clusters ids (at most kMaxPartitionClusters) without a
   // box limit, as pairs of subset masks over ids: its key (topKey) along the clusters' edges and
   // candidates, ties to the first pair; when the guard blocks every one, any two, the guard then
-  // penalising only (as addCandidates between roots). unions[mask]: the union's stats.
+  // penalising only (as addCandidates between roots). unions[mask] and fit[mask]: the union's stats
+  // and area x eFit, as fitIncrease takes them.
   std::vector<std::pair<uint8_t, uint8_t>> topOrder(std::span<const uint32_t> ids,
-                                                    std::span<const ClusterStats> unions) {
+                                                    std::span<const ClusterStats> unions,
+                                                    std::span<const double> fit) {
     struct Block {
       uint8_t mask, touch;
       uint32_t height;
@@ -384,7 +386,8 @@ class ClusterMerger {
         for (size_t j = i + 1; j < live.size(); ++j) {
           if (!anyPair && !(live[i].touch & live[j].mask)) continue;
           const Block &x = live[i], &y = live[j];
-          const float k = topKey(unions[x.mask | y.mask], unions[x.mask], unions[y.mask], x.height, y.height,
+          const float k = topKey(fitIncrease(fit[x.mask | y.mask], fit[x.mask], fit[y.mask]),
+                                 unions[x.mask].area + unions[y.mask].area, x.height, y.height,
                                  x.faces + y.faces, anyPair);
           if (k < least) least = k, bi = i, bj = j;
         }
@@ -518,16 +521,19 @@ class ClusterMerger {
     const Record& x = clusters_[ia];
     const Record& y = clusters_[ib];
     ClusterStats m = ClusterStats::merged(a, b, shared);
-    if (inTop_) return topKey(m, a, b, x.height, y.height, x.faceCount + y.faceCount, final_);
+    if (inTop_)
+      return topKey(fitIncrease(m, a, b), a.area + b.area, x.height, y.height, x.faceCount + y.faceCount,
+                    final_);
     if (candidate) m.perimeter += 2.0 * std::sqrt(squaredBoxGap(boxes_[ia], boxes_[ib]));
     return guarded(cost(m, a, b, ia, ib) * keyScale_, x.height, y.height, x.faceCount + y.faceCount, final_);
   }
 
-  // The top's key of merging a and b into m: the increase of the fit (see the top of the file).
-  float topKey(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b, uint32_t heightA,
-               uint32_t heightB, uint64_t faces, bool unblocked) {
-    return guarded((fitIncrease(m, a, b) * boxScale_ + kTopTieArea * (a.area + b.area)) * boxScale_, heightA,
-                   heightB, faces, unblocked);
+  // The top's key of a merge that adds `increase` to the fit (fitIncrease) and joins `area` (see
+  // the top of the file).
+  float topKey(double increase, double area, uint32_t heightA, uint32_t heightB, uint64_t faces,
+               bool unblocked) const {
+    return guarded((increase * boxScale_ + kTopTieArea * area) * boxScale_, heightA, heightB, faces,
+                   unblocked);
   }
 
   // A key under the balance guard: penalised by the height the merge adds past the balanced one,
@@ -541,16 +547,19 @@ class ClusterMerger {
     return toKey(c);
   }
 
-  // Ward's criterion over eq. 84's fit: what merging a and b into m adds to the sum of area x
-  // eFit of a cut (never negative: eFit takes the sum normal of a flat cluster, not always the
-  // plane of least variance).
   // A cluster's term of eq. 84's cut sum: area x eFit.
   double areaFit(const ClusterStats& s) {
     return s.area > 0 ? s.area * willmottFitError(s, flatThreshold_, counters_) : 0.0;
   }
-  double fitIncrease(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b) {
-    const double increase = areaFit(m) - areaFit(a) - areaFit(b);
+  // Ward's criterion over eq. 84's fit: what merging a and b into m adds to the sum of area x
+  // eFit of a cut (never negative: eFit takes the sum normal of a flat cluster, not always the
+  // plane of least variance); from the three terms of areaFit, or from the stats.
+  static double fitIncrease(double m, double a, double b) {
+    const double increase = m - a - b;
     return increase > 0 ? increase : 0.0;
+  }
+  double fitIncrease(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b) {
+    return fitIncrease(areaFit(m), areaFit(a), areaFit(b));
   }
 
   uint32_t childRef(uint32_t c) const {

@@ -129,23 +129,12 @@ std::vector<Packed> chainOf(int n, std::span<const std::pair<uint8_t, uint8_t>> 
   return chain;
 }
 
-// The root height of a chain of partitions (by k) over clusters of these heights.
-uint32_t chainHeight(int n, const std::vector<Packed>& chain, std::span<const uint32_t> height) {
+// The root's height after the merges (a valid order, chainOf), over clusters of these heights.
+uint32_t rootHeight(int n, std::span<const std::pair<uint8_t, uint8_t>> merges,
+                    std::span<const uint32_t> height) {
   std::vector<uint32_t> h(size_t{1} << n, 0);
   for (int i = 0; i < n; ++i) h[size_t{1} << i] = height[i];
-  for (int c = n - 1; c >= 1; --c) {
-    // The block of chain[c] that chain[c + 1] does not hold joins two of its blocks.
-    for (int i = 0; i < blockCount(chain[c]); ++i) {
-      const uint8_t b = block(chain[c], i);
-      if (h[b] != 0 || std::popcount(unsigned(b)) == 1) continue;
-      uint32_t top = 0;
-      for (int j = 0; j < blockCount(chain[c + 1]); ++j) {
-        const uint8_t part = block(chain[c + 1], j);
-        if ((part & b) == part) top = std::max(top, h[part]);
-      }
-      h[b] = top + 1;
-    }
-  }
+  for (const auto& [a, b] : merges) h[a | b] = std::max(h[a], h[b]) + 1;
   return h[(size_t{1} << n) - 1];
 }
 
@@ -186,14 +175,15 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
     return s;
   };
   // Forward, n blocks to one: best[p] the best chain from the singletons to p, its blocks'
-  // heights (in p's block order) and the partition before it. A chain's score is the multiset of
-  // its cuts' terms, so the best chain through p starts with the best chain to p. A join is taken
-  // only while the blocks can still be joined to one within the root height of the order one at a
+  // heights (in p's block order), the partition before it and the two of its blocks joined. A chain's score
+  // is the multiset of its cuts' terms, so the best chain through p starts with the best chain to p. A join
+  // is taken only while the blocks can still be joined to one within the root height of the order one at a
   // time: sum of 2^height <= 2^root (Kraft's inequality), so the search never raises the tree.
   struct State {
     Score score;
     std::array<uint32_t, kMaxPartitionClusters> height{};
     size_t before = 0;
+    std::pair<uint8_t, uint8_t> join{};
     bool reached = false;
   };
   std::vector<State> best(count);
@@ -204,7 +194,7 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
   best[start].reached = true;
   for (int i = 0; i < n; ++i)
     best[start].height[i] = height[std::countr_zero(unsigned(block(parts[start], i)))];
-  const uint32_t bound = chainHeight(n, aloneChain, height);
+  const uint32_t bound = rootHeight(n, alone, height);
   const double root = std::ldexp(1.0, int(bound));
   std::vector<std::pair<uint8_t, uint32_t>> blocks;
   for (const size_t p : order) {
@@ -227,6 +217,7 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
         if (best[q].reached && !(chain < best[q].score)) continue;
         best[q].score = chain;
         best[q].before = p;
+        best[q].join = {block(parts[p], i), block(parts[p], j)};
         best[q].reached = true;
         for (size_t b = 0; b < blocks.size(); ++b) best[q].height[b] = blocks[b].second;
       }
@@ -240,24 +231,7 @@ std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
   size_t p = indexOf(aloneChain[1]);
   if (!best[p].reached || !(best[p].score < taken)) return {};
   std::vector<std::pair<uint8_t, uint8_t>> merges;
-  while (p != start) {
-    const size_t q = best[p].before;
-    // The block of p that q does not hold is the union; its two halves are q's blocks inside it.
-    uint8_t joined = 0;
-    for (int i = 0; i < k[p]; ++i) {
-      const uint8_t b = block(parts[p], i);
-      bool inQ = false;
-      for (int j = 0; j < k[q]; ++j) inQ = inQ || block(parts[q], j) == b;
-      if (!inQ) joined = b;
-    }
-    uint8_t first = 0, second = 0;
-    for (int j = 0; j < k[q]; ++j) {
-      const uint8_t b = block(parts[q], j);
-      if ((b & joined) == b) (first == 0 ? first : second) = b;
-    }
-    merges.emplace_back(first, second);
-    p = q;
-  }
+  for (; p != start; p = best[p].before) merges.push_back(best[p].join);
   std::reverse(merges.begin(), merges.end());
   return merges;
 }

@@ -70,9 +70,14 @@ std::vector<std::pair<std::string, uint64_t>> stepsOf(const std::string& text) {
   return steps;
 }
 
-// Task 0 of `step` run as one of `n` at once (`--alongside N`).
-ChildResult runAlongside(const fs::path& work, const std::string& step, const std::string& n) {
-  return runChild({"stage", step, "--work", work.string(), "--task", "0", "--alongside", n});
+// Task 0 of `step` run as one of `n` at once (`--alongside N`) is refused as a usage error with
+// `message`.
+void expectAlongsideRefused(const fs::path& work, const std::string& step, const std::string& n,
+                            const std::string& message) {
+  const ChildResult refused =
+      runChild({"stage", step, "--work", work.string(), "--task", "0", "--alongside", n});
+  EXPECT_EQ(refused.exitCode, 2) << step << " --alongside " << n;
+  EXPECT_EQ(refused.output, message);
 }
 
 // Every task of the steps `next` lists and those they list in turn, up to the finish, each in a
@@ -183,19 +188,15 @@ TEST(Stage, TasksInSeparateProcessesGiveTheBytesOfBuildUnderTheCap) {
   ASSERT_EQ(runChild({"stage", "finish", "--work", work.string()}).exitCode, 0);
   EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
   // Only the range steps' tasks share the cap.
-  const ChildResult cells = runAlongside(work, "cells", "2");
-  EXPECT_EQ(cells.exitCode, 2);
-  EXPECT_EQ(cells.output, "facetree: unknown option '--alongside' (see facetree stage cells --help)\n");
-  const ChildResult three = runAlongside(work, "bin", "3");
-  EXPECT_EQ(three.exitCode, 2);
-  EXPECT_EQ(
-      three.output,
+  expectAlongsideRefused(work, "cells", "2",
+                         "facetree: unknown option '--alongside' (see facetree stage cells --help)\n");
+  expectAlongsideRefused(
+      work, "bin", "3",
       "facetree: the plan's cap of 64 MiB holds at most 2 bin tasks at once, not 3 (see facetree stage bin "
       "--help)\n");
-  const ChildResult none = runAlongside(work, "bin", "0");
-  EXPECT_EQ(none.exitCode, 2);
-  EXPECT_EQ(none.output,
-            "facetree: stage bin --alongside takes 1 to 1024 tasks, not 0 (see facetree stage bin --help)\n");
+  expectAlongsideRefused(
+      work, "bin", "0",
+      "facetree: stage bin --alongside takes 1 to 1024 tasks, not 0 (see facetree stage bin --help)\n");
 }
 
 // A binary STL is read in ranges too, its corners welded by position as the single process welds
@@ -245,10 +246,8 @@ TEST(Stage, ABinarySTLIsReadAndWeldedInRanges) {
   EXPECT_EQ(fileBytes(staged), fileBytes(dir.path / "whole.fch"));
   // Its range tasks run one at a time (a bin task holds an id per corner of its range).
   EXPECT_EQ(jsonNumber(plan.output, "range_tasks_at_once"), 1u);
-  const ChildResult two = runAlongside(work, "read", "2");
-  EXPECT_EQ(two.exitCode, 2);
-  EXPECT_EQ(
-      two.output,
+  expectAlongsideRefused(
+      work, "read", "2",
       "facetree: the plan's cap of 64 MiB holds at most 1 read task at once, not 2 (see facetree stage read "
       "--help)\n");
 
