@@ -1,14 +1,15 @@
-// The one-process schedule of a binary PLY read in ranges (out of core): the stages' own read,
-// count, grid and bin tasks (stages/read_ranges.cpp) on a pool of threads over a work directory
-// inside the run's temporary directory, then the cells and the rest of the build in this process
-// from the bin tasks' spills, as runOutOfCore goes on after its own bin. A mesh read whole takes
-// the same read and bin whatever runs it (the plan task is runJob); this one takes the same tasks.
-// A binary STL, which the stages also read in ranges, is read whole here: its weld as tasks holds
-// more than the arrival's weld (stages/weld_arrival.cpp) under the same cap.
+// The one-process schedule of a binary PLY or STL read in ranges (out of core): the stages' own
+// read, count, (an STL's) weld, grid and bin tasks (stages/read_ranges.cpp, stages/weld_ranges.cpp)
+// on a pool of threads over a work directory inside the run's temporary directory, then the cells
+// and the rest of the build in this process from the bin tasks' spills, as runOutOfCore goes on
+// after its own bin. A mesh read whole takes the same read and bin whatever runs it (the plan task
+// is runJob); this one takes the same tasks.
 //
 // The tasks at once share half the cap for their buffers, each on one thread (its spills compress
-// on that thread). Their outputs depend on the plan alone, so the file is the same bytes for any
-// pool.
+// on that thread). An STL's count tasks also file every corner by weld bucket, and its bin tasks
+// hold an id per corner of their range besides: they size their buffers from a half and a quarter
+// of their share, so that the read and the bin stay under the whole-file weld's peak. Their
+// outputs depend on the plan alone, so the file is the same bytes for any pool.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -95,10 +96,15 @@ void runTasks(uint32_t count, unsigned workers, const std::function<void(uint32_
 }  // namespace
 
 bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
-  if (readsInRanges(job) != RangedInput::Ply) return false;
+  const RangedInput input = readsInRanges(job);
+  if (input == RangedInput::None) return false;
+  const bool soup = input == RangedInput::Stl;
   const std::filesystem::path work = temp.path() / "ranges";
   std::filesystem::create_directories(work);
+  // The read and count tasks hold a reader and a grid of the bins each, whatever the input; an
+  // STL's weld and bin tasks hold more (rangeTasksAtOnce) and run one at a time.
   const unsigned workers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), false));
+  const unsigned binWorkers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), soup));
   // One range a worker unless the job says (a cell's faces come from a bucket of every range's
   // segment), and the tasks' files unsynced: they live and die with this run.
   ClusterJob local = job;
@@ -132,16 +138,22 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       });
       runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
         const uint64_t base = ranges.faceBounds[i + 1] - ranges.faceBounds[i];
-        runCountTask(read.taskJob(i, taskThreads(rangeCount), base), work, i, sharing);
+        runCountTask(read.taskJob(i, taskThreads(rangeCount), base), work, i, soup ? 2 * sharing : sharing);
       });
+      if (soup) {
+        PhaseHooks weld(local, "weld", 3 * faces, ranges.weldTasks);
+        runTasks(ranges.weldTasks, binWorkers,
+                 [&](uint32_t i, unsigned) { runWeldTask(weld.taskJob(i, job.threads, 0), work, i); });
+      }
       runGridStep(local, work);
     });
   });
   timeStage(report, "bin", report.secondsBin, [&] {
     asTemporary([&] {
       PhaseHooks bin(local, "bin", faces, rangeCount);
-      runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
-        runBinTask(bin.taskJob(i, taskThreads(rangeCount), 0), work, i, sharing);
+      const unsigned threads = binWorkers > 1 ? taskThreads(rangeCount) : job.threads;
+      runTasks(rangeCount, binWorkers, [&](uint32_t i, unsigned sharing) {
+        runBinTask(bin.taskJob(i, threads, 0), work, i, soup ? 4 * sharing : sharing);
       });
     });
     releaseFreeMemory();  // the tasks' buffers, freed in the pool's arenas
@@ -160,6 +172,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   // The read's and count's manifests are spent.
   for (uint32_t i = 0; i < rangeCount; ++i)
     for (const char* step : {"read", "count"}) std::filesystem::remove(taskManifestPath(work, step, i));
+  if (soup) removeWeldFiles(work, ranges);
 
   const ClusterJob effective = effectiveJob(job);
   const StageContext context{effective, temp, state.memoryCap, report, nullptr};

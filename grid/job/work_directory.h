@@ -209,6 +209,9 @@ uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, 
 // welded (a triangle the read skipped).
 std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
                               uint32_t range);
+// The weld's files of every range and weld task, once every bin task has taken its ids (a run
+// that keeps no work directory).
+void removeWeldFiles(const std::filesystem::path& work, const RangePlan& plan);
 // The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
 // spills when `bins`.
 void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);

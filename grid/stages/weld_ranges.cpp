@@ -240,4 +240,13 @@ std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work
   return ids;
 }
 
+void removeWeldFiles(const std::filesystem::path& work, const RangePlan& plan) {
+  for (uint32_t i = 0; i < rangeCount(plan); ++i)
+    for (const auto& path : {cornersPath(work, i), cornersIndexPath(work, i)}) std::filesystem::remove(path);
+  for (uint32_t b = 0; b < plan.weldTasks; ++b) {
+    std::filesystem::remove(weldedPath(work, b));
+    std::filesystem::remove(taskManifestPath(work, "weld", b));
+  }
+}
+
 }  // namespace facetree

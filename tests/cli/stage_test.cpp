@@ -231,6 +231,21 @@ TEST(Stage, ABinarySTLIsReadAndWeldedInRanges) {
                                       "--memory", "64M", "--cell-faces", "20000", "--json"});
   ASSERT_EQ(whole.exitCode, 0) << whole.output;
   EXPECT_EQ(jsonNumber(whole.output, "triangles"), triangles - 1);
+  // One process runs the same tasks on a pool of threads. The same mesh zstd-compressed cannot be
+  // read in ranges: it is read whole and welded in arrival order (an external sort by position,
+  // another back), and gives the same vertices and bytes.
+  EXPECT_GT(jsonNumber(whole.output, "read_ranges"), 1u);
+  if (kPeakRssShowsTheCap) {
+    EXPECT_LE(jsonNumber(whole.output, "peak_rss_bytes"), kCap);
+  }
+  const fs::path zst = dir.path / "terrain.stl.zst";
+  ASSERT_EQ(std::system(("zstd -q -1 " + stl.string() + " -o " + zst.string()).c_str()), 0);
+  const ChildResult arrival = runChild({"build", zst.string(), "-o", (dir.path / "arrival.fch").string(),
+                                        "--memory", "64M", "--cell-faces", "20000", "--json"});
+  ASSERT_EQ(arrival.exitCode, 0) << arrival.output;
+  EXPECT_EQ(jsonNumber(arrival.output, "read_ranges"), 0u);
+  EXPECT_EQ(jsonNumber(arrival.output, "vertices"), jsonNumber(whole.output, "vertices"));
+  EXPECT_EQ(fileBytes(dir.path / "arrival.fch"), fileBytes(dir.path / "whole.fch"));
   const fs::path work = dir.path / "work", staged = dir.path / "staged.fch";
   const ChildResult plan =
       runChild({"stage", "plan", stl.string(), "--work", work.string(), "-o", staged.string(), "--memory",
