@@ -102,7 +102,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   const std::filesystem::path work = temp.path() / "ranges";
   std::filesystem::create_directories(work);
   // The read and count tasks hold a reader and a grid of the bins each, whatever the input; an
-  // STL's weld and bin tasks hold more (rangeTasksAtOnce) and run one at a time.
+  // STL's weld and bin tasks hold more (rangeTasksAtOnce) and run one at a time, on one thread.
   const unsigned workers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), false));
   const unsigned binWorkers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), soup));
   // One range a worker unless the job says (a cell's faces come from a bucket of every range's
@@ -143,7 +143,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       if (soup) {
         PhaseHooks weld(local, "weld", 3 * faces, ranges.weldTasks);
         runTasks(ranges.weldTasks, binWorkers,
-                 [&](uint32_t i, unsigned) { runWeldTask(weld.taskJob(i, job.threads, 0), work, i); });
+                 [&](uint32_t i, unsigned) { runWeldTask(weld.taskJob(i, 1, 0), work, i); });
       }
       runGridStep(local, work);
     });
@@ -151,7 +151,10 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   timeStage(report, "bin", report.secondsBin, [&] {
     asTemporary([&] {
       PhaseHooks bin(local, "bin", faces, rangeCount);
-      const unsigned threads = binWorkers > 1 ? taskThreads(rangeCount) : job.threads;
+      // An STL's bin tasks, one at a time, compress on their own thread all the same: their
+      // buffers, a quarter of a share, make small blocks, whose hand-off to a helper costs more
+      // than the helper saves.
+      const unsigned threads = soup ? 1 : taskThreads(rangeCount);
       runTasks(rangeCount, binWorkers, [&](uint32_t i, unsigned sharing) {
         runBinTask(bin.taskJob(i, threads, 0), work, i, soup ? 4 * sharing : sharing);
       });
