@@ -15,7 +15,9 @@
 #include <chrono>
 #include <exception>
 #include <functional>
+#include <map>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -93,6 +95,59 @@ void runTasks(uint32_t count, unsigned workers, const std::function<void(uint32_
   if (error) std::rethrow_exception(error);
 }
 
+// The files the tasks committed to the work directory, counted in the run's temporary space from
+// the end of the task that wrote them until they go: a task's own space accounts them (in the
+// run's too) only while it writes them, and --max-tmp and the report's peak are the run's.
+class WorkFiles {
+ public:
+  WorkFiles(TempSpace& temp, std::filesystem::path work) : temp_(temp), work_(std::move(work)) {}
+  ~WorkFiles() {
+    drop([](const std::string&) { return true; });
+  }
+  WorkFiles(const WorkFiles&) = delete;
+  WorkFiles& operator=(const WorkFiles&) = delete;
+
+  // Every file of the finished task `step` `task` (named STEP-TASK-* or STEP-TASK.*).
+  void add(std::string_view step, uint32_t task) {
+    const std::string stem = std::string(step) + "-" + std::to_string(task);
+    add([&](const std::string& name) {
+      return name.size() > stem.size() && name.compare(0, stem.size(), stem) == 0 &&
+             (name[stem.size()] == '-' || name[stem.size()] == '.');
+    });
+  }
+  void add(const std::function<bool(const std::string&)>& mine) {
+    const std::lock_guard lock(mutex_);
+    for (const auto& entry : std::filesystem::directory_iterator(work_)) {
+      const std::string name = entry.path().filename().string();
+      if (!entry.is_regular_file() || name.ends_with(".partial") || !mine(name) || bytes_.contains(name))
+        continue;
+      std::error_code error;
+      const uint64_t bytes = entry.file_size(error);  // as a spill counts its blocks
+      if (error) continue;
+      temp_.reserve(bytes);
+      bytes_.emplace(name, bytes);
+    }
+  }
+  // No longer counted here: removed, or accounted by the reader that opens them.
+  void drop(const std::function<bool(const std::string&)>& which) {
+    const std::lock_guard lock(mutex_);
+    for (auto at = bytes_.begin(); at != bytes_.end();) {
+      if (!which(at->first)) {
+        ++at;
+        continue;
+      }
+      temp_.release(at->second);
+      at = bytes_.erase(at);
+    }
+  }
+
+ private:
+  TempSpace& temp_;
+  std::filesystem::path work_;
+  std::mutex mutex_;
+  std::map<std::string, uint64_t> bytes_;
+};
+
 }  // namespace
 
 bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
@@ -112,6 +167,8 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   local.syncTaskFiles = false;
   StagePlan planned;
   if (!planRanges(local, work, planned)) return false;
+  WorkFiles files(temp, work);
+  files.add([](const std::string&) { return true; });  // the plan
   PlanState state = loadPlanManifest(work);
   const RangePlan& ranges = state.rangePlan;
   const auto rangeCount = static_cast<uint32_t>(ranges.faceBounds.size() - 1);
@@ -135,17 +192,27 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       PhaseHooks read(local, "read", 2 * faces, rangeCount);
       runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
         runReadTask(read.taskJob(i, taskThreads(rangeCount), 0), work, i, sharing);
+        files.add("read", i);
       });
       runTasks(rangeCount, workers, [&](uint32_t i, unsigned sharing) {
         const uint64_t base = ranges.faceBounds[i + 1] - ranges.faceBounds[i];
-        runCountTask(read.taskJob(i, taskThreads(rangeCount), base), work, i, soup ? 2 * sharing : sharing);
+        runCountTask(read.taskJob(i, taskThreads(rangeCount), base), work, i, soup ? 2 * sharing : sharing,
+                     &temp);
+        files.add("count", i);
       });
       if (soup) {
         PhaseHooks weld(local, "weld", 3 * faces, ranges.weldTasks);
-        runTasks(ranges.weldTasks, binWorkers,
-                 [&](uint32_t i, unsigned) { runWeldTask(weld.taskJob(i, 1, 0), work, i); });
+        runTasks(ranges.weldTasks, binWorkers, [&](uint32_t i, unsigned) {
+          runWeldTask(weld.taskJob(i, 1, 0), work, i, &temp);
+          files.add("weld", i);
+        });
+        removeWeldCorners(work, ranges);
+        files.drop([](const std::string& name) {
+          return name.starts_with("count-") && name.find("-corners.") != std::string::npos;
+        });
       }
       runGridStep(local, work);
+      files.add([](const std::string& name) { return name.starts_with("grid."); });
     });
   });
   timeStage(report, "bin", report.secondsBin, [&] {
@@ -156,7 +223,8 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       // than the helper saves.
       const unsigned threads = soup ? 1 : taskThreads(rangeCount);
       runTasks(rangeCount, binWorkers, [&](uint32_t i, unsigned sharing) {
-        runBinTask(bin.taskJob(i, threads, 0), work, i, soup ? 4 * sharing : sharing);
+        runBinTask(bin.taskJob(i, threads, 0), work, i, soup ? 4 * sharing : sharing, &temp);
+        files.add("bin", i);
       });
     });
     releaseFreeMemory();  // the tasks' buffers, freed in the pool's arenas
@@ -175,11 +243,16 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   // The read's and count's manifests are spent.
   for (uint32_t i = 0; i < rangeCount; ++i)
     for (const char* step : {"read", "count"}) std::filesystem::remove(taskManifestPath(work, step, i));
-  if (soup) removeWeldFiles(work, ranges);
+  if (soup) removeWeldIds(work, ranges);
+  files.drop([](const std::string& name) {
+    return name.starts_with("read-") || name.starts_with("count-") || name.starts_with("weld-");
+  });
 
   const ClusterJob effective = effectiveJob(job);
   const StageContext context{effective, temp, state.memoryCap, report, nullptr};
   // Owned: the cells give the binned faces' pages back as they drain them, as from the arrival's bin.
+  // The reader accounts them from here.
+  files.drop([](const std::string& name) { return name.starts_with("bin-") && name.ends_with(".spill"); });
   BinnedFaces binnedFaces = openBinned(temp, work, state, 0, state.cellCount, /*owned=*/true);
   // Every cell's list of blocks to a file of the temporary space, as the whole-file bin's go: in
   // memory the lists of every cell hold an entry per block of every segment through the cells.

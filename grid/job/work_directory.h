@@ -129,9 +129,11 @@ PlanState loadPlanManifest(const std::filesystem::path& work);
 // What a task of the stages runs with: the job as the stages see it, a temporary space of its
 // own, and the stages' context over them and `report`, in the work directory.
 struct TaskContext {
-  TaskContext(const ClusterJob& job, uint64_t memoryCap, const std::filesystem::path& work, JobReport& report)
+  // `accountTo`: the run's temporary space, for a task of one process (its files count there too).
+  TaskContext(const ClusterJob& job, uint64_t memoryCap, const std::filesystem::path& work, JobReport& report,
+              TempSpace* accountTo = nullptr)
       : effective(effectiveJob(job)),
-        temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory),
+        temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory, accountTo),
         stage{effective, temp, memoryCap, report, &work} {}
   TaskContext(const TaskContext&) = delete;
   TaskContext& operator=(const TaskContext&) = delete;
@@ -155,6 +157,7 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state);
 // writes nothing); each task returns false, doing nothing, when its manifest is there already.
 // `sharing`: how many shares of the cap the tasks at once on this machine make, each task sizing its
 // buffers from one (the plan, and so every output, stays the plan's).
+// `accountTo`: the run's temporary space when the tasks run in its process (job/ranges_here.cpp).
 enum class RangedInput { None, Ply, Stl };
 RangedInput readsInRanges(const ClusterJob& job);
 bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
@@ -167,10 +170,10 @@ unsigned rangeTasksAtOnce(const PlanState& plan);  // a plan of ranges: its cap,
 bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
                  unsigned sharing = 1);
 bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
-                  unsigned sharing = 1);
+                  unsigned sharing = 1, TempSpace* accountTo = nullptr);
 bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
-                unsigned sharing = 1);
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing = 1,
+                TempSpace* accountTo = nullptr);
 // The weld of a binary STL read in ranges (stages/weld_ranges.cpp): a read task samples its corners, the
 // count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
 // the grid step counts them and a bin task gives its corners their vertex ids.
@@ -202,16 +205,18 @@ class WeldPartition {
   std::vector<PositionBits> splitters_;
   std::unique_ptr<BucketSpill> spill_;
 };
-bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+                 TempSpace* accountTo = nullptr);
 // The mesh's distinct positions; Error (Input) "NAME: more than 4294967295 distinct vertex positions".
 uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, const std::string& name);
 // Range `range`'s vertex ids: ids[3 * (face - first face) + corner], kNoVertex for a corner not
 // welded (a triangle the read skipped).
 std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
                               uint32_t range);
-// The weld's files of every range and weld task, once every bin task has taken its ids (a run
-// that keeps no work directory).
-void removeWeldFiles(const std::filesystem::path& work, const RangePlan& plan);
+// For a run that keeps no work directory: the count tasks' corners once every weld task is done,
+// and the weld tasks' files once every bin task has taken its ids.
+void removeWeldCorners(const std::filesystem::path& work, const RangePlan& plan);
+void removeWeldIds(const std::filesystem::path& work, const RangePlan& plan);
 // The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
 // spills when `bins`.
 void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);

@@ -319,7 +319,8 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   return true;
 }
 
-bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
+bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing,
+                  TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "count", task);
   if (std::filesystem::exists(path)) return false;
   const RangeTask t = rangeTask(work, "count", task, sharing);
@@ -329,7 +330,7 @@ bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint
   const RangeInput file = reopen(job, t.plan.rangePlan);
   CellGrid grid(extent.min, extent.max);
   // An STL's corners go to their weld buckets on the way.
-  TaskContext run(job, t.plan.memoryCap, work, report);
+  TaskContext run(job, t.plan.memoryCap, work, report, accountTo);
   const StageContext& context = run.stage;
   std::optional<WeldPartition> weld;
   if (file.stl)
@@ -420,14 +421,15 @@ bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
   return true;
 }
 
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
+bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing,
+                TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "bin", task);
   if (std::filesystem::exists(path)) return false;
   RangeTask t = rangeTask(work, "bin", task, sharing);
   loadGridManifest(work, t.plan, /*bins=*/false);
   PlanState& state = t.plan;
   JobReport report;
-  TaskContext run(job, state.memoryCap, work, report);
+  TaskContext run(job, state.memoryCap, work, report, accountTo);
   const StageContext& context = run.stage;
   BinnedFaces binned = restoredBins(state, work);
   std::vector<CellGrid::SplitBin> split = state.splitBins;

@@ -124,7 +124,8 @@ void WeldPartition::commit() {
   out.commit(cornersIndexPath(work_, task_), kCornersKind);
 }
 
-bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+                 TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "weld", task);
   if (std::filesystem::exists(path)) return false;
   const PlanState state = loadPlanManifest(work);
@@ -133,7 +134,7 @@ bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint3
     throw std::invalid_argument("no weld task " + std::to_string(task) + " in " + work.string());
   const uint32_t ranges = rangeCount(plan);
   JobReport report;
-  TaskContext run(job, state.memoryCap, work, report);
+  TaskContext run(job, state.memoryCap, work, report, accountTo);
   const StageContext& context = run.stage;
   const uint64_t cap = state.memoryCap;
 
@@ -240,9 +241,12 @@ std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work
   return ids;
 }
 
-void removeWeldFiles(const std::filesystem::path& work, const RangePlan& plan) {
+void removeWeldCorners(const std::filesystem::path& work, const RangePlan& plan) {
   for (uint32_t i = 0; i < rangeCount(plan); ++i)
     for (const auto& path : {cornersPath(work, i), cornersIndexPath(work, i)}) std::filesystem::remove(path);
+}
+
+void removeWeldIds(const std::filesystem::path& work, const RangePlan& plan) {
   for (uint32_t b = 0; b < plan.weldTasks; ++b) {
     std::filesystem::remove(weldedPath(work, b));
     std::filesystem::remove(taskManifestPath(work, "weld", b));

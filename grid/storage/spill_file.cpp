@@ -200,7 +200,7 @@ std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, std::span<const std
   uint64_t total = 0;
   for (const Segment& segment : segments) total += segment.bytes;
   try {
-    space.reserve(total);
+    space.reserveOpened(total);
   } catch (...) {
     closeAll();
     throw;
@@ -208,7 +208,7 @@ std::unique_ptr<SpillFile> SpillFile::open(TempSpace& space, std::span<const std
   try {
     return std::unique_ptr<SpillFile>(new SpillFile(space, std::move(segments), recordBytes));
   } catch (...) {  // allocation: the descriptors are still the vector's
-    space.release(total);
+    space.releaseOpened(total);
     closeAll();
     throw;
   }
@@ -230,7 +230,9 @@ SpillFile::~SpillFile() {
   if (fd_ >= 0) ::close(fd_);
   for (const Segment& segment : opened_) ::close(segment.fd);
   if (!partial_.empty()) ::unlink(partial_.c_str());
-  space_.release(held_);
+  const uint64_t opened = std::min(held_, openedBytes_);  // reserveOpened's, less pages given back
+  space_.releaseOpened(opened);
+  space_.release(held_ - opened);
 }
 
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {

@@ -19,8 +19,8 @@ void throwTempSpaceError(const std::filesystem::path& path, std::string_view rea
 }
 
 TempSpace::TempSpace(const std::filesystem::path& parent, uint64_t maxBytes,
-                     std::function<void(const std::filesystem::path&)> created)
-    : parent_(parent), onCreated_(std::move(created)), maxBytes_(maxBytes) {}
+                     std::function<void(const std::filesystem::path&)> created, TempSpace* accountTo)
+    : parent_(parent), accountTo_(accountTo), onCreated_(std::move(created)), maxBytes_(maxBytes) {}
 
 const std::filesystem::path& TempSpace::path() {
   if (created_.load(std::memory_order_acquire)) return path_;
@@ -58,6 +58,17 @@ std::filesystem::path TempSpace::newFile(std::string_view stem) {
 }
 
 void TempSpace::reserve(uint64_t bytes) {
+  if (!accountTo_) return reserveHere(bytes);
+  accountTo_->reserve(bytes);
+  try {
+    reserveHere(bytes);
+  } catch (...) {
+    accountTo_->release(bytes);
+    throw;
+  }
+}
+
+void TempSpace::reserveHere(uint64_t bytes) {
   uint64_t current = current_.load(std::memory_order_relaxed);
   uint64_t next;
   do {
@@ -74,6 +85,7 @@ void TempSpace::reserve(uint64_t bytes) {
 
 void TempSpace::release(uint64_t bytes) {
   current_.fetch_sub(bytes, std::memory_order_relaxed);
+  if (accountTo_) accountTo_->release(bytes);
 }
 
 }  // namespace facetree

@@ -27,8 +27,11 @@ class TempSpace {
  public:
   // `created` is called with the directory once it exists (e.g. to register it for a signal
   // handler's last-resort cleanup).
+  // `accountTo`: a space whose bytes include this one's (a task's of one process, in the run's):
+  // every reserve is made there first, against its limit, and every release there too.
   explicit TempSpace(const std::filesystem::path& parent = {}, uint64_t maxBytes = 0,
-                     std::function<void(const std::filesystem::path&)> created = {});
+                     std::function<void(const std::filesystem::path&)> created = {},
+                     TempSpace* accountTo = nullptr);
   ~TempSpace();
   TempSpace(const TempSpace&) = delete;
   TempSpace& operator=(const TempSpace&) = delete;
@@ -45,12 +48,18 @@ class TempSpace {
   // Accounts `bytes` before they are written; throws Error (Resource) past maxBytes (and accounts nothing).
   void reserve(uint64_t bytes);
   void release(uint64_t bytes);
+  // The committed files of a work directory, opened to be read: a task's space of one process
+  // counts them here alone, since the run counts them as its own from their commit.
+  void reserveOpened(uint64_t bytes) { accountTo_ ? reserveHere(bytes) : reserve(bytes); }
+  void releaseOpened(uint64_t bytes) { current_.fetch_sub(bytes, std::memory_order_relaxed); }
 
   uint64_t currentBytes() const { return current_.load(std::memory_order_relaxed); }
   uint64_t peakBytes() const { return peak_.load(std::memory_order_relaxed); }
 
  private:
+  void reserveHere(uint64_t bytes);
   std::filesystem::path parent_;
+  TempSpace* accountTo_;
   std::function<void(const std::filesystem::path&)> onCreated_;
   std::mutex createMutex_;
   std::atomic<bool> created_{false};

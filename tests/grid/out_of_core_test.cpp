@@ -1024,6 +1024,78 @@ TEST(OutOfCore, StlIsWeldedWithBoundedMemory) {
   EXPECT_EQ(joins(fromStl), joins(fromPly));
 }
 
+// A binary STL out of core: one process runs its read, count, weld, grid and bin tasks on the pool.
+// The files they hand on in the run's work directory count against --max-tmp and in the report's
+// peak from their commit to their removal, not only while a task writes them: the peak is never
+// below what the directory held.
+TEST(OutOfCore, TheTasksFilesCountInTheRunsTemporaryBytes) {
+  ScratchDir dir;
+  const IndexedMesh mesh = load(generate(dir, "t.ply", SyntheticKind::Terrain, 400000, true));
+  const fs::path stl = writeBinaryStl(mesh, dir / "t.stl");
+  const fs::path tmp = dir / "tmp";
+  fs::create_directories(tmp);
+  ClusterJob job;
+  job.input = stl;
+  job.tmpDir = tmp;
+  job.memoryCap = uint64_t{48} << 20;
+  job.readTasks = 4;
+  // What the files under the temporary directory hold (those with a name), at every report of
+  // progress: the tasks report theirs, one at a time.
+  uint64_t seen = 0;
+  job.progress = [&](const JobProgress&) {
+    uint64_t bytes = 0;
+    std::error_code error;
+    for (auto it = fs::recursive_directory_iterator(tmp, error);
+         !error && it != fs::recursive_directory_iterator(); it.increment(error)) {
+      std::error_code sizeError;
+      const uint64_t size = it->is_regular_file(sizeError) ? fs::file_size(it->path(), sizeError) : 0;
+      if (!sizeError) bytes += size;
+    }
+    seen = std::max(seen, bytes);
+    return true;
+  };
+  std::string reference;
+  uint64_t peak = 0;
+  for (const unsigned threads : {1u, 2u}) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    seen = 0;
+    job.threads = threads;
+    job.output = dir / "t.fch";
+    const JobReport report = runClusterJob(job);
+    ASSERT_EQ(report.readRanges, 4u);
+    EXPECT_GT(seen, uint64_t{1} << 20);
+    EXPECT_GE(report.temporaryBytesPeak, seen);
+    if (threads == 1) {
+      reference = bytesOf(job.output);
+      peak = report.temporaryBytesPeak;
+    }
+    EXPECT_EQ(bytesOf(job.output), reference);
+    EXPECT_TRUE(fs::is_empty(tmp));
+  }
+
+  // Under a limit below what the directory held: the run's one error, no output, no file left.
+  job.threads = 1;
+  job.maxTemporaryBytes = peak / 2;
+  job.output = dir / "limited.fch";
+  try {
+    runClusterJob(job);
+    ADD_FAILURE() << "no error under --max-tmp " << job.maxTemporaryBytes;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Resource);
+    const std::string what = e.what(), tail = ": temporary files would exceed --max-tmp " +
+                                              std::to_string(peak / 2) + " bytes";
+    EXPECT_EQ(what.rfind(tmp.string(), 0), 0u) << what;
+    EXPECT_TRUE(what.ends_with(tail)) << what;
+  }
+  EXPECT_FALSE(fs::exists(job.output));
+  EXPECT_TRUE(fs::is_empty(tmp));
+  // At the peak, the same bytes (a run's peak varies by a few KiB: the limit is 1% over it).
+  job.maxTemporaryBytes = peak + peak / 100;
+  job.output = dir / "at.fch";
+  runClusterJob(job);
+  EXPECT_EQ(bytesOf(job.output), reference);
+}
+
 // A grid of `side` x `side` quads in which every triangle has its own three vertices, as a
 // binary PLY: without welding every triangle is a component.
 fs::path writeSplitGrid(const ScratchDir& dir, uint32_t side) {

@@ -143,6 +143,64 @@ TEST(TempSpace, reservePastMaxTmpThrowsTheExactMessageAndAccountsNothing) {
   EXPECT_FACETREE_ERROR(space.reserve(UINT64_MAX), Resource);
 }
 
+// A task's space in one process counts in the run's: its writes against the run's limit (the
+// error names the run's directory and accounts nothing in either), its releases there too; the
+// committed files it opens to read are the run's already, and count in the task's alone.
+TEST(TempSpace, aTasksSpaceCountsInTheRunsAndItsOpenedFilesOnlyInItsOwn) {
+  ScratchDir parent;
+  TempSpace run(parent.path(), 1000000);
+  run.path();
+  run.reserve(300000);  // the files the tasks before committed
+  {
+    TempSpace task(parent.path(), 1000000, {}, &run);
+    task.reserve(500000);
+    EXPECT_EQ(task.currentBytes(), 500000u);
+    EXPECT_EQ(run.currentBytes(), 800000u);
+    EXPECT_EQ(errorOf([&] { task.reserve(200001); }),
+              run.path().string() + ": temporary files would exceed --max-tmp 1000000 bytes");
+    EXPECT_EQ(task.currentBytes(), 500000u);
+    EXPECT_EQ(run.currentBytes(), 800000u);
+    task.reserveOpened(300000);
+    EXPECT_EQ(task.currentBytes(), 800000u);
+    EXPECT_EQ(run.currentBytes(), 800000u);
+    task.releaseOpened(300000);
+    task.release(500000);
+    EXPECT_EQ(task.currentBytes(), 0u);
+  }
+  EXPECT_EQ(run.currentBytes(), 300000u);
+  EXPECT_EQ(run.peakBytes(), 800000u);
+  // Without a run to count in, opened files count as any other.
+  run.reserveOpened(700000);
+  EXPECT_EQ(run.currentBytes(), 1000000u);
+  EXPECT_FACETREE_ERROR(run.reserveOpened(1), Resource);
+}
+
+// Committed named files opened in a task's space count there alone while the reader lives.
+TEST(SpillFile, openedSegmentsCountInTheTasksSpaceAloneWhileRead) {
+  ScratchDir work;
+  TempSpace run(work.path());
+  SpillCodec codec;
+  const std::filesystem::path path = work.path() / "corners.spill";
+  {
+    SpillFile file(run, SpillFile::Named{path});
+    file.append(std::vector<std::byte>(4000, std::byte{7}), codec);
+    file.commit();
+  }
+  EXPECT_EQ(run.currentBytes(), 0u);
+  const uint64_t bytes = std::filesystem::file_size(path);
+  TempSpace task(work.path(), 0, {}, &run);
+  {
+    const std::unique_ptr<SpillFile> opened = SpillFile::open(task, path);
+    EXPECT_EQ(task.currentBytes(), bytes);
+    EXPECT_EQ(run.currentBytes(), 0u);
+    opened->append(std::vector<std::byte>(100, std::byte{1}), codec);  // the reader's own file
+    EXPECT_GT(run.currentBytes(), 0u);
+    EXPECT_EQ(task.currentBytes(), bytes + run.currentBytes());
+  }
+  EXPECT_EQ(task.currentBytes(), 0u);
+  EXPECT_EQ(run.currentBytes(), 0u);
+}
+
 TEST(TempSpace, accountingFromTwoThreadsAddsUp) {
   ScratchDir parent;
   TempSpace space(parent.path());
