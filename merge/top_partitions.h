@@ -11,12 +11,11 @@ namespace facetree {
 inline constexpr int kMaxPartitionClusters = 8;
 
 // The merges that take n <= kMaxPartitionClusters clusters to one, as pairs of subset masks over
-// the n clusters (the pair's union is the merged cluster), first merge first; none when the
-// merges one at a time by the least increase of the fit score as well (the caller's order stands). fit and
-// boxArea hold, for every subset mask, the union's area x eFit and its box area; boxLimit[k] the limit on a
-// cut of k clusters' box areas (0 or infinity: none); adjacent[i] the mask of the clusters that share an edge
-// with cluster i; height[i] its height. The root is no higher than the merges one at a time by the least
-// increase of the fit make it.
+// the n clusters (the pair's union is the merged cluster), first merge first; none when no order
+// is strictly better than `alone` (the caller's own order, the same pairs), which then stands.
+// fit and boxArea hold, for every subset mask, the union's area x eFit and its box area;
+// boxLimit[k] the limit on a cut of k clusters' box areas (0 or infinity: none); height[i]
+// cluster i's height. The root is no higher than `alone` makes it.
 std::vector<std::pair<uint8_t, uint8_t>> lastMergesByPartitions(
     int n, std::span<const double> fit, std::span<const double> boxArea, std::span<const double> boxLimit,
     std::span<const std::pair<uint8_t, uint8_t>> alone, std::span<const uint32_t> height);

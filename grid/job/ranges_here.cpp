@@ -128,6 +128,10 @@ class WorkFiles {
       bytes_.emplace(name, bytes);
     }
   }
+  // No longer counted here: the files removed since.
+  void forgetRemoved() {
+    drop([&](const std::string& name) { return !std::filesystem::exists(work_ / name); });
+  }
   // No longer counted here: removed, or accounted by the reader that opens them.
   void drop(const std::function<bool(const std::string&)>& which) {
     const std::lock_guard lock(mutex_);
@@ -207,9 +211,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
           files.add("weld", i);
         });
         removeWeldCorners(work, ranges);
-        files.drop([](const std::string& name) {
-          return name.starts_with("count-") && name.find("-corners.") != std::string::npos;
-        });
+        files.forgetRemoved();
       }
       runGridStep(local, work);
       files.add([](const std::string& name) { return name.starts_with("grid."); });
@@ -244,9 +246,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   for (uint32_t i = 0; i < rangeCount; ++i)
     for (const char* step : {"read", "count"}) std::filesystem::remove(taskManifestPath(work, step, i));
   if (soup) removeWeldIds(work, ranges);
-  files.drop([](const std::string& name) {
-    return name.starts_with("read-") || name.starts_with("count-") || name.starts_with("weld-");
-  });
+  files.forgetRemoved();
 
   const ClusterJob effective = effectiveJob(job);
   const StageContext context{effective, temp, state.memoryCap, report, nullptr};
