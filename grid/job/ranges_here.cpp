@@ -5,6 +5,10 @@
 // after its own bin. A mesh read whole takes the same read and bin whatever runs it (the plan task
 // is runJob); this one takes the same tasks.
 //
+// The tasks hand on their manifests in memory (a ManifestShelf) as far as a small budget holds
+// them, and the bin tasks share the grid's owner table, decoded once: 8 MiB a task less than tasks
+// in processes of their own hold.
+//
 // The tasks at once share half the cap for their buffers, each on one thread (its spills compress
 // on that thread). An STL's count tasks also file every corner by weld bucket, and its bin tasks
 // hold an id per corner of their range besides: they size their buffers from a half and a quarter
@@ -158,12 +162,17 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   const RangedInput input = readsInRanges(job);
   if (input == RangedInput::None) return false;
   const bool soup = input == RangedInput::Stl;
-  const std::filesystem::path work = temp.path() / "ranges";
-  std::filesystem::create_directories(work);
-  // The read and count tasks hold a reader and a grid of the bins each, whatever the input; an
-  // STL's weld and bin tasks hold more (rangeTasksAtOnce) and run one at a time, on one thread.
+  // The tasks hand on their manifests in this process's memory, up to a 256th of the cap (the rest
+  // as files, counted in the temporary space); their spills go to the directory.
+  ManifestShelf shelf(jobMemoryCap(job) / 256);
+  const WorkDirectory work(temp.path() / "ranges", shelf);
+  std::filesystem::create_directories(work.path());
+  // The read and count tasks hold a reader and a grid of the bins each, whatever the input; the bin
+  // tasks a reader each and the one owner table. An STL's weld and bin tasks hold more
+  // (rangeTasksAtOnce) and run one at a time, on one thread.
   const unsigned workers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), false));
-  const unsigned binWorkers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), soup));
+  const unsigned weldWorkers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), soup));
+  const unsigned binWorkers = std::clamp(job.threads, 1u, binTasksSharingGrid(jobMemoryCap(job), soup));
   // One range a worker unless the job says (a cell's faces come from a bucket of every range's
   // segment), and the tasks' files unsynced: they live and die with this run.
   ClusterJob local = job;
@@ -171,7 +180,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   local.syncTaskFiles = false;
   StagePlan planned;
   if (!planRanges(local, work, planned)) return false;
-  WorkFiles files(temp, work);
+  WorkFiles files(temp, work.path());
   files.add([](const std::string&) { return true; });  // the plan
   PlanState state = loadPlanManifest(work);
   const RangePlan& ranges = state.rangePlan;
@@ -206,7 +215,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       });
       if (soup) {
         PhaseHooks weld(local, "weld", 3 * faces, ranges.weldTasks);
-        runTasks(ranges.weldTasks, binWorkers, [&](uint32_t i, unsigned) {
+        runTasks(ranges.weldTasks, weldWorkers, [&](uint32_t i, unsigned) {
           runWeldTask(weld.taskJob(i, 1, 0), work, i, &temp);
           files.add("weld", i);
         });
@@ -215,6 +224,10 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       }
       runGridStep(local, work);
       files.add([](const std::string& name) { return name.starts_with("grid."); });
+      // The read's and count's manifests are spent.
+      for (uint32_t i = 0; i < rangeCount; ++i)
+        for (const char* step : {"read", "count"}) work.remove(taskManifestPath(work, step, i));
+      files.forgetRemoved();
     });
   });
   timeStage(report, "bin", report.secondsBin, [&] {
@@ -242,9 +255,6 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   report.cells = read.cells;
   report.cellFaceLimit = read.cellFaceLimit;
   report.readRanges = rangeCount;
-  // The read's and count's manifests are spent.
-  for (uint32_t i = 0; i < rangeCount; ++i)
-    for (const char* step : {"read", "count"}) std::filesystem::remove(taskManifestPath(work, step, i));
   if (soup) removeWeldIds(work, ranges);
   files.forgetRemoved();
 
@@ -254,6 +264,9 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   // The reader accounts them from here.
   files.drop([](const std::string& name) { return name.starts_with("bin-") && name.ends_with(".spill"); });
   BinnedFaces binnedFaces = openBinned(temp, work, state, 0, state.cellCount, /*owned=*/true);
+  // The manifests are spent: the owner table lives as long as the cells' grid alone.
+  state.owners.reset();
+  shelf.clear();
   // Every cell's list of blocks to a file of the temporary space, as the whole-file bin's go: in
   // memory the lists of every cell hold an entry per block of every segment through the cells.
   for (auto* spills : {&binnedFaces.faces, &binnedFaces.ghosts})

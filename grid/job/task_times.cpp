@@ -16,26 +16,25 @@ namespace {
 constexpr const char* kSteps[] = {"plan",  "read",     "count", "weld",  "grid",   "bin",   "cells",
                                   "upper", "geometry", "boxes", "nodes", "layout", "place", "finish"};
 
-std::filesystem::path timesDir(const std::filesystem::path& work) {
+std::filesystem::path timesDir(const WorkDirectory& work) {
   return work / "times";
 }
 
 }  // namespace
 
-void recordStageTime(const std::filesystem::path& work, std::string_view step, uint32_t task,
-                     double seconds) {
+void recordStageTime(const WorkDirectory& work, std::string_view step, uint32_t task, double seconds) {
   std::error_code error;
   std::filesystem::create_directories(timesDir(work), error);
   std::ofstream out(timesDir(work) / (std::string(step) + "-" + std::to_string(task)), std::ios::trunc);
   out << seconds << ' ' << peakResidentBytes() << '\n';  // a record lost costs the report only
 }
 
-void clearStageTimes(const std::filesystem::path& work) {
+void clearStageTimes(const WorkDirectory& work) {
   std::error_code error;
   std::filesystem::remove_all(timesDir(work), error);
 }
 
-void addStageTimes(const std::filesystem::path& work, JobReport& report) {
+void addStageTimes(const WorkDirectory& work, JobReport& report) {
   double seconds[std::size(kSteps)] = {};
   uint64_t peak[std::size(kSteps)] = {};
   std::error_code error;

@@ -7,6 +7,7 @@
 // together and runs the rest of the build. Every task's outputs depend on its inputs alone, so the
 // file is the single process's bytes.
 #include <chrono>
+#include <cstring>
 #include <sstream>
 #include <string>
 
@@ -99,20 +100,25 @@ void putOwners(ManifestWriter& out, std::span<const uint32_t> owners) {
   out.putVector(runs);
 }
 
-std::vector<uint32_t> takeOwners(ManifestReader& in, const std::filesystem::path& path) {
-  const std::vector<uint32_t> runs = in.takeVector<uint32_t>();
-  uint64_t bins = 0;
-  for (size_t r = 1; r < runs.size(); r += 2) bins += runs[r];
-  if (runs.size() % 2 != 0 || bins != CellGrid::kBins)
-    throw Error(ErrorCategory::Input, path.string() + ": a grid of " + std::to_string(bins) + " bins");
-  std::vector<uint32_t> owners;
-  owners.reserve(CellGrid::kBins);
-  for (size_t r = 0; r < runs.size(); r += 2) owners.insert(owners.end(), runs[r + 1], runs[r]);
-  return owners;
+std::shared_ptr<const std::vector<uint32_t>> takeOwners(ManifestReader& in, const WorkDirectory& work,
+                                                        const std::filesystem::path& path) {
+  const std::string_view field = in.takeView();
+  return work.decoded<std::vector<uint32_t>>(path, [&] {
+    std::vector<uint32_t> runs(field.size() / sizeof(uint32_t));
+    if (!runs.empty()) std::memcpy(runs.data(), field.data(), runs.size() * sizeof(uint32_t));
+    uint64_t bins = 0;
+    for (size_t r = 1; r < runs.size(); r += 2) bins += runs[r];
+    if (field.size() % (2 * sizeof(uint32_t)) != 0 || bins != CellGrid::kBins)
+      throw Error(ErrorCategory::Input, path.string() + ": a grid of " + std::to_string(bins) + " bins");
+    std::vector<uint32_t> owners;
+    owners.reserve(CellGrid::kBins);
+    for (size_t r = 0; r < runs.size(); r += 2) owners.insert(owners.end(), runs[r + 1], runs[r]);
+    return owners;
+  });
 }
 
-PlanState loadPlanManifest(const std::filesystem::path& work) {
-  ManifestReader in(planPath(work), kPlanKind);
+PlanState loadPlanManifest(const WorkDirectory& work) {
+  ManifestReader in = work.read(planPath(work), kPlanKind);
   PlanState s;
   s.fingerprint = in.takeBytes();
   s.inCore = in.take<bool>();
@@ -139,7 +145,7 @@ PlanState loadPlanManifest(const std::filesystem::path& work) {
     } else {
       s.extent = in.take<MeshExtent>();
       s.cellCount = in.take<uint32_t>();
-      s.owners = takeOwners(in, planPath(work));
+      s.owners = takeOwners(in, work, planPath(work));
       s.facesFiles = {work / binnedFile("cell-faces")};
       s.ghostsFiles = {work / binnedFile("ghosts")};
       s.facesIndex = {in.takeBytes()};
@@ -151,13 +157,13 @@ PlanState loadPlanManifest(const std::filesystem::path& work) {
   return s;
 }
 
-BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work) {
+BinnedFaces restoredBins(PlanState& state, const WorkDirectory& work) {
   BinnedFaces binned;
   binned.grid = restoreGrid(state, work);
   return binned;
 }
 
-BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanState& state, uint32_t first,
+BinnedFaces openBinned(TempSpace& temp, const WorkDirectory& work, PlanState& state, uint32_t first,
                        uint32_t end, bool owned) {
   BinnedFaces binned = restoredBins(state, work);
   BucketSpill::SegmentReader faces(temp, state.facesFiles, first, end, owned),
@@ -167,7 +173,8 @@ BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanS
     ghosts.add(state.ghostsIndex[0]);
   } else {
     for (size_t segment = 0; segment < state.facesFiles.size(); ++segment) {
-      ManifestReader in(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
+      ManifestReader in =
+          work.read(taskManifestPath(work, "bin", static_cast<uint32_t>(segment)), taskKind("bin"));
       faces.add(in.takeView());
       ghosts.add(in.takeView());
       in.finish();
@@ -180,16 +187,16 @@ BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanS
   return binned;
 }
 
-std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work) {
+std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const WorkDirectory& work) {
   try {
-    return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, std::move(state.owners));
+    return CellGrid::restore(state.extent.min, state.extent.max, state.cellCount, state.owners);
   } catch (const std::invalid_argument& e) {
     throw Error(ErrorCategory::Input,
                 (state.ranges ? gridPath(work) : planPath(work)).string() + ": " + e.what());
   }
 }
 
-PlanState loadPlan(const std::filesystem::path& work) {
+PlanState loadPlan(const WorkDirectory& work) {
   PlanState s = loadPlanManifest(work);
   if (s.ranges) loadGrid(work, s, /*bins=*/true);
   if (!s.inCore && (s.bounds.size() < 2 || s.bounds.front() != 0 || s.bounds.back() != s.cellCount ||
@@ -231,9 +238,9 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
 
 namespace {
 
-bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
   const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
-  if (std::filesystem::exists(manifestPath)) return false;
+  if (work.has(manifestPath)) return false;
   PlanState state = loadPlan(work);
   if (state.inCore || task + 1 >= state.bounds.size())
     throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
@@ -256,18 +263,19 @@ bool runCellsTask(const ClusterJob& job, const std::filesystem::path& work, uint
     manifest.putVector(r.pairs);
     manifest.put(r.components);
   }
-  manifest.commit(manifestPath, taskKind(kCellsStep));
+  work.commit(manifest, manifestPath, taskKind(kCellsStep));
   return true;
 }
 
 }  // namespace
 
-StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
-  std::filesystem::create_directories(work);
+StagePlan planStages(const ClusterJob& job, const std::filesystem::path& directory) {
+  const WorkDirectory work(directory);  // tasks in processes of their own: manifests as files
+  std::filesystem::create_directories(work.path());
   StagePlan result;
   // A plan of this very job stands (a rerun picks up the tasks done); any other plan goes, with
   // every task's outputs, before the new one is made.
-  if (job.input != "-" && std::filesystem::exists(planPath(work))) {
+  if (job.input != "-" && work.has(planPath(work))) {
     try {
       PlanState plan = loadPlanManifest(work);
       if (plan.fingerprint == jobFingerprint(job)) {
@@ -281,9 +289,9 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
     } catch (const Error&) {  // unreadable: planned again
     }
   }
-  std::filesystem::remove(planPath(work));
+  work.remove(planPath(work));
   clearStageTimes(work);
-  for (const auto& entry : std::filesystem::directory_iterator(work)) {
+  for (const auto& entry : std::filesystem::directory_iterator(work.path())) {
     const std::string name = entry.path().filename().string();
     for (const char* step : {"cells-", "read-", "count-", "weld-", "grid.", "bin-", "write-", "write.",
                              "geometry-", "nodes-", "layout.", "place-", "output.", "finished."})
@@ -294,14 +302,14 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
     recordStageTime(work, "plan", 0, secondsSince(start));
     return result;
   }
-  result.report = runJob(job, &work);
+  result.report = runJob(job, &work.path());
   if (result.report.outOfCore) recordStageTime(work, "plan", 0, secondsSince(start));
   if (!result.report.outOfCore) {  // in core: the file is written; the finish reports it
     ManifestWriter out;
     out.putBytes(jobFingerprint(job));
     out.put(true);
     putReport(out, result.report);
-    out.commit(planPath(work), kPlanKind);
+    work.commit(out, planPath(work), kPlanKind);
     result.next = {{"finish", 1}};
     return result;
   }
@@ -313,7 +321,7 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& work) {
 
 namespace {
 
-StageTaskResult runStep(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
+StageTaskResult runStep(const ClusterJob& job, const WorkDirectory& work, std::string_view step,
                         uint32_t task, unsigned alongside) {
   StageTaskResult result;
   // Several range tasks at once share half the cap, one thread each (ranges_here.cpp's pool).
@@ -373,8 +381,9 @@ bool stageTasksShareTheCap(std::string_view step) {
   return step == "read" || step == "count" || step == "bin";
 }
 
-StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& work, std::string_view step,
-                             uint32_t task, unsigned alongside) {
+StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path& directory,
+                             std::string_view step, uint32_t task, unsigned alongside) {
+  const WorkDirectory work(directory);  // tasks in processes of their own: manifests as files
   if (alongside > 1 && !stageTasksShareTheCap(step))
     throw std::invalid_argument("the " + std::string(step) +
                                 " step's tasks hold the whole cap each: only read, count and bin tasks run "
@@ -395,12 +404,12 @@ StageTaskResult runStageTask(const ClusterJob& job, const std::filesystem::path&
   return result;
 }
 
-CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, const PlanState& state) {
+CellsOutput loadCellTasks(TempSpace& temp, const WorkDirectory& work, const PlanState& state) {
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
   std::vector<CellResult> results(state.cellCount);
   for (uint32_t t = 0; t < tasks; ++t) {
     const std::filesystem::path path = taskManifestPath(work, kCellsStep, t);
-    ManifestReader in(path, taskKind(kCellsStep));
+    ManifestReader in = work.read(path, taskKind(kCellsStep));
     const auto first = in.take<uint32_t>(), end = in.take<uint32_t>();
     if (first != state.bounds[t] || end != state.bounds[t + 1])
       throw Error(ErrorCategory::Input, path.string() + ": cells of another plan");
@@ -415,7 +424,7 @@ CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, co
     }
     in.finish();
   }
-  return openCellTasks(temp, work, tasks, std::move(results));
+  return openCellTasks(temp, work.path(), tasks, std::move(results));
 }
 
 }  // namespace facetree

@@ -30,11 +30,14 @@
 //   layout.manifest             the file's layout: where every piece's frames go
 //   output.fch.partial          the file being placed (beside the output on another file system)
 //   place-T.manifest            place task T: piece T's frames copied into it
-// A task's manifest (a node task's piece) marks it done.
+// A task's manifest (a node task's piece) marks it done. The tasks of one process keep their
+// manifests under the same names in its memory as far as a budget holds them (WorkDirectory over a
+// ManifestShelf, job/ranges_here.cpp).
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -48,14 +51,14 @@ namespace facetree {
 inline constexpr std::string_view kPlanKind = "plan";
 inline constexpr std::string_view kGridKind = "grid";
 
-inline std::filesystem::path planPath(const std::filesystem::path& work) {
+inline std::filesystem::path planPath(const WorkDirectory& work) {
   return work / "plan.manifest";
 }
-inline std::filesystem::path gridPath(const std::filesystem::path& work) {
+inline std::filesystem::path gridPath(const WorkDirectory& work) {
   return work / "grid.manifest";
 }
 // The manifest of task `task` of a step of many tasks ("read", "count", "bin", "cells").
-inline std::filesystem::path taskManifestPath(const std::filesystem::path& work, std::string_view step,
+inline std::filesystem::path taskManifestPath(const WorkDirectory& work, std::string_view step,
                                               uint32_t task) {
   return work / (std::string(step) + "-" + std::to_string(task) + ".manifest");
 }
@@ -66,9 +69,9 @@ inline std::string taskKind(std::string_view step) {
 // The tasks' times (job/task_times.cpp): a task that ran records its seconds and peak RSS; a new
 // plan clears the records; the finish adds them up by step into its report (its times, the
 // largest peak, the peak of each step).
-void recordStageTime(const std::filesystem::path& work, std::string_view step, uint32_t task, double seconds);
-void clearStageTimes(const std::filesystem::path& work);
-void addStageTimes(const std::filesystem::path& work, JobReport& report);
+void recordStageTime(const WorkDirectory& work, std::string_view step, uint32_t task, double seconds);
+void clearStageTimes(const WorkDirectory& work);
+void addStageTimes(const WorkDirectory& work, JobReport& report);
 
 // The stem of bin task `task`'s spills (distributeFaces).
 inline std::string binTaskStem(uint32_t task) {
@@ -81,8 +84,11 @@ std::string jobFingerprint(const ClusterJob& job);
 void putReport(ManifestWriter& out, const JobReport& report);
 void takeReport(ManifestReader& in, JobReport& report);
 // The grid's owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB.
+// takeOwners decodes the table of the manifest at `path` once for the tasks of a process that hand
+// on their manifests in memory (WorkDirectory::decoded), which share it.
 void putOwners(ManifestWriter& out, std::span<const uint32_t> owners);
-std::vector<uint32_t> takeOwners(ManifestReader& in, const std::filesystem::path& path);
+std::shared_ptr<const std::vector<uint32_t>> takeOwners(ManifestReader& in, const WorkDirectory& work,
+                                                        const std::filesystem::path& path);
 
 // The plan of a mesh read in ranges (plan.manifest past its common part): the read tasks' faces
 // [faceBounds[i], faceBounds[i + 1]) and vertices likewise (whose non-finite ones they count).
@@ -107,7 +113,7 @@ struct PlanState {
   OutOfCorePlan plan;
   JobReport report;  // the read's and the bin's part
   uint32_t cellCount = 0;
-  std::vector<uint32_t> owners;  // the grid's owner table
+  std::shared_ptr<const std::vector<uint32_t>> owners;  // the grid's owner table
   // The binned spills' segments: their files and indexes.
   std::vector<std::filesystem::path> facesFiles, ghostsFiles;
   std::vector<std::string> facesIndex, ghostsIndex;
@@ -119,22 +125,22 @@ struct PlanState {
   std::vector<uint64_t> splitSeen;
 };
 // Throws Error (Input) naming the manifest that is missing or does not fit the others.
-PlanState loadPlan(const std::filesystem::path& work);
+PlanState loadPlan(const WorkDirectory& work);
 // The plan's grid again (CellGrid::restore), taking the state's owner table; Error (Input) naming
 // the manifest that holds it when it does not fit.
-std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const std::filesystem::path& work);
+std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const WorkDirectory& work);
 // plan.manifest alone: the fingerprint, and the range plan when there is one.
-PlanState loadPlanManifest(const std::filesystem::path& work);
+PlanState loadPlanManifest(const WorkDirectory& work);
 
 // What a task of the stages runs with: the job as the stages see it, a temporary space of its
 // own, and the stages' context over them and `report`, in the work directory.
 struct TaskContext {
   // `accountTo`: the run's temporary space, for a task of one process (its files count there too).
-  TaskContext(const ClusterJob& job, uint64_t memoryCap, const std::filesystem::path& work, JobReport& report,
+  TaskContext(const ClusterJob& job, uint64_t memoryCap, const WorkDirectory& work, JobReport& report,
               TempSpace* accountTo = nullptr)
       : effective(effectiveJob(job)),
         temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory, accountTo),
-        stage{effective, temp, memoryCap, report, &work} {}
+        stage{effective, temp, memoryCap, report, &work.path()} {}
   TaskContext(const TaskContext&) = delete;
   TaskContext& operator=(const TaskContext&) = delete;
   const ClusterJob effective;
@@ -142,12 +148,12 @@ struct TaskContext {
   const StageContext stage;
 };
 // The plan's binned faces' grid (restoreGrid), for a task that reads or writes binned faces.
-BinnedFaces restoredBins(PlanState& state, const std::filesystem::path& work);
+BinnedFaces restoredBins(PlanState& state, const WorkDirectory& work);
 // The plan's binned faces (loadPlan's state) with cells [first, end)'s blocks of the binned spills
 // read as one: the plan's one pass, or every bin task's segment, each bin task's manifest read
 // once for both. `owned`: the spills are this run's alone, given back as drained
 // (BucketSpill::SegmentReader).
-BinnedFaces openBinned(TempSpace& temp, const std::filesystem::path& work, PlanState& state, uint32_t first,
+BinnedFaces openBinned(TempSpace& temp, const WorkDirectory& work, PlanState& state, uint32_t first,
                        uint32_t end, bool owned = false);
 
 // The steps of a plan as planStages returns them.
@@ -160,19 +166,22 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state);
 // `accountTo`: the run's temporary space when the tasks run in its process (job/ranges_here.cpp).
 enum class RangedInput { None, Ply, Stl };
 RangedInput readsInRanges(const ClusterJob& job);
-bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result);
+bool planRanges(const ClusterJob& job, const WorkDirectory& work, StagePlan& result);
 // How many read, count or bin tasks at once hold a plan's cap together on one machine: each holds its
 // own grid of the bins (a count task's histogram, a bin task's owners) and reader besides its share
 // of half the cap, so as many as half the cap holds; a binary STL's one at a time (a bin task holds
 // an id per corner of its range, up to an eighth of the cap).
 unsigned rangeTasksAtOnce(uint64_t cap, bool stl);
 unsigned rangeTasksAtOnce(const PlanState& plan);  // a plan of ranges: its cap, its input
-bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
-                 unsigned sharing = 1);
-bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
-                  unsigned sharing = 1, TempSpace* accountTo = nullptr);
-bool runGridStep(const ClusterJob& job, const std::filesystem::path& work);
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing = 1,
+// Bin tasks at once in one process, which share one owner table (WorkDirectory::decoded): the table
+// once and each task's reader in half the cap. An STL's one at a time all the same: with the ids of
+// their ranges (an eighth of the cap each), two at once outgrow the cells' peak.
+unsigned binTasksSharingGrid(uint64_t cap, bool stl);
+bool runReadTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1);
+bool runCountTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1,
+                  TempSpace* accountTo = nullptr);
+bool runGridStep(const ClusterJob& job, const WorkDirectory& work);
+bool runBinTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1,
                 TempSpace* accountTo = nullptr);
 // The weld of a binary STL read in ranges (stages/weld_ranges.cpp): a read task samples its corners, the
 // count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
@@ -192,52 +201,52 @@ class WeldSampler {
 std::vector<PositionBits> weldSplitters(std::vector<PositionBits> sample, uint32_t buckets);
 class WeldPartition {
  public:
-  WeldPartition(const StageContext& context, const std::filesystem::path& work, uint32_t task,
-                const RangePlan& plan, std::vector<PositionBits> splitters);
+  WeldPartition(const StageContext& context, const WorkDirectory& work, uint32_t task, const RangePlan& plan,
+                std::vector<PositionBits> splitters);
   ~WeldPartition();
   void add(std::span<const FaceRecord> records);  // the range's finite triangles, in file order
   void commit();                                  // the spill, and its index in a manifest of its own
 
  private:
-  std::filesystem::path work_;
+  WorkDirectory work_;
   uint32_t task_;
   uint64_t firstFace_;
   std::vector<PositionBits> splitters_;
   std::unique_ptr<BucketSpill> spill_;
 };
-bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
+bool runWeldTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
                  TempSpace* accountTo = nullptr);
 // The mesh's distinct positions; Error (Input) "NAME: more than 4294967295 distinct vertex positions".
-uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, const std::string& name);
+uint64_t weldVertices(const WorkDirectory& work, const RangePlan& plan, const std::string& name);
 // Range `range`'s vertex ids: ids[3 * (face - first face) + corner], kNoVertex for a corner not
 // welded (a triangle the read skipped).
-std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
+std::vector<uint32_t> weldIds(TempSpace& temp, const WorkDirectory& work, const RangePlan& plan,
                               uint32_t range);
 // For a run that keeps no work directory: the count tasks' corners once every weld task is done,
 // and the weld tasks' files once every bin task has taken its ids.
-void removeWeldCorners(const std::filesystem::path& work, const RangePlan& plan);
-void removeWeldIds(const std::filesystem::path& work, const RangePlan& plan);
+void removeWeldCorners(const WorkDirectory& work, const RangePlan& plan);
+void removeWeldIds(const WorkDirectory& work, const RangePlan& plan);
 // The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
 // spills when `bins`.
-void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins);
+void loadGrid(const WorkDirectory& work, PlanState& state, bool bins);
 // The steps that follow the grid: bin, cells and finish.
 std::vector<StageStep> stepsAfterGrid(const PlanState& state);
 // The cells tasks' outputs opened together, with every cell's records from their manifests.
-CellsOutput loadCellTasks(TempSpace& temp, const std::filesystem::path& work, const PlanState& state);
+CellsOutput loadCellTasks(TempSpace& temp, const WorkDirectory& work, const PlanState& state);
 // The write as tasks (job/write_tasks.cpp): the upper step (the cells joined, the geometry piece, the
 // write plan) and the steps it lists; a node task (the frames of a range of node positions).
-bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work);
-std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work);
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work);
+std::vector<StageStep> stepsAfterUpper(const WorkDirectory& work);
 // Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.
-bool runBoxesStep(const ClusterJob& job, const std::filesystem::path& work);
-std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work);
-bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
-bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runBoxesStep(const ClusterJob& job, const WorkDirectory& work);
+std::vector<StageStep> stepsAfterBoxes(const WorkDirectory& work);
+bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
+bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
 // The file assembled by tasks: the layout step writes its header and index and lists the copies;
 // each place task copies one piece's frames into it; the finish renames it into place.
-bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work);
-std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work);
-bool runPlaceTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task);
+bool runLayoutStep(const ClusterJob& job, const WorkDirectory& work);
+std::vector<StageStep> stepsAfterLayout(const WorkDirectory& work);
+bool runPlaceTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
 // The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
 uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
 

@@ -33,20 +33,20 @@ constexpr std::string_view kGeometryTablesKind = "write geometry tables";
 constexpr uint64_t kFramesPerNodeTask = 256;
 constexpr std::string_view kBoxesKind = "upper boxes";
 
-std::filesystem::path nodeTablesPath(const std::filesystem::path& work) {
+std::filesystem::path nodeTablesPath(const WorkDirectory& work) {
   return work / "write-node-tables.manifest";
 }
-std::filesystem::path geometryTablesPath(const std::filesystem::path& work) {
+std::filesystem::path geometryTablesPath(const WorkDirectory& work) {
   return work / "write-geometry-tables.manifest";
 }
 
-std::filesystem::path writePlanPath(const std::filesystem::path& work) {
+std::filesystem::path writePlanPath(const WorkDirectory& work) {
   return work / "write.manifest";
 }
-std::filesystem::path nodesPiecePath(const std::filesystem::path& work, uint32_t task) {
+std::filesystem::path nodesPiecePath(const WorkDirectory& work, uint32_t task) {
   return work / ("nodes-" + std::to_string(task) + ".piece");
 }
-std::filesystem::path geometryPiecePath(const std::filesystem::path& work, uint32_t task) {
+std::filesystem::path geometryPiecePath(const WorkDirectory& work, uint32_t task) {
   return work / ("geometry-" + std::to_string(task) + ".piece");
 }
 
@@ -91,7 +91,7 @@ struct LoadedWrite {
 };
 
 // Each table goes into the manifest's bytes as it leaves the plan: the two never hold it twice.
-void saveWritePlan(const std::filesystem::path& work, const JobReport& report, uint32_t cellsTasks,
+void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t cellsTasks,
                    uint32_t nodeTasks, WritePlan&& p) {
   // Node tasks on frame boundaries: nodeTasks of them, or one per kFramesPerNodeTask frames.
   const uint64_t nodes = p.info.header.nodeCount, perFrame = p.options.nodesPerFrame;
@@ -130,7 +130,7 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   geometryTables.putVector(std::exchange(p.leafFaces, {}));
   geometryTables.putVector(std::exchange(p.upperParent, {}));
   geometryTables.putVector(std::exchange(p.leafUpperParent, {}));
-  geometryTables.commit(geometryTablesPath(work), kGeometryTablesKind);
+  work.commit(geometryTables, geometryTablesPath(work), kGeometryTablesKind);
   ManifestWriter nodeTables;
   nodeTables.putVector(std::exchange(p.orderBlocks, {}));
   nodeTables.putVector(std::exchange(p.orderFirst, {}));
@@ -143,7 +143,7 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   nodeTables.putVector(std::exchange(p.upperPosition, {}));
   nodeTables.putVector(std::exchange(p.upperParentBox, {}));
   nodeTables.putVector(std::exchange(p.upperParentPosition, {}));
-  nodeTables.commit(nodeTablesPath(work), kNodeTablesKind);
+  work.commit(nodeTables, nodeTablesPath(work), kNodeTablesKind);
   ManifestWriter out;
   putUpperReport(out, report);
   out.put(cellsTasks);
@@ -163,13 +163,13 @@ void saveWritePlan(const std::filesystem::path& work, const JobReport& report, u
   out.putVector(std::exchange(p.upperOrientation, {}));
   out.putVector(std::exchange(p.upperOrigin, {}));
   out.putVector(std::exchange(p.upperHasOrigin, {}));
-  out.commit(writePlanPath(work), kWriteKind);
+  work.commit(out, writePlanPath(work), kWriteKind);
 }
 
 // The head of the write plan: the report, the tasks' bounds, the file's header and options, and
 // the upper boxes' frames (no tables).
-LoadedWrite loadWriteHead(const std::filesystem::path& work) {
-  ManifestReader in(writePlanPath(work), kWriteKind);
+LoadedWrite loadWriteHead(const WorkDirectory& work) {
+  ManifestReader in = work.read(writePlanPath(work), kWriteKind);
   LoadedWrite w;
   takeUpperReport(in, w.report);
   w.cellsTasks = in.take<uint32_t>();
@@ -198,10 +198,10 @@ LoadedWrite loadWriteHead(const std::filesystem::path& work) {
 }
 
 // The write plan's head and the tables of the node tasks.
-LoadedWrite loadNodesPlan(const std::filesystem::path& work) {
+LoadedWrite loadNodesPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
-  ManifestReader in(nodeTablesPath(work), kNodeTablesKind);
+  ManifestReader in = work.read(nodeTablesPath(work), kNodeTablesKind);
   p.orderBlocks = in.takeVector<SpillBlock>();
   p.orderFirst = in.takeVector<uint64_t>();
   p.runPosition = in.takeVector<uint32_t>();
@@ -222,10 +222,10 @@ LoadedWrite loadNodesPlan(const std::filesystem::path& work) {
 }
 
 // The write plan's head and the tables of the geometry tasks.
-LoadedWrite loadGeometryPlan(const std::filesystem::path& work) {
+LoadedWrite loadGeometryPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
-  ManifestReader in(geometryTablesPath(work), kGeometryTablesKind);
+  ManifestReader in = work.read(geometryTablesPath(work), kGeometryTablesKind);
   p.leafOrder = in.takeVector<uint32_t>();
   p.geometry = in.takeVector<SpillBlock>();
   p.leafFirstGeometry = in.takeVector<uint32_t>();
@@ -247,8 +247,8 @@ LoadedWrite loadGeometryPlan(const std::filesystem::path& work) {
 
 }  // namespace
 
-bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
-  if (std::filesystem::exists(writePlanPath(work))) return false;
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work) {
+  if (work.has(writePlanPath(work))) return false;
   PlanState state = loadPlan(work);
   if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
   // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
@@ -266,28 +266,28 @@ bool runUpperStep(const ClusterJob& job, const std::filesystem::path& work) {
   return true;
 }
 
-std::vector<StageStep> stepsAfterUpper(const std::filesystem::path& work) {
+std::vector<StageStep> stepsAfterUpper(const WorkDirectory& work) {
   const LoadedWrite w = loadWriteHead(work);
   const auto geometry = static_cast<uint32_t>(w.triangleBounds.size() - 1);
   if (w.plan.boxesInTasks) return {{"geometry", geometry}, {"boxes", 1}};
   return {{"geometry", geometry}, {"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
 }
 
-std::vector<StageStep> stepsAfterBoxes(const std::filesystem::path& work) {
+std::vector<StageStep> stepsAfterBoxes(const WorkDirectory& work) {
   const LoadedWrite w = loadWriteHead(work);
   return {{"nodes", static_cast<uint32_t>(w.bounds.size() - 1)}, {"layout", 1}};
 }
 
 namespace {
 
-std::filesystem::path boxesPath(const std::filesystem::path& work) {
+std::filesystem::path boxesPath(const WorkDirectory& work) {
   return work / "boxes.manifest";
 }
 
 }  // namespace
 
-bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
-  if (std::filesystem::exists(boxesPath(work))) return false;
+bool runBoxesStep(const ClusterJob&, const WorkDirectory& work) {
+  if (work.has(boxesPath(work))) return false;
   const LoadedWrite w = loadWriteHead(work);
   const WritePlan& p = w.plan;
   if (!p.boxesInTasks) throw std::invalid_argument("no boxes step in " + work.string() + ": compact boxes");
@@ -296,7 +296,7 @@ bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
   const auto upperCount = static_cast<uint32_t>(boxes.size());
   for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) {
     const std::filesystem::path path = taskManifestPath(work, "geometry", t);
-    ManifestReader in(path, taskKind("geometry"));
+    ManifestReader in = work.read(path, taskKind("geometry"));
     const auto nodes = in.takeVector<uint32_t>();
     const auto sums = in.takeVector<BoxAccumulator::Sums>();
     in.finish();
@@ -310,11 +310,11 @@ bool runBoxesStep(const ClusterJob&, const std::filesystem::path& work) {
   }
   ManifestWriter manifest;
   manifest.putVector(upperBoxesByFileIndex(boxes));
-  manifest.commit(boxesPath(work), kBoxesKind);
+  work.commit(manifest, boxesPath(work), kBoxesKind);
   return true;
 }
 
-bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
   const std::filesystem::path piece = nodesPiecePath(work, task);
   if (std::filesystem::exists(piece)) return false;
   const LoadedWrite w = loadNodesPlan(work);
@@ -328,7 +328,8 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
     runs = SpillFile::open(temp, work / kWriteNodesFile);
   } else {
     std::vector<std::filesystem::path> paths;
-    for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Nodes, t));
+    for (uint32_t t = 0; t < w.cellsTasks; ++t)
+      paths.push_back(cellTaskFile(work.path(), CellSpill::Nodes, t));
     runs = SpillFile::open(temp, paths);
   }
   std::unique_ptr<SpillFile> order = SpillFile::open(temp, work / kWriteOrderFile, sizeof(NodeRef));
@@ -340,7 +341,7 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
   const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
   std::vector<NodeBox> upperBoxes;  // exact boxes: the boxes step's, by file index
   if (p.boxesInTasks) {
-    ManifestReader in(boxesPath(work), kBoxesKind);
+    ManifestReader in = work.read(boxesPath(work), kBoxesKind);
     upperBoxes = in.takeVector<NodeBox>();
     in.finish();
     if (upperBoxes.size() != upperCount)
@@ -362,7 +363,7 @@ bool runNodesTask(const ClusterJob& job, const std::filesystem::path& work, uint
   return true;
 }
 
-bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task) {
+bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
   const std::filesystem::path piece = geometryPiecePath(work, task);
   if (std::filesystem::exists(piece)) return false;
   const LoadedWrite w = loadGeometryPlan(work);
@@ -373,7 +374,8 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
   const uint64_t firstVertex = w.vertexBounds[task], endVertex = w.vertexBounds[task + 1];
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   std::vector<std::filesystem::path> paths;
-  for (uint32_t t = 0; t < w.cellsTasks; ++t) paths.push_back(cellTaskFile(work, CellSpill::Geometry, t));
+  for (uint32_t t = 0; t < w.cellsTasks; ++t)
+    paths.push_back(cellTaskFile(work.path(), CellSpill::Geometry, t));
   const std::unique_ptr<SpillFile> geometry = SpillFile::open(temp, paths, 4);
   WriteOptions options = p.options;
   options.threads = job.threads;
@@ -402,7 +404,7 @@ bool runGeometryTask(const ClusterJob& job, const std::filesystem::path& work, u
     ManifestWriter out;
     out.putVector(partNodes);
     out.putVector(partSums);
-    out.commit(taskManifestPath(work, "geometry", task), taskKind("geometry"));
+    work.commit(out, taskManifestPath(work, "geometry", task), taskKind("geometry"));
   }
   writer.finish();
   return true;
@@ -412,12 +414,12 @@ namespace {
 
 constexpr std::string_view kLayoutKind = "layout";
 
-std::filesystem::path layoutPath(const std::filesystem::path& work) {
+std::filesystem::path layoutPath(const WorkDirectory& work) {
   return work / "layout.manifest";
 }
 
 // Every piece of the file, geometry tasks' first.
-std::vector<std::filesystem::path> piecePaths(const std::filesystem::path& work, const LoadedWrite& w) {
+std::vector<std::filesystem::path> piecePaths(const WorkDirectory& work, const LoadedWrite& w) {
   std::vector<std::filesystem::path> pieces;
   for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) pieces.push_back(geometryPiecePath(work, t));
   for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t) pieces.push_back(nodesPiecePath(work, t));
@@ -427,11 +429,11 @@ std::vector<std::filesystem::path> piecePaths(const std::filesystem::path& work,
 // The file being assembled: in the work directory when it shares the output's file system (the
 // finish renames it into place; a failed build leaves nothing beside the output), else beside the
 // output.
-std::filesystem::path partialPath(const std::filesystem::path& work, const std::filesystem::path& out) {
+std::filesystem::path partialPath(const WorkDirectory& work, const std::filesystem::path& out) {
   struct stat a {
   }, b{};
   const std::filesystem::path dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
-  if (::stat(work.c_str(), &a) == 0 && ::stat(dir.c_str(), &b) == 0 && a.st_dev == b.st_dev)
+  if (::stat(work.path().c_str(), &a) == 0 && ::stat(dir.c_str(), &b) == 0 && a.st_dev == b.st_dev)
     return work / "output.fch.partial";
   return std::filesystem::path(out.string() + ".partial");
 }
@@ -448,8 +450,8 @@ struct Layout {
   std::vector<PieceCopy> copies;
   JobReport report;
 };
-Layout loadLayout(const std::filesystem::path& work) {
-  ManifestReader in(layoutPath(work), kLayoutKind);
+Layout loadLayout(const WorkDirectory& work) {
+  ManifestReader in = work.read(layoutPath(work), kLayoutKind);
   Layout l;
   l.id = in.take<uint64_t>();
   l.partial = in.takeBytes();
@@ -463,15 +465,15 @@ Layout loadLayout(const std::filesystem::path& work) {
 }
 
 constexpr std::string_view kFinishedKind = "finished";
-std::filesystem::path finishedPath(const std::filesystem::path& work) {
+std::filesystem::path finishedPath(const WorkDirectory& work) {
   return work / "finished.manifest";
 }
 
 // Whether the finish renamed layout `l`'s placed file into `output`, and `output` is still that
 // size.
-bool finishedAs(const std::filesystem::path& work, const Layout& l, const std::filesystem::path& output) {
-  if (!std::filesystem::exists(finishedPath(work))) return false;
-  ManifestReader in(finishedPath(work), kFinishedKind);
+bool finishedAs(const WorkDirectory& work, const Layout& l, const std::filesystem::path& output) {
+  if (!work.has(finishedPath(work))) return false;
+  ManifestReader in = work.read(finishedPath(work), kFinishedKind);
   const auto id = in.take<uint64_t>();
   in.finish();
   std::error_code error;
@@ -486,8 +488,8 @@ uint64_t newLayoutId() {
 }
 
 // The place task's record: its task and the layout it placed its piece into.
-uint64_t placedLayout(const std::filesystem::path& manifest, uint32_t task) {
-  ManifestReader placed(manifest, taskKind("place"));
+uint64_t placedLayout(const WorkDirectory& work, const std::filesystem::path& manifest, uint32_t task) {
+  ManifestReader placed = work.read(manifest, taskKind("place"));
   if (placed.take<uint32_t>() != task)
     throw Error(ErrorCategory::Input, manifest.string() + ": another task's");
   const auto id = placed.take<uint64_t>();
@@ -497,9 +499,9 @@ uint64_t placedLayout(const std::filesystem::path& manifest, uint32_t task) {
 
 }  // namespace
 
-bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
+bool runLayoutStep(const ClusterJob& job, const WorkDirectory& work) {
   // Done while its placed file waits for the finish, or the finish gave it the output's name.
-  if (std::filesystem::exists(layoutPath(work))) {
+  if (work.has(layoutPath(work))) {
     const Layout l = loadLayout(work);
     if (std::filesystem::exists(l.partial) || finishedAs(work, l, job.output)) return false;
   }
@@ -516,20 +518,20 @@ bool runLayoutStep(const ClusterJob& job, const std::filesystem::path& work) {
   out.put(static_cast<uint32_t>(w.triangleBounds.size() - 1));
   out.putVector(assembly.copies);
   putUpperReport(out, w.report);
-  out.commit(layoutPath(work), kLayoutKind);
+  work.commit(out, layoutPath(work), kLayoutKind);
   return true;
 }
 
-std::vector<StageStep> stepsAfterLayout(const std::filesystem::path& work) {
+std::vector<StageStep> stepsAfterLayout(const WorkDirectory& work) {
   return {{"place", loadLayout(work).pieces}, {"finish", 1}};
 }
 
-bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t task) {
+bool runPlaceTask(const ClusterJob&, const WorkDirectory& work, uint32_t task) {
   const std::filesystem::path manifest = taskManifestPath(work, "place", task);
   const Layout l = loadLayout(work);
   if (task >= l.pieces)
     throw std::invalid_argument("no place task " + std::to_string(task) + " in " + work.string());
-  if (std::filesystem::exists(manifest) && placedLayout(manifest, task) == l.id) return false;
+  if (work.has(manifest) && placedLayout(work, manifest, task) == l.id) return false;
   // Its one piece, named from the layout alone (the write plan is tens of MB at 56M faces).
   const std::filesystem::path piece =
       task < l.geometryPieces ? geometryPiecePath(work, task) : nodesPiecePath(work, task - l.geometryPieces);
@@ -540,17 +542,18 @@ bool runPlaceTask(const ClusterJob&, const std::filesystem::path& work, uint32_t
   ManifestWriter out;
   out.put(task);
   out.put(l.id);
-  out.commit(manifest, taskKind("place"));
+  work.commit(out, manifest, taskKind("place"));
   return true;
 }
 
-JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work) {
+JobReport finishStages(const ClusterJob& job, const std::filesystem::path& directory) {
+  const WorkDirectory work(directory);  // tasks in processes of their own: manifests as files
   const auto start = std::chrono::steady_clock::now();
   PlanState state = loadPlanManifest(work);
   if (state.inCore) return std::move(state.report);
   Layout l = loadLayout(work);
   for (uint32_t t = 0; t < l.pieces; ++t)
-    if (placedLayout(taskManifestPath(work, "place", t), t) != l.id)
+    if (placedLayout(work, taskManifestPath(work, "place", t), t) != l.id)
       throw Error(ErrorCategory::Input, taskManifestPath(work, "place", t).string() +
                                             ": placed into an earlier layout of the file; run place task " +
                                             std::to_string(t) + " again");
@@ -562,7 +565,7 @@ JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work)
     commitClusterFile(l.partial, job.output);
     ManifestWriter finished;
     finished.put(l.id);
-    finished.commit(finishedPath(work), kFinishedKind);
+    work.commit(finished, finishedPath(work), kFinishedKind);
   }
   report.fileBytes = l.fileBytes;
   recordStageTime(work, "finish", 0, secondsSince(start));

@@ -14,7 +14,7 @@ CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax)
     : CellGrid(boundsMin, boundsMax, std::vector<uint32_t>(kBins, 0)) {}
 
 CellGrid::CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax, std::vector<uint32_t> table)
-    : min_(boundsMin), table_(std::move(table)) {
+    : min_(boundsMin), table_(std::move(table)), lookup_(table_.data()) {
   glm::dvec3 extent = glm::dvec3(boundsMax) - min_;
   for (int a = 0; a < 3; ++a)
     if (!(extent[a] > 0) || !std::isfinite(extent[a])) extent[a] = 0;
@@ -128,19 +128,27 @@ void CellGrid::partition(uint64_t maxFaces) {
 }
 
 std::unique_ptr<CellGrid> CellGrid::restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
-                                            uint32_t cellCount, std::vector<uint32_t> owners) {
-  if (owners.size() != kBins)
-    throw std::invalid_argument("cell grid: " + std::to_string(owners.size()) + " bins, not " +
+                                            uint32_t cellCount,
+                                            std::shared_ptr<const std::vector<uint32_t>> owners) {
+  if (!owners || owners->size() != kBins)
+    throw std::invalid_argument("cell grid: " + std::to_string(owners ? owners->size() : 0) + " bins, not " +
                                 std::to_string(kBins));
   if (cellCount == 0) throw std::invalid_argument("cell grid: no cells");
-  for (const uint32_t owner : owners)
+  for (const uint32_t owner : *owners)
     if (owner >= cellCount)
       throw std::invalid_argument("cell grid: a bin of cell " + std::to_string(owner) + " of " +
                                   std::to_string(cellCount));
-  // The owners become the table as they are: a grid restored in every task touches its 8 MiB once.
-  std::unique_ptr<CellGrid> grid(new CellGrid(boundsMin, boundsMax, std::move(owners)));
+  std::unique_ptr<CellGrid> grid(new CellGrid(boundsMin, boundsMax, {}));
+  grid->restored_ = std::move(owners);
+  grid->lookup_ = grid->restored_->data();
   grid->cellCount_ = cellCount;
   return grid;
+}
+
+std::unique_ptr<CellGrid> CellGrid::restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
+                                            uint32_t cellCount, std::vector<uint32_t> owners) {
+  return restore(boundsMin, boundsMax, cellCount,
+                 std::make_shared<const std::vector<uint32_t>>(std::move(owners)));
 }
 
 std::vector<CellGrid::SplitBin> CellGrid::splitBins() const {
@@ -167,7 +175,7 @@ uint32_t CellGrid::nextFaceCell(uint32_t bin) {
     if (it != split_.end())
       return it->second.firstCell + static_cast<uint32_t>(it->second.seen++ / maxFaces_);
   }
-  return table_[bin];
+  return lookup_[bin];
 }
 
 }  // namespace facetree

@@ -29,6 +29,8 @@ class CellGrid {
   static constexpr uint32_t kBins = 1u << kBits;
 
   CellGrid(const glm::vec3& boundsMin, const glm::vec3& boundsMax);
+  CellGrid(const CellGrid&) = delete;  // its lookup points into its own table
+  CellGrid& operator=(const CellGrid&) = delete;
 
   // The bits of the bin coordinates along each axis (kBits in all).
   const std::array<int, 3>& axisBits() const { return bits_; }
@@ -49,15 +51,14 @@ class CellGrid {
   uint32_t nextFaceCell(uint32_t bin);
   // The cell that owns the edges whose lower-id endpoint lies in `bin` (the first cell of a
   // split bin).
-  uint32_t ownerCell(uint32_t bin) const { return table_[bin]; }
-  uint64_t bytes() const { return table_.capacity() * sizeof(uint32_t); }
+  uint32_t ownerCell(uint32_t bin) const { return lookup_[bin]; }
 
   // After partition(): the owner cell of every bin, all the cells stage looks up, and a grid made
   // again from it in another task (the bounds as given to the constructor). The rebuilt grid
   // answers bin(), faceBin() and ownerCell() as this one; it has no split-bin state, which only
   // the distribution pass used. Throws std::invalid_argument for a table that is not kBins owners
-  // below `cellCount`.
-  std::span<const uint32_t> ownerTable() const { return table_; }
+  // below `cellCount`. The tasks of one process share one table, read only (8 MiB a copy).
+  std::span<const uint32_t> ownerTable() const { return {lookup_, kBins}; }
   // The split bins of partition() by bin, with the faces a distribution pass has seen of each, and
   // that state set again: a pass over a later part of the faces (a bin task of a mesh read in
   // ranges) goes on where the parts before it would have left it.
@@ -67,6 +68,9 @@ class CellGrid {
   };
   std::vector<SplitBin> splitBins() const;
   void resumeSplitBins(std::span<const SplitBin> bins, uint64_t maxFaces);
+  static std::unique_ptr<CellGrid> restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
+                                           uint32_t cellCount,
+                                           std::shared_ptr<const std::vector<uint32_t>> owners);
   static std::unique_ptr<CellGrid> restore(const glm::vec3& boundsMin, const glm::vec3& boundsMax,
                                            uint32_t cellCount, std::vector<uint32_t> owners);
 
@@ -79,6 +83,8 @@ class CellGrid {
   // spread_[a][k][v]: the code bits of byte k of axis a's coordinate v.
   std::array<std::array<std::array<uint32_t, 256>, 3>, 3> spread_{};
   std::vector<uint32_t> table_;  // counts, then after partition() the (first) cell of each bin
+  std::shared_ptr<const std::vector<uint32_t>> restored_;  // a restored grid's owners instead
+  const uint32_t* lookup_ = nullptr;                       // the owners: table_'s or restored_'s
   struct SplitState {
     uint32_t firstCell;
     uint64_t seen;

@@ -68,6 +68,12 @@ unsigned rangeTasksAtOnce(uint64_t cap, bool stl) {
   return static_cast<unsigned>(std::clamp<uint64_t>(cap / 2 / taskFixedBytes, 1, 1024));
 }
 
+unsigned binTasksSharingGrid(uint64_t cap, bool stl) {
+  const uint64_t grid = CellGrid::kBins * sizeof(uint32_t), taskFixedBytes = uint64_t{4} << 20;
+  if (stl || cap / 2 <= grid) return 1;
+  return static_cast<unsigned>(std::clamp<uint64_t>((cap / 2 - grid) / taskFixedBytes, 1, 1024));
+}
+
 unsigned rangeTasksAtOnce(const PlanState& plan) {
   return rangeTasksAtOnce(plan.memoryCap, plan.rangePlan.weldTasks > 0);
 }
@@ -78,8 +84,7 @@ struct RangeTask {
   PlanState plan;
   uint64_t firstFace = 0, faces = 0, firstVertex = 0, vertices = 0;
 };
-RangeTask rangeTask(const std::filesystem::path& work, std::string_view step, uint32_t task,
-                    unsigned sharing) {
+RangeTask rangeTask(const WorkDirectory& work, std::string_view step, uint32_t task, unsigned sharing) {
   RangeTask t{loadPlanManifest(work)};
   const RangePlan& r = t.plan.rangePlan;
   if (!t.plan.ranges || task + 1 >= r.faceBounds.size())
@@ -140,7 +145,7 @@ static_assert(std::is_trivially_copyable_v<RangeRead>);
 
 // Every read task's results, summed: the mesh's extent (framed) and the read's report; their
 // samples of an STL's corners in `sample`, when given.
-MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, JobReport& report,
+MeshExtent readExtent(const WorkDirectory& work, const PlanState& plan, JobReport& report,
                       std::vector<PositionBits>* sample = nullptr) {
   const auto tasks = static_cast<uint32_t>(plan.rangePlan.faceBounds.size() - 1);
   MeshExtent extent;
@@ -148,7 +153,7 @@ MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, 
   extent.max = -extent.min;
   report = plan.report;
   for (uint32_t i = 0; i < tasks; ++i) {
-    ManifestReader in(taskManifestPath(work, "read", i), taskKind("read"));
+    ManifestReader in = work.read(taskManifestPath(work, "read", i), taskKind("read"));
     const auto r = in.take<RangeRead>();
     const std::vector<PositionBits> taken = in.takeVector<PositionBits>();
     in.finish();
@@ -170,8 +175,8 @@ MeshExtent readExtent(const std::filesystem::path& work, const PlanState& plan, 
 struct RangeCounts {
   std::vector<uint32_t> bins, faces;
 };
-RangeCounts loadCounts(const std::filesystem::path& work, uint32_t task) {
-  ManifestReader in(taskManifestPath(work, "count", task), taskKind("count"));
+RangeCounts loadCounts(const WorkDirectory& work, uint32_t task) {
+  ManifestReader in = work.read(taskManifestPath(work, "count", task), taskKind("count"));
   RangeCounts c{in.takeVector<uint32_t>(), in.takeVector<uint32_t>()};
   in.finish();
   if (c.bins.size() != c.faces.size() ||
@@ -180,21 +185,21 @@ RangeCounts loadCounts(const std::filesystem::path& work, uint32_t task) {
   return c;
 }
 
-std::filesystem::path binFacesPath(const std::filesystem::path& work, uint32_t task) {
+std::filesystem::path binFacesPath(const WorkDirectory& work, uint32_t task) {
   return work / binnedFile(binTaskStem(task) + "cell-faces");
 }
-std::filesystem::path binGhostsPath(const std::filesystem::path& work, uint32_t task) {
+std::filesystem::path binGhostsPath(const WorkDirectory& work, uint32_t task) {
   return work / binnedFile(binTaskStem(task) + "ghosts");
 }
 
 // The grid manifest's fields, in order; the bin tasks' indexes when `bins`.
-void loadGridManifest(const std::filesystem::path& work, PlanState& s, bool bins) {
-  ManifestReader in(gridPath(work), kGridKind);
+void loadGridManifest(const WorkDirectory& work, PlanState& s, bool bins) {
+  ManifestReader in = work.read(gridPath(work), kGridKind);
   takeReport(in, s.report);
   s.extent = in.take<MeshExtent>();
   s.plan = in.take<OutOfCorePlan>();
   s.cellCount = in.take<uint32_t>();
-  s.owners = takeOwners(in, gridPath(work));
+  s.owners = takeOwners(in, work, gridPath(work));
   s.splitBins = in.takeVector<CellGrid::SplitBin>();
   s.splitSeen = in.takeVector<uint64_t>();
   s.bounds = in.takeVector<uint32_t>();
@@ -241,7 +246,7 @@ RangedInput readsInRanges(const ClusterJob& job) {
   return !input ? RangedInput::None : input->stl ? RangedInput::Stl : RangedInput::Ply;
 }
 
-bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StagePlan& result) {
+bool planRanges(const ClusterJob& job, const WorkDirectory& work, StagePlan& result) {
   const std::optional<RangeInput> input = rangedInput(job);
   if (!input) return false;
   const RangeInput& file = *input;
@@ -282,15 +287,15 @@ bool planRanges(const ClusterJob& job, const std::filesystem::path& work, StageP
   out.putVector(vertexBounds);
   out.put(soup);
   out.put(soup ? static_cast<uint32_t>(tasks) : uint32_t{0});  // weld tasks: one per range
-  out.commit(planPath(work), kPlanKind);
+  work.commit(out, planPath(work), kPlanKind);
   result.next = stepsAfterPlan(loadPlanManifest(work));
   result.rangeTasksAtOnce = rangeTasksAtOnce(cap, soup);
   return true;
 }
 
-bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing) {
+bool runReadTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing) {
   const std::filesystem::path path = taskManifestPath(work, "read", task);
-  if (std::filesystem::exists(path)) return false;
+  if (work.has(path)) return false;
   const RangeTask t = rangeTask(work, "read", task, sharing);
   const RangeInput file = reopen(job, t.plan.rangePlan);
   std::optional<WeldSampler> sampler;
@@ -315,14 +320,14 @@ bool runReadTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   ManifestWriter out;
   out.put(r);
   out.putVector(sampler ? sampler->sample() : std::vector<PositionBits>{});
-  out.commit(path, taskKind("read"));
+  work.commit(out, path, taskKind("read"));
   return true;
 }
 
-bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing,
+bool runCountTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing,
                   TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "count", task);
-  if (std::filesystem::exists(path)) return false;
+  if (work.has(path)) return false;
   const RangeTask t = rangeTask(work, "count", task, sharing);
   JobReport report;
   std::vector<PositionBits> sample;
@@ -352,12 +357,12 @@ bool runCountTask(const ClusterJob& job, const std::filesystem::path& work, uint
   out.putVector(counts.bins);
   out.putVector(counts.faces);
   if (weld) weld->commit();  // before the count manifest, which marks the task done
-  out.commit(path, taskKind("count"));
+  work.commit(out, path, taskKind("count"));
   return true;
 }
 
-bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
-  if (std::filesystem::exists(gridPath(work))) return false;
+bool runGridStep(const ClusterJob& job, const WorkDirectory& work) {
+  if (work.has(gridPath(work))) return false;
   PlanState state = loadPlanManifest(work);
   if (!state.ranges)
     throw std::invalid_argument("no grid step in " + work.string() + ": the plan binned the mesh");
@@ -417,14 +422,14 @@ bool runGridStep(const ClusterJob& job, const std::filesystem::path& work) {
   out.putVector(split);
   out.putVector(seen);
   out.putVector(cellTaskBounds(cellFaces, cellsTaskCount(job, cells)));
-  out.commit(gridPath(work), kGridKind);
+  work.commit(out, gridPath(work), kGridKind);
   return true;
 }
 
-bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task, unsigned sharing,
+bool runBinTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing,
                 TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "bin", task);
-  if (std::filesystem::exists(path)) return false;
+  if (work.has(path)) return false;
   RangeTask t = rangeTask(work, "bin", task, sharing);
   loadGridManifest(work, t.plan, /*bins=*/false);
   PlanState& state = t.plan;
@@ -462,11 +467,11 @@ bool runBinTask(const ClusterJob& job, const std::filesystem::path& work, uint32
   ManifestWriter out;
   out.putBytes(binned.faces.front()->index());
   out.putBytes(binned.ghosts.front()->index());
-  out.commit(path, taskKind("bin"));
+  work.commit(out, path, taskKind("bin"));
   return true;
 }
 
-void loadGrid(const std::filesystem::path& work, PlanState& state, bool bins) {
+void loadGrid(const WorkDirectory& work, PlanState& state, bool bins) {
   loadGridManifest(work, state, bins);
 }
 

@@ -39,15 +39,15 @@ struct WeldedCorner {
 };
 static_assert(sizeof(WeldedCorner) == 8);
 
-std::filesystem::path cornersPath(const std::filesystem::path& work, uint32_t countTask) {
+std::filesystem::path cornersPath(const WorkDirectory& work, uint32_t countTask) {
   return work / ("count-" + std::to_string(countTask) + "-corners.spill");
 }
 // Its index, apart from the count task's bins: every weld task reads every one of them.
-std::filesystem::path cornersIndexPath(const std::filesystem::path& work, uint32_t countTask) {
+std::filesystem::path cornersIndexPath(const WorkDirectory& work, uint32_t countTask) {
   return work / ("count-" + std::to_string(countTask) + "-corners.manifest");
 }
 constexpr std::string_view kCornersKind = "weld corners";
-std::filesystem::path weldedPath(const std::filesystem::path& work, uint32_t weldTask) {
+std::filesystem::path weldedPath(const WorkDirectory& work, uint32_t weldTask) {
   return work / ("weld-" + std::to_string(weldTask) + "-ids.spill");
 }
 
@@ -66,8 +66,8 @@ struct WeldTaskResult {
   uint64_t distinct = 0;
   std::string index;
 };
-WeldTaskResult loadWeldTask(const std::filesystem::path& work, uint32_t task) {
-  ManifestReader in(taskManifestPath(work, "weld", task), taskKind("weld"));
+WeldTaskResult loadWeldTask(const WorkDirectory& work, uint32_t task) {
+  ManifestReader in = work.read(taskManifestPath(work, "weld", task), taskKind("weld"));
   WeldTaskResult r;
   r.distinct = in.take<uint64_t>();
   r.index = in.takeBytes();
@@ -96,7 +96,7 @@ std::vector<PositionBits> weldSplitters(std::vector<PositionBits> sample, uint32
   return splitters;
 }
 
-WeldPartition::WeldPartition(const StageContext& context, const std::filesystem::path& work, uint32_t task,
+WeldPartition::WeldPartition(const StageContext& context, const WorkDirectory& work, uint32_t task,
                              const RangePlan& plan, std::vector<PositionBits> splitters)
     : work_(work), task_(task), firstFace_(plan.faceBounds[task]), splitters_(std::move(splitters)) {
   spill_ = std::make_unique<BucketSpill>(
@@ -121,13 +121,12 @@ void WeldPartition::commit() {
   spill_->commit();
   ManifestWriter out;
   out.putBytes(spill_->index());
-  out.commit(cornersIndexPath(work_, task_), kCornersKind);
+  work_.commit(out, cornersIndexPath(work_, task_), kCornersKind);
 }
 
-bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint32_t task,
-                 TempSpace* accountTo) {
+bool runWeldTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, TempSpace* accountTo) {
   const std::filesystem::path path = taskManifestPath(work, "weld", task);
-  if (std::filesystem::exists(path)) return false;
+  if (work.has(path)) return false;
   const PlanState state = loadPlanManifest(work);
   const RangePlan& plan = state.rangePlan;
   if (!state.ranges || !plan.soup || task >= plan.weldTasks)
@@ -143,7 +142,7 @@ bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   for (uint32_t i = 0; i < ranges; ++i) paths.push_back(cornersPath(work, i));
   BucketSpill::SegmentReader segments(run.temp, paths, task, task + 1);
   for (uint32_t i = 0; i < ranges; ++i) {
-    ManifestReader in(cornersIndexPath(work, i), kCornersKind);
+    ManifestReader in = work.read(cornersIndexPath(work, i), kCornersKind);
     segments.add(in.takeView());
     in.finish();
   }
@@ -191,11 +190,11 @@ bool runWeldTask(const ClusterJob& job, const std::filesystem::path& work, uint3
   ManifestWriter manifest;
   manifest.put(distinct);
   manifest.putBytes(out.index());
-  manifest.commit(path, taskKind("weld"));
+  work.commit(manifest, path, taskKind("weld"));
   return true;
 }
 
-uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, const std::string& name) {
+uint64_t weldVertices(const WorkDirectory& work, const RangePlan& plan, const std::string& name) {
   uint64_t vertices = 0;
   for (uint32_t b = 0; b < plan.weldTasks; ++b) vertices += loadWeldTask(work, b).distinct;
   if (vertices > kNoVertex)
@@ -204,7 +203,7 @@ uint64_t weldVertices(const std::filesystem::path& work, const RangePlan& plan, 
   return vertices;
 }
 
-std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work, const RangePlan& plan,
+std::vector<uint32_t> weldIds(TempSpace& temp, const WorkDirectory& work, const RangePlan& plan,
                               uint32_t range) {
   const uint32_t ranges = rangeCount(plan);
   const uint64_t faces = plan.faceBounds[range + 1] - plan.faceBounds[range];
@@ -241,15 +240,17 @@ std::vector<uint32_t> weldIds(TempSpace& temp, const std::filesystem::path& work
   return ids;
 }
 
-void removeWeldCorners(const std::filesystem::path& work, const RangePlan& plan) {
-  for (uint32_t i = 0; i < rangeCount(plan); ++i)
-    for (const auto& path : {cornersPath(work, i), cornersIndexPath(work, i)}) std::filesystem::remove(path);
+void removeWeldCorners(const WorkDirectory& work, const RangePlan& plan) {
+  for (uint32_t i = 0; i < rangeCount(plan); ++i) {
+    std::filesystem::remove(cornersPath(work, i));
+    work.remove(cornersIndexPath(work, i));
+  }
 }
 
-void removeWeldIds(const std::filesystem::path& work, const RangePlan& plan) {
+void removeWeldIds(const WorkDirectory& work, const RangePlan& plan) {
   for (uint32_t b = 0; b < plan.weldTasks; ++b) {
     std::filesystem::remove(weldedPath(work, b));
-    std::filesystem::remove(taskManifestPath(work, "weld", b));
+    work.remove(taskManifestPath(work, "weld", b));
   }
 }
 

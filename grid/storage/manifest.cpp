@@ -17,13 +17,18 @@ constexpr std::string_view kMagic = "facetree stage manifest 1\n";
 
 }  // namespace
 
-void ManifestWriter::commit(const std::filesystem::path& path, std::string_view kind) const {
+std::string ManifestWriter::sealed(std::string_view kind) const {
   std::string out(kMagic);
   out += kind;
   out += '\n';
   out += bytes_;
   const uint64_t sum = XXH64(out.data(), out.size(), 0);
   out.append(reinterpret_cast<const char*>(&sum), sizeof sum);
+  return out;
+}
+
+void ManifestWriter::commit(const std::filesystem::path& path, std::string_view kind) const {
+  const std::string out = sealed(kind);
   std::filesystem::path partial = path;
   partial += ".partial";
   const auto fail = [&](int error) {
@@ -54,33 +59,107 @@ void ManifestWriter::commit(const std::filesystem::path& path, std::string_view 
 ManifestReader::ManifestReader(const std::filesystem::path& path, std::string_view kind) : path_(path) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) fail(std::string("cannot open: ") + std::strerror(errno));
-  bytes_.resize(static_cast<size_t>(in.tellg()));
+  auto bytes = std::make_shared<std::string>(static_cast<size_t>(in.tellg()), '\0');
   in.seekg(0);
-  if (!in.read(bytes_.data(), static_cast<std::streamsize>(bytes_.size()))) fail("cannot read it whole");
+  if (!in.read(bytes->data(), static_cast<std::streamsize>(bytes->size()))) fail("cannot read it whole");
+  bytes_ = std::move(bytes);
+  check(kind);
+}
+
+ManifestReader::ManifestReader(const std::filesystem::path& path, std::shared_ptr<const std::string> bytes,
+                               std::string_view kind)
+    : path_(path), bytes_(std::move(bytes)) {
+  if (!bytes_) fail("cannot open: " + std::string(std::strerror(ENOENT)));
+  check(kind);
+}
+
+void ManifestReader::check(std::string_view kind) {
+  const std::string& bytes = *bytes_;
   const std::string head = std::string(kMagic) + std::string(kind) + "\n";
-  if (bytes_.size() < head.size() + sizeof(uint64_t) || bytes_.compare(0, kMagic.size(), kMagic) != 0)
+  if (bytes.size() < head.size() + sizeof(uint64_t) || bytes.compare(0, kMagic.size(), kMagic) != 0)
     fail("not a facetree stage manifest");
-  if (bytes_.compare(0, head.size(), head) != 0) fail("not a manifest of " + std::string(kind));
+  if (bytes.compare(0, head.size(), head) != 0) fail("not a manifest of " + std::string(kind));
+  end_ = bytes.size() - sizeof(uint64_t);
   uint64_t sum = 0;
-  std::memcpy(&sum, bytes_.data() + bytes_.size() - sizeof sum, sizeof sum);
-  bytes_.resize(bytes_.size() - sizeof sum);
-  if (XXH64(bytes_.data(), bytes_.size(), 0) != sum) fail("checksum mismatch (changed since it was written)");
+  std::memcpy(&sum, bytes.data() + end_, sizeof sum);
+  if (XXH64(bytes.data(), end_, 0) != sum) fail("checksum mismatch (changed since it was written)");
   at_ = head.size();
 }
 
 const char* ManifestReader::need(uint64_t bytes) {
-  if (bytes > bytes_.size() - at_) fail("cut short");
-  const char* p = bytes_.data() + at_;
+  if (bytes > end_ - at_) fail("cut short");
+  const char* p = bytes_->data() + at_;
   at_ += static_cast<size_t>(bytes);
   return p;
 }
 
 void ManifestReader::finish() {
-  if (at_ != bytes_.size()) fail("bytes past its last field");
+  if (at_ != end_) fail("bytes past its last field");
 }
 
 void ManifestReader::fail(const std::string& why) const {
   throw Error(ErrorCategory::Input, path_.string() + ": " + why);
+}
+
+bool ManifestShelf::put(const std::filesystem::path& path, std::string bytes) {
+  const std::lock_guard lock(mutex_);
+  Entry& entry = entries_[path];
+  const uint64_t replaced = entry.bytes ? entry.bytes->size() : 0;
+  entry.decoded.reset();
+  if (bytes_ - replaced + bytes.size() > budget_) {
+    bytes_ -= replaced;
+    entry.bytes.reset();
+    return false;
+  }
+  bytes_ += bytes.size() - replaced;
+  entry.bytes = std::make_shared<const std::string>(std::move(bytes));
+  return true;
+}
+
+std::shared_ptr<const std::string> ManifestShelf::find(const std::filesystem::path& path) const {
+  const std::lock_guard lock(mutex_);
+  const auto at = entries_.find(path);
+  return at == entries_.end() ? nullptr : at->second.bytes;
+}
+
+void ManifestShelf::remove(const std::filesystem::path& path) {
+  const std::lock_guard lock(mutex_);
+  const auto at = entries_.find(path);
+  if (at == entries_.end()) return;
+  if (at->second.bytes) bytes_ -= at->second.bytes->size();
+  entries_.erase(at);
+}
+
+void ManifestShelf::clear() {
+  const std::lock_guard lock(mutex_);
+  entries_.clear();
+  bytes_ = 0;
+}
+
+uint64_t ManifestShelf::bytes() const {
+  const std::lock_guard lock(mutex_);
+  return bytes_;
+}
+
+bool WorkDirectory::has(const std::filesystem::path& path) const {
+  return (shelf_ && shelf_->find(path)) || std::filesystem::exists(path);
+}
+
+void WorkDirectory::commit(const ManifestWriter& manifest, const std::filesystem::path& path,
+                           std::string_view kind) const {
+  if (!shelf_ || !shelf_->put(path, manifest.sealed(kind))) manifest.commit(path, kind);
+}
+
+ManifestReader WorkDirectory::read(const std::filesystem::path& path, std::string_view kind) const {
+  if (shelf_)
+    if (std::shared_ptr<const std::string> kept = shelf_->find(path))
+      return ManifestReader(path, std::move(kept), kind);
+  return ManifestReader(path, kind);
+}
+
+void WorkDirectory::remove(const std::filesystem::path& path) const {
+  if (shelf_) shelf_->remove(path);
+  std::filesystem::remove(path);
 }
 
 }  // namespace facetree

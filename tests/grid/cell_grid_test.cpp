@@ -150,6 +150,14 @@ TEST(CellGrid, RestoredFromItsOwnerTableItAnswersAsTheOriginal) {
   beyond[12345] = grid.cellCount();
   EXPECT_THROW(CellGrid::restore(lo, hi, grid.cellCount(), beyond), std::invalid_argument);
   EXPECT_THROW(CellGrid::restore(lo, hi, 0, owners), std::invalid_argument);
+
+  // The tasks of one process restore their grids from one table, read in place.
+  const auto shared = std::make_shared<const std::vector<uint32_t>>(owners);
+  const std::unique_ptr<CellGrid> first = CellGrid::restore(lo, hi, grid.cellCount(), shared),
+                                  second = CellGrid::restore(lo, hi, grid.cellCount(), shared);
+  EXPECT_EQ(first->ownerTable().data(), shared->data());
+  EXPECT_EQ(second->ownerTable().data(), shared->data());
+  for (uint32_t b = 0; b < CellGrid::kBins; b += 97) ASSERT_EQ(second->ownerCell(b), grid.ownerCell(b)) << b;
 }
 
 }  // namespace
