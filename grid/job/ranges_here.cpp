@@ -181,7 +181,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   StagePlan planned;
   if (!planRanges(local, work, planned)) return false;
   WorkFiles files(temp, work.path());
-  files.add([](const std::string&) { return true; });  // the plan
+  files.add([](const std::string&) { return true; });  // the plan, if over the shelf's budget
   PlanState state = loadPlanManifest(work);
   const RangePlan& ranges = state.rangePlan;
   const auto rangeCount = static_cast<uint32_t>(ranges.faceBounds.size() - 1);

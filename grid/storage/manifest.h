@@ -91,9 +91,9 @@ class ManifestReader {
 
 // A run's manifests kept in this process's memory, by the paths they would have as files, up to a
 // budget of bytes: one that does not fit goes to its file (a count task's bins of a shuffled mesh
-// reach a few MiB each, which the tasks' memory plan does not hold). And what the tasks decode of a
-// manifest once for all of them (the grid's owner table, 8 MiB a copy), wherever it is kept, as
-// long as the shelf holds its name. Safe to use from the tasks' threads at once.
+// reach a megabyte and more, which the tasks' memory plan does not hold). And what the tasks
+// decode of a manifest once for all of them (the grid's owner table, 8 MiB a copy), wherever it
+// is kept, as long as the shelf holds its name. Safe to use from the tasks' threads at once.
 class ManifestShelf {
  public:
   explicit ManifestShelf(uint64_t budget) : budget_(budget) {}
@@ -135,8 +135,8 @@ class ManifestShelf {
 // files.
 class WorkDirectory {
  public:
-  WorkDirectory(std::filesystem::path path)
-      : path_(std::move(path)) {}  // NOLINT(google-explicit-constructor)
+  // Implicit: the stage commands, Slurm and Dask name a directory, whose manifests are files.
+  WorkDirectory(std::filesystem::path path) : path_(std::move(path)) {}
   WorkDirectory(std::filesystem::path path, ManifestShelf& shelf) : path_(std::move(path)), shelf_(&shelf) {}
   const std::filesystem::path& path() const { return path_; }
   std::string string() const { return path_.string(); }
