@@ -6,6 +6,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -34,11 +35,16 @@ std::vector<uint32_t> valuesOf(ManifestReader in) {
   return values;
 }
 
-std::string errorOf(const std::function<void()>& f) {
+// The error of reading manifest `name` of `work` as `kind` and then `use`, with the directory's
+// path taken off the front (the two directories differ in it alone); "(no error)" if none.
+std::string failureOf(const WorkDirectory& work, const std::string& name, std::string_view kind,
+                      const std::function<void(ManifestReader&)>& use) {
   try {
-    f();
+    ManifestReader in = work.read(work / name, kind);
+    use(in);
   } catch (const Error& e) {
-    return e.what();
+    const std::string what = e.what();
+    return what.starts_with(work.string()) ? what.substr(work.string().size()) : "(not naming " + what + ")";
   }
   return "(no error)";
 }
@@ -86,17 +92,8 @@ TEST(WorkDirectory, AManifestInMemoryFailsAsItsFileWould) {
   for (const WorkDirectory* work : {&onDisk, &inMemory})
     work->commit(manifestOf({1, 2, 3}), *work / "m.manifest", "test");
   EXPECT_TRUE(kept.empty());
-  const auto error = [](const WorkDirectory& work, const std::function<void(ManifestReader&)>& use,
-                        std::string_view kind = "test") {
-    return errorOf([&] {
-      ManifestReader in = work.read(work / "m.manifest", kind);
-      use(in);
-    });
-  };
-  const auto relative = [](const WorkDirectory& work, std::string what) {
-    return what.starts_with(work.string()) ? what.substr(work.string().size()) : "(not naming " + what + ")";
-  };
   const std::vector<std::function<void(ManifestReader&)>> uses = {
+      [](ManifestReader&) {},
       [](ManifestReader& in) { in.finish(); },
       [](ManifestReader& in) {
         in.take<uint32_t>();
@@ -104,18 +101,16 @@ TEST(WorkDirectory, AManifestInMemoryFailsAsItsFileWould) {
         in.take<uint64_t>();
       },
   };
-  EXPECT_EQ(relative(inMemory, error(inMemory, uses[0])), "/m.manifest: bytes past its last field");
-  EXPECT_EQ(relative(inMemory, error(inMemory, uses[1])), "/m.manifest: cut short");
-  for (const auto& use : uses)
-    EXPECT_EQ(relative(inMemory, error(inMemory, use)), relative(onDisk, error(onDisk, use)));
-  EXPECT_EQ(relative(inMemory, error(
-                                   inMemory, [](ManifestReader&) {}, "other")),
-            "/m.manifest: not a manifest of other");
-  EXPECT_EQ(relative(onDisk, error(
-                                 onDisk, [](ManifestReader&) {}, "other")),
-            "/m.manifest: not a manifest of other");
-  const std::string missing = errorOf([&] { inMemory.read(inMemory / "none.manifest", "test"); });
-  EXPECT_EQ(missing, (inMemory / "none.manifest").string() + ": cannot open: No such file or directory");
+  const std::vector<std::tuple<std::string, std::string_view, int, std::string>> cases = {
+      {"m.manifest", "other", 0, "/m.manifest: not a manifest of other"},
+      {"m.manifest", "test", 1, "/m.manifest: bytes past its last field"},
+      {"m.manifest", "test", 2, "/m.manifest: cut short"},
+      {"none.manifest", "test", 0, "/none.manifest: cannot open: No such file or directory"},
+  };
+  for (const auto& [name, kind, use, expected] : cases) {
+    EXPECT_EQ(failureOf(inMemory, name, kind, uses[use]), expected);
+    EXPECT_EQ(failureOf(onDisk, name, kind, uses[use]), expected);
+  }
 }
 
 // What the tasks decode of a manifest on a shelf is made once and shared, from any thread, until
