@@ -171,8 +171,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
   // tasks a reader each and the one owner table. An STL's weld and bin tasks hold more
   // (rangeTasksAtOnce) and run one at a time, on one thread.
   const unsigned workers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), false));
-  const unsigned weldWorkers = std::clamp(job.threads, 1u, rangeTasksAtOnce(jobMemoryCap(job), soup));
-  const unsigned binWorkers = std::clamp(job.threads, 1u, binTasksSharingGrid(jobMemoryCap(job), soup));
+  const unsigned binWorkers = soup ? 1 : std::clamp(job.threads, 1u, binTasksSharingGrid(jobMemoryCap(job)));
   // One range a worker unless the job says (a cell's faces come from a bucket of every range's
   // segment), and the tasks' files unsynced: they live and die with this run.
   ClusterJob local = job;
@@ -215,7 +214,7 @@ bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report) {
       });
       if (soup) {
         PhaseHooks weld(local, "weld", 3 * faces, ranges.weldTasks);
-        runTasks(ranges.weldTasks, weldWorkers, [&](uint32_t i, unsigned) {
+        runTasks(ranges.weldTasks, 1, [&](uint32_t i, unsigned) {
           runWeldTask(weld.taskJob(i, 1, 0), work, i, &temp);
           files.add("weld", i);
         });

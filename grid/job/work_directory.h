@@ -173,10 +173,11 @@ bool planRanges(const ClusterJob& job, const WorkDirectory& work, StagePlan& res
 // an id per corner of its range, up to an eighth of the cap).
 unsigned rangeTasksAtOnce(uint64_t cap, bool stl);
 unsigned rangeTasksAtOnce(const PlanState& plan);  // a plan of ranges: its cap, its input
-// Bin tasks at once in one process, which share one owner table (WorkDirectory::decoded): the table
-// once and each task's reader in half the cap. An STL's one at a time all the same: with the ids of
-// their ranges (an eighth of the cap each), two at once outgrow the cells' peak.
-unsigned binTasksSharingGrid(uint64_t cap, bool stl);
+// A binary PLY's bin tasks at once in one process, which share one owner table
+// (WorkDirectory::decoded): the table once and each task's reader in half the cap. An STL's run
+// one at a time all the same: with the ids of their ranges (an eighth of the cap each), two at once
+// outgrow the cells' peak.
+unsigned binTasksSharingGrid(uint64_t cap);
 bool runReadTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1);
 bool runCountTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1,
                   TempSpace* accountTo = nullptr);

@@ -68,9 +68,9 @@ unsigned rangeTasksAtOnce(uint64_t cap, bool stl) {
   return static_cast<unsigned>(std::clamp<uint64_t>(cap / 2 / taskFixedBytes, 1, 1024));
 }
 
-unsigned binTasksSharingGrid(uint64_t cap, bool stl) {
+unsigned binTasksSharingGrid(uint64_t cap) {
   const uint64_t grid = CellGrid::kBins * sizeof(uint32_t), taskFixedBytes = uint64_t{4} << 20;
-  if (stl || cap / 2 <= grid) return 1;
+  if (cap / 2 <= grid) return 1;
   return static_cast<unsigned>(std::clamp<uint64_t>((cap / 2 - grid) / taskFixedBytes, 1, 1024));
 }
 

@@ -27,8 +27,10 @@ std::string ManifestWriter::sealed(std::string_view kind) const {
   return out;
 }
 
-void ManifestWriter::commit(const std::filesystem::path& path, std::string_view kind) const {
-  const std::string out = sealed(kind);
+namespace {
+
+// Writes sealed manifest bytes as the file `path` (as PATH.partial, synced, renamed).
+void writeSealed(const std::filesystem::path& path, const std::string& out) {
   std::filesystem::path partial = path;
   partial += ".partial";
   const auto fail = [&](int error) {
@@ -54,6 +56,12 @@ void ManifestWriter::commit(const std::filesystem::path& path, std::string_view 
   }
   ::close(fd);
   if (::rename(partial.c_str(), path.c_str()) != 0) fail(errno);
+}
+
+}  // namespace
+
+void ManifestWriter::commit(const std::filesystem::path& path, std::string_view kind) const {
+  writeSealed(path, sealed(kind));
 }
 
 ManifestReader::ManifestReader(const std::filesystem::path& path, std::string_view kind) : path_(path) {
@@ -101,18 +109,19 @@ void ManifestReader::fail(const std::string& why) const {
   throw Error(ErrorCategory::Input, path_.string() + ": " + why);
 }
 
-bool ManifestShelf::put(const std::filesystem::path& path, std::string bytes) {
+bool ManifestShelf::put(const std::filesystem::path& path, std::string& bytes) {
   const std::lock_guard lock(mutex_);
-  Entry& entry = entries_[path];
-  const uint64_t replaced = entry.bytes ? entry.bytes->size() : 0;
-  entry.decoded.reset();
+  const auto at = entries_.find(path);
+  const uint64_t replaced = at != entries_.end() && at->second.bytes ? at->second.bytes->size() : 0;
   if (bytes_ - replaced + bytes.size() > budget_) {
-    bytes_ -= replaced;
-    entry.bytes.reset();
+    if (at != entries_.end()) {
+      bytes_ -= replaced;
+      at->second = Entry{};
+    }
     return false;
   }
   bytes_ += bytes.size() - replaced;
-  entry.bytes = std::make_shared<const std::string>(std::move(bytes));
+  entries_[path] = Entry{std::make_shared<const std::string>(std::move(bytes)), nullptr};
   return true;
 }
 
@@ -147,7 +156,8 @@ bool WorkDirectory::has(const std::filesystem::path& path) const {
 
 void WorkDirectory::commit(const ManifestWriter& manifest, const std::filesystem::path& path,
                            std::string_view kind) const {
-  if (!shelf_ || !shelf_->put(path, manifest.sealed(kind))) manifest.commit(path, kind);
+  std::string bytes = manifest.sealed(kind);
+  if (!shelf_ || !shelf_->put(path, bytes)) writeSealed(path, bytes);
 }
 
 ManifestReader WorkDirectory::read(const std::filesystem::path& path, std::string_view kind) const {

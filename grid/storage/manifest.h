@@ -97,8 +97,9 @@ class ManifestReader {
 class ManifestShelf {
  public:
   explicit ManifestShelf(uint64_t budget) : budget_(budget) {}
-  // Keeps `bytes` as the manifest at `path` if they fit; false, keeping nothing, if not.
-  bool put(const std::filesystem::path& path, std::string bytes);
+  // Keeps `bytes` (taking them) as the manifest at `path` if they fit; false if not, keeping
+  // nothing under `path` and leaving `bytes` to be written as its file.
+  bool put(const std::filesystem::path& path, std::string& bytes);
   std::shared_ptr<const std::string> find(const std::filesystem::path& path) const;  // null if not kept
   void remove(const std::filesystem::path& path);
   void clear();  // every manifest, and what was decoded of them (their users keep theirs)
