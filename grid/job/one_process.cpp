@@ -1,4 +1,6 @@
 // The out-of-core build: its stages in order (stages/stages.h), each timed into the report.
+#include "job/tasks_here.h"
+#include "job/work_directory.h"
 #include "stages/stages.h"
 
 #include <sys/resource.h>
@@ -68,15 +70,22 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
     releaseFreeMemory();
   });
   if (work) {
-    savePlanManifest(context, extent, plan, binned);
+    savePlanManifest(context, WorkDirectory(*work), extent, plan, binned);
     report.temporaryBytesPeak = temp.peakBytes();
     return;
   }
-
-  CellsOutput cells;
-  timeStage(report, "cells", report.secondsCells,
-            [&] { cells = buildCells(context, plan, extent, std::move(binned)); });
-  finishOutOfCore(context, extent, std::move(cells));
+  // From the cells on, the stages' own tasks here, over a work directory inside the temporary
+  // one, their manifests in memory as far as a 256th of the cap holds them.
+  ManifestShelf shelf(memoryCap / 256);
+  const WorkDirectory tasks(temp.path() / "tasks", shelf);
+  std::filesystem::create_directories(tasks.path());
+  WorkFiles files(temp, tasks.path());
+  ClusterJob local = job;
+  local.syncTaskFiles = false;
+  const StageContext here{local, temp, memoryCap, report, &tasks.path()};
+  savePlanManifest(here, tasks, extent, plan, binned, /*binnedIndex=*/false);
+  files.add([](const std::string&) { return true; });  // the plan, if over the shelf's budget
+  runTasksHere(local, tasks, files, temp, std::move(binned), report);
   report.temporaryBytesPeak = temp.peakBytes();
 }
 
@@ -113,12 +122,6 @@ WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, Cel
     plan = writeUpperPieces(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees));
   });
   return plan;
-}
-
-void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
-  Joined j = joinCells(context, extent, std::move(cells));
-  timeStage(context.report, "write", context.report.secondsWrite,
-            [&] { writeOutOfCore(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees)); });
 }
 
 }  // namespace facetree

@@ -2,10 +2,11 @@
 // finishStages; job/work_directory.h lists the directory's files). A mesh read whole is read and binned by
 // the plan task, which commits the binned faces and ghosts as named spills beside its manifest; a
 // binary PLY read in ranges goes through the read, count, grid and bin steps (stages/read_ranges.cpp).
-// Each cells task opens the binned spills, builds its run of cells into named spills of its own
-// (segment t) and commits its cells' records in a manifest; the finish opens every task's spills
-// together and runs the rest of the build. Every task's outputs depend on its inputs alone, so the
-// file is the single process's bytes.
+// Each cells task opens the binned spills (in one process, the binned faces opened once for every
+// task), builds its run of cells into named spills of its own (segment t) and commits its cells'
+// records in a manifest; the upper step opens every task's spills together (job/write_tasks.cpp).
+// Every task's outputs depend on its inputs alone, so the file is the same bytes whatever runs the
+// tasks: one process (job/tasks_here.h), the stage commands, Dask or Slurm.
 #include <chrono>
 #include <cstring>
 #include <sstream>
@@ -117,7 +118,7 @@ std::shared_ptr<const std::vector<uint32_t>> takeOwners(ManifestReader& in, cons
   });
 }
 
-PlanState loadPlanManifest(const WorkDirectory& work) {
+PlanState loadPlanManifest(const WorkDirectory& work, bool owners) {
   ManifestReader in = work.read(planPath(work), kPlanKind);
   PlanState s;
   s.fingerprint = in.takeBytes();
@@ -145,7 +146,7 @@ PlanState loadPlanManifest(const WorkDirectory& work) {
     } else {
       s.extent = in.take<MeshExtent>();
       s.cellCount = in.take<uint32_t>();
-      s.owners = takeOwners(in, work, planPath(work));
+      s.owners = owners ? takeOwners(in, work, planPath(work)) : (in.takeView(), nullptr);
       s.facesFiles = {work / binnedFile("cell-faces")};
       s.ghostsFiles = {work / binnedFile("ghosts")};
       s.facesIndex = {in.takeBytes()};
@@ -196,9 +197,9 @@ std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const WorkDirectory& wor
   }
 }
 
-PlanState loadPlan(const WorkDirectory& work) {
-  PlanState s = loadPlanManifest(work);
-  if (s.ranges) loadGrid(work, s, /*bins=*/true);
+PlanState loadPlan(const WorkDirectory& work, bool owners) {
+  PlanState s = loadPlanManifest(work, owners);
+  if (s.ranges) loadGrid(work, s, /*bins=*/true, owners);
   if (!s.inCore && (s.bounds.size() < 2 || s.bounds.front() != 0 || s.bounds.back() != s.cellCount ||
                     !std::is_sorted(s.bounds.begin(), s.bounds.end())))
     throw Error(ErrorCategory::Input, (s.ranges ? gridPath(work) : planPath(work)).string() +
@@ -206,8 +207,8 @@ PlanState loadPlan(const WorkDirectory& work) {
   return s;
 }
 
-void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
-                      const BinnedFaces& binned) {
+void savePlanManifest(const StageContext& context, const WorkDirectory& work, const MeshExtent& extent,
+                      const OutOfCorePlan& plan, const BinnedFaces& binned, bool binnedIndex) {
   const uint32_t cells = binned.grid->cellCount();
   ManifestWriter out;
   out.putBytes(jobFingerprint(context.job));
@@ -219,10 +220,10 @@ void savePlanManifest(const StageContext& context, const MeshExtent& extent, con
   out.put(extent);
   out.put(cells);
   putOwners(out, binned.grid->ownerTable());
-  out.putBytes(binned.faces.front()->index());
-  out.putBytes(binned.ghosts.front()->index());
+  out.putBytes(binnedIndex ? binned.faces.front()->index() : std::string());
+  out.putBytes(binnedIndex ? binned.ghosts.front()->index() : std::string());
   out.putVector(cellTaskBounds(binned.cellFaceCounts(), cellsTaskCount(context.job, cells)));
-  out.commit(planPath(*context.work), kPlanKind);
+  work.commit(out, planPath(work), kPlanKind);
 }
 
 std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
@@ -236,22 +237,26 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
   return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"upper", 1}};
 }
 
-namespace {
-
-bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
+bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, TempSpace* accountTo,
+                  BinnedFaces* binned) {
   const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
   if (work.has(manifestPath)) return false;
-  PlanState state = loadPlan(work);
+  // The binned faces opened for every task hold the grid already.
+  PlanState state = loadPlan(work, /*owners=*/binned == nullptr);
   if (state.inCore || task + 1 >= state.bounds.size())
     throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
   JobReport report;
-  TaskContext run(job, state.memoryCap, work, report);
+  TaskContext run(job, state.memoryCap, work, report, accountTo);
   const StageContext& context = run.stage;
   TempSpace& temp = run.temp;
   const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
-  // Only this task's cells' blocks held.
-  BinnedFaces binned = openBinned(temp, work, state, first, end);
-  CellsOutput out = buildCellTask(context, state.plan, state.extent, binned, first, end, task);
+  // Only this task's cells' blocks held, unless the process opened them for every task.
+  BinnedFaces own;
+  if (!binned) {
+    own = openBinned(temp, work, state, first, end);
+    binned = &own;
+  }
+  CellsOutput out = buildCellTask(context, state.plan, state.extent, *binned, first, end, task);
   ManifestWriter manifest;
   manifest.put(first);
   manifest.put(end);
@@ -266,8 +271,6 @@ bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
   work.commit(manifest, manifestPath, taskKind(kCellsStep));
   return true;
 }
-
-}  // namespace
 
 StagePlan planStages(const ClusterJob& job, const std::filesystem::path& directory) {
   const WorkDirectory work(directory);  // tasks in processes of their own: manifests as files

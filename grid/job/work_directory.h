@@ -32,7 +32,8 @@
 //   place-T.manifest            place task T: piece T's frames copied into it
 // A task's manifest (a node task's piece) marks it done. The tasks of one process keep their
 // manifests under the same names in its memory as far as a budget holds them (WorkDirectory over a
-// ManifestShelf, job/ranges_here.cpp).
+// ManifestShelf, job/tasks_here.h); its geometry and node tasks write into the file itself, with no
+// pieces, no layout and no place tasks, and a file it no longer needs goes as soon as it is spent.
 #pragma once
 
 #include <cstdint>
@@ -42,6 +43,7 @@
 #include <string_view>
 #include <vector>
 
+#include "facetree/io.h"
 #include "stages/stages.h"
 #include "stages/weld_corner.h"
 #include "storage/manifest.h"
@@ -124,13 +126,14 @@ struct PlanState {
   std::vector<CellGrid::SplitBin> splitBins;
   std::vector<uint64_t> splitSeen;
 };
-// Throws Error (Input) naming the manifest that is missing or does not fit the others.
-PlanState loadPlan(const WorkDirectory& work);
+// Throws Error (Input) naming the manifest that is missing or does not fit the others. Without
+// `owners`, the grid's owner table is left undecoded (a step that restores no grid).
+PlanState loadPlan(const WorkDirectory& work, bool owners = true);
 // The plan's grid again (CellGrid::restore), taking the state's owner table; Error (Input) naming
 // the manifest that holds it when it does not fit.
 std::unique_ptr<CellGrid> restoreGrid(PlanState& state, const WorkDirectory& work);
 // plan.manifest alone: the fingerprint, and the range plan when there is one.
-PlanState loadPlanManifest(const WorkDirectory& work);
+PlanState loadPlanManifest(const WorkDirectory& work, bool owners = true);
 
 // What a task of the stages runs with: the job as the stages see it, a temporary space of its
 // own, and the stages' context over them and `report`, in the work directory.
@@ -156,6 +159,11 @@ BinnedFaces restoredBins(PlanState& state, const WorkDirectory& work);
 BinnedFaces openBinned(TempSpace& temp, const WorkDirectory& work, PlanState& state, uint32_t first,
                        uint32_t end, bool owned = false);
 
+// The plan stage's manifest: what the cells tasks and the finish need of the read and the bin.
+// Without `binnedIndex`, the binned spills' index is left out: the cells tasks of one process share
+// the binned faces themselves (runTasksHere), which offloaded their block lists as they grew.
+void savePlanManifest(const StageContext& context, const WorkDirectory& work, const MeshExtent& extent,
+                      const OutOfCorePlan& plan, const BinnedFaces& binned, bool binnedIndex = true);
 // The steps of a plan as planStages returns them.
 std::vector<StageStep> stepsAfterPlan(const PlanState& state);
 // The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). readsInRanges: whether
@@ -229,26 +237,50 @@ void removeWeldCorners(const WorkDirectory& work, const RangePlan& plan);
 void removeWeldIds(const WorkDirectory& work, const RangePlan& plan);
 // The grid's part of the plan state (after the plan manifest's), with the bin tasks' binned
 // spills when `bins`.
-void loadGrid(const WorkDirectory& work, PlanState& state, bool bins);
+void loadGrid(const WorkDirectory& work, PlanState& state, bool bins, bool owners = true);
 // The steps that follow the grid: bin, cells and finish.
 std::vector<StageStep> stepsAfterGrid(const PlanState& state);
 // The cells tasks' outputs opened together, with every cell's records from their manifests.
 CellsOutput loadCellTasks(TempSpace& temp, const WorkDirectory& work, const PlanState& state);
+// Cells task `task`: its run of cells (PlanState::bounds) built into its named spills, its cells'
+// records in its manifest. `accountTo`: the run's temporary space, for a task of one process;
+// `binned`: the plan's binned faces, opened once for every task of the process (else the task
+// opens its cells' blocks).
+bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
+                  TempSpace* accountTo = nullptr, BinnedFaces* binned = nullptr);
 // The write as tasks (job/write_tasks.cpp): the upper step (the cells joined, the geometry piece, the
 // write plan) and the steps it lists; a node task (the frames of a range of node positions).
-bool runUpperStep(const ClusterJob& job, const WorkDirectory& work);
+// `live`: the report of the process that runs it, filled as the stages go (else the plan's, as the
+// write plan hands it on).
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo = nullptr,
+                  JobReport* live = nullptr);
 std::vector<StageStep> stepsAfterUpper(const WorkDirectory& work);
 // Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.
 bool runBoxesStep(const ClusterJob& job, const WorkDirectory& work);
 std::vector<StageStep> stepsAfterBoxes(const WorkDirectory& work);
-bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
-bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
+// A geometry or node task writes its piece of the file, or with `into` (`here`) its part of the
+// whole file: one process, the tasks in file order.
+bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
+                  ClusterFileWriter* into = nullptr);
+// What the geometry tasks of one process share (writeFileHere): the whole file's writer, the cells'
+// geometry opened once, and with exact boxes the upper nodes' boxes, each task's part merged into
+// the totals as it ends (the boxes step's sum, in its order).
+struct GeometryHere {
+  ClusterFileWriter& writer;
+  SpillFile& geometry;
+  UpperBoxes* boxes = nullptr;
+};
+bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
+                     const GeometryHere* here = nullptr);
+// One process: the geometry tasks, the boxes step and the node tasks in file order into one writer
+// of job.output, its frames spilled in `temp`; returns the file's size.
+uint64_t writeFileHere(const ClusterJob& job, const WorkDirectory& work, TempSpace& temp);
 // The file assembled by tasks: the layout step writes its header and index and lists the copies;
 // each place task copies one piece's frames into it; the finish renames it into place.
 bool runLayoutStep(const ClusterJob& job, const WorkDirectory& work);
 std::vector<StageStep> stepsAfterLayout(const WorkDirectory& work);
 bool runPlaceTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task);
-// The cells tasks' count a job asks for: job.cellTasks, or one per 8 cells.
+// The cells tasks' count a job asks for: job.cellTasks, or one per 16 cells.
 uint32_t cellsTaskCount(const ClusterJob& job, uint32_t cells);
 
 }  // namespace facetree

@@ -198,7 +198,7 @@ LoadedWrite loadWriteHead(const WorkDirectory& work) {
 }
 
 // The write plan's head and the tables of the node tasks.
-LoadedWrite loadNodesPlan(const WorkDirectory& work) {
+LoadedWrite decodeNodesPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
   ManifestReader in = work.read(nodeTablesPath(work), kNodeTablesKind);
@@ -222,7 +222,7 @@ LoadedWrite loadNodesPlan(const WorkDirectory& work) {
 }
 
 // The write plan's head and the tables of the geometry tasks.
-LoadedWrite loadGeometryPlan(const WorkDirectory& work) {
+LoadedWrite decodeGeometryPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
   ManifestReader in = work.read(geometryTablesPath(work), kGeometryTablesKind);
@@ -245,20 +245,32 @@ LoadedWrite loadGeometryPlan(const WorkDirectory& work) {
   return w;
 }
 
+// The same, decoded once for every task of a process whose manifests are on a shelf (each task
+// of its own decodes its own).
+std::shared_ptr<const LoadedWrite> loadNodesPlan(const WorkDirectory& work) {
+  return work.decoded<LoadedWrite>(nodeTablesPath(work), [&] { return decodeNodesPlan(work); });
+}
+std::shared_ptr<const LoadedWrite> loadGeometryPlan(const WorkDirectory& work) {
+  return work.decoded<LoadedWrite>(geometryTablesPath(work), [&] { return decodeGeometryPlan(work); });
+}
+
 }  // namespace
 
-bool runUpperStep(const ClusterJob& job, const WorkDirectory& work) {
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo, JobReport* live) {
   if (work.has(writePlanPath(work))) return false;
-  PlanState state = loadPlan(work);
-  if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
   // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
-  std::exchange(state.owners, {});
+  PlanState state = loadPlan(work, /*owners=*/false);
+  if (state.inCore) throw std::invalid_argument("no upper step in " + work.string() + ": built in core");
   std::exchange(state.facesIndex, {});
   std::exchange(state.ghostsIndex, {});
-  JobReport report = std::move(state.report);
-  report.outOfCore = true;
+  JobReport own;
+  if (!live) {
+    own = std::move(state.report);
+    own.outOfCore = true;
+  }
+  JobReport& report = live ? *live : own;
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
-  TaskContext run(job, state.memoryCap, work, report);
+  TaskContext run(job, state.memoryCap, work, report, accountTo);
   CellsOutput cells = loadCellTasks(run.temp, work, state);
   WritePlan plan = finishUpper(run.stage, state.extent, std::move(cells));
   report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, run.temp.peakBytes());
@@ -282,6 +294,13 @@ namespace {
 
 std::filesystem::path boxesPath(const WorkDirectory& work) {
   return work / "boxes.manifest";
+}
+
+// The boxes step's manifest: the upper nodes' boxes, their parts merged, by file index.
+void commitBoxes(const WorkDirectory& work, const std::vector<BoxAccumulator>& boxes) {
+  ManifestWriter manifest;
+  manifest.putVector(upperBoxesByFileIndex(boxes));
+  work.commit(manifest, boxesPath(work), kBoxesKind);
 }
 
 }  // namespace
@@ -308,16 +327,15 @@ bool runBoxesStep(const ClusterJob&, const WorkDirectory& work) {
       boxes[nodes[k]].addSums(sums[k]);
     }
   }
-  ManifestWriter manifest;
-  manifest.putVector(upperBoxesByFileIndex(boxes));
-  work.commit(manifest, boxesPath(work), kBoxesKind);
+  commitBoxes(work, boxes);
   return true;
 }
 
-bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
+bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, ClusterFileWriter* into) {
   const std::filesystem::path piece = nodesPiecePath(work, task);
-  if (std::filesystem::exists(piece)) return false;
-  const LoadedWrite w = loadNodesPlan(work);
+  if (!into && std::filesystem::exists(piece)) return false;
+  const std::shared_ptr<const LoadedWrite> loaded = loadNodesPlan(work);
+  const LoadedWrite& w = *loaded;
   if (task + 1 >= w.bounds.size())
     throw std::invalid_argument("no nodes task " + std::to_string(task) + " in " + work.string());
   const WritePlan& p = w.plan;
@@ -334,10 +352,14 @@ bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
   }
   std::unique_ptr<SpillFile> order = SpillFile::open(temp, work / kWriteOrderFile, sizeof(NodeRef));
 
-  WriteOptions options = p.options;
-  options.threads = job.threads;
-  options.piece = PieceRange{first, end, 0, 0, 0, 0};
-  ClusterFileWriter writer(piece, p.info, options, temp.path());
+  std::optional<ClusterFileWriter> pieceWriter;
+  if (!into) {
+    WriteOptions options = p.options;
+    options.threads = job.threads;
+    options.piece = PieceRange{first, end, 0, 0, 0, 0};
+    pieceWriter.emplace(piece, p.info, options, temp.path());
+  }
+  ClusterFileWriter& writer = into ? *into : *pieceWriter;
   const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
   std::vector<NodeBox> upperBoxes;  // exact boxes: the boxes step's, by file index
   if (p.boxesInTasks) {
@@ -347,8 +369,9 @@ bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
     if (upperBoxes.size() != upperCount)
       throw Error(ErrorCategory::Input, boxesPath(work).string() + ": boxes of another plan");
   }
-  if (!p.upperParentBox.empty())
-    for (uint32_t j = 0; j < upperCount; ++j)  // parents in earlier pieces
+  // Parents in earlier pieces; one writer of the whole file has kept their boxes.
+  if (pieceWriter && !p.upperParentBox.empty())
+    for (uint32_t j = 0; j < upperCount; ++j)
       if (p.upperPosition[j] >= first && p.upperPosition[j] < end && p.upperParentPosition[j] < first)
         writer.addParentBox(p.upperPosition[j], p.upperParentBox[j]);
   writeNodeRange(
@@ -359,19 +382,33 @@ bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
         return node;
       },
       [&](uint64_t done) { checkJobProgress(job, "write", done, end - first); });
-  writer.finish();
+  if (pieceWriter) pieceWriter->finish();
   return true;
 }
 
-bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
+bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
+                     const GeometryHere* here) {
   const std::filesystem::path piece = geometryPiecePath(work, task);
-  if (std::filesystem::exists(piece)) return false;
-  const LoadedWrite w = loadGeometryPlan(work);
+  if (!here && std::filesystem::exists(piece)) return false;
+  const std::shared_ptr<const LoadedWrite> loaded = loadGeometryPlan(work);
+  const LoadedWrite& w = *loaded;
   if (task + 1 >= w.triangleBounds.size())
     throw std::invalid_argument("no geometry task " + std::to_string(task) + " in " + work.string());
   const WritePlan& p = w.plan;
   const uint64_t firstTriangle = w.triangleBounds[task], endTriangle = w.triangleBounds[task + 1];
   const uint64_t firstVertex = w.vertexBounds[task], endVertex = w.vertexBounds[task + 1];
+  const std::function<void(uint64_t)> progress = [&](uint64_t done) {
+    checkJobProgress(job, "write", done, endTriangle - firstTriangle);
+  };
+  const GeometryRange range{firstTriangle, endTriangle, firstVertex, endVertex};
+  if (here) {
+    // Into the file itself, each leaf's blocks given back once the last range that reads them has:
+    // the process's own, read in order.
+    writeGeometryRange(p, here->geometry, range, &here->writer, here->boxes, /*discard=*/true,
+                       writePlanPath(work).string(), progress);
+    if (here->boxes) here->boxes->endPart();  // a task's triangles are one part
+    return true;
+  }
   TempSpace temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory);
   std::vector<std::filesystem::path> paths;
   for (uint32_t t = 0; t < w.cellsTasks; ++t)
@@ -395,10 +432,8 @@ bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t 
                       partSums.push_back(parts[i].sums());
                     }
                   });
-  writeGeometryRange(
-      p, *geometry, {firstTriangle, endTriangle, firstVertex, endVertex}, &writer, boxes ? &*boxes : nullptr,
-      /*discard=*/false, writePlanPath(work).string(),
-      [&](uint64_t done) { checkJobProgress(job, "write", done, endTriangle - firstTriangle); });
+  writeGeometryRange(p, *geometry, range, &writer, boxes ? &*boxes : nullptr, /*discard=*/false,
+                     writePlanPath(work).string(), progress);
   if (boxes) {  // the part before the piece: a task whose piece exists has both
     boxes->finish();
     ManifestWriter out;
@@ -408,6 +443,62 @@ bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t 
   }
   writer.finish();
   return true;
+}
+
+uint64_t writeFileHere(const ClusterJob& job, const WorkDirectory& work, TempSpace& temp) {
+  const LoadedWrite w = loadWriteHead(work);
+  const WritePlan& p = w.plan;
+  const uint64_t triangles = p.info.header.triangleCount, total = triangles + p.info.header.nodeCount;
+  WriteOptions options = p.options;
+  options.threads = job.threads;
+  ClusterFileWriter writer(job.output, p.info, options, temp.path());
+  writer.setTemporaryBytesHook([&temp](int64_t delta) {
+    if (delta > 0)
+      temp.reserve(static_cast<uint64_t>(delta));
+    else
+      temp.release(static_cast<uint64_t>(-delta));
+  });
+  // The write's progress over the tasks: each reports its own range's.
+  const auto taskJob = [&](uint64_t base) {
+    ClusterJob j = job;
+    if (job.progress)
+      j.progress = [&job, base, total](const JobProgress& done) {
+        return job.progress(JobProgress{"write", base + done.done, total});
+      };
+    return j;
+  };
+  // The cells' geometry, opened once for every geometry task: this run's alone, so each leaf's
+  // blocks are given back once the last range that reads them has (every block counted first).
+  std::vector<std::filesystem::path> geometryPaths;
+  for (uint32_t t = 0; t < w.cellsTasks; ++t)
+    geometryPaths.push_back(cellTaskFile(work.path(), CellSpill::Geometry, t));
+  {
+    const std::unique_ptr<SpillFile> geometry = SpillFile::open(temp, geometryPaths, 4);
+    geometry->ownOpened();
+    for (const SpillBlock& block : loadGeometryPlan(work)->plan.geometry) geometry->countBlock(block);
+    // Exact boxes: the tasks' parts summed as they end, in the boxes step's order; the boxes
+    // step's manifest from the totals.
+    std::vector<BoxAccumulator> totals;
+    std::optional<UpperBoxes> boxes;
+    if (p.boxesInTasks) {
+      totals = upperFrames(p);
+      boxes.emplace(totals, job.threads > 1);
+    }
+    const GeometryHere here{writer, *geometry, boxes ? &*boxes : nullptr};
+    for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t)
+      runGeometryTask(taskJob(w.triangleBounds[t]), work, t, &here);
+    if (boxes) {
+      boxes->finish();
+      commitBoxes(work, totals);
+    }
+  }
+  // Spent: the geometry and its tables (their decoded copy with them).
+  for (const auto& path : geometryPaths) std::filesystem::remove(path);
+  work.remove(geometryTablesPath(work));
+  releaseFreeMemory();  // the geometry tables, before the node tasks take theirs
+  for (uint32_t t = 0; t + 1 < w.bounds.size(); ++t)
+    runNodesTask(taskJob(triangles + w.bounds[t]), work, t, &writer);
+  return writer.finish();
 }
 
 namespace {

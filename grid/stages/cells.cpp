@@ -715,41 +715,19 @@ std::vector<uint32_t> cellTaskBounds(std::span<const uint64_t> cellFaces, uint32
   uint64_t total = 0;
   for (uint32_t c = 0; c < cells; ++c) total += cellFaces[c];
   tasks = std::clamp<uint32_t>(tasks, 1, std::max(1u, cells));
-  // Task t ends at the first cell whose faces so far reach t + 1 shares of the total.
+  // Task t ends at the first cell whose faces so far reach t + 1 shares of the total, or where
+  // the cells left are as many as the tasks left: every task has a cell.
   std::vector<uint32_t> bounds{0};
   uint64_t sum = 0;
   for (uint32_t c = 0; c < cells; ++c) {
     sum += cellFaces[c];
-    const uint64_t t = bounds.size();
-    if (t < tasks && sum * tasks >= t * total && cells - (c + 1) >= tasks - t) bounds.push_back(c + 1);
+    const uint64_t t = bounds.size(), left = cells - (c + 1);
+    if (t < tasks && left >= tasks - t && (sum * tasks >= t * total || left == tasks - t))
+      bounds.push_back(c + 1);
   }
   while (bounds.size() < size_t{tasks} + 1) bounds.push_back(cells);
   bounds.back() = cells;
   return bounds;
-}
-
-CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
-                       BinnedFaces&& binned) {
-  BinnedFaces in = std::move(binned);  // the grid's 8 MiB table serves this stage's lookups only
-  const uint32_t cells = in.grid->cellCount();
-  if (context.job.cellTasks <= 1) return CellsStage(context, plan, extent, in, 0, cells, std::nullopt).run();
-
-  // The cells as tasks, one after the other here, each into its named spills; the stages after read
-  // their segments together by the handles the tasks made, and take each cell's records from the task
-  // that built it.
-  const std::vector<uint32_t> bounds = cellTaskBounds(in.cellFaceCounts(), context.job.cellTasks);
-  const auto tasks = static_cast<uint32_t>(bounds.size() - 1);
-  std::vector<CellResult> results(cells);
-  // Each task's files stay accounted by their writers until every task is done, then by the reader.
-  std::vector<CellsOutput> parts;
-  for (uint32_t t = 0; t < tasks; ++t) {
-    parts.push_back(CellsStage(context, plan, extent, in, bounds[t], bounds[t + 1], t).run());
-    for (uint32_t c = bounds[t]; c < bounds[t + 1]; ++c)
-      results[c] = std::move(parts.back().records.cells[c]);
-  }
-  std::exchange(in, {});
-  parts.clear();
-  return openCellTasks(context.temp, context.temp.path(), tasks, std::move(results));
 }
 
 CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,

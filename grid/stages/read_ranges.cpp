@@ -193,13 +193,13 @@ std::filesystem::path binGhostsPath(const WorkDirectory& work, uint32_t task) {
 }
 
 // The grid manifest's fields, in order; the bin tasks' indexes when `bins`.
-void loadGridManifest(const WorkDirectory& work, PlanState& s, bool bins) {
+void loadGridManifest(const WorkDirectory& work, PlanState& s, bool bins, bool owners) {
   ManifestReader in = work.read(gridPath(work), kGridKind);
   takeReport(in, s.report);
   s.extent = in.take<MeshExtent>();
   s.plan = in.take<OutOfCorePlan>();
   s.cellCount = in.take<uint32_t>();
-  s.owners = takeOwners(in, work, gridPath(work));
+  s.owners = owners ? takeOwners(in, work, gridPath(work)) : (in.takeView(), nullptr);
   s.splitBins = in.takeVector<CellGrid::SplitBin>();
   s.splitSeen = in.takeVector<uint64_t>();
   s.bounds = in.takeVector<uint32_t>();
@@ -431,7 +431,7 @@ bool runBinTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
   const std::filesystem::path path = taskManifestPath(work, "bin", task);
   if (work.has(path)) return false;
   RangeTask t = rangeTask(work, "bin", task, sharing);
-  loadGridManifest(work, t.plan, /*bins=*/false);
+  loadGridManifest(work, t.plan, /*bins=*/false, /*owners=*/true);
   PlanState& state = t.plan;
   JobReport report;
   TaskContext run(job, state.memoryCap, work, report, accountTo);
@@ -471,8 +471,8 @@ bool runBinTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
   return true;
 }
 
-void loadGrid(const WorkDirectory& work, PlanState& state, bool bins) {
-  loadGridManifest(work, state, bins);
+void loadGrid(const WorkDirectory& work, PlanState& state, bool bins, bool owners) {
+  loadGridManifest(work, state, bins, owners);
 }
 
 std::vector<StageStep> stepsAfterGrid(const PlanState& state) {

@@ -1,19 +1,24 @@
-// Internal to grid/: the out-of-core build as a list of stages over explicit data. runOutOfCore
-// (job/one_process.cpp) runs them in this order; each stage is one function in its own file, taking
-// what the stage before it made and handing on what the next one needs:
+// Internal to grid/: the out-of-core build as a list of stages over explicit data. Each stage is
+// one function in its own file, taking what the stage before it made and handing on what the next
+// one needs; the job's tasks (job/work_directory.h) run them, in one process (job/tasks_here.h) or
+// in processes of their own:
 //
 //   readArrival    stages/read.cpp   reader -> ArrivalFaces (FaceRecords in arrival order;
 //                  stages/weld_arrival.cpp   STL and --weld: corners welded by an external sort)
+//                  (a binary PLY or STL: the read tasks in ranges, stages/read_ranges.cpp)
 //   binFaces       stages/bin.cpp    ArrivalFaces -> BinnedFaces (a CellGrid, each cell's
 //                                         faces, and ghosts of the edges other cells own)
-//   buildCells     stages/cells.cpp  BinnedFaces -> CellsOutput (each cell's leaf clusters:
+//   buildCellTask  stages/cells.cpp  BinnedFaces -> CellsOutput (a run of cells' leaf clusters:
 //                                         subtrees and geometry spilled, records and cross pairs)
 //   resolveLeafGraph stages/leaf_graph.cpp  CellRecords -> LeafGraph (the leaves and the dual edges
 //                                         between them, cross-cell pairs resolved by sort joins)
 //   mergeAbove     stages/merge_above.cpp  LeafGraph -> ClusterMergeResult (the engine above the
 //                                         leaves, Willmott 2000 sec. 5.5.2 on given clusters)
-//   writeOutOfCore stages/write_plan.cpp  everything -> the cluster file (geometry in leaf order,
-//                                         the upper nodes' exact boxes on the way, then the nodes)
+//   writeUpperPieces stages/write_plan.cpp  everything -> the write plan (the file's layout, the
+//                                         node order, the upper nodes' box frames)
+//   writeGeometryRange, writeNodeRange  stages/write_ranges.cpp  the plan -> the cluster file's
+//                                         frames (geometry in leaf order, the upper nodes' exact
+//                                         boxes on the way, then the nodes)
 //
 // What each stage holds in memory is bounded by the plan (stages/memory_plan.h); whatever grows
 // with the input lives in spills (storage/spill_file.h, storage/bucket_spill.h).
@@ -265,8 +270,6 @@ struct CellsOutput {
   LeafSubtrees subtrees;
   CellRecords records;
 };
-CellsOutput buildCells(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
-                       BinnedFaces&& binned);
 // The cells stage as tasks (ClusterJob::cellTasks): task t builds cells [bounds[t], bounds[t + 1]),
 // runs of consecutive cells of about equal faces (from the binned faces alone, never the threads),
 // into named spills, segment t of each kind.
@@ -298,10 +301,6 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records);
 
 // The engine's merge above the leaf clusters; takes the graph's stats, quadrics and edges.
 ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& extent, LeafGraph& graph);
-
-// The cluster file (context.job.output).
-void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
-                    const ClusterMergeResult& upper, LeafSubtrees&& subtrees);
 
 // The write as tasks of the stages (job/write_tasks.cpp): the upper step reads the geometry for the
 // upper nodes' boxes and writes the node order (and for compact boxes the quantised node runs) as
@@ -347,7 +346,8 @@ WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent
 // The geometry of triangles [firstTriangle, endTriangle) and vertices [firstVertex, endVertex):
 // with `boxes`, the upper nodes' exact boxes accumulate the blocks that start in the range, a part
 // per WritePlan::boxPart triangles (UpperBoxes::endPart); without `writer`, the boxes alone. With
-// `discard`, each geometry block is given back once read (the range read once, whole). `where`
+// `discard` (ranges that one process reads in order, each once), the blocks of a leaf that ends in
+// the range are given back once read: no later range reads them. `where`
 // names the plan in errors; `progress` gets the range's triangles done.
 class UpperBoxes;
 struct GeometryRange {
@@ -378,22 +378,16 @@ uint64_t jobMemoryCap(const ClusterJob& job);
 JobReport runJob(const ClusterJob& job, const std::filesystem::path* work);
 
 // Runs the out-of-core build from `reader`, `pending` holding the triangles the job had already
-// read into memory; fills `report`.
-// With `work`, the job stops after the bin stage: its outputs are committed there with the plan
-// manifest (planStages, job/tasks.cpp).
+// read into memory: the read and the bin, then the stages' own tasks from the cells on
+// (runTasksHere); fills `report`. With `work`, the job stops after the bin stage: its outputs are
+// committed there with the plan manifest (planStages, job/tasks.cpp).
 void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
                   std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
                   JobReport& report, const std::filesystem::path* work = nullptr);
 // A binary PLY or STL that runJob would take out of core: the stages' read, count, weld, grid and
-// bin tasks on a pool of job.threads, then the rest here (job/ranges_here.cpp). False, having done
+// bin tasks on a pool of job.threads, then the rest as runOutOfCore (job/ranges_here.cpp). False, having done
 // nothing, for any other input.
 bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report);
-// The plan stage's manifest: what the cells tasks and the finish need of the read and the bin.
-void savePlanManifest(const StageContext& context, const MeshExtent& extent, const OutOfCorePlan& plan,
-                      const BinnedFaces& binned);
-// The rest of the out-of-core build from the cells' outputs: the leaf graph, the merge above and the
-// write, each timed into the report.
-void finishOutOfCore(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
 // The same up to the write's pieces (the stages' upper step): writeUpperPieces' plan.
 WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
 

@@ -50,10 +50,6 @@ class WriteStage {
         graph_(std::move(graph)),
         upper_(upper),
         subtrees_(std::move(subtrees)) {}
-  // One process: the plan in memory, the geometry written on the way, then the nodes, straight
-  // into the file by the stages' own task bodies (writeGeometryRange, writeNodeRange), the ranges
-  // whole.
-  void run();
   // The stages' upper step: the node order and (for compact boxes) the quantised runs as named
   // spills in `work`, and the plan the geometry, boxes and node tasks take.
   WritePlan runPieces(const std::filesystem::path& work);
@@ -67,9 +63,8 @@ class WriteStage {
   };
   Start start();
   // The write plan. Compact boxes need the upper nodes' boxes to quantise the leaves' runs: the
-  // geometry is read here for them. With `writer` (one process), the geometry is written into it
-  // here, and the upper boxes accumulate on the way, exact or compact.
-  WritePlan plan(Start& begun, ClusterFileWriter* writer);
+  // geometry is read here for them.
+  WritePlan plan(Start& begun);
   StreamFileInfo fileInfo(const FileLayout& layout) const;
   WriteOptions writeOptions() const;
   // Upper node j (by file index: reverse creation order) as the file has it, its children placed
@@ -225,9 +220,9 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const WritePlan& plan, const 
 void WriteStage::place(OrderSorter& order) {
   runPosition_.resize(graph_.runFirst.size());
   upperPosition_.resize(upper_.nodes.size());
-  order_ = work_ ? std::make_unique<SpillFile>(context_.temp, SpillFile::Named{*work_ / kWriteOrderFile},
-                                               sizeof(NodeRef))
-                 : std::make_unique<SpillFile>(context_.temp, "order", /*discardable=*/true, sizeof(NodeRef));
+  order_ = std::make_unique<SpillFile>(
+      context_.temp, SpillFile::Named{*work_ / kWriteOrderFile, 0, context_.job.syncTaskFiles},
+      sizeof(NodeRef));
   std::vector<NodeRef> batch(kOrderBlock);
   uint64_t position = 0;
   for (size_t n; (n = order.read(batch)) > 0;) {
@@ -298,8 +293,8 @@ std::vector<NodeBox> WriteStage::upperDecodedBoxes(const WritePlan& plan, const 
 
 void WriteStage::compactRuns(const WritePlan& plan, const FileLayout& layout, const UpperFrames& frames) {
   const std::vector<NodeBox> upperBox = upperDecodedBoxes(plan, layout, frames);
-  auto out = work_ ? std::make_unique<SpillFile>(context_.temp, SpillFile::Named{*work_ / kWriteNodesFile})
-                   : std::make_unique<SpillFile>(context_.temp, "nodes", /*discardable=*/true);
+  auto out = std::make_unique<SpillFile>(
+      context_.temp, SpillFile::Named{*work_ / kWriteNodesFile, 0, context_.job.syncTaskFiles});
   SpillFile& runs = *subtrees_.nodes;
   std::vector<std::byte> raw, table;
   std::vector<NodeBlock> blocks;
@@ -391,7 +386,7 @@ WriteStage::Start WriteStage::start() {
   return s;
 }
 
-WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
+WritePlan WriteStage::plan(Start& begun) {
   FileLayout& fileLayout = begun.layout;
   UpperFrames& frames = begun.frames;
   const auto upperCount = static_cast<uint32_t>(upper_.nodes.size());
@@ -420,9 +415,8 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
   plan.leafUpperParent = std::move(fileLayout.leafParent);
   // Exact boxes: the geometry tasks accumulate the upper nodes' boxes as they write the geometry
   // (each its part), and the boxes step merges them. Compact boxes are needed now, to quantise
-  // the leaves' runs, so the geometry is read here for them, in the same parts. One process writes
-  // the geometry here, whichever the boxes, as one range (the geometry tasks' body over the whole
-  // file): the parts merge into the totals as they end, in the order the boxes step merges them.
+  // the leaves' runs, so the geometry is read here for them, in the same parts, as one range (the
+  // geometry tasks' body over the whole file): the parts merge into the totals as they end.
   plan.boxesInTasks = context_.job.build.boxes == BoxPrecision::Exact && upperCount > 0;
   if (plan.boxesInTasks) {
     plan.upperOrientation.resize(upperCount);
@@ -433,20 +427,13 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
       plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
     }
   }
-  if (writer || (upperCount > 0 && !plan.boxesInTasks)) {
+  if (upperCount > 0 && !plan.boxesInTasks) {
     std::optional<UpperBoxes> boxes;
     if (upperCount > 0) boxes.emplace(frames.boxes, context_.job.threads > 1);
     const GeometryRange whole{0, fileLayout.faces, 0, fileLayout.vertices};
-    writeGeometryRange(plan, *subtrees_.geometry, whole, writer, boxes ? &*boxes : nullptr,
-                       /*discard=*/writer != nullptr, "the write plan",
-                       [&](uint64_t done) { progress(done); });
+    writeGeometryRange(plan, *subtrees_.geometry, whole, nullptr, boxes ? &*boxes : nullptr,
+                       /*discard=*/false, "the write plan", [&](uint64_t done) { progress(done); });
     if (boxes) boxes->finish();
-  }
-  if (writer) {  // else the geometry tasks read it
-    subtrees_.geometry.reset();
-    for (auto* table : {&plan.leafFirstGeometry, &plan.leafGeometryCount, &plan.leafVertices})
-      std::exchange(*table, {});
-    std::exchange(plan.geometry, {});
   }
   releaseFreeMemory();  // the geometry pass's batches and buffers, before the order's sort
   const bool compact = context_.job.build.boxes == BoxPrecision::Compact && upperCount > 0;
@@ -470,7 +457,6 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
   }
   plan.upperPosition = std::move(upperPosition_);
   std::exchange(graph_.leaves, {});  // the plan has what the passes need of them
-  if (!work_) return plan;
   // The node tasks' upper nodes, made once here (one process makes each as the node pass reaches
   // it: upperNode).
   plan.upperNodes.resize(upperCount);
@@ -492,43 +478,16 @@ WritePlan WriteStage::plan(Start& begun, ClusterFileWriter* writer) {
   return plan;
 }
 
-void WriteStage::run() {
-  Start begun = start();
-  const ClusterJob& job = context_.job;
-  TempSpace& temp = context_.temp;
-  ClusterFileWriter writer(job.output, fileInfo(begun.layout), writeOptions(), temp.path());
-  writer.setTemporaryBytesHook([&temp](int64_t delta) {
-    if (delta > 0)
-      temp.reserve(static_cast<uint64_t>(delta));
-    else
-      temp.release(static_cast<uint64_t>(-delta));
-  });
-  const WritePlan p = plan(begun, &writer);
-  const uint64_t done = p.info.header.triangleCount;
-  writeNodeRange(
-      p, *order_, *subtrees_.nodes, 0, p.info.header.nodeCount, writer,
-      [&](uint32_t j) { return upperNode(j, p, begun.layout, begun.frames); },
-      [&](uint64_t nodes) { progress(done + nodes); });
-  subtrees_.nodes.reset();
-  order_.reset();
-  context_.report.fileBytes = writer.finish();
-}
-
 WritePlan WriteStage::runPieces(const std::filesystem::path& work) {
   work_ = &work;
   Start begun = start();
-  WritePlan p = plan(begun, nullptr);
+  WritePlan p = plan(begun);
   order_->commit();
   if (p.compactNodes) subtrees_.nodes->commit();
   return p;
 }
 
 }  // namespace
-
-void writeOutOfCore(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
-                    const ClusterMergeResult& upper, LeafSubtrees&& subtrees) {
-  WriteStage(context, extent, std::move(graph), upper, std::move(subtrees)).run();
-}
 
 WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
                            const ClusterMergeResult& upper, LeafSubtrees&& subtrees) {

@@ -67,10 +67,12 @@ void writeGeometryRange(const WritePlan& p, SpillFile& geometry, const GeometryR
           ancestors.push_back(a);
         }
       leafVertices.clear();
+      // Ranges go in order: a leaf that ends in this one is read by no range after it.
+      const bool last = discard && leafVertexEnd <= r.endVertex && leafFaceEnd <= r.endTriangle;
       for (uint32_t g = 0; g < p.leafGeometryCount[leaf]; ++g) {
         const SpillBlock& block = p.geometry[p.leafFirstGeometry[leaf] + g];
         geometry.read(block, raw, codec);
-        if (discard) geometry.discard(block);
+        if (last) geometry.discard(block);
         const size_t firstNew = leafVertices.size();
         decodeGeometryBlock(raw, leafVertices, indices, ids);
         const std::span<const glm::vec3> vertices = std::span(leafVertices).subspan(firstNew);

@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <fstream>
+#include <new>
 
 #include "facetree/error.h"
 
@@ -17,20 +18,58 @@ constexpr std::string_view kMagic = "facetree stage manifest 1\n";
 
 }  // namespace
 
+namespace {
+
+// Fields smaller than this go into the last chunk; larger ones are chunks of their own.
+constexpr size_t kChunkBytes = size_t{1} << 16;
+
+}  // namespace
+
+void ManifestWriter::append(std::string_view bytes) {
+  if (chunks_.empty() || bytes.size() >= kChunkBytes || chunks_.back().size() + bytes.size() > kChunkBytes)
+    chunks_.emplace_back().reserve(bytes.size() >= kChunkBytes ? bytes.size() : kChunkBytes);
+  chunks_.back().append(bytes);
+  bytes_ += bytes.size();
+}
+
+uint64_t ManifestWriter::sealedBytes(std::string_view kind) const {
+  return kMagic.size() + kind.size() + 1 + bytes_ + sizeof(uint64_t);
+}
+
+namespace {
+
+// The manifest's parts in order: its head (magic, kind), its chunks, then its checksum.
+template <class F>
+void sealedParts(std::string_view kind, const std::vector<std::string>& chunks, const F& part) {
+  const std::string head = std::string(kMagic) + std::string(kind) + "\n";
+  const std::unique_ptr<XXH64_state_t, decltype(&XXH64_freeState)> state(XXH64_createState(),
+                                                                         &XXH64_freeState);
+  if (!state) throw std::bad_alloc();
+  XXH64_reset(state.get(), 0);
+  XXH64_update(state.get(), head.data(), head.size());
+  part(std::string_view(head));
+  for (const std::string& chunk : chunks) {
+    XXH64_update(state.get(), chunk.data(), chunk.size());
+    part(std::string_view(chunk));
+  }
+  const uint64_t sum = XXH64_digest(state.get());
+  part(std::string_view(reinterpret_cast<const char*>(&sum), sizeof sum));
+}
+
+}  // namespace
+
 std::string ManifestWriter::sealed(std::string_view kind) const {
-  std::string out(kMagic);
-  out += kind;
-  out += '\n';
-  out += bytes_;
-  const uint64_t sum = XXH64(out.data(), out.size(), 0);
-  out.append(reinterpret_cast<const char*>(&sum), sizeof sum);
+  std::string out;
+  out.reserve(sealedBytes(kind));
+  sealedParts(kind, chunks_, [&](std::string_view part) { out.append(part); });
   return out;
 }
 
 namespace {
 
-// Writes sealed manifest bytes as the file `path` (as PATH.partial, synced, renamed).
-void writeSealed(const std::filesystem::path& path, const std::string& out) {
+// Writes the parts of sealed manifest bytes as the file `path` (as PATH.partial, synced, renamed).
+void writeSealed(const std::filesystem::path& path,
+                 const std::function<void(const std::function<void(std::string_view)>&)>& parts) {
   std::filesystem::path partial = path;
   partial += ".partial";
   const auto fail = [&](int error) {
@@ -39,16 +78,18 @@ void writeSealed(const std::filesystem::path& path, const std::string& out) {
   };
   const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail(errno);
-  for (size_t done = 0; done < out.size();) {
-    const ssize_t got = ::write(fd, out.data() + done, out.size() - done);
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) {
-      const int error = got < 0 ? errno : ENOSPC;
-      ::close(fd);
-      fail(error);
+  parts([&](std::string_view out) {
+    for (size_t done = 0; done < out.size();) {
+      const ssize_t got = ::write(fd, out.data() + done, out.size() - done);
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) {
+        const int error = got < 0 ? errno : ENOSPC;
+        ::close(fd);
+        fail(error);
+      }
+      done += static_cast<size_t>(got);
     }
-    done += static_cast<size_t>(got);
-  }
+  });
   if (::fsync(fd) != 0) {
     const int error = errno;
     ::close(fd);
@@ -61,7 +102,7 @@ void writeSealed(const std::filesystem::path& path, const std::string& out) {
 }  // namespace
 
 void ManifestWriter::commit(const std::filesystem::path& path, std::string_view kind) const {
-  writeSealed(path, sealed(kind));
+  writeSealed(path, [&](const auto& part) { sealedParts(kind, chunks_, part); });
 }
 
 ManifestReader::ManifestReader(const std::filesystem::path& path, std::string_view kind) : path_(path) {
@@ -145,6 +186,21 @@ void ManifestShelf::clear() {
   bytes_ = 0;
 }
 
+void ManifestShelf::forgetDecoded() {
+  const std::lock_guard lock(mutex_);
+  for (auto at = entries_.begin(); at != entries_.end();) {
+    at->second.decoded.reset();
+    at = at->second.bytes ? std::next(at) : entries_.erase(at);
+  }
+}
+
+bool ManifestShelf::fits(const std::filesystem::path& path, uint64_t bytes) const {
+  const std::lock_guard lock(mutex_);
+  const auto at = entries_.find(path);
+  const uint64_t replaced = at != entries_.end() && at->second.bytes ? at->second.bytes->size() : 0;
+  return bytes_ - replaced + bytes <= budget_;
+}
+
 uint64_t ManifestShelf::bytes() const {
   const std::lock_guard lock(mutex_);
   return bytes_;
@@ -156,8 +212,16 @@ bool WorkDirectory::has(const std::filesystem::path& path) const {
 
 void WorkDirectory::commit(const ManifestWriter& manifest, const std::filesystem::path& path,
                            std::string_view kind) const {
-  std::string bytes = manifest.sealed(kind);
-  if (!shelf_ || !shelf_->put(path, bytes)) writeSealed(path, bytes);
+  // Sealed in memory only for a shelf that keeps it; the rest goes to its file part by part.
+  if (shelf_) {
+    if (shelf_->fits(path, manifest.sealedBytes(kind))) {
+      std::string bytes = manifest.sealed(kind);
+      if (shelf_->put(path, bytes)) return;
+    } else {
+      shelf_->remove(path);
+    }
+  }
+  manifest.commit(path, kind);
 }
 
 ManifestReader WorkDirectory::read(const std::filesystem::path& path, std::string_view kind) const {

@@ -27,11 +27,11 @@ class ManifestWriter {
   template <class T>
   void put(const T& value) {
     static_assert(std::is_trivially_copyable_v<T>);
-    bytes_.append(reinterpret_cast<const char*>(&value), sizeof value);
+    append({reinterpret_cast<const char*>(&value), sizeof value});
   }
   void putBytes(std::string_view bytes) {
     put(uint64_t{bytes.size()});
-    bytes_.append(bytes);
+    append(bytes);
   }
   template <class T>
   void putVector(const std::vector<T>& values) {
@@ -40,11 +40,16 @@ class ManifestWriter {
   }
   // Writes `path` (as PATH.partial, synced, renamed): Error (Output) naming it when it cannot.
   void commit(const std::filesystem::path& path, std::string_view kind) const;
-  // The manifest's bytes as commit writes them.
+  // The manifest's bytes as commit writes them, and their size.
   std::string sealed(std::string_view kind) const;
+  uint64_t sealedBytes(std::string_view kind) const;
 
  private:
-  std::string bytes_;
+  // The fields in chunks: a large one (a write plan's table, megabytes) is a chunk of its own,
+  // so that the manifest never holds its bytes twice while it grows, nor when it is written.
+  void append(std::string_view bytes);
+  std::vector<std::string> chunks_;
+  uint64_t bytes_ = 0;
 };
 
 class ManifestReader {
@@ -100,9 +105,12 @@ class ManifestShelf {
   // Keeps `bytes` (taking them) as the manifest at `path` if they fit; false if not, keeping
   // nothing under `path` and leaving `bytes` to be written as its file.
   bool put(const std::filesystem::path& path, std::string& bytes);
+  // Whether `bytes` would fit in place of what it keeps at `path`.
+  bool fits(const std::filesystem::path& path, uint64_t bytes) const;
   std::shared_ptr<const std::string> find(const std::filesystem::path& path) const;  // null if not kept
   void remove(const std::filesystem::path& path);
-  void clear();  // every manifest, and what was decoded of them (their users keep theirs)
+  void clear();          // every manifest, and what was decoded of them (their users keep theirs)
+  void forgetDecoded();  // what was decoded (its users keep theirs); the manifests stay
   uint64_t bytes() const;
   template <class T>
   std::shared_ptr<const T> decoded(const std::filesystem::path& path, const std::function<T()>& decode) {
@@ -154,6 +162,9 @@ class WorkDirectory {
   std::shared_ptr<const T> decoded(const std::filesystem::path& path,
                                    const std::function<T()>& decode) const {
     return shelf_ ? shelf_->decoded<T>(path, decode) : std::make_shared<const T>(decode());
+  }
+  void forgetDecoded() const {
+    if (shelf_) shelf_->forgetDecoded();
   }
 
  private:

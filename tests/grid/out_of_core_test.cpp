@@ -4,6 +4,7 @@
 // files are gone, and the memory cap holds (getrusage of a child process).
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <zstd.h>
@@ -319,9 +320,26 @@ TEST(OutOfCore, BinaryPlyInRangesGivesTheBytesOfTheWholeRead) {
   }
 }
 
+// The cells tasks' runs of cells: about equal faces each, and a cell for every task however the
+// faces lie.
+TEST(OutOfCore, CellTaskBoundsGiveEveryTaskACell) {
+  const std::vector<uint64_t> even(16, 10);
+  EXPECT_EQ(cellTaskBounds(even, 4), (std::vector<uint32_t>{0, 4, 8, 12, 16}));
+  std::vector<uint64_t> lastHeavy(16, 10);
+  lastHeavy.back() = 1000;
+  std::vector<uint32_t> each(17);
+  std::iota(each.begin(), each.end(), 0u);
+  EXPECT_EQ(cellTaskBounds(lastHeavy, 16), each);
+  EXPECT_EQ(cellTaskBounds(lastHeavy, 1000), each);
+  EXPECT_EQ(cellTaskBounds(lastHeavy, 2), (std::vector<uint32_t>{0, 15, 16}));
+  EXPECT_EQ(cellTaskBounds(std::vector<uint64_t>{1000, 1, 1, 1}, 2), (std::vector<uint32_t>{0, 1, 4}));
+  EXPECT_EQ(cellTaskBounds(std::vector<uint64_t>{0, 0, 0}, 3), (std::vector<uint32_t>{0, 1, 2, 3}));
+}
+
 // The cells stage as tasks, each into its own named files read together by the stages after it:
 // the same file for any number of tasks (shuffled input: the cells' faces arrive from everywhere),
-// both box modes, and the task files are gone with the run.
+// both box modes, and the task files are gone with the run. One process always runs the cells as
+// tasks: one per 16 cells unless the job says.
 TEST(OutOfCore, CellTasksGiveTheSameBytes) {
   ScratchDir dir;
   const fs::path mesh = generate(dir, "terrain.ply", SyntheticKind::Terrain, 60000, true);
@@ -337,18 +355,24 @@ TEST(OutOfCore, CellTasksGiveTheSameBytes) {
       job.build.boxes = boxes;
       job.tmpDir = dir / "tmp";
       fs::create_directories(job.tmpDir);
-      std::vector<fs::path> seen;
+      std::set<uint32_t> seen;  // the cells tasks whose files were there
       job.progress = [&](const JobProgress& p) {
         // Between cells: the finished tasks' files are committed under their names.
         if (std::string(p.phase) == "cells")
-          for (const auto& run : fs::directory_iterator(job.tmpDir))
-            for (const auto& file : fs::directory_iterator(run.path()))
-              if (file.path().filename().string().rfind("cells-", 0) == 0) seen.push_back(file.path());
+          for (const auto& file : fs::recursive_directory_iterator(job.tmpDir))
+            if (const std::string name = file.path().filename().string(); name.starts_with("cells-"))
+              seen.insert(static_cast<uint32_t>(std::stoul(name.substr(6))));
         return true;
       };
       const JobReport report = runClusterJob(job);
       EXPECT_GT(report.cells, 10u);
-      EXPECT_EQ(!seen.empty(), tasks > 1);
+      const auto cells = static_cast<uint32_t>(report.cells);
+      const uint32_t expected = tasks ? std::min(tasks, cells) : (cells + 15) / 16;
+      // Each task's files under its own number, seen at the reports of the cells the tasks' first
+      // worker builds.
+      ASSERT_FALSE(seen.empty());
+      EXPECT_LT(*seen.rbegin(), expected);
+      EXPECT_GE(seen.size(), std::min(expected, 2u));
       EXPECT_TRUE(fs::is_empty(job.tmpDir)) << "the task files go with the run";
       const std::string bytes = bytesOf(job.output);
       if (reference.empty()) {
@@ -1041,7 +1065,8 @@ TEST(OutOfCore, TheTasksFilesCountInTheRunsTemporaryBytes) {
   job.memoryCap = uint64_t{48} << 20;
   job.readTasks = 4;
   // What the files under the temporary directory hold (those with a name), at every report of
-  // progress: the tasks report theirs, one at a time.
+  // progress: the tasks report theirs, one at a time. A file whose pages were given back holds
+  // what it has allocated (a page at most more than its bytes).
   // And which manifests are files: the tasks hand on in memory those that fit the shelf's budget
   // (a 256th of the cap), the plan's, the grid's, the read's and the weld's always; a count task's
   // bins of a shuffled mesh are larger (about 100k bins of 12 bytes), and go to files.
@@ -1052,9 +1077,10 @@ TEST(OutOfCore, TheTasksFilesCountInTheRunsTemporaryBytes) {
     std::error_code error;
     for (auto it = fs::recursive_directory_iterator(tmp, error);
          !error && it != fs::recursive_directory_iterator(); it.increment(error)) {
-      std::error_code sizeError;
-      const uint64_t size = it->is_regular_file(sizeError) ? fs::file_size(it->path(), sizeError) : 0;
-      if (!sizeError) bytes += size;
+      struct stat st {};
+      if (it->is_regular_file(error) && ::stat(it->path().c_str(), &st) == 0)
+        bytes +=
+            std::min<uint64_t>(uint64_t(st.st_size), st.st_blocks > 8 ? uint64_t(st.st_blocks - 8) * 512 : 0);
       const std::string name = it->path().filename().string();
       if (name.ends_with(".manifest")) manifestFiles.insert(name.substr(0, name.find_first_of("-.")));
     }
