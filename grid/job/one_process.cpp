@@ -89,37 +89,25 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
   report.temporaryBytesPeak = temp.peakBytes();
 }
 
-namespace {
-
-// The leaf graph and the merge above the cells, each timed into the report.
-struct Joined {
-  LeafSubtrees subtrees;
-  LeafGraph graph;
-  ClusterMergeResult upper;
-};
-Joined joinCells(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
+WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells,
+                      const std::function<void()>& recordsRead) {
   JobReport& report = context.report;
-  Joined j;
-  j.subtrees = std::move(cells.subtrees);
+  LeafGraph graph;
   // The leaf graph's sort joins count with the cells, as they always have.
   timeStage(report, "cells", report.secondsCells, [&] {
-    j.graph = resolveLeafGraph(context, std::move(cells.records));
+    graph = resolveLeafGraph(context, std::move(cells.records));
+    std::exchange(cells.records, {});  // closed before their files go
+    if (recordsRead) recordsRead();
     releaseFreeMemory();
   });
+  ClusterMergeResult upper;
   timeStage(report, "merge", report.secondsMerge, [&] {
-    j.upper = mergeAbove(context, extent, j.graph);
+    upper = mergeAbove(context, extent, graph);
     releaseFreeMemory();  // the merge's stats and edges, before the write's tables take their place
   });
-  return j;
-}
-
-}  // namespace
-
-WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells) {
-  Joined j = joinCells(context, extent, std::move(cells));
   WritePlan plan;
-  timeStage(context.report, "write", context.report.secondsWrite, [&] {
-    plan = writeUpperPieces(context, extent, std::move(j.graph), j.upper, std::move(j.subtrees));
+  timeStage(report, "write", report.secondsWrite, [&] {
+    plan = writeUpperPieces(context, extent, std::move(graph), upper, std::move(cells.subtrees));
   });
   return plan;
 }

@@ -237,26 +237,11 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
   return {{std::string(kCellsStep), static_cast<uint32_t>(state.bounds.size() - 1)}, {"upper", 1}};
 }
 
-bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, TempSpace* accountTo,
-                  BinnedFaces* binned) {
-  const std::filesystem::path manifestPath = taskManifestPath(work, kCellsStep, task);
-  if (work.has(manifestPath)) return false;
-  // The binned faces opened for every task hold the grid already.
-  PlanState state = loadPlan(work, /*owners=*/binned == nullptr);
-  if (state.inCore || task + 1 >= state.bounds.size())
-    throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
-  JobReport report;
-  TaskContext run(job, state.memoryCap, work, report, accountTo);
-  const StageContext& context = run.stage;
-  TempSpace& temp = run.temp;
-  const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
-  // Only this task's cells' blocks held, unless the process opened them for every task.
-  BinnedFaces own;
-  if (!binned) {
-    own = openBinned(temp, work, state, first, end);
-    binned = &own;
-  }
-  CellsOutput out = buildCellTask(context, state.plan, state.extent, *binned, first, end, task);
+namespace {
+
+// A cells task's manifest, which marks it done: its cells' records.
+void commitCellsTask(const WorkDirectory& work, uint32_t task, uint32_t first, uint32_t end,
+                     const CellsOutput& out) {
   ManifestWriter manifest;
   manifest.put(first);
   manifest.put(end);
@@ -268,8 +253,38 @@ bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
     manifest.putVector(r.pairs);
     manifest.put(r.components);
   }
-  work.commit(manifest, manifestPath, taskKind(kCellsStep));
+  work.commit(manifest, taskManifestPath(work, kCellsStep, task), taskKind(kCellsStep));
+}
+
+bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task) {
+  if (work.has(taskManifestPath(work, kCellsStep, task))) return false;
+  PlanState state = loadPlan(work);
+  if (state.inCore || task + 1 >= state.bounds.size())
+    throw std::invalid_argument("no cells task " + std::to_string(task) + " in " + work.string());
+  JobReport report;
+  TaskContext run(job, state.memoryCap, work, report);
+  const uint32_t first = state.bounds[task], end = state.bounds[task + 1];
+  // Only this task's cells' blocks held.
+  BinnedFaces binned = openBinned(run.temp, work, state, first, end);
+  commitCellsTask(work, task, first, end,
+                  buildCellTask(run.stage, state.plan, state.extent, binned, first, end, task));
   return true;
+}
+
+}  // namespace
+
+void runCellsTasksHere(const ClusterJob& job, const WorkDirectory& work, TempSpace& temp, BinnedFaces& binned,
+                       const std::function<void(uint32_t)>& taskDone) {
+  // The binned faces hold the grid already.
+  const PlanState state = loadPlan(work, /*owners=*/false);
+  JobReport report;
+  TaskContext run(job, state.memoryCap, work, report, &temp);
+  buildCellTasks(run.stage, state.plan, state.extent, binned, state.bounds,
+                 [&](uint32_t task, CellsOutput&& out) {
+                   commitCellsTask(work, task, state.bounds[task], state.bounds[task + 1], out);
+                   std::exchange(out, {});  // its spills closed: their files count as the run's
+                   taskDone(task);
+                 });
 }
 
 StagePlan planStages(const ClusterJob& job, const std::filesystem::path& directory) {

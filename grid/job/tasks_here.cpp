@@ -1,10 +1,10 @@
 // The executor of one process (job/tasks_here.h): the stages' own tasks on a pool of threads, and
-// the schedule of the steps from the cells on. The cells tasks run one after the other, each on
-// every cell worker the plan allows (CellsStage's largest cells first keep the workers busy to a
-// task's end), over binned faces opened once for all of them; the write's tasks run in file order
-// into one writer of the output itself, so that the file is written once, as the stage commands'
-// place steps would assemble it from pieces. Their outputs depend on the plan alone: the same
-// bytes as the tasks in processes of their own.
+// the schedule of the steps from the cells on. The cells tasks share one pool of cell workers
+// (buildCellTasks: a worker short of cells in one task takes the next task's, so none waits for a
+// task's last cell), over binned faces opened once for all of them; the write's tasks run in file
+// order into one writer of the output itself, so that the file is written once, as the stage
+// commands' place steps would assemble it from pieces. Their outputs depend on the plan alone:
+// the same bytes as the tasks in processes of their own.
 #include "job/tasks_here.h"
 
 #include <algorithm>
@@ -114,17 +114,9 @@ void runTasksHere(const ClusterJob& job, const WorkDirectory& work, WorkFiles& f
   const PlanState plan = loadPlan(work, /*owners=*/false);
   const std::vector<uint32_t>& bounds = plan.bounds;
   const auto tasks = static_cast<uint32_t>(bounds.size() - 1);
-  const std::vector<uint64_t> cellFaces = binned.cellFaceCounts();
   timeStage(report, "cells", report.secondsCells, [&] {
-    asTemporary([&] {
-      PhaseHooks cells(job, "cells", report.triangles, 1);
-      uint64_t base = 0;
-      for (uint32_t t = 0; t < tasks; ++t) {
-        runCellsTask(cells.taskJob(0, job.threads, base), work, t, &temp, &binned);
-        files.add("cells", t);
-        for (uint32_t c = bounds[t]; c < bounds[t + 1]; ++c) base += cellFaces[c];
-      }
-    });
+    asTemporary(
+        [&] { runCellsTasksHere(job, work, temp, binned, [&](uint32_t t) { files.add("cells", t); }); });
     std::exchange(binned, {});
     // Spent: the binned faces' files, if the bin left them in the directory.
     for (const auto* files : {&plan.facesFiles, &plan.ghostsFiles})
@@ -132,15 +124,19 @@ void runTasksHere(const ClusterJob& job, const WorkDirectory& work, WorkFiles& f
     releaseFreeMemory();
   });
   // The cells' files count here while the upper step reads them (a task's space counts what it
-  // opens in its own alone), and the geometry's in the write's reader.
-  asTemporary([&] { runUpperStep(job, work, &temp, &report); });
-  // Spent: the cells' records, which the upper step joined (tasks of their own keep them for a
-  // rerun of the step).
-  for (uint32_t t = 0; t < tasks; ++t) {
-    for (const CellSpill kind : {CellSpill::Pairs, CellSpill::Leaves, CellSpill::Border})
-      std::filesystem::remove(cellTaskFile(work.path(), kind, t));
-    work.remove(taskManifestPath(work, "cells", t));
-  }
+  // opens in its own alone), and the geometry's in the write's reader. Their pairs and border
+  // faces are spent once the leaf graph has joined them, their leaves (whose node run tables the
+  // write plan reads) with the step (tasks of their own keep them all for a rerun of the step).
+  const auto remove = [&](std::initializer_list<CellSpill> kinds) {
+    for (uint32_t t = 0; t < tasks; ++t)
+      for (const CellSpill kind : kinds) std::filesystem::remove(cellTaskFile(work.path(), kind, t));
+    files.forgetRemoved();
+  };
+  asTemporary([&] {
+    runUpperStep(job, work, &temp, &report, [&] { remove({CellSpill::Pairs, CellSpill::Border}); });
+  });
+  remove({CellSpill::Leaves});
+  for (uint32_t t = 0; t < tasks; ++t) work.remove(taskManifestPath(work, "cells", t));
   files.forgetRemoved();
   files.add([](const std::string&) { return true; });  // the upper step's
   timeStage(report, "write", report.secondsWrite, [&] {

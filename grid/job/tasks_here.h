@@ -82,9 +82,9 @@ void asTemporary(const std::function<void()>& step);
 
 // The one-process schedule from the cells on, over the plan in `work` and `binned` (its binned
 // faces, opened once for every cells task and given back as the cells drain them): the cells tasks
-// one after the other, each on the job's threads; the upper step; then the geometry tasks, the
-// boxes step and the node tasks in file order, writing job.output itself (no pieces, no copy).
-// Fills `report` as runOutOfCore does.
+// on one pool of cell workers; the upper step; then the geometry tasks, the boxes step's sum and
+// the node tasks in file order, writing job.output itself (no pieces, no copy). The files they
+// hand on count in `files` until they are spent. Fills `report` as runOutOfCore does.
 void runTasksHere(const ClusterJob& job, const WorkDirectory& work, WorkFiles& files, TempSpace& temp,
                   BinnedFaces&& binned, JobReport& report);
 

@@ -242,18 +242,18 @@ void loadGrid(const WorkDirectory& work, PlanState& state, bool bins, bool owner
 std::vector<StageStep> stepsAfterGrid(const PlanState& state);
 // The cells tasks' outputs opened together, with every cell's records from their manifests.
 CellsOutput loadCellTasks(TempSpace& temp, const WorkDirectory& work, const PlanState& state);
-// Cells task `task`: its run of cells (PlanState::bounds) built into its named spills, its cells'
-// records in its manifest. `accountTo`: the run's temporary space, for a task of one process;
-// `binned`: the plan's binned faces, opened once for every task of the process (else the task
-// opens its cells' blocks).
-bool runCellsTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task,
-                  TempSpace* accountTo = nullptr, BinnedFaces* binned = nullptr);
+// One process's cells tasks (PlanState::bounds): each built into its named spills and its cells'
+// records committed in its manifest as a cells task in a process of its own does, all on one pool
+// of cell workers (buildCellTasks) over `binned`, the plan's binned faces opened once for every
+// task, their files counted in `temp`; `taskDone` is called as each task ends, one at a time.
+void runCellsTasksHere(const ClusterJob& job, const WorkDirectory& work, TempSpace& temp, BinnedFaces& binned,
+                       const std::function<void(uint32_t)>& taskDone);
 // The write as tasks (job/write_tasks.cpp): the upper step (the cells joined, the geometry piece, the
 // write plan) and the steps it lists; a node task (the frames of a range of node positions).
 // `live`: the report of the process that runs it, filled as the stages go (else the plan's, as the
-// write plan hands it on).
+// write plan hands it on); `recordsRead`: called once the leaf graph has read the cells' records.
 bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo = nullptr,
-                  JobReport* live = nullptr);
+                  JobReport* live = nullptr, const std::function<void()>& recordsRead = {});
 std::vector<StageStep> stepsAfterUpper(const WorkDirectory& work);
 // Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.
 bool runBoxesStep(const ClusterJob& job, const WorkDirectory& work);

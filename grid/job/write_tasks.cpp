@@ -256,7 +256,8 @@ std::shared_ptr<const LoadedWrite> loadGeometryPlan(const WorkDirectory& work) {
 
 }  // namespace
 
-bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo, JobReport* live) {
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo, JobReport* live,
+                  const std::function<void()>& recordsRead) {
   if (work.has(writePlanPath(work))) return false;
   // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
   PlanState state = loadPlan(work, /*owners=*/false);
@@ -272,7 +273,7 @@ bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* a
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
   TaskContext run(job, state.memoryCap, work, report, accountTo);
   CellsOutput cells = loadCellTasks(run.temp, work, state);
-  WritePlan plan = finishUpper(run.stage, state.extent, std::move(cells));
+  WritePlan plan = finishUpper(run.stage, state.extent, std::move(cells), recordsRead);
   report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, run.temp.peakBytes());
   saveWritePlan(work, report, tasks, job.nodeTasks, std::move(plan));
   return true;

@@ -231,21 +231,38 @@ BoxCorners rootCorners(const ClusterFile& file) {
 
 class CellsStage {
  public:
-  // Builds cells [first, end) of `in`; with `task`, into that task's named spills (cellTaskFile).
+  // Builds cells tasks firstTask, firstTask + 1, ... of `in`: task firstTask + i the cells
+  // [bounds[i], bounds[i + 1]), into its named spills (cellTaskFile), all on one pool of workers;
+  // `done` gets each task's outputs, committed, as its last cell ends (on the worker that built it).
   CellsStage(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
-             BinnedFaces& in, uint32_t first, uint32_t end, const std::optional<uint32_t>& task)
-      : context_(context), plan_(plan), extent_(extent), in_(in), first_(first), end_(end), task_(task) {}
-  CellsOutput run();
+             BinnedFaces& in, std::vector<uint32_t> bounds, uint32_t firstTask, CellTaskDone done)
+      : context_(context),
+        plan_(plan),
+        extent_(extent),
+        in_(in),
+        bounds_(std::move(bounds)),
+        firstTask_(firstTask),
+        done_(std::move(done)),
+        tasks_(bounds_.size() - 1) {}
+  void run();
 
  private:
-  void buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
+  // A task's outputs, made when a worker takes its first cell; the cells it has left.
+  struct Task {
+    std::unique_ptr<CellsOutput> out;
+    uint32_t left = 0;
+  };
+  void startTask(uint32_t i);
+  void endTask(uint32_t i);
+  void buildCell(uint32_t cell, CellsOutput& out, SpillCodec& codec, std::vector<FaceRecord>& records);
   void loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
   std::vector<GhostEdge> loadGhosts(uint32_t cell, SpillCodec& codec);
   // Components alone while the cell's leaf allowance pays for them, the rest as one group.
   FaceGroups groupComponents(uint32_t components, std::vector<uint32_t>& label) const;
   // One hierarchy per group, cut at its frontier: the cell's leaf clusters, spilled.
   void buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
-                   std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out);
+                   std::span<const FaceRecord> records, CellsOutput& spills, SpillCodec& codec,
+                   CellLeaves& out);
   // The dual edges between two leaves of the cell (FaceAdjacency::Share of each shared edge).
   static void pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
                          std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs);
@@ -259,80 +276,114 @@ class CellsStage {
   const OutOfCorePlan& plan_;
   const MeshExtent& extent_;
   BinnedFaces& in_;
-  uint32_t first_, end_;
-  std::optional<uint32_t> task_;
-  CellsOutput out_;
+  std::vector<uint32_t> bounds_;
+  uint32_t firstTask_;
+  CellTaskDone done_;
+  std::vector<Task> tasks_;
 };
 
 }  // namespace
 
-CellsOutput CellsStage::run() {
+void CellsStage::startTask(uint32_t i) {
   // The write reads the geometry once, in large blocks, and gives them back as it goes, while the
   // writer spills its own frames of it. Node runs are small (a few KiB) and read in key order,
   // scattered over the file, so the node pass does not give them back one by one (the file system's
-  // hole punching would dominate the write, for no lower peak: the peak is the end of the cells);
-  // with compact boxes a pass in spill order rewrites them and gives them back as it goes.
+  // hole punching would dominate the write, for no lower peak: the peak is the end of the cells).
   // Node runs are in the file's own records (encodeNodeRun: columns of byte planes already);
   // face records are not shuffled (consecutive faces repeat whole corner positions, which zstd
   // matches only while the bytes stay together).
   // Geometry blocks are 4-byte words (positions, local indices, ids), shuffled by word byte.
-  const auto spill = [&](CellSpill kind, bool discardable, size_t recordBytes = 1) {
-    if (!task_)
-      return std::make_unique<SpillFile>(context_.temp, cellSpillName(kind), discardable, recordBytes);
+  const uint32_t task = firstTask_ + i;
+  const auto spill = [&](CellSpill kind, size_t recordBytes = 1) {
+    // In one process's temporary directory the files die with it: no sync.
     return std::make_unique<SpillFile>(
         context_.temp,
-        // In one process's temporary directory the files die with it: no sync.
-        SpillFile::Named{cellTaskFile(context_.work ? *context_.work : context_.temp.path(), kind, *task_),
-                         *task_, context_.work && context_.job.syncTaskFiles},
+        SpillFile::Named{cellTaskFile(context_.work ? *context_.work : context_.temp.path(), kind, task),
+                         task, context_.work && context_.job.syncTaskFiles},
         recordBytes);
   };
-  out_.subtrees.nodes = spill(CellSpill::Nodes, true);
-  out_.subtrees.geometry = spill(CellSpill::Geometry, true, 4);
-  out_.records.pairs = spill(CellSpill::Pairs, false);
-  out_.records.leaves = spill(CellSpill::Leaves, false);
-  out_.records.border = spill(CellSpill::Border, false);
-  out_.records.cells.assign(in_.grid->cellCount(), {});
-  // The largest cells first, so that the workers run out of cells together rather than one
-  // finishing the last large cell alone: a task's tail is idle time on every task. Each cell's
-  // results go to its own record, so the order changes no output.
-  std::vector<uint32_t> order(end_ - first_);
-  std::iota(order.begin(), order.end(), first_);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](uint32_t a, uint32_t b) { return in_.cellFaces(a) > in_.cellFaces(b); });
+  auto out = std::make_unique<CellsOutput>();
+  out->subtrees.nodes = spill(CellSpill::Nodes);
+  out->subtrees.geometry = spill(CellSpill::Geometry, 4);
+  out->records.pairs = spill(CellSpill::Pairs);
+  out->records.leaves = spill(CellSpill::Leaves);
+  out->records.border = spill(CellSpill::Border);
+  out->records.cells.assign(in_.grid->cellCount(), {});
+  tasks_[i].out = std::move(out);
+  tasks_[i].left = bounds_[i + 1] - bounds_[i];
+}
+
+void CellsStage::endTask(uint32_t i) {
+  CellsOutput& out = *tasks_[i].out;
+  for (SpillFile* file : {out.subtrees.nodes.get(), out.subtrees.geometry.get(), out.records.pairs.get(),
+                          out.records.leaves.get(), out.records.border.get()})
+    file->commit();
+  done_(firstTask_ + i, std::move(out));
+  tasks_[i].out.reset();
+}
+
+void CellsStage::run() {
+  // Task by task, each task's largest cells first, so that the workers run out of a task's cells
+  // together rather than one finishing its last large cell alone; a worker short of cells in one
+  // task takes the next task's. Each cell's results go to its own record, so the order changes no
+  // output.
+  std::vector<uint32_t> order, taskOf;
+  for (uint32_t i = 0; i + 1 < bounds_.size(); ++i) {
+    const size_t from = order.size();
+    for (uint32_t c = bounds_[i]; c < bounds_[i + 1]; ++c) order.push_back(c);
+    std::stable_sort(order.begin() + ptrdiff_t(from), order.end(),
+                     [&](uint32_t a, uint32_t b) { return in_.cellFaces(a) > in_.cellFaces(b); });
+    taskOf.insert(taskOf.end(), bounds_[i + 1] - bounds_[i], i);
+  }
+  // A task with no cells is done at once.
+  for (uint32_t i = 0; i + 1 < bounds_.size(); ++i)
+    if (bounds_[i] == bounds_[i + 1]) {
+      startTask(i);
+      endTask(i);
+    }
   const auto cells = static_cast<uint32_t>(order.size());
-  std::atomic<uint32_t> next{0};
+  uint32_t next = 0;
+  std::mutex mutex;  // the next cell, and the tasks' outputs made and ended
   std::atomic<uint64_t> facesDone{0};
   std::atomic<bool> stop{false};
   std::exception_ptr failure;
-  std::mutex failureMutex;
   const auto worker = [&](bool reportProgress) {
     SpillCodec codec;
     std::vector<FaceRecord> records;
     try {
-      for (uint32_t i; !stop && (i = next++) < cells;) {
-        buildCell(order[i], codec, records);
+      while (!stop) {
+        uint32_t at, i;
+        CellsOutput* out;
+        {
+          const std::lock_guard lock(mutex);
+          if (next == cells) break;
+          at = next++;
+          i = taskOf[at];
+          if (!tasks_[i].out) startTask(i);
+          out = tasks_[i].out.get();
+        }
+        buildCell(order[at], *out, codec, records);
         facesDone += records.size();
+        {
+          const std::lock_guard lock(mutex);
+          if (--tasks_[i].left == 0) endTask(i);
+        }
         // Progress (and cancellation) from the calling thread only: the callback need not be
-        // thread-safe. The other worker notices `stop`.
+        // thread-safe. The other workers notice `stop`.
         if (reportProgress) context_.checkCancel("cells", facesDone, extent_.triangles);
       }
     } catch (...) {
-      std::lock_guard lock(failureMutex);
+      const std::lock_guard lock(mutex);
       if (!failure) failure = std::current_exception();
       stop = true;
     }
   };
-  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, end_ - first_));
+  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, cells));
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
   worker(true);
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
-  if (task_)
-    for (SpillFile* file : {out_.subtrees.nodes.get(), out_.subtrees.geometry.get(), out_.records.pairs.get(),
-                            out_.records.leaves.get(), out_.records.border.get()})
-      file->commit();
-  return std::move(out_);
 }
 
 void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
@@ -367,8 +418,9 @@ std::vector<GhostEdge> CellsStage::loadGhosts(uint32_t cell, SpillCodec& codec) 
   return ghosts;
 }
 
-void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
-  CellResult& result = out_.records.cells[cell];
+void CellsStage::buildCell(uint32_t cell, CellsOutput& out, SpillCodec& codec,
+                           std::vector<FaceRecord>& records) {
+  CellResult& result = out.records.cells[cell];
   loadFaces(cell, codec, records);
   const auto faces = static_cast<uint32_t>(records.size());
 
@@ -396,7 +448,7 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
     const uint32_t components = faceComponents(adjacency, leaves.leafOf);
     result.components = components;
     const FaceGroups groups = groupComponents(components, leaves.leafOf);
-    buildLeaves(mesh, adjacency, groups, records, codec, leaves);
+    buildLeaves(mesh, adjacency, groups, records, out, codec, leaves);
     pairLeaves(mesh, adjacency, leaves.leafOf, localPairs);
   }
 
@@ -405,7 +457,7 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
   crossPairs(cell, records, loadGhosts(cell, codec), leaves.leafOf, pairs, border);
 
   const auto spill = [&](const auto& items) {
-    return items.empty() ? SpillBlock{} : out_.records.leaves->append(std::as_bytes(std::span(items)), codec);
+    return items.empty() ? SpillBlock{} : out.records.leaves->append(std::as_bytes(std::span(items)), codec);
   };
   result.leafCount = static_cast<uint32_t>(leaves.leaves.size());
   result.leaves = spill(leaves.leaves);
@@ -428,9 +480,9 @@ void CellsStage::buildCell(uint32_t cell, SpillCodec& codec, std::vector<FaceRec
   std::exchange(localPairs, {});
   for (size_t at = 0; at < pairs.size(); at += kPairsPerBlock) {
     const size_t n = std::min(kPairsPerBlock, pairs.size() - at);
-    result.pairs.push_back(out_.records.pairs->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
+    result.pairs.push_back(out.records.pairs->append(std::as_bytes(std::span(pairs).subspan(at, n)), codec));
   }
-  if (!border.empty()) result.border = out_.records.border->append(std::as_bytes(std::span(border)), codec);
+  if (!border.empty()) result.border = out.records.border->append(std::as_bytes(std::span(border)), codec);
 }
 
 // The cell's leaves cost at most its allowance of metadata (its faces' share, planLeaves;
@@ -495,7 +547,8 @@ FaceGroups CellsStage::groupComponents(uint32_t components, std::vector<uint32_t
 // faces: those are the leaf clusters (the upper merge redoes what lies above them, with the
 // neighbours across the cell's borders in view, and with pieces of similar sizes).
 void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
-                             std::span<const FaceRecord> records, SpillCodec& codec, CellLeaves& out) {
+                             std::span<const FaceRecord> records, CellsOutput& spills, SpillCodec& codec,
+                             CellLeaves& out) {
   const auto faces = static_cast<uint32_t>(records.size());
   const auto leafBytes = [this](uint64_t n) { return plan_.leafBytes(n); };
   std::vector<uint32_t> subId(mesh.positions.size(), kNoVertex);
@@ -575,7 +628,7 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
       for (NodeBlock b : nodeBlocks(file.nodes, plan_.minNodeRun)) {
         const std::string run =
             encodeNodeRun(std::span(file.nodes).subspan(b.first, b.count), b.first, context_.job.build.boxes);
-        const SpillBlock spill = out_.subtrees.nodes->append(std::as_bytes(std::span(run)), codec);
+        const SpillBlock spill = spills.subtrees.nodes->append(std::as_bytes(std::span(run)), codec);
         b.offset = spill.offset;
         b.compressedBytes = spill.compressedBytes;
         b.rawBytes = spill.rawBytes;
@@ -596,7 +649,7 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
         appendBytes(block, file.vertices.data() + verticesSeen, header.newVertices);
         appendBytes(block, file.indices.data() + 3 * at, 3 * n);
         appendBytes(block, file.originalFace.data() + at, n);
-        out.geometry.push_back(out_.subtrees.geometry->append(block, codec));
+        out.geometry.push_back(spills.subtrees.geometry->append(block, codec));
         ++leaf.geometryCount;
         verticesSeen = end;
       }
@@ -732,7 +785,16 @@ std::vector<uint32_t> cellTaskBounds(std::span<const uint64_t> cellFaces, uint32
 
 CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
                           BinnedFaces& binned, uint32_t first, uint32_t end, uint32_t task) {
-  return CellsStage(context, plan, extent, binned, first, end, task).run();
+  CellsOutput out;
+  CellsStage(context, plan, extent, binned, {first, end}, task, [&](uint32_t, CellsOutput&& made) {
+    out = std::move(made);
+  }).run();
+  return out;
+}
+
+void buildCellTasks(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                    BinnedFaces& binned, std::vector<uint32_t> bounds, const CellTaskDone& done) {
+  CellsStage(context, plan, extent, binned, std::move(bounds), 0, done).run();
 }
 
 CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uint32_t tasks,

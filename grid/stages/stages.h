@@ -284,6 +284,12 @@ CellsOutput openCellTasks(TempSpace& temp, const std::filesystem::path& dir, uin
 // context.work (committed): the records of those cells.
 CellsOutput buildCellTask(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
                           BinnedFaces& binned, uint32_t first, uint32_t end, uint32_t task);
+// Every cells task t (cells [bounds[t], bounds[t + 1])) as buildCellTask builds it, on one pool of
+// cell workers: a worker short of cells in one task takes the next task's. `done` gets each task's
+// outputs as its last cell ends, on the worker that built that cell, one call at a time.
+using CellTaskDone = std::function<void(uint32_t task, CellsOutput&& out)>;
+void buildCellTasks(const StageContext& context, const OutOfCorePlan& plan, const MeshExtent& extent,
+                    BinnedFaces& binned, std::vector<uint32_t> bounds, const CellTaskDone& done);
 
 // The leaves of every cell in one array each (global leaf ids: cells in order, their leaves in
 // order) and one summed dual edge per pair of neighbouring leaves.
@@ -388,7 +394,10 @@ void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* posit
 // bin tasks on a pool of job.threads, then the rest as runOutOfCore (job/ranges_here.cpp). False, having done
 // nothing, for any other input.
 bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report);
-// The same up to the write's pieces (the stages' upper step): writeUpperPieces' plan.
-WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells);
+// The stages' upper step from the cells' outputs: the leaf graph, the merge above and
+// writeUpperPieces' plan, each timed into the report. `recordsRead`: called once the leaf graph
+// has read the cells' records (one process gives their files back then).
+WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells,
+                      const std::function<void()>& recordsRead = {});
 
 }  // namespace facetree
