@@ -3,9 +3,10 @@
 // the frames of a range of triangles and vertices as a piece and, with exact boxes, accumulates its
 // part of the upper nodes' boxes, which the boxes step merges; each node task writes the frames of
 // a range of node positions as a piece, its upper nodes from the plan and its leaves' runs read in
-// place from the cells tasks' spills; the layout, place and finish steps assemble the pieces. Node
-// frames are self-contained (docs/FORMAT.md), so the file is the single process's bytes: the same
-// records, cut into the same frames.
+// place from the cells tasks' spills; the layout, place and finish steps assemble the pieces. One
+// process runs the same geometry and node tasks in file order into one writer of the output itself
+// (writeFileHere): no pieces, no layout, no place. Node frames are self-contained (docs/FORMAT.md),
+// so the file is the same bytes either way: the same records, cut into the same frames.
 #include <sys/stat.h>
 
 #include <algorithm>
