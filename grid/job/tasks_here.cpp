@@ -123,15 +123,17 @@ void runTasksHere(const ClusterJob& job, const WorkDirectory& work, WorkFiles& f
       for (const std::filesystem::path& path : *files) std::filesystem::remove(path);
     releaseFreeMemory();
   });
-  // The cells' files count here while the upper step reads them (a task's space counts what it
-  // opens in its own alone), and the geometry's in the write's reader. Their pairs and border
-  // faces are spent once the leaf graph has joined them, their leaves (whose node run tables the
-  // write plan reads) with the step (tasks of their own keep them all for a rerun of the step).
+  // The upper step runs in the run's space: the cells' files count there while its readers hold
+  // them, so that each stops counting as the step closes it, and the geometry's in the write's
+  // reader. Their pairs and border faces are spent once the leaf graph has joined them, their
+  // leaves (whose node run tables the write plan reads) with the step (tasks of their own keep
+  // them all for a rerun of the step).
   const auto remove = [&](std::initializer_list<CellSpill> kinds) {
     for (uint32_t t = 0; t < tasks; ++t)
       for (const CellSpill kind : kinds) std::filesystem::remove(cellTaskFile(work.path(), kind, t));
     files.forgetRemoved();
   };
+  files.drop([](const std::string& name) { return name.starts_with("cells-"); });
   asTemporary([&] {
     runUpperStep(job, work, &temp, &report, [&] { remove({CellSpill::Pairs, CellSpill::Border}); });
   });

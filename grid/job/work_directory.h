@@ -39,6 +39,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -142,12 +143,24 @@ struct TaskContext {
   TaskContext(const ClusterJob& job, uint64_t memoryCap, const WorkDirectory& work, JobReport& report,
               TempSpace* accountTo = nullptr)
       : effective(effectiveJob(job)),
-        temp(job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory, accountTo),
+        own(std::in_place, job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory, accountTo),
+        temp(*own),
+        stage{effective, temp, memoryCap, report, &work.path()} {}
+  // A step of one process in the run's own space: the committed files it opens count there while
+  // it reads them, and no longer once it closes them.
+  struct RunSpace {
+    TempSpace& space;
+  };
+  TaskContext(const ClusterJob& job, uint64_t memoryCap, const WorkDirectory& work, JobReport& report,
+              RunSpace run)
+      : effective(effectiveJob(job)),
+        temp(run.space),
         stage{effective, temp, memoryCap, report, &work.path()} {}
   TaskContext(const TaskContext&) = delete;
   TaskContext& operator=(const TaskContext&) = delete;
   const ClusterJob effective;
-  TempSpace temp;
+  std::optional<TempSpace> own;
+  TempSpace& temp;
   const StageContext stage;
 };
 // The plan's binned faces' grid (restoreGrid), for a task that reads or writes binned faces.
@@ -250,9 +263,11 @@ void runCellsTasksHere(const ClusterJob& job, const WorkDirectory& work, TempSpa
                        const std::function<void(uint32_t)>& taskDone);
 // The write as tasks (job/write_tasks.cpp): the upper step (the cells joined, the geometry piece, the
 // write plan) and the steps it lists; a node task (the frames of a range of node positions).
-// `live`: the report of the process that runs it, filled as the stages go (else the plan's, as the
-// write plan hands it on); `recordsRead`: called once the leaf graph has read the cells' records.
-bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo = nullptr,
+// `runSpace`: the run's temporary space, which one process's step uses as its own (what it opens of
+// the cells' files counts there until it closes them); `live`: the report of the process that runs
+// it, filled as the stages go (else the plan's, as the write plan hands it on); `recordsRead`:
+// called once the leaf graph has read the cells' records.
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* runSpace = nullptr,
                   JobReport* live = nullptr, const std::function<void()>& recordsRead = {});
 std::vector<StageStep> stepsAfterUpper(const WorkDirectory& work);
 // Exact boxes: the upper nodes' boxes from the geometry tasks' parts, for the node tasks.

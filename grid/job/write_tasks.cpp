@@ -257,7 +257,7 @@ std::shared_ptr<const LoadedWrite> loadGeometryPlan(const WorkDirectory& work) {
 
 }  // namespace
 
-bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* accountTo, JobReport* live,
+bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* runSpace, JobReport* live,
                   const std::function<void()>& recordsRead) {
   if (work.has(writePlanPath(work))) return false;
   // The grid's owner table (8 MiB) and the binned spills' indexes serve the cells tasks only.
@@ -272,7 +272,12 @@ bool runUpperStep(const ClusterJob& job, const WorkDirectory& work, TempSpace* a
   }
   JobReport& report = live ? *live : own;
   const auto tasks = static_cast<uint32_t>(state.bounds.size() - 1);
-  TaskContext run(job, state.memoryCap, work, report, accountTo);
+  std::optional<TaskContext> context;
+  if (runSpace)
+    context.emplace(job, state.memoryCap, work, report, TaskContext::RunSpace{*runSpace});
+  else
+    context.emplace(job, state.memoryCap, work, report);
+  const TaskContext& run = *context;
   CellsOutput cells = loadCellTasks(run.temp, work, state);
   WritePlan plan = finishUpper(run.stage, state.extent, std::move(cells), recordsRead);
   report.temporaryBytesPeak = std::max(report.temporaryBytesPeak, run.temp.peakBytes());
