@@ -278,7 +278,7 @@ void runCellsTasksHere(const ClusterJob& job, const WorkDirectory& work, TempSpa
   // The binned faces hold the grid already.
   const PlanState state = loadPlan(work, /*owners=*/false);
   JobReport report;
-  TaskContext run(job, state.memoryCap, work, report, &temp);
+  TaskContext run(job, state.memoryCap, work, report, TaskContext::RunSpace{temp});
   buildCellTasks(run.stage, state.plan, state.extent, binned, state.bounds,
                  [&](uint32_t task, CellsOutput&& out) {
                    commitCellsTask(work, task, state.bounds[task], state.bounds[task + 1], out);

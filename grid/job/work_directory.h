@@ -146,8 +146,8 @@ struct TaskContext {
         own(std::in_place, job.tmpDir, job.maxTemporaryBytes, job.temporaryDirectory, accountTo),
         temp(*own),
         stage{effective, temp, memoryCap, report, &work.path()} {}
-  // A step of one process in the run's own space: the committed files it opens count there while
-  // it reads them, and no longer once it closes them.
+  // A step of one process in the run's own space: what it writes, and the committed files it opens
+  // while it reads them, count there alone.
   struct RunSpace {
     TempSpace& space;
   };

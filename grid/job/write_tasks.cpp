@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "facetree/grid.h"
+#include "job/tasks_here.h"
 #include "job/work_directory.h"
 #include "stages/node_order.h"
 #include "stages/stages.h"
@@ -368,12 +369,17 @@ bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
   }
   ClusterFileWriter& writer = into ? *into : *pieceWriter;
   const auto upperCount = static_cast<uint32_t>(p.upperNodes.size());
-  std::vector<NodeBox> upperBoxes;  // exact boxes: the boxes step's, by file index
+  // Exact boxes: the boxes step's, by file index, decoded once for every task of a process whose
+  // manifests are on a shelf.
+  std::shared_ptr<const std::vector<NodeBox>> upperBoxes;
   if (p.boxesInTasks) {
-    ManifestReader in = work.read(boxesPath(work), kBoxesKind);
-    upperBoxes = in.takeVector<NodeBox>();
-    in.finish();
-    if (upperBoxes.size() != upperCount)
+    upperBoxes = work.decoded<std::vector<NodeBox>>(boxesPath(work), [&] {
+      ManifestReader in = work.read(boxesPath(work), kBoxesKind);
+      std::vector<NodeBox> boxes = in.takeVector<NodeBox>();
+      in.finish();
+      return boxes;
+    });
+    if (upperBoxes->size() != upperCount)
       throw Error(ErrorCategory::Input, boxesPath(work).string() + ": boxes of another plan");
   }
   // Parents in earlier pieces; one writer of the whole file has kept their boxes.
@@ -385,7 +391,7 @@ bool runNodesTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
       p, *order, *runs, first, end, writer,
       [&](uint32_t j) {
         FchNode node = p.upperNodes[j];
-        if (!upperBoxes.empty()) node.box = upperBoxes[j];
+        if (upperBoxes) node.box = (*upperBoxes)[j];
         return node;
       },
       [&](uint64_t done) { checkJobProgress(job, "write", done, end - first); });
@@ -465,15 +471,9 @@ uint64_t writeFileHere(const ClusterJob& job, const WorkDirectory& work, TempSpa
     else
       temp.release(static_cast<uint64_t>(-delta));
   });
-  // The write's progress over the tasks: each reports its own range's.
-  const auto taskJob = [&](uint64_t base) {
-    ClusterJob j = job;
-    if (job.progress)
-      j.progress = [&job, base, total](const JobProgress& done) {
-        return job.progress(JobProgress{"write", base + done.done, total});
-      };
-    return j;
-  };
+  // The write's progress over the tasks, one after the other: each reports its own range's.
+  PhaseHooks hooks(job, "write", total, 1);
+  const auto taskJob = [&](uint64_t base) { return hooks.taskJob(0, job.threads, base); };
   // The cells' geometry, opened once for every geometry task: this run's alone, so each leaf's
   // blocks are given back once the last range that reads them has (every block counted first).
   std::vector<std::filesystem::path> geometryPaths;

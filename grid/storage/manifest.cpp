@@ -180,12 +180,6 @@ void ManifestShelf::remove(const std::filesystem::path& path) {
   entries_.erase(at);
 }
 
-void ManifestShelf::clear() {
-  const std::lock_guard lock(mutex_);
-  entries_.clear();
-  bytes_ = 0;
-}
-
 void ManifestShelf::forgetDecoded() {
   const std::lock_guard lock(mutex_);
   for (auto at = entries_.begin(); at != entries_.end();) {

@@ -109,7 +109,6 @@ class ManifestShelf {
   bool fits(const std::filesystem::path& path, uint64_t bytes) const;
   std::shared_ptr<const std::string> find(const std::filesystem::path& path) const;  // null if not kept
   void remove(const std::filesystem::path& path);
-  void clear();          // every manifest, and what was decoded of them (their users keep theirs)
   void forgetDecoded();  // what was decoded (its users keep theirs); the manifests stay
   uint64_t bytes() const;
   template <class T>
