@@ -281,6 +281,7 @@ struct Context {
   // worker prefetches the node it will visit kLookahead visits later (only a hint: a wrong
   // guess costs time, never correctness).
   std::vector<uint32_t> preorder, rank;
+  uint64_t worldAxesFaces = 1;  // the clusters measured along the world axes too
 };
 
 // Nodes visited ahead of the one being visited, for prefetching.
@@ -442,6 +443,13 @@ class Worker {
     if (scan) {
       const ScanFrame sf = scanFrame(ctx_.faces, box.orientation, n.first);
       finishBox(scanRange(window_, sf, n.first, n.first + n.count), sf, box);
+      if (measuresWorldAxes(n.count, ctx_.worldAxesFaces, box.orientation, ctx_.options.boxes)) {
+        NodeBox world = box;
+        world.orientation = worldOrientation(ctx_.options.boxes);
+        const ScanFrame wf = scanFrame(ctx_.faces, world.orientation, n.first);
+        finishBox(scanRange(window_, wf, n.first, n.first + n.count), wf, world);
+        if (smallerBox(world, box)) box = world;
+      }
     } else if (visited) {
       visited->push_back(node);
     }
@@ -501,6 +509,27 @@ glm::quat frameQuaternion(const ClusterFrame& frame, BoxPrecision precision) {
   return latticeOrientation(glm::quat(glm::normalize(glm::quat_cast(m))), orientationBits(precision));
 }
 
+glm::quat worldOrientation(BoxPrecision precision) {
+  return frameQuaternion(ClusterFrame{}, precision);
+}
+
+uint64_t worldAxesFaces(const BuildOptions& options, uint64_t meshFaces) {
+  return options.worldAxesFaces ? options.worldAxesFaces : std::max<uint64_t>(1, meshFaces / kWorldAxesShare);
+}
+
+bool measuresWorldAxes(uint64_t faces, uint64_t leastFaces, const glm::quat& orientation,
+                       BoxPrecision precision) {
+  return faces >= leastFaces && orientation != worldOrientation(precision);
+}
+
+bool smallerBox(const NodeBox& candidate, const NodeBox& box) {
+  const auto surface = [](const NodeBox& b) {
+    const glm::dvec3 h(b.halfExtent);
+    return h.x * h.y + h.y * h.z + h.z * h.x;
+  };
+  return surface(candidate) < surface(box);
+}
+
 void finishBox(const BoxExtent& e, const ScanFrame& frame, NodeBox& box, double minPad) {
   glm::dvec3 axis[3];
   for (int k = 0; k < 3; ++k) axis[k] = glm::dvec3(frame.axis[k]);
@@ -537,7 +566,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
     for (const glm::vec3& p : mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
     if (!mesh.positions.empty()) faces.origin = 0.5 * (glm::dvec3(lo) + glm::dvec3(hi));
   }
-  Context ctx{faces, hierarchy, options, {}, {}, {}, {}};
+  Context ctx{faces, hierarchy, options, {}, {}, {}, {}, worldAxesFaces(options, hierarchy.faceOrder.size())};
 
   // Roots of nodes unreachable from nodes[0] (none in a well-formed hierarchy) are handled as
   // further trees; children have larger indices than parents, so a forward pass finds the roots.
@@ -603,16 +632,25 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
     // The nodes above the cut: frames serially, then their scans by blocks in parallel.
     std::vector<uint32_t> top;
     Worker(ctx).run(root, false, true, &top);
+    // A node's items in its own frame, then, where it measures them too, along the world axes.
     struct Item {
       uint32_t node, begin, end;
+      bool world;
     };
+    const glm::quat world = worldOrientation(options.boxes);
     std::vector<Item> items;
-    std::vector<size_t> firstItem;
+    std::vector<size_t> firstItem, firstWorldItem;
     for (uint32_t node : top) {
       firstItem.push_back(items.size());
       const Node& n = nodes[node];
-      for (uint32_t i = n.first; i < n.first + n.count; i = blockEnd(i, n.first + n.count))
-        items.push_back({node, i, blockEnd(i, n.first + n.count)});
+      const bool both =
+          measuresWorldAxes(n.count, ctx.worldAxesFaces, hierarchy.boxes[node].orientation, options.boxes);
+      for (bool w : {false, true}) {
+        if (w) firstWorldItem.push_back(items.size());
+        if (w && !both) continue;
+        for (uint32_t i = n.first; i < n.first + n.count; i = blockEnd(i, n.first + n.count))
+          items.push_back({node, i, blockEnd(i, n.first + n.count), w});
+      }
     }
     firstItem.push_back(items.size());
     // Items grouped by side block: a worker packs one block and scans every top node's part
@@ -640,17 +678,24 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
         faces.pack(begin, end, window);
         for (size_t k = groups[g]; k < groups[g + 1]; ++k) {
           const Item& item = items[byBlock[k]];
-          const ScanFrame sf =
-              scanFrame(faces, hierarchy.boxes[item.node].orientation, nodes[item.node].first);
+          const ScanFrame sf = scanFrame(faces, item.world ? world : hierarchy.boxes[item.node].orientation,
+                                         nodes[item.node].first);
           partial[byBlock[k]] = scanBlock(window, sf, item.begin, item.end);
         }
       }
     });
     for (size_t t = 0; t < top.size(); ++t) {
-      Extent total;
-      for (size_t i = firstItem[t]; i < firstItem[t + 1]; ++i) total.merge(partial[i]);
+      Extent total, worldTotal;
+      for (size_t i = firstItem[t]; i < firstWorldItem[t]; ++i) total.merge(partial[i]);
+      for (size_t i = firstWorldItem[t]; i < firstItem[t + 1]; ++i) worldTotal.merge(partial[i]);
       NodeBox& box = hierarchy.boxes[top[t]];
       finishBox(total, scanFrame(faces, box.orientation, nodes[top[t]].first), box);
+      if (firstWorldItem[t] < firstItem[t + 1]) {
+        NodeBox alt = box;
+        alt.orientation = world;
+        finishBox(worldTotal, scanFrame(faces, world, nodes[top[t]].first), alt);
+        if (smallerBox(alt, box)) box = alt;
+      }
     }
   }
 }

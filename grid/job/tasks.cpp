@@ -46,10 +46,10 @@ std::string jobFingerprint(const ClusterJob& job) {
       << int(b.metric) << ' ' << int(b.order) << ' ' << b.k << ' ' << b.flatThreshold << ' '
       << b.garlandFitWeight << ' ' << b.garlandDirWeight << ' ' << b.garlandShapeWeight << ' '
       << b.balanceSlack << ' ' << b.proximityClusters << ' ' << b.orderedClusters << ' ' << b.topClusters
-      << ' ' << b.topBoxLimit << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << job.file.branching
-      << ' ' << int(job.file.rule) << ' ' << job.load.weldPositions << ' ' << job.memoryCap << ' '
-      << job.zstdLevel << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' ' << job.readTasks << ' '
-      << job.nodeTasks << ' ' << job.boxPartTriangles;
+      << ' ' << b.topBoxLimit << ' ' << b.computeBoxes << ' ' << int(b.boxes) << ' ' << b.worldAxesFaces
+      << ' ' << job.file.branching << ' ' << int(job.file.rule) << ' ' << job.load.weldPositions << ' '
+      << job.memoryCap << ' ' << job.zstdLevel << ' ' << job.forceCellFaces << ' ' << job.cellTasks << ' '
+      << job.readTasks << ' ' << job.nodeTasks << ' ' << job.boxPartTriangles;
   return out.str();
 }
 

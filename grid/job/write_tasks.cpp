@@ -165,6 +165,7 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
   out.putVector(std::exchange(p.upperOrientation, {}));
   out.putVector(std::exchange(p.upperOrigin, {}));
   out.putVector(std::exchange(p.upperHasOrigin, {}));
+  out.putVector(std::exchange(p.upperWorldAxes, {}));
   work.commit(out, writePlanPath(work), kWriteKind);
 }
 
@@ -191,10 +192,16 @@ LoadedWrite loadWriteHead(const WorkDirectory& work) {
   p.upperOrientation = in.takeVector<glm::quat>();
   p.upperOrigin = in.takeVector<glm::vec3>();
   p.upperHasOrigin = in.takeVector<uint8_t>();
+  p.upperWorldAxes = in.takeVector<uint32_t>();
   in.finish();
+  const auto ascendingNodes = [&](const std::vector<uint32_t>& v) {
+    for (size_t k = 0; k < v.size(); ++k)
+      if (v[k] >= p.upperOrientation.size() || (k > 0 && v[k] <= v[k - 1])) return false;
+    return true;
+  };
   if (w.bounds.size() < 2 || w.triangleBounds.size() != w.vertexBounds.size() ||
       w.triangleBounds.size() < 2 || p.upperOrigin.size() != p.upperOrientation.size() ||
-      p.upperHasOrigin.size() != p.upperOrientation.size())
+      p.upperHasOrigin.size() != p.upperOrientation.size() || !ascendingNodes(p.upperWorldAxes))
     throw Error(ErrorCategory::Input, writePlanPath(work).string() + ": tables that do not fit together");
   return w;
 }
@@ -305,9 +312,9 @@ std::filesystem::path boxesPath(const WorkDirectory& work) {
 }
 
 // The boxes step's manifest: the upper nodes' boxes, their parts merged, by file index.
-void commitBoxes(const WorkDirectory& work, const std::vector<BoxAccumulator>& boxes) {
+void commitBoxes(const WorkDirectory& work, const WritePlan& p, const std::vector<BoxAccumulator>& boxes) {
   ManifestWriter manifest;
-  manifest.putVector(upperBoxesByFileIndex(boxes));
+  manifest.putVector(upperBoxesByFileIndex(boxes, p.upperWorldAxes));
   work.commit(manifest, boxesPath(work), kBoxesKind);
 }
 
@@ -320,7 +327,12 @@ bool runBoxesStep(const ClusterJob&, const WorkDirectory& work) {
   if (!p.boxesInTasks) throw std::invalid_argument("no boxes step in " + work.string() + ": compact boxes");
   // The geometry tasks' parts in task order: the single process's merge (UpperBoxes), the same bits.
   std::vector<BoxAccumulator> boxes = upperFrames(p);
-  const auto upperCount = static_cast<uint32_t>(boxes.size());
+  const auto upperCount = static_cast<uint32_t>(p.upperOrientation.size());
+  // A part's accumulator is a node's (below upperCount) or one along the world axes of a node.
+  const auto hasOrigin = [&](uint32_t a) {
+    return a < upperCount ? p.upperHasOrigin[a] != 0
+                          : a < boxes.size() && p.upperHasOrigin[p.upperWorldAxes[a - upperCount]] != 0;
+  };
   for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t) {
     const std::filesystem::path path = taskManifestPath(work, "geometry", t);
     ManifestReader in = work.read(path, taskKind("geometry"));
@@ -330,12 +342,12 @@ bool runBoxesStep(const ClusterJob&, const WorkDirectory& work) {
     if (nodes.size() != sums.size())
       throw Error(ErrorCategory::Input, path.string() + ": box parts that do not fit together");
     for (size_t k = 0; k < nodes.size(); ++k) {
-      if (nodes[k] >= upperCount || !p.upperHasOrigin[nodes[k]])
+      if (!hasOrigin(nodes[k]))
         throw Error(ErrorCategory::Input, path.string() + ": a box part of node " + std::to_string(nodes[k]));
       boxes[nodes[k]].addSums(sums[k]);
     }
   }
-  commitBoxes(work, boxes);
+  commitBoxes(work, p, boxes);
   return true;
 }
 
@@ -438,7 +450,7 @@ bool runGeometryTask(const ClusterJob& job, const WorkDirectory& work, uint32_t 
   std::vector<BoxAccumulator::Sums> partSums;
   std::optional<UpperBoxes> boxes;
   if (p.boxesInTasks)
-    boxes.emplace(frames, job.threads > 1,
+    boxes.emplace(frames, p.upperWorldAxes, job.threads > 1,
                   [&](std::span<const uint32_t> nodes, std::span<const BoxAccumulator> parts) {
                     for (size_t i = 0; i < nodes.size(); ++i) {
                       partNodes.push_back(nodes[i]);
@@ -489,14 +501,14 @@ uint64_t writeFileHere(const ClusterJob& job, const WorkDirectory& work, TempSpa
     std::optional<UpperBoxes> boxes;
     if (p.boxesInTasks) {
       totals = upperFrames(p);
-      boxes.emplace(totals, job.threads > 1);
+      boxes.emplace(totals, p.upperWorldAxes, job.threads > 1);
     }
     const GeometryHere here{writer, *geometry, boxes ? &*boxes : nullptr};
     for (uint32_t t = 0; t + 1 < w.triangleBounds.size(); ++t)
       runGeometryTask(taskJob(w.triangleBounds[t]), work, t, &here);
     if (boxes) {
       boxes->finish();
-      commitBoxes(work, totals);
+      commitBoxes(work, p, totals);
     }
   }
   // Spent: the geometry and its tables (their decoded copy with them).

@@ -587,6 +587,8 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
   // to the cell's root.
   cellBuild.orderedClusters = 0;
   cellBuild.topClusters = 0;
+  // Its clusters are boxed along the world axes too by the whole mesh's measure.
+  cellBuild.worldAxesFaces = worldAxesFaces(context_.job.build, extent_.triangles);
   const auto groupCount = static_cast<uint32_t>(groups.start.size() - 1);
   for (uint32_t g = 0; g < groupCount; ++g) {
     const std::span<const uint32_t> members(groups.groupFaces.data() + groups.start[g],

@@ -342,6 +342,9 @@ struct WritePlan {
   std::vector<glm::quat> upperOrientation;
   std::vector<glm::vec3> upperOrigin;
   std::vector<uint8_t> upperHasOrigin;
+  // The upper nodes whose extents are measured along the world axes too (measuresWorldAxes),
+  // ascending: the accumulator of upperWorldAxes[k] along them is upperFrames' upperCount + k.
+  std::vector<uint32_t> upperWorldAxes;
   std::vector<uint32_t> upperParent, leafUpperParent;
 };
 WritePlan writeUpperPieces(const StageContext& context, const MeshExtent& extent, LeafGraph&& graph,
@@ -370,9 +373,19 @@ void writeNodeRange(const WritePlan& plan, SpillFile& order, SpillFile& runs, ui
 // The file position of node `local` of leaf `leaf`, from its run's.
 uint32_t runNodePosition(const WritePlan& plan, uint32_t leaf, uint32_t local);
 // Exact boxes: every upper node's accumulator as the upper step framed it, empty (by creation
-// index), and the merged boxes by file index (WritePlan::upperNodes' order).
+// index), then those along the world axes (UpperWorldAxes), and the merged boxes by file index
+// (WritePlan::upperNodes' order), each the smaller of its node's two where it has two.
 std::vector<BoxAccumulator> upperFrames(const WritePlan& plan);
-std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& boxes);
+// The upper nodes of `frames` (the first faces.size(), by creation index) that measure the world
+// axes too (measuresWorldAxes), ascending, with their accumulators along them appended to `frames` (the same
+// reference vertex); and per upper node the index of that accumulator (UINT32_MAX: none).
+std::vector<uint32_t> addWorldAxes(std::vector<BoxAccumulator>& frames, std::span<const uint64_t> faces,
+                                   uint64_t leastFaces, BoxPrecision precision);
+std::vector<uint32_t> worldAxesSlots(std::span<const uint32_t> worldAxes, size_t upperCount);
+// Node i's box of `boxes`: the smaller of its own and its world axes' (slots: worldAxesSlots).
+NodeBox upperBox(const std::vector<BoxAccumulator>& boxes, std::span<const uint32_t> slots, uint32_t i);
+std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& boxes,
+                                           std::span<const uint32_t> worldAxes);
 
 // Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();

@@ -15,6 +15,7 @@
 #include <glm/vec3.hpp>
 
 #include "facetree/merge.h"
+#include "stages/stages.h"
 
 namespace facetree {
 
@@ -42,16 +43,24 @@ class UpperBoxes {
   // the part first reached them.
   using Sink = std::function<void(std::span<const uint32_t> nodes, std::span<const BoxAccumulator> parts)>;
 
-  // `frames`: every upper node's orientation and reference vertex (only read).
-  UpperBoxes(const std::vector<BoxAccumulator>& frames, bool helper, Sink sink)
-      : frames_(frames), sink_(std::move(sink)), slot_(frames.size(), kNoSlot) {
+  // `frames`: every upper node's orientation and reference vertex (only read), then one along the
+  // world axes for each node of `worldAxes` (addWorldAxes), which sees its node's triangles.
+  UpperBoxes(const std::vector<BoxAccumulator>& frames, std::span<const uint32_t> worldAxes, bool helper,
+             Sink sink)
+      : frames_(frames),
+        sink_(std::move(sink)),
+        slot_(frames.size(), kNoSlot),
+        world_(worldAxesSlots(worldAxes, frames.size() - worldAxes.size())) {
     if (helper) thread_ = std::thread([this] { run(); });
   }
   // The parts merged into `totals` (framed, empty) as they end. A node's first part goes straight
   // into its total, the same bits as merged into an empty one: only the nodes whose triangles
   // cross a part's end (a path from the root per end) hold a second accumulator.
-  UpperBoxes(std::vector<BoxAccumulator>& totals, bool helper)
-      : frames_(totals), totals_(&totals), slot_(totals.size(), kNoSlot) {
+  UpperBoxes(std::vector<BoxAccumulator>& totals, std::span<const uint32_t> worldAxes, bool helper)
+      : frames_(totals),
+        totals_(&totals),
+        slot_(totals.size(), kNoSlot),
+        world_(worldAxesSlots(worldAxes, totals.size() - worldAxes.size())) {
     if (helper) thread_ = std::thread([this] { run(); });
   }
   ~UpperBoxes() { finish(); }
@@ -135,10 +144,18 @@ class UpperBoxes {
       const Run& r = b.runs[i];
       run_.assign(std::span(b.vertices).subspan(r.vertex, r.vertices),
                   std::span(b.indices).subspan(r.index, r.indices));
-      // Every ancestor's accumulator first: a new one may move the others.
-      for (size_t k = 0; k < r.ancestors; ++k) partOf(b.ancestors[r.ancestor + k]);
+      // Every ancestor's accumulators first: a new one may move the others.
+      for (size_t k = 0; k < r.ancestors; ++k) {
+        const uint32_t a = b.ancestors[r.ancestor + k];
+        partOf(a);
+        if (world_[a] != kNoSlot) partOf(world_[a]);
+      }
       targets_.clear();
-      for (size_t k = 0; k < r.ancestors; ++k) targets_.push_back(target(b.ancestors[r.ancestor + k]));
+      for (size_t k = 0; k < r.ancestors; ++k) {
+        const uint32_t a = b.ancestors[r.ancestor + k];
+        targets_.push_back(target(a));
+        if (world_[a] != kNoSlot) targets_.push_back(target(world_[a]));
+      }
       BoxAccumulator::addRun(run_, targets_);
     }
     for (; end < b.partEnds.size(); ++end) endPartNow();
@@ -178,7 +195,8 @@ class UpperBoxes {
   const std::vector<BoxAccumulator>& frames_;
   std::vector<BoxAccumulator>* totals_ = nullptr;
   Sink sink_;
-  std::vector<uint32_t> slot_;             // per node: its accumulator of the part, kTotal or kNoSlot
+  std::vector<uint32_t> slot_;             // per accumulator: its accumulator of the part, kTotal or kNoSlot
+  std::vector<uint32_t> world_;            // per upper node: its accumulator along the world axes, or kNoSlot
   std::vector<uint32_t> touched_;          // the nodes the part reached
   std::vector<uint32_t> partNodes_;        // those with an accumulator of the part, in order
   std::vector<BoxAccumulator> partBoxes_;  // and those accumulators

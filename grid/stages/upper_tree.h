@@ -27,8 +27,9 @@ UpperRecast recastUpper(const ClusterMergeResult& upper, const FileOptions& file
 
 // Per upper node (creation order): its box accumulator in its frame, and whether the frame is flat.
 struct UpperFrames {
-  std::vector<BoxAccumulator> boxes;
+  std::vector<BoxAccumulator> boxes;  // by creation index, then those along the world axes
   std::vector<uint8_t> flat;
+  std::vector<uint32_t> worldAxes, worldSlots;  // addWorldAxes, worldAxesSlots
 };
 UpperFrames frameUpper(const ClusterMergeResult& upper, std::span<const BoxCorners> leafCorners,
                        double flatThreshold, BoxPrecision precision);

@@ -275,7 +275,7 @@ FchNode WriteStage::upperNode(uint32_t j, const WritePlan& plan, const FileLayou
   n.area = static_cast<float>(u.stats.area);
   n.perimeter = static_cast<float>(u.stats.perimeter);
   n.sumNormal = glm::vec3(u.stats.sumNormal);
-  n.box = frames.boxes[i].box();
+  n.box = upperBox(frames.boxes, frames.worldSlots, i);
   return n;
 }
 
@@ -286,7 +286,8 @@ std::vector<NodeBox> WriteStage::upperDecodedBoxes(const WritePlan& plan, const 
   for (uint32_t i = upperCount; i-- > 0;) {  // parents (created later) first
     if (!layout.recast.kept[i]) continue;
     const uint32_t parent = plan.upperParent[i];
-    upperBox[i] = compactDecodedBox(frames.boxes[i].box(), parent == kNone ? nullptr : &upperBox[parent]);
+    upperBox[i] = compactDecodedBox(facetree::upperBox(frames.boxes, frames.worldSlots, i),
+                                    parent == kNone ? nullptr : &upperBox[parent]);
   }
   return upperBox;
 }
@@ -383,6 +384,11 @@ WriteStage::Start WriteStage::start() {
       set[a] = 1;
     }
   }
+  std::vector<uint64_t> faces(upper_.nodes.size());
+  for (size_t i = 0; i < faces.size(); ++i) faces[i] = upper_.nodes[i].stats.faceCount;
+  s.frames.worldAxes = addWorldAxes(boxes, faces, worldAxesFaces(context_.job.build, s.layout.faces),
+                                    context_.job.build.boxes);
+  s.frames.worldSlots = worldAxesSlots(s.frames.worldAxes, upper_.nodes.size());
   return s;
 }
 
@@ -426,10 +432,11 @@ WritePlan WriteStage::plan(Start& begun) {
       plan.upperOrientation[i] = frames.boxes[i].orientation();
       plan.upperHasOrigin[i] = frames.boxes[i].origin(plan.upperOrigin[i]);
     }
+    plan.upperWorldAxes = frames.worldAxes;
   }
   if (upperCount > 0 && !plan.boxesInTasks) {
     std::optional<UpperBoxes> boxes;
-    if (upperCount > 0) boxes.emplace(frames.boxes, context_.job.threads > 1);
+    if (upperCount > 0) boxes.emplace(frames.boxes, frames.worldAxes, context_.job.threads > 1);
     const GeometryRange whole{0, fileLayout.faces, 0, fileLayout.vertices};
     writeGeometryRange(plan, *subtrees_.geometry, whole, nullptr, boxes ? &*boxes : nullptr,
                        /*discard=*/false, "the write plan", [&](uint64_t done) { progress(done); });

@@ -28,18 +28,58 @@ uint32_t runNodePosition(const WritePlan& p, uint32_t leaf, uint32_t local) {
 
 std::vector<BoxAccumulator> upperFrames(const WritePlan& p) {
   std::vector<BoxAccumulator> boxes;
-  boxes.reserve(p.upperOrientation.size());
+  boxes.reserve(p.upperOrientation.size() + p.upperWorldAxes.size());
   for (size_t i = 0; i < p.upperOrientation.size(); ++i) {
     BoxAccumulator& b = boxes.emplace_back(p.upperOrientation[i]);
+    if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
+  }
+  // Exact boxes only (boxesInTasks): the world axes on the exact lattice.
+  const glm::quat world = worldOrientation(BoxPrecision::Exact);
+  for (const uint32_t i : p.upperWorldAxes) {
+    BoxAccumulator& b = boxes.emplace_back(world);
     if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
   }
   return boxes;
 }
 
-std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& boxes) {
-  const auto upperCount = static_cast<uint32_t>(boxes.size());
+std::vector<uint32_t> addWorldAxes(std::vector<BoxAccumulator>& frames, std::span<const uint64_t> faces,
+                                   uint64_t leastFaces, BoxPrecision precision) {
+  const size_t upperCount = faces.size();
+  std::vector<uint32_t> nodes;
+  for (uint32_t i = 0; i < upperCount; ++i)
+    if (measuresWorldAxes(faces[i], leastFaces, frames[i].orientation(), precision)) nodes.push_back(i);
+  const glm::quat world = worldOrientation(precision);
+  frames.reserve(upperCount + nodes.size());
+  for (const uint32_t i : nodes) {
+    glm::vec3 origin;
+    const bool has = frames[i].origin(origin);
+    BoxAccumulator& b = frames.emplace_back(world);
+    if (has) b.setOrigin(origin);
+  }
+  return nodes;
+}
+
+std::vector<uint32_t> worldAxesSlots(std::span<const uint32_t> worldAxes, size_t upperCount) {
+  std::vector<uint32_t> slots(upperCount, UINT32_MAX);
+  for (size_t k = 0; k < worldAxes.size(); ++k) slots[worldAxes[k]] = static_cast<uint32_t>(upperCount + k);
+  return slots;
+}
+
+NodeBox upperBox(const std::vector<BoxAccumulator>& boxes, std::span<const uint32_t> slots, uint32_t i) {
+  NodeBox box = boxes[i].box();
+  if (slots[i] != UINT32_MAX) {
+    const NodeBox world = boxes[slots[i]].box();
+    if (smallerBox(world, box)) box = world;
+  }
+  return box;
+}
+
+std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& boxes,
+                                           std::span<const uint32_t> worldAxes) {
+  const auto upperCount = static_cast<uint32_t>(boxes.size() - worldAxes.size());
+  const std::vector<uint32_t> slots = worldAxesSlots(worldAxes, upperCount);
   std::vector<NodeBox> out(upperCount);
-  for (uint32_t j = 0; j < upperCount; ++j) out[j] = boxes[upperCount - 1 - j].box();
+  for (uint32_t j = 0; j < upperCount; ++j) out[j] = upperBox(boxes, slots, upperCount - 1 - j);
   return out;
 }
 

@@ -104,6 +104,10 @@ struct BuildOptions {
   // The box precision the file will have: orientations are rounded to its lattice
   // (latticeOrientation) before the extents are measured along them.
   BoxPrecision boxes = BoxPrecision::Exact;
+  // Clusters of at least this many faces are boxed along the world axes too where that box is
+  // smaller (worldAxesFaces); 0: a kWorldAxesShare-th of the mesh's faces (a piece of a larger
+  // mesh is given its whole mesh's).
+  uint64_t worldAxesFaces = 0;
   // Worker threads of the merge rounds and the box phase (0: the hardware's, at most 8). The
   // output is bit-identical for every count.
   unsigned threads = 0;
@@ -120,7 +124,8 @@ inline constexpr uint32_t kFaceChild = 0x80000000u;
 // Node::flags bits.
 enum NodeFlag : uint32_t {
   kNodeJoinsDisjointSurfaces = 1u << 0,  // children share no mesh edge (components joined)
-  kNodeFlatFrame = 1u << 1,              // box frame from S + min-area rectangle, else PCA
+  kNodeFlatFrame = 1u << 1,              // flat (eq. 78): frame from S + min-area rectangle, else PCA
+                                         // (either may give way to the world axes: worldAxesFaces)
 };
 
 // Topology and merge statistics of one internal node.
@@ -455,6 +460,23 @@ class ClusterOrienter {
  private:
   std::unique_ptr<FrameBuilder> builder_;
 };
+
+// A frame minimises the box only in part: PCA minimises the spread (Willmott 2000, sec. 5.3.2 takes
+// its axes as an approximation), S and the minimum-area rectangle ignore the thickness of a cluster
+// that is flat by eq. 78 but not plane, and the frame compares them with the world axes on sampled
+// hull points only. So a cluster of at least worldAxesFaces faces whose frame is not the world axes
+// has its exact extents measured along both, and keeps the box of smaller surface (smallerBox): the
+// clusters of the coarse cuts, which a truncated file keeps, are never boxed worse than axis-aligned.
+// Every builder (computeBoxes, the out-of-core upper nodes) applies the same rule.
+inline constexpr uint64_t kWorldAxesShare = 4096;
+// The least face count of a cluster measured along the world axes too, in a mesh of `meshFaces`.
+uint64_t worldAxesFaces(const BuildOptions& options, uint64_t meshFaces);
+// The world axes as a stored orientation of `precision`.
+glm::quat worldOrientation(BoxPrecision precision);
+bool measuresWorldAxes(uint64_t faces, uint64_t leastFaces, const glm::quat& orientation,
+                       BoxPrecision precision);
+// Whether `candidate` has a smaller surface than `box` (ties keep `box`).
+bool smallerBox(const NodeBox& candidate, const NodeBox& box);
 
 // Exact box extents and side areas in a given orientation, accumulated triangle by triangle (so a caller can
 // stream the faces of a huge cluster, or merge accumulators of disjoint face sets). box() gives the same

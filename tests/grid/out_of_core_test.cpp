@@ -87,6 +87,33 @@ ClusterFile expectHierarchyOf(const fs::path& out, const fs::path& mesh, const V
   return file;
 }
 
+// Every node of at least `leastFaces` faces has a box no larger than the axis-aligned box of its
+// faces (worldAxesFaces: such clusters are measured along the world axes too); returns how many
+// of them took the world axes where their frame was another.
+uint32_t expectNoBoxOverAxisAligned(const ClusterFile& file, uint64_t leastFaces, BoxPrecision precision) {
+  const glm::quat world = worldOrientation(precision);
+  uint32_t tookWorld = 0;
+  for (size_t i = 0; i < file.nodes.size(); ++i) {
+    const FchNode& n = file.nodes[i];
+    if (n.count < leastFaces) continue;
+    glm::dvec3 lo(INFINITY), hi(-INFINITY);
+    for (size_t k = 3 * size_t{n.first}; k < 3 * (size_t{n.first} + n.count); ++k)
+      lo = glm::min(lo, glm::dvec3(file.vertices[file.indices[k]])),
+      hi = glm::max(hi, glm::dvec3(file.vertices[file.indices[k]]));
+    const glm::dvec3 w = 0.5 * (hi - lo), h(n.box.halfExtent), c(n.box.center);
+    const double boxSurface = h.x * h.y + h.y * h.z + h.z * h.x,
+                 worldSurface = w.x * w.y + w.y * w.z + w.z * w.x;
+    // Each half extent is padded by the projections' float error bound (the parts' merged ones
+    // included) and measured from the float center: box_test.cpp's tolerance.
+    const double pad =
+        1e-5 * std::max({h.x, h.y, h.z}) + 2.5e-7 * std::max({std::abs(c.x), std::abs(c.y), std::abs(c.z)});
+    EXPECT_LE(boxSurface, worldSurface + 2 * pad * (h.x + h.y + h.z))
+        << "node " << i << " of " << n.count << " faces";
+    tookWorld += n.box.orientation == world;
+  }
+  return tookWorld;
+}
+
 std::string bytesOf(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), {}};
@@ -434,7 +461,10 @@ TEST(OutOfCore, UpperBoxesInPartsGiveTheBytesOfOneProcess) {
   job.boxPartTriangles = 65536;
   job.output = dir / "whole.fch";
   runClusterJob(job);
-  expectHierarchyOf(job.output, mesh);
+  const ClusterFile whole = expectHierarchyOf(job.output, mesh);
+  EXPECT_GT(
+      expectNoBoxOverAxisAligned(whole, worldAxesFaces(job.build, whole.nodes[0].count), job.build.boxes),
+      0u);
 
   const fs::path work = dir / "work";
   job.output = dir / "staged.fch";

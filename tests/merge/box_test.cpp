@@ -12,6 +12,7 @@
 #include <glm/mat3x3.hpp>
 
 #include "merge/box.h"
+#include "merge/box_extent.h"
 #include "merge/eigen.h"
 #include "merge/frame.h"
 #include "merge/hull.h"
@@ -112,10 +113,11 @@ void checkBoxes(const TestMesh& m, const Hierarchy& h, const BuildOptions& opt, 
     const double tol = 1e-5 * maxH + 2.5e-7 * cAbs + 1e-30;  // float rounding of box and center
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     double side[6] = {0, 0, 0, 0, 0, 0}, area = 0;
-    glm::dvec3 s(0.0);
+    glm::dvec3 s(0.0), worldLo(INFINITY), worldHi(-INFINITY);
     for (uint32_t p = node.first; p < node.first + node.count; ++p) {
       const uint32_t f = h.faceOrder[p];
       for (int v = 0; v < 3; ++v) {
+        worldLo = glm::min(worldLo, at(m, f, v)), worldHi = glm::max(worldHi, at(m, f, v));
         const glm::dvec3 d = at(m, f, v) - c;
         for (int k = 0; k < 3; ++k)
           lo[k] = std::min(lo[k], glm::dot(d, a[k])), hi[k] = std::max(hi[k], glm::dot(d, a[k]));
@@ -136,7 +138,14 @@ void checkBoxes(const TestMesh& m, const Hierarchy& h, const BuildOptions& opt, 
     for (int k = 0; k < 6; ++k) EXPECT_NEAR(box.sideArea[k], side[k], 1e-5 * area + 1e-30) << "side " << k;
     const bool flat = isFlatCluster(node.area, glm::dvec3(node.sumNormal), opt.flatThreshold);
     EXPECT_EQ(flat, (node.flags & kNodeFlatFrame) != 0);
-    if (flat) {
+    if (node.count >= worldAxesFaces(opt, h.faceOrder.size())) {
+      // Never larger than the axis-aligned box of the same faces.
+      const glm::dvec3 w = 0.5 * (worldHi - worldLo);
+      const double boxSurface = he.x * he.y + he.y * he.z + he.z * he.x;
+      const double worldSurface = w.x * w.y + w.y * w.z + w.z * w.x;
+      EXPECT_LE(boxSurface, worldSurface + 2 * tol * (he.x + he.y + he.z));
+    }
+    if (flat && box.orientation != worldOrientation(opt.boxes)) {
       const double turn = kLatticeAngle[opt.boxes == BoxPrecision::Compact];
       EXPECT_NEAR(glm::dot(a[2], glm::normalize(glm::dvec3(node.sumNormal))), 1.0, turn * turn / 2 + 1e-6);
     }
