@@ -8,6 +8,10 @@
 // stack; it approximates the hull only where a child's plane differs from the parent's, which
 // costs tightness of orientation, never containment.
 //
+// A cluster of at least worldAxesFaces faces is scanned along the world axes too and keeps the
+// smaller of the two boxes (merge.h): that decides its stored orientation only, the hull points it
+// carries up stay those of its frame, so its parent's frame does not depend on it.
+//
 // Extents and side areas are exact and never derived from the children's boxes (sec. 5.3.1):
 // every node projects every vertex of its face range on its axes as reconstructed from the
 // stored float quaternion, O(n h) in all. The faces are packed in hierarchy order (structure of

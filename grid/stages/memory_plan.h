@@ -49,8 +49,9 @@ inline constexpr double kUpperSlackFactor = 1.15;
 // Per leaf, from the merge above the cells to the write, at most (x86-64 sizes): its record 40 B and
 // geometry handle 16, box corners 96, its upper merge node 144; during the merge its statistics
 // twice (128 B each), its heap entry, box and edges (~2 a leaf, ~100 B); during the write its upper
-// node's box accumulator 176 and orientation 16, and the write's tables ~80. The hull points the
-// upper frames carry wait in O(height) slots, not one per node (frameUpper).
+// node's box accumulator 176 and orientation 16, for at most half the upper nodes a second one along
+// the world axes (addWorldAxes), and the write's tables ~80. The hull points the upper frames carry
+// wait in O(height) slots, not one per node (frameUpper).
 inline constexpr uint64_t kLeafBytes = 704;
 // With --metric garland a leaf also brings Garland's quadrics, which the upper merge copies.
 inline constexpr uint64_t kGarlandLeafBytes = 2 * sizeof(GarlandQuadrics);

@@ -373,12 +373,13 @@ void writeNodeRange(const WritePlan& plan, SpillFile& order, SpillFile& runs, ui
 // The file position of node `local` of leaf `leaf`, from its run's.
 uint32_t runNodePosition(const WritePlan& plan, uint32_t leaf, uint32_t local);
 // Exact boxes: every upper node's accumulator as the upper step framed it, empty (by creation
-// index), then those along the world axes (UpperWorldAxes), and the merged boxes by file index
+// index), then those along the world axes (WritePlan::upperWorldAxes), and the merged boxes by file index
 // (WritePlan::upperNodes' order), each the smaller of its node's two where it has two.
 std::vector<BoxAccumulator> upperFrames(const WritePlan& plan);
 // The upper nodes of `frames` (the first faces.size(), by creation index) that measure the world
-// axes too (measuresWorldAxes), ascending, with their accumulators along them appended to `frames` (the same
-// reference vertex); and per upper node the index of that accumulator (UINT32_MAX: none).
+// axes too (measuresWorldAxes; at most half of them, the largest), ascending, with their accumulators along
+// them appended to `frames` (the same reference vertex); and per upper node the index of that accumulator
+// (UINT32_MAX: none).
 std::vector<uint32_t> addWorldAxes(std::vector<BoxAccumulator>& frames, std::span<const uint64_t> faces,
                                    uint64_t leastFaces, BoxPrecision precision);
 std::vector<uint32_t> worldAxesSlots(std::span<const uint32_t> worldAxes, size_t upperCount);

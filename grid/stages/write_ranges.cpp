@@ -48,6 +48,14 @@ std::vector<uint32_t> addWorldAxes(std::vector<BoxAccumulator>& frames, std::spa
   std::vector<uint32_t> nodes;
   for (uint32_t i = 0; i < upperCount; ++i)
     if (measuresWorldAxes(faces[i], leastFaces, frames[i].orientation(), precision)) nodes.push_back(i);
+  // At most half of the upper nodes, the largest (ties to the first): the memory plan's bytes of a
+  // leaf hold half an accumulator more during the write (kLeafBytes), which a tree of chains,
+  // every node over the threshold, would pass.
+  if (const size_t most = upperCount / 2; nodes.size() > most) {
+    std::stable_sort(nodes.begin(), nodes.end(), [&](uint32_t a, uint32_t b) { return faces[a] > faces[b]; });
+    nodes.resize(most);
+    std::sort(nodes.begin(), nodes.end());
+  }
   const glm::quat world = worldOrientation(precision);
   frames.reserve(upperCount + nodes.size());
   for (const uint32_t i : nodes) {

@@ -349,6 +349,39 @@ TEST(OutOfCore, BinaryPlyInRangesGivesTheBytesOfTheWholeRead) {
 
 // The cells tasks' runs of cells: about equal faces each, and a cell for every task however the
 // faces lie.
+// The upper nodes boxed along the world axes too: those at or over the threshold whose frame is
+// another, at most half of the upper nodes (the largest, ties to the first), each with an
+// accumulator of the world axes and its node's reference vertex after the nodes' own.
+TEST(OutOfCore, WorldAxesAccumulatorsGoToAtMostHalfTheUpperNodesTheLargest) {
+  const glm::quat turned = glm::normalize(glm::quat(0.9f, 0.3f, -0.2f, 0.25f));
+  const glm::quat world = worldOrientation(BoxPrecision::Exact);
+  const std::vector<uint64_t> faces = {50, 400, 400, 10, 300, 900, 60, 300, 5, 200};
+  std::vector<BoxAccumulator> frames;
+  for (size_t i = 0; i < faces.size(); ++i) {
+    frames.emplace_back(i == 5 ? world : turned);  // node 5 is boxed along the world axes already
+    frames.back().setOrigin(glm::vec3(float(i), 1.0f, 2.0f));
+  }
+  // Over 55 faces: nodes 0, 1, 2, 4, 6, 7, 9 (not 5); the five largest, ties to the first.
+  const std::vector<uint32_t> nodes = addWorldAxes(frames, faces, 55, BoxPrecision::Exact);
+  EXPECT_EQ(nodes, (std::vector<uint32_t>{1, 2, 4, 7, 9}));
+  ASSERT_EQ(frames.size(), faces.size() + nodes.size());
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    const BoxAccumulator& b = frames[faces.size() + k];
+    EXPECT_EQ(b.orientation(), world);
+    glm::vec3 origin;
+    ASSERT_TRUE(b.origin(origin));
+    EXPECT_EQ(origin, glm::vec3(float(nodes[k]), 1.0f, 2.0f));
+  }
+  const std::vector<uint32_t> slots = worldAxesSlots(nodes, faces.size());
+  for (uint32_t i = 0; i < faces.size(); ++i) {
+    const auto at = std::find(nodes.begin(), nodes.end(), i);
+    EXPECT_EQ(slots[i], at == nodes.end() ? UINT32_MAX : uint32_t(faces.size() + (at - nodes.begin())));
+  }
+  // Fewer over the threshold than half: all of them.
+  std::vector<BoxAccumulator> few(frames.begin(), frames.begin() + ptrdiff_t(faces.size()));
+  EXPECT_EQ(addWorldAxes(few, faces, 350, BoxPrecision::Exact), (std::vector<uint32_t>{1, 2}));
+}
+
 TEST(OutOfCore, CellTaskBoundsGiveEveryTaskACell) {
   const std::vector<uint64_t> even(16, 10);
   EXPECT_EQ(cellTaskBounds(even, 4), (std::vector<uint32_t>{0, 4, 8, 12, 16}));
