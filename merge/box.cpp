@@ -250,6 +250,15 @@ Extent scanRange(const PackedFaces& f, const ScanFrame& frame, uint32_t begin, u
   return total;
 }
 
+// The box of extents `e` measured in `frame` (of orientation q) in place of `box` where its
+// surface is smaller (smallerBox): a cluster measured along the world axes too.
+void keepSmaller(const Extent& e, const ScanFrame& frame, const glm::quat& q, NodeBox& box) {
+  NodeBox other;
+  other.orientation = q;
+  finishBox(e, frame, other);
+  if (smallerBox(other, box)) box = other;
+}
+
 ScanFrame scanFrame(const FaceSource& f, const glm::quat& q, uint32_t first) {
   const glm::mat3 m = glm::mat3_cast(q);
   return {{m[0], m[1], m[2]}, f.vertex(0, first)};
@@ -448,11 +457,9 @@ class Worker {
       const ScanFrame sf = scanFrame(ctx_.faces, box.orientation, n.first);
       finishBox(scanRange(window_, sf, n.first, n.first + n.count), sf, box);
       if (measuresWorldAxes(n.count, ctx_.worldAxesFaces, box.orientation, ctx_.options.boxes)) {
-        NodeBox world = box;
-        world.orientation = worldOrientation(ctx_.options.boxes);
-        const ScanFrame wf = scanFrame(ctx_.faces, world.orientation, n.first);
-        finishBox(scanRange(window_, wf, n.first, n.first + n.count), wf, world);
-        if (smallerBox(world, box)) box = world;
+        const glm::quat world = worldOrientation(ctx_.options.boxes);
+        const ScanFrame wf = scanFrame(ctx_.faces, world, n.first);
+        keepSmaller(scanRange(window_, wf, n.first, n.first + n.count), wf, world, box);
       }
     } else if (visited) {
       visited->push_back(node);
@@ -695,10 +702,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
       NodeBox& box = hierarchy.boxes[top[t]];
       finishBox(total, scanFrame(faces, box.orientation, nodes[top[t]].first), box);
       if (firstWorldItem[t] < firstItem[t + 1]) {
-        NodeBox alt = box;
-        alt.orientation = world;
-        finishBox(worldTotal, scanFrame(faces, world, nodes[top[t]].first), alt);
-        if (smallerBox(alt, box)) box = alt;
+        keepSmaller(worldTotal, scanFrame(faces, world, nodes[top[t]].first), world, box);
       }
     }
   }

@@ -253,7 +253,8 @@ class CellsStage {
     uint32_t left = 0;
   };
   void startTask(uint32_t i);
-  void endTask(uint32_t i);
+  // Commits task i's outputs (taken from tasks_) and hands them to done_.
+  void endTask(uint32_t i, std::unique_ptr<CellsOutput> out);
   void buildCell(uint32_t cell, CellsOutput& out, SpillCodec& codec, std::vector<FaceRecord>& records);
   void loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records);
   std::vector<GhostEdge> loadGhosts(uint32_t cell, SpillCodec& codec);
@@ -313,13 +314,11 @@ void CellsStage::startTask(uint32_t i) {
   tasks_[i].left = bounds_[i + 1] - bounds_[i];
 }
 
-void CellsStage::endTask(uint32_t i) {
-  CellsOutput& out = *tasks_[i].out;
-  for (SpillFile* file : {out.subtrees.nodes.get(), out.subtrees.geometry.get(), out.records.pairs.get(),
-                          out.records.leaves.get(), out.records.border.get()})
+void CellsStage::endTask(uint32_t i, std::unique_ptr<CellsOutput> out) {
+  for (SpillFile* file : {out->subtrees.nodes.get(), out->subtrees.geometry.get(), out->records.pairs.get(),
+                          out->records.leaves.get(), out->records.border.get()})
     file->commit();
-  done_(firstTask_ + i, std::move(out));
-  tasks_[i].out.reset();
+  done_(firstTask_ + i, std::move(*out));
 }
 
 void CellsStage::run() {
@@ -339,11 +338,12 @@ void CellsStage::run() {
   for (uint32_t i = 0; i + 1 < bounds_.size(); ++i)
     if (bounds_[i] == bounds_[i + 1]) {
       startTask(i);
-      endTask(i);
+      endTask(i, std::move(tasks_[i].out));
     }
   const auto cells = static_cast<uint32_t>(order.size());
   uint32_t next = 0;
-  std::mutex mutex;  // the next cell, and the tasks' outputs made and ended
+  std::mutex mutex;      // the next cell, and the tasks' outputs made and taken
+  std::mutex doneMutex;  // one task committed and handed on at a time, outside `mutex`
   std::atomic<uint64_t> facesDone{0};
   std::atomic<bool> stop{false};
   std::exception_ptr failure;
@@ -364,9 +364,16 @@ void CellsStage::run() {
         }
         buildCell(order[at], *out, codec, records);
         facesDone += records.size();
+        // A task's files are committed outside the cells' lock: the other workers go on taking
+        // cells meanwhile.
+        std::unique_ptr<CellsOutput> ended;
         {
           const std::lock_guard lock(mutex);
-          if (--tasks_[i].left == 0) endTask(i);
+          if (--tasks_[i].left == 0) ended = std::move(tasks_[i].out);
+        }
+        if (ended) {
+          const std::lock_guard lock(doneMutex);
+          endTask(i, std::move(ended));
         }
         // Progress (and cancellation) from the calling thread only: the callback need not be
         // thread-safe. The other workers notice `stop`.
