@@ -26,6 +26,24 @@ uint32_t runNodePosition(const WritePlan& p, uint32_t leaf, uint32_t local) {
   return p.runPosition[size_t(it - p.runFirst.begin())] + (local - *it);
 }
 
+namespace {
+
+// After the upper nodes' accumulators, one along the world axes for each of `nodes`, with its
+// node's reference vertex.
+void appendWorldAxes(std::vector<BoxAccumulator>& frames, std::span<const uint32_t> nodes,
+                     BoxPrecision precision) {
+  const glm::quat world = worldOrientation(precision);
+  frames.reserve(frames.size() + nodes.size());
+  for (const uint32_t i : nodes) {
+    glm::vec3 origin;
+    const bool has = frames[i].origin(origin);
+    BoxAccumulator& b = frames.emplace_back(world);
+    if (has) b.setOrigin(origin);
+  }
+}
+
+}  // namespace
+
 std::vector<BoxAccumulator> upperFrames(const WritePlan& p) {
   std::vector<BoxAccumulator> boxes;
   boxes.reserve(p.upperOrientation.size() + p.upperWorldAxes.size());
@@ -34,11 +52,7 @@ std::vector<BoxAccumulator> upperFrames(const WritePlan& p) {
     if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
   }
   // Exact boxes only (boxesInTasks): the world axes on the exact lattice.
-  const glm::quat world = worldOrientation(BoxPrecision::Exact);
-  for (const uint32_t i : p.upperWorldAxes) {
-    BoxAccumulator& b = boxes.emplace_back(world);
-    if (p.upperHasOrigin[i]) b.setOrigin(p.upperOrigin[i]);
-  }
+  appendWorldAxes(boxes, p.upperWorldAxes, BoxPrecision::Exact);
   return boxes;
 }
 
@@ -56,14 +70,7 @@ std::vector<uint32_t> addWorldAxes(std::vector<BoxAccumulator>& frames, std::spa
     nodes.resize(most);
     std::sort(nodes.begin(), nodes.end());
   }
-  const glm::quat world = worldOrientation(precision);
-  frames.reserve(upperCount + nodes.size());
-  for (const uint32_t i : nodes) {
-    glm::vec3 origin;
-    const bool has = frames[i].origin(origin);
-    BoxAccumulator& b = frames.emplace_back(world);
-    if (has) b.setOrigin(origin);
-  }
+  appendWorldAxes(frames, nodes, precision);
   return nodes;
 }
 
