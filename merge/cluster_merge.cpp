@@ -33,11 +33,12 @@
 //    and its box the model's; the least increase of the fit splits it where the surface bends. A
 //    merge that adds no fit (a surface without area, coplanar pieces) goes by the area of the
 //    union (kTopTieArea), so that such pieces join the smallest cluster that takes them, not a
-//    peel at the top of the file. A node records eq. 84 on the union or, when higher, the highest
-//    cost recorded before it: the file, which orders nodes by decreasing effective cost, keeps the
-//    top first and in reverse merge order, so its cut of k <= n clusters is the top's last k;
-//    a merge whose union holds under kTopSliverShare of the top's average area keeps its eq. 84
-//    cost and its place among the merges below. The cuts of more clusters are eq. 84's.
+//    peel at the top of the file. The top's nodes, all but the merges whose union holds under
+//    kTopSliverShare of the top's average area (small pieces: a terrain's islets, a scan's stray
+//    patches), open the file: orderTop (top_order.cpp) orders them top down together with the
+//    nodes below them by the fit each expansion removes from the cut, for up to kTopOrderedCuts
+//    times the top's clusters, and re-costs them above every other node. The rest keep eq. 84's
+//    cost, and the cuts they make are eq. 84's.
 //  - The top's boxes (BuildOptions::topBoxLimit): the least increase of the fit alone joins
 //    coplanar pieces however far apart (a scan's floor across every room), and a cut of such
 //    clusters holds boxes larger than any spatial grouping would. Each merge of the top that
@@ -74,6 +75,7 @@
 #include "morton.h"
 #include "proximity.h"
 #include "surface_stats.h"
+#include "top_order.h"
 #include "top_partitions.h"
 
 namespace facetree {
@@ -93,8 +95,9 @@ constexpr uint32_t kProximityNeighbours = 6;
 // that add no fit.
 constexpr double kTopTieArea = 1e-9;
 // In the top: a merge whose union holds less than this share of the top's average cluster area
-// keeps eq. 84's cost, so that small pieces (a terrain's islets, a scan's stray patches) sort
-// among the merges below the top rather than in every coarse cut.
+// is not one of the top's own nodes: it keeps eq. 84's cost unless its fit places it, so that
+// small pieces (a terrain's islets, a scan's stray patches) sort among the merges below the top
+// rather than in every coarse cut.
 constexpr double kTopSliverShare = 0.1;
 // In the top: the last merges, from this many clusters, are chosen over every order of them
 // (top_partitions.cpp). Below 8 runs the Morton runs are slabs and quarters of the model, which
@@ -107,6 +110,9 @@ constexpr uint32_t kTopBoxCuts = kMaxPartitionClusters;
 // axis-aligned one: both make the reference a few percent larger than what `info --fit-cuts`
 // measures.
 constexpr double kTopBoxMargin = 0.95;
+// The file's first cuts, up to this many times the top's clusters, are ordered by the fit they
+// remove (top_order.cpp): past them the top's own order places what is left of it.
+constexpr uint32_t kTopOrderedCuts = 4;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -218,6 +224,11 @@ class ClusterMerger {
     heap_.release();
 
     joinComponents();
+    if (inTop_) {
+      TopTree tree{result_.nodes,          leaves_,    topFirst_, sliverArea_, boxLimit_,
+                   kTopOrderedCuts * top_, kTopBoxCuts};
+      orderTop(tree, [&](const SurfaceStats& s) { return areaFit(toClusterStats(s)); });
+    }
     graph_ = DualGraph{};
     std::exchange(candidate_, {});
     result_.averageDegree = edgeMerges_ ? degreeSum_ / static_cast<double>(edgeMerges_) : 0.0;
@@ -635,7 +646,6 @@ class ClusterMerger {
     node.flags = between == kNone || candidate_[between] ? kNodeJoinsDisjointSurfaces : 0u;
     node.cost = joining || inTop_ ? toKey(cost(merged, stats_[a], stats_[b], a, b))
                                   : toKey(static_cast<double>(heapKey) / keyScale_);
-    if (inTop_ && merged.area >= sliverArea_) level_ = node.cost = std::max(node.cost, level_);
     ra.height = std::max(ra.height, rb.height) + 1;
     ra.faceCount += rb.faceCount;
     if (inTop_ && !boxLimit_.empty()) boxSum_ += unionGrowth(a, b);
@@ -722,7 +732,7 @@ class ClusterMerger {
   // rebuilt; the merges from now on record costs no lower than any before.
   void enterTop() {
     inTop_ = true;
-    for (const ClusterMergeNode& node : result_.nodes) level_ = std::max(level_, node.cost);
+    topFirst_ = static_cast<uint32_t>(result_.nodes.size());
     if (!boxLimit_.empty()) {
       for (uint32_t c = 0; c < clusters_.size(); ++c)
         if (clusters_[c].node != kDead) boxSum_ += boxes_[c].area();
@@ -794,7 +804,7 @@ class ClusterMerger {
   uint32_t top_ = 0;                // live clusters at which the top takes over
   bool inTop_ = false;              // keys are increases of the fit (times boxScale_ squared)
   bool partitionsTried_ = false;    // the last merges were offered to lastMergesByPartitions
-  float level_ = 0;                 // in the top: the highest node cost so far
+  uint32_t topFirst_ = 0;           // the first node the top made
   double sliverArea_ = 0;           // in the top: unions under this area keep eq. 84's cost
   std::vector<double> boxLimit_;    // per live count k: the top's box limit (empty: none)
   double boxSum_ = 0;               // in the top: the live clusters' axis-aligned box areas

@@ -1,0 +1,219 @@
+// orderTop: the order in which the file opens the hierarchy, top down.
+//
+// The file sorts nodes by decreasing effective cost, so its cut of k clusters is its first k - 1
+// nodes (Willmott 2000, sec. 5.5.3). Eq. 84's costs order the cuts of many clusters. The first
+// cuts, which a truncated file keeps, are ordered here: the top's own nodes (whose merges went by
+// the increase of the fit, not by eq. 84) together with the nodes below them, by what expanding a
+// node removes from the cut's fit, the sum of area x eFit over its clusters (eq. 84's plane fit,
+// summed as Ward's criterion sums it): its gain, A(n) eFit(n) - A(a) eFit(a) - A(b) eFit(b) for
+// children a and b.
+//
+// Top down from the root, each step expands the open node of the highest score: the best average
+// gain over the first d <= kLookahead expansions of its subtree, each the highest gain open in it.
+// The score looks ahead because a split that adds fit (a flat cluster's eFit takes its sum normal,
+// not its least-variance plane) can open one that removes much more; it stops at a merge by which
+// the top attached a cluster without surface (exposesSurfaceless). Each step also keeps the cut's
+// axis-aligned box areas within the top's limit (the Morton runs its merges kept to): among the
+// nodes whose expansion stays within it, the best score; when none does, the one that leaves the
+// smallest sum. Below keptCuts clusters the top's own order, chosen over every order of its last
+// clusters, is the limit's reference instead: a node may go before the top's next one where it
+// leaves no more box area than that one, or stays within the limit.
+//
+// After orderedCuts steps, the top's nodes not yet placed follow in their own order. Every placed
+// node is then re-costed above every other node, each a fixed factor above the next: the prefix is
+// this order in core and out of core alike (whose keys are log costs in float).
+#include "top_order.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "proximity.h"
+
+namespace facetree {
+
+namespace {
+
+constexpr uint32_t kNoNode = 0xFFFFFFFFu;
+// Expansions a node's score looks ahead.
+constexpr int kLookahead = 8;
+// A cluster of at most this share of the top's sliver area has no surface to speak of.
+constexpr double kSurfacelessShare = 1e-9;
+// Each placed node's cost over the next one's: far above a float's resolution, also of the log
+// keys the out-of-core write sorts by.
+constexpr float kCostStep = 1.0f + 1.0f / 4096.0f;
+// The least cost a placed node takes (the out-of-core keys clamp costs to 1e-30).
+constexpr float kLeastCost = 1e-29f;
+
+class TopOrder {
+ public:
+  TopOrder(const TopTree& tree, const std::function<double(const SurfaceStats&)>& areaFit)
+      : tree_(tree), areaFit_(areaFit) {}
+
+  uint32_t run() {
+    const auto count = static_cast<uint32_t>(tree_.nodes.size());
+    if (count == 0 || !isTop(count - 1)) return 0;
+    std::vector<uint32_t> top;  // the top's own nodes in their own order: the last merge first
+    for (uint32_t i = count; i-- > tree_.firstTop;)
+      if (isTop(i)) top.push_back(i);
+    size_t nextTop = 0, topLeft = top.size();
+    sum_ = boxOf(count - 1);
+    const auto expand = [&](uint32_t i) {
+      sum_ = sumAfter(i);
+      placed_.push_back(i);
+      expanded_.insert(i);
+      if (isTop(i)) --topLeft;
+      for (const uint32_t child : tree_.nodes[i].child)
+        if (!(child & kLeafChild)) open_.push_back({child, score(child)});
+    };
+    expand(count - 1);
+    // Top down, by score, for tree.orderedCuts steps; then the top's nodes left, in their order.
+    while (topLeft > 0 || (placed_.size() < tree_.orderedCuts && !open_.empty())) {
+      while (nextTop < top.size() && isExpanded(top[nextTop])) ++nextTop;
+      const uint32_t own = nextTop < top.size() ? top[nextTop] : kNoNode;
+      size_t pick = placed_.size() < tree_.orderedCuts ? choose(own) : open_.size();
+      if (pick == open_.size())
+        for (size_t j = 0; j < open_.size(); ++j)
+          if (open_[j].node == own) pick = j;
+      const uint32_t chosen = open_[pick].node;
+      open_[pick] = open_.back();
+      open_.pop_back();
+      expand(chosen);
+    }
+    recost();
+    return static_cast<uint32_t>(placed_.size());
+  }
+
+ private:
+  struct Open {
+    uint32_t node;
+    double score;
+  };
+
+  bool isTop(uint32_t i) const {
+    return i >= tree_.firstTop && tree_.nodes[i].stats.area >= tree_.sliverArea;
+  }
+  bool isExpanded(uint32_t i) const { return expanded_.contains(i); }
+
+  const SurfaceStats& statsOf(uint32_t ref) const {
+    return (ref & kLeafChild) ? tree_.leaves[ref & ~kLeafChild] : tree_.nodes[ref].stats;
+  }
+  double fitOf(uint32_t ref) {
+    const auto [at, added] = fit_.try_emplace(ref, 0.0);
+    if (added) at->second = areaFit_(statsOf(ref));
+    return at->second;
+  }
+  double boxOf(uint32_t ref) const {
+    if (ref & kLeafChild) return clusterBox(statsOf(ref)).area();
+    const SurfaceStats& s = tree_.nodes[ref].stats;
+    return AxisBox{s.boundsMin, s.boundsMax}.area();
+  }
+  double gain(uint32_t i) {
+    const ClusterMergeNode& node = tree_.nodes[i];
+    return fitOf(i) - fitOf(node.child[0]) - fitOf(node.child[1]);
+  }
+  // The cut's box areas once node i is expanded.
+  double sumAfter(uint32_t i) const {
+    const ClusterMergeNode& node = tree_.nodes[i];
+    return sum_ - boxOf(i) + boxOf(node.child[0]) + boxOf(node.child[1]);
+  }
+
+  // Whether expanding node i puts a cluster without surface (degenerate faces) in the cut. The top
+  // joins such a cluster to the smallest cluster that takes it, to keep it out of coarse cuts: the
+  // lookahead does not pass through that merge.
+  bool exposesSurfaceless(uint32_t i) const {
+    const ClusterMergeNode& node = tree_.nodes[i];
+    const double least = kSurfacelessShare * tree_.sliverArea;
+    return statsOf(node.child[0]).area <= least || statsOf(node.child[1]).area <= least;
+  }
+
+  // Node n's score (see the top of the file).
+  double score(uint32_t n) {
+    uint32_t open[2 * kLookahead + 1];
+    int size = 0;
+    open[size++] = n;
+    double total = 0, best = -std::numeric_limits<double>::infinity();
+    for (int d = 1; d <= kLookahead && size > 0; ++d) {
+      int pick = 0;
+      for (int j = 1; j < size; ++j)
+        if (gain(open[j]) > gain(open[pick])) pick = j;
+      const uint32_t x = open[pick];
+      open[pick] = open[--size];
+      total += gain(x);
+      best = std::max(best, total / d);
+      if (isTop(x) && exposesSurfaceless(x)) continue;
+      for (const uint32_t child : tree_.nodes[x].child)
+        if (!(child & kLeafChild)) open[size++] = child;
+    }
+    return best;
+  }
+
+  // The open node to expand next, or open_.size() for the top's own next node `own` (kNoNode
+  // when none is left).
+  size_t choose(uint32_t own) const {
+    const size_t cut = placed_.size() + 1;  // clusters now; one more after the step
+    if (cut + 1 >= tree_.boxLimit.size()) return best([](double) { return true; });
+    const double limit = tree_.boxLimit[cut + 1];
+    if (cut + 1 < tree_.keptCuts && own != kNoNode) {
+      const double reference = std::max(limit, sumAfter(own));
+      return best([&](double sum) { return sum <= reference; });
+    }
+    if (const size_t pick = best([&](double sum) { return sum <= limit; }); pick < open_.size()) return pick;
+    size_t pick = 0;
+    for (size_t j = 1; j < open_.size(); ++j)
+      if (sumAfter(open_[j].node) < sumAfter(open_[pick].node)) pick = j;
+    return pick;
+  }
+  // The open node of the best score (ties to the later node) whose box sum after passes.
+  template <typename Passes>
+  size_t best(const Passes& passes) const {
+    size_t pick = open_.size();
+    for (size_t j = 0; j < open_.size(); ++j) {
+      if (!passes(sumAfter(open_[j].node))) continue;
+      if (pick == open_.size() || open_[j].score > open_[pick].score ||
+          (open_[j].score == open_[pick].score && open_[j].node > open_[pick].node))
+        pick = j;
+    }
+    return pick;
+  }
+
+  // The placed nodes above every other node's effective cost (the highest cost among them: the
+  // others are closed under children), each kCostStep above the next.
+  void recost() {
+    std::vector<uint32_t> sorted = placed_;
+    std::sort(sorted.begin(), sorted.end());
+    float rest = 0;
+    for (uint32_t i = 0, j = 0; i < tree_.nodes.size(); ++i) {
+      if (j < sorted.size() && sorted[j] == i) {
+        ++j;
+        continue;
+      }
+      rest = std::max(rest, tree_.nodes[i].cost);
+    }
+    float c = std::max(rest, kLeastCost);
+    for (size_t j = placed_.size(); j-- > 0;) {
+      const float next = c * kCostStep;
+      c = next > c ? next : std::nextafter(c, std::numeric_limits<float>::infinity());
+      tree_.nodes[placed_[j]].cost = c;
+    }
+  }
+
+  const TopTree& tree_;
+  const std::function<double(const SurfaceStats&)>& areaFit_;
+  std::unordered_map<uint32_t, double> fit_;  // area x eFit by child reference, as computed
+  std::vector<uint32_t> placed_;              // expansion order
+  std::unordered_set<uint32_t> expanded_;     // the same, as a set
+  std::vector<Open> open_;                    // nodes whose parent is expanded
+  double sum_ = 0;                            // the cut's box areas
+};
+
+}  // namespace
+
+uint32_t orderTop(const TopTree& tree, const std::function<double(const SurfaceStats&)>& areaFit) {
+  return TopOrder(tree, areaFit).run();
+}
+
+}  // namespace facetree
