@@ -110,9 +110,11 @@ constexpr uint32_t kTopBoxCuts = kMaxPartitionClusters;
 // axis-aligned one: both make the reference a few percent larger than what `info --fit-cuts`
 // measures.
 constexpr double kTopBoxMargin = 0.95;
-// The file's first cuts, up to this many times the top's clusters, are ordered by the fit they
-// remove (top_order.cpp): past them the top's own order places what is left of it.
+// The file's first cuts, up to this many times the top's clusters and at most kTopOrderedCutsMax,
+// are ordered by the fit they remove (top_order.cpp): past them the top's own order places what is
+// left of it. Each step scans the open nodes, so that the ordering's time is quadratic in its cuts.
 constexpr uint32_t kTopOrderedCuts = 4;
+constexpr uint32_t kTopOrderedCutsMax = 4096;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -225,8 +227,9 @@ class ClusterMerger {
 
     joinComponents();
     if (inTop_) {
-      TopTree tree{result_.nodes,          leaves_,    topFirst_, sliverArea_, boxLimit_,
-                   kTopOrderedCuts * top_, kTopBoxCuts};
+      TopTree tree{result_.nodes, leaves_,   topFirst_,
+                   sliverArea_,   boxLimit_, std::min(kTopOrderedCuts * top_, kTopOrderedCutsMax),
+                   kTopBoxCuts};
       orderTop(tree, [&](const SurfaceStats& s) { return areaFit(toClusterStats(s)); });
     }
     graph_ = DualGraph{};

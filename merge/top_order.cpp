@@ -20,8 +20,8 @@
 // leaves no more box area than that one, or stays within the limit.
 //
 // After orderedCuts steps, the top's nodes not yet placed follow in their own order. Every placed
-// node is then re-costed above every other node, each a fixed factor above the next: the prefix is
-// this order in core and out of core alike (whose keys are log costs in float).
+// node is then re-costed above every other node, each of the ordered ones a fixed factor above the
+// next: the prefix is this order in core and out of core alike (whose keys are log costs in float).
 #include "top_order.h"
 
 #include <algorithm>
@@ -181,7 +181,7 @@ class TopOrder {
   }
 
   // The placed nodes above every other node's effective cost (the highest cost among them: the
-  // others are closed under children), each kCostStep above the next.
+  // others are closed under children), the ordered ones each kCostStep above the next.
   void recost() {
     std::vector<uint32_t> sorted = placed_;
     std::sort(sorted.begin(), sorted.end());
@@ -193,10 +193,18 @@ class TopOrder {
       }
       rest = std::max(rest, tree_.nodes[i].cost);
     }
+    // The top's nodes placed after the ordered cuts share one cost: equal costs go in reverse
+    // creation order, theirs, in the file and out of core alike.
+    const size_t ordered = std::min<size_t>(placed_.size(), tree_.orderedCuts);
     float c = std::max(rest, kLeastCost);
-    for (size_t j = placed_.size(); j-- > 0;) {
-      const float next = c * kCostStep;
-      c = next > c ? next : std::nextafter(c, std::numeric_limits<float>::infinity());
+    const auto above = [](float x) {
+      const float next = x * kCostStep;
+      return next > x ? next : std::nextafter(x, std::numeric_limits<float>::infinity());
+    };
+    if (ordered < placed_.size()) c = above(c);
+    for (size_t j = ordered; j < placed_.size(); ++j) tree_.nodes[placed_[j]].cost = c;
+    for (size_t j = ordered; j-- > 0;) {
+      c = above(c);
       tree_.nodes[placed_[j]].cost = c;
     }
   }

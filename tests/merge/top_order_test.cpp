@@ -154,6 +154,29 @@ TEST(TopOrder, PlacedNodesGoAboveEveryOtherAndTheTreeIsUnchanged) {
   }
 }
 
+TEST(TopOrder, PastTheOrderedCutsTheTopKeepsItsOwnOrder) {
+  // Node 1 (removes 1, then node 0 below it 100) scores above node 2 (removes 30): ordered, the
+  // file opens root, 1, 0, 2. With one ordered cut, the top's nodes left follow in reverse merge
+  // order (2, then 1) and node 0 keeps its own cost.
+  for (const uint32_t orderedCuts : {64u, 1u}) {
+    Tree t;
+    const uint32_t below = t.node(t.leaf(0), t.leaf(0), 100, 5.0f);
+    const uint32_t first = t.node(below, t.leaf(0), 101, 1.0f);
+    const uint32_t second = t.node(t.leaf(0), t.leaf(0), 30, 2.0f);
+    const uint32_t root = t.node(first, second, 200, 3.0f);
+    if (orderedCuts > 1) {
+      EXPECT_EQ(order(t, 1, {}, orderedCuts), 4u);
+      EXPECT_EQ(t.fileOrder(), (std::vector<uint32_t>{root, first, below, second}));
+    } else {
+      EXPECT_EQ(order(t, 1, {}, orderedCuts), 3u);
+      EXPECT_EQ(t.fileOrder(), (std::vector<uint32_t>{root, second, first, below}));
+      EXPECT_EQ(t.nodes[below].cost, 5.0f);
+      EXPECT_EQ(t.nodes[second].cost, t.nodes[first].cost);
+    }
+    expectParentsFirst(t, t.fileOrder());
+  }
+}
+
 TEST(TopOrder, NothingWithoutATop) {
   Tree t;
   const uint32_t a = t.node(t.leaf(0), t.leaf(0), 1, 3.0f);
