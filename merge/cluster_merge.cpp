@@ -732,7 +732,7 @@ class ClusterMerger {
   }
 
   // The top (see the top of the file): every live edge is re-keyed by the fit it adds and the heap
-  // rebuilt; the merges from now on record costs no lower than any before.
+  // rebuilt; the merges from now on are the top's, which orderTop places in the file.
   void enterTop() {
     inTop_ = true;
     topFirst_ = static_cast<uint32_t>(result_.nodes.size());
@@ -808,7 +808,7 @@ class ClusterMerger {
   bool inTop_ = false;              // keys are increases of the fit (times boxScale_ squared)
   bool partitionsTried_ = false;    // the last merges were offered to lastMergesByPartitions
   uint32_t topFirst_ = 0;           // the first node the top made
-  double sliverArea_ = 0;           // in the top: unions under this area keep eq. 84's cost
+  double sliverArea_ = 0;           // in the top: unions under this area are not the top's own
   std::vector<double> boxLimit_;    // per live count k: the top's box limit (empty: none)
   double boxSum_ = 0;               // in the top: the live clusters' axis-aligned box areas
   std::vector<uint32_t> topEdges_;  // in the top under a box limit: its live edges (and dead ones)
