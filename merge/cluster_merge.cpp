@@ -110,11 +110,14 @@ constexpr uint32_t kTopBoxCuts = kMaxPartitionClusters;
 // axis-aligned one: both make the reference a few percent larger than what `info --fit-cuts`
 // measures.
 constexpr double kTopBoxMargin = 0.95;
-// The file's first cuts, up to this many times the top's clusters and at most kTopOrderedCutsMax,
-// are ordered by the fit they remove (top_order.cpp): past them the top's own order places what is
-// left of it. Each step scans the open nodes, so that the ordering's time is quadratic in its cuts.
+// The file's first cuts, up to this many times the top's clusters, are ordered by the fit they
+// remove (top_order.cpp): past them the top's own order places what is left of it. At most
+// kTopOrderedCutsMax: each step scans the open nodes, so that the ordering's time is quadratic in
+// its cuts. At most a kTopOrderedLeafShare-th of the leaves: the ordering sees no split below a
+// leaf, so its cuts stay well above them (a leaf's own splits keep eq. 84's place after them).
 constexpr uint32_t kTopOrderedCuts = 4;
 constexpr uint32_t kTopOrderedCutsMax = 4096;
+constexpr uint32_t kTopOrderedLeafShare = 4;
 
 // Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
 // summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
@@ -156,8 +159,10 @@ class ClusterMerger {
  public:
   // `garland`: one per leaf with Metric::Garland (checked by mergeClusters), else unused.
   ClusterMerger(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland)
+                double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+                float leavesCost)
       : leaves_(leaves),
+        leavesCost_(leavesCost),
         options_(options),
         constant_(options.metric == Metric::Constant),
         garland_(options.metric == Metric::Garland),
@@ -227,9 +232,15 @@ class ClusterMerger {
 
     joinComponents();
     if (inTop_) {
-      TopTree tree{result_.nodes, leaves_,   topFirst_,
-                   sliverArea_,   boxLimit_, std::min(kTopOrderedCuts * top_, kTopOrderedCutsMax),
-                   kTopBoxCuts};
+      TopTree tree{result_.nodes,
+                   leaves_,
+                   topFirst_,
+                   sliverArea_,
+                   boxLimit_,
+                   std::min({kTopOrderedCuts * top_, kTopOrderedCutsMax,
+                             static_cast<uint32_t>(leaves_.size() / kTopOrderedLeafShare)}),
+                   kTopBoxCuts,
+                   leavesCost_};
       orderTop(tree, [&](const SurfaceStats& s) { return areaFit(toClusterStats(s)); });
     }
     graph_ = DualGraph{};
@@ -789,6 +800,7 @@ class ClusterMerger {
   }
 
   std::span<const SurfaceStats> leaves_;
+  float leavesCost_;             // the highest cost below the leaves
   const BuildOptions& options_;  // outlives the merger (mergeClusters' argument)
   bool constant_, garland_;
   double k_, flatThreshold_, keyScale_;
@@ -844,10 +856,10 @@ void checkClusterInput(std::span<const SurfaceStats> leaves, std::span<const Clu
 
 ClusterMergeResult greedyMergeClusters(std::span<const SurfaceStats> leaves,
                                        std::span<const ClusterEdge> edges, double diagonalSquared,
-                                       const BuildOptions& options,
-                                       std::span<const GarlandQuadrics> garland) {
+                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+                                       float leavesCost) {
   if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
-  return ClusterMerger(leaves, edges, diagonalSquared, options, garland).run();
+  return ClusterMerger(leaves, edges, diagonalSquared, options, garland, leavesCost).run();
 }
 
 }  // namespace facetree

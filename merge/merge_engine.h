@@ -59,9 +59,11 @@ MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const B
 void checkClusterInput(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
                        const BuildOptions& options, std::span<const GarlandQuadrics> garland);
 // The exact greedy over given clusters (cluster_merge.cpp): MergeOrder::Exact's mergeClusters, and the
-// tail of the rounds.
+// tail of the rounds. `leavesCost`: the highest cost below the leaves (mergeClusters), the rounds'
+// records included.
 ClusterMergeResult greedyMergeClusters(std::span<const SurfaceStats> leaves,
                                        std::span<const ClusterEdge> edges, double diagonalSquared,
-                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland);
+                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+                                       float leavesCost);
 
 }  // namespace facetree

@@ -207,8 +207,10 @@ class RoundsEngine {
   // Over given clusters (mergeClusters): each starts as a cluster with its statistics, height and
   // face count, its node kFaceChild | leaf index; `edges` are checked (checkClusterInput).
   RoundsEngine(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-               double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland)
-      : leafCount_(static_cast<uint32_t>(leaves.size())),
+               double diagonalSquared, const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+               float leavesCost)
+      : leavesCost_(leavesCost),
+        leafCount_(static_cast<uint32_t>(leaves.size())),
         diagonalSquared_(diagonalSquared),
         options_(options),
         guard_(Policy::kBalanceGuard && options.balanceSlack > 0) {
@@ -838,8 +840,10 @@ class RoundsEngine {
 
   // mergeClusters over `leaves`; its nodes become records after the rounds'.
   void greedy(const Leaves& leaves, std::span<const ClusterEdge> edges) {
+    float below = leavesCost_;  // the rounds' records sit below the greedy's leaves
+    for (const MergeRecord& record : result_.records) below = std::max(below, record.cost);
     ClusterMergeResult tail = greedyMergeClusters(leaves.stats, edges, diagonalSquared_, options_,
-                                                  std::span<const GarlandQuadrics>(leaves.quadrics));
+                                                  std::span<const GarlandQuadrics>(leaves.quadrics), below);
     const uint32_t base = static_cast<uint32_t>(result_.records.size());
     for (const ClusterMergeNode& n : tail.nodes) {
       MergeRecord record;
@@ -868,7 +872,8 @@ class RoundsEngine {
 
   const FaceGeometry* geometry_ = nullptr;  // null over given clusters
   std::span<const SurfaceStats> givenLeaves_;
-  uint32_t leafCount_;  // faces, or given clusters
+  float leavesCost_ = 0;  // given clusters: the highest cost within their own hierarchies
+  uint32_t leafCount_;    // faces, or given clusters
   double diagonalSquared_;
   const BuildOptions& options_;
   double keyScale_ = 1.0;
@@ -954,22 +959,25 @@ ClusterMergeResult clusterResult(MergeResult&& merged, std::span<const SurfaceSt
 
 ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
                                  double diagonalSquared, const BuildOptions& options,
-                                 std::span<const GarlandQuadrics> garland) {
+                                 std::span<const GarlandQuadrics> garland, float leavesCost) {
   checkClusterInput(leaves, edges, options, garland);
   if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
   if (options.order == MergeOrder::Exact || leaves.size() < 2)
-    return greedyMergeClusters(leaves, edges, diagonalSquared, options, garland);
+    return greedyMergeClusters(leaves, edges, diagonalSquared, options, garland, leavesCost);
   switch (options.metric) {
     case Metric::Garland:
-      return clusterResult(RoundsEngine<GarlandCost>(leaves, edges, diagonalSquared, options, garland).run(),
-                           leaves);
+      return clusterResult(
+          RoundsEngine<GarlandCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
+          leaves);
     case Metric::Constant:
-      return clusterResult(RoundsEngine<ConstantCost>(leaves, edges, diagonalSquared, options, garland).run(),
-                           leaves);
+      return clusterResult(
+          RoundsEngine<ConstantCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
+          leaves);
     case Metric::Willmott:
     default:
-      return clusterResult(RoundsEngine<WillmottCost>(leaves, edges, diagonalSquared, options, garland).run(),
-                           leaves);
+      return clusterResult(
+          RoundsEngine<WillmottCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
+          leaves);
   }
 }
 

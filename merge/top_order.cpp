@@ -9,22 +9,28 @@
 // children a and b.
 //
 // Top down from the root, each step expands the open node of the highest score: the best average
-// gain over the first d <= kLookahead expansions of its subtree, each the highest gain open in it.
-// The score looks ahead because a split that adds fit (a flat cluster's eFit takes its sum normal,
-// not its least-variance plane) can open one that removes much more; it stops at a merge by which
-// the top attached a cluster without surface (exposesSurfaceless). Each step also keeps the cut's
-// axis-aligned box areas within the top's limit (the Morton runs its merges kept to): among the
-// nodes whose expansion stays within it, the best score; when none does, the one that leaves the
-// smallest sum. Below keptCuts clusters the top's own order, chosen over every order of its last
-// clusters, is the limit's reference instead: a node may go before the top's next one where it
-// leaves no more box area than that one, or stays within the limit.
+// gain of d <= kLookahead expansions of its subtree, the node's first (the best such set for each
+// d, by a knapsack over the subtree's top levels). The score looks ahead because a split that adds
+// fit (a flat cluster's eFit takes its sum normal, not its least-variance plane) can open one that
+// removes much more, even a few levels down. Until the cut holds as many clusters as the top's own
+// order does with all its nodes placed, it stops at a merge by which the top attached a cluster
+// without surface (exposesSurfaceless). Each step also keeps the cut's axis-aligned box areas
+// within the top's limit (the Morton runs its merges kept to): among the nodes whose expansion
+// stays within it, the best score; when none does, the one that leaves the smallest sum. Below
+// keptCuts clusters the top's own order, chosen over every order of its last clusters, is the
+// limit's reference instead: a node may go before the top's next one where it leaves no more box
+// area than that one, or stays within the limit.
 //
-// After orderedCuts steps, the top's nodes not yet placed follow in their own order. Every placed
-// node is then re-costed above every other node, each of the ordered ones a fixed factor above the
-// next: the prefix is this order in core and out of core alike (whose keys are log costs in float).
+// The order sees no split below a leaf (a cluster the merge was given: the rounds' or a cell's).
+// It stops after orderedCuts steps, or once the best score falls below the fit of a leaf in the
+// cut, whose own splits may then remove more. The top's nodes not yet placed follow in their own
+// order. Every placed node is then re-costed above every other node, the leaves' own included,
+// each of the ordered ones a fixed factor above the next: the prefix is this order in core and out
+// of core alike (whose keys are log costs in float).
 #include "top_order.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
@@ -60,21 +66,42 @@ class TopOrder {
     for (uint32_t i = count; i-- > tree_.firstTop;)
       if (isTop(i)) top.push_back(i);
     size_t nextTop = 0, topLeft = top.size();
+    double leafFit = 0;  // the highest area x eFit of a leaf in the cut
     sum_ = boxOf(count - 1);
     const auto expand = [&](uint32_t i) {
       sum_ = sumAfter(i);
       placed_.push_back(i);
       expanded_.insert(i);
       if (isTop(i)) --topLeft;
-      for (const uint32_t child : tree_.nodes[i].child)
-        if (!(child & kLeafChild)) open_.push_back({child, score(child)});
+      for (const uint32_t child : tree_.nodes[i].child) {
+        if (!(child & kLeafChild))
+          open_.push_back({child, score(child)});
+        else
+          leafFit = std::max(leafFit, fitOf(child));
+      }
     };
     expand(count - 1);
-    // Top down, by score, for tree.orderedCuts steps; then the top's nodes left, in their order.
-    while (topLeft > 0 || (placed_.size() < tree_.orderedCuts && !open_.empty())) {
+    // Top down, by score, for at most tree.orderedCuts steps, and while the best score passes
+    // every leaf's fit in the cut: past that, a leaf's own splits, which the order does not see,
+    // may remove more, and eq. 84's order resumes. Then the top's nodes left, in their order.
+    bool ordering = true;
+    while (topLeft > 0 || (ordering && placed_.size() < tree_.orderedCuts && !open_.empty())) {
       while (nextTop < top.size() && isExpanded(top[nextTop])) ++nextTop;
       const uint32_t own = nextTop < top.size() ? top[nextTop] : kNoNode;
-      size_t pick = placed_.size() < tree_.orderedCuts ? choose(own) : open_.size();
+      if (!lookThroughSurfaceless_ && placed_.size() >= top.size()) {
+        // As many clusters as the top's own order holds once it has placed all its nodes: it
+        // shows every cluster without surface the top attached, and the lookahead passes them.
+        lookThroughSurfaceless_ = true;
+        best_.clear();
+        for (Open& o : open_) o.score = score(o.node);
+      }
+      size_t pick = open_.size();
+      if (ordering && placed_.size() < tree_.orderedCuts) {
+        pick = choose(own);
+        if (open_[pick].score < leafFit) pick = open_.size(), ordering = false;
+        if (ordering) ordered_ = placed_.size() + 1;
+      }
+      if (!ordering && own == kNoNode) break;
       if (pick == open_.size())
         for (size_t j = 0; j < open_.size(); ++j)
           if (open_[j].node == own) pick = j;
@@ -91,6 +118,11 @@ class TopOrder {
   struct Open {
     uint32_t node;
     double score;
+  };
+  using Best = std::array<double, kLookahead + 1>;
+  struct Memo {
+    Best value;
+    int budget = 0;
   };
 
   bool isTop(uint32_t i) const {
@@ -123,32 +155,49 @@ class TopOrder {
 
   // Whether expanding node i puts a cluster without surface (degenerate faces) in the cut. The top
   // joins such a cluster to the smallest cluster that takes it, to keep it out of coarse cuts: the
-  // lookahead does not pass through that merge.
+  // lookahead does not pass through that merge while the cut holds fewer clusters than the top's
+  // own order shows with all its nodes placed.
   bool exposesSurfaceless(uint32_t i) const {
     const ClusterMergeNode& node = tree_.nodes[i];
     const double least = kSurfacelessShare * tree_.sliverArea;
     return statsOf(node.child[0]).area <= least || statsOf(node.child[1]).area <= least;
   }
 
-  // Node n's score (see the top of the file).
+  // Node n's score (see the top of the file): the best average of best(n)[d] / d.
   double score(uint32_t n) {
-    uint32_t open[2 * kLookahead + 1];
-    int size = 0;
-    open[size++] = n;
-    double total = 0, best = -std::numeric_limits<double>::infinity();
-    for (int d = 1; d <= kLookahead && size > 0; ++d) {
-      int pick = 0;
-      for (int j = 1; j < size; ++j)
-        if (gain(open[j]) > gain(open[pick])) pick = j;
-      const uint32_t x = open[pick];
-      open[pick] = open[--size];
-      total += gain(x);
-      best = std::max(best, total / d);
-      if (isTop(x) && exposesSurfaceless(x)) continue;
-      for (const uint32_t child : tree_.nodes[x].child)
-        if (!(child & kLeafChild)) open[size++] = child;
-    }
-    return best;
+    const Best& b = best(n, kLookahead);
+    double s = -std::numeric_limits<double>::infinity();
+    for (int d = 1; d <= kLookahead; ++d)
+      if (b[d] > -std::numeric_limits<double>::infinity()) s = std::max(s, b[d] / d);
+    return s;
+  }
+
+  // best(n, budget)[d], d <= budget: the most gain d expansions of n's subtree remove, n's first
+  // (a set of d nodes closed under parents), by the tree's knapsack over its two children; -inf
+  // where n's subtree holds fewer than d nodes. Kept per node with the budget it was computed for.
+  const Best& best(uint32_t n, int budget) {
+    if (const auto at = best_.find(n); at != best_.end() && at->second.budget >= budget)
+      return at->second.value;
+    Best value;
+    value.fill(-std::numeric_limits<double>::infinity());
+    value[0] = 0;
+    Best none = value;  // a leaf, or a split the lookahead does not pass
+    const bool stops = !lookThroughSurfaceless_ && isTop(n) && exposesSurfaceless(n);
+    const ClusterMergeNode& node = tree_.nodes[n];
+    const Best a =
+        (node.child[0] & kLeafChild) || stops || budget < 2 ? none : best(node.child[0], budget - 1);
+    const Best b =
+        (node.child[1] & kLeafChild) || stops || budget < 2 ? none : best(node.child[1], budget - 1);
+    const double own = gain(n);
+    for (int d = 1; d <= budget; ++d)
+      for (int x = 0; x < d; ++x)
+        if (a[x] > -std::numeric_limits<double>::infinity() &&
+            b[d - 1 - x] > -std::numeric_limits<double>::infinity())
+          value[d] = std::max(value[d], own + a[x] + b[d - 1 - x]);
+    Memo& memo = best_[n];
+    memo.value = value;
+    memo.budget = budget;
+    return memo.value;
   }
 
   // The open node to expand next, or open_.size() for the top's own next node `own` (kNoNode
@@ -180,12 +229,13 @@ class TopOrder {
     return pick;
   }
 
-  // The placed nodes above every other node's effective cost (the highest cost among them: the
-  // others are closed under children), the ordered ones each kCostStep above the next.
+  // The placed nodes above every other node's effective cost (the highest cost among them and
+  // below the leaves: the others are closed under children), the ordered ones each kCostStep
+  // above the next.
   void recost() {
     std::vector<uint32_t> sorted = placed_;
     std::sort(sorted.begin(), sorted.end());
-    float rest = 0;
+    float rest = tree_.leavesCost;
     for (uint32_t i = 0, j = 0; i < tree_.nodes.size(); ++i) {
       if (j < sorted.size() && sorted[j] == i) {
         ++j;
@@ -195,7 +245,7 @@ class TopOrder {
     }
     // The top's nodes placed after the ordered cuts share one cost: equal costs go in reverse
     // creation order, theirs, in the file and out of core alike.
-    const size_t ordered = std::min<size_t>(placed_.size(), tree_.orderedCuts);
+    const size_t ordered = ordered_;
     float c = std::max(rest, kLeastCost);
     const auto above = [](float x) {
       const float next = x * kCostStep;
@@ -212,7 +262,10 @@ class TopOrder {
   const TopTree& tree_;
   const std::function<double(const SurfaceStats&)>& areaFit_;
   std::unordered_map<uint32_t, double> fit_;  // area x eFit by child reference, as computed
+  std::unordered_map<uint32_t, Memo> best_;   // best() by node
   std::vector<uint32_t> placed_;              // expansion order
+  size_t ordered_ = 1;                        // of which the first are ordered by score (the root)
+  bool lookThroughSurfaceless_ = false;       // see exposesSurfaceless
   std::unordered_set<uint32_t> expanded_;     // the same, as a set
   std::vector<Open> open_;                    // nodes whose parent is expanded
   double sum_ = 0;                            // the cut's box areas

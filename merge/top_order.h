@@ -18,6 +18,7 @@ struct TopTree {
   std::span<const double> boxLimit;  // per cut of k clusters: its limit on box areas (empty: none)
   uint32_t orderedCuts = 0;          // cuts ordered by the fit before the top's own order resumes
   uint32_t keptCuts = 0;             // below this many clusters the box limit yields to that order
+  float leavesCost = 0;              // the highest cost below the leaves (their own hierarchies)
 };
 
 // Re-costs the first nodes of tree.nodes so that the file, which sorts nodes by decreasing

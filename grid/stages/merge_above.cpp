@@ -5,6 +5,7 @@
 // (stages/stages.h).
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <utility>
 
 #include "facetree/io.h"
@@ -17,8 +18,12 @@ ClusterMergeResult mergeAbove(const StageContext& context, const MeshExtent& ext
   context.checkCancel("merge", 0, graph.leaves.size());
   BuildOptions build = context.job.build;
   build.balanceSlack *= kUpperSlackFactor;
+  // The leaves' own nodes: the write keys them by their log effective cost (LeafCluster::topKey).
+  float leavesCost = 0;
+  for (const LeafCluster& leaf : graph.leaves)
+    if (leaf.blockCount > 0) leavesCost = std::max(leavesCost, std::exp(leaf.topKey));
   ClusterMergeResult upper =
-      mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, build, graph.garland);
+      mergeClusters(graph.stats, graph.edges, extent.diagonalSquared, build, graph.garland, leavesCost);
   context.report.crossEdges = graph.edges.size();
   context.report.upperComponents = upper.components;
   std::exchange(graph.edges, {});

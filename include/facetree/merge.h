@@ -426,10 +426,12 @@ struct ClusterMergeResult {
 // about the engine's origin, the dual graph's edges with their exact shared lengths) the nodes are
 // buildHierarchy's under that order, in creation order. Throws std::invalid_argument for an edge with an
 // endpoint out of range or equal ends, for 2^31 leaves or more, and for Metric::Garland without one quadric
-// per leaf ("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf").
+// per leaf ("mergeClusters: the Garland metric needs one GarlandQuadrics per leaf"). `leavesCost`: the
+// highest cost within the leaves' own hierarchies (0 for single faces); the nodes that open the file (the
+// top's, re-costed in their order) are costed above it and above every other node.
 ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
                                  double diagonalSquared, const BuildOptions& options = {},
-                                 std::span<const GarlandQuadrics> garland = {});
+                                 std::span<const GarlandQuadrics> garland = {}, float leavesCost = 0.0f);
 
 // Box frame of a cluster from its statistics (PCA of the covariance, or S plus the minimum-area rectangle for
 // flat clusters, sec. 5.3.2, as computeBoxes chooses them) and `points`, a sample containing its extreme

@@ -1,7 +1,8 @@
 // The file's first nodes (merge/top_order.cpp): they go first, each above every other node and
 // below its parent; the open node whose expansion removes the most fit goes next, also from below
-// the top; a split that adds fit goes first where it opens one that removes more, unless it puts
-// a cluster without surface in the cut; the cut's boxes keep to their limit; the tree itself is unchanged.
+// the top; a split that adds fit goes first where the best few expansions under it remove more
+// (not the next best gains one at a time), unless it puts a cluster without surface in the cut;
+// the cut's boxes keep to their limit; the tree itself is unchanged.
 #include <algorithm>
 #include <numeric>
 #include <vector>
@@ -54,8 +55,8 @@ struct Tree {
 };
 
 uint32_t order(Tree& tree, uint32_t firstTop, std::span<const double> boxLimit = {},
-               uint32_t orderedCuts = 64, uint32_t keptCuts = 0) {
-  TopTree top{tree.nodes, tree.leaves, firstTop, 0.5, boxLimit, orderedCuts, keptCuts};
+               uint32_t orderedCuts = 64, uint32_t keptCuts = 0, float leavesCost = 0) {
+  TopTree top{tree.nodes, tree.leaves, firstTop, 0.5, boxLimit, orderedCuts, keptCuts, leavesCost};
   return orderTop(top, [](const SurfaceStats& s) { return s.perimeter; });
 }
 
@@ -94,6 +95,24 @@ TEST(TopOrder, ASplitThatAddsFitGoesFirstWhereItOpensOneThatRemovesMore) {
   const uint32_t root = t.node(adds, plain, 100, 1.0f);
   EXPECT_EQ(order(t, 1), 4u);
   EXPECT_EQ(t.fileOrder(), (std::vector<uint32_t>{root, adds, inner, plain}));
+}
+
+TEST(TopOrder, TheLookaheadFindsTheBestExpansionsNotTheNextBestGains) {
+  // Node P adds 1, and so does its child N, above M, which removes 40; P's other child S heads a
+  // chain of splits that remove 0.5 each. Q removes 5. Following the best gain open, 8 expansions
+  // from P go down S's chain and average 0.31; the best 3 (P, N, M) average 12.7, so P goes before Q.
+  Tree t;
+  const uint32_t m = t.node(t.leaf(0), t.leaf(0), 40, 1.0f);
+  const uint32_t n = t.node(m, t.leaf(0), 39, 1.0f);
+  uint32_t chain = t.node(t.leaf(0), t.leaf(0), 0.5, 1.0f);
+  for (int i = 2; i <= 8; ++i) chain = t.node(chain, t.leaf(0), 0.5 * i, 1.0f);
+  const uint32_t p = t.node(chain, n, 4 + 39 - 1, 2.0f);
+  const uint32_t q = t.node(t.leaf(0), t.leaf(0), 5, 2.0f);
+  const uint32_t root = t.node(p, q, 100, 3.0f);
+  order(t, p);
+  const std::vector<uint32_t> file = t.fileOrder();
+  EXPECT_EQ(std::vector<uint32_t>(file.begin(), file.begin() + 5), (std::vector<uint32_t>{root, p, n, m, q}));
+  expectParentsFirst(t, file);
 }
 
 TEST(TopOrder, ASplitThatPutsASurfacelessClusterInTheCutIsNotLookedThrough) {
@@ -175,6 +194,18 @@ TEST(TopOrder, PastTheOrderedCutsTheTopKeepsItsOwnOrder) {
     }
     expectParentsFirst(t, t.fileOrder());
   }
+}
+
+TEST(TopOrder, PlacedNodesGoAboveTheLeavesOwnNodes) {
+  // The leaves' own hierarchies (the rounds' records, a cell's nodes) hold costs up to 5000: the
+  // placed nodes go above them too, so that no leaf's subtree lifts one of them out of order.
+  Tree t;
+  const uint32_t a = t.node(t.leaf(0), t.leaf(0), 10, 3.0f);
+  const uint32_t b = t.node(t.leaf(0), t.leaf(0), 20, 4.0f);
+  const uint32_t root = t.node(a, b, 100, 1.0f);
+  EXPECT_EQ(order(t, 0, {}, 64, 0, 5000.0f), 3u);
+  EXPECT_EQ(t.fileOrder(), (std::vector<uint32_t>{root, b, a}));
+  for (const ClusterMergeNode& node : t.nodes) EXPECT_GT(node.cost, 5000.0f);
 }
 
 TEST(TopOrder, NothingWithoutATop) {
