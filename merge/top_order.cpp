@@ -69,13 +69,13 @@ class TopOrder {
     double leafFit = 0;  // the highest area x eFit of a leaf in the cut
     sum_ = boxOf(count - 1);
     const auto expand = [&](uint32_t i) {
-      sum_ = sumAfter(i);
+      sum_ += growth(i);
       placed_.push_back(i);
       expanded_.insert(i);
       if (isTop(i)) --topLeft;
       for (const uint32_t child : tree_.nodes[i].child) {
         if (!(child & kLeafChild))
-          open_.push_back({child, score(child)});
+          open_.push_back({child, score(child), growth(child)});
         else
           leafFit = std::max(leafFit, fitOf(child));
       }
@@ -118,6 +118,7 @@ class TopOrder {
   struct Open {
     uint32_t node;
     double score;
+    double growth;  // what expanding it adds to the cut's box areas
   };
   using Best = std::array<double, kLookahead + 1>;
   struct Memo {
@@ -138,19 +139,15 @@ class TopOrder {
     if (added) at->second = areaFit_(statsOf(ref));
     return at->second;
   }
-  double boxOf(uint32_t ref) const {
-    if (ref & kLeafChild) return clusterBox(statsOf(ref)).area();
-    const SurfaceStats& s = tree_.nodes[ref].stats;
-    return AxisBox{s.boundsMin, s.boundsMax}.area();
-  }
+  double boxOf(uint32_t ref) const { return clusterBox(statsOf(ref)).area(); }
   double gain(uint32_t i) {
     const ClusterMergeNode& node = tree_.nodes[i];
     return fitOf(i) - fitOf(node.child[0]) - fitOf(node.child[1]);
   }
-  // The cut's box areas once node i is expanded.
-  double sumAfter(uint32_t i) const {
+  // What expanding node i adds to the cut's box areas.
+  double growth(uint32_t i) const {
     const ClusterMergeNode& node = tree_.nodes[i];
-    return sum_ - boxOf(i) + boxOf(node.child[0]) + boxOf(node.child[1]);
+    return boxOf(node.child[0]) + boxOf(node.child[1]) - boxOf(i);
   }
 
   // Whether expanding node i puts a cluster without surface (degenerate faces) in the cut. The top
@@ -204,24 +201,21 @@ class TopOrder {
   // when none is left).
   size_t choose(uint32_t own) const {
     const size_t cut = placed_.size() + 1;  // clusters now; one more after the step
-    if (cut + 1 >= tree_.boxLimit.size()) return best([](double) { return true; });
+    if (cut + 1 >= tree_.boxLimit.size()) return bestOpen(std::numeric_limits<double>::infinity());
     const double limit = tree_.boxLimit[cut + 1];
-    if (cut + 1 < tree_.keptCuts && own != kNoNode) {
-      const double reference = std::max(limit, sumAfter(own));
-      return best([&](double sum) { return sum <= reference; });
-    }
-    if (const size_t pick = best([&](double sum) { return sum <= limit; }); pick < open_.size()) return pick;
+    if (cut + 1 < tree_.keptCuts && own != kNoNode) return bestOpen(std::max(limit, sum_ + growth(own)));
+    if (const size_t pick = bestOpen(limit); pick < open_.size()) return pick;
     size_t pick = 0;
     for (size_t j = 1; j < open_.size(); ++j)
-      if (sumAfter(open_[j].node) < sumAfter(open_[pick].node)) pick = j;
+      if (open_[j].growth < open_[pick].growth) pick = j;
     return pick;
   }
-  // The open node of the best score (ties to the later node) whose box sum after passes.
-  template <typename Passes>
-  size_t best(const Passes& passes) const {
+  // The open node of the best score (ties to the later node) that leaves the cut's box areas
+  // within `limit`; open_.size() when none does.
+  size_t bestOpen(double limit) const {
     size_t pick = open_.size();
     for (size_t j = 0; j < open_.size(); ++j) {
-      if (!passes(sumAfter(open_[j].node))) continue;
+      if (!(sum_ + open_[j].growth <= limit)) continue;
       if (pick == open_.size() || open_[j].score > open_[pick].score ||
           (open_[j].score == open_[pick].score && open_[j].node > open_[pick].node))
         pick = j;
@@ -245,15 +239,14 @@ class TopOrder {
     }
     // The top's nodes placed after the ordered cuts share one cost: equal costs go in reverse
     // creation order, theirs, in the file and out of core alike.
-    const size_t ordered = ordered_;
     float c = std::max(rest, kLeastCost);
     const auto above = [](float x) {
       const float next = x * kCostStep;
       return next > x ? next : std::nextafter(x, std::numeric_limits<float>::infinity());
     };
-    if (ordered < placed_.size()) c = above(c);
-    for (size_t j = ordered; j < placed_.size(); ++j) tree_.nodes[placed_[j]].cost = c;
-    for (size_t j = ordered; j-- > 0;) {
+    if (ordered_ < placed_.size()) c = above(c);
+    for (size_t j = ordered_; j < placed_.size(); ++j) tree_.nodes[placed_[j]].cost = c;
+    for (size_t j = ordered_; j-- > 0;) {
       c = above(c);
       tree_.nodes[placed_[j]].cost = c;
     }
