@@ -138,9 +138,10 @@ TOP_CUTS = {12: 1.10, 100: 1.10, 1000: 1.05}
 BALANCE_CUT = 100
 BALANCE_TARGETS = {"fg_hawaii": 20}
 # Every cut of the top (a truncated file keeps its first nodes): the worst fit over eq. 84's order
-# and the worst boxes over the Morton runs among the cuts of 2 to 64 clusters, and how many are over
-# the TOP_EVERY_FIT and TOP_EVERY_BOXES bounds (reported, not checked).
-TOP_EVERY_CUTS = range(2, 65)
+# and the worst boxes over the Morton runs among the cuts of 2 to 64 clusters and a sample of those
+# up to 512 (where the ordered top hands over to eq. 84's costs), and how many are over the
+# TOP_EVERY_FIT and TOP_EVERY_BOXES bounds (reported, not checked).
+TOP_EVERY_CUTS = [*range(2, 65), 80, 100, 128, 160, 192, 224, 256, 320, 384, 512]
 TOP_EVERY_FIT = 1.10
 TOP_EVERY_BOXES = 1.0
 INFO_CUTS = sorted(set(FIT_CUTS) | set(BOX_CUTS) | set(TOP_CUTS) | set(TOP_EVERY_CUTS))
@@ -731,7 +732,7 @@ def top_every_cut(mine, eq84):
     boxes = {c: r for c, r in boxes.items() if r is not None}
     worst_fit = max(fits, key=fits.get, default=None)
     worst_boxes = max(boxes, key=boxes.get, default=None)
-    return {"cuts": [min(mine, default=0), max(mine, default=0)],
+    return {"cuts": [min(mine, default=0), max(mine, default=0)], "list": sorted(fits),
             "fit": fits.get(worst_fit), "fit_cut": worst_fit,
             "fit_over": sum(r > TOP_EVERY_FIT for r in fits.values()),
             "boxes": boxes.get(worst_boxes), "boxes_cut": worst_boxes,
@@ -839,7 +840,7 @@ def bench_rounds(args, meshes, out):
         fit_text += "  top/eq.84 " + " ".join(f"{c}:{r:.2f}" for c, r in top_fit.items() if r is not None)
         fit_text += f"  small@{BALANCE_CUT} {small['rounds']} (eq.84 {small['eq84']})"
         if every["fit"] is not None:
-            fit_text += (f"  cuts 2-64: fit worst {every['fit']:.2f} at {every['fit_cut']}, {every['fit_over']} over "
+            fit_text += (f"  cuts {every['cuts'][0]}-{every['cuts'][1]}: fit worst {every['fit']:.2f} at {every['fit_cut']}, {every['fit_over']} over "
                          f"{TOP_EVERY_FIT}; boxes worst {every['boxes']:.2f} at {every['boxes_cut']}, "
                          f"{every['boxes_over']} over {TOP_EVERY_BOXES}")
         failed = [k for k, ok in checks.items() if not ok]

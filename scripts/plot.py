@@ -779,16 +779,19 @@ def rounds_markdown(rows):
             v = (values or {}).get(str(cut), (values or {}).get(cut))
             return "-" if v is None else f"{v:.{digits}f}"
         cuts = (12, 100, 1000)
+        every = next((r["top_every_cut"]["list"] for r in rows if "list" in r.get("top_every_cut", {})),
+                     list(range(2, 65)))
         out += ["### The top of the tree: the first nodes, cut by cut", "",
                 "What a truncated file keeps. Fit: the sum of area x eFit over the cut of 12, 100 and 1,000 "
                 "clusters, the default build against eq. 84's order to the root (`--top 0`; lower is better). "
                 "Boxes: the sum of the cut's box areas against as many runs of the faces in Morton order. "
                 "Balance: the clusters of the cut of 100 under 1% of the average cluster's area, the default "
-                "build and `--top 0`. Every cut of 2 to 64 clusters: the worst fit over eq. 84's order's and "
-                "the worst boxes over the Morton runs', at that cut, and how many of the 63 cuts are over 1.10 "
-                "in fit and over 1.0 in boxes.", "",
+                f"build and `--top 0`. Every cut of {cut_list(every)} clusters: the worst fit over eq. 84's "
+                f"order's and the worst boxes over the Morton runs', at that cut, and how many of the "
+                f"{len(every)} cuts are over 1.10 in fit and over 1.0 in boxes.", "",
                 table(["mesh", "faces"] + [f"fit {c}" for c in cuts] + [f"boxes {c}" for c in cuts] +
-                      ["small of 100", "small of 100, --top 0", "cuts 2-64: worst fit (cut)", "over 1.10",
+                      ["small of 100", "small of 100, --top 0", f"cuts {every[0]}-{every[-1]}: worst fit (cut)",
+                       "over 1.10",
                        "worst boxes (cut)", "over 1.0"],
                       [[r["mesh"], f"{r['triangles']:,}"] + [cell(r.get("top_fit_ratio"), c, 3) for c in cuts] +
                        [cell(r.get("box_ratio", {}).get("rounds"), c) for c in cuts] +
@@ -798,8 +801,19 @@ def rounds_markdown(rows):
     return out
 
 
+def cut_list(cuts):
+    """Cuts as text, runs of consecutive ones as ranges: 2 to 64, 80, 100 and 128."""
+    parts, start = [], 0
+    for i in range(1, len(cuts) + 1):
+        if i == len(cuts) or cuts[i] != cuts[i - 1] + 1:
+            run = cuts[start:i]
+            parts += [f"{run[0]} to {run[-1]}"] if len(run) > 2 else [str(c) for c in run]
+            start = i
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+
+
 def every_cells(e):
-    """The worst fit and boxes over the top's cuts of 2 to 64 (bench_rounds' top_every_cut)."""
+    """The worst fit and boxes over the top's cuts (bench_rounds' top_every_cut)."""
     if not e or e.get("fit") is None:
         return ["-"] * 4
     return [f"{e['fit']:.2f} ({e['fit_cut']})", str(e["fit_over"]), f"{e['boxes']:.2f} ({e['boxes_cut']})",
