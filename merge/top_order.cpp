@@ -68,8 +68,9 @@ class TopOrder {
     size_t nextTop = 0, topLeft = top.size();
     double leafFit = 0;  // the highest area x eFit of a leaf in the cut
     sum_ = boxOf(count - 1);
-    const auto expand = [&](uint32_t i) {
-      sum_ += growth(i);
+    // Expands node i, which adds `grown` to the cut's box areas (its Open's growth).
+    const auto expand = [&](uint32_t i, double grown) {
+      sum_ += grown;
       placed_.push_back(i);
       expanded_.insert(i);
       if (isTop(i)) --topLeft;
@@ -80,7 +81,7 @@ class TopOrder {
           leafFit = std::max(leafFit, fitOf(child));
       }
     };
-    expand(count - 1);
+    expand(count - 1, growth(count - 1));
     // Top down, by score, for at most tree.orderedCuts steps, and while the best score passes
     // every leaf's fit in the cut: past that, a leaf's own splits, which the order does not see,
     // may remove more, and eq. 84's order resumes. Then the top's nodes left, in their order.
@@ -105,10 +106,10 @@ class TopOrder {
       if (pick == open_.size())
         for (size_t j = 0; j < open_.size(); ++j)
           if (open_[j].node == own) pick = j;
-      const uint32_t chosen = open_[pick].node;
+      const Open chosen = open_[pick];
       open_[pick] = open_.back();
       open_.pop_back();
-      expand(chosen);
+      expand(chosen.node, chosen.growth);
     }
     recost();
     return static_cast<uint32_t>(placed_.size());
