@@ -8,6 +8,7 @@
 #include "command_help.h"
 #include "commands.h"
 #include "facetree/io.h"
+#include "facetree/picture.h"
 #include "fch_commands.h"
 #include "signals.h"
 

@@ -7,6 +7,7 @@
 #include "args.h"
 #include "command_help.h"
 #include "commands.h"
+#include "facetree/generate.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "signals.h"

@@ -3,8 +3,10 @@
 #pragma once
 
 #include "facetree/error.h"
+#include "facetree/generate.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
+#include "facetree/picture.h"
 #include "facetree/query.h"
 #include "facetree/stream.h"

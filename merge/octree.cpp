@@ -1,23 +1,8 @@
-// Tightest-fit octree volume clustering: the baseline of Willmott 2000, sec. 5.7.2 and Fig. 80
-// ("recursively subdividing a subset of the model into eight octants, and placing a cluster
-// around each octant. Polygons in the model that are larger than the size of an octant are
-// kept at the same level as the cluster being processed").
-//
-// Top-down and breadth first: the node array is its own work queue (a node's children are
-// appended behind it), so there is no recursion and no stack. Each node partitions its range
-// of triangle records in place by a counting sort into nine buckets (the triangles that fit no
-// child octant, then the eight octants), so every subtree is one contiguous range, the node's
-// own triangles first. A triangle goes down to the child octant holding the centre of its
-// bounding box when it is no larger than that octant on every axis, else it stays: the seed's
-// "polygons larger than the size of an octant are kept at the same level". (Keeping every
-// triangle that straddles a split plane instead would keep most of a fine scan above the
-// leaves, in nodes of thousands.) A child's box may thus reach beyond its octant, by at
-// most half the octant's size: that is what the tight box per node is for.
-//
-// Boxes are axis-aligned and exact: a triangle's box is the min/max of its vertices, and the
-// union of exact boxes is exact, so a node's box is its own triangles' boxes joined with its
-// children's (one bottom-up pass in reverse node order) and still touches a vertex on each of
-// its six faces.
+// Tightest-fit octree volume clustering: the baseline of Willmott 2000, sec. 5.7.2 and Fig. 80.
+// Top-down and breadth first, the node array its own work queue; each node partitions its range
+// of triangles in place into nine buckets (those larger than an octant stay, the rest go to the
+// octant of their box's centre). Boxes are axis-aligned and exact, joined bottom-up.
+// docs/design.md has the details.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -28,8 +13,8 @@
 
 #include <glm/common.hpp>
 
+#include "base/stopwatch.h"
 #include "facetree/merge.h"
-#include "stopwatch.h"
 
 namespace facetree {
 

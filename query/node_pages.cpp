@@ -1,8 +1,6 @@
 // A reader's nodes laid out for queries (node_pages.h).
 #include "node_pages.h"
 
-#include "query_source.h"
-
 #include <sys/mman.h>
 
 #include <algorithm>
@@ -323,19 +321,3 @@ FchNode NodePages::find(const MappedBytes& page, const NodeRef& ref) const {
 }
 
 }  // namespace facetree::query
-
-namespace facetree {
-
-ReaderQueryIndex::ReaderQueryIndex(ClusterFileReader& reader) : state_(std::make_unique<State>(reader)) {}
-ReaderQueryIndex::~ReaderQueryIndex() = default;
-ClusterFileReader& ReaderQueryIndex::reader() const {
-  return state_->reader;
-}
-uint64_t ReaderQueryIndex::temporaryBytes() const {
-  return state_->pages.temporaryBytes();
-}
-uint64_t ReaderQueryIndex::peakPageBytes() const {
-  return state_->pages.peakBytes();
-}
-
-}  // namespace facetree

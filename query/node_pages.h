@@ -1,22 +1,8 @@
-// Internal to query/: a reader's nodes laid out for queries.
-//
-// The file orders nodes by decreasing cost, so that any prefix is a hierarchy; a query walking
-// down the tree meets a different node frame at nearly every level, and a frame decodes whole.
-// Here nodes are grouped by subtree instead: a node whose face range holds at most kPageFaces
-// faces lies in the page of its page root, the highest such node above it (or itself), so that a
-// query that enters a subtree reads that subtree once; the nodes above the pages (the top) lie in
-// chunks of kTopRecords in index order. Both are written to one temporary file by a single pass
-// over the nodes (ClusterFileReader::forEachNode) and read a page at a time, the pages waiting in
-// a cache shared by the threads, bounded in bytes, the least recently used leaving first.
-//
-// A node is found from what its parent knows: its index, the first face of its range (which page
-// root holds it) and its face count (top or page). Pages hold their records in index order, so a
-// node is a binary search in its page. A record is the node's structure and box, 56 + 8 b bytes.
-//
-// The triangles follow, in face order, in blocks of kBlockTriangles: each triangle's corners (36
-// bytes) and then the block's original ids (8 bytes each), written by a pass over the triangle
-// frames. A leaf's faces are a run of face positions, so that a query reads a block or two for
-// them where a triangle frame of the file decodes whole.
+// Internal to query/: a reader's nodes laid out for queries. Nodes are grouped by subtree: a node
+// of at most kPageFaces faces lies in the page of the highest such node above it, so that a query
+// entering a subtree reads it once; the nodes above the pages lie in chunks in index order. Both
+// go to one temporary file in one pass over the nodes, read a page at a time through a shared
+// cache bounded in bytes. The triangles follow in face order, in blocks. docs/design.md has more.
 #pragma once
 
 #include <cstddef>

@@ -368,7 +368,7 @@ def bench_build(args, meshes, runs):
 
 
 # Table 5/8 rows from the phases `build --json` reports. The eigensolver is timed inside the
-# initial costs and the merge loop (sampled, merge/cost.cpp), so it is a share of those two,
+# initial costs and the merge loop (sampled, merge/cost/cost.cpp), so it is a share of those two,
 # shown on its own as the seed's Jacobi row is; "merge loop" excludes it.
 PROFILE_ROWS = [
     ("eigen", "eigensolver (PCA)"),

@@ -107,9 +107,6 @@ class PlyReader final : public ReaderBase {
   [[noreturn]] void fail(Place place, const std::string& reason) const {
     throwReadError(info_.name, place, reason);
   }
-  Place recordPlace(uint64_t recordStart) const {
-    return ascii_ ? Place::line(line_) : Place::byte(recordStart);
-  }
 
   static std::string recordName(const PlyElement& element, uint64_t record) {
     switch (element.role) {

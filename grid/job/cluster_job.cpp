@@ -9,6 +9,7 @@
 
 #include "facetree/grid.h"
 #include "facetree/io.h"
+#include "job/job.h"
 #include "stages/stages.h"
 
 namespace facetree {

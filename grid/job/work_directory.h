@@ -1,39 +1,8 @@
 // Internal to grid/: the work directory of the stages run as tasks (facetree/grid.h planStages,
-// runStageTask, finishStages; docs/out_of_core.md): its files' names, the plan, and what the cells
-// tasks and the finish load of it.
-//
-// Work directory:
-//   plan.manifest               the job's fingerprint and the plan; for a mesh read whole, the
-//                               read's and the bin's results, the grid and the binned spills' index
-//   cell-faces.spill, ghosts.spill          the binned faces (a mesh read whole)
-//   read-I.manifest             read task I of a mesh read in ranges: its triangles' box and counts
-//                               (an STL: a sample of its corners' positions)
-//   count-I.manifest            count task I: its faces' bins
-//   count-I-corners.spill, count-I-corners.manifest   an STL's count task I: its corners, one
-//                               bucket per weld task, and their index
-//   weld-B.manifest, weld-B-ids.spill   weld task B of an STL: its distinct positions, and its
-//                               corners' numbers, one bucket per range
-//   grid.manifest               the grid of every range's faces, the cells tasks' bounds
-//   bin-I-cell-faces.spill, bin-I-ghosts.spill, bin-I.manifest   bin task I: its range's faces binned
-//   cells-T-KIND.spill          cells task T's outputs (KIND: nodes, geometry, pairs, leaves, border)
-//   cells-T.manifest            its cells' records
-//   write-order.spill, write-nodes.spill   the upper step's node order; compact boxes' node runs
-//   write-node-tables.manifest, write-geometry-tables.manifest   the upper step's write plan's
-//                               tables: what the node and the geometry tasks need of every leaf
-//                               and upper node
-//   write.manifest              its head: the tasks' bounds, the file's header, the upper boxes'
-//                               frames (the steps of one task read it alone)
-//   geometry-T.manifest         geometry task T, exact boxes: its part of the upper nodes' boxes
-//   geometry-T.piece            geometry task T: the frames of its triangles and vertices
-//   boxes.manifest              the upper nodes' exact boxes, the parts merged
-//   nodes-T.piece               node task T: the frames of its node positions
-//   layout.manifest             the file's layout: where every piece's frames go
-//   output.fch.partial          the file being placed (beside the output on another file system)
-//   place-T.manifest            place task T: piece T's frames copied into it
-// A task's manifest (a node task's piece) marks it done. The tasks of one process keep their
-// manifests under the same names in its memory as far as a budget holds them (WorkDirectory over a
-// ManifestShelf, job/tasks_here.h); its geometry and node tasks write into the file itself, with no
-// pieces, no layout and no place tasks, and a file it no longer needs goes as soon as it is spent.
+// runStageTask, finishStages): its files' names, the plan, and what the cells tasks and the
+// finish load of it. docs/design.md lists the directory's files, step by step. A task's
+// manifest (a node task's piece) marks it done; one process keeps the manifests in memory as
+// far as a budget holds them (ManifestShelf, job/one_process_tasks.h).
 #pragma once
 
 #include <cstdint>
@@ -45,6 +14,7 @@
 #include <vector>
 
 #include "facetree/io.h"
+#include "job/job.h"
 #include "stages/stages.h"
 #include "stages/weld_corner.h"
 #include "storage/manifest.h"
@@ -179,12 +149,12 @@ void savePlanManifest(const StageContext& context, const WorkDirectory& work, co
                       const OutOfCorePlan& plan, const BinnedFaces& binned, bool binnedIndex = true);
 // The steps of a plan as planStages returns them.
 std::vector<StageStep> stepsAfterPlan(const PlanState& state);
-// The stages of a binary PLY or STL read in ranges (stages/read_ranges.cpp). readsInRanges: whether
+// The stages of a binary PLY or STL read in ranges (job/read_tasks.cpp). readsInRanges: whether
 // `job` reads such a mesh out of core; planRanges then writes the plan (else returns false and
 // writes nothing); each task returns false, doing nothing, when its manifest is there already.
 // `sharing`: how many shares of the cap the tasks at once on this machine make, each task sizing its
 // buffers from one (the plan, and so every output, stays the plan's).
-// `accountTo`: the run's temporary space when the tasks run in its process (job/ranges_here.cpp).
+// `accountTo`: the run's temporary space when the tasks run in its process (job/one_process_ranges.cpp).
 enum class RangedInput { None, Ply, Stl };
 RangedInput readsInRanges(const ClusterJob& job);
 bool planRanges(const ClusterJob& job, const WorkDirectory& work, StagePlan& result);
@@ -205,7 +175,7 @@ bool runCountTask(const ClusterJob& job, const WorkDirectory& work, uint32_t tas
 bool runGridStep(const ClusterJob& job, const WorkDirectory& work);
 bool runBinTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task, unsigned sharing = 1,
                 TempSpace* accountTo = nullptr);
-// The weld of a binary STL read in ranges (stages/weld_ranges.cpp): a read task samples its corners, the
+// The weld of a binary STL read in ranges (job/weld_tasks.cpp): a read task samples its corners, the
 // count task files them by weld bucket, the weld tasks number each bucket's distinct positions,
 // the grid step counts them and a bin task gives its corners their vertex ids.
 class WeldSampler {

@@ -18,7 +18,7 @@
 #include <utility>
 
 #include "facetree/grid.h"
-#include "job/tasks_here.h"
+#include "job/one_process_tasks.h"
 #include "job/work_directory.h"
 #include "stages/node_order.h"
 #include "stages/stages.h"

@@ -1,27 +1,10 @@
-// Internal to grid/: the out-of-core build as a list of stages over explicit data. Each stage is
-// one function in its own file, taking what the stage before it made and handing on what the next
-// one needs; the job's tasks (job/work_directory.h) run them, in one process (job/tasks_here.h) or
-// in processes of their own:
-//
-//   readArrival    stages/read.cpp   reader -> ArrivalFaces (FaceRecords in arrival order;
-//                  stages/weld_arrival.cpp   STL and --weld: corners welded by an external sort)
-//                  (a binary PLY or STL: the read tasks in ranges, stages/read_ranges.cpp)
-//   binFaces       stages/bin.cpp    ArrivalFaces -> BinnedFaces (a CellGrid, each cell's
-//                                         faces, and ghosts of the edges other cells own)
-//   buildCellTask  stages/cells.cpp  BinnedFaces -> CellsOutput (a run of cells' leaf clusters:
-//                                         subtrees and geometry spilled, records and cross pairs)
-//   resolveLeafGraph stages/leaf_graph.cpp  CellRecords -> LeafGraph (the leaves and the dual edges
-//                                         between them, cross-cell pairs resolved by sort joins)
-//   mergeAbove     stages/merge_above.cpp  LeafGraph -> ClusterMergeResult (the engine above the
-//                                         leaves, Willmott 2000 sec. 5.5.2 on given clusters)
-//   writeUpperPieces stages/write_plan.cpp  everything -> the write plan (the file's layout, the
-//                                         node order, the upper nodes' box frames)
-//   writeGeometryRange, writeNodeRange  stages/write_ranges.cpp  the plan -> the cluster file's
-//                                         frames (geometry in leaf order, the upper nodes' exact
-//                                         boxes on the way, then the nodes)
-//
-// What each stage holds in memory is bounded by the plan (stages/memory_plan.h); whatever grows
-// with the input lives in spills (storage/spill_file.h, storage/bucket_spill.h).
+// Internal to grid/: the out-of-core build as a list of stages over explicit data, each one
+// function in its own file taking what the stage before made: readArrival (stages/read.cpp,
+// stages/weld_arrival.cpp), binFaces (stages/bin.cpp), buildCellTask (stages/cells.cpp),
+// resolveLeafGraph (stages/leaf_graph.cpp), mergeAbove (stages/merge_above.cpp, Willmott 2000,
+// sec. 5.5.2 on given clusters), writeUpperPieces (stages/write_plan.cpp), writeGeometryRange and
+// writeNodeRange (stages/write_ranges.cpp). The job's tasks run them (job/job.h). What each holds
+// in memory is bounded by the plan (stages/memory_plan.h); what grows with the input is spilled.
 #pragma once
 
 #include <array>
@@ -46,14 +29,6 @@
 #include "storage/temp_space.h"
 
 namespace facetree {
-
-// Seconds since a point of the monotonic clock: the job's and the stages' times.
-inline double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-// Runs a stage, adding its seconds to `seconds` and the process's peak RSS after it to the report.
-void timeStage(JobReport& report, const char* name, double& seconds, const std::function<void()>& run);
 
 // Reports progress to job.progress; throws Cancelled when it or job.build.cancelled asks to stop.
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total);
@@ -390,28 +365,5 @@ std::vector<NodeBox> upperBoxesByFileIndex(const std::vector<BoxAccumulator>& bo
 
 // Returns the heap's free pages to the system between stages (malloc_trim on glibc).
 void releaseFreeMemory();
-
-// The job as the stages see it (its file options carry the build's and the cap), and its cap.
-ClusterJob effectiveJob(const ClusterJob& job);
-uint64_t jobMemoryCap(const ClusterJob& job);
-// runClusterJob; with `work`, an out-of-core job stops after the bin (planStages).
-JobReport runJob(const ClusterJob& job, const std::filesystem::path* work);
-
-// Runs the out-of-core build from `reader`, `pending` holding the triangles the job had already
-// read into memory: the read and the bin, then the stages' own tasks from the cells on
-// (runTasksHere); fills `report`. With `work`, the job stops after the bin stage: its outputs are
-// committed there with the plan manifest (planStages, job/tasks.cpp).
-void runOutOfCore(const ClusterJob& job, TempSpace& temp, VertexPositions* positions,
-                  std::unique_ptr<TriangleReader> reader, PendingTriangles&& pending, uint64_t memoryCap,
-                  JobReport& report, const std::filesystem::path* work = nullptr);
-// A binary PLY or STL that runJob would take out of core: the stages' read, count, weld, grid and
-// bin tasks on a pool of job.threads, then the rest as runOutOfCore (job/ranges_here.cpp). False, having done
-// nothing, for any other input.
-bool runRangesHere(const ClusterJob& job, TempSpace& temp, JobReport& report);
-// The stages' upper step from the cells' outputs: the leaf graph, the merge above and
-// writeUpperPieces' plan, each timed into the report. `recordsRead`: called once the leaf graph
-// has read the cells' records (one process gives their files back then).
-WritePlan finishUpper(const StageContext& context, const MeshExtent& extent, CellsOutput&& cells,
-                      const std::function<void()>& recordsRead = {});
 
 }  // namespace facetree

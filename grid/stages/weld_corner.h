@@ -1,6 +1,6 @@
 // Internal to grid/: a triangle corner keyed by its position's weld bits, as both welds sort them:
 // the single process's over the arrival spill (stages/weld_arrival.cpp) and the tasks' of a binary
-// STL read in ranges (stages/weld_ranges.cpp). A distinct position's vertex id is its rank in this order
+// STL read in ranges (job/weld_tasks.cpp). A distinct position's vertex id is its rank in this order
 // among the mesh's distinct positions, so both give every corner the same id.
 #pragma once
 

@@ -1,23 +1,8 @@
-// External merge sort of fixed-size records under a memory budget: the edge matching across cells of
-// the out-of-core build sorts its half-edge records with it. Internal to grid/.
-//
-// Knuth, The Art of Computer Programming vol. 3, 5.4 (external sorting): runs are formed by sorting a
-// full buffer in memory (internal sort rather than replacement selection, 5.4.1: std::sort of a flat
-// array costs a fraction of a selection heap per record, and with runs of `budget` bytes one merge pass
-// already covers budget^2 / 64 KiB: 1 GiB at 8 MiB, 1 TiB at 256 MiB); runs are combined by a P-way merge
-// with a heap (5.4.1), in as many balanced passes as the budget's fan-in P requires (5.4.2).
-//
-// Memory (heap bytes; the constants are named in storage/external_sort.cpp, sortPlan()):
-//   run formation  bufferRecords * sizeof(Record) <= budget
-//   merge          (fanIn + 1) * blockBytes <= budget   (one decompressed block per open run and one
-//                                                         output block in intermediate passes)
-//   at any time    + one compressed block (ZSTD_compressBound(64 KiB) = 65824 bytes)
-//                  + the zstd contexts (kSpillLevel, 64 KiB blocks: CCtx 281 KiB, DCtx 94 KiB)
-//                  + 16 bytes per spilled block (the run index, 0.025% of the raw data)
-//                  + (sizeof(Record) + 8) * fanIn of merge heap.
-// The spill tests check the peak with sort_memory_probe (the budget plus about 1 MiB).
-// Temporary disk: the compressed records (about half the raw bytes for half-edge records), twice over
-// during an intermediate merge pass.
+// External merge sort of fixed-size records under a memory budget (Knuth, TAOCP vol. 3, 5.4): runs
+// of a full buffer sorted in memory, combined by a P-way heap merge in as many balanced passes as
+// the budget's fan-in needs. The edge matching across cells sorts its half-edge records with it.
+// Memory: the budget, plus one compressed block, the zstd contexts and 16 bytes a spilled block
+// (docs/design.md has the sums; sort_memory_probe checks them). Internal to grid/.
 #pragma once
 
 #include <algorithm>

@@ -217,7 +217,7 @@ JobReport finishStages(const ClusterJob& job, const std::filesystem::path& work)
 // The job's options by name, as the command line (`facetree build`, the stage commands) and the
 // Python package take them: converted and checked once, with one message per mistake naming the
 // option as the caller spells it (--balance-slack on the command line, balance_slack in Python).
-inline constexpr unsigned kMaxJobThreads = 8;  // the box phase uses no more (merge/box.cpp)
+inline constexpr unsigned kMaxJobThreads = 8;  // the box phase uses no more (merge/boxes/box.cpp)
 
 enum class OptionSpelling { Cli, Python };
 

@@ -5,7 +5,8 @@
 //   whole or piece by piece, reading it back, truncation (Willmott 2000, sec. 5.5.3),
 //   verification, cuts and their fit. The byte layout is documented in docs/FORMAT.md.
 // - Recasting a binary hierarchy to a larger branching factor (sec. 5.5.1).
-// - Mesh writers (PLY, Draco), synthetic meshes, pictures and coloured exports of a cut.
+// - Mesh writers (PLY, STL, Draco) and the output file every writer goes through; a cut as NumPy
+//   arrays. Pictures are facetree/picture.h, synthetic meshes facetree/generate.h.
 //
 // Errors: reading a cluster file that is unreadable, corrupt or of an unsupported version throws
 // facetree::Error of category Input ("FILE: REASON"); writers throw category Output naming the
@@ -15,6 +16,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <limits>
@@ -641,7 +643,7 @@ struct RecastTree {
 RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching,
                            RecastRule rule = RecastRule::LargestArea);
 
-// --- Outputs: mesh writers, synthetic meshes, pictures ------------------------------------
+// --- Outputs: mesh writers and the files every output is written through ---------------------
 
 // Every output of this module (cluster files, meshes, pictures) is written under this
 // temporary name beside `path` (unique per process) and renamed to `path` when complete; a
@@ -657,6 +659,48 @@ bool isStreamOutput(const std::filesystem::path& path);
 // missing or not writable: checked before long work, so that it does not fail at its end.
 // Stream outputs pass.
 void checkOutputWritable(const std::filesystem::path& path);
+
+// An output file that appears under its final name only when complete: data goes to a
+// temporary name beside the target and is renamed on commit(); destroyed uncommitted, the
+// temporary file is removed. Writes are buffered; every failure throws Error (Output) naming the file.
+//
+// A stream is written in place instead: standard output ("-"), and a target that exists and is
+// not a regular file (a named pipe, a device, a socket). Renaming a temporary over a pipe would
+// replace it with a regular file while its reader waits forever; a stream takes bytes in order
+// only, so writeAt() is refused, and a failed write fails the run as on standard output.
+class OutputFile {
+ public:
+  // "-" writes to standard output (no temporary, nothing to remove).
+  explicit OutputFile(const std::filesystem::path& path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  void write(const void* data, size_t bytes);
+  void write(std::string_view text) { write(text.data(), text.size()); }
+  // Overwrites bytes already written (a header whose contents are known last); the next write
+  // appends at the end again. Not for streams (std::logic_error).
+  void writeAt(uint64_t offset, std::string_view bytes);
+  uint64_t bytesWritten() const { return written_; }
+  bool isStream() const { return stream_; }
+  // Flushes, syncs and renames to the final name (a stream: flushes and closes).
+  void commit();
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  [[noreturn]] void fail(const char* what) const;
+  void startWriteback();  // hands the bytes written since the last call to the disk
+  std::filesystem::path path_;
+  std::filesystem::path temporary_;
+  struct Closer {
+    void operator()(std::FILE* f) const;
+  };
+  std::unique_ptr<std::FILE, Closer> file_;
+  bool stream_ = false;
+  bool committed_ = false;
+  uint64_t written_ = 0;
+  uint64_t handedToDisk_ = 0;  // bytes whose writeback has been started
+};
 
 // Streaming binary little-endian PLY writer (float x,y,z; uchar-count int indices). Counts
 // are given up front so nothing is held in memory. Writes to a temporary name beside the
@@ -692,81 +736,12 @@ class StlWriter {
   std::unique_ptr<State> state_;
 };
 
-// Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
-// memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
-// a keyed bijection so any size can be shuffled while streaming.
-enum class SyntheticKind { Grid, Sphere, Terrain, Strip, Assembly };
-// Size, shuffling and seed of a synthetic mesh.
-struct GenerateOptions {
-  uint64_t triangles = 20000;  // approximate target; the shape rounds it
-  // Shuffled orders, as scans written in no spatial order have them (seeded: reproducible).
-  bool shuffleVertices = false, shuffleFaces = false;
-  uint64_t seed = 1;
-};
-// What a generator wrote.
-struct GeneratedCounts {
-  uint64_t vertices = 0;   // vertices written
-  uint64_t triangles = 0;  // triangles written
-};
-// Grid: flat regular square grid in z = 0 (Willmott 2000, Fig. 70). Sphere: UV sphere of
-// radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square
-// cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long). Assembly: two
-// groups of closed unit boxes 30 units apart, 9 in each, most touching with the shared faces stored
-// by both boxes (their own vertices), as CAD parts exported one by one are.
-GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
-                                   const std::filesystem::path& path);
-// Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;
-// points on shared edges are shared so the result stays connected.
-GeneratedCounts writeSubdividedMesh(const MeshView& mesh, unsigned levels, const GenerateOptions& options,
-                                    const std::filesystem::path& path);
-
-// Pictures and coloured exports of a clustering. `faceCluster[i]` is the cluster of triangle i
-// of `mesh`; colours are a deterministic function of the cluster id.
-struct RenderOptions {
-  int width = 1024, height = 768;  // of the picture, in pixels
-  // Viewing direction (from the camera towards the model) and up vector; the camera frames the
-  // bounding box. Zero means the default three-quarter view.
-  glm::vec3 viewDirection{0.0f};
-  glm::vec3 up{0.0f, 0.0f, 1.0f};
-};
-// Orthonormal camera frame: `forward` points from the camera towards the model, `up` is the
-// screen's up direction, `right` = forward x up.
-struct ViewBasis {
-  glm::vec3 right;
-  glm::vec3 up;
-  glm::vec3 forward;
-};
-// Zero or non-finite `viewDirection` means the default three-quarter view looking down.
-// `up` falls back to +z, and then to +y, when it is zero or (nearly) parallel to the view.
-ViewBasis makeViewBasis(glm::vec3 viewDirection, glm::vec3 up);
-// Writes `rgb` (3 bytes a pixel, rows from the top) as a PNG at `path`, atomically.
-void writePng(const std::filesystem::path& path, std::span<const uint8_t> rgb, int width, int height);
-
-// Deterministic colour of a cluster id, as the pictures and exports below colour it. Hue advances
-// by the golden angle (137.5 degrees) from one id to the next, so consecutive ids always differ
-// strongly; saturation and value come from a mixed hash of the id, so ids whose hues happen to be
-// close still differ in lightness.
-glm::u8vec3 clusterColour(uint32_t cluster);
-
-// Flat-shaded software rendering to PNG (written atomically).
-void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceCluster,
-                       const RenderOptions& options, const std::filesystem::path& path);
 // A cut's clusters as NumPy arrays in an uncompressed .npz (numpy.load), written atomically: node
 // (int64, -1 for a single face or a truncation gap), first and triangles (uint64), cost, area and
 // perimeter (float32), center and half_extents (n x 3 float32), orientation (n x 4 float32: x, y, z,
 // w); the float arrays NaN where there is no node. records[i]: the node of cut[i] where it has one.
 void writeCutNpz(const std::filesystem::path& path, std::span<const CutCluster> cut,
                  std::span<const FchNode> records);
-// Binary PLY with a per-face uchar red/green/blue colour by cluster (viewable in MeshLab).
-void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
-                             const std::filesystem::path& path);
-// The same pictures and meshes of a cut (ClusterFileReader's, in face order; cluster ids are
-// positions in it) read a frame at a time: the same bytes as the whole-file calls. `clusterIds`
-// adds a uint `cluster` property to every face.
-void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cut,
-                       const RenderOptions& options, const std::filesystem::path& path);
-void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutCluster> cut,
-                             const std::filesystem::path& path, bool clusterIds = false);
 
 // A JSON object written field by field, for reports (`--json` of the command line, the Python
 // package's report): nested objects by beginObject / endObject, numbers as C's %.9g, non-finite

@@ -76,7 +76,7 @@ struct BuildOptions {
   double garlandFitWeight = 1.0, garlandDirWeight = 1.0, garlandShapeWeight = 1.0;
   // Balance guard (Willmott metric only): a merge whose subtree height h' exceeds
   // balanceSlack * (ceil(log2 n') + 1) for its n' faces gets its cost multiplied by
-  // kBalancePenaltyBase^(excess) (balance_guard.h). 0 disables it (pure eq. 84).
+  // kBalancePenaltyBase^(excess) (engine/balance_guard.h). 0 disables it (pure eq. 84).
   double balanceSlack = 1.5;
   // Clusters that share no mesh edge become merge candidates by proximity (nearest by box gap,
   // costed by eq. 84 on the union plus their gap) once this many clusters are left; 0: only when
@@ -98,7 +98,7 @@ struct BuildOptions {
   uint32_t topClusters = 64;
   // The top keeps each cut of 8 or more clusters within the box areas of as many runs of the
   // surface in Morton order where a merge allows it, taking the merge that adds the least fit among
-  // those that do (cluster_merge.cpp); false: the least increase of the fit alone.
+  // those that do (engine/greedy_merge.cpp); false: the least increase of the fit alone.
   bool topBoxLimit = true;
   bool computeBoxes = true;  // the nodes' oriented boxes (Hierarchy::boxes)
   // The box precision the file will have: orientations are rounded to its lattice
@@ -351,7 +351,7 @@ class FaceAdjacency {
   size_t memoryBytes() const;
 
  private:
-  friend struct FaceAdjacencyAccess;  // dual_graph.cpp builds it and reads pieces of it
+  friend struct FaceAdjacencyAccess;  // engine/dual_graph.cpp builds it and reads pieces of it
   std::vector<uint32_t> linkStart_;   // faceCount + 1
   std::vector<Link> links_;
   std::vector<uint32_t> shareStart_;  // edgeCount + 1
@@ -440,11 +440,12 @@ ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span
 glm::quat clusterOrientation(const SurfaceStats& stats, std::span<const glm::vec3> points,
                              double flatThreshold, BoxPrecision precision, bool& flat);
 
-// clusterOrientation for a tree of clusters, bottom-up, as computeBoxes carries hull candidates (box.cpp):
-// a cluster is oriented from its children's carried points (a leaf from a sample of its own, e.g. its box's
-// 8 corners), and carries at most kMaxCarried of them (its hull vertices in its frame's plane, evenly
-// subsampled) to its parent. O(1) per cluster whatever the tree's height, where orienting every cluster from
-// all its leaves' points is O(leaves * height). Keeps its scratch between calls (no allocation once warm).
+// clusterOrientation for a tree of clusters, bottom-up, as computeBoxes carries hull candidates
+// (boxes/box.cpp): a cluster is oriented from its children's carried points (a leaf from a sample of its own,
+// e.g. its box's 8 corners), and carries at most kMaxCarried of them (its hull vertices in its frame's plane,
+// evenly subsampled) to its parent. O(1) per cluster whatever the tree's height, where orienting every
+// cluster from all its leaves' points is O(leaves * height). Keeps its scratch between calls (no allocation
+// once warm).
 class FrameBuilder;
 // Orients the clusters of a tree bottom-up (see above).
 class ClusterOrienter {
@@ -483,7 +484,7 @@ bool smallerBox(const NodeBox& candidate, const NodeBox& box);
 // Exact box extents and side areas in a given orientation, accumulated triangle by triangle (so a caller can
 // stream the faces of a huge cluster, or merge accumulators of disjoint face sets). box() gives the same
 // NodeBox computeBoxes would give for that orientation and those triangles (every vertex inside, each face
-// touching a vertex, side areas = sum a_f max(0, +-n_f . axis)), with the arithmetic of box.cpp.
+// touching a vertex, side areas = sum a_f max(0, +-n_f . axis)), with the arithmetic of boxes/box.cpp.
 class TriangleRun;
 // Exact box extents and side areas accumulated triangle by triangle (see above).
 class BoxAccumulator {
@@ -525,7 +526,7 @@ class BoxAccumulator {
   void addExtents(const float lo[3], const float hi[3]);
   glm::quat orientation_;
   glm::vec3 axis_[3];       // mat3_cast(orientation_): the axes the extents are measured along
-  glm::vec3 origin_{0.0f};  // the first vertex added: projections are relative to it (box.cpp)
+  glm::vec3 origin_{0.0f};  // the first vertex added: projections are relative to it (boxes/box.cpp)
   bool hasOrigin_ = false;
   bool added_ = false;      // a triangle or a part is in it
   double lo_[3], hi_[3];    // projections of the vertices, relative to origin_
@@ -548,7 +549,7 @@ class TriangleRun {
   std::span<const glm::vec3> vertices_;
   std::span<const uint32_t> indices_;
   std::vector<float> points_;   // the distinct vertices used, x, y, z for each (first use order)
-  std::vector<float> normal_;   // a_f n_f of each triangle, x, y, z (box.cpp's pack)
+  std::vector<float> normal_;   // a_f n_f of each triangle, x, y, z (boxes/box.cpp's pack)
   std::vector<uint32_t> seen_;  // per vertex: the assign() call that listed it last
   uint32_t call_ = 0;
   bool bounded_ = true;  // every coordinate within kRunBound: no projection overflows

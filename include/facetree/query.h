@@ -169,11 +169,4 @@ std::vector<NearestHit> nearest(ReaderQueryIndex& index, std::span<const glm::ve
 NearestHit nearestBruteForce(const ClusterFile& file, const glm::vec3& point,
                              float radius = std::numeric_limits<float>::infinity());
 
-// A picture by ray casting, to check the queries by eye: one ray per pixel, orthographic, along
-// options.viewDirection, framing the file's bounding box; a hit is grey by the angle between its
-// triangle and the view, a miss white. Through the reader, under its cap.
-void renderRaycastPng(ClusterFileReader& reader, const RenderOptions& options,
-                      const std::filesystem::path& path, const QueryOptions& queryOptions = {},
-                      QueryStats* stats = nullptr);
-
 }  // namespace facetree

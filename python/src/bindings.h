@@ -12,6 +12,7 @@
 
 #include "facetree/grid.h"
 #include "facetree/io.h"
+#include "facetree/picture.h"
 
 namespace facetree::python {
 

@@ -17,7 +17,7 @@ using test::ChildOptions;
 using test::ChildResult;
 using test::runChild;
 
-// Exact boxes cost O(faces x height) (merge/box.cpp), so a chain with boxes stays this short;
+// Exact boxes cost O(faces x height) (merge/boxes/box.cpp), so a chain with boxes stays this short;
 // with the stack below, any recursion over the depth (16 bytes or more a level) would overflow.
 constexpr uint64_t kChainFaces = 12000;
 #if defined(__SANITIZE_ADDRESS__)

@@ -19,7 +19,7 @@
 
 #include "facetree/io.h"
 #include "fuzz_fch_file.h"
-#include "io/fch_format.h"
+#include "io/format/fch_format.h"
 
 using namespace facetree;
 

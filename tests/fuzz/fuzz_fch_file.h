@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "io/fch_format.h"
+#include "io/format/fch_format.h"
 
 namespace facetree::fuzz {
 

@@ -23,8 +23,10 @@
 #include <vector>
 
 #include "error_expect.h"
+#include "facetree/generate.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
+#include "facetree/picture.h"
 #include "grid/stages/stages.h"
 #include "peak_rss.h"
 

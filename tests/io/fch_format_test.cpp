@@ -3,10 +3,10 @@
 
 #include <cstring>
 
-#include "fch_test_util.h"
-#include "io/fch_format.h"
 #include "facetree/io.h"
-#include "io/mesh_out.h"
+#include "fch_test_util.h"
+#include "io/format/fch_format.h"
+#include "io/mesh/reordered_mesh.h"
 
 namespace facetree {
 namespace {

@@ -5,10 +5,12 @@
 
 #include <cstdio>
 
-#include "fch_test_util.h"
+#include "facetree/generate.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
+#include "facetree/picture.h"
 #include "facetree/stream.h"
+#include "fch_test_util.h"
 
 namespace facetree {
 namespace {

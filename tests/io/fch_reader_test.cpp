@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "facetree/error.h"
+#include "facetree/picture.h"
 #include "fch_test_util.h"
 
 namespace facetree {

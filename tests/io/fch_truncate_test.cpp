@@ -3,7 +3,7 @@
 
 #include "facetree/error.h"
 #include "fch_test_util.h"
-#include "io/fch_cut.h"
+#include "io/cut/cut.h"
 
 namespace facetree {
 namespace {

@@ -11,7 +11,7 @@
 #include "facetree/io.h"
 #include "facetree/stream.h"
 #include "fch_test_util.h"
-#include "io/fch_node_code.h"
+#include "io/format/node_code.h"
 
 namespace facetree {
 namespace {

@@ -16,6 +16,7 @@
 #include "../peak_rss.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
+#include "facetree/picture.h"
 #include "fch_test_util.h"
 
 namespace facetree {

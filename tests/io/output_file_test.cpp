@@ -1,4 +1,3 @@
-#include "io/output_file.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

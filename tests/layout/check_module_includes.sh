@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The modules' dependencies run one way: cli on grid and query (and what they expose), grid on io,
-# merge and stream, query on io and merge, io on merge, merge and stream on nothing. The compiler
+# The modules' dependencies run one way: cli on grid, picture and generate (and what they expose),
+# grid on io, merge and stream, picture on query, query and generate on io and merge, io on merge,
+# merge and stream on nothing. The compiler
 # already refuses another module's internal header (a module sees only include/ and its own folder);
 # this checks which public headers each module includes, and that no source reaches outside its
 # folder by a relative path.
@@ -14,8 +15,10 @@ declare -A allowed=(
   [io]="error merge io"
   [grid]="error stream merge io grid"
   [query]="error merge io query"
-  [cli]="error stream merge io grid query"
-  [python/src]="error stream merge io grid query"
+  [picture]="error merge io query picture"
+  [generate]="error merge io generate"
+  [cli]="error stream merge io grid query picture generate"
+  [python/src]="error stream merge io grid query picture generate"
 )
 failed=0
 for module in "${!allowed[@]}"; do
@@ -47,7 +50,8 @@ if grep -n 'cli' python/CMakeLists.txt; then
   failed=1
 fi
 # The public headers themselves: each includes only the modules below it.
-declare -A below=([error]="" [stream]="error" [merge]="error" [io]="error merge" [grid]="error stream merge io")
+declare -A below=([error]="" [stream]="error" [merge]="error" [io]="error merge" [grid]="error stream merge io"
+                 [query]="error merge io" [picture]="error merge io query" [generate]="error merge io")
 for header in "${!below[@]}"; do
   while IFS= read -r included; do
     case " ${below[$header]} " in

@@ -1,4 +1,4 @@
-// Exact oriented boxes and side areas (merge/box.cpp) against a brute-force reference, on
+// Exact oriented boxes and side areas (merge/boxes/box.cpp) against a brute-force reference, on
 // hierarchies built here by a median split (independent of the merge engine).
 #include <cmath>
 #include <cstring>
@@ -11,11 +11,11 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
-#include "merge/box.h"
-#include "merge/box_extent.h"
-#include "merge/eigen.h"
-#include "merge/frame.h"
-#include "merge/hull.h"
+#include "merge/boxes/box.h"
+#include "merge/boxes/box_extent.h"
+#include "merge/boxes/frame.h"
+#include "merge/boxes/hull.h"
+#include "merge/cost/eigen.h"
 #include "test_meshes.h"
 
 namespace facetree {

@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/cost.h"
+#include "merge/cost/cost.h"
 
 namespace facetree {
 namespace {

@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/dual_graph.h"
+#include "merge/engine/dual_graph.h"
 #include "test_meshes.h"
 
 namespace facetree::test {

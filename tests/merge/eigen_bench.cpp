@@ -7,7 +7,7 @@
 #include <benchmark/benchmark.h>
 #include <glm/geometric.hpp>
 
-#include "merge/eigen.h"
+#include "merge/cost/eigen.h"
 #include "random_spectra.h"
 
 namespace facetree {

@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
-#include "merge/eigen.h"
+#include "merge/cost/eigen.h"
 #include "random_spectra.h"
 
 namespace facetree {

@@ -12,8 +12,8 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
+#include "merge/cost/face_geometry.h"
+#include "merge/engine/dual_graph.h"
 #include "test_meshes.h"
 
 namespace facetree::test {

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/heap.h"
+#include "merge/engine/heap.h"
 
 namespace facetree {
 namespace {

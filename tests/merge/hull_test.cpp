@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
-#include "merge/hull.h"
+#include "merge/boxes/hull.h"
 
 namespace facetree {
 namespace {

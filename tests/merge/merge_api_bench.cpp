@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "facetree/merge.h"
-#include "merge/dual_graph.h"
-#include "merge/face_geometry.h"
+#include "merge/cost/face_geometry.h"
+#include "merge/engine/dual_graph.h"
 #include "mesh_file.h"
 #include "test_meshes.h"
 

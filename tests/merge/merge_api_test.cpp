@@ -17,14 +17,14 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
-#include "merge/balance_guard.h"
-#include "merge/dual_graph.h"
-#include "merge/eigen.h"
-#include "merge/face_geometry.h"
-#include "merge/frame.h"
-#include "merge/hull.h"
-#include "merge/merge_engine.h"
-#include "merge/surface_stats.h"
+#include "merge/boxes/frame.h"
+#include "merge/boxes/hull.h"
+#include "merge/cost/eigen.h"
+#include "merge/cost/face_geometry.h"
+#include "merge/cost/surface_stats.h"
+#include "merge/engine/balance_guard.h"
+#include "merge/engine/dual_graph.h"
+#include "merge/engine/merge_engine.h"
 #include "test_meshes.h"
 
 namespace facetree::test {
@@ -756,7 +756,7 @@ TEST(MergeClusters, EdgeCasesAndErrors) {
 
 // --- clusterOrientation and BoxAccumulator ---------------------------------------------------
 
-// The origin computeBoxes takes moments about (box.cpp: centre of the float bounding box).
+// The origin computeBoxes takes moments about (boxes/box.cpp: centre of the float bounding box).
 glm::dvec3 boxOrigin(const TestMesh& mesh) {
   glm::vec3 lo(INFINITY), hi(-INFINITY);
   for (const glm::vec3& p : mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);

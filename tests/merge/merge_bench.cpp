@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "facetree/merge.h"
-#include "merge/cost.h"
-#include "merge/face_geometry.h"
+#include "merge/cost/cost.h"
+#include "merge/cost/face_geometry.h"
 #include "mesh_file.h"
 #include "test_meshes.h"
 

@@ -1,4 +1,4 @@
-// The merge in rounds of reciprocal cheapest pairs (merge/merge_rounds.cpp): a round on a hand-made
+// The merge in rounds of reciprocal cheapest pairs (merge/engine/merge_rounds.cpp): a round on a hand-made
 // mesh whose merges are known, the greedy's hand-over, and the same bytes for every thread count.
 #include <cstring>
 #include <vector>

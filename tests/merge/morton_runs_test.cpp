@@ -1,4 +1,4 @@
-// The Morton runs the top of the tree keeps its boxes to (merge/morton_runs.cpp): one run is the
+// The Morton runs the top of the tree keeps its boxes to (merge/top/morton_runs.cpp): one run is the
 // box of every leaf; runs of equal face count over leaves in eight octant groups of equal face
 // count are the groups, four runs their pairs along x, and two runs their halves along z (the
 // Morton order's top bit).
@@ -6,8 +6,8 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/morton.h"
-#include "merge/proximity.h"
+#include "merge/base/morton.h"
+#include "merge/top/proximity.h"
 
 namespace facetree::test {
 namespace {

@@ -1,4 +1,4 @@
-// The top of the tree over separate pieces: proximity candidates by box gap (merge/proximity.cpp)
+// The top of the tree over separate pieces: proximity candidates by box gap (merge/top/proximity.cpp)
 // against brute force, and the joins they give in both merge orders: far groups split at the root,
 // tiles that share no vertex grouped into quadrants, touching parts joined before apart ones.
 #include <algorithm>
@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/proximity.h"
+#include "merge/top/proximity.h"
 #include "test_meshes.h"
 
 namespace facetree::test {

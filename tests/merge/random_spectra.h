@@ -6,7 +6,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "merge/cluster_stats.h"
+#include "merge/cost/cluster_stats.h"
 
 namespace facetree::test {
 

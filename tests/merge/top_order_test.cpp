@@ -1,4 +1,4 @@
-// The file's first nodes (merge/top_order.cpp): they go first, each above every other node and
+// The file's first nodes (merge/top/top_order.cpp): they go first, each above every other node and
 // below its parent; the open node whose expansion removes the most fit goes next, also from below
 // the top; a split that adds fit goes first where the best few expansions under it remove more
 // (not the next best gains one at a time), unless it puts a cluster without surface in the cut;
@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/top_order.h"
+#include "merge/top/top_order.h"
 
 namespace facetree::test {
 namespace {

@@ -1,4 +1,4 @@
-// The order of the top's last merges (merge/top_partitions.cpp): the merges join every cluster
+// The order of the top's last merges (merge/top/top_partitions.cpp): the merges join every cluster
 // once into one; without box limits no cut fits worse than the caller's order one at a time by
 // the least increase of the fit; a cut that order leaves over its box limit is split another way
 // when one keeps both measures closer, and that order stands when nothing beats it; no order
@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "merge/top_partitions.h"
+#include "merge/top/top_partitions.h"
 
 namespace facetree::test {
 namespace {

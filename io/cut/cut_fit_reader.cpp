@@ -1,0 +1,167 @@
+// cutFits over a ClusterFileReader: the figures of the file in memory (cut/cut_fit.cpp) from passes
+// under the reader's cap. Each cut comes from the reader (the shortest node prefix), its nodes' boxes
+// from one pass over the nodes; the clusters are runs of the face order, so one pass over the faces
+// sums every cut's open cluster at once. The Morton runs need the faces sorted by the code of their
+// centroid: each face leaves its code and its corners' box to a sort in runs of a temporary file
+// (SortedRuns), and the merged order is cut into the runs of every cut.
+#include <algorithm>
+#include <exception>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include "cut/cut_fit_sums.h"
+#include "files/sorted_runs.h"
+#include "shape/branching_pass.h"
+
+namespace facetree {
+namespace {
+
+// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order,
+// which it keeps among equal codes, as the sort in memory breaks their ties.
+struct MortonFace {
+  uint64_t code;
+  float lo[3], hi[3];
+};
+struct MortonKey {
+  uint64_t operator()(const MortonFace& m) const { return m.code; }
+};
+
+}  // namespace
+
+std::vector<CutFit> cutFits(ClusterFileReader& reader, std::span<const uint64_t> clusters,
+                            BranchingStats* branching) {
+  std::vector<CutFit> fits;
+  if (clusters.empty()) {
+    if (branching) *branching = branchingStats(reader);
+    return fits;
+  }
+  const uint64_t faces = reader.header().triangleCount;
+  fch::VertexBounds bounds;
+  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
+    for (const glm::vec3& p : vertices) bounds.add(p);
+  });
+  const glm::dvec3 origin = bounds.centre();
+
+  std::vector<std::vector<CutCluster>> cuts;
+  std::vector<uint64_t> nodes;
+  for (const uint64_t count : clusters) {
+    cuts.push_back(reader.cut(count));
+    for (const CutCluster& c : cuts.back())
+      if (c.node != kNoNode) nodes.push_back(c.node);
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  // The boxes of the cuts' nodes, in a pass that stops after the last of them unless it also
+  // gives the branching statistics.
+  std::vector<NodeBox> boxes(nodes.size());
+  fch::BranchingPass pass(reader.header());
+  if (!nodes.empty() || branching)
+    reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t depth) {
+      if (branching) pass.visit(node, depth);
+      const auto at = std::lower_bound(nodes.begin(), nodes.end(), index);
+      if (at != nodes.end() && *at == index) boxes[at - nodes.begin()] = node.box;
+      return branching || index < nodes.back();
+    });
+  if (branching) *branching = pass.stats;
+  const auto boxOf = [&](const CutCluster& c) -> const NodeBox* {
+    if (c.node == kNoNode) return nullptr;
+    return &boxes[std::lower_bound(nodes.begin(), nodes.end(), c.node) - nodes.begin()];
+  };
+
+  // The centroids' box, which the Morton codes are taken in.
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+  const auto centroid = [](const FaceRangeMesh& piece, size_t t) {
+    glm::dvec3 p(0.0);
+    for (int k = 0; k < 3; ++k) p += glm::dvec3(piece.vertices[piece.indices[3 * t + k]]);
+    return p / 3.0;
+  };
+  reader.forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
+        for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
+          const glm::dvec3 c = centroid(piece, t);
+          lo = glm::min(lo, c), hi = glm::max(hi, c);
+        }
+      },
+      FaceFields::Geometry);
+
+  // Every cut's clusters, and every face into the sort.
+  std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
+  std::vector<size_t> at(cuts.size(), 0);
+  fch::SortedRuns<MortonFace, MortonKey> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
+                                                reader.temporaryDirectory());
+  // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
+  // its own, so the figures are those of one thread.
+  reader.forEachFacePiece(
+      [&](const FaceRangeMesh& piece) {
+        const size_t triangles = piece.indices.size() / 3;
+        const auto corner = [&](size_t t, int k) -> const glm::vec3& {
+          return piece.vertices[piece.indices[3 * t + k]];
+        };
+        std::exception_ptr failed;
+        std::thread morton([&] {
+          try {
+            for (size_t t = 0; t < triangles; ++t) {
+              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
+              for (int a = 0; a < 3; ++a) {
+                m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+                m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
+              }
+              sorted.add(m);
+            }
+          } catch (...) {
+            failed = std::current_exception();
+          }
+        });
+        try {
+          for (size_t t = 0; t < triangles; ++t) {
+            const uint64_t p = piece.first + t;
+            for (size_t i = 0; i < cuts.size(); ++i) {
+              sums[i].add(corner(t, 0), corner(t, 1), corner(t, 2));
+              if (at[i] == cuts[i].size() || p < cuts[i][at[i]].first)
+                throw std::invalid_argument("cutFits: the cut does not cover face " + std::to_string(p));
+              const CutCluster& c = cuts[i][at[i]];
+              if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
+            }
+          }
+        } catch (...) {
+          morton.join();
+          throw;
+        }
+        morton.join();
+        if (failed) std::rethrow_exception(failed);
+      },
+      FaceFields::Geometry);
+  for (fch::CutFitSum& sum : sums) fits.push_back(sum.finish());
+
+  // Run r of a cut of R runs: positions [r F / R, (r + 1) F / R) of the Morton order.
+  struct Runs {
+    uint64_t runs = 0, r = 0, end = 0;
+    fch::AreaBox box;
+  };
+  std::vector<Runs> runs;
+  for (const CutFit& fit : fits) {
+    Runs each;
+    each.runs = std::min<uint64_t>(fit.clusters, faces);
+    each.end = each.runs ? faces / each.runs : 0;
+    runs.push_back(each);
+  }
+  uint64_t rank = 0;
+  sorted.forEachSorted([&](const MortonFace& m) {
+    for (size_t i = 0; i < runs.size(); ++i) {
+      Runs& run = runs[i];
+      run.box.add(glm::vec3(m.lo[0], m.lo[1], m.lo[2]));
+      run.box.add(glm::vec3(m.hi[0], m.hi[1], m.hi[2]));
+      if (rank + 1 == run.end) {
+        fits[i].mortonBoxArea += run.box.area();
+        run.box = fch::AreaBox{};
+        ++run.r;
+        run.end = (run.r + 1) * faces / run.runs;
+      }
+    }
+    ++rank;
+  });
+  return fits;
+}
+
+}  // namespace facetree

@@ -1,0 +1,128 @@
+// verifyAgainstMesh over a ClusterFileReader: the file's triangles and the mesh's, each keyed by
+// original id and corners (fch::TriangleKey), compared in the order of one sort of each side, as in
+// memory. The file's side goes into buckets by windows of original ids, so that the sort is one
+// window at a time; a mesh read in order is already sorted and is compared as it comes, any other
+// is bucketed the same way, and the keys of a window that one side lacks carry over to the next,
+// which keeps the comparison that of the whole sort.
+#include <deque>
+#include <optional>
+#include <string>
+
+#include "verify/verify_node.h"
+#include "verify/window_buckets.h"
+
+namespace facetree {
+
+namespace {
+
+// The file's triangles keyed and bucketed by windows of `window` original ids.
+void bucketFileTriangles(ClusterFileReader& reader, uint64_t window,
+                         fch::WindowBuckets<fch::TriangleKey>& out) {
+  reader.forEachFacePiece([&](const FaceRangeMesh& piece) {
+    for (size_t t = 0; t < piece.originalFace.size(); ++t) {
+      const uint64_t id = piece.originalFace[t];
+      out.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],
+                                            piece.vertices[piece.indices[3 * t + 1]],
+                                            piece.vertices[piece.indices[3 * t + 2]]));
+    }
+  });
+}
+
+// Bytes of a bucket's buffer once they spill: the windows' buffers together take about the budget.
+uint64_t runBytes(uint64_t budget, uint64_t faces, uint64_t window) {
+  return std::clamp<uint64_t>(budget / std::max<uint64_t>(faces / window, 1), 4096, 256 << 10);
+}
+
+// Both sides bucketed and each window sorted: for a mesh whose triangles come in any order.
+VerifyResult compareInWindows(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+  const uint64_t faces = reader.header().triangleCount;
+  const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
+  const uint64_t window = std::max<uint64_t>(budget / (2 * sizeof(fch::TriangleKey)), 16);
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
+  fch::WindowBuckets<fch::TriangleKey> fromMesh(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
+
+  uint64_t meshTriangles = 0;
+  mesh([&](std::span<const MeshTriangle> batch) {
+    for (const MeshTriangle& t : batch) {
+      fromMesh.add(t.id / window, fch::TriangleKey(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]));
+      ++meshTriangles;
+    }
+  });
+  if (meshTriangles != faces)
+    return {false,
+            "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
+            0};
+  bucketFileTriangles(reader, window, fromFile);
+
+  std::deque<fch::TriangleKey> fileQueue, meshQueue;
+  std::vector<fch::TriangleKey> taken;
+  const auto load = [&](fch::WindowBuckets<fch::TriangleKey>& side, uint64_t w,
+                        std::deque<fch::TriangleKey>& queue) {
+    side.take(w, taken);
+    std::sort(taken.begin(), taken.end());
+    queue.insert(queue.end(), taken.begin(), taken.end());
+  };
+  while (!fromFile.empty() || !fromMesh.empty()) {
+    const uint64_t w = fromFile.empty()   ? fromMesh.firstWindow()
+                       : fromMesh.empty() ? fromFile.firstWindow()
+                                          : std::min(fromFile.firstWindow(), fromMesh.firstWindow());
+    load(fromFile, w, fileQueue);
+    load(fromMesh, w, meshQueue);
+    for (; !fileQueue.empty() && !meshQueue.empty(); fileQueue.pop_front(), meshQueue.pop_front())
+      if (!fileQueue.front().sameKey(meshQueue.front()))
+        return {false, fch::triangleMismatch(fileQueue.front(), meshQueue.front()), 0};
+  }
+  return {true, "", reader.size()};
+}
+
+}  // namespace
+
+VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+  // A mesh read in order hands its triangles over by increasing id, which is the order of the sort:
+  // only the file's side is bucketed, and the mesh's is compared as it comes. The first pair that
+  // differs is kept while the mesh's triangles are counted, since a count that differs is the
+  // verdict first. Ids out of order send the check to the windows of both sides.
+  const uint64_t faces = reader.header().triangleCount;
+  const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
+  const uint64_t window = std::max<uint64_t>(budget / sizeof(fch::TriangleKey), 16);
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
+                                                reader.temporaryDirectory());
+  bucketFileTriangles(reader, window, fromFile);
+  std::deque<fch::TriangleKey> fileQueue;
+  std::vector<fch::TriangleKey> taken;
+  std::optional<std::string> mismatch;
+  uint64_t meshTriangles = 0, lastId = 0;
+  bool inOrder = true;
+  mesh([&](std::span<const MeshTriangle> batch) {
+    for (const MeshTriangle& t : batch) {
+      ++meshTriangles;
+      if (!inOrder) continue;
+      if (meshTriangles > 1 && t.id <= lastId) {
+        inOrder = false;
+        continue;
+      }
+      lastId = t.id;
+      if (mismatch) continue;
+      while (fileQueue.empty() && !fromFile.empty()) {
+        fromFile.take(fromFile.firstWindow(), taken);
+        std::sort(taken.begin(), taken.end());
+        fileQueue.insert(fileQueue.end(), taken.begin(), taken.end());
+      }
+      if (fileQueue.empty()) continue;  // more triangles than the file: the count says so
+      const fch::TriangleKey key(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]);
+      if (!fileQueue.front().sameKey(key)) mismatch = fch::triangleMismatch(fileQueue.front(), key);
+      fileQueue.pop_front();
+    }
+  });
+  if (!inOrder) return compareInWindows(reader, mesh);
+  if (meshTriangles != faces)
+    return {false,
+            "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
+            0};
+  if (mismatch) return {false, *mismatch, 0};
+  return {true, "", reader.size()};
+}
+
+}  // namespace facetree

@@ -1,0 +1,179 @@
+// buildHierarchy: validation, dual graph, greedy merge, then the output layout (nodes by
+// decreasing effective cost, contiguous face ranges, heights), all iterative: Garland-metric
+// trees on flat CAD are thousands of levels deep and a chain may be millions.
+//
+// A mesh of one triangle has no internal node: nodes is empty and faceOrder = {0}.
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <functional>
+#include <thread>
+#include <utility>
+
+#include "base/huge_pages.h"
+#include "base/stopwatch.h"
+#include "cost/face_geometry.h"
+#include "engine/dual_graph.h"
+#include "engine/heap.h"
+#include "engine/merge_engine.h"
+#include "facetree/merge.h"
+
+namespace facetree {
+
+namespace {
+
+// ceil(log2 n) + 1: the height of a balanced binary tree over n faces, faces included.
+uint32_t balancedHeight(uint32_t n) {
+  return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
+}
+
+// Output position of each record: by decreasing effective cost, the maximum of the node's own
+// cost and its children's effective costs, ties by decreasing creation index (a later round
+// first, then the later merge of the round). A parent's key is never below its children's and it
+// is created after them, so parents precede children, and any prefix of the order is a
+// hierarchy truncated at its cheapest merges (Willmott 2000, sec. 5.5.3).
+std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records) {
+  const uint32_t count = static_cast<uint32_t>(records.size());
+  std::vector<uint64_t> key(count);
+  std::vector<float> effective(count);
+  for (uint32_t i = 0; i < count; ++i) {
+    float e = records[i].cost;
+    for (const uint32_t child : records[i].child)
+      if (!(child & kFaceChild)) e = std::max(e, effective[child]);
+    effective[i] = e + 0.0f;
+    key[i] = uint64_t{orderedBits(effective[i])} << 32 | i;
+  }
+  std::exchange(effective, {});
+  std::sort(key.begin(), key.end(), std::greater<>());
+  std::vector<uint32_t> position(count);
+  for (uint32_t p = 0; p < count; ++p) position[static_cast<uint32_t>(key[p])] = p;
+  return position;
+}
+
+// Output nodes from the creation-ordered records: in effective-cost order (the root first),
+// child records renumbered, leaf children turned from face ids into positions of faceOrder, and
+// the face ranges laid out: the root covers [0, n), each node hands [first, first +
+// count(left)) to its left child and the rest to its right child. Parents precede children
+// in the output, so one forward pass suffices (no recursion: trees may be millions deep).
+// Returns the height (nodes on the longest root-to-face path, the face included).
+uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const FaceGeometry& geometry) {
+  std::vector<Node>& nodes = hierarchy.nodes;
+  std::vector<uint32_t>& faceOrder = hierarchy.faceOrder;
+  faceOrder.assign(geometry.faceCount(), 0);
+  if (records.empty()) {
+    faceOrder[0] = 0;
+    return 1;
+  }
+  const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
+  const std::vector<uint32_t> position = effectiveCostOrder(records);
+  nodes.resize(records.size());
+  for (uint32_t i = 0; i <= last; ++i) {
+    const MergeRecord& r = records[i];
+    Node& node = nodes[position[i]];
+    for (int k = 0; k < 2; ++k) node.child[k] = (r.child[k] & kFaceChild) ? r.child[k] : position[r.child[k]];
+    node.first = 0;
+    node.count = r.faceCount();
+    node.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
+    node.cost = r.cost;
+    node.area = r.area;
+    node.perimeter = r.perimeter;
+    node.sumNormal = glm::vec3(r.sumNormal[0], r.sumNormal[1], r.sumNormal[2]);
+  }
+  std::exchange(records, {});
+
+  std::vector<uint32_t> depth(nodes.size(), 0);
+  depth[0] = 1;
+  uint32_t height = 1;
+  for (uint32_t i = 0; i <= last; ++i) {
+    Node& node = nodes[i];
+    uint32_t first = node.first;
+    for (uint32_t& child : node.child) {
+      if (child & kFaceChild) {
+        faceOrder[first] = child & ~kFaceChild;
+        child = kFaceChild | first;
+        ++first;
+        height = std::max(height, depth[i] + 1);
+      } else {
+        nodes[child].first = first;
+        depth[child] = depth[i] + 1;
+        first += nodes[child].count;
+      }
+    }
+  }
+  return height;
+}
+
+void throwIfCancelled(const BuildOptions& options) {
+  if (options.cancelled && options.cancelled()) throw cancelledError();
+}
+
+}  // namespace
+
+namespace {
+
+// The build with the dual graph's edges from `makeEdges(geometry)`.
+template <class MakeEdges>
+Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdges& makeEdges) {
+  Hierarchy hierarchy;
+  BuildStats& stats = hierarchy.stats;
+  {
+    // Everything of the merge is released at the end of this scope, before the boxes.
+    auto start = std::chrono::steady_clock::now();
+    const FaceGeometry geometry(mesh);
+    DualEdgeBlocks edges = makeEdges(geometry);
+    stats.secondsInit = secondsSince(start);
+    throwIfCancelled(options);
+
+    MergeResult merged = runMerge(geometry, std::move(edges), options);
+    start = std::chrono::steady_clock::now();
+    stats.height = layOut(std::move(merged.records), hierarchy, geometry);
+    stats.balancedHeight = balancedHeight(geometry.faceCount());
+    stats.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
+    stats.maxDegree = merged.maxDegree;
+    stats.eigenSolves = merged.counters.eigenSolves;
+    stats.normalShortcuts = merged.counters.normalShortcuts;
+    stats.components = merged.components;
+    stats.rounds = merged.rounds;
+    stats.secondsCost = merged.secondsCost;
+    stats.secondsEigen = merged.counters.eigenSeconds;
+    stats.secondsMerge = merged.secondsMerge + secondsSince(start);
+  }
+
+  // The merge's arrays are freed: the boxes are not allocated on top of their pages.
+  trimFreedHeap(mesh.triangleCount());
+  throwIfCancelled(options);
+  if (options.computeBoxes) {
+    const auto start = std::chrono::steady_clock::now();
+    computeBoxes(mesh, hierarchy, options);
+    stats.secondsBoxes = secondsSince(start);
+  }
+  return hierarchy;
+}
+
+}  // namespace
+
+unsigned workerThreads(const BuildOptions& options) {
+  constexpr unsigned kMaxThreads = 8;
+  const unsigned threads =
+      options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  return std::min(threads, kMaxThreads);
+}
+
+Hierarchy buildHierarchy(const MeshView& mesh, const BuildOptions& options) {
+  return build(mesh, options, [&](const FaceGeometry& geometry) {
+    return matchDualEdges(geometry, workerThreads(options));
+  });
+}
+
+Hierarchy buildHierarchy(const MeshView& piece, FaceAdjacency& adjacency, std::span<const uint32_t> faces,
+                         const BuildOptions& options) {
+  return build(piece, options, [&](const FaceGeometry& geometry) {
+    std::optional<DualGraph> graph = pieceDualGraph(geometry, adjacency, faces);
+    if (!graph) return matchDualEdges(geometry, workerThreads(options));
+    DualEdgeBlocks edges;
+    edges.push_back(std::move(graph->edges));
+    return edges;
+  });
+}
+
+}  // namespace facetree
