@@ -18,7 +18,8 @@
 #include "files/temporary_file.h"
 #include "format/fch_format.h"
 #include "format/node_code.h"
-#include "shape/branching_pass.h"
+#include "read/cluster_source.h"
+#include "shape/file_shape.h"
 
 namespace facetree {
 
@@ -39,11 +40,6 @@ uint64_t frameBytes(const CachedFrame& f) {
 }
 
 // A child of a kept node with its face range: a cluster of the cut unless it is kept itself.
-struct ChildRange {
-  uint64_t ref;  // node index, or kNoNode for a face
-  uint64_t first, count;
-  bool kept;
-};
 
 }  // namespace
 
@@ -365,58 +361,6 @@ struct ClusterFileReader::State {
   }
 
   uint64_t perFrame() const { return layout().geometryPerFrame; }
-
-  // The children of a cut's kept nodes in face order, the kept ones dropped.
-  std::vector<CutCluster> clusters(std::vector<ChildRange>& children, std::vector<uint64_t>& bounds,
-                                   uint64_t faces, bool anyKept, ClusterFileReader& reader) {
-    std::vector<CutCluster> out;
-    if (!anyKept) {
-      if (faces > 0) out.push_back({layout().header.nodeCount > 0 ? 0 : kNoNode, 0, faces});
-      return out;
-    }
-    // Version 1 keeps a node child's face range with the child only: a cut member's comes from its
-    // record, and a child cut off by truncation is not placed; the gaps such children leave are a
-    // cluster each (as clusterCut counts them).
-    const uint64_t n = layout().header.nodeCount;
-    std::vector<size_t> unplaced;
-    for (size_t i = 0; i < children.size(); ++i)
-      if (!children[i].kept && children[i].ref != kNoNode && children[i].ref < n && children[i].count == 0)
-        unplaced.push_back(i);
-    std::sort(unplaced.begin(), unplaced.end(),
-              [&](size_t a, size_t b) { return children[a].ref < children[b].ref; });
-    for (const size_t i : unplaced) {  // in file order: one pass over the nodes
-      const FchNode node = reader.node(children[i].ref);
-      children[i].first = node.first, children[i].count = node.count;
-    }
-    for (const ChildRange& c : children) {
-      if (c.kept || c.count == 0) continue;
-      out.push_back({c.ref != kNoNode && c.ref >= n ? kNoNode : c.ref, c.first, c.count});
-    }
-    std::sort(out.begin(), out.end(),
-              [](const CutCluster& a, const CutCluster& b) { return a.first < b.first; });
-    std::sort(bounds.begin(), bounds.end());
-    std::vector<CutCluster> placed;
-    placed.reserve(out.size());
-    uint64_t cursor = 0;
-    // A gap [from, to): one cluster between consecutive bounds of kept nodes.
-    const auto gap = [&](uint64_t from, uint64_t to) {
-      auto b = std::upper_bound(bounds.begin(), bounds.end(), from);
-      for (; from < to; ++b) {
-        const uint64_t end = b != bounds.end() && *b < to ? *b : to;
-        if (end > from) placed.push_back({kNoNode, from, end - from});
-        from = end;
-      }
-    };
-    for (const CutCluster& c : out) {
-      if (c.first < cursor) continue;  // a record inconsistent with the others (verify names it)
-      gap(cursor, c.first);
-      placed.push_back(c);
-      cursor = c.first + c.count;
-    }
-    gap(cursor, faces);
-    out = std::move(placed);
-    return out;
-  }
 };
 
 ClusterFileReader::ClusterFileReader(const std::filesystem::path& path, const ReaderOptions& options)
@@ -512,84 +456,19 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
   return visited;
 }
 
-namespace {
-
-// The face ranges of `node`'s children, kept as `keep` says.
-// Version 1: the kept node's own range goes to `bounds`, where gaps of cut-off children end.
-template <class Keep>
-void addChildren(const FchNode& node, std::vector<ChildRange>& out, std::vector<uint64_t>& bounds,
-                 Keep&& keep) {
-  bounds.push_back(node.first);
-  bounds.push_back(uint64_t{node.first} + node.count);
-  uint64_t cursor = node.first;
-  for (unsigned c = 0; c < node.childCount; ++c) {
-    const uint32_t ref = node.child[c];
-    if (ref & kFaceChild) {
-      out.push_back({kNoNode, ref & ~kFaceChild, 1, false});
-      cursor = (ref & ~kFaceChild) + 1;
-    } else {
-      // childFaces 0: a version 1 record, which does not place its node children.
-      out.push_back({ref, cursor, node.childFaces[c], keep(ref)});
-      cursor += node.childFaces[c];
-    }
-  }
-}
-
-}  // namespace
-
 std::vector<CutCluster> ClusterFileReader::cut(uint64_t clusters) {
-  // The shortest prefix whose frontier holds `clusters` members: keeping a node of c children
-  // replaces one member by c (clusterCut).
-  std::vector<ChildRange> children;
-  std::vector<uint64_t> bounds;
-  uint64_t frontier = 1, kept = 0;
-  forEachNode(
-      [&](uint64_t, const FchNode& node, uint32_t) {
-        if (frontier >= clusters) return false;
-        ++kept;
-        frontier += node.childCount - 1u;
-        addChildren(node, children, bounds, [](uint64_t) { return false; });
-        return true;
-      },
-      NodeFields::Structure);
-  for (ChildRange& c : children) c.kept = c.ref != kNoNode && c.ref < kept;
-  return state_->clusters(children, bounds, header().triangleCount, kept > 0, *this);
+  fch::ReaderSource source(*this);
+  return fch::prefixCut(source, clusters);
 }
 
 std::vector<CutCluster> ClusterFileReader::cutByCost(double maxCost) {
-  // Effective costs fall along the file, and a node's is the largest cost at or after it: the
-  // nodes above maxCost are those before the last node costing more.
-  uint64_t prefix = 0;
-  forEachNode(
-      [&](uint64_t index, const FchNode& node, uint32_t) {
-        if (node.cost > maxCost) prefix = index + 1;
-        return true;
-      },
-      NodeFields::Structure);
-  std::vector<ChildRange> children;
-  std::vector<uint64_t> bounds;
-  forEachNode(
-      [&](uint64_t index, const FchNode& node, uint32_t) {
-        if (index >= prefix) return false;
-        addChildren(node, children, bounds, [&](uint64_t ref) { return ref < prefix; });
-        return true;
-      },
-      NodeFields::Structure);
-  return state_->clusters(children, bounds, header().triangleCount, prefix > 0, *this);
+  fch::ReaderSource source(*this);
+  return fch::costCut(source, maxCost);
 }
 
 std::vector<CutCluster> ClusterFileReader::cutByDepth(uint32_t depth) {
-  std::vector<ChildRange> children;
-  std::vector<uint64_t> bounds;
-  const uint64_t n = size();
-  forEachNode(
-      [&](uint64_t, const FchNode& node, uint32_t d) {
-        if (d <= depth)
-          addChildren(node, children, bounds, [&](uint64_t ref) { return ref < n && d + 1 <= depth; });
-        return true;
-      },
-      NodeFields::Structure);
-  return state_->clusters(children, bounds, header().triangleCount, depth > 0 && n > 0, *this);
+  fch::ReaderSource source(*this);
+  return fch::depthCut(source, depth);
 }
 
 FaceRangeMesh ClusterFileReader::faces(uint64_t first, uint64_t count, FaceFields fields) {
@@ -653,14 +532,14 @@ void ClusterFileReader::forEachCluster(
 }
 
 BranchingStats branchingStats(ClusterFileReader& reader) {
-  fch::BranchingPass pass(reader.header());
+  ShapePass pass(reader.header());
   reader.forEachNode(
       [&](uint64_t, const FchNode& node, uint32_t depth) {
         pass.visit(node, depth);
         return true;
       },
       NodeFields::Structure);
-  return pass.stats;
+  return pass.stats();
 }
 
 void ClusterFileReader::forEachCutPiece(

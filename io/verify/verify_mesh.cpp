@@ -1,13 +1,13 @@
-// verifyAgainstMesh over a ClusterFileReader: the file's triangles and the mesh's, each keyed by
-// original id and corners (fch::TriangleKey), compared in the order of one sort of each side, as in
-// memory. The file's side goes into buckets by windows of original ids, so that the sort is one
-// window at a time; a mesh read in order is already sorted and is compared as it comes, any other
-// is bucketed the same way, and the keys of a window that one side lacks carry over to the next,
-// which keeps the comparison that of the whole sort.
+// verifyAgainstMesh: the file's triangles and the mesh's, each keyed by original id and corners
+// (fch::TriangleKey), compared in the order of one sort of each side. The file's side goes into buckets by
+// windows of original ids, so that the sort is one window at a time; a mesh read in order is already sorted
+// and is compared as it comes, any other is bucketed the same way, and the keys of a window that one side
+// lacks carry over to the next, which keeps the comparison that of the whole sort.
 #include <deque>
 #include <optional>
 #include <string>
 
+#include "read/cluster_source.h"
 #include "verify/verify_node.h"
 #include "verify/window_buckets.h"
 
@@ -16,7 +16,7 @@ namespace facetree {
 namespace {
 
 // The file's triangles keyed and bucketed by windows of `window` original ids.
-void bucketFileTriangles(ClusterFileReader& reader, uint64_t window,
+void bucketFileTriangles(fch::ClusterSource& reader, uint64_t window,
                          fch::WindowBuckets<fch::TriangleKey>& out) {
   reader.forEachFacePiece([&](const FaceRangeMesh& piece) {
     for (size_t t = 0; t < piece.originalFace.size(); ++t) {
@@ -34,7 +34,7 @@ uint64_t runBytes(uint64_t budget, uint64_t faces, uint64_t window) {
 }
 
 // Both sides bucketed and each window sorted: for a mesh whose triangles come in any order.
-VerifyResult compareInWindows(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+VerifyResult compareInWindows(fch::ClusterSource& reader, const MeshTriangleSource& mesh) {
   const uint64_t faces = reader.header().triangleCount;
   const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
   const uint64_t window = std::max<uint64_t>(budget / (2 * sizeof(fch::TriangleKey)), 16);
@@ -74,12 +74,10 @@ VerifyResult compareInWindows(ClusterFileReader& reader, const MeshTriangleSourc
       if (!fileQueue.front().sameKey(meshQueue.front()))
         return {false, fch::triangleMismatch(fileQueue.front(), meshQueue.front()), 0};
   }
-  return {true, "", reader.size()};
+  return {true, "", reader.nodeCount()};
 }
 
-}  // namespace
-
-VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& mesh) {
   // A mesh read in order hands its triangles over by increasing id, which is the order of the sort:
   // only the file's side is bucketed, and the mesh's is compared as it comes. The first pair that
   // differs is kept while the mesh's triangles are counted, since a count that differs is the
@@ -122,7 +120,39 @@ VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSour
             "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
             0};
   if (mismatch) return {false, *mismatch, 0};
-  return {true, "", reader.size()};
+  return {true, "", reader.nodeCount()};
+}
+
+}  // namespace
+
+VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSource& mesh) {
+  fch::ReaderSource source(reader);
+  return againstMesh(source, mesh);
+}
+
+VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
+                               std::span<const uint64_t> meshOriginalFace) {
+  const size_t faces = file.indices.size() / 3;
+  if (mesh.triangleCount() != faces)
+    return {
+        false,
+        "mesh: " + std::to_string(mesh.triangleCount()) + " triangles, the file has " + std::to_string(faces),
+        0};
+  if (!meshOriginalFace.empty() && meshOriginalFace.size() != faces)
+    return {false, "mesh: original ids do not match its triangles", 0};
+  for (const uint32_t v : mesh.indices)
+    if (v >= mesh.positions.size()) return {false, "mesh: vertex index out of range", 0};
+  fch::MemorySource source(file);
+  return againstMesh(source, [&](const std::function<void(std::span<const MeshTriangle>)>& take) {
+    std::vector<MeshTriangle> batch;
+    for (size_t t = 0; t < faces; ++t) {
+      const uint32_t* v = &mesh.indices[3 * t];
+      batch.push_back({meshOriginalFace.empty() ? t : meshOriginalFace[t],
+                       t,
+                       {mesh.positions[v[0]], mesh.positions[v[1]], mesh.positions[v[2]]}});
+      if (batch.size() == 4096 || t + 1 == faces) take(batch), batch.clear();
+    }
+  });
 }
 
 }  // namespace facetree

@@ -12,27 +12,15 @@
 
 namespace facetree {
 
-namespace {
-
-void addTo(SurfaceStats& sum, const ClusterStats& s) {
-  sum.area += s.area;
-  sum.perimeter += s.perimeter;
-  sum.sumNormal += s.sumNormal;
-  sum.firstMoment += s.firstMoment;
-  for (int i = 0; i < 6; ++i) sum.secondMoment[i] += s.secondMoment.m[i];
-}
-
-}  // namespace
-
 void SurfaceStatsSum::add(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
-  addTo(block_, ClusterStats::fromShiftedTriangle(a, b, c, origin_));
+  addStats(block_, ClusterStats::fromShiftedTriangle(a, b, c, origin_));
   for (const glm::vec3* p : {&a, &b, &c}) {
     const glm::vec3 q(glm::dvec3(*p) - origin_);
     block_.boundsMin = glm::min(block_.boundsMin, q);
     block_.boundsMax = glm::max(block_.boundsMax, q);
   }
   if (++faces_ % kSumBlock == 0) {
-    addTo(total_, toClusterStats(block_));
+    addStats(total_, toClusterStats(block_));
     total_.boundsMin = glm::min(total_.boundsMin, block_.boundsMin);
     total_.boundsMax = glm::max(total_.boundsMax, block_.boundsMax);
     block_ = SurfaceStats{};
@@ -42,7 +30,7 @@ void SurfaceStatsSum::add(const glm::vec3& a, const glm::vec3& b, const glm::vec
 SurfaceStats SurfaceStatsSum::stats() const {
   SurfaceStats out = total_;
   if (faces_ % kSumBlock != 0) {
-    addTo(out, toClusterStats(block_));
+    addStats(out, toClusterStats(block_));
     out.boundsMin = glm::min(out.boundsMin, block_.boundsMin);
     out.boundsMax = glm::max(out.boundsMax, block_.boundsMax);
   }

@@ -14,6 +14,18 @@ namespace facetree {
 // O((n / kSumBlock + kSumBlock) eps) instead of O(n eps).
 constexpr uint32_t kSumBlock = 1024;
 
+// sum += s for a running sum of statistics, public (SurfaceStats) or the merge's (ClusterStats).
+inline double& secondMomentOf(SurfaceStats& s, int i) { return s.secondMoment[i]; }
+inline double& secondMomentOf(ClusterStats& s, int i) { return s.secondMoment.m[i]; }
+template <class Sum>
+void addStats(Sum& sum, const ClusterStats& s) {
+  sum.area += s.area;
+  sum.perimeter += s.perimeter;
+  sum.sumNormal += s.sumNormal;
+  sum.firstMoment += s.firstMoment;
+  for (int i = 0; i < 6; ++i) secondMomentOf(sum, i) += s.secondMoment.m[i];
+}
+
 inline ClusterStats toClusterStats(const SurfaceStats& s) {
   ClusterStats c;
   c.area = s.area;

@@ -19,14 +19,6 @@ namespace facetree {
 
 namespace {
 
-void add(ClusterStats& sum, const ClusterStats& s) {
-  sum.area += s.area;
-  sum.perimeter += s.perimeter;
-  sum.sumNormal += s.sumNormal;
-  sum.firstMoment += s.firstMoment;
-  for (int i = 0; i < 6; ++i) sum.secondMoment.m[i] += s.secondMoment.m[i];
-}
-
 // Sums the dual graph's shared lengths (float, as the engine subtracts them) in blocks, in the graph's
 // edge order.
 class SharedSum {
@@ -64,14 +56,14 @@ SurfaceStats stats(const MeshView& mesh, const glm::dvec3& origin, const SharedO
       const glm::vec3& a = mesh.positions[mesh.indices[base]];
       const glm::vec3& b = mesh.positions[mesh.indices[base + 1]];
       const glm::vec3& c = mesh.positions[mesh.indices[base + 2]];
-      add(block, ClusterStats::fromShiftedTriangle(a, b, c, origin));
+      addStats(block, ClusterStats::fromShiftedTriangle(a, b, c, origin));
       for (const glm::vec3* p : {&a, &b, &c}) {  // the bounds about the origin, as the engine's boxes
         const glm::vec3 q(glm::dvec3(*p) - origin);
         lo = glm::min(lo, q);
         hi = glm::max(hi, q);
       }
     }
-    add(total, block);
+    addStats(total, block);
   }
   total.perimeter = std::max(0.0, total.perimeter - 2.0 * sharedOf(geometry));
   SurfaceStats out = toSurfaceStats(total, n, 1);

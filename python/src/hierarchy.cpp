@@ -235,14 +235,10 @@ face_order[first:first + count] of its face range; its children partition that r
           "cut_fit",
           [](const PyHierarchy& h, uint64_t clusters) {
             const CutFit fit = cutFit(h.file, clusters);
-            py::dict d;
-            d["clusters"] = fit.clusters;
-            d["sum_fit"] = fit.sumFit;
-            d["sum_area_fit"] = fit.sumAreaFit;
-            d["sum_box_area"] = fit.sumBoxArea;
-            d["morton_box_area"] = fit.mortonBoxArea;
-            d["small_clusters"] = fit.smallClusters;
-            return d;
+            return py::dict(py::arg("clusters") = fit.clusters, py::arg("sum_fit") = fit.sumFit,
+                            py::arg("sum_area_fit") = fit.sumAreaFit, py::arg("sum_box_area") = fit.sumBoxArea,
+                            py::arg("morton_box_area") = fit.mortonBoxArea,
+                            py::arg("small_clusters") = fit.smallClusters);
           },
           py::arg("clusters"),
           "How well the cut of `clusters` clusters fits the surface: the sums of eFit and area * eFit "

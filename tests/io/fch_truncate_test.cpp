@@ -3,10 +3,66 @@
 
 #include "facetree/error.h"
 #include "fch_test_util.h"
-#include "io/cut/cut.h"
 
 namespace facetree {
 namespace {
+
+constexpr uint32_t kNoOwner = 0xFFFFFFFFu;  // a face no kept node holds
+
+// Calls visit(first, end, ref) with the face range [first, end) of each child of `node` that has a
+// record, in order: a face child is one position, a node child its range. Children cut off by
+// truncation have none and are skipped, unless `cutOff` and their parent gives their face count
+// (version 2 records do); the ranges visited partition the node's in order, with gaps where
+// skipped children lie.
+template <class Visit>
+void forEachChildRange(const ClusterFile& file, const FchNode& node, Visit&& visit, bool cutOff = false) {
+  uint64_t cursor = node.first;
+  bool known = true;  // cursor is the start of child c
+  for (unsigned c = 0; c < node.childCount; ++c) {
+    const uint32_t ref = node.child[c];
+    if (ref & kFaceChild) {
+      const uint64_t position = ref & ~kFaceChild;
+      visit(position, position + 1, ref);
+      cursor = position + 1, known = true;
+    } else if (ref < file.nodes.size()) {
+      const FchNode& child = file.nodes[ref];
+      visit(uint64_t{child.first}, uint64_t{child.first} + child.count, ref);
+      cursor = uint64_t{child.first} + child.count, known = true;
+    } else if (known && node.childFaces[c] > 0) {
+      if (cutOff) visit(cursor, cursor + node.childFaces[c], ref);
+      cursor += node.childFaces[c];
+    } else {
+      known = false;
+    }
+  }
+}
+
+uint64_t rangeEnd(const FchNode& node) {
+  return uint64_t{node.first} + node.count;
+}
+
+// For every face position, the deepest node with kept[node] != 0 containing it (kNoOwner if none):
+// each face is assigned once, by the node that owns it directly.
+std::vector<uint32_t> deepestKeptNode(const ClusterFile& file, const std::vector<uint8_t>& kept) {
+  const size_t faces = file.indices.size() / 3;
+  std::vector<uint32_t> owner(faces, kNoOwner);
+  auto paint = [&](uint64_t begin, uint64_t end, uint32_t node) {
+    for (uint64_t p = begin; p < std::min<uint64_t>(end, faces); ++p) owner[p] = node;
+  };
+  for (size_t j = 0; j < file.nodes.size(); ++j) {
+    if (!kept[j]) continue;
+    const FchNode& node = file.nodes[j];
+    // Children partition the range in order: paint the gaps between kept node children.
+    uint64_t cursor = node.first;
+    forEachChildRange(file, node, [&](uint64_t first, uint64_t end, uint32_t ref) {
+      if ((ref & kFaceChild) || !kept[ref]) return;
+      paint(cursor, first, static_cast<uint32_t>(j));
+      cursor = end;
+    });
+    paint(cursor, rangeEnd(node), static_cast<uint32_t>(j));
+  }
+  return owner;
+}
 
 using namespace facetree::test;
 
