@@ -1,6 +1,6 @@
 // Internal to grid/: the out-of-core build as a list of stages over explicit data, each one
 // function in its own file taking what the stage before made: readArrival (stages/read.cpp,
-// stages/weld_arrival.cpp), binFaces (stages/bin.cpp), buildCellTask (stages/cells.cpp),
+// stages/weld_arrival.cpp), binFaces (stages/bin.cpp), buildCellTask (stages/cells/cells.cpp),
 // resolveLeafGraph (stages/leaf_graph.cpp), mergeAbove (stages/merge_above.cpp, Willmott 2000,
 // sec. 5.5.2 on given clusters), writeUpperPieces (stages/write_plan.cpp), writeGeometryRange and
 // writeNodeRange (stages/write_ranges.cpp). The job's tasks run them (job/job.h). What each holds

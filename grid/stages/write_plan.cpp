@@ -22,6 +22,37 @@
 #include "storage/external_sort.h"
 
 namespace facetree {
+
+// How a leaf's nodes (file order, root first) are cut into the runs the file interleaves
+// (writeUpperPieces below merges all leaves' runs by key). A leaf's nodes come by decreasing
+// effective cost (buildHierarchy; Willmott 2000, sec. 5.5.3), so a node's effective cost is the
+// highest cost among it and the nodes after it in the leaf (a suffix maximum), non-increasing
+// along the leaf. A run's key is the log effective cost of its first node, exactly: merging the
+// leaves' runs by it orders every run head as one in-core build orders its nodes. A run holds nodes
+// whose keys fall in one band of kKeyBand (28%), so no node of a run is more than that out of
+// place, and at most max(kNodeBlock, minRun) of them; a run from node f holds at least
+// min(f / 2, minRun) (a shorter one joins the next, under the earlier, higher key), so the top of
+// a leaf, which cuts of a few clusters per leaf take, is cut finest, and the run table (48 B a run
+// from the cells to the write) stays within the plan's budget.
+std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
+  const uint32_t maxRun = std::max(kNodeBlock, minRun);
+  std::vector<float> key(nodes.size());
+  double level = -std::numeric_limits<double>::infinity();
+  for (size_t i = nodes.size(); i-- > 0;) {
+    level = std::max(level, std::log(std::max(double(nodes[i].cost), 1e-30)));
+    key[i] = static_cast<float>(level);
+  }
+  const auto band = [](float k) { return std::floor(k / static_cast<float>(kKeyBand)); };
+  std::vector<NodeBlock> blocks;
+  for (uint32_t at = 0; at < nodes.size(); ++at) {
+    const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
+    if (blocks.empty() || blocks.back().count == maxRun ||
+        (band(blocks.back().key) != band(key[at]) && blocks.back().count >= minimum))
+      blocks.push_back({key[at], at, 0, 0, 0});
+    ++blocks.back().count;
+  }
+  return blocks;
+}
 namespace {
 
 constexpr uint32_t kNone = 0xFFFFFFFFu;

@@ -1,8 +1,9 @@
 // The out-of-core build, cells stage: each cell's faces in memory, split into edge-connected
 // components, one in-core hierarchy per group of components cut at its frontier (the leaf
-// clusters of the merge above the cells), spilled; and the cross-cell dual edges of the edges the
-// cell owns (stages/stages.h). Cells run on as many workers as the plan allows, each building its
-// hierarchies on one thread, so the output does not depend on --threads.
+// clusters of the merge above the cells: stages/cells/leaf_cut.h), spilled; and the dual edges
+// between its leaves and across cells (stages/cells/cross_cell_pairs.h). Cells run on as many
+// workers as the plan allows, each building its hierarchies on one thread, so the output does
+// not depend on --threads.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -15,6 +16,8 @@
 #include <thread>
 #include <utility>
 
+#include "stages/cells/cross_cell_pairs.h"
+#include "stages/cells/leaf_cut.h"
 #include "stages/stages.h"
 #include "stages/vertex_map.h"
 
@@ -26,126 +29,12 @@ namespace {
 // specks, and every leaf costs the upper merge and the writer a little.
 constexpr uint32_t kMaxLeavesPerCell = 256;
 
-// A face on a mesh edge that the cells share: the edge (its two vertex ids, lower first), the
-// face's cell and its CrossPair reference, its sides on the edge (u_f of EdgeShare) and the
-// edge's length.
-struct Incidence {
-  uint64_t key;
-  uint32_t cell, ref;
-  uint32_t sides;
-  float length;
-  bool operator<(const Incidence& o) const {
-    if (key != o.key) return key < o.key;
-    if (cell != o.cell) return cell < o.cell;
-    return ref < o.ref;
-  }
-};
-
-// The faces on one mesh edge and their sides (EdgeShare's u_f and U), and what the dual graph's edge
-// rules have them share in all, in units of the edge's length (EdgeShare::joined).
-struct EdgeSides {
-  uint32_t faces = 0, uses = 0, squares = 0;
-  void add(uint32_t u) {
-    ++faces;
-    uses += u;
-    squares += u * u;
-  }
-  double pairWeight() const { return 0.5 * (double(uses) * uses - squares); }  // sum of u_f u_g
-  double joinedShare() const { return EdgeShare::joined(faces, uses, squares); }
-};
-
 template <class T>
 void appendBytes(std::vector<std::byte>& out, const T* data, size_t count) {
   const size_t at = out.size();
   out.resize(at + count * sizeof(T));
   if (count) std::memcpy(out.data() + at, data, count * sizeof(T));
 }
-
-// The leaf clusters of a component's hierarchy: its frontier of clusters of at most `faces` faces
-// (a node of more is replaced by its children, largest first), while the metadata the split adds
-// (leafBytes of the children minus the node's) fits `bytes`. Refs: node indices or kFaceChild |
-// face, root alone for a hierarchy without nodes (one face). Ties by node index: deterministic.
-template <class LeafBytes>
-void frontierOf(const Hierarchy& component, uint64_t faces, uint64_t bytes, const LeafBytes& leafBytes,
-                std::vector<uint32_t>& frontier) {
-  frontier.clear();
-  if (component.nodes.empty()) {
-    frontier.push_back(kFaceChild);
-    return;
-  }
-  const auto larger = [&](uint32_t a, uint32_t b) {  // heap order: largest count, then lowest index
-    const uint32_t ca = component.nodes[a].count, cb = component.nodes[b].count;
-    return ca != cb ? ca < cb : a > b;
-  };
-  std::vector<uint32_t> open;  // nodes of more than `faces` faces, still on the frontier
-  const auto count = [&](uint32_t ref) -> uint64_t {
-    return (ref & kFaceChild) ? 1 : component.nodes[ref].count;
-  };
-  const auto add = [&](uint32_t ref) {
-    if (!(ref & kFaceChild) && component.nodes[ref].count > faces) {
-      open.push_back(ref);
-      std::push_heap(open.begin(), open.end(), larger);
-    } else {
-      frontier.push_back(ref);
-    }
-  };
-  add(0);
-  while (!open.empty()) {
-    const Node& node = component.nodes[open.front()];
-    const uint64_t added =
-        leafBytes(count(node.child[0])) + leafBytes(count(node.child[1])) - leafBytes(node.count);
-    if (added > bytes) break;
-    bytes -= added;
-    std::pop_heap(open.begin(), open.end(), larger);
-    open.pop_back();
-    for (const uint32_t c : node.child) add(c);
-  }
-  frontier.insert(frontier.end(), open.begin(), open.end());
-}
-
-}  // namespace
-
-// How a leaf's nodes (file order, root first) are cut into the runs the file interleaves
-// (stages/write_plan.cpp merges all leaves' runs by key). A leaf's nodes come by decreasing
-// effective cost (buildHierarchy; Willmott 2000, sec. 5.5.3), so a node's effective cost is the
-// highest cost among it and the nodes after it in the leaf (a suffix maximum), non-increasing
-// along the leaf. A run's key is the log effective cost of its first node, exactly: merging the
-// leaves' runs by it orders every run head as one in-core build orders its nodes. A run holds nodes
-// whose keys fall in one band of kKeyBand (28%), so no node of a run is more than that out of
-// place, and at most max(kNodeBlock, minRun) of them; a run from node f holds at least
-// min(f / 2, minRun) (a shorter one joins the next, under the earlier, higher key), so the top of
-// a leaf, which cuts of a few clusters per leaf take, is cut finest, and the run table (48 B a run
-// from the cells to the write) stays within the plan's budget.
-std::vector<NodeBlock> nodeBlocks(std::span<const FchNode> nodes, uint32_t minRun) {
-  const uint32_t maxRun = std::max(kNodeBlock, minRun);
-  std::vector<float> key(nodes.size());
-  double level = -std::numeric_limits<double>::infinity();
-  for (size_t i = nodes.size(); i-- > 0;) {
-    level = std::max(level, std::log(std::max(double(nodes[i].cost), 1e-30)));
-    key[i] = static_cast<float>(level);
-  }
-  const auto band = [](float k) { return std::floor(k / static_cast<float>(kKeyBand)); };
-  std::vector<NodeBlock> blocks;
-  for (uint32_t at = 0; at < nodes.size(); ++at) {
-    const uint32_t minimum = blocks.empty() ? 1 : std::clamp(blocks.back().first / 2, 1u, minRun);
-    if (blocks.empty() || blocks.back().count == maxRun ||
-        (band(blocks.back().key) != band(key[at]) && blocks.back().count >= minimum))
-      blocks.push_back({key[at], at, 0, 0, 0});
-    ++blocks.back().count;
-  }
-  return blocks;
-}
-
-namespace {
-
-// Dual edges between two of a cell's leaves, summed per pair of leaves before they are spilled.
-struct LocalPair {
-  uint32_t a, b;  // a < b, cell-local leaves
-  double shared;
-  bool operator<(const LocalPair& o) const {
-    return a != o.a ? a < o.a : b != o.b ? b < o.b : shared < o.shared;
-  }
-};
 
 // A cell as an indexed mesh: the input's vertex ids made local.
 struct CellMesh {
@@ -167,50 +56,6 @@ struct FaceGroups {
   std::vector<uint32_t> groupFaces;
   uint64_t spare = 0;  // the cell's leaf allowance left for the groups' frontiers
 };
-
-// The subtree of `ref` (a node of `component`, or a face) as a hierarchy of its own over the faces
-// component.faceOrder[first, + count).
-Hierarchy subtreeOf(const Hierarchy& component, uint32_t ref, uint32_t first, uint32_t count,
-                    std::vector<uint32_t>& stack, std::vector<uint32_t>& collected,
-                    std::vector<uint32_t>& remap) {
-  Hierarchy sub;
-  sub.stats.height = 1;
-  if (!(ref & kFaceChild)) {
-    collected.clear();
-    stack.assign(1, ref);
-    while (!stack.empty()) {
-      const uint32_t i = stack.back();
-      stack.pop_back();
-      collected.push_back(i);
-      for (const uint32_t c : component.nodes[i].child)
-        if (!(c & kFaceChild)) stack.push_back(c);
-    }
-    std::sort(collected.begin(), collected.end());  // parents before children, as stored
-    remap.resize(component.nodes.size());
-    for (uint32_t k = 0; k < collected.size(); ++k) remap[collected[k]] = k;
-    sub.nodes.reserve(collected.size());
-    sub.boxes.reserve(collected.size());
-    for (const uint32_t i : collected) {
-      Node node = component.nodes[i];
-      node.first -= first;
-      for (uint32_t& c : node.child)
-        c = (c & kFaceChild) ? kFaceChild | ((c & ~kFaceChild) - first) : remap[c];
-      sub.nodes.push_back(node);
-      sub.boxes.push_back(component.boxes[i]);
-    }
-    std::vector<uint32_t> depth(sub.nodes.size(), 1);
-    for (uint32_t i = 0; i < sub.nodes.size(); ++i)
-      for (const uint32_t c : sub.nodes[i].child) {
-        if (c & kFaceChild)
-          sub.stats.height = std::max(sub.stats.height, depth[i] + 1);
-        else
-          depth[c] = depth[i] + 1;
-      }
-  }
-  sub.faceOrder.resize(count);
-  for (uint32_t k = 0; k < count; ++k) sub.faceOrder[k] = k;
-  return sub;
-}
 
 // The 8 corners of a leaf's root box (its single triangle's corners, repeated, for a lone face).
 BoxCorners rootCorners(const ClusterFile& file) {
@@ -264,14 +109,6 @@ class CellsStage {
   void buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, const FaceGroups& groups,
                    std::span<const FaceRecord> records, CellsOutput& spills, SpillCodec& codec,
                    CellLeaves& out);
-  // The dual edges between two leaves of the cell (FaceAdjacency::Share of each shared edge).
-  static void pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
-                         std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs);
-  // The cross-cell dual edges of the edges this cell owns (its ghosts against its own faces), and
-  // the faces that sent ghosts elsewhere.
-  void crossPairs(uint32_t cell, std::span<const FaceRecord> records, std::vector<GhostEdge>&& ghosts,
-                  std::span<const uint32_t> leafOf, std::vector<CrossPair>& pairs,
-                  std::vector<BorderFace>& border) const;
 
   const StageContext& context_;
   const OutOfCorePlan& plan_;
@@ -456,12 +293,12 @@ void CellsStage::buildCell(uint32_t cell, CellsOutput& out, SpillCodec& codec,
     result.components = components;
     const FaceGroups groups = groupComponents(components, leaves.leafOf);
     buildLeaves(mesh, adjacency, groups, records, out, codec, leaves);
-    pairLeaves(mesh, adjacency, leaves.leafOf, localPairs);
+    pairLeaves(mesh.view(), adjacency, leaves.leafOf, localPairs);
   }
 
   std::vector<CrossPair> pairs;
   std::vector<BorderFace> border;
-  crossPairs(cell, records, loadGhosts(cell, codec), leaves.leafOf, pairs, border);
+  crossPairs(*in_.grid, cell, records, loadGhosts(cell, codec), leaves.leafOf, pairs, border);
 
   const auto spill = [&](const auto& items) {
     return items.empty() ? SpillBlock{} : out.records.leaves->append(std::as_bytes(std::span(items)), codec);
@@ -663,103 +500,6 @@ void CellsStage::buildLeaves(const CellMesh& mesh, FaceAdjacency& adjacency, con
         verticesSeen = end;
       }
     }
-  }
-}
-
-void CellsStage::pairLeaves(const CellMesh& mesh, const FaceAdjacency& adjacency,
-                            std::span<const uint32_t> leafOf, std::vector<LocalPair>& localPairs) {
-  const auto faces = static_cast<uint32_t>(leafOf.size());
-  for (uint32_t f = 0; f < faces; ++f) {
-    for (const FaceAdjacency::Link& link : adjacency.links(f)) {
-      const uint32_t lf = leafOf[f], lg = leafOf[link.face];
-      if (link.face < f || lf == lg) continue;  // each edge once, from its lower face
-      for (const FaceAdjacency::Share& share : adjacency.shares(link.edge)) {
-        const glm::vec3 a = mesh.positions[mesh.indices[size_t{3} * f + share.corner]];
-        const glm::vec3 b = mesh.positions[mesh.indices[size_t{3} * f + (share.corner + 1) % 3]];
-        const double length = glm::length(glm::dvec3(b) - glm::dvec3(a));
-        localPairs.push_back({std::min(lf, lg), std::max(lf, lg), share.of(length)});
-      }
-    }
-  }
-}
-
-void CellsStage::crossPairs(uint32_t cell, std::span<const FaceRecord> records,
-                            std::vector<GhostEdge>&& ghosts, std::span<const uint32_t> leafOf,
-                            std::vector<CrossPair>& pairs, std::vector<BorderFace>& border) const {
-  std::vector<uint64_t> ghostKeys(ghosts.size());
-  for (size_t i = 0; i < ghosts.size(); ++i) ghostKeys[i] = ghosts[i].key();
-  std::sort(ghostKeys.begin(), ghostKeys.end());
-  ghostKeys.erase(std::unique(ghostKeys.begin(), ghostKeys.end()), ghostKeys.end());
-  std::vector<Incidence> incidences;
-  incidences.reserve(ghosts.size() * 2);
-  for (const GhostEdge& g : ghosts) incidences.push_back({g.key(), g.cell, g.face, g.sides, g.length});
-  std::exchange(ghosts, {});
-  const auto faces = static_cast<uint32_t>(records.size());
-  for (uint32_t f = 0; f < faces; ++f) {
-    const FaceRecord& r = records[f];
-    bool sentGhosts = false;
-    forEachEdge(r, [&](uint32_t low, uint32_t high, uint32_t sides, int lowCorner, int highCorner) {
-      const glm::vec3 pLow = r.corner(lowCorner);
-      if (in_.grid->ownerCell(in_.grid->bin(pLow)) != cell) {
-        sentGhosts = true;
-        return;
-      }
-      const uint64_t key = (uint64_t{low} << 32) | high;
-      if (ghostKeys.empty() || !std::binary_search(ghostKeys.begin(), ghostKeys.end(), key)) return;
-      const double length = glm::length(glm::dvec3(r.corner(highCorner)) - glm::dvec3(pLow));
-      incidences.push_back({key, cell, leafOf[f] | CrossPair::kLeafRef, sides, static_cast<float>(length)});
-    });
-    if (sentGhosts) border.push_back({f, leafOf[f]});
-  }
-  std::sort(incidences.begin(), incidences.end());
-  // Shared lengths under the dual graph's edge rules (EdgeShare). Each cell has already joined its
-  // own faces on the edge by those rules over its own sides (its FaceAdjacency), so the cross-cell
-  // pairs get what the whole edge shares in the whole mesh's graph minus what the cells shared
-  // inside: merging every face of the edge then removes exactly what it removes in core, and the
-  // root's perimeter is the in-core one, however the cells cut the non-manifold edges.
-  for (size_t i = 0; i < incidences.size();) {
-    size_t j = i;
-    EdgeSides whole;
-    bool mixed = false;
-    for (; j < incidences.size() && incidences[j].key == incidences[i].key; ++j) {
-      whole.add(incidences[j].sides);
-      mixed |= incidences[j].cell != incidences[i].cell;
-    }
-    if (mixed && whole.uses >= 2) {
-      double inside = 0, crossWeight = 0;  // shares within the cells; sum of u_a u_b over cross pairs
-      uint32_t cellRuns = 0;
-      for (size_t a = i; a < j;) {
-        EdgeSides own;
-        size_t b = a;
-        for (; b < j && incidences[b].cell == incidences[a].cell; ++b) own.add(incidences[b].sides);
-        inside += own.joinedShare();
-        crossWeight -= own.pairWeight();
-        ++cellRuns;
-        a = b;
-      }
-      crossWeight += whole.pairWeight();
-      const double length = incidences[i].length;
-      const double cross = std::max(0.0, whole.joinedShare() - inside) * length;
-      if (whole.faces <= kMaxFacesJoinedPairwise) {
-        for (size_t a = i; a < j; ++a)
-          for (size_t b = a + 1; b < j; ++b) {
-            if (incidences[a].cell == incidences[b].cell) continue;
-            const double weight = double(incidences[a].sides) * incidences[b].sides;
-            pairs.push_back({{incidences[a].cell, incidences[b].cell},
-                             {incidences[a].ref, incidences[b].ref},
-                             crossWeight > 0 ? cross * weight / crossWeight : 0.0});
-          }
-      } else {
-        // A chain: each cell's faces are linked by its own adjacency, the cells' runs by one link each.
-        for (size_t a = i; a + 1 < j; ++a) {
-          if (incidences[a].cell == incidences[a + 1].cell) continue;
-          pairs.push_back({{incidences[a].cell, incidences[a + 1].cell},
-                           {incidences[a].ref, incidences[a + 1].ref},
-                           cross / (cellRuns - 1)});
-        }
-      }
-    }
-    i = j;
   }
 }
 
