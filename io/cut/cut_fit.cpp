@@ -66,13 +66,13 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
 
   // The centroids' box, which the Morton codes are taken in.
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
-  const auto centroid = [](const FaceRangeMesh& piece, size_t t) {
+  const auto centroid = [](const fch::FacePiece& piece, size_t t) {
     glm::dvec3 p(0.0);
     for (int k = 0; k < 3; ++k) p += glm::dvec3(piece.vertices[piece.indices[3 * t + k]]);
     return p / 3.0;
   };
   reader.forEachFacePiece(
-      [&](const FaceRangeMesh& piece) {
+      [&](const fch::FacePiece& piece) {
         for (size_t t = 0; t < piece.indices.size() / 3; ++t) {
           const glm::dvec3 c = centroid(piece, t);
           lo = glm::min(lo, c), hi = glm::max(hi, c);
@@ -88,7 +88,7 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
   // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
   // its own, so the figures are those of one thread.
   reader.forEachFacePiece(
-      [&](const FaceRangeMesh& piece) {
+      [&](const fch::FacePiece& piece) {
         const size_t triangles = piece.indices.size() / 3;
         const auto corner = [&](size_t t, int k) -> const glm::vec3& {
           return piece.vertices[piece.indices[3 * t + k]];

@@ -13,6 +13,16 @@
 
 namespace facetree::fch {
 
+// Triangles [first, first + indices.size() / 3) of the face order: their corners index `vertices`
+// (the piece's own, from a reader; the file's, in memory), with their original ids unless the
+// pass asked for the geometry alone.
+struct FacePiece {
+  uint64_t first = 0;
+  std::span<const glm::vec3> vertices;
+  std::span<const uint32_t> indices;
+  std::span<const uint64_t> originalFace;
+};
+
 class ClusterSource {
  public:
   virtual ~ClusterSource() = default;
@@ -25,7 +35,7 @@ class ClusterSource {
   virtual uint64_t forEachNode(const std::function<bool(uint64_t, const FchNode&, uint32_t)>& visit,
                                NodeFields fields = NodeFields::All) = 0;
   virtual void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit) = 0;
-  virtual void forEachFacePiece(const std::function<void(const FaceRangeMesh&)>& visit,
+  virtual void forEachFacePiece(const std::function<void(const FacePiece&)>& visit,
                                 FaceFields fields = FaceFields::All) = 0;
   // What a pass may hold, and where it spills the rest.
   virtual uint64_t memoryBytes() const = 0;
@@ -45,8 +55,12 @@ class ReaderSource final : public ClusterSource {
   void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit) override {
     reader_.forEachVertexFrame(visit);
   }
-  void forEachFacePiece(const std::function<void(const FaceRangeMesh&)>& visit, FaceFields fields) override {
-    reader_.forEachFacePiece(visit, fields);
+  void forEachFacePiece(const std::function<void(const FacePiece&)>& visit, FaceFields fields) override {
+    reader_.forEachFacePiece(
+        [&](const FaceRangeMesh& mesh) {
+          visit({mesh.first, mesh.vertices, mesh.indices, mesh.originalFace});
+        },
+        fields);
   }
   uint64_t memoryBytes() const override { return reader_.memoryBytes(); }
   std::filesystem::path temporaryDirectory() const override { return reader_.temporaryDirectory(); }
@@ -57,11 +71,11 @@ class ReaderSource final : public ClusterSource {
 
 // A ClusterFile as a source: its header with the counts of its arrays (a file in memory may hold
 // its nodes alone), its nodes with their depths and children's face counts, its triangles in
-// pieces of kPieceFaces with their own vertex numbering, and a cap of sixteen times the file's
-// own bytes (its passes' records then stay in memory).
+// pieces of kPieceFaces, and the cap a reader of the file would hold (the one it
+// was built under, else the default). Its face pieces are views of its arrays.
 class MemorySource final : public ClusterSource {
  public:
-  static constexpr uint64_t kPieceFaces = uint64_t{1} << 16;
+  static constexpr uint64_t kPieceFaces = uint64_t{1} << 18;
   explicit MemorySource(const ClusterFile& file) : file_(file), header_(file.header) {
     header_.nodeCount = file.nodes.size();
     header_.triangleCount = file.indices.size() / 3;
@@ -75,7 +89,7 @@ class MemorySource final : public ClusterSource {
   void forEachVertexFrame(const std::function<void(uint64_t, std::span<const glm::vec3>)>& visit) override {
     visit(0, file_.vertices);
   }
-  void forEachFacePiece(const std::function<void(const FaceRangeMesh&)>& visit, FaceFields fields) override;
+  void forEachFacePiece(const std::function<void(const FacePiece&)>& visit, FaceFields fields) override;
   uint64_t memoryBytes() const override;
   std::filesystem::path temporaryDirectory() const override { return {}; }
 

@@ -240,7 +240,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
     Starting start;
     fch::NodeFaceSums sums;
   };
-  struct Worker {
+  struct alignas(64) Worker {  // a cache line of its own: the workers write their stacks at once
     std::vector<Open> open;
     std::optional<std::pair<uint64_t, fch::NodeCheckFailure>> first;
   };
@@ -268,7 +268,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
     }
   };
   // Worker k's share of one piece: its faces, and its nodes of those starting there.
-  const auto sweep = [&](unsigned k, const FaceRangeMesh& piece) {
+  const auto sweep = [&](unsigned k, const fch::FacePiece& piece) {
     Worker& w = team[k];
     const size_t triangles = piece.indices.size() / 3;
     for (size_t t = 0, s = 0; t < triangles; ++t) {
@@ -285,7 +285,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
     }
   };
   reader.forEachFacePiece(
-      [&](const FaceRangeMesh& piece) {
+      [&](const fch::FacePiece& piece) {
         // The nodes starting in the piece, in push order, with their steps.
         const size_t triangles = piece.indices.size() / 3;
         starts.clear();

@@ -18,7 +18,7 @@ namespace {
 // The file's triangles keyed and bucketed by windows of `window` original ids.
 void bucketFileTriangles(fch::ClusterSource& reader, uint64_t window,
                          fch::WindowBuckets<fch::TriangleKey>& out) {
-  reader.forEachFacePiece([&](const FaceRangeMesh& piece) {
+  reader.forEachFacePiece([&](const fch::FacePiece& piece) {
     for (size_t t = 0; t < piece.originalFace.size(); ++t) {
       const uint64_t id = piece.originalFace[t];
       out.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],

@@ -42,13 +42,18 @@ class WindowBuckets {
   }
   bool empty() const { return buckets_.empty(); }
   uint64_t firstWindow() const { return buckets_.begin()->first; }
-  // Records in the first bucket (the one take() would give).
   // The bucket of `window` (empty if none), into `out` (replaced); the bucket is dropped.
   void take(uint64_t window, std::vector<Record>& out) {
     out.clear();
     const auto it = buckets_.find(window);
     if (it == buckets_.end()) return;
     Bucket& b = it->second;
+    held_ -= b.buffer.size() * sizeof(Record);
+    if (b.runs.empty()) {  // all in memory: handed over, not copied
+      out.swap(b.buffer);
+      buckets_.erase(it);
+      return;
+    }
     out.reserve(b.count);
     for (const Run& run : b.runs) {
       const size_t at = out.size();
@@ -56,7 +61,6 @@ class WindowBuckets {
       file_->read(run.offset, &out[at], uint64_t{run.count} * sizeof(Record));
     }
     out.insert(out.end(), b.buffer.begin(), b.buffer.end());
-    held_ -= b.buffer.size() * sizeof(Record);
     buckets_.erase(it);
   }
 
