@@ -29,11 +29,12 @@ uint64_t MemorySource::forEachNode(const std::function<bool(uint64_t, const FchN
 
 void MemorySource::forEachFacePiece(const std::function<void(const FacePiece&)>& visit, FaceFields fields) {
   const uint64_t faces = file_.indices.size() / 3;
+  // A file read without its ids (or made short of them) gives none rather than a view past them.
+  const bool withIds = fields == FaceFields::All && file_.originalFace.size() == faces;
   for (uint64_t first = 0; first < faces; first += kPieceFaces) {
     const uint64_t n = std::min(faces - first, kPieceFaces);
-    const std::span<const uint64_t> ids = fields == FaceFields::All
-                                              ? std::span(file_.originalFace).subspan(first, n)
-                                              : std::span<const uint64_t>();
+    const std::span<const uint64_t> ids =
+        withIds ? std::span(file_.originalFace).subspan(first, n) : std::span<const uint64_t>();
     visit({first, file_.vertices, std::span(file_.indices).subspan(3 * first, 3 * n), ids});
   }
 }
