@@ -1,8 +1,7 @@
 // Tightest-fit octree volume clustering: the baseline of Willmott 2000, sec. 5.7.2 and Fig. 80.
-// Top-down and breadth first, the node array its own work queue; each node partitions its range
-// of triangles in place into nine buckets (those larger than an octant stay, the rest go to the
-// octant of their box's centre). Boxes are axis-aligned and exact, joined bottom-up.
-// docs/design.md has the details.
+// Top-down and breadth first, the node array its own work queue; each node partitions its range of
+// triangles in place into nine buckets (those larger than an octant stay, the rest go to the octant
+// of their box's centre). Boxes are axis-aligned and exact, joined bottom-up.
 #include <algorithm>
 #include <array>
 #include <chrono>

@@ -1,8 +1,8 @@
 // Internal to query/: a reader's nodes laid out for queries. Nodes are grouped by subtree: a node
 // of at most kPageFaces faces lies in the page of the highest such node above it, so that a query
-// entering a subtree reads it once; the nodes above the pages lie in chunks in index order. Both
-// go to one temporary file in one pass over the nodes, read a page at a time through a shared
-// cache bounded in bytes. The triangles follow in face order, in blocks. docs/design.md has more.
+// entering a subtree reads it once; the nodes above the pages lie in chunks in index order. Both go
+// to one temporary file in one pass over the nodes, read a page at a time through a shared cache
+// bounded in bytes. The triangles follow in face order, in blocks.
 #pragma once
 
 #include <cstddef>

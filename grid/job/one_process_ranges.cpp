@@ -1,8 +1,8 @@
 // The one-process schedule of a binary PLY or STL read in ranges (out of core): the stages' own
 // read, count, (an STL's) weld, grid and bin tasks (job/read_tasks.cpp, job/weld_tasks.cpp) on a
 // pool of threads over a work directory in the run's temporary directory, then the tasks from the
-// cells on (runTasksHere). The tasks share half the cap and hand on their manifests in memory; their
-// outputs depend on the plan alone, so the file is the same bytes for any pool. docs/design.md has more.
+// cells on (runTasksHere). The tasks share half the cap and hand on their manifests in memory;
+// their outputs depend on the plan alone, so the file is the same bytes for any pool.
 #include <algorithm>
 #include <string>
 

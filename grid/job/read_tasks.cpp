@@ -1,8 +1,7 @@
-// The read, count, grid and bin tasks of a binary PLY or STL read in ranges
-// (job/work_directory.h). Face records have one size, so task i reads its faces straight from the
-// input, and every step reads its range again rather than spilling it. The tasks of a step depend
-// only on the steps before, and the binned segments in range order are what the single
-// process's one pass makes. docs/design.md has the steps.
+// The read, count, grid and bin tasks of a binary PLY or STL read in ranges (job/work_directory.h).
+// Face records have one size, so task i reads its faces straight from the input, and every step
+// reads its range again rather than spilling it. The tasks of a step depend only on the steps
+// before, and the binned segments in range order are what the single process's one pass makes.
 #include <algorithm>
 #include <cmath>
 #include <cstring>

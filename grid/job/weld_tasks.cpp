@@ -1,9 +1,8 @@
 // The weld of a binary STL read in ranges (job/work_directory.h): each distinct position gets the
-// vertex id the single process's weld gives it (stages/weld_arrival.cpp), its rank among the
-// mesh's distinct positions, through a sample sort (Blelloch et al. 1991): the read samples each
-// range's corners, the count files them into buckets at the sample's splitters, a weld task
-// numbers its bucket's distinct positions, and the bin adds the bucket's first id.
-// docs/design.md has the steps and their memory.
+// vertex id the single process's weld gives it (stages/weld_arrival.cpp), its rank among the mesh's
+// distinct positions, through a sample sort (Blelloch et al. 1991): the read samples each range's
+// corners, the count files them into buckets at the sample's splitters, a weld task numbers its
+// bucket's distinct positions, and the bin adds the bucket's first id.
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>

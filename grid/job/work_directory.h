@@ -1,8 +1,7 @@
 // Internal to grid/: the work directory of the stages run as tasks (facetree/grid.h planStages,
-// runStageTask, finishStages): its files' names, the plan, and what the cells tasks and the
-// finish load of it. docs/design.md lists the directory's files, step by step. A task's
-// manifest (a node task's piece) marks it done; one process keeps the manifests in memory as
-// far as a budget holds them (ManifestShelf, job/one_process_tasks.h).
+// runStageTask, finishStages): its files' names, the plan, and what the cells tasks and the finish
+// load of it. A task's manifest (a node task's piece) marks it done; one process keeps the
+// manifests in memory as far as a budget holds them (ManifestShelf, job/one_process_tasks.h).
 #pragma once
 
 #include <cstdint>

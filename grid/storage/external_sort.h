@@ -2,7 +2,7 @@
 // of a full buffer sorted in memory, combined by a P-way heap merge in as many balanced passes as
 // the budget's fan-in needs. The edge matching across cells sorts its half-edge records with it.
 // Memory: the budget, plus one compressed block, the zstd contexts and 16 bytes a spilled block
-// (docs/design.md has the sums; sort_memory_probe checks them). Internal to grid/.
+// (sort_memory_probe checks them). Internal to grid/.
 #pragma once
 
 #include <algorithm>

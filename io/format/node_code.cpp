@@ -2,7 +2,6 @@
 // record, floats as the merge made them, S and side areas in 12-bit fractions of the area,
 // orientations on the stored lattice, exact boxes with half extents rounded up to 18 bits, and
 // compact boxes on a grid of 255 steps of the parent box (Ylitie et al. 2017, for oriented boxes).
-// docs/design.md has what each field costs and why.
 #include "format/node_code.h"
 
 #include <algorithm>

@@ -11,6 +11,12 @@
 
 #include "facetree/io.h"
 
+namespace facetree {
+// The cap a reader holds: the one asked for, else the one the file was built under, else the
+// build's default (read/lazy_reader.cpp).
+uint64_t readerMemory(const ReaderOptions& options, const FileHeader& header);
+}  // namespace facetree
+
 namespace facetree::fch {
 
 // Triangles [first, first + indices.size() / 3) of the face order: their corners index `vertices`

@@ -43,8 +43,6 @@ uint64_t frameBytes(const CachedFrame& f) {
 
 }  // namespace
 
-// The cap a reader holds: the one asked for, else the one the file was built under, else the build's
-// default.
 uint64_t readerMemory(const ReaderOptions& options, const FileHeader& header) {
   if (options.memoryBytes) return options.memoryBytes;
   return header.memoryCapBytes ? header.memoryCapBytes : defaultMemoryCap();

@@ -40,7 +40,7 @@ void MemorySource::forEachFacePiece(const std::function<void(const FacePiece&)>&
 }
 
 uint64_t MemorySource::memoryBytes() const {
-  return file_.header.memoryCapBytes ? file_.header.memoryCapBytes : defaultMemoryCap();
+  return readerMemory({}, file_.header);
 }
 
 }  // namespace facetree::fch

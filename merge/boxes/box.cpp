@@ -1,9 +1,8 @@
-// Exact oriented bounding boxes and side areas of face clusters (Willmott 2000, sec. 5.3).
-// Frames are chosen bottom-up from exact surface moments and the children's hull points
-// (boxes/frame.h); extents and side areas are exact, every node projecting every vertex of its face
-// range on its stored axes (sec. 5.3.1), over faces packed in hierarchy order one subtree at a
-// time. Subtrees run in parallel and side areas sum over fixed blocks: the same bits for any
-// thread count. docs/design.md has the trade-offs.
+// Exact oriented bounding boxes and side areas of face clusters (Willmott 2000, sec. 5.3). Frames
+// are chosen bottom-up from exact surface moments and the children's hull points (boxes/frame.h);
+// extents and side areas are exact, every node projecting every vertex of its face range on its
+// stored axes (sec. 5.3.1), over faces packed in hierarchy order one subtree at a time. Subtrees
+// run in parallel and side areas sum over fixed blocks: the same bits for any thread count.
 #include "boxes/box.h"
 
 #include <algorithm>

@@ -1,11 +1,11 @@
-// greedyMergeClusters: the greedy dual-edge merge in the exact order (Garland, Willmott &
-// Heckbert 2001; Willmott 2000, ch. 5, eq. 84) over given clusters, the reference the rounds are
-// measured against. The live cluster with the cheapest (key, id) merges along its cheapest edge;
-// a lazy heap (engine/heap.h) holds a lower bound of each cluster's key; the balance guard
-// (engine/balance_guard.h) penalises or blocks edges. Pieces that share no edge join by the same cost
-// through proximity candidates (top/proximity.h); the last clusters merge by the least increase of
-// the fit (Ward's criterion over eq. 84), held to the boxes' limit of Morton runs, and orderTop
-// (top/top_order.h) orders the file's first cuts. docs/design.md has the rules and the memory.
+// greedyMergeClusters: the greedy dual-edge merge in the exact order (Garland, Willmott & Heckbert
+// 2001; Willmott 2000, ch. 5, eq. 84) over given clusters, the reference the rounds are measured
+// against. The live cluster with the cheapest (key, id) merges along its cheapest edge; a lazy heap
+// (engine/heap.h) holds a lower bound of each cluster's key; the balance guard
+// (engine/balance_guard.h) penalises or blocks edges. Pieces that share no edge join by the same
+// cost through proximity candidates (top/proximity.h); the last clusters merge by the least
+// increase of the fit (Ward's criterion over eq. 84), held to the boxes' limit of Morton runs, and
+// orderTop (top/top_order.h) orders the file's first cuts.
 #include <algorithm>
 #include <bit>
 #include <cmath>

@@ -3,7 +3,7 @@
 // Two levels, a small hot heap of the cheapest entries and an unsorted cold array refilled in
 // batches by one branch-free pass (sequence heaps, Sanders 2000, reduced to two levels), so that
 // the heap stays in cache. An entry packs (key, id) into one integer: ties break by id, and the pop
-// order is a pure function of the operations. Keys must not be NaN (cost/cost.h). docs/design.md has why.
+// order is a pure function of the operations. Keys must not be NaN (cost/cost.h).
 #pragma once
 
 #include <algorithm>

@@ -1,10 +1,10 @@
 // The dual-edge merge in rounds of reciprocal cheapest pairs (RAC, Sumengen et al. 2021; PLOC,
-// Meister & Bittner 2018): every cluster finds its cheapest edge under one total order, the
-// pairs that are each other's cheapest merge at once, and the round contracts into a dense
-// renumbering. Eq. 84 (Willmott 2000) is not reducible, so the rounds approximate the greedy
-// order; near the top only pairs up to the round's median key merge, and when a round stalls
-// the exact greedy (greedyMergeClusters) finishes. Phases run over fixed blocks: the same result
-// for every thread count. mergeClusters, the public entry, is here. docs/design.md has the layout.
+// Meister & Bittner 2018): every cluster finds its cheapest edge under one total order, the pairs
+// that are each other's cheapest merge at once, and the round contracts into a dense renumbering.
+// Eq. 84 (Willmott 2000) is not reducible, so the rounds approximate the greedy order; near the top
+// only pairs up to the round's median key merge, and when a round stalls the exact greedy
+// (greedyMergeClusters) finishes. Phases run over fixed blocks: the same result for every thread
+// count. mergeClusters, the public entry, is here.
 #include <algorithm>
 #include <chrono>
 #include <cmath>

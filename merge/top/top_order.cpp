@@ -1,9 +1,9 @@
-// orderTop: the order in which the file opens the hierarchy, top down. The file's cut of k
-// clusters is its first k - 1 nodes (Willmott 2000, sec. 5.5.3); here the top's nodes and those
-// below them are ordered by what expanding a node removes from the cut's fit, the sum of
-// area x eFit (eq. 84) over its clusters, looking a few expansions ahead, with the cut's box areas
-// held within the top's limit. The placed nodes are re-costed above every other node, so that the
-// prefix is this order in core and out of core alike. docs/design.md has the rules.
+// orderTop: the order in which the file opens the hierarchy, top down. The file's cut of k clusters
+// is its first k - 1 nodes (Willmott 2000, sec. 5.5.3); here the top's nodes and those below them
+// are ordered by what expanding a node removes from the cut's fit, the sum of area x eFit (eq. 84)
+// over its clusters, looking a few expansions ahead, with the cut's box areas held within the top's
+// limit. The placed nodes are re-costed above every other node, so that the prefix is this order in
+// core and out of core alike.
 #include "top/top_order.h"
 
 #include <algorithm>

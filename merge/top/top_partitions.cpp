@@ -1,9 +1,9 @@
-// lastMergesByPartitions: the order of the top's last merges, chosen over every order at once.
-// With n <= 8 clusters left, every order is a chain of set partitions (Bell(8) = 4,140). Each cut
-// of a chain has two terms, its box areas over the Morton runs' limit and its fit (area x eFit,
-// eq. 84) over the top's own order's; the chain kept is the one whose worst term is least, with
-// no root higher than the order one at a time's (Willmott 2000, sec. 5.5.3: a file's cut of k
-// clusters is the state k merges before the root). docs/design.md has the search.
+// lastMergesByPartitions: the order of the top's last merges, chosen over every order at once. With
+// n <= 8 clusters left, every order is a chain of set partitions (Bell(8) = 4,140). Each cut of a
+// chain has two terms, its box areas over the Morton runs' limit and its fit (area x eFit, eq. 84)
+// over the top's own order's; the chain kept is the one whose worst term is least, with no root
+// higher than the order one at a time's (Willmott 2000, sec. 5.5.3: a file's cut of k clusters is
+// the state k merges before the root).
 #include "top/top_partitions.h"
 
 #include <algorithm>
