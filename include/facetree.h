@@ -9,4 +9,5 @@
 #include "facetree/merge.h"
 #include "facetree/picture.h"
 #include "facetree/query.h"
+#include "facetree/storage.h"
 #include "facetree/stream.h"

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "facetree/io.h"
+#include "facetree/storage.h"
 
 namespace facetree::query {
 

@@ -8,10 +8,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "facetree/storage.h"
 #include "job/work_directory.h"
 #include "stages/weld_corner.h"
-#include "storage/bucket_spill.h"
-#include "storage/external_sort.h"
 
 namespace facetree {
 namespace {

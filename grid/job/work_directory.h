@@ -14,9 +14,9 @@
 
 #include "facetree/io.h"
 #include "job/job.h"
+#include "job/manifest.h"
 #include "stages/stages.h"
 #include "stages/weld_corner.h"
-#include "storage/manifest.h"
 
 namespace facetree {
 

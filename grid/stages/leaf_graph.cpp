@@ -16,8 +16,8 @@
 #include <type_traits>
 #include <utility>
 
+#include "facetree/storage.h"
 #include "stages/stages.h"
-#include "storage/external_sort.h"
 
 namespace facetree {
 namespace {

@@ -12,8 +12,7 @@
 #include <thread>
 #include <vector>
 
-#include "storage/external_sort.h"
-#include "storage/spill_file.h"
+#include "facetree/storage.h"
 
 namespace facetree {
 

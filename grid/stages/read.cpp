@@ -13,8 +13,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "facetree/storage.h"
 #include "stages/stages.h"
-#include "storage/external_sort.h"
 
 namespace facetree {
 namespace {

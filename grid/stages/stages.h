@@ -20,13 +20,11 @@
 #include <glm/vec3.hpp>
 
 #include "facetree/grid.h"
+#include "facetree/storage.h"
 #include "stages/cell_grid.h"
 #include "stages/face_record.h"
 #include "stages/memory_plan.h"
 #include "stages/vertex_positions.h"
-#include "storage/bucket_spill.h"
-#include "storage/spill_file.h"
-#include "storage/temp_space.h"
 
 namespace facetree {
 

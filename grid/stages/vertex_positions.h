@@ -15,8 +15,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "storage/spill_file.h"
-#include "storage/temp_space.h"
+#include "facetree/storage.h"
 
 namespace facetree {
 

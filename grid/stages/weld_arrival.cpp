@@ -10,9 +10,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "facetree/storage.h"
 #include "stages/stages.h"
 #include "stages/weld_corner.h"
-#include "storage/external_sort.h"
 
 namespace facetree {
 namespace {

@@ -15,11 +15,11 @@
 #include <utility>
 
 #include "facetree/io.h"
+#include "facetree/storage.h"
 #include "stages/node_order.h"
 #include "stages/stages.h"
 #include "stages/upper_boxes.h"
 #include "stages/upper_tree.h"
-#include "storage/external_sort.h"
 
 namespace facetree {
 

@@ -2,8 +2,8 @@
 // cut's clusters, and how spatially coherent the cut is: the sum of its boxes' surface areas
 // against that of as many runs of the faces in Morton order. Each cluster is a run of the face
 // order, so one pass over the faces sums every cut's open cluster at once (SurfaceStatsSum: eFit
-// needs no dual graph); the Morton runs come from a sort of every face's code and corners' box in
-// runs of a temporary file (SortedRuns). One pass serves the file in memory and the file read
+// needs no dual graph); the Morton runs come from an external sort of every face's code and
+// corners' box (ExternalSorter). One pass serves the file in memory and the file read
 // under a cap (read/cluster_source.h): the same figures to the last bit.
 #include <algorithm>
 #include <exception>
@@ -12,21 +12,23 @@
 #include <thread>
 
 #include "cut/cut_fit_sums.h"
-#include "files/sorted_runs.h"
+#include "facetree/storage.h"
 #include "read/cluster_source.h"
 #include "shape/file_shape.h"
 
 namespace facetree {
 namespace {
 
-// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order,
-// which it keeps among equal codes.
+// A face in the Morton order: its code, its corners' box and its place, which orders equal codes.
 struct MortonFace {
   uint64_t code;
   float lo[3], hi[3];
+  uint64_t face;
 };
-struct MortonKey {
-  uint64_t operator()(const MortonFace& m) const { return m.code; }
+struct MortonLess {
+  bool operator()(const MortonFace& a, const MortonFace& b) const {
+    return a.code < b.code || (a.code == b.code && a.face < b.face);
+  }
 };
 
 // The figures of `cuts` (each in face order, covering every face) over one pass of the nodes for
@@ -83,8 +85,9 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
   // Every cut's clusters, and every face into the sort.
   std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
   std::vector<size_t> at(cuts.size(), 0);
-  fch::SortedRuns<MortonFace, MortonKey> sorted(std::max<uint64_t>(reader.memoryBytes() / 8, 4096),
-                                                reader.temporaryDirectory());
+  TempSpace space(reader.temporaryDirectory());
+  ExternalSorter<MortonFace, MortonLess> sorted(space, "morton",
+                                                std::max<uint64_t>(reader.memoryBytes() / 8, 4096));
   // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
   // its own, so the figures are those of one thread.
   reader.forEachFacePiece(
@@ -97,12 +100,12 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
         std::thread morton([&] {
           try {
             for (size_t t = 0; t < triangles; ++t) {
-              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
+              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}, piece.first + t};
               for (int a = 0; a < 3; ++a) {
                 m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
                 m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
               }
-              sorted.add(m);
+              sorted.push(m);
             }
           } catch (...) {
             failed = std::current_exception();
@@ -142,20 +145,23 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
     runs.push_back(each);
   }
   uint64_t rank = 0;
-  sorted.forEachSorted([&](const MortonFace& m) {
-    for (size_t i = 0; i < runs.size(); ++i) {
-      Runs& run = runs[i];
-      run.box.add(glm::vec3(m.lo[0], m.lo[1], m.lo[2]));
-      run.box.add(glm::vec3(m.hi[0], m.hi[1], m.hi[2]));
-      if (rank + 1 == run.end) {
-        fits[i].mortonBoxArea += run.box.area();
-        run.box = fch::AreaBox{};
-        ++run.r;
-        run.end = (run.r + 1) * faces / run.runs;
+  sorted.finish();
+  std::vector<MortonFace> block(4096);
+  for (size_t got; (got = sorted.read(block)) > 0;)
+    for (const MortonFace& m : std::span(block).first(got)) {
+      for (size_t i = 0; i < runs.size(); ++i) {
+        Runs& run = runs[i];
+        run.box.add(glm::vec3(m.lo[0], m.lo[1], m.lo[2]));
+        run.box.add(glm::vec3(m.hi[0], m.hi[1], m.hi[2]));
+        if (rank + 1 == run.end) {
+          fits[i].mortonBoxArea += run.box.area();
+          run.box = fch::AreaBox{};
+          ++run.r;
+          run.end = (run.r + 1) * faces / run.runs;
+        }
       }
+      ++rank;
     }
-    ++rank;
-  });
   return fits;
 }
 

@@ -17,7 +17,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
-#include "files/temporary_file.h"
+#include "facetree/storage.h"
 
 namespace facetree::fch {
 

@@ -1,27 +1,16 @@
 // Streaming binary little-endian PLY writer.
-#include <bit>
 #include <cstring>
 #include <string>
 
 #include "facetree/io.h"
+#include "mesh/record_output.h"
 
 namespace facetree {
-namespace {
-static_assert(std::endian::native == std::endian::little,
-              "facetree writes little-endian PLY on little-endian hosts");
-constexpr size_t kRecordBatch = 4096;
-}  // namespace
 
-struct PlyWriter::State {
-  explicit State(const std::filesystem::path& path) : out(path) {}
-  OutputFile out;
+struct PlyWriter::State : fch::RecordOutput {
+  using RecordOutput::RecordOutput;
   uint64_t vertexCount = 0, triangleCount = 0;
   uint64_t verticesWritten = 0, trianglesWritten = 0;
-  std::string buffer;
-  void flush() {
-    out.write(buffer.data(), buffer.size());
-    buffer.clear();
-  }
 };
 
 PlyWriter::PlyWriter(const std::filesystem::path& path, uint64_t vertexCount, uint64_t triangleCount)
@@ -33,7 +22,7 @@ PlyWriter::PlyWriter(const std::filesystem::path& path, uint64_t vertexCount, ui
       std::to_string(vertexCount) + "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
       std::to_string(triangleCount) + "\nproperty list uchar int vertex_indices\nend_header\n";
   state_->out.write(header);
-  state_->buffer.reserve(kRecordBatch * 13);
+  state_->buffer.reserve(fch::kRecordBatch * 13);
 }
 
 PlyWriter::~PlyWriter() = default;
@@ -46,9 +35,8 @@ void PlyWriter::addVertex(const glm::vec3& position) {
   std::memcpy(record, &position.x, 4);
   std::memcpy(record + 4, &position.y, 4);
   std::memcpy(record + 8, &position.z, 4);
-  state_->buffer.append(record, sizeof record);
+  state_->add(record, sizeof record);
   ++state_->verticesWritten;
-  if (state_->buffer.size() >= kRecordBatch * 12) state_->flush();
 }
 
 void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
@@ -60,9 +48,8 @@ void PlyWriter::addTriangle(uint32_t a, uint32_t b, uint32_t c) {
   record[0] = 3;
   const int32_t index[3] = {static_cast<int32_t>(a), static_cast<int32_t>(b), static_cast<int32_t>(c)};
   std::memcpy(record + 1, index, 12);
-  state_->buffer.append(record, sizeof record);
+  state_->add(record, sizeof record);
   ++state_->trianglesWritten;
-  if (state_->buffer.size() >= kRecordBatch * 13) state_->flush();
 }
 
 void PlyWriter::finish() {

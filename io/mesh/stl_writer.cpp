@@ -1,27 +1,18 @@
 // Streaming binary STL writer: an 80-byte header, the triangle count, 50-byte records.
-#include <bit>
 #include <cstring>
 #include <string>
 
 #include "facetree/io.h"
+#include "mesh/record_output.h"
 
 namespace facetree {
 namespace {
-static_assert(std::endian::native == std::endian::little,
-              "facetree writes little-endian STL on little-endian hosts");
 constexpr size_t kRecordBytes = 50;
-constexpr size_t kRecordBatch = 4096;
 }  // namespace
 
-struct StlWriter::State {
-  explicit State(const std::filesystem::path& path) : out(path) {}
-  OutputFile out;
+struct StlWriter::State : fch::RecordOutput {
+  using RecordOutput::RecordOutput;
   uint64_t triangleCount = 0, trianglesWritten = 0;
-  std::string buffer;
-  void flush() {
-    out.write(buffer.data(), buffer.size());
-    buffer.clear();
-  }
 };
 
 StlWriter::StlWriter(const std::filesystem::path& path, uint64_t triangleCount)
@@ -35,7 +26,7 @@ StlWriter::StlWriter(const std::filesystem::path& path, uint64_t triangleCount)
   const auto count = static_cast<uint32_t>(triangleCount);
   std::memcpy(header + 80, &count, sizeof count);
   state_->out.write(header, sizeof header);
-  state_->buffer.reserve(kRecordBatch * kRecordBytes);
+  state_->buffer.reserve(fch::kRecordBatch * kRecordBytes);
 }
 
 StlWriter::~StlWriter() = default;
@@ -48,9 +39,8 @@ void StlWriter::addTriangle(const glm::vec3& a, const glm::vec3& b, const glm::v
   std::memcpy(record + 12, &a.x, 12);
   std::memcpy(record + 24, &b.x, 12);
   std::memcpy(record + 36, &c.x, 12);
-  state_->buffer.append(record, sizeof record);
+  state_->add(record, sizeof record);
   ++state_->trianglesWritten;
-  if (state_->buffer.size() >= kRecordBatch * kRecordBytes) state_->flush();
 }
 
 void StlWriter::finish() {

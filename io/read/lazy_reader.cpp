@@ -15,7 +15,7 @@
 
 #include <unistd.h>
 
-#include "files/temporary_file.h"
+#include "facetree/storage.h"
 #include "format/fch_format.h"
 #include "format/node_code.h"
 #include "read/cluster_source.h"
@@ -162,7 +162,7 @@ struct ClusterFileReader::State {
     uint32_t first, count, parent;
     float center[3], half[3], orientation[4];  // compact boxes only
   };
-  std::unique_ptr<fch::TemporaryFile> rangeFile;
+  std::unique_ptr<TemporaryFile> rangeFile;
   std::vector<char> rangeBytes;
 
   // Buffers of one node frame, their capacity kept from frame to frame.
@@ -248,7 +248,7 @@ struct ClusterFileReader::State {
   size_t rangeStride() const { return compactBoxes() ? sizeof(IndexedRange) : 3 * sizeof(uint32_t); }
 
   void recordRanges(size_t k, const std::vector<FchNode>& nodes) {
-    if (!rangeFile) rangeFile = std::make_unique<fch::TemporaryFile>(tmp);
+    if (!rangeFile) rangeFile = std::make_unique<TemporaryFile>(tmp);
     const std::vector<fch::PendingChild>& slots = decoder->frameRanges();
     const size_t stride = rangeStride();
     rangeBytes.resize(nodes.size() * stride);

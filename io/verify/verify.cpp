@@ -136,10 +136,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
   const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
   const uint64_t window = std::max<uint64_t>(budget / sizeof(NodeGeometry), 16);
   const bool geometry = options.boxes || options.statistics;
-  const uint64_t windows = (faces + window - 1) / window;
-  fch::WindowBuckets<NodeGeometry> buckets(
-      budget, std::clamp<uint64_t>(budget / std::max<uint64_t>(windows, 1), 4096, 256 << 10),
-      reader.temporaryDirectory());
+  fch::WindowBuckets<NodeGeometry> buckets(budget, faces, window, reader.temporaryDirectory());
 
   // The tree: children partition the range in order; every node but the root has one parent.
   std::vector<uint32_t> parent(nodes ? n : 0, kNoParent);
@@ -209,7 +206,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
         if (node.flags & ~(kFchJoinsDisjointSurfaces | kFchFlatFrame | kFchTruncated))
           return fail(j, "flags", "unknown flags", j);
         if (geometry)
-          buckets.add(node.first / window, {j, node.first, node.count, node.box, node.area, node.sumNormal});
+          buckets.add(node.first, {j, node.first, node.count, node.box, node.area, node.sumNormal});
         return true;
       },
       geometry ? NodeFields::All : NodeFields::Structure);

@@ -15,22 +15,16 @@ namespace facetree {
 
 namespace {
 
-// The file's triangles keyed and bucketed by windows of `window` original ids.
-void bucketFileTriangles(fch::ClusterSource& reader, uint64_t window,
-                         fch::WindowBuckets<fch::TriangleKey>& out) {
+// The file's triangles keyed and bucketed by original id.
+void bucketFileTriangles(fch::ClusterSource& reader, fch::WindowBuckets<fch::TriangleKey>& out) {
   reader.forEachFacePiece([&](const fch::FacePiece& piece) {
     for (size_t t = 0; t < piece.originalFace.size(); ++t) {
       const uint64_t id = piece.originalFace[t];
-      out.add(id / window, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],
-                                            piece.vertices[piece.indices[3 * t + 1]],
-                                            piece.vertices[piece.indices[3 * t + 2]]));
+      out.add(id, fch::TriangleKey(id, piece.first + t, piece.vertices[piece.indices[3 * t]],
+                                   piece.vertices[piece.indices[3 * t + 1]],
+                                   piece.vertices[piece.indices[3 * t + 2]]));
     }
   });
-}
-
-// Bytes of a bucket's buffer once they spill: the windows' buffers together take about the budget.
-uint64_t runBytes(uint64_t budget, uint64_t faces, uint64_t window) {
-  return std::clamp<uint64_t>(budget / std::max<uint64_t>(faces / window, 1), 4096, 256 << 10);
 }
 
 // Both sides bucketed and each window sorted: for a mesh whose triangles come in any order.
@@ -38,15 +32,13 @@ VerifyResult compareInWindows(fch::ClusterSource& reader, const MeshTriangleSour
   const uint64_t faces = reader.header().triangleCount;
   const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
   const uint64_t window = std::max<uint64_t>(budget / (2 * sizeof(fch::TriangleKey)), 16);
-  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
-                                                reader.temporaryDirectory());
-  fch::WindowBuckets<fch::TriangleKey> fromMesh(budget, runBytes(budget, faces, window),
-                                                reader.temporaryDirectory());
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, faces, window, reader.temporaryDirectory());
+  fch::WindowBuckets<fch::TriangleKey> fromMesh(budget, faces, window, reader.temporaryDirectory());
 
   uint64_t meshTriangles = 0;
   mesh([&](std::span<const MeshTriangle> batch) {
     for (const MeshTriangle& t : batch) {
-      fromMesh.add(t.id / window, fch::TriangleKey(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]));
+      fromMesh.add(t.id, fch::TriangleKey(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]));
       ++meshTriangles;
     }
   });
@@ -54,7 +46,7 @@ VerifyResult compareInWindows(fch::ClusterSource& reader, const MeshTriangleSour
     return {false,
             "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
             0};
-  bucketFileTriangles(reader, window, fromFile);
+  bucketFileTriangles(reader, fromFile);
 
   std::deque<fch::TriangleKey> fileQueue, meshQueue;
   std::vector<fch::TriangleKey> taken;
@@ -64,10 +56,7 @@ VerifyResult compareInWindows(fch::ClusterSource& reader, const MeshTriangleSour
     std::sort(taken.begin(), taken.end());
     queue.insert(queue.end(), taken.begin(), taken.end());
   };
-  while (!fromFile.empty() || !fromMesh.empty()) {
-    const uint64_t w = fromFile.empty()   ? fromMesh.firstWindow()
-                       : fromMesh.empty() ? fromFile.firstWindow()
-                                          : std::min(fromFile.firstWindow(), fromMesh.firstWindow());
+  for (uint64_t w = 0; w < fromFile.windows(); ++w) {
     load(fromFile, w, fileQueue);
     load(fromMesh, w, meshQueue);
     for (; !fileQueue.empty() && !meshQueue.empty(); fileQueue.pop_front(), meshQueue.pop_front())
@@ -85,13 +74,12 @@ VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& m
   const uint64_t faces = reader.header().triangleCount;
   const uint64_t budget = std::max<uint64_t>(reader.memoryBytes() / 8, 4096);
   const uint64_t window = std::max<uint64_t>(budget / sizeof(fch::TriangleKey), 16);
-  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, runBytes(budget, faces, window),
-                                                reader.temporaryDirectory());
-  bucketFileTriangles(reader, window, fromFile);
+  fch::WindowBuckets<fch::TriangleKey> fromFile(budget, faces, window, reader.temporaryDirectory());
+  bucketFileTriangles(reader, fromFile);
   std::deque<fch::TriangleKey> fileQueue;
   std::vector<fch::TriangleKey> taken;
   std::optional<std::string> mismatch;
-  uint64_t meshTriangles = 0, lastId = 0;
+  uint64_t meshTriangles = 0, lastId = 0, nextWindow = 0;
   bool inOrder = true;
   mesh([&](std::span<const MeshTriangle> batch) {
     for (const MeshTriangle& t : batch) {
@@ -103,8 +91,8 @@ VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& m
       }
       lastId = t.id;
       if (mismatch) continue;
-      while (fileQueue.empty() && !fromFile.empty()) {
-        fromFile.take(fromFile.firstWindow(), taken);
+      while (fileQueue.empty() && nextWindow < fromFile.windows()) {
+        fromFile.take(nextWindow++, taken);
         std::sort(taken.begin(), taken.end());
         fileQueue.insert(fileQueue.end(), taken.begin(), taken.end());
       }

@@ -1,18 +1,17 @@
-// Internal to io/: records bucketed by a window of keys (faces, original ids) for a pass that
-// visits the windows in order: in memory until they pass a budget, then in runs of an unnamed
-// temporary file, a bucket's buffer written as a run when it fills. Buckets are kept by window
-// in an ordered map, so that keys far apart cost nothing between them.
+// Internal to io/: records bucketed by windows of `window` keys (faces, original ids) for a pass
+// that visits the windows in order: a BucketSpill (facetree/storage.h) whose buffers together take
+// the budget, each going to the spill's file as it fills, and each window read back once. Keys
+// past the last window (a file's ids that lie) go to the last, after every key below them.
 #pragma once
 
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
-#include <map>
-#include <memory>
 #include <type_traits>
 #include <vector>
 
-#include "files/temporary_file.h"
+#include "facetree/storage.h"
 
 namespace facetree::fch {
 
@@ -21,73 +20,36 @@ class WindowBuckets {
   static_assert(std::is_trivially_copyable_v<Record>);
 
  public:
-  // `budget`: bytes in memory before the buckets go to the file; `runBytes`: a bucket's buffer from
-  // then on (the windows times it is what the buffers hold).
-  WindowBuckets(uint64_t budget, uint64_t runBytes, std::filesystem::path tmp)
-      : runRecords_(std::max<uint64_t>(runBytes / sizeof(Record), 1)),
-        budget_(budget),
-        tmp_(std::move(tmp)) {}
+  // Keys [0, keys) in windows of `window`.
+  WindowBuckets(uint64_t budget, uint64_t keys, uint64_t window, const std::filesystem::path& tmp)
+      : window_(window),
+        space_(tmp),
+        spill_(space_, "windows", windowsOf(keys, window), sizeof(Record),
+               std::clamp<uint64_t>(budget / windowsOf(keys, window), 4 << 10, kMaxSpillBlockBytes),
+               kSpillLevel, /*discardable=*/true) {}
 
-  void add(uint64_t window, const Record& record) {
-    Bucket& b = buckets_[window];
-    b.buffer.push_back(record);
-    ++b.count;
-    held_ += sizeof(Record);
-    if (!file_ && held_ > budget_) {
-      file_ = std::make_unique<TemporaryFile>(tmp_);
-      for (auto& [_, each] : buckets_) flush(each);
-    } else if (file_ && b.buffer.size() >= runRecords_) {
-      flush(b);
-    }
+  uint64_t windows() const { return spill_.buckets(); }
+  void add(uint64_t key, const Record& record) {
+    spill_.append(std::min<uint64_t>(key / window_, spill_.buckets() - 1), &record);
   }
-  bool empty() const { return buckets_.empty(); }
-  uint64_t firstWindow() const { return buckets_.begin()->first; }
-  // The bucket of `window` (empty if none), into `out` (replaced); the bucket is dropped.
+  // The records of `window` in the order added, into `out` (replaced); the window is emptied.
   void take(uint64_t window, std::vector<Record>& out) {
-    out.clear();
-    const auto it = buckets_.find(window);
-    if (it == buckets_.end()) return;
-    Bucket& b = it->second;
-    held_ -= b.buffer.size() * sizeof(Record);
-    if (b.runs.empty()) {  // all in memory: handed over, not copied
-      out.swap(b.buffer);
-      buckets_.erase(it);
-      return;
-    }
-    out.reserve(b.count);
-    for (const Run& run : b.runs) {
-      const size_t at = out.size();
-      out.resize(at + run.count);
-      file_->read(run.offset, &out[at], uint64_t{run.count} * sizeof(Record));
-    }
-    out.insert(out.end(), b.buffer.begin(), b.buffer.end());
-    buckets_.erase(it);
+    out.resize(spill_.records(window));
+    auto* at = reinterpret_cast<std::byte*>(out.data());
+    spill_.drainBucket(window, codec_, [&](std::span<const std::byte> block) {
+      std::memcpy(at, block.data(), block.size());
+      at += block.size();
+    });
   }
 
  private:
-  struct Run {
-    uint64_t offset;
-    uint32_t count;
-  };
-  struct Bucket {
-    std::vector<Record> buffer;
-    std::vector<Run> runs;
-    uint64_t count = 0;
-  };
-  void flush(Bucket& b) {
-    if (b.buffer.empty()) return;
-    const uint64_t bytes = b.buffer.size() * sizeof(Record);
-    file_->write(end_, b.buffer.data(), bytes);
-    b.runs.push_back({end_, static_cast<uint32_t>(b.buffer.size())});
-    end_ += bytes;
-    held_ -= bytes;
-    b.buffer.clear();
+  static uint64_t windowsOf(uint64_t keys, uint64_t window) {
+    return std::max<uint64_t>((keys + window - 1) / window, 1);
   }
-
-  std::map<uint64_t, Bucket> buckets_;
-  uint64_t runRecords_, budget_, held_ = 0, end_ = 0;
-  std::filesystem::path tmp_;
-  std::unique_ptr<TemporaryFile> file_;
+  uint64_t window_;
+  TempSpace space_;
+  BucketSpill spill_;
+  SpillCodec codec_;
 };
 
 }  // namespace facetree::fch

@@ -25,7 +25,7 @@
 #include <glm/common.hpp>
 
 #include "facetree/io.h"
-#include "files/temporary_file.h"
+#include "facetree/storage.h"
 #include "format/fch_format.h"
 #include "format/node_code.h"
 #include "format/piece.h"
@@ -64,52 +64,25 @@ std::string str(uint64_t v) {
   return std::to_string(v);
 }
 
-// A temporary file of compressed frames that no directory entry names (createUnnamedFile): the
-// descriptor keeps it alive, and the kernel frees it when the writer goes, however the process ends.
-class FrameSpill {
- public:
-  FrameSpill(const std::filesystem::path& dir, const std::string& owner) : owner_(owner), dir_(dir) {
-    fd_ = fch::createUnnamedFile(dir, ".facetree-spill-");
-    if (fd_ < 0) fail("cannot create a temporary file");
+// A section's spilled frames into the output, in order.
+void copySpill(const TemporaryFile& spill, uint64_t bytes, OutputFile& out, std::vector<char>& buffer) {
+  for (uint64_t offset = 0; offset < bytes;) {
+    const size_t n = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes - offset));
+    spill.read(offset, buffer.data(), n);
+    out.write(buffer.data(), n);
+    offset += n;
   }
-  ~FrameSpill() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  FrameSpill(const FrameSpill&) = delete;
-  FrameSpill& operator=(const FrameSpill&) = delete;
+}
 
-  void append(std::string_view bytes) {
-    for (size_t done = 0; done < bytes.size();) {
-      const ssize_t got = ::write(fd_, bytes.data() + done, bytes.size() - done);
-      if (got < 0 && errno == EINTR) continue;
-      if (got <= 0) fail("cannot write a temporary file");
-      done += static_cast<size_t>(got);
-    }
-    bytes_ += bytes.size();
-  }
-  void copyTo(OutputFile& out, std::vector<char>& buffer) const {
-    for (uint64_t offset = 0; offset < bytes_;) {
-      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes_ - offset));
-      const ssize_t got = ::pread(fd_, buffer.data(), want, static_cast<off_t>(offset));
-      if (got < 0 && errno == EINTR) continue;
-      if (got <= 0) fail("cannot read back a temporary file");
-      out.write(buffer.data(), static_cast<size_t>(got));
-      offset += static_cast<uint64_t>(got);
-    }
-  }
-  uint64_t bytes() const { return bytes_; }
-
- private:
-  [[noreturn]] void fail(const char* what) const {
-    const int error = errno;
-    throw Error(ErrorCategory::Output, owner_ + ": " + what + " in " + dir_.string() + ": " +
-                                           (error ? std::strerror(error) : "short write"));
-  }
-  std::string owner_;
-  std::filesystem::path dir_;
-  int fd_ = -1;
-  uint64_t bytes_ = 0;
-};
+// Adds `n` elements from `first` as a fill makes them, through a scratch vector.
+template <class T, class Fill, class Add>
+auto throughScratch(std::vector<T>& scratch, const Fill& fill, Add add) {
+  return [&scratch, &fill, add](uint64_t first, size_t n) {
+    scratch.resize(n);
+    fill(first, scratch);
+    add(scratch);
+  };
+}
 
 // A worker's buffers, reused frame to frame: elements made by a fill, node codes.
 struct FrameScratch {
@@ -255,13 +228,14 @@ class CompressorPool {
 
 struct ClusterFileWriter::State {
   // One section's progress: elements arrived, frames written (offsets relative to the section's
-  // start until finish()), compressed bytes, and the spill holding them (none for file-output nodes).
+  // start until finish()), compressed bytes, and the unnamed file holding them (none for file-output
+  // nodes), which the kernel frees when the writer goes, however the process ends.
   struct Section {
     uint64_t declared = 0;
     uint64_t arrived = 0;
     uint64_t bytes = 0;
     std::vector<FchFrame> frames;
-    std::optional<FrameSpill> spill;
+    std::optional<TemporaryFile> spill;
   };
 
   std::string name;        // the output as named in messages
@@ -495,7 +469,7 @@ void ClusterFileWriter::State::placeFrame(FchSection s, FchFrame frame, std::str
     spilled += bytes.size();  // counted once the hook agreed, released whatever happens next
     spilledPeak = std::max(spilledPeak, spilled);
     if (!sec.spill) sec.spill.emplace(spillDir, name);
-    sec.spill->append(bytes);
+    sec.spill->write(sec.bytes, bytes.data(), bytes.size());
   }
   sec.bytes += bytes.size();
   sec.frames.push_back(frame);
@@ -521,7 +495,7 @@ void ClusterFileWriter::State::triangleFrames(std::span<const uint32_t> corners,
 
 void ClusterFileWriter::State::release(Section& s) {
   if (!s.spill) return;
-  const uint64_t bytes = s.spill->bytes();
+  const uint64_t bytes = s.bytes;
   s.spill.reset();
   spilled -= bytes;
   if (hook) hook(-static_cast<int64_t>(bytes));
@@ -712,11 +686,7 @@ void ClusterFileWriter::addNodes(std::span<const FchNode> nodes) {
 void ClusterFileWriter::addNodes(uint64_t count, NodeFill fill) {
   State& s = *state_;
   s.guarded("addNodes", [&] {
-    const auto add = [&](uint64_t first, size_t n) {
-      s.scratch.nodes.resize(n);
-      fill(first, s.scratch.nodes);
-      s.addNodes(s.scratch.nodes);
-    };
+    const auto add = throughScratch(s.scratch.nodes, fill, [&](const auto& nodes) { s.addNodes(nodes); });
     // Compact boxes are quantised against their parents' in file order, on this thread.
     const bool onWorkers = s.layout.header.boxes == BoxPrecision::Exact;
     const size_t buffered = s.frameCodes.size();
@@ -800,11 +770,8 @@ void ClusterFileWriter::addVertices(std::span<const glm::vec3> vertices) {
 void ClusterFileWriter::addVertices(uint64_t count, VertexFill fill) {
   State& s = *state_;
   s.guarded("addVertices", [&] {
-    const auto add = [&](uint64_t first, size_t n) {
-      s.scratch.vertices.resize(n);
-      fill(first, s.scratch.vertices);
-      s.addVertices(s.scratch.vertices);
-    };
+    const auto add =
+        throughScratch(s.scratch.vertices, fill, [&](const auto& vertices) { s.addVertices(vertices); });
     s.fillFrames(FchSection::Vertices, s.vertices.size(), count, add, [&](uint64_t first, uint32_t n) {
       s.section(FchSection::Vertices).arrived += n;
       s.makeFrame(FchSection::Vertices, first, n,
@@ -887,7 +854,7 @@ uint64_t ClusterFileWriter::finish() {
       s.output.emplace(s.name);
       std::vector<char> buffer(kCopyBufferBytes);
       for (State::Section& sec : s.sections) {
-        if (sec.spill) sec.spill->copyTo(*s.output, buffer);
+        if (sec.spill) copySpill(*sec.spill, sec.bytes, *s.output, buffer);
         s.release(sec);
       }
       s.output->write(fch::encodePieceTrailer(trailer));
@@ -912,7 +879,7 @@ uint64_t ClusterFileWriter::finish() {
       s.output->write(front);
     }
     for (State::Section& sec : s.sections) {
-      if (sec.spill) sec.spill->copyTo(*s.output, buffer);
+      if (sec.spill) copySpill(*sec.spill, sec.bytes, *s.output, buffer);
       s.release(sec);
     }
     if (!s.stream) s.output->writeAt(0, front);

@@ -339,4 +339,29 @@ std::optional<DualGraph> pieceDualGraph(const FaceGeometry& piece, FaceAdjacency
   return graph;
 }
 
+DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input, std::vector<double>& exact) {
+  struct Canonical {
+    uint32_t a, b;
+    double shared;
+  };
+  std::vector<Canonical> sorted;
+  sorted.reserve(input.size());
+  for (const ClusterEdge& e : input) sorted.push_back({std::min(e.a, e.b), std::max(e.a, e.b), e.shared});
+  std::sort(sorted.begin(), sorted.end(),
+            [](const Canonical& x, const Canonical& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
+  DualGraph graph;
+  exact.clear();
+  graph.edges.reserve(sorted.size());
+  for (size_t i = 0; i < sorted.size();) {
+    const uint32_t a = sorted[i].a, b = sorted[i].b;
+    double shared = 0;
+    for (; i < sorted.size() && sorted[i].a == a && sorted[i].b == b; ++i) shared += sorted[i].shared;
+    graph.edges.push_back({{a, b}, {DualGraph::kNone, DualGraph::kNone}, static_cast<float>(shared), 0.0f});
+    exact.push_back(shared);
+  }
+  std::exchange(sorted, {});
+  linkLists(graph, leafCount);
+  return graph;
+}
+
 }  // namespace facetree

@@ -52,6 +52,11 @@ struct DualGraph {
 // fixed blocks on `threads` threads; the graph is the same for every count.
 DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads = 1);
 
+// Leaf edges in the dual graph's layout: canonical (lower, higher) ends, sorted, parallel edges
+// summed (in double; `exact` keeps the sums, the graph their float values). The edges are valid
+// (checkClusterInput, or the rounds' own).
+DualGraph buildLeafGraph(uint32_t leafCount, std::span<const ClusterEdge> input, std::vector<double>& exact);
+
 // Labels every node of a merge's dual graph (clusters) by its component over the live edges (dead
 // ones, end[0] == kNone, are skipped), numbered 0, 1, ... by their lowest node (engine/components.cpp).
 // Returns the number of components.

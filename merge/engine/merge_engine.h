@@ -55,9 +55,14 @@ unsigned workerThreads(const BuildOptions& options);
 // (consumed), on options.threads threads with the same result for every count.
 MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options);
 
-// mergeClusters' checks of its input (merge.h), with its messages.
+// mergeClusters' checks of its input (merge.h), with its messages (engine/merge_clusters.cpp).
 void checkClusterInput(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
                        const BuildOptions& options, std::span<const GarlandQuadrics> garland);
+// MergeOrder::Rounds' mergeClusters (engine/merge_rounds.cpp), its input checked.
+ClusterMergeResult roundsMergeClusters(std::span<const SurfaceStats> leaves,
+                                       std::span<const ClusterEdge> edges, double diagonalSquared,
+                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+                                       float leavesCost);
 // The exact greedy over given clusters (engine/greedy_merge.cpp): MergeOrder::Exact's mergeClusters, and the
 // tail of the rounds. `leavesCost`: the highest cost below the leaves (mergeClusters), the rounds'
 // records included.

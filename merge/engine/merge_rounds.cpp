@@ -4,7 +4,7 @@
 // Eq. 84 (Willmott 2000) is not reducible, so the rounds approximate the greedy order; near the top
 // only pairs up to the round's median key merge, and when a round stalls the exact greedy
 // (greedyMergeClusters) finishes. Phases run over fixed blocks: the same result for every thread
-// count. mergeClusters, the public entry, is here.
+// count.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -928,13 +928,10 @@ ClusterMergeResult clusterResult(MergeResult&& merged, std::span<const SurfaceSt
 
 }  // namespace
 
-ClusterMergeResult mergeClusters(std::span<const SurfaceStats> leaves, std::span<const ClusterEdge> edges,
-                                 double diagonalSquared, const BuildOptions& options,
-                                 std::span<const GarlandQuadrics> garland, float leavesCost) {
-  checkClusterInput(leaves, edges, options, garland);
-  if (!(diagonalSquared > 0) || !std::isfinite(diagonalSquared)) diagonalSquared = 1.0;  // as FaceGeometry
-  if (options.order == MergeOrder::Exact || leaves.size() < 2)
-    return greedyMergeClusters(leaves, edges, diagonalSquared, options, garland, leavesCost);
+ClusterMergeResult roundsMergeClusters(std::span<const SurfaceStats> leaves,
+                                       std::span<const ClusterEdge> edges, double diagonalSquared,
+                                       const BuildOptions& options, std::span<const GarlandQuadrics> garland,
+                                       float leavesCost) {
   switch (options.metric) {
     case Metric::Garland:
       return clusterResult(

@@ -1,4 +1,4 @@
-// The manifests the stages' tasks hand on (grid/storage/manifest.h): as files of the work
+// The manifests the stages' tasks hand on (grid/job/manifest.h): as files of the work
 // directory, or on a shelf in the memory of the process that runs them, up to its budget.
 #include <filesystem>
 #include <functional>
@@ -12,8 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "facetree/error.h"
-#include "grid/storage/manifest.h"
-#include "spill_test_util.h"
+#include "grid/job/manifest.h"
+#include "storage/spill_test_util.h"
 
 namespace facetree {
 namespace {

@@ -6,9 +6,9 @@
 
 #include <gtest/gtest.h>
 
-#include "grid/storage/temp_space.h"
+#include "facetree/storage.h"
 #include "grid/stages/vertex_positions.h"
-#include "spill_test_util.h"
+#include "storage/spill_test_util.h"
 
 namespace facetree {
 namespace {

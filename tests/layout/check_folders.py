@@ -10,9 +10,9 @@ MAX_IDEAS, MAX_OPENING = 20, 15
 LAYERS = {
     'merge': ['base', 'cost', 'boxes', 'top', 'engine', ''],
     'io': ['files', 'format', 'shape', 'mesh', 'write', 'read', 'cut', 'verify', ''],
-    'grid': ['storage', 'stages', 'job', ''],
+    'grid': ['stages', 'job', ''],
 }
-LIBRARY = ['stream', 'merge', 'io', 'grid', 'query', 'picture', 'generate', 'cli', 'python/src', 'include']
+LIBRARY = ['stream', 'merge', 'storage', 'io', 'grid', 'query', 'picture', 'generate', 'cli', 'python/src', 'include']
 
 root = sys.argv[1]
 os.chdir(root)

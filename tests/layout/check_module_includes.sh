@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The modules' dependencies run one way: cli on grid, picture and generate (and what they expose),
-# grid on io, merge and stream, picture on query, query and generate on io and merge, io on merge,
-# merge and stream on nothing. The compiler
+# grid on io, merge, storage and stream, picture on query, query on io, merge and storage, generate
+# on io and merge, io on merge and storage, merge, storage and stream on nothing. The compiler
 # already refuses another module's internal header (a module sees only include/ and its own folder);
 # this checks which public headers each module includes, and that no source reaches outside its
 # folder by a relative path.
@@ -12,13 +12,14 @@ cd "$1"
 declare -A allowed=(
   [stream]="error stream"
   [merge]="error merge"
-  [io]="error merge io"
-  [grid]="error stream merge io grid"
-  [query]="error merge io query"
-  [picture]="error merge io query picture"
+  [storage]="error storage"
+  [io]="error merge storage io"
+  [grid]="error stream merge storage io grid"
+  [query]="error merge storage io query"
+  [picture]="error merge storage io query picture"
   [generate]="error merge io generate"
-  [cli]="error stream merge io grid query picture generate"
-  [python/src]="error stream merge io grid query picture generate"
+  [cli]="error stream merge storage io grid query picture generate"
+  [python/src]="error stream merge storage io grid query picture generate"
 )
 failed=0
 for module in "${!allowed[@]}"; do
@@ -50,8 +51,9 @@ if grep -n 'cli' python/CMakeLists.txt; then
   failed=1
 fi
 # The public headers themselves: each includes only the modules below it.
-declare -A below=([error]="" [stream]="error" [merge]="error" [io]="error merge" [grid]="error stream merge io"
-                 [query]="error merge io" [picture]="error merge io query" [generate]="error merge io")
+declare -A below=([error]="" [stream]="error" [merge]="error" [storage]="error" [io]="error merge storage"
+                 [grid]="error stream merge storage io" [query]="error merge storage io"
+                 [picture]="error merge storage io query" [generate]="error merge io")
 for header in "${!below[@]}"; do
   while IFS= read -r included; do
     case " ${below[$header]} " in
@@ -60,5 +62,5 @@ for header in "${!below[@]}"; do
     esac
   done < <(sed -n 's/.*#include [<"]facetree\/\([a-z_]*\)\.h[>"].*/\1/p' "include/facetree/$header.h")
 done
-[ "$failed" -eq 0 ] && echo "module includes: one way (stream, merge <- io <- grid, query <- cli, python)"
+[ "$failed" -eq 0 ] && echo "module includes: one way (stream, merge, storage <- io <- grid, query <- cli, python)"
 exit "$failed"

@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "grid/storage/external_sort.h"
+#include "facetree/storage.h"
 #include "spill_test_util.h"
 
 #if defined(__SANITIZE_ADDRESS__)

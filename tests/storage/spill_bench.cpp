@@ -6,8 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "grid/storage/bucket_spill.h"
-#include "grid/storage/external_sort.h"
+#include "facetree/storage.h"
 
 namespace facetree {
 namespace {

@@ -1,5 +1,5 @@
-// The run's temporary directory and its byte accounting (see storage/temp_space.h).
-#include "storage/temp_space.h"
+// The run's temporary directory and its byte accounting (facetree/storage.h).
+#include "facetree/storage.h"
 
 #include <stdlib.h>  // mkdtemp
 

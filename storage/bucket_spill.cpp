@@ -1,5 +1,5 @@
-// Buffered fixed-size record streams over one compressed SpillFile (see storage/bucket_spill.h).
-#include "storage/bucket_spill.h"
+// Buffered fixed-size record streams over one compressed SpillFile (facetree/storage.h).
+#include "facetree/storage.h"
 
 #include <zstd.h>
 

@@ -1,7 +1,7 @@
-// Compressed block files for the out-of-core spills (see storage/spill_file.h). Each block is one zstd frame
+// Compressed block files for the out-of-core spills (facetree/storage.h). Each block is one zstd frame
 // with its content size and checksum, or, below kStoredBelow bytes, the bytes as they are between a tag and
 // their XXH32: a block damaged on disk is an error, never garbage records.
-#include "storage/spill_file.h"
+#include "facetree/storage.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>

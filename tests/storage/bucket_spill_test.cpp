@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "facetree/error.h"
-#include "grid/storage/bucket_spill.h"
+#include "facetree/storage.h"
 #include "spill_test_util.h"
 
 namespace facetree {

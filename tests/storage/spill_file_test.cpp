@@ -19,8 +19,7 @@
 #include <gtest/gtest.h>
 
 #include "error_expect.h"
-#include "grid/storage/spill_file.h"
-#include "grid/storage/temp_space.h"
+#include "facetree/storage.h"
 #include "spill_test_util.h"
 
 namespace facetree {

@@ -1,6 +1,6 @@
-// The non-template parts of the external sort (see storage/external_sort.h): how a budget is split, and the
+// The non-template parts of the external sort (facetree/storage.h): how a budget is split, and the
 // storage of runs.
-#include "storage/external_sort.h"
+#include "facetree/storage.h"
 
 namespace facetree {
 namespace {

@@ -1,5 +1,5 @@
 // Manifests of the stages run as tasks (storage/manifest.h).
-#include "storage/manifest.h"
+#include "job/manifest.h"
 
 #include <fcntl.h>
 #include <unistd.h>

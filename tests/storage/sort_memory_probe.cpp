@@ -12,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "grid/storage/external_sort.h"
+#include "facetree/storage.h"
 
 namespace {
 

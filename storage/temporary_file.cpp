@@ -1,6 +1,6 @@
-// TemporaryFile (facetree/io.h): an unnamed temporary file, O_TMPFILE where the file system has
+// TemporaryFile (facetree/storage.h): an unnamed temporary file, O_TMPFILE where the file system has
 // it, else a name removed at once; reads and writes at offsets, so that threads share no position.
-#include "files/temporary_file.h"
+#include "facetree/storage.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -8,10 +8,11 @@
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include "facetree/error.h"
 
-namespace facetree::fch {
+namespace facetree {
 
 int createUnnamedFile(const std::filesystem::path& dir, const char* prefix) {
   int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
@@ -23,20 +24,18 @@ int createUnnamedFile(const std::filesystem::path& dir, const char* prefix) {
   return fd;
 }
 
-}  // namespace facetree::fch
-
-namespace facetree {
-
-TemporaryFile::TemporaryFile(const std::filesystem::path& dir)
-    : dir_(dir.empty() ? std::filesystem::temp_directory_path() : dir) {
-  fd_ = fch::createUnnamedFile(dir_, "facetree-reader-");
-  if (fd_ < 0)
-    throw Error(ErrorCategory::Output,
-                "cannot create a temporary file in " + dir_.string() + ": " + std::strerror(errno));
+TemporaryFile::TemporaryFile(const std::filesystem::path& dir, std::string owner)
+    : dir_(dir.empty() ? std::filesystem::temp_directory_path() : dir), owner_(std::move(owner)) {
+  fd_ = createUnnamedFile(dir_, "facetree-");
+  if (fd_ < 0) throw Error(ErrorCategory::Output, message("cannot create a temporary file", errno));
 }
 
 TemporaryFile::~TemporaryFile() {
   ::close(fd_);
+}
+
+std::string TemporaryFile::message(const char* what, int error) const {
+  return (owner_.empty() ? "" : owner_ + ": ") + what + " in " + dir_.string() + ": " + std::strerror(error);
 }
 
 void TemporaryFile::write(uint64_t offset, const void* data, uint64_t bytes) {
@@ -47,7 +46,7 @@ void TemporaryFile::write(uint64_t offset, const void* data, uint64_t bytes) {
     if (n <= 0) {
       const int error = n < 0 ? errno : ENOSPC;
       throw Error(error == ENOSPC || error == EDQUOT ? ErrorCategory::Resource : ErrorCategory::Output,
-                  "cannot write a temporary file in " + dir_.string() + ": " + std::strerror(error));
+                  message("cannot write a temporary file", error));
     }
     done += static_cast<uint64_t>(n);
   }
@@ -59,8 +58,7 @@ void TemporaryFile::read(uint64_t offset, void* data, uint64_t bytes) const {
     const ssize_t n = ::pread(fd_, p + done, bytes - done, static_cast<off_t>(offset + done));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0)
-      throw Error(ErrorCategory::Output, "cannot read a temporary file in " + dir_.string() + ": " +
-                                             std::strerror(n < 0 ? errno : EIO));
+      throw Error(ErrorCategory::Output, message("cannot read a temporary file", n < 0 ? errno : EIO));
     done += static_cast<uint64_t>(n);
   }
 }
