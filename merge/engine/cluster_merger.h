@@ -70,7 +70,9 @@ class ClusterMerger {
                                                     std::span<const double> fit);
 
   // What merging clusters a and b adds to the sum of the live clusters' axis-aligned box areas.
-  double unionGrowth(uint32_t a, uint32_t b) const;
+  double unionGrowth(uint32_t a, uint32_t b) const {
+    return AxisBox::united(boxes_[a], boxes_[b]).area() - boxes_[a].area() - boxes_[b].area();
+  }
 
   // Proximity candidates (engine/greedy_pieces.cpp) between the live clusters of different
   // components (`betweenRoots` false: once, when few clusters are left), or between any two live

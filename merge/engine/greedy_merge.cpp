@@ -140,8 +140,8 @@ void ClusterMerger::rebuildHeap() {
   heap_.heapify();
 }
 
-double ClusterMerger::cost(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b, uint32_t ia,
-                           uint32_t ib) {
+inline double ClusterMerger::cost(const ClusterStats& m, const ClusterStats& a, const ClusterStats& b,
+                                  uint32_t ia, uint32_t ib) {
   if (constant_) return 1.0;
   if (garland_)
     return garlandCost(m, a, b, GarlandStats::merged(extras_[ia], extras_[ib]), options_, counters_);
@@ -160,7 +160,7 @@ float ClusterMerger::key(const ClusterStats& a, const ClusterStats& b, double sh
   return guarded(cost(m, a, b, ia, ib) * keyScale_, x.height, y.height, x.faceCount + y.faceCount, final_);
 }
 
-void ClusterMerger::pushEntry(float k, uint32_t c) {
+inline void ClusterMerger::pushEntry(float k, uint32_t c) {
   if (heap_.size() == heap_.capacity()) compactHeap();
   heap_.push({k, c});
 }
@@ -174,7 +174,7 @@ void ClusterMerger::compactHeap() {
   heap_.heapify();
 }
 
-void ClusterMerger::rescan(uint32_t c) {
+inline void ClusterMerger::rescan(uint32_t c) {
   Record& r = clusters_[c];
   r.minEdge = kNoEdge;
   uint32_t* link = &graph_.head[c];

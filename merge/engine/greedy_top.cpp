@@ -191,10 +191,6 @@ std::vector<std::pair<uint8_t, uint8_t>> ClusterMerger::topOrder(std::span<const
   return order;
 }
 
-double ClusterMerger::unionGrowth(uint32_t a, uint32_t b) const {
-  return AxisBox::united(boxes_[a], boxes_[b]).area() - boxes_[a].area() - boxes_[b].area();
-}
-
 void ClusterMerger::enterTop() {
   inTop_ = true;
   topFirst_ = static_cast<uint32_t>(result_.nodes.size());
