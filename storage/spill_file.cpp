@@ -1,10 +1,12 @@
 // Compressed block files for the out-of-core spills (facetree/storage.h). Each block is one zstd frame
-// with its content size and checksum, or, below kStoredBelow bytes, the bytes as they are between a tag and
-// their XXH32: a block damaged on disk is an error, never garbage records.
+// with its content size and checksum, or, below kStoredBelow bytes or at kSpillStored, the bytes as they
+// are between a tag and a 32-bit XXH3 of them, written and read in place (pwritev, preadv): a block
+// damaged on disk is an error, never garbage records.
 #include "facetree/storage.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/uio.h>
 #include <unistd.h>
 #include <xxhash.h>
 #include <zstd.h>
@@ -25,9 +27,10 @@ void SpillCodec::DCtxDeleter::operator()(ZSTD_DCtx_s* context) const {
   ZSTD_freeDCtx(context);
 }
 
-SpillCodec::SpillCodec(int level) : compressor_(ZSTD_createCCtx()), decompressor_(ZSTD_createDCtx()) {
+SpillCodec::SpillCodec(int level)
+    : compressor_(ZSTD_createCCtx()), decompressor_(ZSTD_createDCtx()), stored_(level == kSpillStored) {
   if (!compressor_ || !decompressor_) throw std::bad_alloc();
-  ZSTD_CCtx_setParameter(compressor_.get(), ZSTD_c_compressionLevel, level);
+  if (!stored_) ZSTD_CCtx_setParameter(compressor_.get(), ZSTD_c_compressionLevel, level);
   // 4 bytes per block; catches a temp file changed under us where the frame would still decode.
   ZSTD_CCtx_setParameter(compressor_.get(), ZSTD_c_checksumFlag, 1);
 }
@@ -56,13 +59,38 @@ void unshuffleRecords(std::span<const std::byte> in, std::byte* out, size_t reco
 // Blocks under this many bytes are stored, not compressed: zstd's frame and context setup cost more
 // than the few bytes it would save (the top runs of a leaf's nodes are one to a few nodes).
 constexpr size_t kStoredBelow = 1024;
-// The tag of a stored block (a zstd frame starts with 28 B5 2F FD), then the bytes, then their XXH32.
+// The tag of a stored block (a zstd frame starts with 28 B5 2F FD), then the bytes, then their checksum.
 constexpr std::array<std::byte, 4> kStoredTag = {std::byte{'F'}, std::byte{'T'}, std::byte{'S'},
                                                  std::byte{'B'}};
 constexpr size_t kStoredOverhead = kStoredTag.size() + sizeof(uint32_t);
 
 uint32_t storedChecksum(std::span<const std::byte> raw) {
-  return XXH32(raw.data(), raw.size(), 0);
+  return static_cast<uint32_t>(XXH3_64bits(raw.data(), raw.size()));
+}
+
+// Writes (kWrite) or reads `parts` at `offset` in full; false with errno set on failure (0: the
+// file ended, or took no bytes).
+template <bool kWrite>
+bool transferParts(int fd, std::span<iovec> parts, uint64_t offset) {
+  size_t first = 0;
+  while (first < parts.size()) {
+    const int count = static_cast<int>(parts.size() - first);
+    const ssize_t got = kWrite ? ::pwritev(fd, &parts[first], count, static_cast<off_t>(offset))
+                               : ::preadv(fd, &parts[first], count, static_cast<off_t>(offset));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) {
+      if (got == 0) errno = 0;
+      return false;
+    }
+    offset += static_cast<uint64_t>(got);
+    size_t left = static_cast<size_t>(got);
+    for (; first < parts.size() && left >= parts[first].iov_len; ++first) left -= parts[first].iov_len;
+    if (left > 0) {  // a part taken in part: the rest of it next
+      parts[first].iov_base = static_cast<char*>(parts[first].iov_base) + left;
+      parts[first].iov_len -= left;
+    }
+  }
+  return true;
 }
 
 bool isStored(std::span<const std::byte> block) {
@@ -72,7 +100,7 @@ bool isStored(std::span<const std::byte> block) {
 }  // namespace
 
 std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw, size_t recordBytes) {
-  if (raw.size() < kStoredBelow) {
+  if (stores(raw.size())) {
     scratch_.resize(raw.size() + kStoredOverhead);
     std::copy(kStoredTag.begin(), kStoredTag.end(), scratch_.begin());
     std::copy(raw.begin(), raw.end(), scratch_.begin() + kStoredTag.size());
@@ -92,6 +120,10 @@ std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw, 
   if (ZSTD_isError(got))
     throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(got));
   return {scratch_.data(), got};
+}
+
+bool SpillCodec::stores(size_t rawBytes) const {
+  return stored_ || rawBytes < kStoredBelow;
 }
 
 std::span<std::byte> SpillCodec::compressedScratch(size_t bytes) {
@@ -238,8 +270,22 @@ SpillFile::~SpillFile() {
 SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) {
   if (readOnly_) throw std::logic_error("SpillFile::append: " + path_.string() + " is committed");
   if (raw.size() > kMaxSpillBlockBytes) throw std::invalid_argument("spill block larger than 256 MiB");
-  // Compress outside the lock: each thread has its own codec.
-  const std::span<const std::byte> compressed = codec.compress(raw, recordBytes_);
+  // Compress outside the lock: each thread has its own codec. A stored block goes out as its tag,
+  // the bytes in place and their checksum.
+  const bool stored = codec.stores(raw.size());
+  std::array<std::byte, kStoredTag.size()> tag = kStoredTag;
+  uint32_t sum = 0;
+  std::span<const std::byte> compressed;
+  std::array<iovec, 3> parts{};
+  if (stored) {
+    sum = storedChecksum(raw);
+    parts = {iovec{tag.data(), tag.size()}, iovec{const_cast<std::byte*>(raw.data()), raw.size()},
+             iovec{&sum, sizeof sum}};
+  } else {
+    compressed = codec.compress(raw, recordBytes_);
+    parts[0] = {const_cast<std::byte*>(compressed.data()), compressed.size()};
+  }
+  const uint64_t footprint = stored ? raw.size() + kStoredOverhead : compressed.size();
   std::lock_guard lock(writeMutex_);
   if (fd_ < 0) {  // opened files: the reader's own blocks go to a temporary file of its own
     const std::filesystem::path name = space_.newFile("appended");
@@ -248,19 +294,10 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
     ::unlink(name.c_str());
   }
   const uint64_t offset = bytes_.load(std::memory_order_relaxed);
-  const uint64_t footprint = compressed.size();
   space_.reserve(footprint);
-  size_t done = 0;
-  while (done < compressed.size()) {
-    const ssize_t got =
-        ::pwrite(fd_, compressed.data() + done, compressed.size() - done, static_cast<off_t>(offset + done));
-    if (got > 0) {
-      done += static_cast<size_t>(got);
-      continue;
-    }
-    if (got < 0 && errno == EINTR) continue;
+  if (!transferParts<true>(fd_, std::span(parts).first(stored ? 3 : 1), offset)) {
     // ENOSPC, EDQUOT, EFBIG (RLIMIT_FSIZE with SIGXFSZ ignored), EIO...; a zero-byte write counts as full.
-    const int error = got < 0 ? errno : ENOSPC;
+    const int error = errno != 0 ? errno : ENOSPC;
     space_.release(footprint);
     // Drop the partial block so the file stays exactly its blocks (best effort: it is deleted anyway).
     [[maybe_unused]] const int ignored = ::ftruncate(fd_, static_cast<off_t>(offset));
@@ -272,8 +309,8 @@ SpillBlock SpillFile::append(std::span<const std::byte> raw, SpillCodec& codec) 
     if (live_.size() <= last) live_.resize(last + 1, 0);
     for (uint64_t page = offset / kPageBytes; page <= last; ++page) ++live_[page];
   }
-  bytes_.store(offset + compressed.size(), std::memory_order_release);
-  return {base_ + offset, static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
+  bytes_.store(offset + footprint, std::memory_order_release);
+  return {base_ + offset, static_cast<uint32_t>(footprint), static_cast<uint32_t>(raw.size())};
 }
 
 void SpillFile::ownOpened() {
@@ -402,19 +439,24 @@ void SpillFile::read(const SpillBlock& block, std::span<std::byte> raw, SpillCod
     size = bytes_.load(std::memory_order_acquire);
   }
   if (local + block.compressedBytes > size) corrupt(block, "block lies past the end of the file", file);
-  const std::span<std::byte> compressed = codec.compressedScratch(block.compressedBytes);
-  size_t done = 0;
-  while (done < compressed.size()) {
-    const ssize_t got =
-        ::pread(fd, compressed.data() + done, compressed.size() - done, static_cast<off_t>(local + done));
-    if (got > 0) {
-      done += static_cast<size_t>(got);
-    } else if (got == 0) {
-      corrupt(block, "unexpected end of file", file);
-    } else if (errno != EINTR) {
-      throwTempSpaceError(*file, "read failed", errno);
+  const auto failed = [&] {
+    if (errno == 0) corrupt(block, "unexpected end of file", file);
+    throwTempSpaceError(*file, "read failed", errno);
+  };
+  if (block.compressedBytes == uint64_t{block.rawBytes} + kStoredOverhead) {  // stored, or a frame that size
+    std::array<std::byte, kStoredTag.size()> tag{};
+    uint32_t sum = 0;
+    std::array<iovec, 3> parts = {iovec{tag.data(), tag.size()}, iovec{raw.data(), raw.size()},
+                                  iovec{&sum, sizeof sum}};
+    if (!transferParts<false>(fd, parts, local)) failed();
+    if (tag == kStoredTag) {
+      if (sum != storedChecksum(raw)) corrupt(block, "stored block checksum mismatch", file);
+      return;
     }
   }
+  const std::span<std::byte> compressed = codec.compressedScratch(block.compressedBytes);
+  std::array<iovec, 1> whole = {iovec{compressed.data(), compressed.size()}};
+  if (!transferParts<false>(fd, whole, local)) failed();
   const char* reason = nullptr;
   if (!codec.decompress(compressed, raw, reason, recordBytes_)) corrupt(block, reason, file);
 }

@@ -14,6 +14,7 @@
 #include <deque>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -129,6 +130,10 @@ inline constexpr size_t kMaxSpillBlockBytes = size_t{256} << 20;
 // stay raw): spills are written once and read once, so compression time counts more than a few percent
 // of temporary bytes; -3 is where faster levels stop paying (docs/benchmarks.md has the trade-off).
 inline constexpr int kSpillLevel = -3;
+// A level that stores every block as it is, with its checksum: for the spills of records that zstd
+// finds little in (the readers' sorts and windows of floats and codes), read back once, where the
+// compression would cost more time than the bytes it saves.
+inline constexpr int kSpillStored = std::numeric_limits<int>::min();
 
 // Per-thread zstd state for spills (a CCtx and a DCtx, created once, reused): pass one per thread.
 // Holds one compressed block of scratch, so its memory is the zstd contexts (~370 KiB at kSpillLevel
@@ -146,6 +151,8 @@ class SpillCodec {
   // bytes of floats and small integers that vary alike end up together, which zstd finds (the
   // shuffle filter of Blosc, Alted 2010).
   std::span<const std::byte> compress(std::span<const std::byte> raw, size_t recordBytes = 1);
+  // Whether a block of `rawBytes` is stored as it is (small blocks, kSpillStored) rather than compressed.
+  bool stores(size_t rawBytes) const;
   // Scratch for a compressed block of `bytes`, as read() fills it.
   std::span<std::byte> compressedScratch(size_t bytes);
   // Decompresses `compressed` into exactly raw.size() bytes; false (with `reason`) if it is not a whole
@@ -165,6 +172,7 @@ class SpillCodec {
   std::unique_ptr<ZSTD_DCtx_s, DCtxDeleter> decompressor_;
   std::vector<std::byte> scratch_;
   std::vector<std::byte> shuffled_;  // a block's bytes by record place (recordBytes > 1)
+  bool stored_ = false;              // kSpillStored
 };
 
 // Where a block lives in its SpillFile: the handle append() returns and read() takes.

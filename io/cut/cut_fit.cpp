@@ -86,8 +86,8 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
   std::vector<fch::CutFitSum> sums(cuts.size(), fch::CutFitSum(origin));
   std::vector<size_t> at(cuts.size(), 0);
   TempSpace space(reader.temporaryDirectory());
-  ExternalSorter<MortonFace, MortonLess> sorted(space, "morton",
-                                                std::max<uint64_t>(reader.memoryBytes() / 8, 4096));
+  ExternalSorter<MortonFace, MortonLess> sorted(
+      space, "morton", std::max<uint64_t>(reader.memoryBytes() / 8, 4096), {}, kSpillStored);
   // A helper takes each frame's Morton side while this thread sums the cuts: each side's state is
   // its own, so the figures are those of one thread.
   reader.forEachFacePiece(

@@ -25,8 +25,8 @@ class WindowBuckets {
       : window_(window),
         space_(tmp),
         spill_(space_, "windows", windowsOf(keys, window), sizeof(Record),
-               std::clamp<uint64_t>(budget / windowsOf(keys, window), 4 << 10, kMaxSpillBlockBytes),
-               kSpillLevel, /*discardable=*/true) {}
+               std::clamp<uint64_t>(budget / windowsOf(keys, window), 4 << 10, 256 << 10),
+               kSpillStored, /*discardable=*/true) {}
 
   uint64_t windows() const { return spill_.buckets(); }
   void add(uint64_t key, const Record& record) {
