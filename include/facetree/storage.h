@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -542,22 +543,33 @@ class RunCursor {
 
 }  // namespace sort_detail
 
+// A Less whose order is that of a 64-bit key of each record (less.key(r)).
+template <class Less, class Record>
+concept KeyedOrder = requires(const Less& less, const Record& r) {
+  { less.key(r) } -> std::convertible_to<uint64_t>;
+};
+
 // Sorts trivially copyable records with bounded memory (Knuth vol. 3, 5.4: run formation + multiway merge).
 // Records are buffered up to `budgetBytes`; a full buffer is sorted (std::sort with `less`, which must be a
 // strict TOTAL order so the result is deterministic) and spilled as a run of blocks. finish() merges the runs
 // with a heap; when there are more runs than the budget allows open at once (each open run holds one
 // decompressed block), it merges them in passes. With everything fitting in the budget nothing touches disk.
 // Budgets below 16 records are raised to 16 records.
+// With a KeyedOrder the sort is stable instead (equal keys keep the order pushed): a buffer sorts
+// pairs of key and place, which std::sort moves faster than large records, and the records are
+// gathered through them; the heap gives ties to the earlier run.
 template <class Record, class Less = std::less<Record>>
 class ExternalSorter {
   static_assert(std::is_trivially_copyable_v<Record>, "records are spilled as bytes");
+  static constexpr bool kKeyed = KeyedOrder<Less, Record>;
+  using Order = std::pair<uint64_t, uint32_t>;  // a keyed record's key and place in the buffer
 
  public:
   ExternalSorter(TempSpace& space, std::string_view stem, size_t budgetBytes, Less less = {},
                  int level = kSpillLevel)
       : space_(space),
         stem_(stem),
-        plan_(sortPlan(sizeof(Record), budgetBytes)),
+        plan_(sortPlan(sizeof(Record) + (kKeyed ? sizeof(Order) : 0), budgetBytes)),
         less_(less),
         level_(level) {}
 
@@ -571,11 +583,12 @@ class ExternalSorter {
   // No push() after it.
   void finish() {
     if (!store_) {
-      std::sort(buffer_.begin(), buffer_.end(), less_);
+      sortBuffer();
       return;
     }
     if (!buffer_.empty()) spillRun();
     std::vector<Record>().swap(buffer_);  // the budget now goes to the merge's blocks
+    std::vector<Order>().swap(order_);
     while (store_->runs() > plan_.fanIn) mergePass();
     openMerge(*store_, 0, store_->runs());
     ++mergePasses_;
@@ -585,10 +598,11 @@ class ExternalSorter {
   size_t read(std::span<Record> out) {
     if (!store_) {
       const size_t n = std::min(out.size(), buffer_.size() - readPosition_);
-      std::copy_n(buffer_.begin() + readPosition_, n, out.begin());
+      for (size_t i = 0; i < n; ++i) out[i] = sorted(readPosition_ + i);
       readPosition_ += n;
       if (readPosition_ == buffer_.size()) {  // done: free the budget now
         std::vector<Record>().swap(buffer_);
+        std::vector<Order>().swap(order_);
         readPosition_ = 0;
       }
       return n;
@@ -618,14 +632,37 @@ class ExternalSorter {
     return *codec_;
   }
 
-  // Sorts the buffer and writes it as one run of blocks.
+  void sortBuffer() {
+    if constexpr (kKeyed) {
+      order_.resize(buffer_.size());
+      for (size_t i = 0; i < buffer_.size(); ++i)
+        order_[i] = {less_.key(buffer_[i]), static_cast<uint32_t>(i)};
+      std::sort(order_.begin(), order_.end());
+    } else {
+      std::sort(buffer_.begin(), buffer_.end(), less_);
+    }
+  }
+  // The i-th record of the sorted buffer.
+  const Record& sorted(size_t i) const {
+    if constexpr (kKeyed) return buffer_[order_[i].second];
+    return buffer_[i];
+  }
+
+  // Sorts the buffer and writes it as one run of blocks (a keyed one's gathered a block at a time).
   void spillRun() {
-    std::sort(buffer_.begin(), buffer_.end(), less_);
+    sortBuffer();
     if (!store_) store_.emplace(space_, stem_);
     store_->beginRun();
+    std::vector<Record> gathered;
     for (size_t first = 0; first < buffer_.size(); first += plan_.blockRecords) {
       const size_t n = std::min(plan_.blockRecords, buffer_.size() - first);
-      store_->append(std::as_bytes(std::span<const Record>(buffer_.data() + first, n)), codec());
+      std::span<const Record> block(buffer_.data() + first, n);
+      if constexpr (kKeyed) {
+        gathered.resize(n);
+        for (size_t i = 0; i < n; ++i) gathered[i] = sorted(first + i);
+        block = gathered;
+      }
+      store_->append(std::as_bytes(block), codec());
     }
     buffer_.clear();
     ++runs_;
@@ -713,6 +750,7 @@ class ExternalSorter {
   int level_;
   std::optional<SpillCodec> codec_;  // created at the first spill: in-memory sorts need no zstd state
   std::vector<Record> buffer_;
+  std::vector<Order> order_;  // keyed: the buffer's order
   size_t readPosition_ = 0;
   std::optional<sort_detail::RunStore> store_;
   std::vector<sort_detail::RunCursor> cursors_;

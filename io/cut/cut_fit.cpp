@@ -19,16 +19,15 @@
 namespace facetree {
 namespace {
 
-// A face in the Morton order: its code, its corners' box and its place, which orders equal codes.
+// A face in the Morton order: its code and its corners' box. Faces enter the sort in face order,
+// which it keeps among equal codes (a KeyedOrder).
 struct MortonFace {
   uint64_t code;
   float lo[3], hi[3];
-  uint64_t face;
 };
 struct MortonLess {
-  bool operator()(const MortonFace& a, const MortonFace& b) const {
-    return a.code < b.code || (a.code == b.code && a.face < b.face);
-  }
+  bool operator()(const MortonFace& a, const MortonFace& b) const { return a.code < b.code; }
+  uint64_t key(const MortonFace& m) const { return m.code; }
 };
 
 // The figures of `cuts` (each in face order, covering every face) over one pass of the nodes for
@@ -100,7 +99,7 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
         std::thread morton([&] {
           try {
             for (size_t t = 0; t < triangles; ++t) {
-              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}, piece.first + t};
+              MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
               for (int a = 0; a < 3; ++a) {
                 m.lo[a] = std::min({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});
                 m.hi[a] = std::max({corner(t, 0)[a], corner(t, 1)[a], corner(t, 2)[a]});

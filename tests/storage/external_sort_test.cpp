@@ -1,5 +1,6 @@
-// ExternalSorter: output equals std::sort of the input exactly, in memory, spilled in one merge pass and
-// in several; temporary bytes are released; peak memory stays near the budget (child process).
+// ExternalSorter: output equals std::sort of the input exactly (std::stable_sort for a keyed order), in
+// memory, spilled in one merge pass and in several; temporary bytes are released; peak memory stays
+// near the budget (child process).
 
 #include <algorithm>
 #include <fstream>
@@ -125,6 +126,36 @@ TEST(ExternalSorter, twentyFourByteRecordsWithDefaultLessSpilled) {
   std::sort(expected.begin(), expected.end());
   EXPECT_EQ(drain(sorter, 1000), expected);
   EXPECT_GT(sorter.runs(), 1u);
+}
+
+// A record ordered by its key alone, stably: equal keys keep the order pushed.
+struct Keyed {
+  uint64_t key;
+  uint64_t pushed;
+  bool operator==(const Keyed&) const = default;
+};
+struct KeyedLess {
+  bool operator()(const Keyed& a, const Keyed& b) const { return a.key < b.key; }
+  uint64_t key(const Keyed& r) const { return r.key; }
+};
+
+TEST(ExternalSorter, aKeyedOrderKeepsEqualKeysInTheOrderPushed) {
+  test::ScratchDir parent;
+  TempSpace space(parent.path());
+  std::mt19937_64 rng(5);
+  std::vector<Keyed> input(100000);
+  for (size_t i = 0; i < input.size(); ++i) input[i] = {rng() % 97, i};
+  auto expected = input;
+  std::stable_sort(expected.begin(), expected.end(), KeyedLess{});
+  // In memory, spilled in one merge, and in several passes.
+  for (const size_t budget : {size_t{4} << 20, size_t{256} << 10, size_t{4096}}) {
+    ExternalSorter<Keyed, KeyedLess> sorter(space, "keyed", budget, {}, kSpillStored);
+    for (const Keyed& r : input) sorter.push(r);
+    sorter.finish();
+    EXPECT_EQ(drain(sorter, 333), expected) << budget;
+    EXPECT_EQ(sorter.runs() > 0, budget < input.size() * (sizeof(Keyed) + 16)) << budget;
+  }
+  EXPECT_EQ(space.currentBytes(), 0u);
 }
 
 TEST(ExternalSorter, emptyAndSingleRecordInputs) {
