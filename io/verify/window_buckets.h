@@ -1,6 +1,7 @@
 // Internal to io/: records bucketed by windows of `window` keys (faces, original ids) for a pass
-// that visits the windows in order: a BucketSpill (facetree/storage.h) whose buffers together take
-// the budget, each going to the spill's file as it fills, and each window read back once. Keys
+// that visits the windows in order: a BucketSpill (facetree/storage.h) whose buffers share the
+// budget, at most 256 KiB each, each stored to the spill's file as it fills, and each window read
+// back once. Keys
 // past the last window (a file's ids that lie) go to the last, after every key below them.
 #pragma once
 
@@ -25,8 +26,8 @@ class WindowBuckets {
       : window_(window),
         space_(tmp),
         spill_(space_, "windows", windowsOf(keys, window), sizeof(Record),
-               std::clamp<uint64_t>(budget / windowsOf(keys, window), 4 << 10, 256 << 10),
-               kSpillStored, /*discardable=*/true) {}
+               std::clamp<uint64_t>(budget / windowsOf(keys, window), 4 << 10, 256 << 10), kSpillStored,
+               /*discardable=*/true) {}
 
   uint64_t windows() const { return spill_.buckets(); }
   void add(uint64_t key, const Record& record) {
