@@ -1,8 +1,8 @@
 // Internal to io/: records bucketed by windows of `window` keys (faces, original ids) for a pass
 // that visits the windows in order: a BucketSpill (facetree/storage.h) whose buffers share the
 // budget, at most 256 KiB each, each stored to the spill's file as it fills, and each window read
-// back once. Keys
-// past the last window (a file's ids that lie) go to the last, after every key below them.
+// back once. Keys past the last window (a file's ids that lie) go to the last, after every key
+// below them.
 #pragma once
 
 #include <algorithm>
