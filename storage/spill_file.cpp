@@ -93,21 +93,9 @@ bool transferParts(int fd, std::span<iovec> parts, uint64_t offset) {
   return true;
 }
 
-bool isStored(std::span<const std::byte> block) {
-  return block.size() >= kStoredOverhead && std::equal(kStoredTag.begin(), kStoredTag.end(), block.begin());
-}
-
 }  // namespace
 
 std::span<const std::byte> SpillCodec::compress(std::span<const std::byte> raw, size_t recordBytes) {
-  if (stores(raw.size())) {
-    scratch_.resize(raw.size() + kStoredOverhead);
-    std::copy(kStoredTag.begin(), kStoredTag.end(), scratch_.begin());
-    std::copy(raw.begin(), raw.end(), scratch_.begin() + kStoredTag.size());
-    const uint32_t sum = storedChecksum(raw);
-    std::memcpy(scratch_.data() + kStoredTag.size() + raw.size(), &sum, sizeof sum);
-    return {scratch_.data(), scratch_.size()};
-  }
   if (recordBytes > 1) {
     shuffled_.resize(raw.size());
     shuffleRecords(raw, shuffled_.data(), recordBytes);
@@ -133,21 +121,6 @@ std::span<std::byte> SpillCodec::compressedScratch(size_t bytes) {
 
 bool SpillCodec::decompress(std::span<const std::byte> compressed, std::span<std::byte> raw,
                             const char*& reason, size_t recordBytes) {
-  if (isStored(compressed)) {
-    if (compressed.size() != raw.size() + kStoredOverhead) {
-      reason = "stored size disagrees with the block";
-      return false;
-    }
-    const std::span<const std::byte> bytes = compressed.subspan(kStoredTag.size(), raw.size());
-    uint32_t sum = 0;
-    std::memcpy(&sum, compressed.data() + kStoredTag.size() + raw.size(), sizeof sum);
-    if (sum != storedChecksum(bytes)) {
-      reason = "stored block checksum mismatch";
-      return false;
-    }
-    std::copy(bytes.begin(), bytes.end(), raw.begin());
-    return true;
-  }
   if (recordBytes > 1) {
     shuffled_.resize(raw.size());
     if (!decompress(compressed, shuffled_, reason)) return false;

@@ -146,7 +146,8 @@ class SpillCodec {
   SpillCodec(SpillCodec&&) noexcept;
   SpillCodec& operator=(SpillCodec&&) noexcept;
 
-  // One zstd frame with content size and checksum; the view lives until the next call on this codec.
+  // One zstd frame with content size and checksum, for a block that stores() does not keep as it is
+  // (SpillFile writes and reads stored blocks in place); the view lives until the next call.
   // With `recordBytes` > 1 the bytes are first grouped by their place in records of that size
   // (byte 0 of every record, then byte 1, ...; a partial record at the end stays as it is): the
   // bytes of floats and small integers that vary alike end up together, which zstd finds (the
