@@ -2,14 +2,15 @@
 //
 // STL stores each triangle with its own three positions. To hand on indexed triangles like
 // every other format, bit-identical positions (with -0.0 equal to 0.0) are welded into one
-// vertex index with a hash table; the vertex store and the table grow with the number of
-// distinct positions, the triangles themselves are streamed. Out-of-core builds stop the
+// vertex index with a hash table (position_welder.h); the vertex store and the table grow with
+// the number of distinct positions, the triangles themselves are streamed. Out-of-core builds stop the
 // welding (stopWelding) and weld with bounded memory themselves.
 #include <algorithm>
 #include <cstring>
 #include <string>
 #include <utility>
 
+#include "position_welder.h"
 #include "read_error.h"
 #include "readers.h"
 #include "stl_layout.h"
@@ -38,12 +39,15 @@ class StlReaderBase : public ReaderBase {
   // The vertex index of a corner (kNoVertex once welding stopped).
   uint32_t weld(const glm::vec3& position) {
     if (soup_) return kNoVertex;
-    return welder_.indexOf(position, vertices_, [this](const glm::vec3& p) {
+    const auto next = static_cast<uint32_t>(vertices_.size());
+    const uint32_t index = welder_.indexOf(vertices_.data(), position, next);
+    if (index == next) {
       if (vertices_.size() >= kMaxVertices)
         throwReadError(info_.name, Place::byte(input_->offset()),
                        "more than " + std::to_string(kMaxVertices) + " distinct vertices");
-      addVertex(p);
-    });
+      addVertex(position);
+    }
+    return index;
   }
 
   uint64_t inputOffset() const override { return input_->offset(); }

@@ -4,20 +4,14 @@
 #include <bit>
 #include <cmath>
 
+#include "position_welder.h"
+
 namespace facetree::stream_detail {
 namespace {
 constexpr uint32_t kExponentMask = 0x7F800000u;
-constexpr uint32_t kSignBit = 0x80000000u;
-constexpr size_t kInitialWeldSlots = 1024;
 
 uint32_t bitsOf(float value) {
   return std::bit_cast<uint32_t>(value);
-}
-
-// Bit pattern used for welding: -0.0 and 0.0 are the same position.
-uint32_t weldBits(float value) {
-  const uint32_t bits = bitsOf(value);
-  return bits == kSignBit ? 0u : bits;
 }
 
 }  // namespace
@@ -111,31 +105,6 @@ size_t ReaderBase::completeTriangles(Triangle* triangles, size_t count) {
   }
   stats_.triangles += kept;
   return kept;
-}
-
-uint64_t hashPosition(const glm::vec3& p) {
-  uint64_t h = weldBits(p.x);
-  h = h * 0x9E3779B97F4A7C15ull ^ weldBits(p.y);
-  h = h * 0x9E3779B97F4A7C15ull ^ weldBits(p.z);
-  h ^= h >> 29;
-  h *= 0xBF58476D1CE4E5B9ull;
-  return h ^ (h >> 32);
-}
-
-bool samePosition(const glm::vec3& a, const glm::vec3& b) {
-  return weldBits(a.x) == weldBits(b.x) && weldBits(a.y) == weldBits(b.y) && weldBits(a.z) == weldBits(b.z);
-}
-
-void PositionWelder::grow(const VertexStore& store) {
-  const size_t newSize = slots_.empty() ? kInitialWeldSlots : slots_.size() * 2;
-  slots_.assign(newSize, kNoVertex);
-  const size_t mask = newSize - 1;
-  const glm::vec3* positions = store.data();
-  for (uint64_t index = 0; index < store.size(); ++index) {
-    size_t slot = hashPosition(positions[index]) & mask;
-    while (slots_[slot] != kNoVertex) slot = (slot + 1) & mask;
-    slots_[slot] = static_cast<uint32_t>(index);
-  }
 }
 
 }  // namespace facetree::stream_detail

@@ -1,5 +1,5 @@
-// Internal: in-memory vertex positions, the triangle post-processing shared by all formats
-// (positions, non-finite and degenerate accounting), and position welding for STL.
+// Internal: in-memory vertex positions and the triangle post-processing shared by all formats
+// (positions, non-finite and degenerate accounting).
 #pragma once
 
 #include <cstdint>
@@ -111,41 +111,7 @@ class ReaderBase : public TriangleReader {
   std::string error_;  // a Error thrown once is thrown again by every later read()
 };
 
-// Welds bit-identical positions (with -0.0 equal to 0.0) into one vertex index: STL has no
-// indices, and every reader hands on indexed triangles. Open addressing over the store.
-class PositionWelder {
- public:
-  // Returns the index of `position`, adding it through `add` when new.
-  template <typename AddVertex>
-  uint32_t indexOf(const glm::vec3& position, const VertexStore& store, AddVertex&& add);
-
- private:
-  void grow(const VertexStore& store);
-
-  std::vector<uint32_t> slots_;  // vertex index per slot, kNoVertex when empty
-  uint64_t used_ = 0;
-};
-
-uint64_t hashPosition(const glm::vec3& position);
-bool samePosition(const glm::vec3& a, const glm::vec3& b);
 // Three exactly collinear positions (a degenerate triangle however its corners differ).
 bool zeroArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
-
-template <typename AddVertex>
-uint32_t PositionWelder::indexOf(const glm::vec3& position, const VertexStore& store, AddVertex&& add) {
-  if ((used_ + 1) * 2 > slots_.size()) grow(store);
-  const size_t mask = slots_.size() - 1;
-  size_t slot = hashPosition(position) & mask;
-  const glm::vec3* positions = store.data();
-  while (slots_[slot] != kNoVertex) {
-    if (samePosition(positions[slots_[slot]], position)) return slots_[slot];
-    slot = (slot + 1) & mask;
-  }
-  const auto index = static_cast<uint32_t>(store.size());
-  add(position);
-  slots_[slot] = index;
-  ++used_;
-  return index;
-}
 
 }  // namespace facetree::stream_detail

@@ -17,7 +17,6 @@ namespace {
 
 // Sampled corners per weld bucket: a bucket's share of the corners then varies by a few percent.
 constexpr uint64_t kSamplesPerBucket = 256;
-constexpr size_t kReadBatch = 4096;
 
 // A corner's number within its weld bucket, filed under its range.
 struct WeldedCorner {
@@ -136,8 +135,7 @@ bool runWeldTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task
   std::vector<uint32_t> records;
   const std::unique_ptr<BucketSpill> corners = segments.finish(records);
   const uint64_t total = corners->records(task);
-  ExternalSorter<CornerByPosition, PositionOrder> sorted(run.temp, "weld-position",
-                                                         std::max<uint64_t>(cap / 6, uint64_t{4} << 20));
+  CornersByPosition sorted(run.temp, "weld-position", std::max<uint64_t>(cap / 6, uint64_t{4} << 20));
   SpillCodec codec;
   uint64_t done = 0;
   corners->forEachBlock(task, codec, [&](std::span<const std::byte> bytes) {
@@ -159,20 +157,12 @@ bool runWeldTask(const ClusterJob& job, const WorkDirectory& work, uint32_t task
   // Numbered in order, filed by range.
   BucketSpill out(run.temp, SpillFile::Named{weldedPath(work, task)}, ranges, sizeof(WeldedCorner),
                   bucketBuffer(cap, ranges, sizeof(WeldedCorner)), kSpillLevel, context.spillInBackground());
-  std::vector<CornerByPosition> batch(kReadBatch);
-  uint64_t distinct = 0, numbered = 0;
-  PositionBits previous{};
-  for (size_t got; (got = sorted.read(batch)) > 0;) {
-    for (size_t i = 0; i < got; ++i) {
-      const CornerByPosition& c = batch[i];
-      if (numbered == 0 || c.position != previous) ++distinct;
-      previous = c.position;
-      const WeldedCorner w{static_cast<uint32_t>(c.slot), static_cast<uint32_t>(distinct - 1)};
-      out.append(c.input, &w);
-      ++numbered;
-    }
-    context.checkCancel("weld", total / 2 + numbered / 2, total);
-  }
+  uint64_t numbered = 0;
+  const uint64_t distinct = numberPositions(sorted, [&](const CornerByPosition& c, uint64_t id) {
+    const WeldedCorner w{static_cast<uint32_t>(c.slot), static_cast<uint32_t>(id)};
+    out.append(c.input, &w);
+    if (++numbered % 4096 == 0) context.checkCancel("weld", total / 2 + numbered / 2, total);
+  });
   out.commit();
   ManifestWriter manifest;
   manifest.put(distinct);

@@ -3,7 +3,6 @@
 #pragma once
 
 #include <algorithm>
-#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -30,12 +29,6 @@ static_assert(sizeof(FaceRecord) == 56 && std::is_trivially_copyable_v<FaceRecor
 inline void decodeRecords(std::span<const std::byte> bytes, std::vector<FaceRecord>& records) {
   records.resize(bytes.size() / sizeof(FaceRecord));
   std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
-}
-
-// A coordinate as bits that compare equal exactly when welding makes the floats one: -0 and +0
-// weld (grid/job/weld.cpp in core, stages/weld_arrival.cpp out of core).
-inline uint32_t weldBits(float f) {
-  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);
 }
 
 // Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.

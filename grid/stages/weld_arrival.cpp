@@ -17,8 +17,6 @@
 namespace facetree {
 namespace {
 
-constexpr size_t kReadBatch = 4096;
-
 struct CornerId {
   uint64_t slot;
   uint32_t vertex;
@@ -40,7 +38,7 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
   ExternalSorter<CornerId, SlotOrder> bySlot(context.temp, "weld-slot", sortBudget);
   uint64_t vertices = 0, welded = 0;
   {
-    ExternalSorter<CornerByPosition, PositionOrder> byPosition(context.temp, "weld-position", sortBudget);
+    CornersByPosition byPosition(context.temp, "weld-position", sortBudget);
     uint64_t slot = 0;
     arrival.spill->forEachBlock(0, codec, [&](std::span<const std::byte> bytes) {
       decodeRecords(bytes, records);
@@ -52,28 +50,19 @@ void weldArrival(const StageContext& context, ArrivalFaces& arrival) {
       context.checkCancel("weld", slot / 3, arrival.extent.triangles);
     });
     byPosition.finish();
-    // One id per distinct position; input vertices sharing a position beyond the first are the
-    // welded ones (--weld's count, over the vertices the triangles use).
-    std::vector<CornerByPosition> batch(kReadBatch);
-    bool first = true;
+    // Input vertices sharing a position beyond the first are the welded ones (--weld's count,
+    // over the vertices the triangles use).
     CornerByPosition previous{};
-    for (size_t got; (got = byPosition.read(batch)) > 0;) {
-      for (size_t i = 0; i < got; ++i) {
-        const CornerByPosition& c = batch[i];
-        const bool samePosition = !first && c.position == previous.position;
-        if (!samePosition) {
-          if (vertices == kNoVertex)
-            throw Error(ErrorCategory::Input, context.report.info.name + ": more than " +
-                                                  std::to_string(kNoVertex) + " distinct vertex positions");
-          ++vertices;
-        } else if (c.input != previous.input && c.input != kNoVertex) {
-          ++welded;
-        }
-        bySlot.push({c.slot, static_cast<uint32_t>(vertices - 1), 0});
-        previous = c;
-        first = false;
-      }
-    }
+    uint64_t previousId = kNoVertex;
+    vertices = numberPositions(byPosition, [&](const CornerByPosition& c, uint64_t id) {
+      if (id == kNoVertex)
+        throw Error(ErrorCategory::Input, context.report.info.name + ": more than " +
+                                              std::to_string(kNoVertex) + " distinct vertex positions");
+      if (id == previousId && c.input != previous.input && c.input != kNoVertex) ++welded;
+      bySlot.push({c.slot, static_cast<uint32_t>(id), 0});
+      previous = c;
+      previousId = id;
+    });
   }
   bySlot.finish();
 

@@ -1,12 +1,16 @@
-// Internal to grid/: a triangle corner keyed by its position's weld bits, as both welds sort them:
-// the single process's over the arrival spill (stages/weld_arrival.cpp) and the tasks' of a binary
-// STL read in ranges (job/weld_tasks.cpp). A distinct position's vertex id is its rank in this order
-// among the mesh's distinct positions, so both give every corner the same id.
+// Internal to grid/: the weld out of core. A triangle corner is keyed by its position's weld bits
+// and sorted; a distinct position's vertex id is its rank in that order among the mesh's distinct
+// positions (numberPositions). The single process sorts the whole arrival spill
+// (stages/weld_arrival.cpp); the tasks of a binary STL read in ranges sort one bucket each of a
+// sample sort and add the bucket's first id (job/weld_tasks.cpp): both give every corner one id.
 #pragma once
 
 #include <compare>
 #include <cstdint>
+#include <vector>
 
+#include "facetree/storage.h"
+#include "facetree/stream.h"
 #include "stages/face_record.h"
 
 namespace facetree {
@@ -37,5 +41,25 @@ struct PositionOrder {
     return a.slot < b.slot;
   }
 };
+
+using CornersByPosition = ExternalSorter<CornerByPosition, PositionOrder>;
+
+// Numbers the distinct positions of `sorted` from 0 in their order and calls emit(corner, id) for
+// every corner; returns how many distinct positions there are.
+template <class Emit>
+uint64_t numberPositions(CornersByPosition& sorted, Emit&& emit) {
+  std::vector<CornerByPosition> batch(4096);
+  uint64_t distinct = 0;
+  PositionBits previous{};
+  for (size_t got; (got = sorted.read(batch)) > 0;) {
+    for (size_t i = 0; i < got; ++i) {
+      const CornerByPosition& c = batch[i];
+      if (distinct == 0 || c.position != previous) ++distinct;
+      previous = c.position;
+      emit(c, distinct - 1);
+    }
+  }
+  return distinct;
+}
 
 }  // namespace facetree

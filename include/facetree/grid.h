@@ -58,10 +58,6 @@ IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options = {});
 MeshTriangleSource meshTriangleSource(const std::filesystem::path& mesh, uint64_t memoryCap,
                                       const std::filesystem::path& tmp = {});
 
-// Points every index at the lowest-numbered vertex with the same position; returns how many
-// vertices were replaced. Positions are left in place (unreferenced duplicates stay).
-uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices);
-
 // ---------------------------------------------------------------------------------------------
 // The whole job: a mesh file (or standard input) to a cluster file (or standard output) under a
 // memory cap. When the face-level build fits the cap it runs in-core (loadMesh, buildHierarchy);

@@ -11,6 +11,7 @@
 // "byte N" or "line N". Nothing else is thrown except std::bad_alloc.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -28,6 +29,16 @@ namespace facetree {
 
 // A vertex id that names no vertex.
 inline constexpr uint32_t kNoVertex = 0xFFFFFFFFu;
+
+// A coordinate as bits that are equal exactly when welding makes two floats one: bit-identical
+// positions weld, and -0.0 welds with 0.0.
+inline uint32_t weldBits(float f) {
+  return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f);
+}
+// Points every index at the lowest-numbered vertex at the same position (weldBits), with the hash
+// table the STL reader welds its corners with; returns how many vertices were replaced. Positions
+// are left in place (unreferenced duplicates stay).
+uint64_t weldPositions(std::span<const glm::vec3> positions, std::span<uint32_t> indices);
 
 // One triangle as the reader hands it on. `face` is the index of the face in the file
 // (before fan triangulation); `vertex` are indices into the reader's VertexSource.

@@ -8,23 +8,6 @@
 namespace facetree {
 namespace {
 
-TEST(WeldPositions, JoinsBitIdenticalPositionsToTheLowestIndex) {
-  // Two triangles of a square that share no index: positions 1 = 4 and 2 = 5 (5 as -0).
-  const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0},
-                                            {0, 1, 0}, {1, 0, 0}, {1, 1, -0.0f}};
-  std::vector<uint32_t> indices = {0, 1, 2, 4, 5, 3};
-  EXPECT_EQ(weldPositions(positions, indices), 2u);
-  EXPECT_EQ(indices, (std::vector<uint32_t>{0, 1, 2, 1, 2, 3}));
-}
-
-TEST(WeldPositions, LeavesDistinctPositionsAlone) {
-  const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {1, 1e-7f, 0}, {0, 1, 0}};
-  std::vector<uint32_t> indices = {0, 1, 3, 2, 3, 1};
-  const std::vector<uint32_t> before = indices;
-  EXPECT_EQ(weldPositions(positions, indices), 0u);
-  EXPECT_EQ(indices, before);
-}
-
 TEST(WeldPositions, MakesCrackedPatchesOneComponent) {
   // A strip of 4 quads whose middle column of vertices is duplicated: without welding the
   // hierarchy joins two disjoint surfaces at the root; welded, it is one surface.
