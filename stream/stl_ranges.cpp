@@ -8,6 +8,7 @@
 #include "byte_source.h"
 #include "format_detect.h"
 #include "positioned_file.h"
+#include "position_welder.h"
 #include "stl_layout.h"
 #include "vertex_store.h"
 
