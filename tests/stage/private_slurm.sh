@@ -31,6 +31,8 @@ slurm_start() {
   # --force: munged refuses root and a key in a folder others can read without it.
   munged --force --key-file="$dir/munge.key" --socket="$dir/munge.socket" --pid-file="$dir/munged.pid" \
     --log-file="$dir/log/munged.log" --seed-file="$dir/munged.seed"
+  # batch_sched_delay=0: a job that waits for a free CPU starts when one frees, not on the next
+  # 3-second tick (Slurm's default), since the test's jobs run one after another for a second each.
   cat >"$dir/slurm.conf" <<EOF
 ClusterName=facetree-test
 SlurmctldHost=$host
@@ -52,6 +54,7 @@ TaskPlugin=task/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core_Memory
 SchedulerType=sched/backfill
+SchedulerParameters=batch_sched_delay=0
 MpiDefault=none
 ReturnToService=2
 MinJobAge=3600
