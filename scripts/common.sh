@@ -15,3 +15,17 @@ facetree_build() {
   cmake --build "$dir" -j "$JOBS" "${targets[@]}"
   BUILD_DIR="$dir"
 }
+
+# facetree_sanitized_build: the one sanitized build (clang, AddressSanitizer + UndefinedBehaviorSanitizer,
+# libFuzzer's coverage in the modules the fuzz targets read with) into $FACETREE_BUILD_ROOT/sanitize:
+# scripts/test --sanitize runs the suite in it, scripts/fuzz its fuzz targets, CI the sanitized smoke
+# with its CLI. Installs clang and its runtimes when missing.
+facetree_sanitized_build() {
+  local runtime
+  runtime=$(ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a 2>/dev/null | head -n1 || true)
+  if ! command -v clang++ >/dev/null || [ -z "$runtime" ]; then
+    FACETREE_SETUP_EXTRA="clang libclang-rt-14-dev ${FACETREE_SETUP_EXTRA:-}" "$FACETREE_ROOT/scripts/setup"
+  fi
+  facetree_build sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ -DFACETREE_FUZZ=ON \
+    -DFACETREE_BUILD_BENCH=OFF -DFACETREE_PYTHON=OFF
+}

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "child_process.h"
+#include "sanitizers.h"
 
 namespace facetree {
 namespace {
@@ -20,7 +21,7 @@ using test::runChild;
 // Exact boxes cost O(faces x height) (merge/boxes/box.cpp), so a chain with boxes stays this short;
 // with the stack below, any recursion over the depth (16 bytes or more a level) would overflow.
 constexpr uint64_t kChainFaces = 12000;
-#if defined(__SANITIZE_ADDRESS__)
+#ifdef FACETREE_TEST_ASAN
 constexpr rlim_t kSmallStack = 1024 * 1024;  // ASan's redzones need more to start at all
 #else
 constexpr rlim_t kSmallStack = 64 * 1024;

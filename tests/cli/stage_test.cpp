@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "child_process.h"
-#include "peak_rss.h"
+#include "sanitizers.h"
 
 namespace facetree {
 namespace {

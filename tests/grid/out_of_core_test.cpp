@@ -28,7 +28,7 @@
 #include "facetree/io.h"
 #include "facetree/picture.h"
 #include "grid/stages/stages.h"
-#include "peak_rss.h"
+#include "sanitizers.h"
 
 namespace facetree {
 namespace {
@@ -649,6 +649,7 @@ TEST(OutOfCore, TinyCellsOnATerrainFitNearInCore) {
 // the last merges chosen over every order of the last 8, fit within 10% of eq. 84's order too,
 // hold less box area than without the limit, within 1.15 of the runs', and the tree is no taller.
 TEST(OutOfCore, TheTopsCutsKeepTheirBoxesWithinMortonRuns) {
+  SKIP_SHARED_MESH_QUALITY_UNDER_SANITIZERS();
   ScratchDir dir;
   const fs::path mesh = fs::path(FACETREE_SHARED_DATA) / "matterport_cedar_creek.ply.zst";
   const auto buildWith = [&](const std::string& name, uint32_t topClusters, bool topBoxLimit) {

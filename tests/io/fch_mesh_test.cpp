@@ -17,11 +17,6 @@ namespace {
 
 using namespace facetree::test;
 
-IndexedMesh load(const std::filesystem::path& path) {
-  auto reader = openMesh(path);
-  return loadMesh(*reader);
-}
-
 std::filesystem::path shared(const std::string& name) {
   return std::filesystem::path(FACETREE_SHARED_DATA) / name;
 }

@@ -17,9 +17,17 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "../merge/test_meshes.h"
+#include "facetree/grid.h"
 #include "facetree/io.h"
+#include "facetree/stream.h"
 
 namespace facetree::test {
+
+// A mesh file read whole into memory.
+inline IndexedMesh load(const std::filesystem::path& path) {
+  auto reader = openMesh(path);
+  return loadMesh(*reader);
+}
 
 // A w x h grid of squares, two triangles each, on a gently curved sheet.
 inline TestMesh gridMesh(int w, int h, float bend = 0.1f) {

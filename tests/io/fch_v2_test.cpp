@@ -20,11 +20,6 @@ using namespace facetree::test;
 
 const std::filesystem::path kVersion1 = std::filesystem::path(FACETREE_TEST_DATA) / "fch_v1";
 
-IndexedMesh load(const std::filesystem::path& path) {
-  auto reader = openMesh(path);
-  return loadMesh(*reader);
-}
-
 // Every node's child face counts add up to its own, and a kept node child's is that child's count.
 void expectChildFacesConsistent(const ClusterFile& file) {
   for (size_t j = 0; j < file.nodes.size(); ++j) {

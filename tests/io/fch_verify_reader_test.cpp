@@ -21,7 +21,7 @@ ReaderOptions tinyCap() {
   return options;
 }
 
-WriteOptions smallFrames() {
+WriteOptions verifyFrames() {
   WriteOptions write;
   write.nodesPerFrame = 32;
   write.geometryPerFrame = 100;
@@ -40,7 +40,7 @@ class StreamingVerify : public ::testing::TestWithParam<std::tuple<unsigned, Box
   }
   // Writes `broken` (many small frames) and returns both verdicts: in memory, streamed.
   std::pair<VerifyResult, VerifyResult> verdicts(const ClusterFile& broken) {
-    writeClusterFile(path, broken, smallFrames());
+    writeClusterFile(path, broken, verifyFrames());
     ClusterFileReader reader(path, tinyCap());
     return {verifyClusterFile(readClusterFile(path)), verifyClusterFile(reader)};
   }
@@ -109,7 +109,7 @@ TEST_P(StreamingVerify, EachBrokenInvariantGetsTheSameVerdict) {
 }
 
 TEST_P(StreamingVerify, TheMeshComparisonGetsTheSameVerdict) {
-  writeClusterFile(path, file, smallFrames());
+  writeClusterFile(path, file, verifyFrames());
   const ClusterFile back = readClusterFile(path);
   // The mesh as the build had it: the original ids are positions in `mesh`. Its triangles come in
   // order (compared as they come) and backwards (bucketed by id like the file's).

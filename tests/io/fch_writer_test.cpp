@@ -13,7 +13,7 @@
 #include <random>
 
 #include "../cli/run_cli.h"
-#include "../peak_rss.h"
+#include "../sanitizers.h"
 #include "facetree/io.h"
 #include "facetree/merge.h"
 #include "facetree/picture.h"

@@ -8,8 +8,7 @@
 
 #include <unistd.h>
 
-#define STB_IMAGE_IMPLEMENTATION
-#include <stb_image.h>
+#include <stb_image.h>  // its implementation is render_test.cpp's
 
 #include "facetree/picture.h"
 #include "facetree/query.h"

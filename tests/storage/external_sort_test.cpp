@@ -13,15 +13,8 @@
 #include <gtest/gtest.h>
 
 #include "facetree/storage.h"
+#include "sanitizers.h"
 #include "spill_test_util.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define FACETREE_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define FACETREE_TEST_ASAN 1
-#endif
-#endif
 
 namespace facetree {
 namespace {

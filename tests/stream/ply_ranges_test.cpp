@@ -13,6 +13,7 @@ namespace facetree {
 namespace {
 
 using test::PlyOptions;
+using test::sameBits;
 using test::SimpleMesh;
 using test::TempDir;
 
@@ -34,10 +35,6 @@ WholeRead readWhole(const std::filesystem::path& path) {
     for (int k = 0; k < 3; ++k) t.position[k] = positions[t.vertex[k]];
   out.stats = reader->stats();
   return out;
-}
-
-bool sameBits(const glm::vec3& a, const glm::vec3& b) {
-  return std::memcmp(&a, &b, sizeof a) == 0;
 }
 
 void expectRangesMatch(const std::filesystem::path& path, uint64_t pieces, size_t chunk) {

@@ -13,12 +13,9 @@
 namespace facetree {
 namespace {
 
+using test::sameBits;
 using test::SimpleMesh;
 using test::TempDir;
-
-bool sameBits(const glm::vec3& a, const glm::vec3& b) {
-  return std::memcmp(&a, &b, sizeof a) == 0;
-}
 
 bool finite(const Triangle& t) {
   for (const glm::vec3& p : t.position)

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -88,5 +89,10 @@ std::string errorOf(const std::function<void()>& action);
 // Compares positions, vertex indices and face ids.
 bool sameTriangles(const std::vector<Triangle>& a, const std::vector<Triangle>& b);
 std::string describe(const std::vector<Triangle>& triangles);
+
+// The same float bits, -0.0 and NaN payloads included.
+inline bool sameBits(const glm::vec3& a, const glm::vec3& b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
 
 }  // namespace facetree::test
