@@ -3,8 +3,8 @@
 // STL stores each triangle with its own three positions. To hand on indexed triangles like
 // every other format, bit-identical positions (with -0.0 equal to 0.0) are welded into one
 // vertex index with a hash table (position_welder.h); the vertex store and the table grow with
-// the number of distinct positions, the triangles themselves are streamed. Out-of-core builds stop the
-// welding (stopWelding) and weld with bounded memory themselves.
+// the number of distinct positions, the triangles themselves are streamed. Out-of-core builds
+// stop the welding (stopWelding) and weld with bounded memory themselves.
 #include <algorithm>
 #include <cstring>
 #include <string>
