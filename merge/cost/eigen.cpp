@@ -1,6 +1,5 @@
-// Symmetric 3x3 eigensolvers: cyclic Jacobi (Willmott 2000, sec. 5.2.2; Press et al. 1992,
-// sec. 11.1) and the trigonometric closed form (Smith 1961) with robust cross-product
-// eigenvectors (Eberly 2014).
+// The symmetric 3x3 eigensolver: the trigonometric closed form (Smith 1961) with robust
+// cross-product eigenvectors (Eberly 2014), in place of Willmott's cyclic Jacobi (2000, sec. 5.2.2).
 //
 // smallestEigenvector forwards to the closed form (below: why).
 #include "cost/eigen.h"
@@ -15,13 +14,7 @@
 namespace facetree {
 namespace {
 
-// Jacobi: sweeps stop once sum of squared off-diagonals <= kJacobiTol^2 * |M|_max^2.
-constexpr double kJacobiTol = 1e-15;
-constexpr int kJacobiMaxSweeps = 32;
-// Above this |theta| the rotation angle is taken as 1/(2 theta) (theta^2 would overflow).
-constexpr double kJacobiHugeTheta = 1e150;
-
-// Both solvers meet the same accuracy (residual |Mv - lambda v| <= 1e-12 |M|, orthonormal,
+// The closed form meets Jacobi's accuracy (residual |Mv - lambda v| <= 1e-12 |M|, orthonormal,
 // right-handed; eigen_test.cpp). The closed form costs a fixed handful of square roots and one
 // acos, where Jacobi needs 4-5 sweeps of 3 rotations, each with a sqrt and two divisions, on the
 // spectra clusters have (it is cheaper only on matrices already diagonal): smallestEigenvector
@@ -182,49 +175,6 @@ void planeBasis(const glm::dvec3& w, glm::dvec3& u, glm::dvec3& v) {
   v = {b, sign + w.y * w.y * a, -w.y};
 }
 
-Eigen3 eigenJacobi(const SymMat3& m) {
-  if (!allFinite(m)) return worldAxes(0, 0, 0);
-  double a[3][3];
-  const double scale = scaledFull(m, a);
-  if (scale == 0) return worldAxes(0, 0, 0);
-  double v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  constexpr int kPairs[3][3] = {{0, 1, 2}, {0, 2, 1}, {1, 2, 0}};  // p, q, the other index
-  for (int sweep = 0; sweep < kJacobiMaxSweeps; ++sweep) {
-    const double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-    if (off <= kJacobiTol * kJacobiTol) break;
-    for (const auto& pair : kPairs) {
-      const int p = pair[0], q = pair[1], r = pair[2];
-      const double apq = a[p][q];
-      if (apq == 0) continue;
-      const double theta = (a[q][q] - a[p][p]) / (2.0 * apq);
-      const double absTheta = std::abs(theta);
-      double t =
-          absTheta > kJacobiHugeTheta ? 0.5 / theta : 1.0 / (absTheta + std::sqrt(theta * theta + 1.0));
-      if (theta < 0 && absTheta <= kJacobiHugeTheta) t = -t;
-      const double c = 1.0 / std::sqrt(t * t + 1.0);
-      const double s = t * c;
-      a[p][p] -= t * apq;
-      a[q][q] += t * apq;
-      a[p][q] = a[q][p] = 0;
-      const double arp = a[r][p], arq = a[r][q];
-      a[r][p] = a[p][r] = c * arp - s * arq;
-      a[r][q] = a[q][r] = s * arp + c * arq;
-      for (int k = 0; k < 3; ++k) {
-        const double vkp = v[k][p], vkq = v[k][q];
-        v[k][p] = c * vkp - s * vkq;
-        v[k][q] = s * vkp + c * vkq;
-      }
-    }
-  }
-  Eigen3 e;
-  for (int i = 0; i < 3; ++i) {
-    e.value[i] = a[i][i] * scale;
-    e.vector[i] = glm::normalize(glm::dvec3{v[0][i], v[1][i], v[2][i]});
-  }
-  sortAndOrient(e);
-  return e;
-}
-
 Eigen3 eigenAnalytic(const SymMat3& m) {
   if (!allFinite(m)) return worldAxes(0, 0, 0);
   double a[3][3];
@@ -255,10 +205,6 @@ Eigen3 eigenAnalytic(const SymMat3& m) {
   }
   sortAndOrient(e);
   return e;
-}
-
-glm::dvec3 smallestEigenvectorJacobi(const SymMat3& m) {
-  return eigenJacobi(m).vector[0];
 }
 
 glm::dvec3 smallestEigenvectorAnalytic(const SymMat3& m) {

@@ -11,6 +11,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
+#include "eigen_jacobi.h"
 #include "merge/boxes/box.h"
 #include "merge/boxes/box_extent.h"
 #include "merge/boxes/frame.h"
@@ -386,7 +387,7 @@ TEST(Box, MinAreaRectangleNotWorseThanPcaRectangle) {
       cov.m[0] += (p.x - mean.x) * (p.x - mean.x), cov.m[1] += (p.x - mean.x) * (p.y - mean.y);
       cov.m[3] += (p.y - mean.y) * (p.y - mean.y);
     }
-    const Eigen3 e = eigenJacobi(cov);
+    const Eigen3 e = test::eigenJacobi(cov);
     const glm::dvec3 pa = std::abs(e.vector[2].z) > 0.5 ? e.vector[1] : e.vector[2];
     const glm::dvec2 a = glm::normalize(glm::dvec2(pa.x, pa.y)), b{-a.y, a.x};
     double lu = INFINITY, hu = -INFINITY, lv = INFINITY, hv = -INFINITY;
