@@ -101,19 +101,10 @@ uint64_t forEachRecord(const ClusterJob& job, const char* phase, const RangeInpu
     records.clear();
     for (const Triangle& tri : triangles) {
       FaceRecord r{};
-      bool finite = true;
-      for (int k = 0; k < 3; ++k) {
-        const glm::vec3& p = tri.position[k];
-        finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
-        r.vertex[k] = tri.vertex[k];
-        std::memcpy(&r.position[3 * k], &p, sizeof p);
-      }
-      if (!finite) {
+      if (makeFaceRecord(tri.vertex, tri.face, tri.position, r))
+        records.push_back(r);
+      else
         ++skipped;
-        continue;
-      }
-      r.face = tri.face;
-      records.push_back(r);
     }
     take(records);
     done += triangles.size();

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -24,6 +25,20 @@ struct FaceRecord {
   glm::vec3 corner(int i) const { return {position[3 * i], position[3 * i + 1], position[3 * i + 2]}; }
 };
 static_assert(sizeof(FaceRecord) == 56 && std::is_trivially_copyable_v<FaceRecord>);
+
+// The record of a triangle, or false where a corner is not finite: the read drops such triangles
+// (and counts them), in one process and in the tasks alike.
+inline bool makeFaceRecord(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3],
+                           FaceRecord& r) {
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(corner[k].x) || !std::isfinite(corner[k].y) || !std::isfinite(corner[k].z))
+      return false;
+    r.vertex[k] = vertex[k];
+    std::memcpy(&r.position[3 * k], &corner[k], sizeof(glm::vec3));
+  }
+  r.face = face;
+  return true;
+}
 
 // The records of one spill block (its raw bytes) into `records`.
 inline void decodeRecords(std::span<const std::byte> bytes, std::vector<FaceRecord>& records) {

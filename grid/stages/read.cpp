@@ -58,15 +58,7 @@ void ArrivalReader::appendArrival(const FaceRecord& r) {
 
 bool ArrivalReader::appendResolved(const uint32_t vertex[3], uint64_t face, const glm::vec3 corner[3]) {
   FaceRecord r{};
-  for (int k = 0; k < 3; ++k) {
-    if (!std::isfinite(corner[k].x) || !std::isfinite(corner[k].y) || !std::isfinite(corner[k].z)) {
-      ++skipped_;
-      return false;
-    }
-    r.vertex[k] = vertex[k];
-    std::memcpy(&r.position[3 * k], &corner[k], sizeof(glm::vec3));
-  }
-  r.face = face;
+  if (!makeFaceRecord(vertex, face, corner, r)) return ++skipped_, false;
   appendArrival(r);
   return true;
 }
