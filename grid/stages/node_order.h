@@ -3,13 +3,9 @@
 // the stages share (stages/write_plan.cpp, job/write_tasks.cpp).
 #pragma once
 
-#include <condition_variable>
 #include <cstdint>
 #include <cstring>
-#include <exception>
-#include <mutex>
 #include <span>
-#include <thread>
 #include <vector>
 
 #include "facetree/storage.h"
@@ -41,108 +37,51 @@ using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
 // The sorted order is kept in blocks of this many entries (64 KiB) for the node pass.
 inline constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
-// The node pass's input, read ahead on a helper thread: the sorted order's entries in batches, with
-// the batch's leaf runs read and decompressed, one batch being made while the pass takes the one
-// before. The spill's reads and zstd then overlap the pass's placing and the writer (perf: reading
-// was half of the pass's thread on the 14M-face dragon at 64 MiB). Order blocks are given back as
-// read.
-class NodeRunReader {
- public:
-  struct Batch {
-    std::vector<NodeRef> refs;  // consecutive entries of the order
-    std::vector<char> records;  // the leaf runs among them, in turn, their records as spilled
-  };
-  NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs)
-      : order_(order), orderBlocks_(orderBlocks), runs_(runs), slots_(kSlots) {
-    thread_ = std::thread([this] { produce(); });
-  }
-  ~NodeRunReader() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
-  }
-  NodeRunReader(const NodeRunReader&) = delete;
-  NodeRunReader& operator=(const NodeRunReader&) = delete;
-
-  // The next batch (valid until the next call), or null at the end; rethrows the reader's failure.
-  Batch* next() {
-    std::unique_lock lock(mutex_);
-    if (taken_ > 0) ++released_, changed_.notify_all();  // the previous batch's slot is free again
-    changed_.wait(lock, [&] { return made_ > taken_ || finished_; });
-    if (made_ == taken_) {
-      if (failure_) std::rethrow_exception(failure_);
-      return nullptr;
-    }
-    return &slots_[taken_++ % slots_.size()];
-  }
-
- private:
-  // Batches close at this many nodes: a few hundred KiB of records each, so that the reader and the
-  // pass meet a few thousand times for millions of nodes, not once a run.
-  static constexpr size_t kBatchNodes = 2048;
-  static constexpr size_t kSlots = 2;
-
-  void produce() {
-    try {
-      SpillCodec codec;
-      std::vector<std::byte> raw;
-      std::vector<NodeRef> refs;
-      Batch* batch = nullptr;
-      size_t batched = 0;  // run nodes in the batch
-      const auto publish = [&] {
-        std::lock_guard lock(mutex_);
-        ++made_;
-        changed_.notify_all();
+// The node pass's input, read ahead on a helper thread (ReadAhead): the sorted order's entries in
+// batches, with the batch's leaf runs read and decompressed, one batch being made while the pass
+// takes the one before. The spill's reads and zstd then overlap the pass's placing and the writer
+// (perf: reading was half of the pass's thread on the 14M-face dragon at 64 MiB). Order blocks are
+// given back as read.
+struct NodeRunBatch {
+  std::vector<NodeRef> refs;  // consecutive entries of the order
+  std::vector<char> records;  // the leaf runs among them, in turn, their records as spilled
+};
+// Batches close at this many nodes: a few hundred KiB of records each, so that the reader and the
+// pass meet a few thousand times for millions of nodes, not once a run.
+inline constexpr size_t kBatchNodes = 2048;
+inline void readNodeRuns(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs,
+                         ReadAhead<NodeRunBatch>& ahead) {
+  SpillCodec codec;
+  std::vector<std::byte> raw;
+  std::vector<NodeRef> refs;
+  NodeRunBatch* batch = nullptr;
+  size_t batched = 0;  // run nodes in the batch
+  for (const SpillBlock& block : orderBlocks) {
+    order.read(block, raw, codec);
+    order.discard(block);
+    refs.resize(raw.size() / sizeof(NodeRef));
+    std::memcpy(static_cast<void*>(refs.data()), raw.data(), raw.size());
+    for (const NodeRef& ref : refs) {
+      if (!batch) {
+        batch = &ahead.slot();
+        batch->refs.clear();
+        batch->records.clear();
+      }
+      batch->refs.push_back(ref);
+      if (ref.kind == 1) {
+        runs.read(ref.spill(), raw, codec);
+        const auto* bytes = reinterpret_cast<const char*>(raw.data());
+        batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
+        batched += ref.count;
+      }
+      if (batched >= kBatchNodes) {
+        ahead.publish();
         batch = nullptr;
         batched = 0;
-      };
-      for (const SpillBlock& block : orderBlocks_) {
-        order_.read(block, raw, codec);
-        order_.discard(block);
-        refs.resize(raw.size() / sizeof(NodeRef));
-        std::memcpy(static_cast<void*>(refs.data()), raw.data(), raw.size());
-        for (const NodeRef& ref : refs) {
-          if (!batch) {
-            std::unique_lock lock(mutex_);
-            changed_.wait(lock, [&] { return made_ - released_ < slots_.size() || stop_; });
-            if (stop_) return;
-            batch = &slots_[made_ % slots_.size()];
-            batch->refs.clear();
-            batch->records.clear();
-          }
-          batch->refs.push_back(ref);
-          if (ref.kind == 1) {
-            runs_.read(ref.spill(), raw, codec);
-            const auto* bytes = reinterpret_cast<const char*>(raw.data());
-            batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
-            batched += ref.count;
-          }
-          if (batched >= kBatchNodes) publish();
-        }
       }
-      if (batch) publish();
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      failure_ = std::current_exception();
     }
-    std::lock_guard lock(mutex_);
-    finished_ = true;
-    changed_.notify_all();
   }
-
-  SpillFile& order_;
-  std::span<const SpillBlock> orderBlocks_;
-  const SpillFile& runs_;
-  std::vector<Batch> slots_;  // a ring: batch i in slots_[i % size]
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  uint64_t made_ = 0, taken_ = 0, released_ = 0;  // batches made, handed out, handed back
-  bool stop_ = false, finished_ = false;
-  std::exception_ptr failure_;
-  std::thread thread_;  // last: starts once the rest exists
-};
+  if (batch) ahead.publish();
+}
 
 }  // namespace facetree

@@ -170,8 +170,9 @@ void writeNodeRange(const WritePlan& p, SpillFile& order, SpillFile& runs, uint6
   uint64_t position = blocks.empty() ? end : p.orderFirst[size_t(from)];
   // Upper nodes in batches between the leaves' runs, of at most a frame.
   std::vector<FchNode> upper;
-  NodeRunReader reader(order, blocks, runs);
-  while (NodeRunReader::Batch* batch = reader.next()) {
+  ReadAhead<NodeRunBatch> reader(
+      [&](ReadAhead<NodeRunBatch>& ahead) { readNodeRuns(order, blocks, runs, ahead); });
+  while (NodeRunBatch* batch = reader.next()) {
     const char* records = batch->records.data();
     for (const NodeRef& ref : batch->refs) {
       if (position >= end) break;

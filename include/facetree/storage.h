@@ -3,16 +3,19 @@
 // the temporary directory of a run and its byte accounting (TempSpace); append-only files of
 // independently zstd-compressed blocks (SpillFile, SpillCodec); many record streams in one such
 // file (BucketSpill); the external merge sort of fixed-size records (ExternalSorter; Knuth, TAOCP
-// vol. 3, sec. 5.4).
+// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead).
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <concepts>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <deque>
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <limits>
@@ -23,6 +26,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -759,6 +763,79 @@ class ExternalSorter {
   uint64_t size_ = 0;
   size_t runs_ = 0;
   size_t mergePasses_ = 0;
+};
+
+// Items made in turn on a helper thread, up to `Slots` ahead of the thread that takes them in
+// turn: a pass's reads and decompression overlap its own work. `produce(ahead)` runs on the
+// helper: it fills ahead.slot() and hands it on with ahead.publish(), as many times as it has
+// items; its exception reaches the consumer after the items published before it.
+template <class Item, size_t Slots = 2>
+class ReadAhead {
+ public:
+  template <class Produce>
+  explicit ReadAhead(Produce produce) {
+    thread_ = std::thread([this, produce]() mutable { run(produce); });
+  }
+  ~ReadAhead() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+  ReadAhead(const ReadAhead&) = delete;
+  ReadAhead& operator=(const ReadAhead&) = delete;
+
+  // The consumer's next item, valid until the next call; null at the end.
+  Item* next() {
+    std::unique_lock lock(mutex_);
+    if (taken_ > 0) ++released_, changed_.notify_all();  // the item taken before is free again
+    changed_.wait(lock, [&] { return made_ > taken_ || finished_; });
+    if (made_ == taken_) {
+      if (failure_) std::rethrow_exception(failure_);
+      return nullptr;
+    }
+    return &slots_[taken_++ % Slots];
+  }
+  // The producer's slot to fill next: waits until the consumer has given it back.
+  Item& slot() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return made_ - released_ < Slots || stop_; });
+    if (stop_) throw Stopped{};
+    return slots_[made_ % Slots];
+  }
+  void publish() {
+    std::lock_guard lock(mutex_);
+    ++made_;
+    changed_.notify_all();
+  }
+  // Every slot, for the bytes they hold.
+  const std::array<Item, Slots>& slots() const { return slots_; }
+
+ private:
+  struct Stopped {};
+  template <class Produce>
+  void run(Produce& produce) {
+    try {
+      produce(*this);
+    } catch (const Stopped&) {
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      failure_ = std::current_exception();
+    }
+    std::lock_guard lock(mutex_);
+    finished_ = true;
+    changed_.notify_all();
+  }
+
+  std::array<Item, Slots> slots_{};  // a ring: item i in slots_[i % Slots]
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  uint64_t made_ = 0, taken_ = 0, released_ = 0;  // items published, handed out, handed back
+  bool stop_ = false, finished_ = false;
+  std::exception_ptr failure_;
+  std::thread thread_;  // last: starts once the rest exists
 };
 
 }  // namespace facetree

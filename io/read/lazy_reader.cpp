@@ -4,13 +4,9 @@
 // independent and decode by the face and vertex ranges asked. Decoded frames wait in one cache
 // bounded in bytes, the least recently used leaving first; the frame in use always stays.
 #include <algorithm>
-#include <condition_variable>
 #include <cstring>
-#include <exception>
 #include <map>
-#include <mutex>
 #include <optional>
-#include <thread>
 #include <unordered_map>
 
 #include <unistd.h>
@@ -54,82 +50,15 @@ uint64_t defaultMemoryCap() {
   return static_cast<uint64_t>(pages) * static_cast<uint64_t>(pageSize) / 2;
 }
 
-// The node frames of a version 2 file read, checked, decompressed and split into codes by a
-// second thread, one frame ahead of the decoder, which must take them in turn: the two halves of
-// a pass cost about the same. Errors reach the decoder at the frame that raised them.
-class CodePipeline {
- public:
-  template <class Read>
-  CodePipeline(size_t frames, Read read) : frames_(frames) {
-    thread_ = std::thread([this, read] {
-      for (size_t k = 0; k < frames_; ++k) {
-        Slot& slot = slots_[k % 2];
-        {
-          std::unique_lock lock(mutex_);
-          changed_.wait(lock, [&] { return stop_ || !slot.ready; });
-          if (stop_) return;
-        }
-        try {
-          read(k, slot.raw, slot.compressed, slot.codes);
-        } catch (...) {
-          slot.error = std::current_exception();
-        }
-        {
-          std::lock_guard lock(mutex_);
-          slot.ready = true;
-        }
-        changed_.notify_all();
-        if (slot.error) return;
-      }
-    });
-  }
-  ~CodePipeline() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
-  }
-  CodePipeline(const CodePipeline&) = delete;
-  CodePipeline& operator=(const CodePipeline&) = delete;
-
-  // The codes of frame k, once read; valid until release(k).
-  const std::vector<fch::NodeCode>& take(size_t k) {
-    Slot& slot = slots_[k % 2];
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return slot.ready; });
-    if (slot.error) std::rethrow_exception(slot.error);
-    return slot.codes;
-  }
-  void release(size_t k) {
-    {
-      std::lock_guard lock(mutex_);
-      slots_[k % 2].ready = false;
-    }
-    changed_.notify_all();
-  }
+// A node frame of a version 2 file read, checked, decompressed and split into codes: a helper
+// thread makes them one frame ahead of the decoder (ReadAhead), the two halves of a pass costing
+// about the same.
+struct FrameCodes {
+  std::string raw, compressed;
+  std::vector<fch::NodeCode> codes;
   uint64_t heldBytes() const {
-    uint64_t bytes = 0;
-    for (const Slot& slot : slots_)
-      bytes +=
-          slot.raw.capacity() + slot.compressed.capacity() + slot.codes.capacity() * sizeof(fch::NodeCode);
-    return bytes;
+    return raw.capacity() + compressed.capacity() + codes.capacity() * sizeof(fch::NodeCode);
   }
-
- private:
-  struct Slot {
-    std::string raw, compressed;
-    std::vector<fch::NodeCode> codes;
-    std::exception_ptr error;
-    bool ready = false;
-  };
-  size_t frames_;
-  Slot slots_[2];
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  bool stop_ = false;
-  std::thread thread_;
 };
 
 struct ClusterFileReader::State {
@@ -415,22 +344,25 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
   std::vector<uint32_t> depths;
   uint64_t visited = 0;
   const size_t frames = s.sections[0].size();
-  std::optional<CodePipeline> pipeline;
+  std::optional<ReadAhead<FrameCodes>> pipeline;
   if (!s.version1() && frames > 1)
-    pipeline.emplace(
-        frames, [&s, structure = decoder.structure()](size_t k, std::string& raw, std::string& compressed,
-                                                      std::vector<fch::NodeCode>& codes) {
-          s.readCodes(k, structure, raw, compressed, codes);
-        });
+    pipeline.emplace([&s, frames, structure = decoder.structure()](ReadAhead<FrameCodes>& ahead) {
+      for (size_t k = 0; k < frames; ++k) {
+        FrameCodes& frame = ahead.slot();
+        s.readCodes(k, structure, frame.raw, frame.compressed, frame.codes);
+        ahead.publish();
+      }
+    });
   for (size_t k = 0; k < frames; ++k) {
+    uint64_t pipelineBytes = 0;
     if (pipeline) {
-      s.decodeCodes(k, pipeline->take(k), decoder, nodes, &depths);
-      pipeline->release(k);
+      s.decodeCodes(k, pipeline->next()->codes, decoder, nodes, &depths);
+      for (const FrameCodes& frame : pipeline->slots()) pipelineBytes += frame.heldBytes();
     } else {
       s.decodeNodeFrame(k, &decoder, nodes, &depths);
     }
-    s.peakHeld = std::max(s.peakHeld, heldBytes() + decoder.heldBytes() + nodes.capacity() * sizeof(FchNode) +
-                                          (pipeline ? pipeline->heldBytes() : 0));
+    s.peakHeld = std::max(
+        s.peakHeld, heldBytes() + decoder.heldBytes() + nodes.capacity() * sizeof(FchNode) + pipelineBytes);
     const uint64_t first = layout().frames[s.sections[0][k]].first;
     for (size_t j = 0; j < nodes.size(); ++j) {
       const uint64_t index = first + j;
