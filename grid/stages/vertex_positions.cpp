@@ -12,10 +12,10 @@ VertexPositions::VertexPositions(TempSpace& space, uint64_t memoryBudget)
     : space_(space), budget_(memoryBudget) {}
 
 void VertexPositions::append(std::span<const glm::vec3> positions) {
-  // The whole budget at once (untouched pages cost nothing): grown by doubling, the vector would
-  // hold up to 1.5x the budget while it moves.
-  if (!spill_ && positions_.capacity() == 0) positions_.reserve(budget_ / sizeof(glm::vec3));
+  const size_t budgetVertices = budget_ / sizeof(glm::vec3);
   for (const glm::vec3& p : positions) {
+    if (!spill_ && positions_.size() == positions_.capacity() && positions_.size() < budgetVertices)
+      positions_.reserve(grownWithin(positions_.capacity(), budgetVertices));
     if (!spill_ && (positions_.size() + 1) * sizeof(glm::vec3) > budget_) {
       // Over the budget: everything so far goes to disk in blocks, and so does the rest.
       spill_ = std::make_unique<SpillFile>(space_, "vertices");

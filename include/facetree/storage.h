@@ -563,6 +563,15 @@ concept KeyedOrder = requires(const Less& less, const Record& r) {
 // With a KeyedOrder the sort is stable instead (equal keys keep the order pushed): a buffer sorts
 // pairs of key and place, which std::sort moves faster than large records, and the records are
 // gathered through them; the heap gives ties to the earlier run.
+// The next capacity of a buffer that grows by doubling up to `budget` elements: what a small pass
+// allocates follows what it holds, not its budget (a reader's cap), and the last step goes
+// straight to the budget from at most half of it, so the old and new buffers' touched pages never
+// pass the budget while the elements move.
+inline size_t grownWithin(size_t capacity, size_t budget) {
+  constexpr size_t kFirst = 1024;
+  return 4 * capacity > budget || budget <= kFirst ? budget : std::max(2 * capacity, kFirst);
+}
+
 template <class Record, class Less = std::less<Record>>
 class ExternalSorter {
   static_assert(std::is_trivially_copyable_v<Record>, "records are spilled as bytes");
@@ -580,7 +589,8 @@ class ExternalSorter {
 
   void push(const Record& r) {
     if (buffer_.size() == plan_.bufferRecords) spillRun();
-    if (buffer_.capacity() == 0) buffer_.reserve(plan_.bufferRecords);  // exactly the budget, never 2x
+    if (buffer_.size() == buffer_.capacity())
+      buffer_.reserve(grownWithin(buffer_.capacity(), plan_.bufferRecords));
     buffer_.push_back(r);
     ++size_;
   }
