@@ -15,7 +15,8 @@ void VertexPositions::append(std::span<const glm::vec3> positions) {
   const size_t budgetVertices = budget_ / sizeof(glm::vec3);
   for (const glm::vec3& p : positions) {
     if (!spill_ && positions_.size() == positions_.capacity() && positions_.size() < budgetVertices)
-      positions_.reserve(grownWithin(positions_.capacity(), budgetVertices));
+      positions_.reserve(
+          grownWithin(positions_.capacity(), budgetVertices, (size_t{1} << 20) / sizeof(glm::vec3)));
     if (!spill_ && (positions_.size() + 1) * sizeof(glm::vec3) > budget_) {
       // Over the budget: everything so far goes to disk in blocks, and so does the rest.
       spill_ = std::make_unique<SpillFile>(space_, "vertices");
