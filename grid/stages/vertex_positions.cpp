@@ -14,10 +14,10 @@ VertexPositions::VertexPositions(TempSpace& space, uint64_t memoryBudget)
 void VertexPositions::append(std::span<const glm::vec3> positions) {
   const size_t budgetVertices = budget_ / sizeof(glm::vec3);
   for (const glm::vec3& p : positions) {
-    if (!spill_ && positions_.size() == positions_.capacity() && positions_.size() < budgetVertices)
-      positions_.reserve(
-          grownWithin(positions_.capacity(), budgetVertices, (size_t{1} << 20) / sizeof(glm::vec3)));
-    if (!spill_ && (positions_.size() + 1) * sizeof(glm::vec3) > budget_) {
+    if (!spill_ && positions_.size() < budgetVertices) {
+      if (positions_.size() == positions_.capacity())
+        positions_.reserve(grownWithin<glm::vec3>(positions_.capacity(), budgetVertices));
+    } else if (!spill_) {
       // Over the budget: everything so far goes to disk in blocks, and so does the rest.
       spill_ = std::make_unique<SpillFile>(space_, "vertices");
       std::vector<glm::vec3> all = std::move(positions_);

@@ -554,6 +554,18 @@ concept KeyedOrder = requires(const Less& less, const Record& r) {
   { less.key(r) } -> std::convertible_to<uint64_t>;
 };
 
+// The next capacity of a buffer of T that grows to `budget` elements: about a MiB first, then
+// fourfold steps, so that what a small pass allocates follows what it holds, not its budget (a
+// reader's cap), and a large one copies a third of what it holds. The last step goes to the budget
+// from at most half of it: the old and new buffers' touched pages never pass the budget while the
+// elements move.
+template <class T>
+size_t grownWithin(size_t capacity, size_t budget) {
+  constexpr size_t kFirst = std::max<size_t>((size_t{1} << 20) / sizeof(T), 1);
+  if (capacity == 0) return 2 * kFirst > budget ? budget : kFirst;
+  return 8 * capacity > budget ? budget : 4 * capacity;
+}
+
 // Sorts trivially copyable records with bounded memory (Knuth vol. 3, 5.4: run formation + multiway merge).
 // Records are buffered up to `budgetBytes`; a full buffer is sorted (std::sort with `less`, which must be a
 // strict TOTAL order so the result is deterministic) and spilled as a run of blocks. finish() merges the runs
@@ -563,21 +575,11 @@ concept KeyedOrder = requires(const Less& less, const Record& r) {
 // With a KeyedOrder the sort is stable instead (equal keys keep the order pushed): a buffer sorts
 // pairs of key and place, which std::sort moves faster than large records, and the records are
 // gathered through them; the heap gives ties to the earlier run.
-// The next capacity of a buffer that grows to `budget` elements: `first` (about a MiB), then fourfold
-// steps, so that what a small pass allocates follows what it holds, not its budget (a reader's cap),
-// and a large one copies a third of what it holds. The last step goes to the budget from at most
-// half of it: the old and new buffers' touched pages never pass the budget while the elements move.
-inline size_t grownWithin(size_t capacity, size_t budget, size_t first) {
-  if (capacity == 0) return 2 * first > budget ? budget : first;
-  return 8 * capacity > budget ? budget : 4 * capacity;
-}
-
 template <class Record, class Less = std::less<Record>>
 class ExternalSorter {
   static_assert(std::is_trivially_copyable_v<Record>, "records are spilled as bytes");
   static constexpr bool kKeyed = KeyedOrder<Less, Record>;
   using Order = std::pair<uint64_t, uint32_t>;  // a keyed record's key and place in the buffer
-  static constexpr size_t kFirstRecords = std::max<size_t>((size_t{1} << 20) / sizeof(Record), 1);
 
  public:
   ExternalSorter(TempSpace& space, std::string_view stem, size_t budgetBytes, Less less = {},
@@ -591,7 +593,7 @@ class ExternalSorter {
   void push(const Record& r) {
     if (buffer_.size() == plan_.bufferRecords) spillRun();
     if (buffer_.size() == buffer_.capacity())
-      buffer_.reserve(grownWithin(buffer_.capacity(), plan_.bufferRecords, kFirstRecords));
+      buffer_.reserve(grownWithin<Record>(buffer_.capacity(), plan_.bufferRecords));
     buffer_.push_back(r);
     ++size_;
   }
