@@ -17,10 +17,6 @@ constexpr glm::vec3 kFallbackUp{0.0f, 1.0f, 0.0f};
 constexpr float kParallelSine = 1e-3f;    // |forward x up| below it: up is parallel to the view
 constexpr float kMarginFraction = 0.05f;  // of the image size on each side
 
-bool isFinite(const glm::vec3& v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
 bool usableUp(const glm::vec3& forward, const glm::vec3& up) {
   const float length = glm::length(up);
   return isFinite(up) && length > 0.0f && glm::length(glm::cross(forward, up / length)) > kParallelSine;

@@ -6,6 +6,7 @@
 // judging cluster shapes.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -17,6 +18,11 @@
 #include "facetree/picture.h"  // ViewBasis
 
 namespace facetree {
+
+// Non-finite positions (NaN or infinite) are left out of the framing and of the picture.
+inline bool isFinite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 // Positions in sample space for an image of width x height samples: x to the right and y down
 // in samples (sample centres at +0.5), z the distance along `forward` in the same units, so the

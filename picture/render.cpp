@@ -37,10 +37,6 @@ constexpr glm::vec3 kBackground{248.0f, 248.0f, 248.0f};
 constexpr glm::vec3 kEdgeColour{25.0f, 25.0f, 30.0f};
 constexpr float kEdgeStrength = 0.8f;  // of a sample on a cluster boundary or the silhouette
 
-bool isFinite(const glm::vec3& v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
 void checkOptions(const RenderOptions& options) {
   if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide ||
       options.height > kMaxImageSide)

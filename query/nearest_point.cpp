@@ -53,14 +53,14 @@ float boxDistance(const glm::vec3& p, const NodeBox& box) {
   return std::max(0.0f, glm::length(outside) - margin);
 }
 
-struct Best {
+struct NearestSoFar {
   double distance2;
   uint64_t face = kNoHit;
   glm::dvec3 point{0.0};
 };
 
 template <class View>
-void testRange(View& view, const glm::dvec3& p, uint64_t first, uint64_t count, Best& best,
+void testRange(View& view, const glm::dvec3& p, uint64_t first, uint64_t count, NearestSoFar& best,
                QueryStats& stats) {
   stats.triangleTests += count;
   glm::vec3 corner[3];
@@ -75,9 +75,9 @@ void testRange(View& view, const glm::dvec3& p, uint64_t first, uint64_t count, 
 }
 
 template <class Source>
-Best traverse(const Source& source, typename Source::View& view, const glm::vec3& point, float radius,
-              QueryStats& stats, Stack& stack) {
-  Best best{static_cast<double>(radius) * radius};
+NearestSoFar traverse(const Source& source, typename Source::View& view, const glm::vec3& point, float radius,
+                      QueryStats& stats, Stack& stack) {
+  NearestSoFar best{static_cast<double>(radius) * radius};
   if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z) || !(radius >= 0))
     return best;
   const glm::dvec3 p(point);
@@ -114,7 +114,7 @@ Best traverse(const Source& source, typename Source::View& view, const glm::vec3
 }
 
 template <class View>
-NearestHit toHit(View& view, const Best& best) {
+NearestHit toHit(View& view, const NearestSoFar& best) {
   NearestHit hit;
   if (best.face == kNoHit) return hit;
   hit.face = best.face;
@@ -159,7 +159,7 @@ std::vector<NearestHit> nearest(ClusterFileReader& reader, std::span<const glm::
 NearestHit nearestBruteForce(const ClusterFile& file, const glm::vec3& point, float radius) {
   query::FileSource source(file);
   query::FileSource::View view(source);
-  Best best{static_cast<double>(radius) * radius};
+  NearestSoFar best{static_cast<double>(radius) * radius};
   QueryStats stats;
   if (std::isfinite(point.x) && std::isfinite(point.y) && std::isfinite(point.z) && radius >= 0)
     testRange(view, glm::dvec3(point), 0, source.faceCount(), best, stats);

@@ -31,7 +31,7 @@ using query::rayTriangle;
 using query::Stack;
 using query::TriangleHit;
 
-struct Best {
+struct ClosestSoFar {
   double t = std::numeric_limits<double>::infinity();
   uint64_t face = kNoHit;
   double u = 0, v = 0;
@@ -59,7 +59,7 @@ struct RayState {
 
 // Tests triangles [first, first + count); returns true on the first hit when `any`.
 template <class View>
-bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, Best& best, bool any,
+bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, ClosestSoFar& best, bool any,
                QueryStats& stats) {
   stats.triangleTests += count;
   glm::vec3 corner[3];
@@ -78,9 +78,9 @@ bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, 
 
 // The traversal of one ray; `any`: stop at the first hit.
 template <class Source>
-Best traverse(const Source& source, typename Source::View& view, const RayState& ray, bool any,
-              QueryStats& stats, Stack& stack) {
-  Best best;
+ClosestSoFar traverse(const Source& source, typename Source::View& view, const RayState& ray, bool any,
+                      QueryStats& stats, Stack& stack) {
+  ClosestSoFar best;
   if (!ray.valid) return best;
   if (source.nodeCount() == 0) {
     testRange(view, ray, 0, source.faceCount(), best, any, stats);
@@ -121,9 +121,9 @@ Best traverse(const Source& source, typename Source::View& view, const RayState&
 
 // The same traversal over a file's layout for rays: stack entries are positions in the index,
 // which order siblings as their node indices do.
-Best traverseIndex(const query::RayIndex& index, const RayState& ray, bool any, QueryStats& stats,
-                   Stack& stack) {
-  Best best;
+ClosestSoFar traverseIndex(const query::RayIndex& index, const RayState& ray, bool any, QueryStats& stats,
+                           Stack& stack) {
+  ClosestSoFar best;
   if (!ray.valid) return best;
   if (index.empty()) {
     testRange(index, ray, 0, index.faceCount(), best, any, stats);
@@ -160,7 +160,7 @@ Best traverseIndex(const query::RayIndex& index, const RayState& ray, bool any, 
 }
 
 template <class View>
-RayHit toHit(View& view, const Best& best) {
+RayHit toHit(View& view, const ClosestSoFar& best) {
   RayHit hit;
   if (best.face == kNoHit) return hit;
   hit.t = static_cast<float>(best.t);
@@ -190,14 +190,14 @@ template <class Source, class Walk>
 std::vector<RayHit> closestHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
                                 QueryStats* stats, Walk&& walk) {
   return traverseAll<RayHit>(source, rays, false, options, stats, walk,
-                             [](auto& view, const Best& best) { return toHit(view, best); });
+                             [](auto& view, const ClosestSoFar& best) { return toHit(view, best); });
 }
 
 template <class Source, class Walk>
 std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
                              QueryStats* stats, Walk&& walk) {
   return traverseAll<uint8_t>(source, rays, true, options, stats, walk,
-                              [](auto&, const Best& best) { return uint8_t{best.face != kNoHit}; });
+                              [](auto&, const ClosestSoFar& best) { return uint8_t{best.face != kNoHit}; });
 }
 
 // A file in memory is walked through its layout for rays (its boxes and its triangles' corners), a
@@ -272,7 +272,7 @@ RayHit intersectBruteForce(const ClusterFile& file, const Ray& ray) {
   const RayState state(ray);
   query::FileSource source(file);
   query::FileSource::View view(source);
-  Best best;
+  ClosestSoFar best;
   QueryStats stats;
   if (state.valid) testRange(view, state, 0, source.faceCount(), best, false, stats);
   return toHit(view, best);

@@ -13,11 +13,6 @@
 #include "stages/stages.h"
 
 namespace facetree {
-namespace {
-
-constexpr size_t kBatchTriangles = 4096;
-
-}  // namespace
 
 void JobReport::recordInCoreBuild(const Hierarchy& hierarchy, const BranchingStats& file) {
   inCore = hierarchy.stats;
@@ -84,7 +79,7 @@ JobReport runJob(const ClusterJob& job, const std::filesystem::path* work) {
       pending.indices.reserve(3 * declared);
       pending.originalFace.reserve(declared);
     }
-    std::vector<Triangle> batch(kBatchTriangles);
+    std::vector<Triangle> batch(kReadBatchTriangles);
     for (size_t got; (got = reader->read(batch)) > 0;) {
       for (size_t i = 0; i < got; ++i) {
         const Triangle& t = batch[i];

@@ -4,14 +4,13 @@
 #include <limits>
 #include <stdexcept>
 
+#include "stages/stages.h"
+
 namespace facetree {
-namespace {
-constexpr size_t kBatchTriangles = 4096;
-}
 
 IndexedMesh loadMesh(TriangleReader& reader, const LoadOptions& options) {
   IndexedMesh mesh;
-  std::vector<Triangle> batch(kBatchTriangles);
+  std::vector<Triangle> batch(kReadBatchTriangles);
   if (reader.info().declaredFaces > 0) {
     // A hint only: never trust a header count beyond what a reasonable reserve allows.
     const uint64_t hint = std::min<uint64_t>(reader.info().declaredFaces, uint64_t{1} << 26);

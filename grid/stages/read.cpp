@@ -19,8 +19,6 @@
 namespace facetree {
 namespace {
 
-constexpr size_t kBatchTriangles = 4096;
-
 class ArrivalReader {
  public:
   ArrivalReader(const StageContext& context, VertexPositions* positions)
@@ -96,7 +94,7 @@ void ArrivalReader::readAll(TriangleReader& reader, PendingTriangles&& pending) 
   }
   // STL: the reader's welding table grows with the mesh; the weld pass takes over.
   if (!deferred) soup_ = reader.stopWelding();
-  std::vector<Triangle> batch(kBatchTriangles);
+  std::vector<Triangle> batch(kReadBatchTriangles);
   for (size_t got; (got = reader.read(batch)) > 0;) {
     for (size_t i = 0; i < got; ++i) {
       const Triangle& t = batch[i];

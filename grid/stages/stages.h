@@ -31,6 +31,9 @@ namespace facetree {
 // Reports progress to job.progress; throws Cancelled when it or job.build.cancelled asks to stop.
 void checkJobProgress(const ClusterJob& job, const char* phase, uint64_t done, uint64_t total);
 
+// Triangles asked of a TriangleReader per read(): a few pages of records, reused for the whole read.
+inline constexpr size_t kReadBatchTriangles = 4096;
+
 // What every stage shares: the job, its temporary space, the cap, the report it fills.
 struct StageContext {
   const ClusterJob& job;

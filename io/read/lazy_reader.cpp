@@ -35,8 +35,6 @@ uint64_t frameBytes(const CachedFrame& f) {
          f.indices.capacity() * sizeof(uint32_t) + f.ids.capacity() * sizeof(uint64_t) + 64;
 }
 
-// A child of a kept node with its face range: a cluster of the cut unless it is kept itself.
-
 }  // namespace
 
 uint64_t readerMemory(const ReaderOptions& options, const FileHeader& header) {

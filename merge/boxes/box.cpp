@@ -139,26 +139,6 @@ uint32_t blockEnd(uint32_t i, uint32_t end) {
 #define SCAN_CLONES
 #endif
 
-// Four faces per step with GCC/Clang vector extensions (SSE2 on x86-64, NEON on arm64).
-using V4f = float __attribute__((vector_size(16)));
-using V4i = int32_t __attribute__((vector_size(16)));
-using V4d = double __attribute__((vector_size(32)));
-
-V4f load4(const float* p) {
-  V4f v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-V4f splat(float x) {
-  return V4f{x, x, x, x};
-}
-V4f vmin(V4f a, V4f b) {
-  return a < b ? a : b;
-}
-V4f vmax(V4f a, V4f b) {
-  return a > b ? a : b;
-}
-
 // Positions [begin, end) (within one side block and f's window): min/max of (p - origin) . axis_k
 // in float, side areas accumulated in double. Vertex positions minus a vertex of the node are
 // exact to half an ulp of the box size, so the float error is relative to the box, not to the

@@ -37,13 +37,7 @@ namespace {
 
 // One vertex's projections on the three axes in the lanes of one vector (the fourth lane is
 // unused): lane k computes (x a_kx + y a_ky) + z a_kz, boxes/box.cpp's float operations in its order,
-// so the results are bit for bit scanBlock's. GCC/Clang vector extensions, as boxes/box.cpp.
-using V4f = float __attribute__((vector_size(16)));
-using V4d = double __attribute__((vector_size(32)));
-
-V4f splat(float x) {
-  return V4f{x, x, x, x};
-}
+// so the results are bit for bit scanBlock's.
 
 // a_f n_f as boxes/box.cpp's pack() stores it: half the double cross product, rounded to float.
 glm::vec3 areaNormal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
@@ -115,8 +109,8 @@ void BoxAccumulator::scanCorners(std::span<const glm::vec3> corners, float lo[3]
   V4f l = splat(INFINITY), h = splat(-INFINITY);
   for (const glm::vec3& p : corners) {
     const V4f d = splat(p.x - ox) * ax + splat(p.y - oy) * ay + splat(p.z - oz) * az;
-    l = l < d ? l : d;  // scanBlock's vmin / vmax
-    h = h > d ? h : d;
+    l = vmin(l, d);
+    h = vmax(h, d);
   }
   for (int k = 0; k < 3; ++k) lo[k] = l[k], hi[k] = h[k];
 }

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
@@ -14,6 +16,27 @@
 #include "facetree/merge.h"
 
 namespace facetree {
+
+// Four lanes per step with GCC/Clang vector extensions (SSE2 on x86-64, NEON on arm64): the box
+// scan and BoxAccumulator project with the same lane operations, so their floats agree bit for bit.
+using V4f = float __attribute__((vector_size(16)));
+using V4i = int32_t __attribute__((vector_size(16)));
+using V4d = double __attribute__((vector_size(32)));
+
+inline V4f load4(const float* p) {
+  V4f v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline V4f splat(float x) {
+  return V4f{x, x, x, x};
+}
+inline V4f vmin(V4f a, V4f b) {
+  return a < b ? a : b;
+}
+inline V4f vmax(V4f a, V4f b) {
+  return a > b ? a : b;
+}
 
 // Projections of a face set on three axes, relative to the reference vertex, and side areas.
 struct BoxExtent {

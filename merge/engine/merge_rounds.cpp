@@ -293,7 +293,7 @@ class RoundsEngine {
     forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
       uint32_t first = kNone;
-      Cluster a;
+      Cluster a{};
       for (DualEdge& edge : edges[block]) {
         if (edge.end[0] != first) {  // a block's edges come sorted by their lower face
           first = edge.end[0];
