@@ -4,99 +4,25 @@
 #include <zstd.h>
 
 #include <algorithm>
-#include <condition_variable>
 #include <cstring>
-#include <exception>
-#include <mutex>
 #include <stdexcept>
-#include <thread>
 
 namespace facetree {
 
 class BucketSpill::Writer {
  public:
   static constexpr size_t kSpares = 2;  // buffers in flight: one being written, one waiting
-
-  Writer(SpillFile& file, int level, size_t bufferBytes) : file_(file), codec_(level) {
-    for (size_t i = 0; i < kSpares; ++i) {
-      owned_.push_back(std::make_unique_for_overwrite<std::byte[]>(bufferBytes));
-      free_.push_back(owned_.back().get());
-    }
-    thread_ = std::thread([this] { run(); });
-  }
-  ~Writer() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
-  }
-
-  // Copies `bytes` into a free buffer (waiting for one) and queues its write into `*target`.
-  void submit(std::span<const std::byte> bytes, SpillBlock* target) {
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return !free_.empty() || failure_; });
-    rethrow();
-    std::byte* buffer = free_.back();
-    free_.pop_back();
-    lock.unlock();
-    std::memcpy(buffer, bytes.data(), bytes.size());
-    lock.lock();
-    queue_.push_back({buffer, bytes.size(), target});
-    lock.unlock();
-    changed_.notify_all();
-  }
-  // Waits until every queued write is done; rethrows the first failure.
-  void settle() {
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return (queue_.empty() && !busy_) || failure_; });
-    rethrow();
-  }
-
- private:
-  struct Job {
-    std::byte* buffer;
-    size_t bytes;
-    SpillBlock* target;
+  struct Block {
+    std::unique_ptr<std::byte[]> bytes;
+    size_t size = 0;
+    SpillBlock* target = nullptr;
   };
-  void rethrow() {
-    if (failure_) std::rethrow_exception(failure_);
-  }
-  void run() {
-    std::unique_lock lock(mutex_);
-    for (;;) {
-      changed_.wait(lock, [&] { return !queue_.empty() || stop_; });
-      if (queue_.empty()) return;
-      const Job job = queue_.front();
-      queue_.pop_front();
-      busy_ = true;
-      const bool failed = failure_ != nullptr;
-      lock.unlock();
-      std::exception_ptr failure;
-      try {
-        if (!failed) *job.target = file_.append({job.buffer, job.bytes}, codec_);
-      } catch (...) {
-        failure = std::current_exception();
-      }
-      lock.lock();
-      if (failure && !failure_) failure_ = failure;
-      busy_ = false;
-      free_.push_back(job.buffer);
-      changed_.notify_all();
-    }
-  }
+  WriteBehind<Block, kSpares> behind;
 
-  SpillFile& file_;
-  SpillCodec codec_;
-  std::vector<std::unique_ptr<std::byte[]>> owned_;
-  std::vector<std::byte*> free_;
-  std::deque<Job> queue_;
-  bool busy_ = false, stop_ = false;
-  std::exception_ptr failure_;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::thread thread_;
+  Writer(SpillFile& file, int level)
+      : behind([&file, codec = SpillCodec(level)](Block& b) mutable {
+          *b.target = file.append({b.bytes.get(), b.size}, codec);
+        }) {}
 };
 
 BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes,
@@ -125,7 +51,7 @@ BucketSpill::BucketSpill(std::unique_ptr<SpillFile> file, size_t buckets, size_t
       tail_(buckets, kNoBlock) {
   if (recordBytes == 0 || recordBytes > kMaxSpillBlockBytes)
     throw std::invalid_argument("BucketSpill: record size must be 1 byte to 256 MiB");
-  if (background) background_ = std::make_unique<Writer>(*file_, level, bufferBytes_);
+  if (background) background_ = std::make_unique<Writer>(*file_, level);
 }
 
 BucketSpill::~BucketSpill() = default;
@@ -136,7 +62,7 @@ uint64_t BucketSpill::backgroundBytes(size_t bufferBytes) {
 }
 
 void BucketSpill::settle() const {
-  if (background_) background_->settle();
+  if (background_) background_->behind.settle();
 }
 
 void BucketSpill::releaseBuffers() {
@@ -321,8 +247,12 @@ void BucketSpill::flush(size_t bucket) {
   if (offloadAt_ && blocks_.size() >= offloadAt_) offloadRound();
   const std::span<const std::byte> bytes(buffer_.get() + bucket * bufferBytes_, fill_[bucket]);
   if (background_) {
-    const uint32_t index = reserveBlock(bucket);
-    background_->submit(bytes, &blocks_[index].block);
+    Writer::Block& b = background_->behind.slot();
+    if (!b.bytes) b.bytes = std::make_unique_for_overwrite<std::byte[]>(bufferBytes_);
+    std::memcpy(b.bytes.get(), bytes.data(), bytes.size());
+    b.size = bytes.size();
+    b.target = &blocks_[reserveBlock(bucket)].block;
+    background_->behind.submit();
   } else {
     const SpillBlock block = file_->append(bytes, writer_);
     blocks_[reserveBlock(bucket)].block = block;

@@ -3,13 +3,11 @@
 // than one (stages/write_plan.cpp).
 #pragma once
 
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
-#include <mutex>
+#include <optional>
 #include <span>
-#include <thread>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -51,7 +49,7 @@ class UpperBoxes {
         sink_(std::move(sink)),
         slot_(frames.size(), kNoSlot),
         world_(worldAxesSlots(worldAxes, frames.size() - worldAxes.size())) {
-    if (helper) thread_ = std::thread([this] { run(); });
+    start(helper);
   }
   // The parts merged into `totals` (framed, empty) as they end. A node's first part goes straight
   // into its total, the same bits as merged into an empty one: only the nodes whose triangles
@@ -61,9 +59,8 @@ class UpperBoxes {
         totals_(&totals),
         slot_(totals.size(), kNoSlot),
         world_(worldAxesSlots(worldAxes, totals.size() - worldAxes.size())) {
-    if (helper) thread_ = std::thread([this] { run(); });
+    start(helper);
   }
-  ~UpperBoxes() { finish(); }
   UpperBoxes(const UpperBoxes&) = delete;
   UpperBoxes& operator=(const UpperBoxes&) = delete;
 
@@ -71,7 +68,7 @@ class UpperBoxes {
   void add(std::span<const glm::vec3> vertices, std::span<const uint32_t> indices,
            std::span<const uint32_t> ancestors) {
     if (ancestors.empty() || indices.empty()) return;
-    Batch& b = batch_[filling_];
+    Batch& b = *filling_;
     b.runs.push_back({b.vertices.size(), vertices.size(), b.indices.size(), indices.size(),
                       b.ancestors.size(), ancestors.size()});
     b.vertices.insert(b.vertices.end(), vertices.begin(), vertices.end());
@@ -80,23 +77,14 @@ class UpperBoxes {
     if (b.indices.size() >= 3 * kBatchTriangles || b.ancestors.size() >= kBatchAncestors) hand();
   }
   // The part so far ends here (an empty part gives the sink nothing).
-  void endPart() { batch_[filling_].partEnds.push_back(batch_[filling_].runs.size()); }
+  void endPart() { filling_->partEnds.push_back(filling_->runs.size()); }
   // Ends the part, and waits until every part is with the sink.
   void finish() {
     if (finished_) return;
     finished_ = true;
     endPart();
-    if (!thread_.joinable()) {
-      accumulate(batch_[filling_]);
-      return;
-    }
     hand();
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
+    if (helper_) helper_->settle();
   }
 
  private:
@@ -165,31 +153,17 @@ class UpperBoxes {
     b.runs.clear();
     b.partEnds.clear();
   }
-  // Gives the filled batch to the helper once it is done with the other one, and fills that one next.
-  void hand() {
-    if (!thread_.joinable()) {
-      accumulate(batch_[filling_]);
-      return;
+  void start(bool helper) {
+    if (helper) {
+      helper_.emplace([this](Batch& b) { accumulate(b); });
+      filling_ = &helper_->slot();
     }
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return !pending_; });
-    pending_ = true;
-    filling_ ^= 1;
-    lock.unlock();
-    changed_.notify_all();
   }
-  void run() {
-    std::unique_lock lock(mutex_);
-    for (;;) {
-      changed_.wait(lock, [&] { return pending_ || stop_; });
-      if (!pending_) return;
-      Batch& b = batch_[filling_ ^ 1];
-      lock.unlock();
-      accumulate(b);  // arithmetic, and the parts' accumulators: only allocation can throw
-      lock.lock();
-      pending_ = false;
-      changed_.notify_all();
-    }
+  // Gives the filled batch to the helper, and fills the other one next (once the helper is done with it).
+  void hand() {
+    if (!helper_) return accumulate(*filling_);
+    helper_->submit();
+    filling_ = &helper_->slot();
   }
 
   const std::vector<BoxAccumulator>& frames_;
@@ -201,14 +175,11 @@ class UpperBoxes {
   std::vector<uint32_t> partNodes_;        // those with an accumulator of the part, in order
   std::vector<BoxAccumulator> partBoxes_;  // and those accumulators
   bool finished_ = false;
-  TriangleRun run_;                       // scratch of accumulate()
-  std::vector<BoxAccumulator*> targets_;  // a run's ancestors
-  Batch batch_[2];
-  int filling_ = 0;  // the batch this thread fills; the helper reads the other while pending_
-  bool pending_ = false, stop_ = false;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::thread thread_;
+  TriangleRun run_;                           // scratch of accumulate()
+  std::vector<BoxAccumulator*> targets_;      // a run's ancestors
+  Batch inline_;                              // the one batch without a helper
+  Batch* filling_ = &inline_;                 // the batch this thread fills
+  std::optional<WriteBehind<Batch>> helper_;  // last: stops before the rest goes
 };
 
 }  // namespace facetree

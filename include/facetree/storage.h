@@ -3,7 +3,8 @@
 // the temporary directory of a run and its byte accounting (TempSpace); append-only files of
 // independently zstd-compressed blocks (SpillFile, SpillCodec); many record streams in one such
 // file (BucketSpill); the external merge sort of fixed-size records (ExternalSorter; Knuth, TAOCP
-// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead).
+// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead), and consumed
+// on one behind their writer (WriteBehind).
 #pragma once
 
 #include <algorithm>
@@ -847,6 +848,78 @@ class ReadAhead {
   std::condition_variable changed_;
   uint64_t made_ = 0, taken_ = 0, released_ = 0;  // items published, handed out, handed back
   bool stop_ = false, finished_ = false;
+  std::exception_ptr failure_;
+  std::thread thread_;  // last: starts once the rest exists
+};
+
+// The mirror of ReadAhead: items made in turn by the caller and consumed in turn on a helper
+// thread, up to `Slots` behind, so that a pass's writes overlap its own work. The caller fills
+// slot() and hands it on with submit(); settle() waits until every item submitted is consumed.
+// `consume(item)` runs on the helper; its first exception reaches the caller at the next slot()
+// or settle(), and the items after it are skipped.
+template <class Item, size_t Slots = 2>
+class WriteBehind {
+ public:
+  template <class Consume>
+  explicit WriteBehind(Consume consume) {
+    thread_ = std::thread([this, consume = std::move(consume)]() mutable { run(consume); });
+  }
+  ~WriteBehind() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+  WriteBehind(const WriteBehind&) = delete;
+  WriteBehind& operator=(const WriteBehind&) = delete;
+
+  // The caller's slot to fill next: waits until the helper is done with the item `Slots` before.
+  Item& slot() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return made_ - done_ < Slots || failure_; });
+    if (failure_) std::rethrow_exception(failure_);
+    return slots_[made_ % Slots];
+  }
+  void submit() {
+    std::lock_guard lock(mutex_);
+    ++made_;
+    changed_.notify_all();
+  }
+  void settle() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return done_ == made_ || failure_; });
+    if (failure_) std::rethrow_exception(failure_);
+  }
+
+ private:
+  template <class Consume>
+  void run(Consume& consume) {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      changed_.wait(lock, [&] { return made_ > done_ || stop_; });
+      if (made_ == done_) return;
+      const bool skip = failure_ != nullptr;
+      lock.unlock();
+      std::exception_ptr failure;
+      try {
+        if (!skip) consume(slots_[done_ % Slots]);
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      lock.lock();
+      if (failure && !failure_) failure_ = failure;
+      ++done_;
+      changed_.notify_all();
+    }
+  }
+
+  std::array<Item, Slots> slots_{};  // a ring: item i in slots_[i % Slots]
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  uint64_t made_ = 0, done_ = 0;  // items submitted, consumed
+  bool stop_ = false;
   std::exception_ptr failure_;
   std::thread thread_;  // last: starts once the rest exists
 };
