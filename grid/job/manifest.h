@@ -38,6 +38,15 @@ class ManifestWriter {
     static_assert(std::is_trivially_copyable_v<T>);
     putBytes({reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T)});
   }
+  // One field, as ManifestReader::field reads it back: a record's list of fields, written once,
+  // serves both (a string goes as its bytes).
+  template <class T>
+  void field(const T& value) {
+    if constexpr (std::is_same_v<T, std::string>)
+      putBytes(value);
+    else
+      put(value);
+  }
   // Writes `path` (as PATH.partial, synced, renamed): Error (Output) naming it when it cannot.
   void commit(const std::filesystem::path& path, std::string_view kind) const;
   // The manifest's bytes as commit writes them, and their size.
@@ -81,6 +90,13 @@ class ManifestReader {
     const char* from = need(n);
     if (n > 0) std::memcpy(values.data(), from, n);  // an empty vector's data() may be null
     return values;
+  }
+  template <class T>
+  void field(T& value) {
+    if constexpr (std::is_same_v<T, std::string>)
+      value = takeBytes();
+    else
+      value = take<T>();
   }
   // Every field taken: the manifest ends here.
   void finish();

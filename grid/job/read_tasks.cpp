@@ -173,7 +173,7 @@ std::filesystem::path binGhostsPath(const WorkDirectory& work, uint32_t task) {
 // The grid manifest's fields, in order; the bin tasks' indexes when `bins`.
 void loadGridManifest(const WorkDirectory& work, PlanState& s, bool bins, bool owners) {
   ManifestReader in = work.read(gridPath(work), kGridKind);
-  takeReport(in, s.report);
+  reportFields(in, s.report);
   s.extent = in.take<MeshExtent>();
   s.plan = in.take<OutOfCorePlan>();
   s.cellCount = in.take<uint32_t>();
@@ -257,7 +257,7 @@ bool planRanges(const ClusterJob& job, const WorkDirectory& work, StagePlan& res
   ManifestWriter out;
   out.putBytes(jobFingerprint(job));
   out.put(false);
-  putReport(out, report);
+  reportFields(out, report);
   out.put(true);  // read in ranges
   out.put(cap);
   out.put(plan);
@@ -392,7 +392,7 @@ bool runGridStep(const ClusterJob& job, const WorkDirectory& work) {
     }
   }
   ManifestWriter out;
-  putReport(out, report);
+  reportFields(out, report);
   out.put(extent);
   out.put(plan);
   out.put(cells);

@@ -53,42 +53,6 @@ std::string jobFingerprint(const ClusterJob& job) {
   return out.str();
 }
 
-void putReport(ManifestWriter& out, const JobReport& r) {
-  out.putBytes(r.info.name);
-  out.put(r.info.format);
-  out.put(r.info.zstdCompressed);
-  out.put(r.info.declaredVertices);
-  out.put(r.info.declaredFaces);
-  out.put(r.stats);
-  out.put(r.triangles);
-  out.put(r.weldedVertices);
-  out.put(r.cells);
-  out.put(r.cellFaceLimit);
-  out.put(r.memoryCap);
-  out.put(r.fileBytes);
-  out.put(r.secondsRead);
-  out.put(r.secondsBin);
-  out.put(r.temporaryBytesPeak);
-}
-
-void takeReport(ManifestReader& in, JobReport& r) {
-  r.info.name = in.takeBytes();
-  r.info.format = in.take<MeshFormat>();
-  r.info.zstdCompressed = in.take<bool>();
-  r.info.declaredVertices = in.take<uint64_t>();
-  r.info.declaredFaces = in.take<uint64_t>();
-  r.stats = in.take<ReadStats>();
-  r.triangles = in.take<uint64_t>();
-  r.weldedVertices = in.take<uint64_t>();
-  r.cells = in.take<uint64_t>();
-  r.cellFaceLimit = in.take<uint64_t>();
-  r.memoryCap = in.take<uint64_t>();
-  r.fileBytes = in.take<uint64_t>();
-  r.secondsRead = in.take<double>();
-  r.secondsBin = in.take<double>();
-  r.temporaryBytesPeak = in.take<uint64_t>();
-}
-
 void putOwners(ManifestWriter& out, std::span<const uint32_t> owners) {
   std::vector<uint32_t> runs;  // owner, length, owner, length, ...
   for (size_t b = 0; b < owners.size();) {
@@ -123,7 +87,7 @@ PlanState loadPlanManifest(const WorkDirectory& work, bool owners) {
   PlanState s;
   s.fingerprint = in.takeBytes();
   s.inCore = in.take<bool>();
-  takeReport(in, s.report);
+  reportFields(in, s.report);
   if (!s.inCore) {
     s.ranges = in.take<bool>();
     s.memoryCap = in.take<uint64_t>();
@@ -213,7 +177,7 @@ void savePlanManifest(const StageContext& context, const WorkDirectory& work, co
   ManifestWriter out;
   out.putBytes(jobFingerprint(context.job));
   out.put(false);
-  putReport(out, context.report);
+  reportFields(out, context.report);
   out.put(false);  // read whole
   out.put(context.memoryCap);
   out.put(plan);
@@ -326,7 +290,7 @@ StagePlan planStages(const ClusterJob& job, const std::filesystem::path& directo
     ManifestWriter out;
     out.putBytes(jobFingerprint(job));
     out.put(true);
-    putReport(out, result.report);
+    reportFields(out, result.report);
     work.commit(out, planPath(work), kPlanKind);
     result.next = {{"finish", 1}};
     return result;

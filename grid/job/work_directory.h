@@ -53,8 +53,19 @@ inline std::string binTaskStem(uint32_t task) {
 // What the file depends on: the input (its path, size and time of change) and every option that
 // shapes the build. A plan of the same job is not made again; any other plan starts afresh.
 std::string jobFingerprint(const ClusterJob& job);
-void putReport(ManifestWriter& out, const JobReport& report);
-void takeReport(ManifestReader& in, JobReport& report);
+// The report's fields in the manifests, written (ManifestWriter) or read (ManifestReader) in one order.
+template <class Manifest, class Report>
+void reportFields(Manifest& m, Report& r) {
+  m.field(r.info.name);
+  m.field(r.info.format);
+  m.field(r.info.zstdCompressed);
+  for (auto* v : {&r.info.declaredVertices, &r.info.declaredFaces}) m.field(*v);
+  m.field(r.stats);
+  for (auto* v : {&r.triangles, &r.weldedVertices, &r.cells, &r.cellFaceLimit, &r.memoryCap, &r.fileBytes})
+    m.field(*v);
+  for (auto* v : {&r.secondsRead, &r.secondsBin}) m.field(*v);
+  m.field(r.temporaryBytesPeak);
+}
 // The grid's owner table in runs (the cells are runs of the bins' curve): a few KiB, not 8 MiB.
 // takeOwners decodes the table of the manifest at `path` once for the tasks of a process that hand
 // on their manifests in memory (WorkDirectory::decoded), which share it.

@@ -53,23 +53,14 @@ std::filesystem::path geometryPiecePath(const WorkDirectory& work, uint32_t task
 }
 
 // What the upper step reports beyond the plan's part (the finish prints it all).
-void putUpperReport(ManifestWriter& out, const JobReport& r) {
-  putReport(out, r);
-  for (const uint64_t v :
-       {r.nodes, r.components, r.leaves, r.crossEdges, r.upperComponents, r.temporaryBytesPeak})
-    out.put(v);
-  out.put(r.height);
-  out.put(r.balancedHeight);
-  for (const double v : {r.secondsCells, r.secondsMerge, r.secondsWrite}) out.put(v);
-}
-void takeUpperReport(ManifestReader& in, JobReport& r) {
-  takeReport(in, r);
-  for (uint64_t* v :
+template <class Manifest, class Report>
+void upperReportFields(Manifest& m, Report& r) {
+  reportFields(m, r);
+  for (auto* v :
        {&r.nodes, &r.components, &r.leaves, &r.crossEdges, &r.upperComponents, &r.temporaryBytesPeak})
-    *v = in.take<uint64_t>();
-  r.height = in.take<uint32_t>();
-  r.balancedHeight = in.take<uint32_t>();
-  for (double* v : {&r.secondsCells, &r.secondsMerge, &r.secondsWrite}) *v = in.take<double>();
+    m.field(*v);
+  for (auto* v : {&r.height, &r.balancedHeight}) m.field(*v);
+  for (auto* v : {&r.secondsCells, &r.secondsMerge, &r.secondsWrite}) m.field(*v);
 }
 
 // The write plan's scalars, as the head of its manifest keeps them.
@@ -147,7 +138,7 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
   nodeTables.putVector(std::exchange(p.upperParentPosition, {}));
   work.commit(nodeTables, nodeTablesPath(work), kNodeTablesKind);
   ManifestWriter out;
-  putUpperReport(out, report);
+  upperReportFields(out, report);
   out.put(cellsTasks);
   out.putVector(bounds);
   out.putVector(triangleBounds);
@@ -174,7 +165,7 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
 LoadedWrite loadWriteHead(const WorkDirectory& work) {
   ManifestReader in = work.read(writePlanPath(work), kWriteKind);
   LoadedWrite w;
-  takeUpperReport(in, w.report);
+  upperReportFields(in, w.report);
   w.cellsTasks = in.take<uint32_t>();
   w.bounds = in.takeVector<uint64_t>();
   w.triangleBounds = in.takeVector<uint64_t>();
@@ -569,7 +560,7 @@ Layout loadLayout(const WorkDirectory& work) {
   l.pieces = in.take<uint32_t>();
   l.geometryPieces = in.take<uint32_t>();
   l.copies = in.takeVector<PieceCopy>();
-  takeUpperReport(in, l.report);
+  upperReportFields(in, l.report);
   in.finish();
   return l;
 }
@@ -627,7 +618,7 @@ bool runLayoutStep(const ClusterJob& job, const WorkDirectory& work) {
   out.put(static_cast<uint32_t>(pieces.size()));
   out.put(static_cast<uint32_t>(w.triangleBounds.size() - 1));
   out.putVector(assembly.copies);
-  putUpperReport(out, w.report);
+  upperReportFields(out, w.report);
   work.commit(out, layoutPath(work), kLayoutKind);
   return true;
 }
