@@ -824,7 +824,8 @@ class ReadAhead {
     ++made_;
     changed_.notify_all();
   }
-  // Every slot, for the bytes they hold.
+  // Every slot, for the bytes they hold: the helper may be filling one, so only what it publishes
+  // atomically in an item may be read from another thread.
   const std::array<Item, Slots>& slots() const { return slots_; }
 
  private:

@@ -4,6 +4,7 @@
 // independent and decode by the face and vertex ranges asked. Decoded frames wait in one cache
 // bounded in bytes, the least recently used leaving first; the frame in use always stays.
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <map>
 #include <optional>
@@ -54,8 +55,11 @@ uint64_t defaultMemoryCap() {
 struct FrameCodes {
   std::string raw, compressed;
   std::vector<fch::NodeCode> codes;
-  uint64_t heldBytes() const {
-    return raw.capacity() + compressed.capacity() + codes.capacity() * sizeof(fch::NodeCode);
+  // The buffers' bytes as the helper last filled them: the decoder's thread reads this, never the
+  // buffers of a slot the helper may be filling.
+  std::atomic<uint64_t> held{0};
+  void countHeld() {
+    held = raw.capacity() + compressed.capacity() + codes.capacity() * sizeof(fch::NodeCode);
   }
 };
 
@@ -348,6 +352,7 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
       for (size_t k = 0; k < frames; ++k) {
         FrameCodes& frame = ahead.slot();
         s.readCodes(k, structure, frame.raw, frame.compressed, frame.codes);
+        frame.countHeld();
         ahead.publish();
       }
     });
@@ -355,7 +360,7 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
     uint64_t pipelineBytes = 0;
     if (pipeline) {
       s.decodeCodes(k, pipeline->next()->codes, decoder, nodes, &depths);
-      for (const FrameCodes& frame : pipeline->slots()) pipelineBytes += frame.heldBytes();
+      for (const FrameCodes& frame : pipeline->slots()) pipelineBytes += frame.held;
     } else {
       s.decodeNodeFrame(k, &decoder, nodes, &depths);
     }
