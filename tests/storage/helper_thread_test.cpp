@@ -1,0 +1,133 @@
+// ReadAhead and WriteBehind (facetree/storage.h): items in order, through a ring of slots reused
+// in turn, and a helper's failure handed to the caller after what came before it.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <vector>
+
+#include "facetree/storage.h"
+
+namespace facetree {
+namespace {
+
+struct Numbered {
+  int value = -1;
+  std::vector<int> payload;  // reused slot to slot: its capacity stays with the slot
+};
+
+TEST(ReadAhead, ItemsArriveInOrderThroughReusedSlots) {
+  constexpr int kItems = 1000;
+  ReadAhead<Numbered, 3> ahead([](ReadAhead<Numbered, 3>& a) {
+    for (int i = 0; i < kItems; ++i) {
+      Numbered& item = a.slot();
+      item.value = i;
+      item.payload.assign(static_cast<size_t>(i % 7), i);
+      a.publish();
+    }
+  });
+  int expected = 0;
+  for (Numbered* item; (item = ahead.next()) != nullptr; ++expected) {
+    ASSERT_EQ(item->value, expected);
+    ASSERT_EQ(item->payload, std::vector<int>(static_cast<size_t>(expected % 7), expected));
+  }
+  EXPECT_EQ(expected, kItems);
+  EXPECT_EQ(ahead.next(), nullptr);  // the end stays the end
+}
+
+TEST(ReadAhead, TheProducersFailureComesAfterTheItemsPublishedBeforeIt) {
+  ReadAhead<Numbered> ahead([](ReadAhead<Numbered>& a) {
+    for (int i = 0; i < 5; ++i) {
+      a.slot().value = i;
+      a.publish();
+    }
+    throw std::runtime_error("frame 5: bad checksum");
+  });
+  for (int i = 0; i < 5; ++i) {
+    Numbered* item = ahead.next();
+    ASSERT_NE(item, nullptr);
+    EXPECT_EQ(item->value, i);
+  }
+  try {
+    ahead.next();
+    FAIL() << "no failure";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "frame 5: bad checksum");
+  }
+}
+
+TEST(ReadAhead, AConsumerThatStopsEarlyReleasesAProducerWaitingForASlot) {
+  std::atomic<int> made{0};
+  {
+    ReadAhead<Numbered> ahead([&](ReadAhead<Numbered>& a) {
+      for (int i = 0; i < 1000000; ++i) {
+        a.slot().value = i;
+        a.publish();
+        ++made;
+      }
+    });
+    ASSERT_NE(ahead.next(), nullptr);
+  }  // destroyed with the producer blocked in slot(): joins, does not hang
+  EXPECT_LT(made.load(), 1000000);
+}
+
+TEST(WriteBehind, ItemsAreConsumedInOrderThroughReusedSlots) {
+  std::vector<int> seen;
+  std::vector<const Numbered*> slotsSeen;
+  {
+    WriteBehind<Numbered, 2> behind([&](Numbered& item) {
+      ASSERT_EQ(item.payload, std::vector<int>(static_cast<size_t>(item.value % 5), item.value));
+      seen.push_back(item.value);
+      slotsSeen.push_back(&item);
+    });
+    for (int i = 0; i < 500; ++i) {
+      Numbered& item = behind.slot();
+      item.value = i;
+      item.payload.assign(static_cast<size_t>(i % 5), i);
+      behind.submit();
+    }
+    behind.settle();
+    ASSERT_EQ(seen.size(), 500u);
+  }
+  for (int i = 0; i < 500; ++i) ASSERT_EQ(seen[i], i);
+  for (size_t i = 2; i < slotsSeen.size(); ++i) ASSERT_EQ(slotsSeen[i], slotsSeen[i - 2]);  // a ring of two
+  EXPECT_NE(slotsSeen[0], slotsSeen[1]);
+}
+
+TEST(WriteBehind, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
+  std::vector<int> consumed;
+  WriteBehind<Numbered> behind([&](Numbered& item) {
+    consumed.push_back(item.value);
+    if (item.value == 3) throw std::runtime_error("disk full writing block 3");
+    if (item.value > 3) throw std::logic_error("a later failure");
+  });
+  bool thrown = false;
+  try {
+    for (int i = 0; i < 100; ++i) {
+      behind.slot().value = i;
+      behind.submit();
+    }
+    behind.settle();
+  } catch (const std::runtime_error& e) {
+    thrown = true;
+    EXPECT_STREQ(e.what(), "disk full writing block 3");
+  }
+  EXPECT_TRUE(thrown);
+  EXPECT_THROW(behind.settle(), std::runtime_error);  // the same failure, again
+  EXPECT_EQ(consumed, (std::vector<int>{0, 1, 2, 3}));
+}
+
+TEST(WriteBehind, DestructionConsumesWhatWasSubmitted) {
+  std::vector<int> seen;
+  {
+    WriteBehind<Numbered> behind([&](Numbered& item) { seen.push_back(item.value); });
+    for (int i = 0; i < 2; ++i) {
+      behind.slot().value = i;
+      behind.submit();
+    }
+  }
+  EXPECT_EQ(seen, (std::vector<int>{0, 1}));
+}
+
+}  // namespace
+}  // namespace facetree
