@@ -21,6 +21,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include "base/huge_pages.h"
 #include "base/parallel_blocks.h"
 #include "boxes/box_extent.h"
 #include "boxes/frame.h"
@@ -521,6 +522,7 @@ void finishBox(const BoxExtent& e, const ScanFrame& frame, NodeBox& box, double 
 void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const BuildOptions& options,
                              unsigned threads) {
   std::vector<Node>& nodes = hierarchy.nodes;
+  reserveHugePages(hierarchy.boxes, nodes.size());
   hierarchy.boxes.assign(nodes.size(), NodeBox{});
   if (nodes.empty()) return;
   validate(mesh, hierarchy);

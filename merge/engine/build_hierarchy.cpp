@@ -27,27 +27,35 @@ uint32_t balancedHeight(uint32_t n) {
   return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
 }
 
-// Output position of each record: by decreasing effective cost, the maximum of the node's own
+// The records in output order: by decreasing effective cost, the maximum of the node's own
 // cost and its children's effective costs, ties by decreasing creation index (a later round
 // first, then the later merge of the round). A parent's key is never below its children's and it
 // is created after them, so parents precede children, and any prefix of the order is a
-// hierarchy truncated at its cheapest merges (Willmott 2000, sec. 5.5.3).
+// hierarchy truncated at its cheapest merges (Willmott 2000, sec. 5.5.3). A stable radix sort
+// by the cost's bits over the records in decreasing creation order: four passes over memory.
 std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records) {
-  const uint32_t count = static_cast<uint32_t>(records.size());
-  std::vector<uint64_t> key(count);
-  std::vector<float> effective(count);
-  for (uint32_t i = 0; i < count; ++i) {
-    float e = records[i].cost;
-    for (const uint32_t child : records[i].child)
-      if (!(child & kFaceChild)) e = std::max(e, effective[child]);
-    effective[i] = e + 0.0f;
-    key[i] = uint64_t{orderedBits(effective[i])} << 32 | i;
+  const auto count = static_cast<uint32_t>(records.size());
+  std::vector<uint32_t> key(count);  // ~orderedBits(effective cost): ascending is decreasing cost
+  {
+    std::vector<float> effective(count);
+    for (uint32_t i = 0; i < count; ++i) {
+      float e = records[i].cost;
+      for (const uint32_t child : records[i].child)
+        if (!(child & kFaceChild)) e = std::max(e, effective[child]);
+      effective[i] = e + 0.0f;
+      key[i] = ~orderedBits(effective[i]);
+    }
   }
-  std::exchange(effective, {});
-  std::sort(key.begin(), key.end(), std::greater<>());
-  std::vector<uint32_t> position(count);
-  for (uint32_t p = 0; p < count; ++p) position[static_cast<uint32_t>(key[p])] = p;
-  return position;
+  std::vector<uint32_t> order(count), next(count);
+  for (uint32_t p = 0; p < count; ++p) order[p] = count - 1 - p;
+  for (int shift = 0; shift < 32; shift += 8) {
+    uint32_t start[257] = {};
+    for (const uint32_t i : order) ++start[((key[i] >> shift) & 0xFF) + 1];
+    for (int d = 0; d < 256; ++d) start[d + 1] += start[d];
+    for (const uint32_t i : order) next[start[(key[i] >> shift) & 0xFF]++] = i;
+    order.swap(next);
+  }
+  return order;
 }
 
 // Output nodes from the creation-ordered records: in effective-cost order (the root first),
@@ -65,12 +73,18 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     return 1;
   }
   const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
-  const std::vector<uint32_t> position = effectiveCostOrder(records);
+  std::vector<uint32_t> order = effectiveCostOrder(records);
+  reserveHugePages(nodes, records.size());  // written once, then walked out of order by the boxes
   nodes.resize(records.size());
-  for (uint32_t i = 0; i <= last; ++i) {
-    const MergeRecord& r = records[i];
-    Node& node = nodes[position[i]];
-    for (int k = 0; k < 2; ++k) node.child[k] = (r.child[k] & kFaceChild) ? r.child[k] : position[r.child[k]];
+  // Nodes are written in order and records read where the order says, a few reads ahead (the
+  // reads are independent; the writes would not be).
+  constexpr uint32_t kAhead = 8;
+  for (uint32_t p = 0; p <= last; ++p) {
+    if (p + kAhead <= last) __builtin_prefetch(&records[order[p + kAhead]]);
+    const MergeRecord& r = records[order[p]];
+    Node& node = nodes[p];
+    node.child[0] = r.child[0];
+    node.child[1] = r.child[1];
     node.first = 0;
     node.count = r.faceCount();
     node.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
@@ -80,11 +94,25 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     node.sumNormal = glm::vec3(r.sumNormal[0], r.sumNormal[1], r.sumNormal[2]);
   }
   std::exchange(records, {});
+  std::vector<uint32_t> position(order.size());  // of each record
+  for (uint32_t p = 0; p <= last; ++p) position[order[p]] = p;
+  std::exchange(order, {});
+  for (Node& node : nodes)
+    for (uint32_t& child : node.child)
+      if (!(child & kFaceChild)) child = position[child];
+  std::exchange(position, {});
 
   std::vector<uint32_t> depth(nodes.size(), 0);
   depth[0] = 1;
   uint32_t height = 1;
   for (uint32_t i = 0; i <= last; ++i) {
+    if (i + kAhead <= last) {
+      for (const uint32_t child : nodes[i + kAhead].child) {
+        if (child & kFaceChild) continue;
+        __builtin_prefetch(&nodes[child], 1);
+        __builtin_prefetch(&depth[child], 1);
+      }
+    }
     Node& node = nodes[i];
     uint32_t first = node.first;
     for (uint32_t& child : node.child) {

@@ -60,11 +60,14 @@ struct Candidate {
 
 class BoxTree {
  public:
-  BoxTree(std::span<const AxisBox> boxes, std::span<const uint32_t> label) : boxes_(boxes), label_(label) {
+  // Over the boxes that are not empty, and not of label `without`.
+  BoxTree(std::span<const AxisBox> boxes, std::span<const uint32_t> label, uint32_t without = kMixed)
+      : boxes_(boxes), label_(label) {
     for (uint32_t i = 0; i < boxes.size(); ++i)
-      if (!boxes[i].empty()) order_.push_back(i);
-    centre_.resize(boxes.size());
-    for (const uint32_t i : order_) centre_[i] = boxes[i].centre();
+      if (!boxes[i].empty() && label[i] != without) order_.push_back(i);
+    centre_.resize(boxes.size());  // also of the queries it leaves out
+    for (uint32_t i = 0; i < boxes.size(); ++i)
+      if (!boxes[i].empty()) centre_[i] = boxes[i].centre();
     if (order_.empty()) return;
     nodes_.reserve(2 * order_.size() / kLeafBoxes + 2);
     nodes_.push_back({});
@@ -176,6 +179,21 @@ AxisBox clusterBox(const SurfaceStats& stats) {
 std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox> boxes,
                                                         std::span<const uint32_t> label, uint32_t k) {
   const BoxTree tree(boxes, label);
+  // The largest label's boxes (a mesh's main piece) search a tree without them: in the whole tree
+  // their walk would open every node near them that holds another label's box, to skip their own.
+  uint32_t largest = kMixed;
+  {
+    std::vector<uint32_t> labels;
+    for (const uint32_t q : tree.order()) labels.push_back(label[q]);
+    std::sort(labels.begin(), labels.end());
+    size_t most = 0;
+    for (size_t begin = 0, end = 0; begin < labels.size(); begin = end) {
+      for (end = begin; end < labels.size() && labels[end] == labels[begin]; ++end) {
+      }
+      if (end - begin > most) most = end - begin, largest = labels[begin];
+    }
+  }
+  const BoxTree others(boxes, label, largest);
   // Proposals as (proposed, proposer) in 8 bytes; their distances are recomputed per proposed box.
   std::vector<std::pair<uint32_t, uint32_t>> proposals;
   proposals.reserve(tree.order().size() * k);
@@ -183,7 +201,7 @@ std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox>
     std::vector<Candidate> best;
     std::vector<uint32_t> stack;
     for (const uint32_t q : tree.order()) {
-      tree.nearest(q, k, best, stack);
+      (label[q] == largest ? others : tree).nearest(q, k, best, stack);
       for (const Candidate& c : best) proposals.emplace_back(c.index, q);
     }
   }
