@@ -38,8 +38,10 @@ std::vector<uint32_t> bruteNearest(const std::vector<AxisBox>& boxes, const std:
 
 TEST(NearestPairs, AreEveryBoxsNearestOfAnotherLabelAsBruteForceFindsThem) {
   std::mt19937 random(5);
-  std::uniform_real_distribution<float> at(0.0f, 100.0f), size(0.0f, 4.0f);
-  for (const uint32_t labels : {2u, 7u, 1000u}) {
+  std::uniform_real_distribution<float> size(0.0f, 4.0f);
+  // Spread out, and crowded: there most boxes overlap (gap 0) and the centres' distances decide.
+  for (const auto& [labels, span] : {std::pair{2u, 100.0f}, {7u, 100.0f}, {1000u, 100.0f}, {7u, 10.0f}}) {
+    std::uniform_real_distribution<float> at(0.0f, span);
     std::vector<AxisBox> boxes(600);
     std::vector<uint32_t> label(boxes.size());
     for (uint32_t i = 0; i < boxes.size(); ++i) {
@@ -74,7 +76,7 @@ TEST(NearestPairs, AreEveryBoxsNearestOfAnotherLabelAsBruteForceFindsThem) {
       }
     }
     const std::set<std::pair<uint32_t, uint32_t>> got(pairs.begin(), pairs.end());
-    EXPECT_EQ(got, want) << labels << " labels";
+    EXPECT_EQ(got, want) << labels << " labels over " << span;
     EXPECT_TRUE(std::is_sorted(pairs.begin(), pairs.end()));
     for (const auto& [a, b] : pairs) {
       EXPECT_LT(a, b);
