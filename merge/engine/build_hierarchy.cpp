@@ -74,17 +74,18 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
   }
   const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
   std::vector<uint32_t> order = effectiveCostOrder(records);
+  std::vector<uint32_t> position(order.size());  // of each record
+  for (uint32_t p = 0; p <= last; ++p) position[order[p]] = p;
   reserveHugePages(nodes, records.size());  // written once, then walked out of order by the boxes
   nodes.resize(records.size());
-  // Nodes are written in order and records read where the order says, a few reads ahead (the
-  // reads are independent; the writes would not be).
+  // The nodes are written in order, each from the record the order names: those reads are
+  // independent of each other, so the record kAhead positions on is fetched while this one is copied.
   constexpr uint32_t kAhead = 8;
   for (uint32_t p = 0; p <= last; ++p) {
     if (p + kAhead <= last) __builtin_prefetch(&records[order[p + kAhead]]);
     const MergeRecord& r = records[order[p]];
     Node& node = nodes[p];
-    node.child[0] = r.child[0];
-    node.child[1] = r.child[1];
+    for (int k = 0; k < 2; ++k) node.child[k] = (r.child[k] & kFaceChild) ? r.child[k] : position[r.child[k]];
     node.first = 0;
     node.count = r.faceCount();
     node.flags = (r.count & MergeRecord::kJoinBit) ? kNodeJoinsDisjointSurfaces : 0u;
@@ -94,12 +95,7 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     node.sumNormal = glm::vec3(r.sumNormal[0], r.sumNormal[1], r.sumNormal[2]);
   }
   std::exchange(records, {});
-  std::vector<uint32_t> position(order.size());  // of each record
-  for (uint32_t p = 0; p <= last; ++p) position[order[p]] = p;
   std::exchange(order, {});
-  for (Node& node : nodes)
-    for (uint32_t& child : node.child)
-      if (!(child & kFaceChild)) child = position[child];
   std::exchange(position, {});
 
   std::vector<uint32_t> depth(nodes.size(), 0);

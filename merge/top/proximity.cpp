@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <utility>
 
 namespace facetree {
@@ -182,18 +183,20 @@ std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox>
   // The largest label's boxes (a mesh's main piece) search a tree without them: in the whole tree
   // their walk would open every node near them that holds another label's box, to skip their own.
   uint32_t largest = kMixed;
+  size_t most = 0;
   {
     std::vector<uint32_t> labels;
     for (const uint32_t q : tree.order()) labels.push_back(label[q]);
     std::sort(labels.begin(), labels.end());
-    size_t most = 0;
     for (size_t begin = 0, end = 0; begin < labels.size(); begin = end) {
       for (end = begin; end < labels.size() && labels[end] == labels[begin]; ++end) {
       }
       if (end - begin > most) most = end - begin, largest = labels[begin];
     }
   }
-  const BoxTree others(boxes, label, largest);
+  // Labels of one box each (the roots' final joins) have nothing of their own to skip.
+  std::optional<BoxTree> others;
+  if (most > 1) others.emplace(boxes, label, largest);
   // Proposals as (proposed, proposer) in 8 bytes; their distances are recomputed per proposed box.
   std::vector<std::pair<uint32_t, uint32_t>> proposals;
   proposals.reserve(tree.order().size() * k);
@@ -201,7 +204,7 @@ std::vector<std::pair<uint32_t, uint32_t>> nearestPairs(std::span<const AxisBox>
     std::vector<Candidate> best;
     std::vector<uint32_t> stack;
     for (const uint32_t q : tree.order()) {
-      (label[q] == largest ? others : tree).nearest(q, k, best, stack);
+      (others && label[q] == largest ? *others : tree).nearest(q, k, best, stack);
       for (const Candidate& c : best) proposals.emplace_back(c.index, q);
     }
   }
