@@ -1,8 +1,10 @@
 // Large flat arrays whose elements are written before they are read: a vector that leaves new
-// elements uninitialised, so that growing it writes no memory (and faults no page) twice.
+// elements uninitialised, so that growing it writes no memory (and faults no page) twice, in
+// memory of its own on huge pages once it is large (allocateArray).
 #pragma once
 
 #include <memory>
+#include <new>
 #include <vector>
 
 #include "base/huge_pages.h"
@@ -18,6 +20,11 @@ struct UninitializedAllocator : std::allocator<T> {
   UninitializedAllocator() = default;
   template <class U>
   UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+  T* allocate(size_t n) {
+    if (n > std::allocator_traits<std::allocator<T>>::max_size(*this)) throw std::bad_array_new_length();
+    return static_cast<T*>(allocateArray(n * sizeof(T)));
+  }
+  void deallocate(T* p, size_t n) noexcept { freeArray(p, n * sizeof(T)); }
   // Value-initialisation (resize) default-initialises instead: nothing for trivial types.
   template <class U>
   void construct(U* p) noexcept {

@@ -3,6 +3,7 @@
 #include "base/huge_pages.h"
 
 #include <cstdint>
+#include <new>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -39,6 +40,37 @@ void adviseHugePages(const void* data, size_t bytes) {
   (void)data;
   (void)bytes;
 #endif
+}
+
+void* allocateArray(size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if (kMappedArrays && bytes >= kHugePageBytes) {
+    // Map one huge page more than needed and unmap the ends off the boundary.
+    const size_t length = (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    void* mapped =
+        mmap(nullptr, length + kHugePageBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (mapped == MAP_FAILED) throw std::bad_alloc();
+    const auto begin = reinterpret_cast<uintptr_t>(mapped);
+    const uintptr_t aligned = (begin + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    if (aligned > begin) munmap(mapped, aligned - begin);
+    if (const uintptr_t end = begin + length + kHugePageBytes; end > aligned + length)
+      munmap(reinterpret_cast<void*>(aligned + length), end - aligned - length);
+    // Only the pages the array fills: a huge page over its end would be resident in whole.
+    adviseWholeHugePages(reinterpret_cast<void*>(aligned), 0, bytes, MADV_HUGEPAGE);
+    return reinterpret_cast<void*>(aligned);
+  }
+#endif
+  return ::operator new(bytes);
+}
+
+void freeArray(void* p, size_t bytes) noexcept {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if (kMappedArrays && bytes >= kHugePageBytes) {
+    munmap(p, (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1));
+    return;
+  }
+#endif
+  ::operator delete(p);
 }
 
 void releasePages(const void* data, size_t from, size_t to) {

@@ -37,6 +37,20 @@ inline constexpr size_t kReturnMemoryFaces = size_t{1} << 18;
 // large arrays; nothing below kReturnMemoryFaces.
 void trimFreedHeap(size_t faces);
 
+// Memory for a large array, mapped on its own at a 2 MiB boundary with its whole 2 MiB pages
+// advised, so that it is faulted in a huge page at a time (a malloc'd array starts off the
+// boundary and loses a huge page at each end); smaller sizes, and systems without mmap, come
+// from operator new. Release with freeArray(p, bytes). Under AddressSanitizer every array comes
+// from operator new, whose bounds it checks.
+inline constexpr size_t kHugePageBytes = size_t{2} << 20;
+#if defined(__linux__) && !defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kMappedArrays = true;
+#else
+inline constexpr bool kMappedArrays = false;
+#endif
+void* allocateArray(size_t bytes);
+void freeArray(void* p, size_t bytes) noexcept;
+
 // reserve() that advises the new buffer before anything touches it. Use before assign(),
 // resize() or push_back() of a large vector.
 template <class T, class Allocator>

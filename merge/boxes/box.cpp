@@ -21,6 +21,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include "base/buffer.h"
 #include "base/huge_pages.h"
 #include "base/parallel_blocks.h"
 #include "boxes/box_extent.h"
@@ -246,12 +247,12 @@ struct Context {
   const FaceSource& faces;
   Hierarchy& hierarchy;
   const BuildOptions& options;
-  std::vector<uint32_t> subtreeOf;  // node -> subtree id + 1 for precomputed subtree roots (top pass)
+  Buffer<uint32_t> subtreeOf;  // node -> subtree id + 1 for precomputed subtree roots (top pass)
   std::vector<SubtreeResult> subtrees;
   // The walk's order (preorder, children in child order) and each node's position in it: a
   // worker prefetches the node it will visit kLookahead visits later (only a hint: a wrong
   // guess costs time, never correctness).
-  std::vector<uint32_t> preorder, rank;
+  Buffer<uint32_t> preorder, rank;
   uint64_t worldAxesFaces = 1;  // the clusters measured along the world axes too
 };
 
@@ -545,7 +546,7 @@ void computeBoxesWithThreads(const MeshView& mesh, Hierarchy& hierarchy, const B
   std::vector<uint32_t> roots;
   {
     const uint32_t count = uint32_t(nodes.size());
-    std::vector<uint32_t>& size = ctx.preorder;  // subtree sizes first
+    Buffer<uint32_t>& size = ctx.preorder;  // subtree sizes first
     size.resize(count);
     for (uint32_t i = count; i-- > 0;) {
       uint32_t s = 1;

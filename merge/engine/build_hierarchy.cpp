@@ -10,6 +10,7 @@
 #include <thread>
 #include <utility>
 
+#include "base/buffer.h"
 #include "base/huge_pages.h"
 #include "base/stopwatch.h"
 #include "cost/face_geometry.h"
@@ -33,11 +34,11 @@ uint32_t balancedHeight(uint32_t n) {
 // is created after them, so parents precede children, and any prefix of the order is a
 // hierarchy truncated at its cheapest merges (Willmott 2000, sec. 5.5.3). A stable radix sort
 // by the cost's bits over the records in decreasing creation order: four passes over memory.
-std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records) {
+Buffer<uint32_t> effectiveCostOrder(const Buffer<MergeRecord>& records) {
   const auto count = static_cast<uint32_t>(records.size());
-  std::vector<uint32_t> key(count);  // ~orderedBits(effective cost): ascending is decreasing cost
+  Buffer<uint32_t> key(count);  // ~orderedBits(effective cost): ascending is decreasing cost
   {
-    std::vector<float> effective(count);
+    Buffer<float> effective(count);
     for (uint32_t i = 0; i < count; ++i) {
       float e = records[i].cost;
       for (const uint32_t child : records[i].child)
@@ -46,7 +47,7 @@ std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records
       key[i] = ~orderedBits(effective[i]);
     }
   }
-  std::vector<uint32_t> order(count), next(count);
+  Buffer<uint32_t> order(count), next(count);
   for (uint32_t p = 0; p < count; ++p) order[p] = count - 1 - p;
   for (int shift = 0; shift < 32; shift += 8) {
     uint32_t start[257] = {};
@@ -64,7 +65,7 @@ std::vector<uint32_t> effectiveCostOrder(const std::vector<MergeRecord>& records
 // count(left)) to its left child and the rest to its right child. Parents precede children
 // in the output, so one forward pass suffices (no recursion: trees may be millions deep).
 // Returns the height (nodes on the longest root-to-face path, the face included).
-uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const FaceGeometry& geometry) {
+uint32_t layOut(Buffer<MergeRecord>&& records, Hierarchy& hierarchy, const FaceGeometry& geometry) {
   std::vector<Node>& nodes = hierarchy.nodes;
   std::vector<uint32_t>& faceOrder = hierarchy.faceOrder;
   faceOrder.assign(geometry.faceCount(), 0);
@@ -73,8 +74,8 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
     return 1;
   }
   const uint32_t last = static_cast<uint32_t>(records.size()) - 1;
-  std::vector<uint32_t> order = effectiveCostOrder(records);
-  std::vector<uint32_t> position(order.size());  // of each record
+  Buffer<uint32_t> order = effectiveCostOrder(records);
+  Buffer<uint32_t> position(order.size());  // of each record
   for (uint32_t p = 0; p <= last; ++p) position[order[p]] = p;
   reserveHugePages(nodes, records.size());  // written once, then walked out of order by the boxes
   nodes.resize(records.size());
@@ -98,7 +99,7 @@ uint32_t layOut(std::vector<MergeRecord>&& records, Hierarchy& hierarchy, const 
   std::exchange(order, {});
   std::exchange(position, {});
 
-  std::vector<uint32_t> depth(nodes.size(), 0);
+  Buffer<uint32_t> depth(nodes.size());  // each written by its parent before it is read
   depth[0] = 1;
   uint32_t height = 1;
   for (uint32_t i = 0; i <= last; ++i) {

@@ -40,8 +40,8 @@ struct Candidate {
 
 // Faces of each vertex, ascending (a face is listed once per distinct vertex): a CSR table.
 struct Incidence {
-  std::vector<size_t> offset;  // vertexCount + 1
-  std::vector<uint32_t> incident;
+  Buffer<size_t> offset;  // vertexCount + 1
+  Buffer<uint32_t> incident;
 
   explicit Incidence(const FaceGeometry& geometry) {
     const uint32_t n = geometry.faceCount();
@@ -54,9 +54,8 @@ struct Incidence {
       if (c != a && c != b) ++offset[c + 1];
     }
     for (size_t v = 0; v < vertexCount; ++v) offset[v + 1] += offset[v];
-    reserveHugePages(incident, offset[vertexCount]);
     incident.resize(offset[vertexCount]);
-    std::vector<size_t> fill(offset.begin(), offset.end() - 1);
+    Buffer<size_t> fill(offset.begin(), offset.end() - 1);
     for (uint32_t f = 0; f < n; ++f) {
       const uint32_t a = geometry.vertex(f, 0), b = geometry.vertex(f, 1), c = geometry.vertex(f, 2);
       incident[fill[a]++] = f;
@@ -76,8 +75,8 @@ struct Incidence {
 template <class Policy>
 void matchFaces(const FaceGeometry& geometry, const Incidence& table, uint32_t firstFace, uint32_t lastFace,
                 Policy& policy) {
-  const std::vector<size_t>& offset = table.offset;
-  const std::vector<uint32_t>& incident = table.incident;
+  const Buffer<size_t>& offset = table.offset;
+  const Buffer<uint32_t>& incident = table.incident;
   // Dual edges of the current face before merging duplicates: at most 3 edges x (cap - 1).
   using Entry = Candidate<typename Policy::Value>;
   std::array<Entry, 3 * kMaxFacesJoinedPairwise> candidates;
@@ -149,7 +148,7 @@ void matchFaces(const FaceGeometry& geometry, const Incidence& table, uint32_t f
 struct LengthPolicy {
   using Value = float;
   const FaceGeometry& geometry;
-  std::vector<DualEdge>& edges;
+  Buffer<DualEdge>& edges;
 
   double edge(uint32_t a, uint32_t b, int) const {
     return glm::length(geometry.position(a) - geometry.position(b));
@@ -204,7 +203,6 @@ void throwIfTooManyEdges(size_t edges) {
 
 // Adjacency lists; pushing to the front leaves each list in descending edge order.
 void linkLists(DualGraph& graph, uint32_t faces) {
-  reserveHugePages(graph.head, faces);
   graph.head.assign(faces, DualGraph::kNone);
   for (uint32_t e = 0; e < graph.edgeCount(); ++e) {
     DualEdge& edge = graph.edges[e];
@@ -232,7 +230,7 @@ DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads) {
     matchFaces(geometry, table, first, last, policy);
   });
   size_t edges = 0;
-  for (const std::vector<DualEdge>& e : blockEdges) edges += e.size();
+  for (const Buffer<DualEdge>& e : blockEdges) edges += e.size();
   throwIfTooManyEdges(edges);
   return blockEdges;
 }
@@ -244,9 +242,9 @@ DualGraph buildDualGraph(const FaceGeometry& geometry, unsigned threads) {
     graph.edges = std::move(blocks[0]);
   } else {
     size_t edges = 0;
-    for (const std::vector<DualEdge>& e : blocks) edges += e.size();
-    reserveHugePages(graph.edges, edges);
-    for (std::vector<DualEdge>& e : blocks) {
+    for (const Buffer<DualEdge>& e : blocks) edges += e.size();
+    graph.edges.reserve(edges);
+    for (Buffer<DualEdge>& e : blocks) {
       graph.edges.insert(graph.edges.end(), e.begin(), e.end());
       std::exchange(e, {});
     }
@@ -329,7 +327,7 @@ std::optional<DualGraph> pieceDualGraph(const FaceGeometry& piece, FaceAdjacency
                                         std::span<const uint32_t> faces) {
   const FaceAdjacencyAccess::Piece view(adjacency, faces, piece.faceCount());
   DualGraph graph;
-  reserveHugePages(graph.edges, size_t{piece.faceCount()} * 3 / 2 + 16);
+  graph.edges.reserve(size_t{piece.faceCount()} * 3 / 2 + 16);
   if (!view.forEachEdge(piece, [&](uint32_t f, uint32_t g, float shared) {
         graph.edges.push_back({{f, g}, {DualGraph::kNone, DualGraph::kNone}, shared, 0.0f});
       }))

@@ -19,6 +19,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "base/buffer.h"
 #include "cost/face_geometry.h"
 
 namespace facetree {
@@ -33,8 +34,8 @@ struct DualEdge {
 struct DualGraph {
   static constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-  std::vector<DualEdge> edges;
-  std::vector<uint32_t> head;  // 1 per face/cluster: first half-edge of its list, or kNone
+  Buffer<DualEdge> edges;
+  Buffer<uint32_t> head;  // 1 per face/cluster: first half-edge of its list, or kNone
 
   uint32_t edgeCount() const { return static_cast<uint32_t>(edges.size()); }
   uint32_t end(uint32_t half) const { return edges[half >> 1].end[half & 1]; }
@@ -64,7 +65,7 @@ uint32_t graphComponents(const DualGraph& graph, std::vector<uint32_t>& label);
 
 // The dual graph's edges as matched, block by block (concatenated, they are buildDualGraph's
 // edges), without the adjacency lists: what the merge in rounds reads.
-using DualEdgeBlocks = std::vector<std::vector<DualEdge>>;
+using DualEdgeBlocks = std::vector<Buffer<DualEdge>>;
 DualEdgeBlocks matchDualEdges(const FaceGeometry& geometry, unsigned threads = 1);
 
 // The face adjacency's internals (merge.h FaceAdjacency): its construction, and a piece of its mesh

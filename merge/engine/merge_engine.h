@@ -6,6 +6,7 @@
 #include <span>
 #include <vector>
 
+#include "base/buffer.h"
 #include "cost/cost.h"
 #include "cost/face_geometry.h"
 #include "engine/dual_graph.h"
@@ -36,11 +37,11 @@ struct MergeRecord {
 };
 
 struct MergeResult {
-  std::vector<MergeRecord> records;  // creation order, n - 1 of them
-  uint64_t components = 0;           // roots left when the heap ran empty
-  uint64_t edgeMerges = 0;           // merges along dual edges (the rest join components)
-  uint32_t rounds = 0;   // rounds of reciprocal pairs (engine/merge_rounds.cpp), 0 for the exact order
-  double degreeSum = 0;  // dual-edge degree of each merged cluster, summed over edge merges
+  Buffer<MergeRecord> records;  // creation order, n - 1 of them
+  uint64_t components = 0;      // roots left when the heap ran empty
+  uint64_t edgeMerges = 0;      // merges along dual edges (the rest join components)
+  uint32_t rounds = 0;          // rounds of reciprocal pairs (engine/merge_rounds.cpp), 0 for the exact order
+  double degreeSum = 0;         // dual-edge degree of each merged cluster, summed over edge merges
   uint32_t maxDegree = 0;
   CostCounters counters;
   double secondsCost = 0;         // initial costs and heap construction

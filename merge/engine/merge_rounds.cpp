@@ -242,11 +242,11 @@ class RoundsEngine {
 
     // Faces: at most half the clusters have two faces or more, and a slot.
     void reserve(size_t clusters, size_t halfCount, size_t slotCount) {
-      reserveHugePages(ref, clusters);
-      reserveHugePages(begin, clusters + 1);
-      reserveHugePages(merged, clusters);
-      reserveHugePages(slots, slotCount);
-      reserveHugePages(halves, halfCount);
+      ref.reserve(clusters);
+      begin.reserve(clusters + 1);
+      merged.reserve(clusters);
+      slots.reserve(slotCount);
+      halves.reserve(halfCount);
     }
     void resize(uint32_t clusters) {
       ref.resize(clusters);
@@ -275,9 +275,9 @@ class RoundsEngine {
     live_ = n;
     now_.reserve(n, halves, slots);
     next_.reserve(n, halves, slots);
-    reserveHugePages(best_, n);
-    reserveHugePages(paired_, n);
-    reserveHugePages(newId_, n);
+    best_.reserve(n);
+    paired_.reserve(n);
+    newId_.reserve(n);
     best_.resize(n);
     paired_.resize(n);
     now_.resize(n);
@@ -288,7 +288,7 @@ class RoundsEngine {
   void initialise(DualEdgeBlocks edges) {
     const uint32_t n = leafCount_;
     size_t edgeCount = 0;
-    for (const std::vector<DualEdge>& block : edges) edgeCount += block.size();
+    for (const Buffer<DualEdge>& block : edges) edgeCount += block.size();
     reserveRounds(2 * edgeCount, n / 2 + 1);
     forBlocks(threads_, static_cast<uint32_t>(edges.size()), [&](uint32_t block, unsigned t) {
       Policy& policy = policies_[t];
@@ -304,7 +304,7 @@ class RoundsEngine {
     });
     Buffer<uint32_t>& begin = now_.begin;
     std::fill(begin.begin(), begin.end(), 0u);
-    for (const std::vector<DualEdge>& block : edges) {
+    for (const Buffer<DualEdge>& block : edges) {
       for (const DualEdge& e : block) {
         ++begin[e.end[0] + 1];
         ++begin[e.end[1] + 1];
@@ -318,7 +318,7 @@ class RoundsEngine {
     now_.halves.resize(begin[n]);
     Buffer<uint32_t>& fill = newId_;  // scratch: the next free half of each list
     fill.assign(begin.begin(), begin.end() - 1);
-    for (std::vector<DualEdge>& block : edges) {
+    for (Buffer<DualEdge>& block : edges) {
       for (const DualEdge& e : block) {
         now_.halves[fill[e.end[0]]++] = {e.end[1], e.shared, e.key};
         now_.halves[fill[e.end[1]]++] = {e.end[0], e.shared, e.key};
@@ -741,9 +741,9 @@ class RoundsEngine {
     }
     std::vector<ClusterEdge> edges;
     size_t count = 0;
-    for (const std::vector<DualEdge>& block : faceEdges_) count += block.size();
+    for (const Buffer<DualEdge>& block : faceEdges_) count += block.size();
     edges.reserve(count);
-    for (std::vector<DualEdge>& block : faceEdges_) {
+    for (Buffer<DualEdge>& block : faceEdges_) {
       for (const DualEdge& e : block) edges.push_back({e.end[0], e.end[1], e.shared});
       std::exchange(block, {});
     }
@@ -867,7 +867,7 @@ class RoundsEngine {
 
   static MergeResult emptyResult(uint32_t leaves) {
     MergeResult result;
-    reserveHugePages(result.records, leaves > 0 ? leaves - 1 : 0);  // every record is written once, in order
+    result.records.reserve(leaves > 0 ? leaves - 1 : 0);  // every record is written once, in order
     return result;
   }
 };
