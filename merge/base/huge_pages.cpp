@@ -42,11 +42,19 @@ void adviseHugePages(const void* data, size_t bytes) {
 #endif
 }
 
+namespace {
+
+size_t wholeHugePages(size_t bytes) {
+  return (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+}
+
+}  // namespace
+
 void* allocateArray(size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if (kMappedArrays && bytes >= kHugePageBytes) {
     // Map one huge page more than needed and unmap the ends off the boundary.
-    const size_t length = (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    const size_t length = wholeHugePages(bytes);
     void* mapped =
         mmap(nullptr, length + kHugePageBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (mapped == MAP_FAILED) throw std::bad_alloc();
@@ -66,7 +74,7 @@ void* allocateArray(size_t bytes) {
 void freeArray(void* p, size_t bytes) noexcept {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if (kMappedArrays && bytes >= kHugePageBytes) {
-    munmap(p, (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1));
+    munmap(p, wholeHugePages(bytes));
     return;
   }
 #endif

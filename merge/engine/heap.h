@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "base/huge_pages.h"
+#include "base/buffer.h"
 
 namespace facetree {
 
@@ -71,7 +71,7 @@ class EdgeHeap {
   // Room for `capacity` entries in all; capacity() reports it (the engine compacts at it).
   void reserve(size_t capacity) {
     capacity_ = std::max(capacity_, capacity);
-    reserveHugePages(cold_, capacity);
+    cold_.reserve(capacity);
     hot_.reserve(kPad + std::min(capacity, 2 * kMaxBatch));
   }
   bool empty() const { return hotSize() == 0; }  // hot_ runs empty only with cold_
@@ -236,7 +236,7 @@ class EdgeHeap {
   size_t capacity_ = 0;
   uint64_t threshold_ = 0;                                   // hot_ <= threshold_ <= cold_
   std::vector<uint64_t, CacheLineAllocator<uint64_t>> hot_;  // kPad unused entries, then the heap
-  std::vector<uint64_t> cold_;
+  Buffer<uint64_t> cold_;
   std::vector<uint64_t> sample_;
 };
 

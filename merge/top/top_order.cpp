@@ -36,7 +36,10 @@ constexpr double kNotYet = std::numeric_limits<double>::quiet_NaN();
 class TopOrder {
  public:
   TopOrder(const TopTree& tree, const std::function<double(const SurfaceStats&)>& areaFit)
-      : tree_(tree), areaFit_(areaFit) {}
+      : tree_(tree),
+        areaFit_(areaFit),
+        nodeFit_(tree.nodes.size(), kNotYet),
+        leafFit_(tree.leaves.size(), kNotYet) {}
 
   uint32_t run() {
     const auto count = static_cast<uint32_t>(tree_.nodes.size());
@@ -113,7 +116,6 @@ class TopOrder {
   double fitOf(uint32_t ref) {
     std::vector<double>& fits = (ref & kLeafChild) ? leafFit_ : nodeFit_;
     const uint32_t i = ref & ~kLeafChild;
-    if (fits.empty()) fits.assign((ref & kLeafChild) ? tree_.leaves.size() : tree_.nodes.size(), kNotYet);
     if (std::isnan(fits[i])) fits[i] = areaFit_(statsOf(ref));
     return fits[i];
   }
