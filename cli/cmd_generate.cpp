@@ -1,4 +1,4 @@
-// facetree gen grid|sphere|terrain|strip|assembly|subdivide: synthetic meshes for tests and benchmarks.
+// facetree gen grid|sphere|terrain|strip|assembly|tiled|subdivide: synthetic meshes for tests and benchmarks.
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
@@ -48,7 +48,7 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
   const Args args = parseCommand("gen", argv);
   const auto& positional = args.positional();
   if (positional.empty())
-    throw UsageError("gen needs a kind: grid, sphere, terrain, strip, assembly or subdivide");
+    throw UsageError("gen needs a kind: grid, sphere, terrain, strip, assembly, tiled or subdivide");
   const auto output = args.value("output");
   if (!output) throw UsageError("gen needs -o OUTPUT.ply");
 
@@ -86,9 +86,11 @@ int runGenerate(const std::vector<std::string>& argv, SignalGuard& signals) {
       shape = SyntheticKind::Strip;
     else if (kind == "assembly")
       shape = SyntheticKind::Assembly;
+    else if (kind == "tiled")
+      shape = SyntheticKind::TiledScan;
     else
       throw UsageError("unknown mesh kind '" + kind +
-                       "' (grid, sphere, terrain, strip, assembly, subdivide)");
+                       "' (grid, sphere, terrain, strip, assembly, tiled, subdivide)");
     counts = writeSyntheticMesh(shape, options, written);
   }
   if (stl) writeStlOf(ply.path, counts.triangles, *output);

@@ -210,8 +210,10 @@ std::vector<CommandHelp> makeCommands() {
       {"gen",
        "KIND -o OUT.ply|OUT.stl [options]",
        "synthetic test meshes, or a mesh subdivided",
-       "KIND is grid, sphere, terrain, strip or assembly (-n TRIANGLES), or subdivide MESH (--levels L):\n"
-       "midpoint subdivision, every triangle into 4^L. Shuffles make the dirty orders of real files.\n"
+       "KIND is grid, sphere, terrain, strip, assembly or tiled (-n TRIANGLES), or subdivide MESH\n"
+       "(--levels L): midpoint subdivision, every triangle into 4^L. tiled is the terrain as a scan\n"
+       "delivered in 9 x 9 unwelded tiles of six pieces each (two material groups, a hole, an island).\n"
+       "Shuffles make the dirty orders of real files.\n"
        "A name ending in .stl gets a binary STL: every triangle with its own corners, as CAD exports\n"
        "them (made of the PLY, written beside it first).",
        {{"output", "OUT", "-o", "the mesh written: binary PLY, or binary STL for a name ending in .stl"},

@@ -1,4 +1,5 @@
-// Synthetic mesh generators (flat grid, sphere, terrain, strip, assembly, subdivision) streamed to PLY.
+// Synthetic mesh generators (flat grid, sphere, terrain, strip, assembly, tiled scan, subdivision)
+// streamed to PLY.
 // Every shape computes any vertex and any triangle from its index, so a keyed bijection
 // (io/permutation.h) can shuffle vertex and face order without memory proportional to size.
 #include <algorithm>
@@ -45,6 +46,28 @@ uint64_t gridSide(uint64_t triangles) {
   return std::max<uint64_t>(1, static_cast<uint64_t>(std::llround(std::sqrt(triangles / 2.0))));
 }
 
+// Multi-octave value noise at (u, v) of the unit square: smooth, deterministic, any resolution.
+double terrainHeight(uint64_t seed, double u, double v) {
+  const auto lattice = [seed](int64_t x, int64_t y, int octave) {
+    const uint64_t h =
+        hash64(seed ^ hash64(static_cast<uint64_t>(x) * 0x100000001B3ull + static_cast<uint64_t>(y) +
+                             (static_cast<uint64_t>(octave) << 56)));
+    return static_cast<double>(h >> 11) * 0x1.0p-53;
+  };
+  double sum = 0, amplitude = 1, frequency = 4;
+  for (int o = 0; o < kTerrainOctaves; ++o, amplitude *= 0.5, frequency *= 2) {
+    const double x = u * frequency, y = v * frequency;
+    const double fx = std::floor(x), fy = std::floor(y);
+    const double tx = x - fx, ty = y - fy;
+    const double sx = tx * tx * (3 - 2 * tx), sy = ty * ty * (3 - 2 * ty);
+    const auto ix = static_cast<int64_t>(fx), iy = static_cast<int64_t>(fy);
+    const double a = lattice(ix, iy, o), b = lattice(ix + 1, iy, o);
+    const double c = lattice(ix, iy + 1, o), d = lattice(ix + 1, iy + 1, o);
+    sum += amplitude * ((a + (b - a) * sx) * (1 - sy) + (c + (d - c) * sx) * sy);
+  }
+  return sum * kTerrainRelief;
+}
+
 class GridShape : public IndexedShape {
  public:
   // `columns` x `rows` square cells of two triangles; the model is kGridSize wide.
@@ -55,7 +78,7 @@ class GridShape : public IndexedShape {
   glm::dvec3 vertex(uint64_t i) const override {
     const uint64_t x = i % (columns_ + 1), y = i / (columns_ + 1);
     const double u = static_cast<double>(x) / columns_, v = static_cast<double>(y) / columns_;
-    return {u * kGridSize, v * kGridSize, terrain_ ? height(u, v) : 0.0};
+    return {u * kGridSize, v * kGridSize, terrain_ ? terrainHeight(seed_, u, v) : 0.0};
   }
   Tri triangle(uint64_t j) const override {
     const uint64_t quad = j / 2, x = quad % columns_, y = quad / columns_;
@@ -64,27 +87,6 @@ class GridShape : public IndexedShape {
   }
 
  private:
-  // Multi-octave value noise: smooth, deterministic, any resolution.
-  double lattice(int64_t x, int64_t y, int octave) const {
-    const uint64_t h =
-        hash64(seed_ ^ hash64(static_cast<uint64_t>(x) * 0x100000001B3ull + static_cast<uint64_t>(y) +
-                              (static_cast<uint64_t>(octave) << 56)));
-    return static_cast<double>(h >> 11) * 0x1.0p-53;
-  }
-  double height(double u, double v) const {
-    double sum = 0, amplitude = 1, frequency = 4;
-    for (int o = 0; o < kTerrainOctaves; ++o, amplitude *= 0.5, frequency *= 2) {
-      const double x = u * frequency, y = v * frequency;
-      const double fx = std::floor(x), fy = std::floor(y);
-      const double tx = x - fx, ty = y - fy;
-      const double sx = tx * tx * (3 - 2 * tx), sy = ty * ty * (3 - 2 * ty);
-      const auto ix = static_cast<int64_t>(fx), iy = static_cast<int64_t>(fy);
-      const double a = lattice(ix, iy, o), b = lattice(ix + 1, iy, o);
-      const double c = lattice(ix, iy + 1, o), d = lattice(ix + 1, iy + 1, o);
-      sum += amplitude * ((a + (b - a) * sx) * (1 - sy) + (c + (d - c) * sx) * sy);
-    }
-    return sum * kTerrainRelief;
-  }
   uint64_t columns_;
   uint64_t rows_;
   uint64_t seed_;
@@ -127,6 +129,73 @@ class SphereShape : public IndexedShape {
 
  private:
   uint64_t rings_, segments_;
+};
+
+// A terrain scan delivered as tiles: the terrain's grid cut into kTiles x kTiles tiles that share no
+// vertex (each stores its own border), and each tile in pieces of its own, as scans exported per
+// tile and per material are: a material seam across it (two groups, unwelded), a hole of no data in
+// the second group (its surround as four strips, unwelded), and an island in the hole. Every piece is
+// a rectangle of the grid with its own vertices, so any vertex and triangle follows from its index:
+// a piece is found by binary search over the pieces' first vertices and triangles.
+class TiledScanShape : public IndexedShape {
+ public:
+  TiledScanShape(uint64_t triangles, uint64_t seed) : seed_(seed) {
+    const uint64_t tile = std::max<uint64_t>(kMinTileCells, gridSide(triangles) / kTiles);
+    side_ = tile * kTiles;
+    for (uint64_t t = 0; t < kTiles * kTiles; ++t) addTile((t % kTiles) * tile, (t / kTiles) * tile, tile, t);
+  }
+  uint64_t vertexCount() const override { return firstVertex_.back(); }
+  uint64_t triangleCount() const override { return firstTriangle_.back(); }
+  glm::dvec3 vertex(uint64_t i) const override {
+    const size_t p = pieceOf(firstVertex_, i);
+    const Piece& r = pieces_[p];
+    const uint64_t local = i - firstVertex_[p], x = r.x0 + local % (r.w + 1), y = r.y0 + local / (r.w + 1);
+    const double u = double(x) / double(side_), v = double(y) / double(side_);
+    return {u * kGridSize, v * kGridSize, terrainHeight(seed_, u, v)};
+  }
+  Tri triangle(uint64_t j) const override {
+    const size_t p = pieceOf(firstTriangle_, j);
+    const Piece& r = pieces_[p];
+    const uint64_t local = j - firstTriangle_[p], quad = local / 2, x = quad % r.w, y = quad / r.w;
+    const uint64_t a = firstVertex_[p] + y * (r.w + 1) + x, b = a + 1, c = a + r.w + 1, d = c + 1;
+    return (local % 2 == 0) ? Tri{{a, b, d}} : Tri{{a, d, c}};
+  }
+
+ private:
+  static constexpr uint64_t kTiles = 9;
+  static constexpr uint64_t kMinTileCells = 16;  // room for a seam, a hole and an island
+  struct Piece {
+    uint64_t x0, y0, w, h;  // grid cells [x0, x0 + w) x [y0, y0 + h)
+  };
+
+  void add(uint64_t x0, uint64_t y0, uint64_t x1, uint64_t y1) {
+    if (firstVertex_.empty()) firstVertex_.push_back(0), firstTriangle_.push_back(0);
+    pieces_.push_back({x0, y0, x1 - x0, y1 - y0});
+    firstVertex_.push_back(firstVertex_.back() + (x1 - x0 + 1) * (y1 - y0 + 1));
+    firstTriangle_.push_back(firstTriangle_.back() + 2 * (x1 - x0) * (y1 - y0));
+  }
+  // A tile of s x s cells at (x, y): the seam at 30-60% of its width, the hole a third of the
+  // second group's height and half its width, the island the hole's middle half.
+  void addTile(uint64_t x, uint64_t y, uint64_t s, uint64_t t) {
+    const uint64_t h = hash64(seed_ ^ (t + 1) * 0x9E3779B97F4A7C15ull);
+    const uint64_t seam = x + s * (3 + h % 4) / 10;
+    const uint64_t hx0 = seam + (x + s - seam) / 4, hx1 = x + s - (x + s - seam) / 4;
+    const uint64_t hy0 = y + s / 4 + (h >> 8) % (s / 4), hy1 = hy0 + s / 3;
+    const uint64_t gx = std::max<uint64_t>(1, (hx1 - hx0) / 4), gy = std::max<uint64_t>(1, (hy1 - hy0) / 4);
+    add(x, y, seam, y + s);                       // the first material group
+    add(seam, y, x + s, hy0);                     // the second around its hole: below,
+    add(seam, hy1, x + s, y + s);                 // above,
+    add(seam, hy0, hx0, hy1);                     // left,
+    add(hx1, hy0, x + s, hy1);                    // and right of it
+    add(hx0 + gx, hy0 + gy, hx1 - gx, hy1 - gy);  // the island
+  }
+  static size_t pieceOf(const std::vector<uint64_t>& first, uint64_t i) {
+    return size_t(std::upper_bound(first.begin(), first.end(), i) - first.begin()) - 1;
+  }
+
+  uint64_t seed_, side_ = 0;
+  std::vector<Piece> pieces_;
+  std::vector<uint64_t> firstVertex_, firstTriangle_;  // per piece, and the totals last
 };
 
 // A CAD-like assembly: two groups of closed boxes far apart (kAssemblyGroupGap box sizes). In each,
@@ -347,6 +416,8 @@ GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& op
       return writeShape(SphereShape(options.triangles), options, path);
     case SyntheticKind::Assembly:
       return writeShape(AssemblyShape(options.triangles), options, path);
+    case SyntheticKind::TiledScan:
+      return writeShape(TiledScanShape(options.triangles, options.seed), options, path);
   }
   throw std::invalid_argument("unknown synthetic mesh kind");
 }

@@ -17,7 +17,7 @@ namespace facetree {
 // Synthetic meshes for tests and benchmarks, streamed to binary PLY (nothing is held in
 // memory but the input of a subdivision), optionally with vertices and/or faces shuffled by
 // a keyed bijection so any size can be shuffled while streaming.
-enum class SyntheticKind { Grid, Sphere, Terrain, Strip, Assembly };
+enum class SyntheticKind { Grid, Sphere, Terrain, Strip, Assembly, TiledScan };
 // Size, shuffling and seed of a synthetic mesh.
 struct GenerateOptions {
   uint64_t triangles = 20000;  // approximate target; the shape rounds it
@@ -34,7 +34,9 @@ struct GeneratedCounts {
 // radius 1. Terrain: grid with multi-octave value-noise heights. Strip: one row of square
 // cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long). Assembly: two
 // groups of closed unit boxes 30 units apart, 9 in each, most touching with the shared faces stored
-// by both boxes (their own vertices), as CAD parts exported one by one are.
+// by both boxes (their own vertices), as CAD parts exported one by one are. TiledScan: the terrain
+// in 9 x 9 tiles that share no vertex, each in six pieces (two material groups, the second around a
+// hole, an island in the hole), as scans delivered per tile are.
 GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
                                    const std::filesystem::path& path);
 // Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;

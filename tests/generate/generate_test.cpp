@@ -181,6 +181,43 @@ TEST(Generate, AssemblyIsEighteenClosedBoxesWithTheirTouchingFacesStoredTwice) {
   std::filesystem::remove(path);
 }
 
+TEST(Generate, TiledScanIsEightyOneTilesOfSixUnweldedPiecesOnTheTerrain) {
+  const auto path = scratch("tiled.ply");
+  GenerateOptions options;
+  options.triangles = 60000;
+  const GeneratedCounts counts = writeSyntheticMesh(SyntheticKind::TiledScan, options, path);
+  const IndexedMesh mesh = readBack(path);
+  ASSERT_EQ(mesh.indices.size(), 3 * counts.triangles);
+  // 81 tiles of 6 pieces, each a grid of cells: a disc (V - E + F = 1), its edges used once on
+  // its border and twice inside, and no vertex shared with another piece.
+  std::vector<uint32_t> label;
+  EXPECT_EQ(faceComponents(mesh.view(), label), 81u * 6);
+  const auto use = edgeUse(mesh);
+  for (const auto& [edge, n] : use) ASSERT_TRUE(n == 1 || n == 2);
+  EXPECT_EQ(static_cast<int64_t>(counts.vertices) - static_cast<int64_t>(use.size()) +
+                static_cast<int64_t>(counts.triangles),
+            81 * 6);
+  std::vector<uint32_t> pieceOf(mesh.positions.size(), UINT32_MAX);
+  for (size_t t = 0; t < label.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t& p = pieceOf[mesh.indices[3 * t + k]];
+      ASSERT_TRUE(p == UINT32_MAX || p == label[t]);
+      p = label[t];
+    }
+  // The pieces meet along their seams (the same positions stored by each), except around the holes
+  // and islands: fewer distinct positions than vertices, and the terrain's heights throughout.
+  std::set<std::array<float, 3>> distinct;
+  for (const glm::vec3& p : mesh.positions) {
+    distinct.insert({p.x, p.y, p.z});
+    ASSERT_TRUE(p.x >= 0 && p.x <= 1000 && p.y >= 0 && p.y <= 1000 && p.z >= 0 && p.z <= 120);
+  }
+  EXPECT_LT(distinct.size(), mesh.positions.size());
+  // Holes: fewer triangles than the whole grid of the same side would have.
+  const uint64_t side = static_cast<uint64_t>(std::llround(std::sqrt(double(mesh.positions.size()))));
+  EXPECT_LT(counts.triangles, 2 * side * side);
+  std::filesystem::remove(path);
+}
+
 TEST(Generate, SubdivisionKeepsTheSurfaceAndItsTopology) {
   // A tetrahedron: closed, so the subdivision must be closed too.
   const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
