@@ -212,7 +212,7 @@ std::vector<CommandHelp> makeCommands() {
        "synthetic test meshes, or a mesh subdivided",
        "KIND is grid, sphere, terrain, strip, assembly or tiled (-n TRIANGLES), or subdivide MESH\n"
        "(--levels L): midpoint subdivision, every triangle into 4^L. tiled is the terrain as a scan\n"
-       "delivered in 9 x 9 unwelded tiles of six pieces each (two material groups, a hole, an island).\n"
+       "delivered in 9 x 9 unwelded tiles of 6 to 11 pieces (two material groups, a hole, islands).\n"
        "Shuffles make the dirty orders of real files.\n"
        "A name ending in .stl gets a binary STL: every triangle with its own corners, as CAD exports\n"
        "them (made of the PLY, written beside it first).",

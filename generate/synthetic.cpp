@@ -134,9 +134,9 @@ class SphereShape : public IndexedShape {
 // A terrain scan delivered as tiles: the terrain's grid cut into kTiles x kTiles tiles that share no
 // vertex (each stores its own border), and each tile in pieces of its own, as scans exported per
 // tile and per material are: a material seam across it (two groups, unwelded), a hole of no data in
-// the second group (its surround as four strips, unwelded), and an island in the hole. Every piece is
-// a rectangle of the grid with its own vertices, so any vertex and triangle follows from its index:
-// a piece is found by binary search over the pieces' first vertices and triangles.
+// the second group (its surround as four strips, unwelded), and one to six islands in the hole. Every piece
+// is a rectangle of the grid with its own vertices, so any vertex and triangle follows from its index: a
+// piece is found by binary search over the pieces' first vertices and triangles.
 class TiledScanShape : public IndexedShape {
  public:
   TiledScanShape(uint64_t triangles, uint64_t seed) : seed_(seed) {
@@ -163,7 +163,7 @@ class TiledScanShape : public IndexedShape {
 
  private:
   static constexpr uint64_t kTiles = 9;
-  static constexpr uint64_t kMinTileCells = 16;  // room for a seam, a hole and an island
+  static constexpr uint64_t kMinTileCells = 16;  // room for a seam, a hole and islands
   struct Piece {
     uint64_t x0, y0, w, h;  // grid cells [x0, x0 + w) x [y0, y0 + h)
   };
@@ -175,19 +175,27 @@ class TiledScanShape : public IndexedShape {
     firstTriangle_.push_back(firstTriangle_.back() + 2 * (x1 - x0) * (y1 - y0));
   }
   // A tile of s x s cells at (x, y): the seam at 30-60% of its width, the hole a third of the
-  // second group's height and half its width, the island the hole's middle half.
+  // second group's height and half its width, with one to six islands in it (an array of the
+  // hole's parts, each a cell off its neighbours and the shore).
   void addTile(uint64_t x, uint64_t y, uint64_t s, uint64_t t) {
     const uint64_t h = hash64(seed_ ^ (t + 1) * 0x9E3779B97F4A7C15ull);
     const uint64_t seam = x + s * (3 + h % 4) / 10;
     const uint64_t hx0 = seam + (x + s - seam) / 4, hx1 = x + s - (x + s - seam) / 4;
     const uint64_t hy0 = y + s / 4 + (h >> 8) % (s / 4), hy1 = hy0 + s / 3;
-    const uint64_t gx = std::max<uint64_t>(1, (hx1 - hx0) / 4), gy = std::max<uint64_t>(1, (hy1 - hy0) / 4);
-    add(x, y, seam, y + s);                       // the first material group
-    add(seam, y, x + s, hy0);                     // the second around its hole: below,
-    add(seam, hy1, x + s, y + s);                 // above,
-    add(seam, hy0, hx0, hy1);                     // left,
-    add(hx1, hy0, x + s, hy1);                    // and right of it
-    add(hx0 + gx, hy0 + gy, hx1 - gx, hy1 - gy);  // the island
+    add(x, y, seam, y + s);        // the first material group
+    add(seam, y, x + s, hy0);      // the second around its hole: below,
+    add(seam, hy1, x + s, y + s);  // above,
+    add(seam, hy0, hx0, hy1);      // left,
+    add(hx1, hy0, x + s, hy1);     // and right of it
+    const uint64_t across = std::clamp<uint64_t>(1 + (h >> 16) % 3, 1, (hx1 - hx0) / 3);
+    const uint64_t up = std::clamp<uint64_t>(1 + (h >> 24) % 2, 1, (hy1 - hy0) / 3);
+    for (uint64_t j = 0; j < up; ++j) {
+      for (uint64_t i = 0; i < across; ++i) {
+        const uint64_t ix0 = hx0 + (hx1 - hx0) * i / across, ix1 = hx0 + (hx1 - hx0) * (i + 1) / across;
+        const uint64_t iy0 = hy0 + (hy1 - hy0) * j / up, iy1 = hy0 + (hy1 - hy0) * (j + 1) / up;
+        add(ix0 + 1, iy0 + 1, ix1 - 1, iy1 - 1);  // an island
+      }
+    }
   }
   static size_t pieceOf(const std::vector<uint64_t>& first, uint64_t i) {
     return size_t(std::upper_bound(first.begin(), first.end(), i) - first.begin()) - 1;

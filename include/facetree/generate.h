@@ -35,8 +35,8 @@ struct GeneratedCounts {
 // cells (with Metric::Constant its hierarchy is a chain as deep as the strip is long). Assembly: two
 // groups of closed unit boxes 30 units apart, 9 in each, most touching with the shared faces stored
 // by both boxes (their own vertices), as CAD parts exported one by one are. TiledScan: the terrain
-// in 9 x 9 tiles that share no vertex, each in six pieces (two material groups, the second around a
-// hole, an island in the hole), as scans delivered per tile are.
+// in 9 x 9 tiles that share no vertex, each in 6 to 11 pieces (two material groups, the second
+// around a hole, one to six islands in the hole), as scans delivered per tile are.
 GeneratedCounts writeSyntheticMesh(SyntheticKind kind, const GenerateOptions& options,
                                    const std::filesystem::path& path);
 // Midpoint subdivision, `levels` times at once: every triangle becomes 4^levels triangles;
