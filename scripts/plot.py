@@ -879,13 +879,18 @@ def outofcore_markdown(o, rel):
                        for r in o["dragons"]]), ""]
     if o.get("cap_quality"):
         cuts_cap = list(o["cap_quality"][0]["fit_ratio"])
-        out += ["### Shared meshes of 1M faces or more under a small cap", "",
+        every = lambda r: r.get("every_cut", {})
+        out += ["### Shared meshes out of core under a small cap, and meshes of many pieces", "",
                 "Built in core and at the cap, then `facetree info OUT.fch --fit-cuts`: sum of area x eFit over "
-                "the cut and heights, out of core / in core (checks: fits within 10%, heights within 1.25x).", "",
+                "the cut and heights, out of core / in core (checks: fits within 10%, heights within 1.25x, "
+                "and every cut of 2-64, 80-512 and 1,000 within 10%: how many are over, the worst).", "",
                 table(["mesh", "--memory", "height (in core / out of core)", "height ratio"] +
-                      [f"fit ratio, {int(n):,}" for n in cuts_cap] + ["checks"],
+                      [f"fit ratio, {int(n):,}" for n in cuts_cap] + ["every cut: over 1.10", "worst (cut)"] +
+                      ["checks"],
                       [[r["mesh"], r["memory"], f"{r['in_core']['height']} / {r['out_of_core']['height']}",
                         f"{r['height_ratio']:.3f}"] + [f"{r['fit_ratio'][n]:.3f}" for n in cuts_cap] +
+                       [f"{len(every(r).get('over', []))} of {every(r).get('cuts', 0)}",
+                        f"{every(r).get('worst') or 0:.2f} ({every(r).get('worst_cut')})"] +
                        [" ".join(f"{k} {'ok' if v else '**missed**'}" for k, v in r["checks"].items())]
                        for r in o["cap_quality"]]), ""]
     out += ["### Quality: out of core against in core on meshes that fit", "",
