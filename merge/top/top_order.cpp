@@ -10,7 +10,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <stdexcept>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -30,16 +30,11 @@ constexpr double kSurfacelessShare = 1e-9;
 constexpr float kCostStep = 1.0f + 1.0f / 4096.0f;
 // The least cost a placed node takes (the out-of-core keys clamp costs to 1e-30).
 constexpr float kLeastCost = 1e-29f;
-// A fit not computed yet.
-constexpr double kNotYet = std::numeric_limits<double>::quiet_NaN();
 
 class TopOrder {
  public:
   TopOrder(const TopTree& tree, const std::function<double(const SurfaceStats&)>& areaFit)
-      : tree_(tree),
-        areaFit_(areaFit),
-        nodeFit_(tree.nodes.size(), kNotYet),
-        leafFit_(tree.leaves.size(), kNotYet) {}
+      : tree_(tree), areaFit_(areaFit) {}
 
   uint32_t run() {
     const auto count = static_cast<uint32_t>(tree_.nodes.size());
@@ -104,6 +99,11 @@ class TopOrder {
     double growth;  // what expanding it adds to the cut's box areas
   };
   using Best = std::array<double, kLookahead + 1>;
+  struct Memo {
+    Best value;
+    int budget = 0;  // value[d] is exact for d <= budget
+    double own = 0;  // gain(n), from budget 1 on
+  };
 
   bool isTop(uint32_t i) const {
     return i >= tree_.firstTop && tree_.nodes[i].stats.area >= tree_.sliverArea;
@@ -114,10 +114,9 @@ class TopOrder {
     return (ref & kLeafChild) ? tree_.leaves[ref & ~kLeafChild] : tree_.nodes[ref].stats;
   }
   double fitOf(uint32_t ref) {
-    std::vector<double>& fits = (ref & kLeafChild) ? leafFit_ : nodeFit_;
-    const uint32_t i = ref & ~kLeafChild;
-    if (std::isnan(fits[i])) fits[i] = areaFit_(statsOf(ref));
-    return fits[i];
+    const auto [at, added] = fit_.try_emplace(ref, 0.0);
+    if (added) at->second = areaFit_(statsOf(ref));
+    return at->second;
   }
   double boxOf(uint32_t ref) const { return clusterBox(statsOf(ref)).area(); }
   double gain(uint32_t i) {
@@ -142,45 +141,40 @@ class TopOrder {
 
   // Node n's score (see the top of the file): the best average of best(n)[d] / d.
   double score(uint32_t n) {
-    const Best& b = best(n);
+    const Best& b = best(n, kLookahead);
     double s = -std::numeric_limits<double>::infinity();
     for (int d = 1; d <= kLookahead; ++d)
       if (b[d] > -std::numeric_limits<double>::infinity()) s = std::max(s, b[d] / d);
     return s;
   }
 
-  // best(n)[d]: the most gain d expansions of n's subtree remove, n's first (a set of d nodes
-  // closed under parents), by the tree's knapsack over its two children; -inf where n's subtree
-  // holds fewer than d nodes. Every node's at once, children first (they are made before their
-  // parents): a score's lookahead meets each node of the tree many times.
-  const Best& best(uint32_t n) {
-    if (best_.empty()) fillBest();
-    return best_[n];
-  }
-  void fillBest() {
+  // best(n, budget)[d], d <= budget: the most gain d expansions of n's subtree remove, n's first
+  // (a set of d nodes closed under parents), by the tree's knapsack over its two children; -inf
+  // where n's subtree holds fewer than d nodes. Entry d needs only the children's entries below d,
+  // so a node's table grows: a deeper budget adds entries and keeps those it has. Only the nodes
+  // within the lookahead of an open node get one (the exact order's tree is the whole mesh's).
+  const Best& best(uint32_t n, int budget) {
+    Memo& memo = best_[n];  // budget 0: nothing computed yet
+    if (memo.budget >= budget) return memo.value;
     Best none;  // a leaf, or a split the lookahead does not pass
     none.fill(-std::numeric_limits<double>::infinity());
     none[0] = 0;
-    best_.resize(tree_.nodes.size());
-    for (uint32_t n = 0; n < tree_.nodes.size(); ++n) {
-      const bool stops = !lookThroughSurfaceless_ && isTop(n) && exposesSurfaceless(n);
-      const ClusterMergeNode& node = tree_.nodes[n];
-      const auto childBest = [&](uint32_t child) -> const Best& {
-        if ((child & kLeafChild) || stops) return none;
-        if (child >= n) throw std::logic_error("orderTop: a node made before its child");
-        return best_[child];
-      };
-      const Best& a = childBest(node.child[0]);
-      const Best& b = childBest(node.child[1]);
-      Best value = none;
-      const double own = gain(n);
-      for (int d = 1; d <= kLookahead; ++d)
-        for (int x = 0; x < d; ++x)
-          if (a[x] > -std::numeric_limits<double>::infinity() &&
-              b[d - 1 - x] > -std::numeric_limits<double>::infinity())
-            value[d] = std::max(value[d], own + a[x] + b[d - 1 - x]);
-      best_[n] = value;
-    }
+    const bool stops = !lookThroughSurfaceless_ && isTop(n) && exposesSurfaceless(n);
+    const ClusterMergeNode& node = tree_.nodes[n];
+    const auto childBest = [&](uint32_t child) -> const Best& {
+      return (child & kLeafChild) || stops || budget < 2 ? none : best(child, budget - 1);
+    };
+    const Best& a = childBest(node.child[0]);
+    const Best& b = childBest(node.child[1]);
+    if (memo.budget == 0) memo.value = none, memo.own = gain(n);
+    const double own = memo.own;
+    for (int d = memo.budget + 1; d <= budget; ++d)
+      for (int x = 0; x < d; ++x)
+        if (a[x] > -std::numeric_limits<double>::infinity() &&
+            b[d - 1 - x] > -std::numeric_limits<double>::infinity())
+          memo.value[d] = std::max(memo.value[d], own + a[x] + b[d - 1 - x]);
+    memo.budget = budget;
+    return memo.value;
   }
 
   // The open node to expand next, or open_.size() for the top's own next node `own` (kNoNode
@@ -240,14 +234,14 @@ class TopOrder {
 
   const TopTree& tree_;
   const std::function<double(const SurfaceStats&)>& areaFit_;
-  std::vector<double> nodeFit_, leafFit_;  // area x eFit by child reference, NaN until computed
-  std::vector<Best> best_;                 // best() by node, once needed
-  std::vector<uint32_t> placed_;           // expansion order
-  size_t ordered_ = 1;                     // of which the first are ordered by score (the root)
-  bool lookThroughSurfaceless_ = false;    // see exposesSurfaceless
-  std::unordered_set<uint32_t> expanded_;  // the same, as a set
-  std::vector<Open> open_;                 // nodes whose parent is expanded
-  double sum_ = 0;                         // the cut's box areas
+  std::unordered_map<uint32_t, double> fit_;  // area x eFit by child reference, as computed
+  std::unordered_map<uint32_t, Memo> best_;   // best() by node, as far as computed
+  std::vector<uint32_t> placed_;              // expansion order
+  size_t ordered_ = 1;                        // of which the first are ordered by score (the root)
+  bool lookThroughSurfaceless_ = false;       // see exposesSurfaceless
+  std::unordered_set<uint32_t> expanded_;     // the same, as a set
+  std::vector<Open> open_;                    // nodes whose parent is expanded
+  double sum_ = 0;                            // the cut's box areas
 };
 
 }  // namespace
