@@ -165,12 +165,12 @@ class TiledScanShape : public IndexedShape {
   static constexpr uint64_t kTiles = 9;
   static constexpr uint64_t kMinTileCells = 16;  // room for a seam, a hole and islands
   struct Piece {
-    uint64_t x0, y0, w, h;  // grid cells [x0, x0 + w) x [y0, y0 + h)
+    uint64_t x0, y0, w;  // from grid cell (x0, y0), w cells wide
   };
 
+  // The piece of grid cells [x0, x1) x [y0, y1).
   void add(uint64_t x0, uint64_t y0, uint64_t x1, uint64_t y1) {
-    if (firstVertex_.empty()) firstVertex_.push_back(0), firstTriangle_.push_back(0);
-    pieces_.push_back({x0, y0, x1 - x0, y1 - y0});
+    pieces_.push_back({x0, y0, x1 - x0});
     firstVertex_.push_back(firstVertex_.back() + (x1 - x0 + 1) * (y1 - y0 + 1));
     firstTriangle_.push_back(firstTriangle_.back() + 2 * (x1 - x0) * (y1 - y0));
   }
@@ -203,7 +203,7 @@ class TiledScanShape : public IndexedShape {
 
   uint64_t seed_, side_ = 0;
   std::vector<Piece> pieces_;
-  std::vector<uint64_t> firstVertex_, firstTriangle_;  // per piece, and the totals last
+  std::vector<uint64_t> firstVertex_{0}, firstTriangle_{0};  // per piece, and the totals last
 };
 
 // A CAD-like assembly: two groups of closed boxes far apart (kAssemblyGroupGap box sizes). In each,

@@ -889,8 +889,8 @@ def outofcore_markdown(o, rel):
                       ["checks"],
                       [[r["mesh"], r["memory"], f"{r['in_core']['height']} / {r['out_of_core']['height']}",
                         f"{r['height_ratio']:.3f}"] + [f"{r['fit_ratio'][n]:.3f}" for n in cuts_cap] +
-                       [f"{len(every(r).get('over', []))} of {every(r).get('cuts', 0)}",
-                        f"{every(r).get('worst') or 0:.2f} ({every(r).get('worst_cut')})"] +
+                       [f"{every(r).get('fit_over', 0)} of {len(every(r).get('list', []))}",
+                        f"{every(r).get('fit') or 0:.2f} ({every(r).get('fit_cut')})"] +
                        [" ".join(f"{k} {'ok' if v else '**missed**'}" for k, v in r["checks"].items())]
                        for r in o["cap_quality"]]), ""]
     out += ["### Quality: out of core against in core on meshes that fit", "",
