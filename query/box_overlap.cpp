@@ -167,6 +167,8 @@ std::vector<std::vector<uint64_t>> overlap(const ClusterFile& file, std::span<co
 
 std::vector<std::vector<uint64_t>> overlap(ReaderQueryIndex& index, std::span<const QueryBox> boxes,
                                            const QueryOptions& options, QueryStats* stats) {
+  if (const ClusterFile* file = query::ReaderSource::wholeFile(index))
+    return overlap(*file, boxes, options, stats);
   query::ReaderSource source(index);
   return overlapAll(source, boxes, options, stats);
 }

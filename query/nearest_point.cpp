@@ -146,6 +146,8 @@ std::vector<NearestHit> nearest(const ClusterFile& file, std::span<const glm::ve
 
 std::vector<NearestHit> nearest(ReaderQueryIndex& index, std::span<const glm::vec3> points, float radius,
                                 const QueryOptions& options, QueryStats* stats) {
+  if (const ClusterFile* file = query::ReaderSource::wholeFile(index))
+    return nearest(*file, points, radius, options, stats);
   query::ReaderSource source(index);
   return nearestAll(source, points, radius, options, stats);
 }

@@ -67,7 +67,7 @@ FchNode decode(const std::byte* in, unsigned branching) {
 
 }  // namespace
 
-MappedBytes::MappedBytes(size_t bytes) : size_(bytes) {
+MappedBytes::MappedBytes(size_t bytes) : size_(bytes), capacity_(bytes) {
   if (bytes == 0) return;
   void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED) throw std::bad_alloc();
@@ -75,7 +75,30 @@ MappedBytes::MappedBytes(size_t bytes) : size_(bytes) {
 }
 
 MappedBytes::~MappedBytes() {
-  if (data_) ::munmap(data_, size_);
+  if (data_) ::munmap(data_, capacity_);
+}
+
+std::shared_ptr<MappedBytes> SpareMappings::take(const std::shared_ptr<SpareMappings>& spare, size_t bytes) {
+  const size_t capacity = (bytes + 16383) & ~size_t{16383};
+  std::unique_ptr<MappedBytes> mapping;
+  {
+    std::lock_guard lock(spare->mutex_);
+    if (const auto it = spare->kept_.find(capacity); it != spare->kept_.end()) {
+      mapping = std::move(it->second);
+      spare->kept_.erase(it);
+      spare->held_ -= capacity;
+    }
+  }
+  if (!mapping) mapping = std::make_unique<MappedBytes>(capacity);
+  mapping->resize(bytes);
+  return {mapping.release(), [spare](MappedBytes* m) { spare->give(std::unique_ptr<MappedBytes>(m)); }};
+}
+
+void SpareMappings::give(std::unique_ptr<MappedBytes> bytes) {
+  std::lock_guard lock(mutex_);
+  if (held_ + bytes->capacity() > limit_) return;  // unmapped
+  held_ += bytes->capacity();
+  kept_.emplace(bytes->capacity(), std::move(bytes));
 }
 
 NodePages::NodePages(ClusterFileReader& reader, uint64_t budget, uint32_t pageFaces, uint32_t topRecords)
@@ -83,7 +106,8 @@ NodePages::NodePages(ClusterFileReader& reader, uint64_t budget, uint32_t pageFa
       topRecords_(std::max<uint32_t>(topRecords, 1)),
       branching_(reader.header().branching),
       file_(reader.temporaryDirectory()),
-      budget_(std::max<uint64_t>(budget, 1)) {
+      budget_(std::max<uint64_t>(budget, 1)),
+      spare_(std::make_shared<SpareMappings>(budget / 8)) {
   stride_ = kRecordHead + 8 * size_t{branching_};
   build(reader, std::max<uint64_t>(budget / 2, stride_ * 64));
   writeTriangles(reader);
@@ -252,25 +276,76 @@ uint64_t NodePages::originalFace(const MappedBytes& block, uint64_t p) {
   return id;
 }
 
+NodePages::Page NodePages::lookup(uint64_t key) {
+  const auto it = cache_.find(key);
+  if (it == cache_.end()) return nullptr;
+  uses_.splice(uses_.begin(), uses_, it->second.use);
+  return it->second.bytes;
+}
+
 NodePages::Page NodePages::cached(uint64_t key, uint64_t offset, size_t bytes) {
   std::lock_guard lock(mutex_);
-  auto it = cache_.find(key);
-  if (it == cache_.end()) {
-    auto mapped = std::make_shared<MappedBytes>(bytes);
-    file_.read(offset, mapped->data(), mapped->size());
-    held_ += mappedBytes(mapped->size());
-    it = cache_.emplace(key, Cached{std::move(mapped), 0}).first;
-    while (held_ > budget_ && cache_.size() > 1) {  // the least recently used other entry leaves
-      auto oldest = cache_.end();
-      for (auto j = cache_.begin(); j != cache_.end(); ++j)
-        if (j != it && (oldest == cache_.end() || j->second.lastUse < oldest->second.lastUse)) oldest = j;
-      held_ -= mappedBytes(oldest->second.bytes->size());
-      cache_.erase(oldest);
-    }
-    peak_ = std::max(peak_, held_);
+  if (Page page = lookup(key)) return page;
+  auto mapped = allocate(bytes);
+  file_.read(offset, mapped->data(), mapped->size());
+  return insert(key, std::move(mapped));
+}
+
+NodePages::Page NodePages::insert(uint64_t key, std::shared_ptr<MappedBytes> bytes) {
+  held_ += mappedBytes(bytes->capacity());
+  uses_.push_front(key);
+  Page page = cache_.emplace(key, Cached{std::move(bytes), uses_.begin()}).first->second.bytes;
+  while (held_ > budget_ && cache_.size() > 1) {  // the least recently used other entry leaves
+    const auto oldest = cache_.find(uses_.back());
+    held_ -= mappedBytes(oldest->second.bytes->capacity());
+    cache_.erase(oldest);
+    uses_.pop_back();
   }
-  it->second.lastUse = ++clock_;
-  return it->second.bytes;
+  peak_ = std::max(peak_, held_);
+  return page;
+}
+
+NodePages::Page NodePages::derived(uint32_t id) {
+  const uint64_t key = pages_.size() + (faces_ + kBlockTriangles - 1) / kBlockTriangles + id;
+  std::lock_guard lock(mutex_);
+  if (Page page = lookup(key)) return page;
+  const auto [offset, bytes] = derived_.at(id);
+  auto mapped = allocate(bytes);
+  file_.read(offset, mapped->data(), bytes);
+  return insert(key, std::move(mapped));
+}
+
+void NodePages::writeDerived(uint32_t id, std::span<const std::byte> bytes) {
+  std::lock_guard lock(mutex_);
+  if (derived_.empty()) derived_.resize(pages_.size());
+  derived_[id] = {fileBytes_, bytes.size()};
+  file_.write(fileBytes_, bytes.data(), bytes.size());
+  fileBytes_ += bytes.size();
+  derivedBytes_ += bytes.size();
+}
+
+std::vector<std::byte> NodePages::records(uint32_t id) {
+  const PageEntry& entry = pages_[id];
+  std::vector<std::byte> out(size_t{entry.records} * stride_);
+  file_.read(entry.offset, out.data(), out.size());
+  return out;
+}
+
+std::pair<NodeRef, FchNode> NodePages::root(uint32_t id) {
+  std::vector<std::byte> record(stride_);
+  file_.read(pages_[id].offset, record.data(), stride_);
+  const FchNode node = decode(record.data(), branching_);
+  return {NodeRef{recordIndex(record.data()), node.first, node.count}, node};
+}
+
+void NodePages::readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out) {
+  if (count > 0 && first + count > faces_) pastTriangles(first + count - 1);
+  for (uint64_t p = first; p < first + count;) {  // block by block: a block's corners come first
+    const uint64_t b = p / kBlockTriangles, end = std::min(first + count, (b + 1) * kBlockTriangles);
+    file_.read(trianglesOffset_ + b * kBlockTriangles * kTriangleBytes + (p % kBlockTriangles) * kCornerBytes,
+               out + (p - first), (end - p) * kCornerBytes);
+    p = end;
+  }
 }
 
 // The triangle frames in face order, each triangle's corners and id into its block.
@@ -306,8 +381,11 @@ void NodePages::writeTriangles(ClusterFileReader& reader) {
 }
 
 FchNode NodePages::find(const MappedBytes& page, const NodeRef& ref) const {
-  const std::byte* records = page.data();
-  size_t lo = 0, hi = page.size() / stride_;
+  return find(std::span<const std::byte>(page.data(), page.size()), ref);
+}
+
+FchNode NodePages::find(std::span<const std::byte> records, const NodeRef& ref) const {
+  size_t lo = 0, hi = records.size() / stride_;
   while (lo < hi) {
     const size_t mid = (lo + hi) / 2;
     if (recordIndex(&records[mid * stride_]) < ref.index)
@@ -315,7 +393,7 @@ FchNode NodePages::find(const MappedBytes& page, const NodeRef& ref) const {
     else
       hi = mid;
   }
-  if (lo == page.size() / stride_ || recordIndex(&records[lo * stride_]) != ref.index)
+  if (lo == records.size() / stride_ || recordIndex(&records[lo * stride_]) != ref.index)
     throw badStructure(name_, ref.index, "not in the page of its face range");
   return decode(&records[lo * stride_], branching_);
 }

@@ -5,14 +5,18 @@
 // bounded in bytes. The triangles follow in face order, in blocks.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <list>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "facetree/io.h"
@@ -39,10 +43,28 @@ class MappedBytes {
   MappedBytes& operator=(const MappedBytes&) = delete;
   std::byte* data() const { return data_; }
   size_t size() const { return size_; }
+  size_t capacity() const { return capacity_; }
+  void resize(size_t bytes) { size_ = bytes; }  // at most capacity()
 
  private:
   std::byte* data_ = nullptr;  // the mapping (not owned by the pointer: munmap'd by the destructor)
-  size_t size_ = 0;
+  size_t size_ = 0, capacity_ = 0;
+};
+
+// Mappings the cache gave back, kept for the next of the same size: mapping one costs a fault per
+// page and unmapping it a flush of every thread's address translations, which cost more than the
+// reads on a traversal that moves between pages.
+class SpareMappings {
+ public:
+  explicit SpareMappings(uint64_t limit) : limit_(limit) {}
+  // A mapping of `bytes` (its capacity rounded up to 16 KiB), given back here when it goes.
+  static std::shared_ptr<MappedBytes> take(const std::shared_ptr<SpareMappings>& spare, size_t bytes);
+
+ private:
+  void give(std::unique_ptr<MappedBytes> bytes);
+  std::mutex mutex_;
+  std::multimap<size_t, std::unique_ptr<MappedBytes>> kept_;  // by capacity
+  uint64_t limit_, held_ = 0;
 };
 
 class NodePages {
@@ -70,8 +92,21 @@ class NodePages {
   // The page that holds `ref` (a page id) and the page itself, read or from the cache.
   uint32_t pageOf(const NodeRef& ref) const;
   Page page(uint32_t id);
-  // The node `ref` in `page` (which pageOf(ref) named).
+  // The node `ref` in `page` (which pageOf(ref) named), or in a page's records read whole.
   FchNode find(const MappedBytes& page, const NodeRef& ref) const;
+  FchNode find(std::span<const std::byte> records, const NodeRef& ref) const;
+  // A subtree page's records, read past the cache, and its root's (the first: parents come first).
+  std::vector<std::byte> records(uint32_t id);
+  std::pair<NodeRef, FchNode> root(uint32_t id);
+  // The corners of the triangles [first, + count), read past the cache.
+  void readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out);
+  // What is derived from subtree page `id` (a layout for rays), written once beside the pages by
+  // writeDerived and read from there or from the cache.
+  Page derived(uint32_t id);
+  void writeDerived(uint32_t id, std::span<const std::byte> bytes);
+  // The subtree pages' ids, by their roots' first faces.
+  std::span<const uint32_t> subtreePages() const { return rootPage_; }
+  std::shared_ptr<MappedBytes> allocate(size_t bytes) { return SpareMappings::take(spare_, bytes); }
   // Block b of the triangles (face positions b * kBlockTriangles on), read or from the cache, and
   // a triangle's corners and original id in it.
   Page block(uint64_t b);
@@ -84,7 +119,7 @@ class NodePages {
 
   // The bytes written: each page reserves a record per face of its root, and what it does not
   // fill stays a hole of the file, on disk nothing.
-  uint64_t temporaryBytes() const { return nodes_ * stride_ + faces_ * kTriangleBytes; }
+  uint64_t temporaryBytes() const { return nodes_ * stride_ + faces_ * kTriangleBytes + derivedBytes_; }
   uint64_t peakBytes() const { return peak_; }
 
  private:
@@ -95,11 +130,13 @@ class NodePages {
   };
   struct Cached {
     Page bytes;
-    uint64_t lastUse = 0;
+    std::list<uint64_t>::iterator use;  // its place in uses_
   };
   void build(ClusterFileReader& reader, uint64_t stageBytes);
   void writeTriangles(ClusterFileReader& reader);
   Page cached(uint64_t key, uint64_t offset, size_t bytes);
+  Page insert(uint64_t key, std::shared_ptr<MappedBytes> bytes);  // with the lock held
+  Page lookup(uint64_t key);                                      // ... or null
 
   std::string name_;  // the file, for the messages
   uint32_t pageFaces_, topRecords_;
@@ -118,8 +155,13 @@ class NodePages {
   uint64_t budget_;
   std::mutex mutex_;
   uint64_t faces_ = 0, trianglesOffset_ = 0;  // the blocks start at trianglesOffset_
-  std::map<uint64_t, Cached> cache_;          // keys: page ids, then pages_.size() + block
-  uint64_t held_ = 0, peak_ = 0, clock_ = 0;
+  // Keys: page ids, then pages_.size() + block, then pages_.size() + blocks + page id for what
+  // derived() makes of a page; the most recently used first in uses_.
+  std::unordered_map<uint64_t, Cached> cache_;
+  std::list<uint64_t> uses_;
+  std::vector<std::pair<uint64_t, uint64_t>> derived_;  // per page: (offset, bytes) once written
+  std::shared_ptr<SpareMappings> spare_;
+  uint64_t held_ = 0, peak_ = 0, derivedBytes_ = 0;
 };
 
 }  // namespace facetree::query

@@ -1,14 +1,15 @@
 // Rays through a cluster file's hierarchy (facetree/query.h).
 //
 // Willmott 2000, sec. 5.5.1: a node of b children costs a query up to b tests where a binary tree
-// costs 2 per level, so query time may grow by up to b / log2 b with the branching factor; the
-// traversal is the same for every b, so that the files of b = 2, 4 and 8 can be compared by what
-// they cost. At a node, its face children and the face ranges of children cut off by truncation
-// are tested first; then its node children's boxes, and the children met are visited near first, in
-// order of their entry t (ties to the lower node index), and skipped once a hit lies before that
-// entry. A hit at the same t as the best goes to the triangle first in the face order, as the brute
-// force decides it. A file in memory is traversed through a layout for rays (ray_index.h), the same
-// tests in the same order.
+// costs 2 per level, so query time grows with the levels and the tests per level. The rays walk a
+// layout for rays (ray_index.h) that widens every file's nodes to up to eight members and ends at
+// subtrees of a few faces (ray_members.h), as bounding volume hierarchies for rays do (Embree's
+// BVH4 and BVH8: four or eight boxes met in one step, a short stack, the near child first). At a
+// node, its face ranges are tested first; then its members' boxes, four at a time, and the members
+// met are visited near first, in order of their entry t (ties to the lower node index), and
+// skipped once a hit lies before that entry. A hit at the same t as the best goes to the triangle
+// first in the face order, as the brute force decides it. The file in memory and a reader's pages
+// are walked by the same code over the same layout.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -19,6 +20,7 @@
 #include "query_blocks.h"
 #include "query_source.h"
 #include "ray_index.h"
+#include "ray_members.h"
 #include "ray_tests.h"
 
 namespace facetree {
@@ -76,81 +78,60 @@ bool testRange(View& view, const RayState& ray, uint64_t first, uint64_t count, 
   return false;
 }
 
-// The traversal of one ray; `any`: stop at the first hit.
-template <class Source>
-ClosestSoFar traverse(const Source& source, typename Source::View& view, const RayState& ray, bool any,
-                      QueryStats& stats, Stack& stack) {
-  ClosestSoFar best;
-  if (!ray.valid) return best;
-  if (source.nodeCount() == 0) {
-    testRange(view, ray, 0, source.faceCount(), best, any, stats);
-    return best;
+// A triangle's corners from the layout that holds them, else from the layouts' source.
+template <class Layouts>
+struct LayoutCorners {
+  const query::RaySpans& spans;
+  Layouts& layouts;
+  void corners(uint64_t p, glm::vec3 (&out)[3]) const {
+    if (spans.holds(p))
+      spans.cornersOf(p, out);
+    else
+      layouts.corners(p, out);
   }
-  stack.clear();
-  ++stats.boxTests;
-  const float rootEntry = rayBoxEntry(ray.box, view.node(source.root()).box);
-  if (rootEntry == std::numeric_limits<float>::infinity()) return best;
-  stack.push_back({rootEntry, source.root()});
-  std::pair<float, NodeRef> children[kMaxBranching];
-  while (!stack.empty()) {
-    const auto [entry, ref] = stack.back();
-    stack.pop_back();
-    if (static_cast<double>(entry) > best.t) continue;  // a hit before the box: nothing nearer in it
-    // A copy through a reader, whose pages may leave the view as the children are read.
-    decltype(auto) node = view.node(ref);
-    if (query::forEachChild(
-            view, node,
-            [&](uint64_t first, uint64_t count) {
-              return testRange(view, ray, first, count, best, any, stats);
-            },
-            [](const NodeRef&) {}))
-      return best;
-    unsigned near = 0;
-    query::forEachChild(
-        view, node, [](uint64_t, uint64_t) { return false; },
-        [&](const NodeRef& child) {
-          ++stats.boxTests;
-          const float t = rayBoxEntry(ray.box, view.node(child).box);
-          if (t != std::numeric_limits<float>::infinity()) children[near++] = {t, child};
-        });
-    query::pushNearFirst(children, near, stack,
-                         [&](float entry) { return static_cast<double>(entry) <= best.t; });
-  }
-  return best;
-}
+};
 
-// The same traversal over a file's layout for rays: stack entries are positions in the index,
-// which order siblings as their node indices do.
-ClosestSoFar traverseIndex(const query::RayIndex& index, const RayState& ray, bool any, QueryStats& stats,
-                           Stack& stack) {
+// The traversal of one ray over a layout for rays (ray_index.h); `any`: stop at the first hit.
+// Layouts: layout(at) gives layout `at` (0: the one the root is in; 1 + id: a reader's subtree page
+// id), corners(p, out) a triangle's corners where the layout holds none (a reader's triangles
+// above its pages). Stack entries are (entry t, {position, layout}); positions order siblings as
+// their node indices do.
+template <class Layouts>
+ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, QueryStats& stats,
+                            Stack& stack) {
   ClosestSoFar best;
-  if (!ray.valid) return best;
-  if (index.empty()) {
-    testRange(index, ray, 0, index.faceCount(), best, any, stats);
-    return best;
-  }
+  if (!ray.valid || layouts.empty()) return best;
   stack.clear();
   ++stats.boxTests;
-  const float rootEntry = query::rayBoxEntry4(ray.box, index.rootBox())[0];
+  const float rootEntry = query::rayBoxEntry4(ray.box, layouts.layout(0).boxes(0))[0];
   if (rootEntry == std::numeric_limits<float>::infinity()) return best;
   stack.push_back({rootEntry, NodeRef{}});
-  std::pair<float, NodeRef> children[kMaxBranching];
+  std::pair<float, NodeRef> children[query::kRayWidth];
   while (!stack.empty()) {
     const auto [entry, at] = stack.back();
     stack.pop_back();
-    if (static_cast<double>(entry) > best.t) continue;
-    const query::RayNode& node = index.node(at.index);
-    for (uint32_t r = node.firstRange; r < node.firstRange + node.rangeCount; ++r)
-      if (testRange(index, ray, index.range(r).first, index.range(r).count, best, any, stats)) return best;
+    if (static_cast<double>(entry) > best.t) continue;  // a hit before the box: nothing nearer in it
+    uint32_t in = at.first;
+    const query::RaySpans* spans = &layouts.layout(in);
+    const query::RayNode* node = &spans->node(at.index);
+    if (node->page) {  // a page's root: its record opens the page's layout
+      in = node->firstPacket + 1;
+      spans = &layouts.layout(in);
+      node = &spans->node(0);
+    }
+    LayoutCorners<Layouts> corners{*spans, layouts};
+    for (uint32_t r = node->firstRange; r < node->firstRange + node->rangeCount; ++r)
+      if (testRange(corners, ray, spans->range(r).first, spans->range(r).count, best, any, stats))
+        return best;
     unsigned near = 0;
-    stats.boxTests += node.childCount;
-    for (unsigned k = 0; k < node.childCount; k += 4) {
-      const uint32_t packet = node.firstPacket + k / 4;
-      const query::Float4 t = query::rayBoxEntry4(ray.box, index.boxes(packet));
-      for (unsigned lane = 0; lane < 4 && k + lane < node.childCount; ++lane)
+    stats.boxTests += node->childCount;
+    for (unsigned k = 0; k < node->childCount; k += 4) {
+      const uint32_t packet = node->firstPacket + k / 4;
+      const query::Float4 t = query::rayBoxEntry4(ray.box, spans->boxes(packet));
+      for (unsigned lane = 0; lane < 4 && k + lane < node->childCount; ++lane)
         if (t[lane] != std::numeric_limits<float>::infinity()) {
-          children[near++] = {t[lane], NodeRef{4 * packet + lane}};
-          index.prefetchChildren(4 * packet + lane);
+          children[near++] = {t[lane], NodeRef{4 * packet + lane, in, 0}};
+          spans->prefetchMembers(4 * packet + lane);
         }
     }
     query::pushNearFirst(children, near, stack,
@@ -158,6 +139,14 @@ ClosestSoFar traverseIndex(const query::RayIndex& index, const RayState& ray, bo
   }
   return best;
 }
+
+// The file in memory: one layout holding every triangle's corners.
+struct MemoryLayouts {
+  query::RaySpans spans;
+  bool empty() const { return spans.packets.empty(); }
+  const query::RaySpans& layout(uint32_t) const { return spans; }
+  void corners(uint64_t p, glm::vec3 (&out)[3]) const { spans.cornersOf(p, out); }
+};
 
 template <class View>
 RayHit toHit(View& view, const ClosestSoFar& best) {
@@ -173,46 +162,99 @@ RayHit toHit(View& view, const ClosestSoFar& best) {
 }
 
 // Each ray's traversal, walk(view, ray, any, stats, stack) (`any`: to its first hit), its result
-// out[r] = result(view, best).
+// out[r] = result(view, best); the rays in `order` when it is not empty.
 template <class Out, class Source, class Walk, class Result>
 std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any, const QueryOptions& options,
-                             QueryStats* stats, Walk&& walk, Result&& result) {
+                             QueryStats* stats, Walk&& walk, Result&& result,
+                             std::span<const uint32_t> order = {}) {
   std::vector<Out> out(rays.size());
   query::forEachBlock(source, rays.size(), options, stats,
                       [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
-                        for (size_t r = first; r < end; ++r)
+                        for (size_t i = first; i < end; ++i) {
+                          const size_t r = order.empty() ? i : order[i];
                           out[r] = result(view, walk(view, RayState(rays[r]), any, s, stack));
+                        }
                       });
   return out;
 }
 
+// The rays in an order in which neighbours meet the same pages (Pharr et al. 1997, "Rendering
+// complex scenes with memory-coherent ray tracing"): by the Morton code of the point each ray
+// reaches at the distance of `center`, ties by index. Every ray's result is its own, so the order
+// changes no result and no count.
+std::vector<uint32_t> coherentOrder(std::span<const Ray> rays, const glm::vec3& center) {
+  std::vector<glm::dvec3> at(rays.size());
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (size_t r = 0; r < rays.size(); ++r) {
+    const glm::dvec3 o(rays[r].origin), d(rays[r].direction);
+    const double length = glm::length(d);
+    at[r] = length > 0 ? o + d * (glm::distance(o, glm::dvec3(center)) / length) : o;
+    if (!std::isfinite(at[r].x) || !std::isfinite(at[r].y) || !std::isfinite(at[r].z))
+      at[r] = glm::dvec3(center);
+    lo = glm::min(lo, at[r]), hi = glm::max(hi, at[r]);
+  }
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(rays.size());
+  for (size_t r = 0; r < rays.size(); ++r) keyed[r] = {mortonCode(at[r], lo, hi), static_cast<uint32_t>(r)};
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
 template <class Source, class Walk>
 std::vector<RayHit> closestHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
-                                QueryStats* stats, Walk&& walk) {
-  return traverseAll<RayHit>(source, rays, false, options, stats, walk,
-                             [](auto& view, const ClosestSoFar& best) { return toHit(view, best); });
+                                QueryStats* stats, Walk&& walk, std::span<const uint32_t> order = {}) {
+  return traverseAll<RayHit>(
+      source, rays, false, options, stats, walk,
+      [](auto& view, const ClosestSoFar& best) { return toHit(view, best); }, order);
 }
 
 template <class Source, class Walk>
 std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const QueryOptions& options,
-                             QueryStats* stats, Walk&& walk) {
-  return traverseAll<uint8_t>(source, rays, true, options, stats, walk,
-                              [](auto&, const ClosestSoFar& best) { return uint8_t{best.face != kNoHit}; });
+                             QueryStats* stats, Walk&& walk, std::span<const uint32_t> order = {}) {
+  return traverseAll<uint8_t>(
+      source, rays, true, options, stats, walk,
+      [](auto&, const ClosestSoFar& best) { return uint8_t{best.face != kNoHit}; }, order);
 }
 
-// A file in memory is walked through its layout for rays (its boxes and its triangles' corners), a
-// reader's file node by node.
+// A file in memory is walked through its layout for rays, a reader's through its pages' layouts.
 auto indexWalk(const query::RayIndex& index) {
-  return [&index](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    return traverseIndex(index, ray, any, s, stack);
+  return [&index](query::FileSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
+    if (index.empty()) {  // no nodes: every triangle
+      ClosestSoFar best;
+      if (ray.valid) testRange(view, ray, 0, index.faceCount(), best, any, s);
+      return best;
+    }
+    MemoryLayouts layouts{index.spans()};
+    return traverseLayout(layouts, ray, any, s, stack);
   };
 }
-auto readerWalk(const query::ReaderSource& source) {
-  return [&source](query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& s,
-                   Stack& stack) { return traverse(source, view, ray, any, s, stack); };
+auto readerWalk() {
+  return [](query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
+    if (view.empty()) {
+      ClosestSoFar best;
+      if (ray.valid) testRange(view, ray, 0, view.faceCount(), best, any, s);
+      return best;
+    }
+    return traverseLayout(view, ray, any, s, stack);
+  };
 }
 
 }  // namespace
+
+query::RayIndex::RayIndex(const ClusterFile& file) {
+  const size_t faces = file.indices.size() / 3;
+  corners_.resize(faces);
+  for (size_t p = 0; p < faces; ++p)
+    for (int c = 0; c < 3; ++c) corners_[p][c] = file.vertices[file.indices[3 * p + c]];
+  if (file.nodes.empty()) return;
+  query::FileSource source(file);
+  query::FileSource::View view(source);
+  const FchNode& root = file.nodes[0];
+  query::layOut(
+      view, NodeRef{0, root.first, root.count}, root.box, [](const NodeRef&) { return query::kNoPage; },
+      packets_, ranges_);
+}
 
 struct RayLayoutAccess {
   static const query::RayIndex& index(const RayLayout& layout) { return *layout.index_; }
@@ -246,14 +288,18 @@ std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays
 
 std::vector<RayHit> intersect(ReaderQueryIndex& index, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
+  if (const RayLayout* layout = query::ReaderSource::layout(index))
+    return intersect(*layout, rays, options, stats);
   query::ReaderSource source(index);
-  return closestHits(source, rays, options, stats, readerWalk(source));
+  return closestHits(source, rays, options, stats, readerWalk(), coherentOrder(rays, source.center()));
 }
 
 std::vector<uint8_t> occluded(ReaderQueryIndex& index, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
+  if (const RayLayout* layout = query::ReaderSource::layout(index))
+    return occluded(*layout, rays, options, stats);
   query::ReaderSource source(index);
-  return anyHits(source, rays, options, stats, readerWalk(source));
+  return anyHits(source, rays, options, stats, readerWalk(), coherentOrder(rays, source.center()));
 }
 
 std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,

@@ -2,8 +2,28 @@
 // (node_pages.h), kept for the queries that follow.
 #include "facetree/query.h"
 #include "query_source.h"
+#include "ray_index.h"
 
 namespace facetree {
+
+uint64_t ReaderQueryIndex::State::wholeBytes(const FileHeader& header) {
+  // A node: its record, and at most two lanes of packets (a packet of four lanes holds at least
+  // two members but the root's); a triangle: its indices, original id, corners and a range.
+  return header.nodeCount * (sizeof(FchNode) + 2 * sizeof(query::RayPacket) / 4) +
+         header.triangleCount *
+             (3 * sizeof(uint32_t) + sizeof(uint64_t) + 3 * sizeof(glm::vec3) + sizeof(query::FaceRange)) +
+         header.vertexCount * sizeof(glm::vec3);
+}
+
+ReaderQueryIndex::State::State(ClusterFileReader& r) : reader(r) {
+  if (wholeBytes(r.header()) <= r.memoryBytes() / 2) {
+    file = std::make_unique<ClusterFile>(readClusterFile(r));
+    layout = std::make_unique<RayLayout>(*file);
+  } else {
+    pages = std::make_unique<query::NodePages>(r, r.memoryBytes() / 4);
+    rays = std::make_unique<query::RayPages>(*pages);
+  }
+}
 
 ReaderQueryIndex::ReaderQueryIndex(ClusterFileReader& reader) : state_(std::make_unique<State>(reader)) {}
 ReaderQueryIndex::~ReaderQueryIndex() = default;
@@ -11,10 +31,10 @@ ClusterFileReader& ReaderQueryIndex::reader() const {
   return state_->reader;
 }
 uint64_t ReaderQueryIndex::temporaryBytes() const {
-  return state_->pages.temporaryBytes();
+  return state_->pages ? state_->pages->temporaryBytes() : 0;
 }
 uint64_t ReaderQueryIndex::peakPageBytes() const {
-  return state_->pages.peakBytes();
+  return state_->pages ? state_->pages->peakBytes() : 0;
 }
 
 }  // namespace facetree

@@ -56,8 +56,9 @@ class RayIndex;
 class ReaderSource;
 }  // namespace query
 
-// A file in memory laid out for rays: each node's node children's oriented boxes side by side,
-// four at a time, with where their own children are (O(nodes): ~50 ms for dragon_vrip's 871k
+// A file in memory laid out for rays: each node's members (its children widened to up to eight
+// nodes, subtrees of at most eight faces tested as runs of faces) with their oriented boxes side by
+// side, four at a time, and where their own members are (O(nodes): ~50 ms for dragon_vrip's 871k
 // nodes at b = 4). The rays over a ClusterFile lay it out each batch; hold one to cast many
 // batches. The file must outlive it and not change.
 class RayLayout {
@@ -87,14 +88,16 @@ std::vector<uint8_t> occluded(const ClusterFile& file, std::span<const Ray> rays
 std::vector<uint8_t> occluded(const RayLayout& layout, std::span<const Ray> rays,
                               const QueryOptions& options = {}, QueryStats* stats = nullptr);
 
-// A reader's nodes laid out for queries. The file orders nodes by cost, so that a query walking
-// down the tree would meet another node frame at nearly every level; one pass over the nodes
-// groups them by subtree instead, into pages of a temporary file in the reader's temporary
+// A reader's file laid out for queries. A file whose nodes, triangles and layout for rays fit half
+// the reader's cap is read whole (one pass over the nodes, one over the geometry) and queried as
+// the file in memory, at its speed. A larger one: the file orders nodes by cost, so that a query
+// walking down the tree would meet another node frame at nearly every level; one pass over the
+// nodes groups them by subtree instead, into pages of a temporary file in the reader's temporary
 // directory (56 + 8 b bytes a node), so that a query entering a subtree of at most 2,048 faces
 // reads one page; a second pass writes the triangles' corners and ids in face order (44 bytes a
 // triangle), read in blocks of 1,024. Pages and blocks wait in a cache of a quarter of the
-// reader's cap, shared by the threads. The queries on a reader build one per batch; hold one to
-// query a file in many batches.
+// reader's cap, shared by the threads. Either way the same boxes and triangles are tested as in
+// memory. The queries on a reader build one per batch; hold one to query a file in many batches.
 class ReaderQueryIndex {
  public:
   explicit ReaderQueryIndex(ClusterFileReader& reader);

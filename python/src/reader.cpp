@@ -68,40 +68,54 @@ NodeRecord record(const FchNode& node, uint64_t nodeCount) {
   return r;
 }
 
-// Rays from (N, 3) origins and directions, with a t range: t_max a number or (N,) array.
-std::vector<Ray> raysFrom(const py::object& origins, const py::object& directions, const py::object& tMax,
-                          float tMin) {
+// (N, 3) origins and directions with a t range (t_max a number or an (N,) array), checked.
+struct RayArrays {
   using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
-  const Floats o = Floats::ensure(origins), d = Floats::ensure(directions);
-  if (!o || o.ndim() != 2 || o.shape(1) != 3) throw ArgumentError("origins: expected an (N, 3) array");
-  if (!d || d.ndim() != 2 || d.shape(1) != 3 || d.shape(0) != o.shape(0))
-    throw ArgumentError("directions: expected an (N, 3) array, as many as the origins");
-  const auto n = static_cast<size_t>(o.shape(0));
-  std::vector<Ray> rays(n);
-  const float* op = o.data();
-  const float* dp = d.data();
-  for (size_t i = 0; i < n; ++i) {
-    rays[i].origin = {op[3 * i], op[3 * i + 1], op[3 * i + 2]};
-    rays[i].direction = {dp[3 * i], dp[3 * i + 1], dp[3 * i + 2]};
-    rays[i].tMin = tMin;
+  Floats o, d, t;
+  bool hasTMax = false;
+  size_t n = 0;
+  float tMin = 0.0f;
+  RayArrays(const py::object& origins, const py::object& directions, const py::object& tMax, float tMin)
+      : o(Floats::ensure(origins)), d(Floats::ensure(directions)), tMin(tMin) {
+    if (!o || o.ndim() != 2 || o.shape(1) != 3) throw ArgumentError("origins: expected an (N, 3) array");
+    if (!d || d.ndim() != 2 || d.shape(1) != 3 || d.shape(0) != o.shape(0))
+      throw ArgumentError("directions: expected an (N, 3) array, as many as the origins");
+    n = static_cast<size_t>(o.shape(0));
+    if (!tMax.is_none()) {
+      hasTMax = true;
+      t = Floats::ensure(tMax);
+      if (!t || (t.ndim() != 0 && (t.ndim() != 1 || static_cast<size_t>(t.shape(0)) != n)))
+        throw ArgumentError("t_max: expected a number or an (N,) array");
+    }
   }
-  if (!tMax.is_none()) {
-    const Floats t = Floats::ensure(tMax);
-    if (!t || (t.ndim() != 0 && (t.ndim() != 1 || static_cast<size_t>(t.shape(0)) != n)))
-      throw ArgumentError("t_max: expected a number or an (N,) array");
-    for (size_t i = 0; i < n; ++i) rays[i].tMax = t.ndim() == 0 ? t.data()[0] : t.data()[i];
+  // Rays [first, first + rays.size()).
+  void fill(size_t first, std::vector<Ray>& rays) const {
+    const float *op = o.data(), *dp = d.data();
+    for (size_t k = 0; k < rays.size(); ++k) {
+      const size_t i = first + k;
+      rays[k].origin = {op[3 * i], op[3 * i + 1], op[3 * i + 2]};
+      rays[k].direction = {dp[3 * i], dp[3 * i + 1], dp[3 * i + 2]};
+      rays[k].tMin = tMin;
+      if (hasTMax) rays[k].tMax = t.ndim() == 0 ? t.data()[0] : t.data()[i];
+    }
   }
-  return rays;
-}
+};
 
-// The rays of origins, directions and t range, cast by query(reader, rays) with the GIL released.
-template <class Query>
-auto castRays(PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
-              float tMin, Query&& query) {
+// The rays cast by query(reader, rays) with the GIL released, a chunk at a time, each chunk's
+// results handed to store(first, results): the arrays a caller gets are written once, and what a
+// chunk holds stays in the caches (a million rays' hits at once cost more in page faults than the
+// traversal of a file in memory).
+template <class Query, class Store>
+void castRays(PyReader& r, const RayArrays& arrays, Query&& query, Store&& store) {
+  constexpr size_t kChunk = 1 << 16;
   r.open();
-  const std::vector<Ray> rays = raysFrom(origins, directions, tMax, tMin);
   py::gil_scoped_release release;
-  return query(r.queries(), rays);
+  std::vector<Ray> rays;
+  for (size_t first = 0; first < arrays.n; first += kChunk) {
+    rays.resize(std::min(kChunk, arrays.n - first));
+    arrays.fill(first, rays);
+    store(first, query(r.queries(), rays));
+  }
 }
 
 py::tuple meshTuple(FaceRangeMesh&& mesh) {
@@ -280,27 +294,32 @@ vertices (numbered locally, in the file's vertex order) and (F,) uint64 face ids
           "intersect",
           [](PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
              float tMin, unsigned threads) {
-            const std::vector<RayHit> hits =
-                castRays(r, origins, directions, tMax, tMin,
-                         [&](auto& index, auto& rays) { return intersect(index, rays, {threads}); });
-            const auto n = static_cast<py::ssize_t>(hits.size());
-            std::vector<float> t(hits.size()), uv(2 * hits.size());
-            std::vector<int64_t> face(hits.size()), original(hits.size());
-            for (size_t i = 0; i < hits.size(); ++i) {
-              const bool hit = hits[i].face != kNoHit;
-              t[i] = hits[i].t;
-              face[i] = hit ? static_cast<int64_t>(hits[i].face) : -1;
-              original[i] = hit ? static_cast<int64_t>(hits[i].originalFace) : -1;
-              uv[2 * i] = hits[i].u, uv[2 * i + 1] = hits[i].v;
-            }
-            return py::make_tuple(arrayOwning(std::move(t), {n}), arrayOwning(std::move(face), {n}),
-                                  arrayOwning(std::move(original), {n}), arrayOwning(std::move(uv), {n, 2}));
+            const RayArrays arrays(origins, directions, tMax, tMin);
+            const auto n = static_cast<py::ssize_t>(arrays.n);
+            py::array_t<float> t(n), uv({n, py::ssize_t{2}});
+            py::array_t<int64_t> face(n), original(n);
+            float *tp = t.mutable_data(), *uvp = uv.mutable_data();
+            int64_t *fp = face.mutable_data(), *op = original.mutable_data();
+            castRays(
+                r, arrays, [&](auto& index, auto& rays) { return intersect(index, rays, {threads}); },
+                [&](size_t first, const std::vector<RayHit>& hits) {
+                  for (size_t k = 0; k < hits.size(); ++k) {
+                    const size_t i = first + k;
+                    const bool hit = hits[k].face != kNoHit;
+                    tp[i] = hits[k].t;
+                    fp[i] = hit ? static_cast<int64_t>(hits[k].face) : -1;
+                    op[i] = hit ? static_cast<int64_t>(hits[k].originalFace) : -1;
+                    uvp[2 * i] = hits[k].u, uvp[2 * i + 1] = hits[k].v;
+                  }
+                });
+            return py::make_tuple(t, face, original, uv);
           },
           py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,
           py::arg("threads") = 0,
-          R"(The closest hit of each ray through the hierarchy under the reader's cap. The first query lays
-the nodes out by subtree in pages of a temporary file (one pass over the nodes; the reader keeps
-them for the next queries, until close()). Returns (t, face, original_id, uv), (N,) float32 t (inf for a miss), (N,) int64 positions
+          R"(The closest hit of each ray through the hierarchy under the reader's cap. The first query reads
+the file whole when it and its layout for rays fit half the cap (then queries run at the speed of
+the file in memory), else lays the nodes out by subtree in pages of a temporary file; the reader
+keeps either for the next queries, until close(). Returns (t, face, original_id, uv), (N,) float32 t (inf for a miss), (N,) int64 positions
 in the file's face order and original face ids (-1 for a miss), (N, 2) float32 barycentrics of the
 hit triangle's corners 1 and 2. origins, directions: (N, 3); t_max: a number or (N,) array. The
 results do not depend on threads (0: all cores, at most 8); the GIL is released.)")
@@ -308,11 +327,14 @@ results do not depend on threads (0: all cores, at most 8); the GIL is released.
           "occluded",
           [](PyReader& r, const py::object& origins, const py::object& directions, const py::object& tMax,
              float tMin, unsigned threads) {
-            const std::vector<uint8_t> any =
-                castRays(r, origins, directions, tMax, tMin,
-                         [&](auto& index, auto& rays) { return occluded(index, rays, {threads}); });
-            py::array_t<bool> out(static_cast<py::ssize_t>(any.size()));
-            for (size_t i = 0; i < any.size(); ++i) out.mutable_data()[i] = any[i] != 0;
+            const RayArrays arrays(origins, directions, tMax, tMin);
+            py::array_t<bool> out(static_cast<py::ssize_t>(arrays.n));
+            bool* p = out.mutable_data();
+            castRays(
+                r, arrays, [&](auto& index, auto& rays) { return occluded(index, rays, {threads}); },
+                [&](size_t first, const std::vector<uint8_t>& any) {
+                  for (size_t k = 0; k < any.size(); ++k) p[first + k] = any[k] != 0;
+                });
             return out;
           },
           py::arg("origins"), py::arg("directions"), py::arg("t_max") = py::none(), py::arg("t_min") = 0.0f,

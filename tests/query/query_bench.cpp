@@ -4,14 +4,16 @@
 // Embree is the peer of the benchmark alone: the library never links it.
 //
 //   query_bench FILE.fch [--rays N] [--queries N] [--threads T] [--repeat R] [--prefix F]
-//               [--embree] [--reader-memory BYTES [--batch N]] [--only rays|all]
+//               [--embree] [--reader-memory BYTES [--batch N]] [--only rays|all] [--save-rays PREFIX]
 //
 // Camera rays: a pinhole camera outside the bounding sphere looking at its centre, sqrt(N) x
 // sqrt(N) pixels over the sphere. Random rays: origins uniform in the box grown by a tenth of its
 // diagonal, directions uniform on the sphere. --prefix keeps the first F of the nodes (a truncated
 // file: its cut-off children are leaves whose faces are tested). With --reader-memory the rays go
 // through a ClusterFileReader under that cap instead of the file in memory, N at a time (65,536 by
-// default), as a consumer streaming its rays would send them, and are timed once. Every timing is the
+// default), as a consumer streaming its rays would send them, and are timed once. --save-rays
+// writes the rays of the file in memory to PREFIX.camera and PREFIX.random (float32 origin x, y, z
+// and direction x, y, z per ray), for the same rays through Python. Every timing is the
 // median of R runs, facetree and Embree alternating. Prints one JSON object.
 #include <embree3/rtcore.h>
 
@@ -49,6 +51,7 @@ struct Args {
   double prefix = 1.0;
   bool embree = false, raysOnly = false;
   uint64_t readerMemory = 0, batch = 1 << 16;
+  std::string saveRays;  // PREFIX: the rays traced, as PREFIX.camera and PREFIX.random
 };
 
 Args parse(int argc, char** argv) {
@@ -75,6 +78,8 @@ Args parse(int argc, char** argv) {
       a.readerMemory = std::stoull(value());
     else if (s == "--batch")
       a.batch = std::max<uint64_t>(1, std::stoull(value()));
+    else if (s == "--save-rays")
+      a.saveRays = value();
     else if (s == "--only")
       a.raysOnly = value() == "rays";
     else if (a.file.empty() && s[0] != '-')
@@ -555,8 +560,19 @@ int main(int argc, char** argv) try {
   const facetree::RayLayout layout(f);
   json += ", \"layout_seconds\": " + number(seconds(layoutStart));
   const Tracer tracer{&layout, nullptr};
-  json += ", " + rayBatch("camera", cameraRays(b, a.rays), tracer, embree.get(), a) + ", " +
-          rayBatch("random", randomRays(b, a.rays, 1), tracer, embree.get(), a);
+  const std::vector<Ray> camera = cameraRays(b, a.rays), random = randomRays(b, a.rays, 1);
+  if (!a.saveRays.empty())
+    for (const auto& [name, rays] : {std::pair{".camera", &camera}, std::pair{".random", &random}}) {
+      std::FILE* out = std::fopen((a.saveRays + name).c_str(), "wb");
+      if (!out) throw std::runtime_error("cannot write " + a.saveRays + name);
+      for (const Ray& r : *rays) {
+        const float v[6] = {r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z};
+        std::fwrite(v, sizeof v, 1, out);
+      }
+      if (std::fclose(out) != 0) throw std::runtime_error("cannot write " + a.saveRays + name);
+    }
+  json += ", " + rayBatch("camera", camera, tracer, embree.get(), a) + ", " +
+          rayBatch("random", random, tracer, embree.get(), a);
   if (!a.raysOnly) json += ", " + boxAndNearest(f, b, a);
   std::printf("%s}\n", json.c_str());
   return 0;

@@ -142,6 +142,88 @@ TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
   }
 }
 
+// Many subtree pages under nodes above them: the layouts built page by page meet the boxes and
+// triangles the file's layout in memory meets, on b = 2 and 8, whole and truncated.
+TEST(RayQueries, ThroughManyPagesAReaderTestsWhatTheFileInMemoryTests) {
+  const IndexedMesh mesh = test::loadShared("horse_97k.ply.zst");
+  for (const uint32_t branching : {2u, 8u}) {
+    const ClusterFile file = test::fileOf(mesh.view(), branching, BoxPrecision::Exact);
+    test::TemporaryFiles files;
+    const auto path = files.add("pages.fch"), cut = files.add("pages.cut.fch");
+    writeClusterFile(path, file);
+    truncateClusterFile(path, cut, file.nodes.size() / 3);
+    const std::vector<Ray> rays = raysAround(file, 1500, 31);
+    for (const auto& onDisk : {path, cut}) {
+      SCOPED_TRACE(onDisk.string() + " b = " + std::to_string(branching));
+      const ClusterFile whole = readClusterFile(onDisk);
+      ClusterFileReader reader(onDisk, ReaderOptions{2 << 20, {}});
+      ReaderQueryIndex index(reader);
+      ASSERT_GT(index.temporaryBytes(), 0u);  // pages, not the file read whole
+      QueryStats viaPages, inMemory;
+      const std::vector<RayHit> a = intersect(index, rays, {2}, &viaPages);
+      const std::vector<RayHit> b = intersect(whole, rays, {1}, &inMemory);
+      size_t met = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_EQ(a[i].face, b[i].face) << i;
+        EXPECT_EQ(a[i].t, b[i].t) << i;
+        EXPECT_EQ(a[i].originalFace, b[i].originalFace) << i;
+        met += a[i].face != kNoHit;
+      }
+      EXPECT_GT(met, rays.size() / 4);
+      EXPECT_EQ(viaPages.boxTests, inMemory.boxTests);
+      EXPECT_EQ(viaPages.triangleTests, inMemory.triangleTests);
+      QueryStats anyPages, anyMemory;
+      EXPECT_EQ(occluded(index, rays, {2}, &anyPages), occluded(whole, rays, {1}, &anyMemory));
+      EXPECT_EQ(anyPages.boxTests, anyMemory.boxTests);
+    }
+  }
+}
+
+TEST(RayQueries, AReaderWhoseCapHoldsTheFileQueriesItReadWholeWithTheFileInMemorysTests) {
+  const IndexedMesh mesh = test::loadShared("bunny_npm_lowres.ply.zst");
+  const ClusterFile file = test::fileOf(mesh.view(), 2, BoxPrecision::Exact);
+  test::TemporaryFiles files;
+  const auto path = files.add("whole.fch");
+  writeClusterFile(path, file);
+  const std::vector<Ray> rays = raysAround(file, 2000, 29);
+  ClusterFileReader reader(path, ReaderOptions{256 << 20, {}});
+  ReaderQueryIndex index(reader);
+  EXPECT_EQ(index.temporaryBytes(), 0u);  // no pages: the file read whole
+  QueryStats viaReader, inMemory;
+  const std::vector<RayHit> a = intersect(index, rays, {2}, &viaReader);
+  const std::vector<RayHit> b = intersect(file, rays, {1}, &inMemory);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    ASSERT_EQ(a[i].face, b[i].face) << i;
+    EXPECT_EQ(a[i].t, b[i].t) << i;
+    EXPECT_EQ(a[i].originalFace, b[i].originalFace) << i;
+  }
+  EXPECT_EQ(viaReader.boxTests, inMemory.boxTests);
+  EXPECT_EQ(viaReader.triangleTests, inMemory.triangleTests);
+  expectSameHits(file, rays, a);
+  EXPECT_EQ(occluded(index, rays, {2}), occluded(file, rays));
+  std::vector<glm::vec3> points;
+  std::vector<QueryBox> boxes;
+  const auto [lo, hi] = test::vertexBounds(file);
+  const float size = glm::length(hi - lo);
+  for (size_t i = 0; i < rays.size() && points.size() < 200; ++i)
+    if (b[i].face != kNoHit) {  // near the surface: a little off the hit, along the ray
+      points.push_back(rays[i].origin + (b[i].t * 0.98f) * rays[i].direction);
+      boxes.push_back({points.back(), glm::vec3(0.01f * size)});
+    }
+  const auto found = overlap(index, boxes, {2});
+  EXPECT_EQ(found, overlap(file, boxes));
+  EXPECT_GT(std::count_if(found.begin(), found.end(), [](const auto& f) { return !f.empty(); }), 0);
+  const std::vector<NearestHit> near = nearest(index, points, 0.05f * size, {2}),
+                                direct = nearest(file, points, 0.05f * size);
+  size_t met = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(near[i].face, direct[i].face) << i;
+    EXPECT_EQ(near[i].distance, direct[i].distance) << i;
+    met += near[i].face != kNoHit;
+  }
+  EXPECT_GT(met, 0u);
+}
+
 TEST(RayQueries, TheSameResultsAndCountsForOneTwoAndThreeThreads) {
   const IndexedMesh mesh = test::loadShared("fandisk.ply.zst");
   const ClusterFile file = test::fileOf(mesh.view(), 4, BoxPrecision::Exact);
