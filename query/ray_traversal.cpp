@@ -16,6 +16,7 @@
 #include <exception>
 #include <thread>
 
+#include "facetree/error.h"
 #include "facetree/query.h"
 #include "query_blocks.h"
 #include "query_source.h"
@@ -254,6 +255,10 @@ query::RayIndex::RayIndex(const ClusterFile& file) {
   query::layOut(
       view, NodeRef{0, root.first, root.count}, root.box, [](const NodeRef&) { return query::kNoPage; },
       packets_, ranges_);
+  for (const query::FaceRange& r : ranges_)  // a damaged file's range past the triangles
+    if (uint64_t{r.first} + r.count > faces)
+      throw Error(ErrorCategory::Input,
+                  "face " + std::to_string(uint64_t{r.first} + r.count - 1) + " past the triangles");
 }
 
 struct RayLayoutAccess {

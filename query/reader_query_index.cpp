@@ -1,5 +1,6 @@
 // ReaderQueryIndex (facetree/query.h): a reader's nodes laid out in pages for queries
 // (node_pages.h), kept for the queries that follow.
+#include "facetree/error.h"
 #include "facetree/query.h"
 #include "query_source.h"
 #include "ray_index.h"
@@ -18,7 +19,17 @@ uint64_t ReaderQueryIndex::State::wholeBytes(const FileHeader& header) {
 ReaderQueryIndex::State::State(ClusterFileReader& r) : reader(r) {
   if (wholeBytes(r.header()) <= r.memoryBytes() / 2) {
     file = std::make_unique<ClusterFile>(readClusterFile(r));
-    layout = std::make_unique<RayLayout>(*file);
+    const uint64_t faces = file->indices.size() / 3;
+    for (size_t i = 0; i < file->nodes.size(); ++i)  // a damaged file's range past the triangles
+      if (uint64_t{file->nodes[i].first} + file->nodes[i].count > faces)
+        throw Error(ErrorCategory::Input, r.name() + ": node " + std::to_string(i) + ": faces " +
+                                              std::to_string(file->nodes[i].first) + " + " +
+                                              std::to_string(file->nodes[i].count) + " past the triangles");
+    try {
+      layout = std::make_unique<RayLayout>(*file);
+    } catch (const Error& e) {  // the file's name on the message
+      throw Error(e.category(), r.name() + ": " + e.what());
+    }
   } else {
     pages = std::make_unique<query::NodePages>(r, r.memoryBytes() / 4);
     rays = std::make_unique<query::RayPages>(*pages);

@@ -1133,6 +1133,21 @@ for kind in ("camera", "random"):
             best = min(best, time.perf_counter() - start)
         times.append(best)
     out[kind] = times
+boxes = np.fromfile(prefix + ".boxes", dtype=np.float32).reshape(-1, 10)
+x, y, z, w = (boxes[:, 6 + k].astype(np.float64) for k in range(4))
+axes = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], 1),
+                 np.stack([2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)], 1),
+                 np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], 1)], 2)
+points = np.fromfile(prefix + ".points", dtype=np.float32).reshape(-1, 3)
+for name, call in (("boxes", lambda: f.overlap_oriented(boxes[:, :3], boxes[:, 3:6], axes.astype(np.float32),
+                                                        threads=threads)),
+                   ("nearest", lambda: f.nearest(points, threads=threads))):
+    best = float("inf")
+    for _ in range(3):
+        start = time.perf_counter()
+        call()
+        best = min(best, time.perf_counter() - start)
+    out[name] = len(points) / best if name == "nearest" else len(boxes) / best
 print(__import__("json").dumps(out))
 """
 
@@ -1182,7 +1197,7 @@ def bench_queries(args, meshes, out):
     dragon = files.get(("dragon_vrip", b))
     if dragon:
         for threads in (1, 2):
-            r = query_run(args, dragon, "--embree", "--only", "rays", "--rays", 1 << 20, "--threads", threads,
+            r = query_run(args, dragon, "--embree", "--rays", 1 << 20, "--queries", queries, "--threads", threads,
                           "--repeat", args.repeat, "--save-rays", tmp / "rays")
             # The same rays through the lazy reader (its default cap) and through Python's open().
             reader_run = query_run(args, dragon, "--only", "rays", "--rays", 1 << 20, "--threads", threads,
@@ -1195,6 +1210,9 @@ def bench_queries(args, meshes, out):
                 for path in ("reader", "python"):
                     r[k][f"{path}_closest_ratio"] = r[k][f"{path}_closest_seconds"] / r[k]["embree_closest_seconds"]
                     r[k][f"{path}_any_ratio"] = r[k][f"{path}_any_seconds"] / r[k]["embree_any_seconds"]
+            for k in ("boxes", "nearest"):  # Python's rate over the file in memory's, the same queries
+                r[k]["python_queries_per_second"] = py[k]
+                r[k]["python_over_memory_time"] = r[k]["queries_per_second"] / py[k]
             speed.append(r)
     # Rays through the lazy reader on the 56M-face dragon's file (full run).
     reader = None
@@ -1233,6 +1251,8 @@ def bench_queries(args, meshes, out):
         "closest_within_2.5x_embree_every_path": bool(speed) and all(
             r[k][f"{p}closest_ratio"] <= QUERY_EMBREE_TARGET for r in speed for k in ("camera", "random")
             for p in ("", "reader_", "python_")),
+        "python_boxes_nearest_within_1.2x_memory": bool(speed) and all(
+            r[k]["python_over_memory_time"] <= QUERY_READER_OVER_MEMORY for r in speed for k in ("boxes", "nearest")),
         "reader_within_1.2x_memory": bool(speed) and all(
             r[k]["reader_closest_seconds"] <= QUERY_READER_OVER_MEMORY * r[k]["closest_seconds"]
             for r in speed for k in ("camera", "random")),
@@ -1248,7 +1268,9 @@ def bench_queries(args, meshes, out):
         print(f"  dragon_vrip {r['threads']} thread(s), closest hit over Embree's time, camera / random: in memory "
               f"{r['camera']['closest_ratio']:.2f} / {r['random']['closest_ratio']:.2f}, reader "
               f"{r['camera']['reader_closest_ratio']:.2f} / {r['random']['reader_closest_ratio']:.2f}, Python "
-              f"{r['camera']['python_closest_ratio']:.2f} / {r['random']['python_closest_ratio']:.2f}; "
+              f"{r['camera']['python_closest_ratio']:.2f} / {r['random']['python_closest_ratio']:.2f}; Python's "
+              f"boxes and nearest points over the file in memory's time {r['boxes']['python_over_memory_time']:.2f} / "
+              f"{r['nearest']['python_over_memory_time']:.2f}; "
               f"Embree build {r['embree_build_seconds']:.2f} s")
     return result
 

@@ -13,7 +13,8 @@
 // through a ClusterFileReader under that cap instead of the file in memory, N at a time (65,536 by
 // default), as a consumer streaming its rays would send them, and are timed once. --save-rays
 // writes the rays of the file in memory to PREFIX.camera and PREFIX.random (float32 origin x, y, z
-// and direction x, y, z per ray), for the same rays through Python. Every timing is the
+// and direction x, y, z per ray), and the boxes and points to PREFIX.boxes and PREFIX.points, for
+// the same queries through Python. Every timing is the
 // median of R runs, facetree and Embree alternating. Prints one JSON object.
 #include <embree3/rtcore.h>
 
@@ -454,6 +455,13 @@ std::string streamedRays(const char* name, uint64_t count,
 
 // Boxes about random surface points (a tenth of them oriented at random), a hundredth of the
 // diagonal across, and nearest points from random points in and about the box.
+void save(const std::string& path, const std::vector<float>& values) {
+  std::FILE* out = std::fopen(path.c_str(), "wb");
+  if (!out) throw std::runtime_error("cannot write " + path);
+  const size_t written = std::fwrite(values.data(), sizeof(float), values.size(), out);
+  if (std::fclose(out) != 0 || written != values.size()) throw std::runtime_error("cannot write " + path);
+}
+
 std::string boxAndNearest(const ClusterFile& f, const Bounds& b, const Args& a) {
   std::mt19937_64 rng(7);
   const size_t triangles = f.indices.size() / 3;
@@ -472,6 +480,18 @@ std::string boxAndNearest(const ClusterFile& f, const Bounds& b, const Args& a) 
   const glm::vec3 grow(0.1f * b.diagonal());
   for (glm::vec3& p : points)
     p = b.lo - grow + glm::vec3(unit(rng), unit(rng), unit(rng)) * (b.hi - b.lo + 2.0f * grow);
+  if (!a.saveRays
+           .empty()) {  // the same queries for Python: boxes as centre, half extents, quaternion x y z w
+    std::vector<float> values;
+    for (const facetree::QueryBox& q : boxes)
+      values.insert(values.end(),
+                    {q.center.x, q.center.y, q.center.z, q.halfExtent.x, q.halfExtent.y, q.halfExtent.z,
+                     q.orientation.x, q.orientation.y, q.orientation.z, q.orientation.w});
+    save(a.saveRays + ".boxes", values);
+    values.clear();
+    for (const glm::vec3& p : points) values.insert(values.end(), {p.x, p.y, p.z});
+    save(a.saveRays + ".points", values);
+  }
   const facetree::QueryOptions o{a.threads};
   std::vector<double> boxTimes, nearTimes;
   QueryStats boxStats, nearStats;
@@ -563,13 +583,11 @@ int main(int argc, char** argv) try {
   const std::vector<Ray> camera = cameraRays(b, a.rays), random = randomRays(b, a.rays, 1);
   if (!a.saveRays.empty())
     for (const auto& [name, rays] : {std::pair{".camera", &camera}, std::pair{".random", &random}}) {
-      std::FILE* out = std::fopen((a.saveRays + name).c_str(), "wb");
-      if (!out) throw std::runtime_error("cannot write " + a.saveRays + name);
-      for (const Ray& r : *rays) {
-        const float v[6] = {r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z};
-        std::fwrite(v, sizeof v, 1, out);
-      }
-      if (std::fclose(out) != 0) throw std::runtime_error("cannot write " + a.saveRays + name);
+      std::vector<float> values;
+      for (const Ray& r : *rays)
+        values.insert(values.end(),
+                      {r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z});
+      save(a.saveRays + name, values);
     }
   json += ", " + rayBatch("camera", camera, tracer, embree.get(), a) + ", " +
           rayBatch("random", random, tracer, embree.get(), a);
