@@ -307,11 +307,16 @@ NodePages::Page NodePages::insert(uint64_t key, std::shared_ptr<MappedBytes> byt
 
 NodePages::Page NodePages::derived(uint32_t id) {
   const uint64_t key = pages_.size() + (faces_ + kBlockTriangles - 1) / kBlockTriangles + id;
+  std::pair<uint64_t, uint64_t> at;
+  {
+    std::lock_guard lock(mutex_);
+    if (Page page = lookup(key)) return page;
+    at = derived_.at(id);
+  }
+  auto mapped = allocate(at.second);  // read outside the lock: the other threads' pages meanwhile
+  file_.read(at.first, mapped->data(), at.second);
   std::lock_guard lock(mutex_);
-  if (Page page = lookup(key)) return page;
-  const auto [offset, bytes] = derived_.at(id);
-  auto mapped = allocate(bytes);
-  file_.read(offset, mapped->data(), bytes);
+  if (Page page = lookup(key)) return page;  // another thread read it meanwhile
   return insert(key, std::move(mapped));
 }
 
@@ -338,12 +343,15 @@ std::pair<NodeRef, FchNode> NodePages::root(uint32_t id) {
   return {NodeRef{recordIndex(record.data()), node.first, node.count}, node};
 }
 
-void NodePages::readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out) {
+void NodePages::readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out,
+                            uint64_t* originals) {
   if (count > 0 && first + count > faces_) pastTriangles(first + count - 1);
-  for (uint64_t p = first; p < first + count;) {  // block by block: a block's corners come first
+  for (uint64_t p = first; p < first + count;) {  // block by block: its corners, then its ids
     const uint64_t b = p / kBlockTriangles, end = std::min(first + count, (b + 1) * kBlockTriangles);
-    file_.read(trianglesOffset_ + b * kBlockTriangles * kTriangleBytes + (p % kBlockTriangles) * kCornerBytes,
-               out + (p - first), (end - p) * kCornerBytes);
+    const uint64_t block = trianglesOffset_ + b * kBlockTriangles * kTriangleBytes;
+    const uint64_t n = std::min<uint64_t>(kBlockTriangles, faces_ - b * kBlockTriangles);
+    file_.read(block + (p % kBlockTriangles) * kCornerBytes, out + (p - first), (end - p) * kCornerBytes);
+    file_.read(block + n * kCornerBytes + (p % kBlockTriangles) * 8, originals + (p - first), (end - p) * 8);
     p = end;
   }
 }

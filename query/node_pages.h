@@ -98,8 +98,8 @@ class NodePages {
   // A subtree page's records, read past the cache, and its root's (the first: parents come first).
   std::vector<std::byte> records(uint32_t id);
   std::pair<NodeRef, FchNode> root(uint32_t id);
-  // The corners of the triangles [first, + count), read past the cache.
-  void readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out);
+  // The corners and original ids of the triangles [first, + count), read past the cache.
+  void readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out, uint64_t* originals);
   // What is derived from subtree page `id` (a layout for rays), written once beside the pages by
   // writeDerived and read from there or from the cache.
   Page derived(uint32_t id);

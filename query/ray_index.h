@@ -59,6 +59,7 @@ struct RaySpans {
   std::span<const FaceRange> ranges;
   std::span<const Corners> corners;
   uint64_t cornerFirst = 0;
+  std::span<const uint64_t> originals;  // a page's faces' original ids, as its corners (else empty)
 
   const RayNode& node(uint32_t position) const { return packets[position / 4].child[position % 4]; }
   const BoxPacket& boxes(uint32_t packet) const { return packets[packet].boxes; }
@@ -140,7 +141,7 @@ class RayIndex {
   explicit RayIndex(const ClusterFile& file);
   bool empty() const { return packets_.empty(); }
   uint64_t faceCount() const { return corners_.size(); }
-  RaySpans spans() const { return {packets_, ranges_, corners_, 0}; }
+  RaySpans spans() const { return {packets_, ranges_, corners_, 0, {}}; }
 
  private:
   std::vector<RayPacket> packets_;

@@ -13,7 +13,8 @@ namespace facetree::query {
 
 namespace {
 
-// A page's layout in one mapping: counts, then packets, ranges and corners.
+// A page's layout in one mapping: counts, then packets, ranges, original ids and corners (each
+// aligned for its type: a packet is 256 bytes, a range and an id 8, corners 36 a face).
 struct PageHead {
   uint64_t packets, ranges, cornerFirst, corners;
 };
@@ -64,7 +65,7 @@ void layOutPage(NodePages& pages, uint32_t id, std::vector<std::byte>& blob) {
       view, root, rootNode.box, [](const NodeRef&) { return kNoPage; }, packets, ranges);
   const PageHead head{packets.size(), ranges.size(), root.first, root.count};
   blob.resize(kHeadBytes + packets.size() * sizeof(RayPacket) + ranges.size() * sizeof(FaceRange) +
-              root.count * sizeof(Corners));
+              root.count * (sizeof(Corners) + sizeof(uint64_t)));
   std::byte* at = blob.data();
   std::memcpy(at, &head, sizeof head);
   at += kHeadBytes;
@@ -72,7 +73,8 @@ void layOutPage(NodePages& pages, uint32_t id, std::vector<std::byte>& blob) {
   at += packets.size() * sizeof(RayPacket);
   std::memcpy(at, ranges.data(), ranges.size() * sizeof(FaceRange));
   at += ranges.size() * sizeof(FaceRange);
-  pages.readCorners(root.first, root.count, reinterpret_cast<Corners*>(at));
+  pages.readCorners(root.first, root.count, reinterpret_cast<Corners*>(at + root.count * sizeof(uint64_t)),
+                    reinterpret_cast<uint64_t*>(at));
 }
 
 }  // namespace
@@ -119,8 +121,14 @@ RaySpans RayPages::spans(const MappedBytes& page) {
   at += head.packets * sizeof(RayPacket);
   const auto* ranges = reinterpret_cast<const FaceRange*>(at);
   at += head.ranges * sizeof(FaceRange);
+  const auto* originals = reinterpret_cast<const uint64_t*>(at);
+  at += head.corners * sizeof(uint64_t);
   const auto* corners = reinterpret_cast<const Corners*>(at);
-  return {{packets, head.packets}, {ranges, head.ranges}, {corners, head.corners}, head.cornerFirst};
+  return {{packets, head.packets},
+          {ranges, head.ranges},
+          {corners, head.corners},
+          head.cornerFirst,
+          {originals, head.corners}};
 }
 
 NodePages::Page RayPages::page(uint32_t id) {

@@ -39,6 +39,7 @@ struct ClosestSoFar {
   uint64_t face = kNoHit;
   double u = 0, v = 0;
   glm::vec3 normal{0.0f};
+  uint64_t original = kNoHit;  // the face's original id where the layout held it
   bool better(double t2, uint64_t face2) const { return t2 < t || (t2 == t && face2 < face); }
 };
 
@@ -121,9 +122,12 @@ ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, Que
       node = &spans->node(0);
     }
     LayoutCorners<Layouts> corners{*spans, layouts};
+    const uint64_t before = best.face;
     for (uint32_t r = node->firstRange; r < node->firstRange + node->rangeCount; ++r)
       if (testRange(corners, ray, spans->range(r).first, spans->range(r).count, best, any, stats))
         return best;
+    if (best.face != before && !spans->originals.empty() && spans->holds(best.face))
+      best.original = spans->originals[best.face - spans->cornerFirst];
     unsigned near = 0;
     stats.boxTests += node->childCount;
     for (unsigned k = 0; k < node->childCount; k += 4) {
@@ -155,7 +159,7 @@ RayHit toHit(View& view, const ClosestSoFar& best) {
   if (best.face == kNoHit) return hit;
   hit.t = static_cast<float>(best.t);
   hit.face = best.face;
-  hit.originalFace = view.originalFace(best.face);
+  hit.originalFace = best.original != kNoHit ? best.original : view.originalFace(best.face);
   hit.u = static_cast<float>(best.u);
   hit.v = static_cast<float>(best.v);
   hit.normal = best.normal;

@@ -1200,8 +1200,8 @@ def bench_queries(args, meshes, out):
             r = query_run(args, dragon, "--embree", "--rays", 1 << 20, "--queries", queries, "--threads", threads,
                           "--repeat", args.repeat, "--save-rays", tmp / "rays")
             # The same rays through the lazy reader (its default cap) and through Python's open().
-            reader_run = query_run(args, dragon, "--only", "rays", "--rays", 1 << 20, "--threads", threads,
-                                   "--reader-memory", cap_bytes("4G"))
+            reader_run = query_run(args, dragon, "--only", "rays", "--threads", threads,
+                                   "--reader-memory", cap_bytes("4G"), "--load-rays", tmp / "rays")
             py = query_python(args, dragon, tmp / "rays", threads)
             for k in ("camera", "random"):
                 r[k]["reader_closest_seconds"] = reader_run[k]["closest_seconds"]

@@ -4,7 +4,8 @@
 // Embree is the peer of the benchmark alone: the library never links it.
 //
 //   query_bench FILE.fch [--rays N] [--queries N] [--threads T] [--repeat R] [--prefix F]
-//               [--embree] [--reader-memory BYTES [--batch N]] [--only rays|all] [--save-rays PREFIX]
+//               [--embree] [--reader-memory BYTES [--batch N] [--load-rays PREFIX]] [--only rays|all]
+//               [--save-rays PREFIX]
 //
 // Camera rays: a pinhole camera outside the bounding sphere looking at its centre, sqrt(N) x
 // sqrt(N) pixels over the sphere. Random rays: origins uniform in the box grown by a tenth of its
@@ -14,7 +15,8 @@
 // default), as a consumer streaming its rays would send them, and are timed once. --save-rays
 // writes the rays of the file in memory to PREFIX.camera and PREFIX.random (float32 origin x, y, z
 // and direction x, y, z per ray), and the boxes and points to PREFIX.boxes and PREFIX.points, for
-// the same queries through Python. Every timing is the
+// the same queries through Python; --load-rays sends those rays through the reader instead of
+// rays framing its root's box. Every timing is the
 // median of R runs, facetree and Embree alternating. Prints one JSON object.
 #include <embree3/rtcore.h>
 
@@ -53,6 +55,7 @@ struct Args {
   bool embree = false, raysOnly = false;
   uint64_t readerMemory = 0, batch = 1 << 16;
   std::string saveRays;  // PREFIX: the rays traced, as PREFIX.camera and PREFIX.random
+  std::string loadRays;  // PREFIX: through the reader, the rays a --save-rays run wrote
 };
 
 Args parse(int argc, char** argv) {
@@ -81,6 +84,8 @@ Args parse(int argc, char** argv) {
       a.batch = std::max<uint64_t>(1, std::stoull(value()));
     else if (s == "--save-rays")
       a.saveRays = value();
+    else if (s == "--load-rays")
+      a.loadRays = value();
     else if (s == "--only")
       a.raysOnly = value() == "rays";
     else if (a.file.empty() && s[0] != '-')
@@ -551,6 +556,34 @@ int main(int argc, char** argv) try {
             ", \"batch\": " + std::to_string(a.batch) +
             ", \"rays_bytes\": " + std::to_string(a.batch * (sizeof(Ray) + sizeof(RayHit) + 1)) + ", ";
     std::mt19937_64 rng(1);
+    if (!a.loadRays.empty()) {  // the rays another run saved, read a batch at a time
+      for (const char* kind : {"camera", "random"}) {
+        const std::string path = a.loadRays + "." + kind;
+        std::FILE* in = std::fopen(path.c_str(), "rb");
+        if (!in) throw std::runtime_error("cannot read " + path);
+        std::fseek(in, 0, SEEK_END);
+        const auto count = static_cast<uint64_t>(std::ftell(in)) / (6 * sizeof(float));
+        json += streamedRays(
+                    kind, count,
+                    [&](uint64_t begin, uint64_t end) {
+                      std::vector<float> v(6 * (end - begin));
+                      std::fseek(in, static_cast<long>(begin * 6 * sizeof(float)), SEEK_SET);
+                      if (std::fread(v.data(), sizeof(float), v.size(), in) != v.size())
+                        throw std::runtime_error("cannot read " + path);
+                      std::vector<Ray> rays(end - begin);
+                      for (size_t k = 0; k < rays.size(); ++k) {
+                        rays[k].origin = {v[6 * k], v[6 * k + 1], v[6 * k + 2]};
+                        rays[k].direction = {v[6 * k + 3], v[6 * k + 4], v[6 * k + 5]};
+                      }
+                      return rays;
+                    },
+                    tracer, a) +
+                (kind[0] == 'c' ? ", " : "");
+        std::fclose(in);
+      }
+      std::printf("%s}\n", json.c_str());
+      return 0;
+    }
     json += streamedRays(
                 "camera", cameraRayCount(a.rays),
                 [&](uint64_t begin, uint64_t end) { return cameraRays(b, a.rays, begin, end); }, tracer, a) +
