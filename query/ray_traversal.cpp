@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "facetree/error.h"
+#include "facetree/merge.h"
 #include "facetree/query.h"
 #include "query_blocks.h"
 #include "query_source.h"
@@ -172,7 +173,10 @@ template <class Out, class Source, class Walk, class Result>
 std::vector<Out> traverseAll(Source& source, std::span<const Ray> rays, bool any, const QueryOptions& options,
                              QueryStats* stats, Walk&& walk, Result&& result,
                              std::span<const uint32_t> order = {}) {
-  std::vector<Out> out(rays.size());
+  std::vector<Out> out;
+  out.reserve(rays.size());
+  adviseHugePages(out.data(), rays.size() * sizeof(Out));  // before the first write: see its comment
+  out.resize(rays.size());
   query::forEachBlock(source, rays.size(), options, stats,
                       [&](auto& view, size_t first, size_t end, QueryStats& s, auto& stack) {
                         for (size_t i = first; i < end; ++i) {

@@ -310,6 +310,13 @@ struct EdgeShare {
 // are clamped into the box.
 uint64_t mortonCode(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi);
 
+// Advises the whole 2 MiB pages inside [data, data + bytes) as transparent huge-page candidates:
+// pages not yet touched get huge pages when first written (Debian's kernels give them only to
+// advised ranges). Ranges under 8 MiB and systems without madvise are left alone; never fails.
+// For large arrays written once and read out of order: the merge's, a batch of queries' results
+// (a million ray hits faulted in 4 KiB at a time cost more than their traversal).
+void adviseHugePages(const void* data, size_t bytes);
+
 // Edge-connected components under the dual graph's edge rules (EdgeShare): label[f] for each triangle,
 // components numbered 0, 1, ... in order of their lowest triangle. Returns the number of components.
 // Throws std::invalid_argument as buildHierarchy does for invalid indices.

@@ -11,15 +11,14 @@
 #include <cstddef>
 #include <vector>
 
+#include "facetree/merge.h"
+
 namespace facetree {
 
-// Advises the whole 2 MiB pages inside [data, data + bytes) as huge-page candidates: pages not
-// yet touched get huge pages when first written. Ranges under kHugePageMinBytes and systems
-// without madvise are left alone. Never fails (the advice is only advice).
-// Below the threshold an array fits the L2 TLB's reach on its own (2048 entries of 4 KiB on the
-// machines we measure), and a partly touched huge page would only add resident memory.
+// adviseHugePages (facetree/merge.h) leaves ranges under this alone: below it an array fits the
+// L2 TLB's reach on its own (2048 entries of 4 KiB on the machines we measure), and a partly
+// touched huge page would only add resident memory.
 inline constexpr size_t kHugePageMinBytes = size_t{8} << 20;
-void adviseHugePages(const void* data, size_t bytes);
 
 // Returns the whole 2 MiB pages of [data + from, data + to) to the system (their contents are
 // lost; touching them again maps zeroed pages): for buffers that shrink and are reused, or whose
