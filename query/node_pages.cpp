@@ -339,8 +339,12 @@ std::vector<std::byte> NodePages::records(uint32_t id) {
 std::pair<NodeRef, FchNode> NodePages::root(uint32_t id) {
   std::vector<std::byte> record(stride_);
   file_.read(pages_[id].offset, record.data(), stride_);
-  const FchNode node = decode(record.data(), branching_);
-  return {NodeRef{recordIndex(record.data()), node.first, node.count}, node};
+  return root(record);
+}
+
+std::pair<NodeRef, FchNode> NodePages::root(std::span<const std::byte> records) const {
+  const FchNode node = decode(records.data(), branching_);
+  return {NodeRef{recordIndex(records.data()), node.first, node.count}, node};
 }
 
 void NodePages::readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out,

@@ -98,6 +98,7 @@ class NodePages {
   // A subtree page's records, read past the cache, and its root's (the first: parents come first).
   std::vector<std::byte> records(uint32_t id);
   std::pair<NodeRef, FchNode> root(uint32_t id);
+  std::pair<NodeRef, FchNode> root(std::span<const std::byte> records) const;
   // The corners and original ids of the triangles [first, + count), read past the cache.
   void readCorners(uint64_t first, uint64_t count, std::array<glm::vec3, 3>* out, uint64_t* originals);
   // What is derived from subtree page `id` (a layout for rays), written once beside the pages by

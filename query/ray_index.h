@@ -139,8 +139,6 @@ void layOut(View& view, const NodeRef& root, const NodeBox& rootBox, PageOf&& pa
 class RayIndex {
  public:
   explicit RayIndex(const ClusterFile& file);
-  bool empty() const { return packets_.empty(); }
-  uint64_t faceCount() const { return corners_.size(); }
   RaySpans spans() const { return {packets_, ranges_, corners_, 0, {}}; }
 
  private:

@@ -57,7 +57,7 @@ class TopView {
 // Lays out subtree page `id` into `blob`: counts, packets, ranges, corners.
 void layOutPage(NodePages& pages, uint32_t id, std::vector<std::byte>& blob) {
   const std::vector<std::byte> records = pages.records(id);
-  const auto [root, rootNode] = pages.root(id);
+  const auto [root, rootNode] = pages.root(records);
   PageView view(pages, records);
   std::vector<RayPacket> packets;
   std::vector<FaceRange> ranges;

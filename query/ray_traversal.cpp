@@ -103,7 +103,11 @@ template <class Layouts>
 ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, QueryStats& stats,
                             Stack& stack) {
   ClosestSoFar best;
-  if (!ray.valid || layouts.empty()) return best;
+  if (!ray.valid) return best;
+  if (layouts.empty()) {  // no nodes: every triangle
+    testRange(layouts, ray, 0, layouts.faceCount(), best, any, stats);
+    return best;
+  }
   stack.clear();
   ++stats.boxTests;
   const float rootEntry = query::rayBoxEntry4(ray.box, layouts.layout(0).boxes(0))[0];
@@ -150,6 +154,7 @@ ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, Que
 struct MemoryLayouts {
   query::RaySpans spans;
   bool empty() const { return spans.packets.empty(); }
+  uint64_t faceCount() const { return spans.corners.size(); }
   const query::RaySpans& layout(uint32_t) const { return spans; }
   void corners(uint64_t p, glm::vec3 (&out)[3]) const { spans.cornersOf(p, out); }
 };
@@ -228,23 +233,13 @@ std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const Qu
 
 // A file in memory is walked through its layout for rays, a reader's through its pages' layouts.
 auto indexWalk(const query::RayIndex& index) {
-  return [&index](query::FileSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    if (index.empty()) {  // no nodes: every triangle
-      ClosestSoFar best;
-      if (ray.valid) testRange(view, ray, 0, index.faceCount(), best, any, s);
-      return best;
-    }
+  return [&index](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
     MemoryLayouts layouts{index.spans()};
     return traverseLayout(layouts, ray, any, s, stack);
   };
 }
 auto readerWalk() {
   return [](query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    if (view.empty()) {
-      ClosestSoFar best;
-      if (ray.valid) testRange(view, ray, 0, view.faceCount(), best, any, s);
-      return best;
-    }
     return traverseLayout(view, ray, any, s, stack);
   };
 }

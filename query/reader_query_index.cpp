@@ -25,11 +25,7 @@ ReaderQueryIndex::State::State(ClusterFileReader& r) : reader(r) {
         throw Error(ErrorCategory::Input, r.name() + ": node " + std::to_string(i) + ": faces " +
                                               std::to_string(file->nodes[i].first) + " + " +
                                               std::to_string(file->nodes[i].count) + " past the triangles");
-    try {
-      layout = std::make_unique<RayLayout>(*file);
-    } catch (const Error& e) {  // the file's name on the message
-      throw Error(e.category(), r.name() + ": " + e.what());
-    }
+    layout = std::make_unique<RayLayout>(*file);  // its ranges lie in the nodes' checked above
   } else {
     pages = std::make_unique<query::NodePages>(r, r.memoryBytes() / 4);
     rays = std::make_unique<query::RayPages>(*pages);

@@ -110,6 +110,21 @@ TEST(RayQueries, RaysAlongTheEdgesOfFlatBoxesFindTheBruteForceHits) {
   }
 }
 
+// The hits of two traversals of the same rays, ray by ray, and the boxes and triangles they tested;
+// `met` counts the rays that hit.
+void expectSameTraversal(const std::vector<RayHit>& a, const QueryStats& aStats, const std::vector<RayHit>& b,
+                         const QueryStats& bStats, size_t* met = nullptr) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].face, b[i].face) << i;
+    EXPECT_EQ(a[i].t, b[i].t) << i;
+    EXPECT_EQ(a[i].originalFace, b[i].originalFace) << i;
+    if (met) *met += a[i].face != kNoHit;
+  }
+  EXPECT_EQ(aStats.boxTests, bStats.boxTests);
+  EXPECT_EQ(aStats.triangleTests, bStats.triangleTests);
+}
+
 TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
   const IndexedMesh mesh = test::loadShared("bunny_npm_lowres.ply.zst");
   for (const BoxPrecision boxes : {BoxPrecision::Exact, BoxPrecision::Compact}) {
@@ -129,13 +144,7 @@ TEST(RayQueries, ThroughALazyReaderUnderASmallCapTheHitsAreTheFileInMemorys) {
       QueryStats lazyStats, memoryStats;
       const std::vector<RayHit> lazy = intersect(reader, rays, {2}, &lazyStats);
       const std::vector<RayHit> inMemory = intersect(whole, rays, {1}, &memoryStats);
-      for (size_t i = 0; i < rays.size(); ++i) {
-        ASSERT_EQ(lazy[i].face, inMemory[i].face) << i;
-        EXPECT_EQ(lazy[i].t, inMemory[i].t) << i;
-        EXPECT_EQ(lazy[i].originalFace, inMemory[i].originalFace) << i;
-      }
-      EXPECT_EQ(lazyStats.boxTests, memoryStats.boxTests);
-      EXPECT_EQ(lazyStats.triangleTests, memoryStats.triangleTests);
+      ASSERT_NO_FATAL_FAILURE(expectSameTraversal(lazy, lazyStats, inMemory, memoryStats));
       expectSameHits(whole, rays, lazy);
       EXPECT_EQ(occluded(reader, rays, {3}), occluded(whole, rays));
     }
@@ -163,15 +172,8 @@ TEST(RayQueries, ThroughManyPagesAReaderTestsWhatTheFileInMemoryTests) {
       const std::vector<RayHit> a = intersect(index, rays, {2}, &viaPages);
       const std::vector<RayHit> b = intersect(whole, rays, {1}, &inMemory);
       size_t met = 0;
-      for (size_t i = 0; i < rays.size(); ++i) {
-        ASSERT_EQ(a[i].face, b[i].face) << i;
-        EXPECT_EQ(a[i].t, b[i].t) << i;
-        EXPECT_EQ(a[i].originalFace, b[i].originalFace) << i;
-        met += a[i].face != kNoHit;
-      }
+      ASSERT_NO_FATAL_FAILURE(expectSameTraversal(a, viaPages, b, inMemory, &met));
       EXPECT_GT(met, rays.size() / 4);
-      EXPECT_EQ(viaPages.boxTests, inMemory.boxTests);
-      EXPECT_EQ(viaPages.triangleTests, inMemory.triangleTests);
       QueryStats anyPages, anyMemory;
       EXPECT_EQ(occluded(index, rays, {2}, &anyPages), occluded(whole, rays, {1}, &anyMemory));
       EXPECT_EQ(anyPages.boxTests, anyMemory.boxTests);
@@ -192,13 +194,7 @@ TEST(RayQueries, AReaderWhoseCapHoldsTheFileQueriesItReadWholeWithTheFileInMemor
   QueryStats viaReader, inMemory;
   const std::vector<RayHit> a = intersect(index, rays, {2}, &viaReader);
   const std::vector<RayHit> b = intersect(file, rays, {1}, &inMemory);
-  for (size_t i = 0; i < rays.size(); ++i) {
-    ASSERT_EQ(a[i].face, b[i].face) << i;
-    EXPECT_EQ(a[i].t, b[i].t) << i;
-    EXPECT_EQ(a[i].originalFace, b[i].originalFace) << i;
-  }
-  EXPECT_EQ(viaReader.boxTests, inMemory.boxTests);
-  EXPECT_EQ(viaReader.triangleTests, inMemory.triangleTests);
+  ASSERT_NO_FATAL_FAILURE(expectSameTraversal(a, viaReader, b, inMemory));
   expectSameHits(file, rays, a);
   EXPECT_EQ(occluded(index, rays, {2}), occluded(file, rays));
   std::vector<glm::vec3> points;
