@@ -268,6 +268,24 @@ std::vector<CommandHelp> makeCommands() {
        withReaderOptions({{"output", "OUT.ply", "-o", "the coloured mesh"},
                           {"cut", "N", "", "the cut of N clusters from the top (default 64)"},
                           {"depth", "D", "", "the cut at depth D"}})},
+      {"tiles", "FILE.fch -o DIR [--tile-faces N] [--draco] [--memory SIZE] [--threads N] [--json]",
+       "3D Tiles 1.1 with levels of detail for viewers (CesiumJS, 3DTilesRendererJS)",
+       "Writes DIR/tileset.json and one glb per tile under DIR/tiles/. Leaf tiles are the highest nodes\n"
+       "of at most N faces at full resolution; an inner tile is a node whose content is its children's\n"
+       "simplified to about N faces with its border locked, so levels meet without cracks; its geometric\n"
+       "error is the simplifier's, in the model's units, above every child's. Bottom-up in one pass under\n"
+       "--memory; the same bytes for every thread count. An existing DIR is replaced only if it holds a\n"
+       "tileset.json.",
+       withReaderOptions(
+           {{"output", "DIR", "-o", "the tileset's directory"},
+            {"tile-faces", "N", "",
+             "faces of a leaf tile at most, and of an inner tile's content about (default 65536)"},
+            {"draco", "", "", "compress each glb's mesh with KHR_draco_mesh_compression"},
+            {"draco-bits", "B", "",
+             "Draco's position bits over the model's bounding cube, 8 to 30 (default 16)"},
+            {"tiles-per-json", "N", "", "a subtree of more tiles goes to an external tileset (default 8192)"},
+            {"threads", "N", "", "worker threads (default all cores, at most 8)"},
+            {"json", "", "", "print the report as one JSON object"}})},
       {"cut", "FILE.fch (--clusters N | --max-cost C | --depth D) [-o OUT.npz] [--mesh-out OUT.ply]",
        "the clusters of a cut as JSON lines or NumPy arrays, for scripts downstream",
        "One line per cluster in face order: its position in the cut, its node (null for a single face\n"

@@ -21,6 +21,8 @@ int runRender(const std::vector<std::string>& args, SignalGuard& signals);
 int runExport(const std::vector<std::string>& args, SignalGuard& signals);
 // `cut FILE (--clusters N | --max-cost C | --depth D)`: a cut's clusters as JSON lines.
 int runCut(const std::vector<std::string>& args, SignalGuard& signals);
+// `tiles FILE.fch -o DIR`: 3D Tiles 1.1 with levels of detail.
+int runTiles(const std::vector<std::string>& args, SignalGuard& signals);
 // `stage plan | cells | finish`: the out-of-core build as tasks over a work directory.
 int runStage(const std::vector<std::string>& args, SignalGuard& signals);
 

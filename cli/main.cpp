@@ -64,6 +64,7 @@ int dispatch(const std::vector<std::string>& args, facetree::cli::SignalGuard& s
   if (command == "render") return runRender(rest, signals);
   if (command == "export") return runExport(rest, signals);
   if (command == "cut") return runCut(rest, signals);
+  if (command == "tiles") return runTiles(rest, signals);
   if (command.rfind("stage", 0) == 0) return runStage(rest, signals);
   throw UsageError("unknown command '" + command + "'");
 }

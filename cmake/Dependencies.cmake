@@ -1,9 +1,10 @@
-# Third-party dependencies, all from Debian packages (libdraco-dev libglm-dev libzstd-dev libxxhash-dev
+# Third-party dependencies, all from Debian packages (libdraco-dev libmeshoptimizer-dev libglm-dev libzstd-dev libxxhash-dev
 # libstb-dev).
 include(GNUInstallDirs)
 find_package(Threads REQUIRED)
 find_package(glm REQUIRED)
 find_package(draco REQUIRED)
+find_package(meshoptimizer REQUIRED)
 
 # Debian's zstd config exports only zstd::libzstd_shared / zstd::libzstd_static; older
 # distributions ship no config at all, so fall back to pkg-config.

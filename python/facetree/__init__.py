@@ -47,7 +47,7 @@ from . import _facetree
 
 __all__ = [
     "Cancelled", "Error", "Hierarchy", "InputError", "OutputError", "Reader", "ResourceError", "__version__",
-    "build", "build_file", "cluster_colours", "load", "open", "read_mesh", "parse_size",
+    "build", "build_file", "cluster_colours", "load", "open", "read_mesh", "parse_size", "tiles",
 ]
 
 Path = Union[str, "os.PathLike[str]"]
@@ -94,6 +94,25 @@ def open(path: Union[Path, int], memory: Union[int, str, None] = None, tmp: Opti
     if isinstance(path, int):
         return _facetree._open_fd(path, f"descriptor {path}", parse_size(memory), directory)
     return _facetree._open(os.fspath(path), parse_size(memory), directory)
+
+
+def tiles(path: Path, dir: Path, *, tile_faces: int = 65536, memory: Union[int, str, None] = None,
+          tmp: Optional[Path] = None, threads: int = 0, draco: bool = False) -> dict:
+    """Writes a cluster file as 3D Tiles 1.1 with levels of detail: dir/tileset.json and a glb per
+    tile under dir/tiles/, as `facetree tiles` does, with the same bytes.
+
+    Leaf tiles are the highest nodes of at most tile_faces faces, at full resolution; an inner tile's
+    content is its children's simplified with its border locked (so levels meet without cracks),
+    its geometric error the simplifier's in the model's units, above its children's. One pass
+    bottom-up under memory (bytes or "64M"; default the cap the file was built under); the same bytes
+    for every thread count. An existing dir is replaced only if it holds a tileset.json. Returns the
+    report (tiles, leaf_tiles, levels, triangles, bytes, leaf_bytes, seconds, ...); Ctrl-C stops it
+    and leaves nothing behind.
+
+        facetree.tiles("scan.fch", "scan_tiles", tile_faces=16384, memory="256M")
+    """
+    return _facetree._tiles(os.fspath(path), os.fspath(dir), tile_faces, parse_size(memory),
+                            os.fspath(tmp) if tmp is not None else "", threads, draco)
 
 
 def _clusters(self: Reader, *, clusters: Optional[int] = None, max_cost: Optional[float] = None,

@@ -16,6 +16,7 @@
 #include <variant>
 
 #include "bindings.h"
+#include "facetree/tiles.h"
 
 namespace facetree::python {
 namespace {
@@ -374,6 +375,37 @@ Returns (vertices, faces, face_ids): (V, 3) float32, (F, 3) uint32 and (F,) uint
 triangle (polygons are split into triangles; triangles touching a non-finite vertex are left out).
 weld: point every index at the first vertex with the same position. Raises InputError naming the
 file, the place and the reason for a bad file.)");
+
+  m.def(
+      "_tiles",
+      [](const std::filesystem::path& path, const std::filesystem::path& dir, uint32_t tileFaces,
+         uint64_t memory, const std::filesystem::path& tmp, unsigned threads, bool draco) {
+        TileOptions options;
+        options.tileFaces = tileFaces;
+        options.memoryBytes = memory;
+        options.tmp = tmp;
+        options.threads = threads;
+        options.draco = draco;
+        Interrupts interrupts;
+        options.cancelled = [&interrupts] { return interrupts.cancelled(); };
+        if (tileFaces < 16) throw ArgumentError("tile_faces must be at least 16");
+        const TilesetReport r = runReleased(interrupts, [&] { return writeTileset(path, dir, options); });
+        py::dict out;
+        out["tiles"] = r.tiles;
+        out["leaf_tiles"] = r.leafTiles;
+        out["levels"] = r.levels;
+        out["triangles"] = r.triangles;
+        out["leaf_triangles"] = r.leafTriangles;
+        out["bytes"] = r.bytes;
+        out["leaf_bytes"] = r.leafBytes;
+        out["json_files"] = r.jsonFiles;
+        out["root_geometric_error"] = r.rootGeometricError;
+        out["peak_held_bytes"] = r.peakHeldBytes;
+        out["seconds"] = r.seconds;
+        return out;
+      },
+      py::arg("path"), py::arg("dir"), py::arg("tile_faces"), py::arg("memory"), py::arg("tmp"),
+      py::arg("threads"), py::arg("draco"));
 
   m.def(
       "load",

@@ -12,7 +12,7 @@ LAYERS = {
     'io': ['files', 'format', 'shape', 'mesh', 'write', 'read', 'cut', 'verify', ''],
     'grid': ['stages', 'job', ''],
 }
-LIBRARY = ['stream', 'merge', 'storage', 'io', 'grid', 'query', 'picture', 'generate', 'cli', 'python/src', 'include']
+LIBRARY = ['stream', 'merge', 'storage', 'io', 'grid', 'query', 'picture', 'generate', 'tiles', 'cli', 'python/src', 'include']
 
 root = sys.argv[1]
 os.chdir(root)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The modules' dependencies run one way: cli on grid, picture and generate (and what they expose),
 # grid on io, merge, storage and stream, picture on query, query on io, merge and storage, generate
-# on io and merge, io on merge and storage, merge, storage and stream on nothing. The compiler
+# on io and merge, tiles on io, io on merge and storage, merge, storage and stream on nothing. The compiler
 # already refuses another module's internal header (a module sees only include/ and its own folder);
 # this checks which public headers each module includes, and that no source reaches outside its
 # folder by a relative path.
@@ -18,8 +18,9 @@ declare -A allowed=(
   [query]="error merge storage io query"
   [picture]="error merge storage io query picture"
   [generate]="error merge io generate"
-  [cli]="error stream merge storage io grid query picture generate"
-  [python/src]="error stream merge storage io grid query picture generate"
+  [tiles]="error merge storage io tiles"
+  [cli]="error stream merge storage io grid query picture generate tiles"
+  [python/src]="error stream merge storage io grid query picture generate tiles"
 )
 failed=0
 for module in "${!allowed[@]}"; do
@@ -53,7 +54,7 @@ fi
 # The public headers themselves: each includes only the modules below it.
 declare -A below=([error]="" [stream]="error" [merge]="error" [storage]="error" [io]="error merge storage"
                  [grid]="error stream merge storage io" [query]="error merge storage io"
-                 [picture]="error merge storage io query" [generate]="error merge io")
+                 [picture]="error merge storage io query" [generate]="error merge io" [tiles]="error merge storage io")
 for header in "${!below[@]}"; do
   while IFS= read -r included; do
     case " ${below[$header]} " in

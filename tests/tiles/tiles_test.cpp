@@ -1,0 +1,260 @@
+// Tiles (facetree/tiles.h): the tiles partition the faces, a tile's content keeps its border at full
+// resolution at every level (no cracks between any two levels), geometric errors grow strictly
+// towards the root, the glb holds the positions it was given, and the writer's bytes are the same
+// for every thread count; bad options and outputs fail cleanly and leave nothing behind.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "facetree/tiles.h"
+#include "merge/test_meshes.h"
+#include "tiles/glb.h"
+#include "tiles/tile_content.h"
+#include "tiles/tile_tree.h"
+
+namespace facetree {
+namespace {
+
+using namespace tiles;
+
+// A folder removed with everything in it at the end of the test.
+struct ScratchDirectory {
+  std::filesystem::path path = std::filesystem::temp_directory_path() /
+                               ("facetree_tiles_" + std::to_string(::getpid()) + "_" +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  ScratchDirectory() {
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~ScratchDirectory() { std::filesystem::remove_all(path); }
+};
+
+std::filesystem::path writeFile(const test::TestMesh& mesh, const std::filesystem::path& path,
+                                uint64_t keep = 0) {
+  const MeshView view{mesh.positions, mesh.indices};
+  ClusterFile file = makeClusterFile(view, {}, buildHierarchy(view, BuildOptions{}), FileOptions{});
+  if (keep) truncateInMemory(file, keep);
+  writeClusterFile(path, file);
+  return path;
+}
+
+// Edges used by one triangle alone, by the file's vertex ids.
+std::set<std::pair<uint64_t, uint64_t>> openEdges(const std::vector<const TileMesh*>& meshes) {
+  std::map<std::pair<uint64_t, uint64_t>, int> uses;
+  for (const TileMesh* m : meshes)
+    for (size_t t = 0; t < m->indices.size(); t += 3)
+      for (int e = 0; e < 3; ++e) {
+        const uint64_t a = m->vertexIds[m->indices[t + e]], b = m->vertexIds[m->indices[t + (e + 1) % 3]];
+        ++uses[{std::min(a, b), std::max(a, b)}];
+      }
+  std::set<std::pair<uint64_t, uint64_t>> open;
+  for (const auto& [edge, count] : uses)
+    if (count == 1) open.insert(edge);
+  return open;
+}
+
+std::map<std::string, std::string> filesUnder(const std::filesystem::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir))
+    if (entry.is_regular_file()) {
+      std::ifstream in(entry.path(), std::ios::binary);
+      std::ostringstream bytes;
+      bytes << in.rdbuf();
+      files[std::filesystem::relative(entry.path(), dir).string()] = bytes.str();
+    }
+  return files;
+}
+
+TEST(TileTree, TilesPartitionTheFacesAndLeavesHoldAtMostATile) {
+  ScratchDirectory scratch;
+  for (const uint64_t keep : {uint64_t{0}, uint64_t{40}}) {
+    const test::TestMesh mesh = test::grid(120);  // 28,800 faces
+    const auto fch = writeFile(mesh, scratch.path / "grid.fch", keep);
+    ClusterFileReader reader(fch);
+    const TileTree tree = chooseTiles(reader, 1024);
+    ASSERT_GT(tree.tiles.size(), 20u);
+    EXPECT_EQ(tree.tiles[0].first, 0u);
+    EXPECT_EQ(tree.tiles[0].count, mesh.indices.size() / 3);
+    uint64_t leafFaces = 0, next = 0;
+    for (const uint32_t t : tree.postorder()) {
+      const Tile& tile = tree.tiles[t];
+      if (!tile.childCount) {
+        EXPECT_LE(tile.count, 1024u) << "keep " << keep;
+        EXPECT_EQ(tile.first, next) << "leaves in face order, without gaps";
+        next = tile.first + tile.count;
+        leafFaces += tile.count;
+        continue;
+      }
+      EXPECT_GT(tile.count, 1024u);
+      EXPECT_NE(tile.node, kNoNode);
+      uint64_t first = tile.first;
+      for (uint32_t k = 0; k < tile.childCount; ++k) {
+        const Tile& child = tree.tiles[tree.children[tile.firstChild + k]];
+        EXPECT_EQ(child.first, first) << "children partition their parent's range";
+        EXPECT_EQ(child.depth, tile.depth + 1);
+        first += child.count;
+      }
+      EXPECT_EQ(first, tile.first + tile.count);
+      if (keep == 0) {
+        EXPECT_LE(tile.childCount, kTileChildren);
+      }
+    }
+    EXPECT_EQ(leafFaces, mesh.indices.size() / 3);
+  }
+}
+
+// Made bottom-up as the writer makes them: every inner tile's open edges are its leaves' open edges,
+// the full-resolution border, so a tile meets its neighbours at whatever level either is shown.
+TEST(TileContent, EveryLevelKeepsTheFullResolutionBorderAndErrorsGrowStrictly) {
+  ScratchDirectory scratch;
+  for (const test::TestMesh& mesh : {test::grid(100), test::icosphere(5)}) {
+    const auto fch = writeFile(mesh, scratch.path / "mesh.fch");
+    ClusterFileReader reader(fch);
+    const TileTree tree = chooseTiles(reader, 512);
+    std::vector<TileMesh> content(tree.tiles.size());
+    std::vector<std::vector<uint32_t>> leaves(tree.tiles.size());
+    uint64_t innerFaces = 0, leafFaces = 0;
+    for (const uint32_t t : tree.postorder()) {
+      const Tile& tile = tree.tiles[t];
+      if (!tile.childCount) {
+        content[t] = leafContent(reader, tile.first, tile.count);
+        EXPECT_EQ(content[t].indices.size(), 3 * tile.count);
+        EXPECT_EQ(content[t].error, 0.0);
+        leaves[t] = {t};
+        leafFaces += tile.count;
+        continue;
+      }
+      std::vector<const TileMesh*> children;
+      for (uint32_t k = 0; k < tile.childCount; ++k) {
+        const uint32_t c = tree.children[tile.firstChild + k];
+        children.push_back(&content[c]);
+        leaves[t].insert(leaves[t].end(), leaves[c].begin(), leaves[c].end());
+      }
+      content[t] = innerContent(children, 512);
+      for (const TileMesh* child : children) EXPECT_GT(content[t].error, child->error);
+      std::vector<const TileMesh*> full;
+      for (const uint32_t l : leaves[t]) full.push_back(&content[l]);
+      EXPECT_EQ(openEdges({&content[t]}), openEdges(full)) << "tile " << t;
+      EXPECT_LT(content[t].indices.size(), [&] {
+        size_t n = 0;
+        for (const TileMesh* child : children) n += child->indices.size();
+        return n;
+      }()) << "an inner tile simplifies";
+      innerFaces += content[t].indices.size() / 3;
+    }
+    EXPECT_GT(content[0].error, 0.0);
+    EXPECT_LT(innerFaces, leafFaces * 6 / 10) << "the levels above the leaves, against the leaves";
+  }
+}
+
+TEST(Glb, HoldsThePositionsRelativeToTheCentreYUpAndPadsItsChunks) {
+  TileMesh mesh;
+  mesh.positions = {{1, 2, 3}, {4, 5, 6}, {7, 8, 10}};
+  mesh.vertexIds = {0, 1, 2};
+  mesh.indices = {0, 1, 2};
+  const glm::dvec3 centre(4, 5, 6);
+  const std::string glb = glbBytes(mesh, centre, {});
+  uint32_t header[5];
+  std::memcpy(header, glb.data(), sizeof header);
+  EXPECT_EQ(header[0], 0x46546C67u);
+  EXPECT_EQ(header[1], 2u);
+  EXPECT_EQ(header[2], glb.size());
+  EXPECT_EQ(header[3] % 4, 0u);
+  const std::string json = glb.substr(20, header[3]);
+  EXPECT_NE(json.find("\"translation\":[4,6,-5]"), std::string::npos) << json;
+  uint32_t bin[2];
+  std::memcpy(bin, glb.data() + 20 + header[3], sizeof bin);
+  EXPECT_EQ(bin[1], 0x004E4942u);
+  EXPECT_EQ(bin[0] % 4, 0u);
+  float local[9];
+  std::memcpy(local, glb.data() + 28 + header[3], sizeof local);
+  // (x, y, z) - centre, then glTF's y up: (x, z, -y).
+  const float expected[9] = {-3, -3, 3, 0, 0, 0, 3, 4, -3};
+  for (int i = 0; i < 9; ++i) EXPECT_EQ(local[i], expected[i]) << i;
+}
+
+TEST(WriteTileset, SameBytesForEveryThreadCountAndExternalTilesets) {
+  ScratchDirectory scratch;
+  const auto fch = writeFile(test::icosphere(6), scratch.path / "sphere.fch");  // 81,920 faces
+  TileOptions options;
+  options.tileFaces = 2048;
+  options.threads = 1;
+  const TilesetReport one = writeTileset(fch, scratch.path / "one", options);
+  options.threads = 3;
+  const TilesetReport three = writeTileset(fch, scratch.path / "three", options);
+  EXPECT_EQ(one.leafTriangles, 81920u);
+  EXPECT_GT(one.leafTiles, 40u);
+  EXPECT_GE(one.levels, 3u);
+  EXPECT_EQ(one.tiles, three.tiles);
+  uint64_t bytes = 0;
+  for (const auto& [name, content] : filesUnder(scratch.path / "one")) bytes += content.size();
+  EXPECT_EQ(one.bytes, bytes);
+  EXPECT_EQ(filesUnder(scratch.path / "one"), filesUnder(scratch.path / "three"));
+  EXPECT_LE(one.bytes, one.leafBytes * 16 / 10);
+  options.tilesPerJson = 8;
+  const TilesetReport split = writeTileset(fch, scratch.path / "split", options);
+  EXPECT_GT(split.jsonFiles, 3u);
+  for (const auto& [name, bytes] : filesUnder(scratch.path / "split"))
+    if (name.ends_with(".json")) {
+      size_t tiles = 0;
+      for (size_t at = 0; (at = bytes.find("\"boundingVolume\"", at)) != std::string::npos; ++at) ++tiles;
+      EXPECT_LE(tiles, 8u + 8u) << name << ": its tiles and the links to the files below it";
+    }
+  // Written again over itself: replaced.
+  EXPECT_EQ(writeTileset(fch, scratch.path / "one", options).tiles, split.tiles);
+}
+
+TEST(WriteTileset, BadOptionsAndOutputsFailWithoutLeavingAnything) {
+  ScratchDirectory scratch;
+  const auto fch = writeFile(test::icosphere(4), scratch.path / "sphere.fch");
+  TileOptions options;
+  options.tileFaces = 8;
+  EXPECT_THROW(writeTileset(fch, scratch.path / "out", options), std::invalid_argument);
+  options.tileFaces = 256;
+  std::ofstream(scratch.path / "plain") << "not a folder";
+  try {
+    writeTileset(fch, scratch.path / "plain", options);
+    ADD_FAILURE() << "a file in the way";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Output);
+    EXPECT_EQ(std::string(e.what()), (scratch.path / "plain").string() + ": exists and is not a directory");
+  }
+  std::filesystem::create_directories(scratch.path / "other");
+  std::ofstream(scratch.path / "other" / "notes.txt") << "someone's";
+  try {
+    writeTileset(fch, scratch.path / "other", options);
+    ADD_FAILURE() << "a folder that is not a tileset";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (scratch.path / "other").string() + ": exists and is not a tileset; not replaced");
+  }
+  EXPECT_TRUE(std::filesystem::exists(scratch.path / "other" / "notes.txt"));
+  try {
+    writeTileset(scratch.path / "missing.fch", scratch.path / "out", options);
+    ADD_FAILURE() << "a missing file";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Input);
+    EXPECT_NE(std::string(e.what()).find("missing.fch"), std::string::npos) << e.what();
+  }
+  int polls = 0;
+  options.cancelled = [&polls] { return ++polls > 3; };
+  try {
+    writeTileset(fch, scratch.path / "out", options);
+    ADD_FAILURE() << "not cancelled";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.category(), ErrorCategory::Cancelled);
+  }
+  std::set<std::string> left;
+  for (const auto& entry : std::filesystem::directory_iterator(scratch.path))
+    left.insert(entry.path().filename());
+  EXPECT_EQ(left, (std::set<std::string>{"other", "plain", "sphere.fch"}));
+}
+
+}  // namespace
+}  // namespace facetree
