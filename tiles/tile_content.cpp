@@ -6,8 +6,31 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 namespace facetree::tiles {
+namespace {
+
+// The positions with every run of equal ones but its first moved along x by 1, 2, ... units in the
+// last place (and past any position already there).
+std::vector<glm::vec3> separateCoincident(const std::vector<glm::vec3>& positions) {
+  std::vector<glm::vec3> moved = positions;
+  std::vector<uint32_t> order(positions.size());
+  std::iota(order.begin(), order.end(), 0u);
+  const auto less = [&](uint32_t a, uint32_t b) {
+    const glm::vec3 &p = positions[a], &q = positions[b];
+    return std::tie(p.x, p.y, p.z, a) < std::tie(q.x, q.y, q.z, b);
+  };
+  std::sort(order.begin(), order.end(), less);
+  for (size_t i = 1; i < order.size(); ++i) {
+    const glm::vec3 &p = positions[order[i]], &previous = moved[order[i - 1]];
+    if (p.y != previous.y || p.z != previous.z || p.x > previous.x) continue;
+    moved[order[i]].x = std::nextafter(previous.x, HUGE_VALF);
+  }
+  return moved;
+}
+
+}  // namespace
 
 TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count) {
   FaceRangeMesh range = reader.faces(first, count, FaceFields::Geometry);
@@ -18,7 +41,8 @@ TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count) 
   return mesh;
 }
 
-TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces) {
+TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces,
+                      const std::function<bool(uint64_t)>& locked) {
   // Weld: the children meet at vertices of the file, which keep their index through every level.
   size_t vertices = 0, indices = 0;
   double childError = 0;
@@ -53,19 +77,28 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     for (const uint32_t v : child->indices) source.push_back(welded[base + v]);
     base += static_cast<uint32_t>(child->positions.size());
   }
-  // Simplify with the border locked: the tile's border is where it meets its neighbours, which
-  // keep the same vertices whatever their level.
+  // The simplifier tells vertices apart by position, and locks one whose position two others
+  // share (it takes them for attribute seams it cannot classify). What it is given: distinct
+  // vertices of the file that coincide (parts that touch, each storing the faces they share) moved
+  // apart by a few units in the last place, so that each part simplifies by its own topology; and
+  // two unused copies of each vertex where the tile meets a neighbour, which lock exactly those,
+  // where meshopt_SimplifyLockBorder would lock every open edge, holes and the mesh's own boundary
+  // included. It keeps vertices where they are, so the output takes the true positions.
+  const size_t real = positions.size();
+  std::vector<glm::vec3> moved = separateCoincident(positions);
+  for (size_t v = 0; v < real; ++v)
+    if (locked(ids[v])) moved.push_back(moved[v]), moved.push_back(moved[v]);
   std::vector<uint32_t> kept(source.size());
   float relative = 0;
   // At most a quarter of the input: a tile over few children still halves its detail twice, so
   // that the levels above the leaves hold a third of their triangles at most.
   const size_t target = 3 * std::min<size_t>(source.size() / 12, targetFaces);
-  kept.resize(meshopt_simplify(kept.data(), source.data(), source.size(), &positions[0].x, positions.size(),
-                               sizeof(glm::vec3), target, 1.0f, meshopt_SimplifyLockBorder, &relative));
-  const double scale = meshopt_simplifyScale(&positions[0].x, positions.size(), sizeof(glm::vec3));
+  kept.resize(meshopt_simplify(kept.data(), source.data(), source.size(), &moved[0].x, moved.size(),
+                               sizeof(glm::vec3), target, 1.0f, 0, &relative));
+  const double scale = meshopt_simplifyScale(&positions[0].x, real, sizeof(glm::vec3));
   // Vertices in order of first use.
   TileMesh mesh;
-  std::vector<uint32_t> remap(positions.size(), ~0u);
+  std::vector<uint32_t> remap(real, ~0u);
   mesh.indices.reserve(kept.size());
   for (const uint32_t v : kept) {
     if (remap[v] == ~0u) {

@@ -1,9 +1,10 @@
 // A tile's content: a leaf tile's triangles as the file holds them, an inner tile's its children's
-// welded and simplified with its own border locked, so that it meets every neighbour, at any level,
-// along the same full-resolution border.
+// welded and simplified with the vertices it shares with other tiles locked, so that it meets every
+// neighbour, at any level, along the same full-resolution border.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -26,11 +27,12 @@ struct TileMesh {
 // vertices in the file's order.
 TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count);
 
-// The children's contents welded by file vertex and simplified towards `targetFaces` faces (a
-// quarter of theirs when that is fewer) with the
-// border locked (meshopt_simplify, meshopt_SimplifyLockBorder), its vertices in order of first use.
+// The children's contents welded by file vertex and simplified (meshopt_simplify) towards
+// `targetFaces` faces, a quarter of theirs when that is fewer, the vertices `locked` names kept in
+// place; its vertices in order of first use.
 // The error is the simplifier's, in the model's units, added to the children's largest, and never
 // equal to it.
-TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces);
+TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces,
+                      const std::function<bool(uint64_t)>& locked);
 
 }  // namespace facetree::tiles

@@ -10,6 +10,23 @@
 namespace facetree::tiles {
 namespace {
 
+// Leaves in preorder are in face order; a tile's are a run of them.
+void numberLeaves(TileTree& tree) {
+  uint32_t leaves = 0;
+  for (const uint32_t t : tree.postorder()) {
+    Tile& tile = tree.tiles[t];
+    if (!tile.childCount) {
+      tile.firstLeaf = leaves++;
+      tile.leafCount = 1;
+      continue;
+    }
+    const Tile& first = tree.tiles[tree.children[tile.firstChild]];
+    const Tile& last = tree.tiles[tree.children[tile.firstChild + tile.childCount - 1]];
+    tile.firstLeaf = first.firstLeaf;
+    tile.leafCount = last.firstLeaf + last.leafCount - first.firstLeaf;
+  }
+}
+
 // A child of a node being opened: a node, a single face or a gap that truncation left.
 struct Item {
   uint64_t node = kNoNode;
@@ -26,6 +43,7 @@ class Builder {
     Tile tile{.first = r.first, .count = r.count, .node = root, .box = r.box};
     tree_.tiles.push_back(tile);
     if (r.count > tileFaces_) open(0);
+    numberLeaves(tree_);
     return std::move(tree_);
   }
 

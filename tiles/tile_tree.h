@@ -21,6 +21,8 @@ struct Tile {
   uint32_t firstChild = 0;        // its children: TileTree::children[firstChild, + childCount)
   uint32_t childCount = 0;        // 0: a leaf tile, its faces at full resolution
   uint32_t depth = 1;             // the root's is 1
+  uint32_t firstLeaf = 0;         // its leaf tiles, numbered in face order: [firstLeaf, + leafCount)
+  uint32_t leafCount = 1;
 };
 
 struct TileTree {

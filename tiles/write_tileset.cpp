@@ -18,6 +18,7 @@
 #include "facetree/error.h"
 #include "facetree/tiles.h"
 #include "glb.h"
+#include "tile_borders.h"
 #include "tile_content.h"
 #include "tile_tree.h"
 #include "tileset_json.h"
@@ -82,11 +83,12 @@ std::vector<uint32_t> planTasks(const TileTree& tree, unsigned workers) {
 class Tiler {
  public:
   Tiler(const std::filesystem::path& file, const std::filesystem::path& out, const TileOptions& options,
-        TileTree tree, uint64_t cap, const FileHeader& header)
+        TileTree tree, TileBorders borders, uint64_t cap, const FileHeader& header)
       : file_(file),
         out_(out),
         options_(options),
         tree_(std::move(tree)),
+        borders_(std::move(borders)),
         cap_(cap),
         records_(tree_.tiles.size()),
         glbBytes_(tree_.tiles.size(), 0),
@@ -147,7 +149,7 @@ class Tiler {
         ++r.leafTiles, r.leafTriangles += triangles_[t], r.leafBytes += glbBytes_[t];
     }
     r.rootGeometricError = records_[0].error;
-    r.peakHeldBytes = peakContent_ + readerPeak_;
+    r.peakHeldBytes = peakContent_ + readerPeak_ + borders_.bytes();
     return r;
   }
   std::span<const TileRecord> records() const { return records_; }
@@ -211,7 +213,10 @@ class Tiler {
   }
 
   TileMesh made(uint32_t t, std::span<const TileMesh* const> children) {
-    TileMesh mesh = innerContent(children, options_.tileFaces);
+    const Tile& tile = tree_.tiles[t];
+    TileMesh mesh = innerContent(children, options_.tileFaces, [&](uint64_t id) {
+      return borders_.lockedIn(id, tile.firstLeaf, tile.leafCount);
+    });
     records_[t].box = nodeBox(tree_.tiles[t].box, step_);
     emit(t, mesh);
     return mesh;
@@ -243,6 +248,7 @@ class Tiler {
   std::filesystem::path file_, out_;
   TileOptions options_;
   TileTree tree_;
+  TileBorders borders_;
   uint64_t cap_;
   GlbOptions glb_;
   double step_ = 0;  // Draco's quantization step: how far a decoded position may move
@@ -313,19 +319,18 @@ TilesetReport writeTileset(const std::filesystem::path& file, const std::filesys
     throw Error(ErrorCategory::Output, dir.string() + ": exists and is not a directory");
   const unsigned threads =
       options.threads ? options.threads : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
-  TileTree tree;
-  uint64_t cap = 0;
-  FileHeader header;
-  {
-    ClusterFileReader reader(file, ReaderOptions{options.memoryBytes, options.tmp});
-    tree = chooseTiles(reader, options.tileFaces);
-    cap = reader.memoryBytes();
-    header = reader.header();
-  }
+  // The tree and where its tiles meet, through a reader that is gone before the workers open theirs.
+  std::optional<ClusterFileReader> reader(std::in_place, file,
+                                          ReaderOptions{options.memoryBytes, options.tmp});
+  TileTree tree = chooseTiles(*reader, options.tileFaces);
+  TileBorders borders(*reader, tree);
+  const uint64_t cap = reader->memoryBytes();
+  const FileHeader header = reader->header();
+  reader.reset();
   const std::filesystem::path target =
       std::filesystem::absolute(dir.has_filename() ? dir : dir.parent_path());
   TemporaryDirectory out(target);
-  Tiler tiler(file, out.path(), options, std::move(tree), cap, header);
+  Tiler tiler(file, out.path(), options, std::move(tree), std::move(borders), cap, header);
   tiler.run(threads);
   TilesetReport report = tiler.report();
   report.jsonFiles = writeTilesetJson(tiler.tree(), tiler.records(), out.path(), options.tilesPerJson);
