@@ -272,8 +272,8 @@ std::vector<CommandHelp> makeCommands() {
        "3D Tiles 1.1 with levels of detail for viewers (CesiumJS, 3DTilesRendererJS)",
        "Writes DIR/tileset.json and one glb per tile under DIR/tiles/. Leaf tiles are the highest nodes\n"
        "of at most N faces at full resolution; an inner tile is a node whose content is its children's\n"
-       "simplified to about N faces with the vertices it shares with other tiles locked, so levels meet\n"
-       "without cracks (the mesh's own boundaries simplify); its geometric error is the simplifier's, in\n"
+       "simplified to about N faces with its border locked, so levels meet without cracks and the mesh's\n"
+       "own boundaries keep their outline; its geometric error is the simplifier's, in\n"
        "the model's units, above every child's. Bottom-up in one pass under --memory; the same bytes for\n"
        "every thread count. An existing DIR is replaced only if it holds a tileset.json.",
        withReaderOptions(

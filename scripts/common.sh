@@ -29,3 +29,21 @@ facetree_sanitized_build() {
   facetree_build sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ -DFACETREE_FUZZ=ON \
     -DFACETREE_BUILD_BENCH=OFF -DFACETREE_PYTHON=OFF
 }
+
+# facetree_node_packages: the npm packages of scripts/viewer/package.json (the viewer page's three.js and
+# 3d-tiles-renderer, the browser tests' playwright-core and gltf-validator) in $FACETREE_BUILD_ROOT/node,
+# outside the repository; installed again only when the list changes. Installs Node.js and npm from
+# Debian's packages where the machine has none. Sets NODE_MODULES.
+facetree_node_packages() {
+  if ! command -v npm >/dev/null; then
+    FACETREE_SETUP_EXTRA="nodejs npm ${FACETREE_SETUP_EXTRA:-}" "$FACETREE_ROOT/scripts/setup"
+  fi
+  local dir="$FACETREE_BUILD_ROOT/node"
+  NODE_MODULES="$dir/node_modules"
+  if ! cmp -s "$FACETREE_ROOT/scripts/viewer/package.json" "$dir/package.json" || [ ! -d "$NODE_MODULES" ]; then
+    mkdir -p "$dir"
+    cp "$FACETREE_ROOT/scripts/viewer/package.json" "$dir/package.json"
+    echo "setup: npm install in $dir" >&2
+    (cd "$dir" && npm install --no-audit --no-fund --no-package-lock --loglevel=error >/dev/null)
+  fi
+}

@@ -1,6 +1,6 @@
 // A tile's content as binary glTF 2.0 (glb): one mesh of one primitive, positions in float32
-// relative to the tile's centre (the node's translation), y up as glTF has it (3D Tiles turns
-// it to z up), optionally compressed with KHR_draco_mesh_compression.
+// relative to a centre (the node's translation), y up as glTF has it (3D Tiles turns it to z up),
+// optionally compressed with KHR_draco_mesh_compression.
 #pragma once
 
 #include <string>

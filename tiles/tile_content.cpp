@@ -8,26 +8,51 @@
 #include <numeric>
 #include <tuple>
 
+#include <glm/geometric.hpp>
+
 namespace facetree::tiles {
 namespace {
 
-// The positions with every run of equal ones but its first moved along x by 1, 2, ... units in the
-// last place (and past any position already there).
-std::vector<glm::vec3> separateCoincident(const std::vector<glm::vec3>& positions) {
-  std::vector<glm::vec3> moved = positions;
-  std::vector<uint32_t> order(positions.size());
-  std::iota(order.begin(), order.end(), 0u);
-  const auto less = [&](uint32_t a, uint32_t b) {
-    const glm::vec3 &p = positions[a], &q = positions[b];
-    return std::tie(p.x, p.y, p.z, a) < std::tie(q.x, q.y, q.z, b);
-  };
-  std::sort(order.begin(), order.end(), less);
-  for (size_t i = 1; i < order.size(); ++i) {
-    const glm::vec3 &p = positions[order[i]], &previous = moved[order[i - 1]];
-    if (p.y != previous.y || p.z != previous.z || p.x > previous.x) continue;
-    moved[order[i]].x = std::nextafter(previous.x, HUGE_VALF);
+double segmentDistance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
+  const glm::dvec3 ab = b - a;
+  const double length = glm::dot(ab, ab);
+  const double s = length > 0 ? std::clamp(glm::dot(p - a, ab) / length, 0.0, 1.0) : 0.0;
+  const glm::dvec3 d = p - (a + s * ab);
+  return std::sqrt(glm::dot(d, d));
+}
+
+// How far the mesh's own boundary moved: the simplifier collapses a boundary vertex along the
+// boundary onto a neighbour, so each run of removed vertices along an open edge loop is spanned by
+// one edge between the kept vertices at its ends; the largest distance of a removed vertex from
+// that edge. The simplifier's own error weighs a boundary like the surface around it and can
+// miss a coastline's steps, which a viewer sees against the background.
+double boundaryDeviation(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& source,
+                         const std::vector<uint32_t>& kept) {
+  std::vector<uint64_t> halfEdges;
+  halfEdges.reserve(source.size());
+  for (size_t t = 0; t + 2 < source.size(); t += 3)
+    for (int e = 0; e < 3; ++e) halfEdges.push_back(uint64_t{source[t + e]} << 32 | source[t + (e + 1) % 3]);
+  std::sort(halfEdges.begin(), halfEdges.end());
+  std::vector<uint8_t> isKept(positions.size(), 0);
+  for (const uint32_t v : kept) isKept[v] = 1;
+  std::vector<uint32_t> next(positions.size(), ~0u);  // along an open half-edge, the first one found
+  for (const uint64_t h : halfEdges)
+    if (!std::binary_search(halfEdges.begin(), halfEdges.end(), h << 32 | h >> 32)) {
+      const uint32_t from = static_cast<uint32_t>(h >> 32);
+      if (next[from] == ~0u) next[from] = static_cast<uint32_t>(h);
+    }
+  double worst = 0;
+  std::vector<uint32_t> run;
+  for (uint32_t a = 0; a < positions.size(); ++a) {
+    if (!isKept[a] || next[a] == ~0u) continue;
+    run.clear();
+    uint32_t v = next[a];
+    while (v != ~0u && !isKept[v] && run.size() < positions.size()) run.push_back(v), v = next[v];
+    if (v == ~0u || run.empty()) continue;
+    const glm::dvec3 pa(positions[a]), pb(positions[v]);
+    for (const uint32_t r : run) worst = std::max(worst, segmentDistance(glm::dvec3(positions[r]), pa, pb));
   }
-  return moved;
+  return worst;
 }
 
 }  // namespace
@@ -42,8 +67,10 @@ TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count) 
 }
 
 TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces,
-                      const std::function<bool(uint64_t)>& locked) {
-  // Weld: the children meet at vertices of the file, which keep their index through every level.
+                      const std::function<bool(const glm::vec3&)>& locked) {
+  // Weld by position: the children meet at points of the file, which keep their coordinates
+  // through every level; a file that stores a point twice (stepped terrain, parts exported one by
+  // one) is joined there too, so that no level opens it.
   size_t vertices = 0, indices = 0;
   double childError = 0;
   for (const TileMesh* child : children) {
@@ -51,24 +78,29 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     indices += child->indices.size();
     childError = std::max(childError, child->error);
   }
-  std::vector<std::pair<uint64_t, uint32_t>> byId;  // (file vertex, position in the concatenation)
-  byId.reserve(vertices);
-  for (const TileMesh* child : children)
-    for (const uint64_t id : child->vertexIds) byId.emplace_back(id, static_cast<uint32_t>(byId.size()));
-  std::sort(byId.begin(), byId.end());
+  std::vector<glm::vec3> all;
+  std::vector<uint64_t> allIds;
+  all.reserve(vertices);
+  allIds.reserve(vertices);
+  for (const TileMesh* child : children) {
+    all.insert(all.end(), child->positions.begin(), child->positions.end());
+    allIds.insert(allIds.end(), child->vertexIds.begin(), child->vertexIds.end());
+  }
+  std::vector<uint32_t> order(vertices);
+  std::iota(order.begin(), order.end(), 0u);
+  const auto key = [&](uint32_t v) { return std::tie(all[v].x, all[v].y, all[v].z); };
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return key(a) < key(b) || (key(a) == key(b) && allIds[a] < allIds[b]);
+  });
   std::vector<uint32_t> welded(vertices);  // concatenated vertex -> welded vertex
   std::vector<glm::vec3> positions;
-  std::vector<uint64_t> ids;
-  std::vector<glm::vec3> all;
-  all.reserve(vertices);
-  for (const TileMesh* child : children)
-    all.insert(all.end(), child->positions.begin(), child->positions.end());
-  for (size_t i = 0; i < byId.size(); ++i) {
-    if (i == 0 || byId[i].first != byId[i - 1].first) {
-      ids.push_back(byId[i].first);
-      positions.push_back(all[byId[i].second]);
+  std::vector<uint64_t> ids;  // the smallest file vertex at each point
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (i == 0 || key(order[i]) != key(order[i - 1])) {
+      ids.push_back(allIds[order[i]]);
+      positions.push_back(all[order[i]]);
     }
-    welded[byId[i].second] = static_cast<uint32_t>(ids.size() - 1);
+    welded[order[i]] = static_cast<uint32_t>(ids.size() - 1);
   }
   std::vector<uint32_t> source;
   source.reserve(indices);
@@ -77,17 +109,25 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     for (const uint32_t v : child->indices) source.push_back(welded[base + v]);
     base += static_cast<uint32_t>(child->positions.size());
   }
-  // The simplifier tells vertices apart by position, and locks one whose position two others
-  // share (it takes them for attribute seams it cannot classify). What it is given: distinct
-  // vertices of the file that coincide (parts that touch, each storing the faces they share) moved
-  // apart by a few units in the last place, so that each part simplifies by its own topology; and
-  // two unused copies of each vertex where the tile meets a neighbour, which lock exactly those,
-  // where meshopt_SimplifyLockBorder would lock every open edge, holes and the mesh's own boundary
-  // included. It keeps vertices where they are, so the output takes the true positions.
-  const size_t real = positions.size();
-  std::vector<glm::vec3> moved = separateCoincident(positions);
-  for (size_t v = 0; v < real; ++v)
-    if (locked(ids[v])) moved.push_back(moved[v]), moved.push_back(moved[v]);
+  // Triangles with two corners on one point cover nothing; the files that have them (stepped
+  // terrain's zero-height walls between duplicated vertices) would have them hold the simplifier
+  // back, and they are left out of every level above the leaves.
+  {
+    size_t w = 0;
+    for (size_t t = 0; t < source.size(); t += 3) {
+      const glm::vec3 &a = positions[source[t]], &b = positions[source[t + 1]], &c = positions[source[t + 2]];
+      if (a == b || b == c || a == c) continue;
+      for (int k = 0; k < 3; ++k) source[w++] = source[t + k];
+    }
+    source.resize(w);
+  }
+  // The vertices `locked` names (where the tile meets its neighbours) get two unused copies each:
+  // the simplifier locks a vertex whose position two others share (it takes them for attribute
+  // seams it cannot classify), whatever its class. The mesh's own boundaries (holes, coastlines)
+  // simplify like the rest, their movement measured below.
+  std::vector<glm::vec3> moved = positions;
+  for (size_t v = 0; v < positions.size(); ++v)
+    if (locked(positions[v])) moved.push_back(positions[v]), moved.push_back(positions[v]);
   std::vector<uint32_t> kept(source.size());
   float relative = 0;
   // At most a quarter of the input: a tile over few children still halves its detail twice, so
@@ -95,10 +135,10 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
   const size_t target = 3 * std::min<size_t>(source.size() / 12, targetFaces);
   kept.resize(meshopt_simplify(kept.data(), source.data(), source.size(), &moved[0].x, moved.size(),
                                sizeof(glm::vec3), target, 1.0f, 0, &relative));
-  const double scale = meshopt_simplifyScale(&positions[0].x, real, sizeof(glm::vec3));
+  const double scale = meshopt_simplifyScale(&positions[0].x, positions.size(), sizeof(glm::vec3));
   // Vertices in order of first use.
   TileMesh mesh;
-  std::vector<uint32_t> remap(real, ~0u);
+  std::vector<uint32_t> remap(positions.size(), ~0u);
   mesh.indices.reserve(kept.size());
   for (const uint32_t v : kept) {
     if (remap[v] == ~0u) {
@@ -108,10 +148,11 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     }
     mesh.indices.push_back(remap[v]);
   }
-  // Strictly above every child's, which a viewer needs to refine at all (a tiny margin of the
-  // tile's extent where the simplifier measured none).
-  mesh.error = std::max(childError + std::max(double(relative) * scale, scale * 1e-6),
-                        std::nextafter(childError, HUGE_VAL));
+  // The deviation from the children's surface, which deviates from the full resolution by the
+  // children's error; strictly above every child's, which a viewer needs to refine at all (a tiny
+  // margin of the tile's extent where nothing deviates).
+  const double deviation = std::max(double(relative) * scale, boundaryDeviation(positions, source, kept));
+  mesh.error = std::max(childError + std::max(deviation, scale * 1e-6), std::nextafter(childError, HUGE_VAL));
   return mesh;
 }
 

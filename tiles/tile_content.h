@@ -16,7 +16,7 @@ namespace facetree::tiles {
 
 struct TileMesh {
   std::vector<glm::vec3> positions;
-  std::vector<uint64_t> vertexIds;  // each vertex's index in the file: how children's borders weld
+  std::vector<uint64_t> vertexIds;  // each vertex's index in the file (the smallest at its point)
   std::vector<uint32_t> indices;    // 3 per triangle
   double error = 0;                 // geometric error: how far it may stray from the faces it stands for
 
@@ -27,12 +27,12 @@ struct TileMesh {
 // vertices in the file's order.
 TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count);
 
-// The children's contents welded by file vertex and simplified (meshopt_simplify) towards
+// The children's contents welded by position and simplified (meshopt_simplify) towards
 // `targetFaces` faces, a quarter of theirs when that is fewer, the vertices `locked` names kept in
 // place; its vertices in order of first use.
 // The error is the simplifier's, in the model's units, added to the children's largest, and never
 // equal to it.
 TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces,
-                      const std::function<bool(uint64_t)>& locked);
+                      const std::function<bool(const glm::vec3&)>& locked);
 
 }  // namespace facetree::tiles

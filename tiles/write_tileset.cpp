@@ -99,6 +99,7 @@ class Tiler {
     const double size = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-30});
     glb_.gridMin = lo - glm::dvec3(1e-5 * size);
     glb_.gridSize = size * (1 + 2e-5);
+    origin_ = glm::dvec3(glm::vec3((lo + hi) * 0.5));
     if (options.draco) step_ = glb_.gridSize / double(1u << options.dracoPositionBits);
   }
 
@@ -214,8 +215,8 @@ class Tiler {
 
   TileMesh made(uint32_t t, std::span<const TileMesh* const> children) {
     const Tile& tile = tree_.tiles[t];
-    TileMesh mesh = innerContent(children, options_.tileFaces, [&](uint64_t id) {
-      return borders_.lockedIn(id, tile.firstLeaf, tile.leafCount);
+    TileMesh mesh = innerContent(children, options_.tileFaces, [&](const glm::vec3& p) {
+      return borders_.lockedIn(p, tile.firstLeaf, tile.leafCount);
     });
     records_[t].box = nodeBox(tree_.tiles[t].box, step_);
     emit(t, mesh);
@@ -224,8 +225,7 @@ class Tiler {
 
   void emit(uint32_t t, const TileMesh& mesh) {
     records_[t].error = mesh.error;
-    const std::array<double, 12>& b = records_[t].box;
-    const std::string bytes = glbBytes(mesh, {b[0], b[1], b[2]}, glb_);
+    const std::string bytes = glbBytes(mesh, origin_, glb_);
     OutputFile file(out_ / "tiles" / (std::to_string(t) + ".glb"));
     file.write(bytes);
     file.commit();
@@ -252,6 +252,11 @@ class Tiler {
   uint64_t cap_;
   GlbOptions glb_;
   double step_ = 0;  // Draco's quantization step: how far a decoded position may move
+  // Every tile's positions are relative to one origin, the model's centre: a vertex that two tiles
+  // share then has the same float32 coordinates and the same transform in both, so the GPU puts it
+  // on the same point and no pixel shows through where they meet (a translation per tile rounds
+  // differently in each tile's transform).
+  glm::dvec3 origin_{0.0};
   std::vector<TileRecord> records_;
   std::vector<uint64_t> glbBytes_, triangles_;
   std::atomic<uint64_t> held_{0}, peakContent_{0}, readerPeak_{0};

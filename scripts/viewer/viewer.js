@@ -4,8 +4,9 @@
 // (unlit black surface on white, no antialiasing: silhouettes and cracks pixel by pixel), ?span=S
 // (the model's bounding sphere S pixels across), ?azimuth=A&elevation=E (degrees) of the camera seen from
 // the centre, ?distance=D (in bounding-sphere radii from the centre, instead of span), ?target=X,Y,Z
-// (the centre looked at, in the tileset's coordinates; default the bounding sphere's); with ?mask nothing is drawn until asked. window.facetreeViewer is what the browser
-// tests read: settle(), stats(), maskBase64().
+// (the centre looked at, in the tileset's coordinates; default the bounding sphere's), ?range=R
+// (the distance from it in the model's units). With ?mask nothing is drawn until asked.
+// window.facetreeViewer is what the browser tests read: settle(), stats(), maskBase64().
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
@@ -58,8 +59,9 @@ function frame() {
   if (params.has('target')) centre.fromArray(params.get('target').split(',').map(Number)).applyMatrix4(tiles.group.matrixWorld);
   const fov = THREE.MathUtils.degToRad(camera.fov);
   const span = Number(params.get('span') ?? Math.min(innerWidth, innerHeight) * 0.8);
-  const distance = params.has('distance') ? Number(params.get('distance')) * sphere.radius
-                                           : sphere.radius * innerHeight / (span * Math.tan(fov / 2));
+  const distance = params.has('range') ? Number(params.get('range'))
+                 : params.has('distance') ? Number(params.get('distance')) * sphere.radius
+                 : sphere.radius * innerHeight / (span * Math.tan(fov / 2));
   const azimuth = THREE.MathUtils.degToRad(Number(params.get('azimuth') ?? 30));
   const elevation = THREE.MathUtils.degToRad(Number(params.get('elevation') ?? 20));
   const direction = new THREE.Vector3(Math.cos(elevation) * Math.sin(azimuth), Math.sin(elevation),

@@ -152,8 +152,9 @@ TEST(TileContent, EveryLevelKeepsTheEdgesItSharesAndErrorsGrowStrictly) {
         children.push_back(&content[tree.children[tile.firstChild + k]]);
         childFaces += children.back()->indices.size() / 3;
       }
-      content[t] = innerContent(
-          children, 512, [&](uint64_t id) { return borders.lockedIn(id, tile.firstLeaf, tile.leafCount); });
+      content[t] = innerContent(children, 512, [&](const glm::vec3& p) {
+        return borders.lockedIn(p, tile.firstLeaf, tile.leafCount);
+      });
       for (const TileMesh* child : children) EXPECT_GT(content[t].error, child->error);
       EXPECT_LT(content[t].indices.size() / 3, childFaces) << "an inner tile simplifies";
       innerFaces += content[t].indices.size() / 3;
@@ -194,7 +195,7 @@ TEST(TileContent, CoincidentPartsSimplifyByTheirOwnTopology) {
     for (size_t v = 0; v < grid.positions.size(); ++v) m->vertexIds.push_back(base + v);
   }
   const std::vector<const TileMesh*> one{&a}, two{&a, &b};
-  const auto none = [](uint64_t) { return false; };
+  const auto none = [](const glm::vec3&) { return false; };
   const TileMesh single = innerContent(one, 1000, none), pair = innerContent(two, 2000, none);
   EXPECT_LE(single.indices.size() / 3, 1000u);
   EXPECT_LE(pair.indices.size() / 3, 2000u);
