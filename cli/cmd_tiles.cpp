@@ -3,6 +3,7 @@
 
 #include "args.h"
 #include "commands.h"
+#include "facetree/grid.h"
 #include "facetree/io.h"
 #include "facetree/tiles.h"
 #include "fch_commands.h"
@@ -48,9 +49,14 @@ int runTiles(const std::vector<std::string>& argv, SignalGuard& signals) {
     json.field("json_files", r.jsonFiles);
     json.field("root_geometric_error", r.rootGeometricError);
     json.field("peak_held_bytes", r.peakHeldBytes);
+    json.field("peak_rss_bytes", peakResidentBytes());
+    json.field("tile_faces", r.tileFaces);
+    json.field("workers", r.workers);
     json.field("seconds", r.seconds);
     std::fputs(json.finish().c_str(), stdout);
   } else {
+    if (r.tileFaces < options.tileFaces)
+      std::fprintf(stderr, "tiles of %u faces at most, to fit --memory\n", r.tileFaces);
     std::printf(
         "%s: %llu tiles (%llu leaves) on %u levels, %llu triangles (%llu in leaves), %.1f MB (%.2fx the "
         "leaves), root geometric error %.4g, in %.2f s\n",

@@ -1,6 +1,8 @@
 // Leaf and inner contents (tile_content.h).
 #include "tile_content.h"
 
+#include "point_topology.h"
+
 #include <meshoptimizer.h>
 
 #include <algorithm>
@@ -28,19 +30,11 @@ double segmentDistance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec
 // miss a coastline's steps, which a viewer sees against the background.
 double boundaryDeviation(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& source,
                          const std::vector<uint32_t>& kept) {
-  std::vector<uint64_t> halfEdges;
-  halfEdges.reserve(source.size());
-  for (size_t t = 0; t + 2 < source.size(); t += 3)
-    for (int e = 0; e < 3; ++e) halfEdges.push_back(uint64_t{source[t + e]} << 32 | source[t + (e + 1) % 3]);
-  std::sort(halfEdges.begin(), halfEdges.end());
   std::vector<uint8_t> isKept(positions.size(), 0);
   for (const uint32_t v : kept) isKept[v] = 1;
   std::vector<uint32_t> next(positions.size(), ~0u);  // along an open half-edge, the first one found
-  for (const uint64_t h : halfEdges)
-    if (!std::binary_search(halfEdges.begin(), halfEdges.end(), h << 32 | h >> 32)) {
-      const uint32_t from = static_cast<uint32_t>(h >> 32);
-      if (next[from] == ~0u) next[from] = static_cast<uint32_t>(h);
-    }
+  for (const auto& [from, to] : openHalfEdges(source, positions.size()))
+    if (next[from] == ~0u) next[from] = to;
   double worst = 0;
   std::vector<uint32_t> run;
   for (uint32_t a = 0; a < positions.size(); ++a) {
@@ -86,22 +80,11 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     all.insert(all.end(), child->positions.begin(), child->positions.end());
     allIds.insert(allIds.end(), child->vertexIds.begin(), child->vertexIds.end());
   }
-  std::vector<uint32_t> order(vertices);
-  std::iota(order.begin(), order.end(), 0u);
-  const auto key = [&](uint32_t v) { return std::tie(all[v].x, all[v].y, all[v].z); };
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return key(a) < key(b) || (key(a) == key(b) && allIds[a] < allIds[b]);
-  });
-  std::vector<uint32_t> welded(vertices);  // concatenated vertex -> welded vertex
-  std::vector<glm::vec3> positions;
-  std::vector<uint64_t> ids;  // the smallest file vertex at each point
-  for (size_t i = 0; i < order.size(); ++i) {
-    if (i == 0 || key(order[i]) != key(order[i - 1])) {
-      ids.push_back(allIds[order[i]]);
-      positions.push_back(all[order[i]]);
-    }
-    welded[order[i]] = static_cast<uint32_t>(ids.size() - 1);
-  }
+  std::vector<uint32_t> firstOf;
+  std::vector<uint32_t> welded = weldPoints(all, firstOf);  // concatenated vertex -> welded vertex
+  std::vector<glm::vec3> positions(firstOf.size());
+  std::vector<uint64_t> ids(firstOf.size());  // the file vertex first met at each point
+  for (size_t v = 0; v < firstOf.size(); ++v) positions[v] = all[firstOf[v]], ids[v] = allIds[firstOf[v]];
   std::vector<uint32_t> source;
   source.reserve(indices);
   uint32_t base = 0;
@@ -109,6 +92,11 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     for (const uint32_t v : child->indices) source.push_back(welded[base + v]);
     base += static_cast<uint32_t>(child->positions.size());
   }
+  // The simplifier's working set is the largest the tiler holds: the weld's goes first.
+  std::vector<glm::vec3>().swap(all);
+  std::vector<uint64_t>().swap(allIds);
+  std::vector<uint32_t>().swap(firstOf);
+  std::vector<uint32_t>().swap(welded);
   // Triangles with two corners on one point cover nothing; the files that have them (stepped
   // terrain's zero-height walls between duplicated vertices) would have them hold the simplifier
   // back, and they are left out of every level above the leaves.

@@ -60,6 +60,26 @@ std::array<double, 12> contentBox(const TileMesh& mesh, double step) {
   return boxOf((lo + hi) * 0.5, glm::dmat3(1.0), (hi - lo) * 0.5, step);
 }
 
+// What the cap allows: a worker holds one inner tile's work, its children's contents welded and
+// simplified (kTileChildren times tileFaces faces in), and the contents waiting for their parents;
+// kWorkerBytesPerTileFace is that over tileFaces, measured on the 14M dragon (one worker at 32,768
+// faces: 48 MB besides the process and its reader). The readers hold an eighth of the cap, the
+// process itself kProcessBytes. Workers come first; tiles are made smaller only when one worker
+// does not fit.
+constexpr uint64_t kProcessBytes = 16 << 20, kWorkerBytesPerTileFace = 1536;
+struct WorkPlan {
+  uint32_t tileFaces;
+  unsigned workers;
+};
+WorkPlan planWork(uint64_t cap, unsigned threads, uint32_t tileFaces) {
+  const uint64_t spare = cap * 7 / 8 > kProcessBytes ? cap * 7 / 8 - kProcessBytes : 0;
+  const uint64_t perWorker = uint64_t{tileFaces} * kWorkerBytesPerTileFace;
+  const unsigned workers = static_cast<unsigned>(std::clamp<uint64_t>(spare / perWorker, 1, threads));
+  if (spare >= perWorker) return {tileFaces, workers};
+  const uint64_t fits = spare / kWorkerBytesPerTileFace / 1024 * 1024;
+  return {static_cast<uint32_t>(std::clamp<uint64_t>(fits, 1024, tileFaces)), 1};
+}
+
 // Subtrees whose tiles one worker makes: split from the root, largest first, until there are a few
 // per worker (or only leaves are left to split).
 std::vector<uint32_t> planTasks(const TileTree& tree, unsigned workers) {
@@ -115,7 +135,7 @@ class Tiler {
     std::mutex errorMutex;
     auto work = [&] {
       try {
-        ReaderOptions readerOptions{std::max<uint64_t>(cap_ / (4 * workers), 1), options_.tmp};
+        ReaderOptions readerOptions{std::max<uint64_t>(cap_ / (8 * workers), 1), options_.tmp};
         ClusterFileReader reader(file_, readerOptions);
         for (size_t i; !failed && (i = next++) < tasks.size();) taskRoots[i] = subtree(reader, tasks[i]);
         readerPeak_ += reader.peakHeldBytes();
@@ -327,17 +347,22 @@ TilesetReport writeTileset(const std::filesystem::path& file, const std::filesys
   // The tree and where its tiles meet, through a reader that is gone before the workers open theirs.
   std::optional<ClusterFileReader> reader(std::in_place, file,
                                           ReaderOptions{options.memoryBytes, options.tmp});
-  TileTree tree = chooseTiles(*reader, options.tileFaces);
-  TileBorders borders(*reader, tree);
   const uint64_t cap = reader->memoryBytes();
+  const WorkPlan plan = planWork(cap, threads, options.tileFaces);
+  TileTree tree = chooseTiles(*reader, plan.tileFaces);
+  TileBorders borders(*reader, tree);
   const FileHeader header = reader->header();
   reader.reset();
   const std::filesystem::path target =
       std::filesystem::absolute(dir.has_filename() ? dir : dir.parent_path());
   TemporaryDirectory out(target);
-  Tiler tiler(file, out.path(), options, std::move(tree), std::move(borders), cap, header);
-  tiler.run(threads);
+  TileOptions planned = options;
+  planned.tileFaces = plan.tileFaces;
+  Tiler tiler(file, out.path(), planned, std::move(tree), std::move(borders), cap, header);
+  tiler.run(plan.workers);
   TilesetReport report = tiler.report();
+  report.tileFaces = plan.tileFaces;
+  report.workers = plan.workers;
   report.jsonFiles = writeTilesetJson(tiler.tree(), tiler.records(), out.path(), options.tilesPerJson);
   report.bytes = directoryBytes(out.path());
   out.commit(target);

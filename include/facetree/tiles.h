@@ -20,7 +20,8 @@ namespace facetree {
 
 struct TileOptions {
   // A leaf tile holds at most this many faces: the highest nodes that small, at full resolution.
-  // An inner tile's content is its children's simplified to about this many.
+  // An inner tile's content is its children's simplified to about this many. Under a cap too small
+  // for one worker at this size, fewer (TilesetReport::tileFaces).
   uint32_t tileFaces = 65536;
   uint64_t memoryBytes = 0;    // the cap: 0 as ReaderOptions (the cap the file was built under)
   std::filesystem::path tmp;   // the readers' temporary files
@@ -42,6 +43,8 @@ struct TilesetReport {
   uint64_t jsonFiles = 0;                     // tileset.json and the external tilesets
   double rootGeometricError = 0;              // the root tile's, in the model's units
   uint64_t peakHeldBytes = 0;                 // the most the contents and readers held at once
+  uint32_t tileFaces = 0;                     // TileOptions::tileFaces, or fewer where the cap needs it
+  unsigned workers = 0;                       // threads that made tiles: as many as the cap holds
   double seconds = 0;
 };
 

@@ -401,6 +401,8 @@ file, the place and the reason for a bad file.)");
         out["json_files"] = r.jsonFiles;
         out["root_geometric_error"] = r.rootGeometricError;
         out["peak_held_bytes"] = r.peakHeldBytes;
+        out["tile_faces"] = r.tileFaces;
+        out["workers"] = r.workers;
         out["seconds"] = r.seconds;
         return out;
       },

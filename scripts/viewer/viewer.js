@@ -5,7 +5,8 @@
 // (the model's bounding sphere S pixels across), ?azimuth=A&elevation=E (degrees) of the camera seen from
 // the centre, ?distance=D (in bounding-sphere radii from the centre, instead of span), ?target=X,Y,Z
 // (the centre looked at, in the tileset's coordinates; default the bounding sphere's), ?range=R
-// (the distance from it in the model's units). With ?mask nothing is drawn until asked.
+// (the distance from it in the model's units), ?tileColours (each tile unlit in a colour of its
+// own). With ?mask nothing is drawn until asked.
 // window.facetreeViewer is what the browser tests read: settle(), stats(), maskBase64().
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -41,8 +42,14 @@ tiles.setResolutionFromRenderer(camera, renderer);
 const errors = [];
 const black = new THREE.MeshBasicMaterial({ color: 0x000000, side: THREE.DoubleSide });
 tiles.addEventListener('load-error', (e) => errors.push(String(e.error?.message ?? e.error ?? e.url)));
+let loadedModels = 0;
 tiles.addEventListener('load-model', ({ scene: model }) => {
-  model.traverse((o) => { if (o.isMesh && mask) o.material = black; });
+  const colour = new THREE.Color().setHSL((loadedModels++ * 0.618) % 1, 0.6, 0.5);
+  model.traverse((o) => {
+    if (!o.isMesh) return;
+    if (mask) o.material = black;
+    else if (params.has('tileColours')) o.material = new THREE.MeshBasicMaterial({ color: colour, side: THREE.DoubleSide });
+  });
 });
 
 const controls = new OrbitControls(camera, renderer.domElement);
