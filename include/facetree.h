@@ -11,3 +11,4 @@
 #include "facetree/query.h"
 #include "facetree/storage.h"
 #include "facetree/stream.h"
+#include "facetree/tiles.h"
