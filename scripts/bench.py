@@ -1052,7 +1052,7 @@ def bench_outofcore(args, out):
 
 
 SECTIONS = ["read", "build", "profile", "balance", "scaling", "octree", "branching", "flat", "rounds", "outofcore",
-            "python", "queries", "speed", "format"]
+            "python", "queries", "speed", "format", "tiles"]
 
 
 PYTHON_BUILD = r"""
@@ -1323,6 +1323,65 @@ def node_bytes(args, binary, fch):
     return run_json([binary if binary else args.facetree, "info", fch, "--json"])["node_bytes_per_node"]
 
 
+# Tiles (facetree tiles): on dragon_vrip and the subdivided dragons, the build and the tiling
+# alternate (medians); targets: tiling without Draco at most TILES_TIME_BOUND of the build that wrote
+# the file, the whole tileset at most TILES_SIZE_BOUND of its leaves' bytes with and without Draco,
+# the peak RSS within the cap where one is given.
+TILES_TIME_BOUND, TILES_SIZE_BOUND = 0.5, 1.6
+TILES_CASES_FULL = [("dragon_vrip", 0, None, None, 3), ("14M-face dragon", 2, "256M", "64M", 1),
+                    ("56M-face dragon", 3, "256M", "256M", 1)]
+TILES_CASES_QUICK = [("dragon_vrip", 0, None, None, 3)]
+
+
+def bench_tiles(args, out):
+    rows = []
+    for name, levels, build_cap, tiles_cap, repeat in TILES_CASES_QUICK if args.quick else TILES_CASES_FULL:
+        mesh = mesh_path("dragon_vrip")
+        if levels:
+            mesh = out / f"tiles_dragon{levels}.ply"
+            run([args.facetree, "gen", "subdivide", mesh_path("dragon_vrip"), "--levels", str(levels), "-o", mesh])
+        fch, tiles = out / "tiles.fch", out / "tiles_out"
+        build_options = ["--memory", build_cap] if build_cap else []
+        tiles_options = ["--memory", tiles_cap] if tiles_cap else []
+        samples = {"build": [], "tiles": [], "draco": []}
+        reports = {}
+        for _ in range(repeat):
+            _, wall, cpu, rss = run_measured([args.facetree, "build", mesh, "-o", fch, *build_options])
+            samples["build"].append({"seconds": wall, "cpu_seconds": cpu, "peak_rss_bytes": rss})
+            for kind, extra in (("tiles", []), ("draco", ["--draco"])):
+                stdout, wall, cpu, rss = run_measured([args.facetree, "tiles", fch, "-o", tiles, "--json",
+                                                       *tiles_options, *extra])
+                samples[kind].append({"seconds": wall, "cpu_seconds": cpu, "peak_rss_bytes": rss})
+                reports[kind] = json.loads(stdout)
+        if levels:
+            mesh.unlink()
+        row = {"case": name, "runs": repeat, "build_cap": build_cap, "tiles_cap": tiles_cap}
+        for kind, runs in samples.items():
+            row[kind] = {k: median(r[k] for r in runs) for k in ("seconds", "cpu_seconds", "peak_rss_bytes")}
+        for kind, report in reports.items():
+            row[kind].update({k: report[k] for k in ("tiles", "leaf_tiles", "levels", "bytes", "leaf_bytes",
+                                                     "tile_faces", "workers")})
+            row[kind]["size_ratio"] = report["bytes"] / report["leaf_bytes"]
+        row["time_ratio"] = row["tiles"]["seconds"] / row["build"]["seconds"]
+        row["draco_time_ratio"] = row["draco"]["seconds"] / row["build"]["seconds"]
+        cap = cap_bytes(tiles_cap) if tiles_cap else None
+        row["checks"] = {
+            "time_within_0.5x_build": row["time_ratio"] <= TILES_TIME_BOUND,
+            "size_within_1.6x_leaves": row["tiles"]["size_ratio"] <= TILES_SIZE_BOUND,
+            "draco_size_within_1.6x_leaves": row["draco"]["size_ratio"] <= TILES_SIZE_BOUND,
+            "peak_within_cap": cap is None or max(row["tiles"]["peak_rss_bytes"], row["draco"]["peak_rss_bytes"]) <= cap,
+        }
+        rows.append(row)
+        shutil.rmtree(tiles, ignore_errors=True)
+        fch.unlink(missing_ok=True)
+        print(f"tiles     {name:18s} build {row['build']['seconds']:7.2f} s, tiles {row['tiles']['seconds']:6.2f} s "
+              f"(x{row['time_ratio']:.2f}), Draco {row['draco']['seconds']:6.2f} s; {row['tiles']['tiles']} tiles, "
+              f"{row['tiles']['size_ratio']:.2f}x / {row['draco']['size_ratio']:.2f}x the leaves; peak "
+              f"{row['tiles']['peak_rss_bytes'] / 2**20:.0f} MiB" + "".join(
+                  f"  missed: {k}" for k, ok in row["checks"].items() if not ok), flush=True)
+    return {"time_bound": TILES_TIME_BOUND, "size_bound": TILES_SIZE_BOUND, "rows": rows}
+
+
 def bench_format(args, meshes, out):
     if not args.baseline_facetree:
         print("format    skipped: no --baseline-facetree", flush=True)
@@ -1501,6 +1560,7 @@ def main():
         "queries": lambda: bench_queries(args, meshes, out),
         "speed": lambda: bench_speed(args, out),
         "format": lambda: bench_format(args, meshes, out),
+        "tiles": lambda: bench_tiles(args, out),
     }
     for name, run in runners.items():
         if name in sections:

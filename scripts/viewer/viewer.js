@@ -1,12 +1,14 @@
 // The tileset at /tileset/tileset.json in three.js with 3DTilesRendererJS, as a viewer streams it:
-// the renderer picks the tiles whose geometric error exceeds errorTarget pixels on screen. Options in
-// the address: ?errorTarget=E (pixels; 0 loads the leaves everywhere: the full resolution), ?mask
-// (unlit black surface on white, no antialiasing: silhouettes and cracks pixel by pixel), ?span=S
-// (the model's bounding sphere S pixels across), ?azimuth=A&elevation=E (degrees) of the camera seen from
-// the centre, ?distance=D (in bounding-sphere radii from the centre, instead of span), ?target=X,Y,Z
-// (the centre looked at, in the tileset's coordinates; default the bounding sphere's), ?range=R
-// (the distance from it in the model's units), ?tileColours (each tile unlit in a colour of its
-// own). With ?mask nothing is drawn until asked.
+// the renderer picks the tiles whose geometric error exceeds errorTarget pixels on screen.
+// Options in the address:
+//   ?errorTarget=E   pixels (0 loads the leaves everywhere: the full resolution)
+//   ?mask            unlit black surface on white, no antialiasing, drawn only when asked
+//   ?tileColours     each tile unlit in a colour of its own
+//   ?span=S          the model's bounding sphere S pixels across
+//   ?distance=D      the camera D bounding-sphere radii from the centre (instead of span)
+//   ?target=X,Y,Z    the centre looked at, in the tileset's coordinates (default the sphere's)
+//   ?range=R         the camera R model units from the centre
+//   ?azimuth=A&elevation=E   degrees, the camera seen from the centre
 // window.facetreeViewer is what the browser tests read: settle(), stats(), maskBase64().
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
