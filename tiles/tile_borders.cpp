@@ -1,6 +1,7 @@
 // The points where leaf tiles meet (tile_borders.h).
 #include "tile_borders.h"
 
+#include "facetree/error.h"
 #include "point_topology.h"
 
 #include <algorithm>
@@ -14,12 +15,14 @@ TileBorders::Key keyOf(const glm::vec3& p) {
 
 }  // namespace
 
-TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree) {
+TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
+                         const std::function<bool()>& cancelled) {
   std::vector<std::pair<Key, uint32_t>> open;  // (a point on an open edge, leaf)
   uint32_t leaf = 0;
   for (const uint32_t t : tree.postorder()) {
     const Tile& tile = tree.tiles[t];
     if (tile.childCount) continue;
+    if (cancelled && cancelled()) throw cancelledError();
     const FaceRangeMesh mesh = reader.faces(tile.first, tile.count, FaceFields::Geometry);
     // The leaf's vertices welded by position, its triangles on them (those with two corners on one
     // point left out), and the points of its open half-edges.

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -21,7 +22,8 @@ class TileBorders {
   // One pass over the leaves' triangles: each leaf's open edges (used by one of its triangles,
   // triangles with two corners on one point left out), whose points are where it can meet another
   // leaf; a point on open edges of two or more leaves is shared.
-  TileBorders(ClusterFileReader& reader, const TileTree& tree);
+  // `cancelled` is polled a leaf at a time (cancelledError()).
+  TileBorders(ClusterFileReader& reader, const TileTree& tree, const std::function<bool()>& cancelled = {});
   // Whether point `p` is shared with a leaf outside leaves [firstLeaf, firstLeaf + count).
   bool lockedIn(const glm::vec3& p, uint32_t firstLeaf, uint32_t leafCount) const;
   uint64_t bytes() const { return points_.capacity() * sizeof(Key) + leaves_.capacity() * 8; }

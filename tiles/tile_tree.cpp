@@ -2,6 +2,8 @@
 // than a tile and of their children, then the tree is laid out from the root.
 #include "tile_tree.h"
 
+#include "facetree/error.h"
+
 #include <algorithm>
 #include <stdexcept>
 #include <unordered_map>
@@ -143,7 +145,7 @@ std::vector<uint32_t> TileTree::postorder() const {
   return order;
 }
 
-TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces) {
+TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces, const std::function<bool()>& cancelled) {
   if (tileFaces == 0) throw std::invalid_argument("tiles of 0 faces");
   const uint64_t faces = reader.header().triangleCount, nodeCount = reader.size();
   if (faces == 0) throw std::invalid_argument(reader.name() + ": no triangles to tile");
@@ -155,7 +157,9 @@ TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces) {
   // The nodes a tile can be: the large ones, which are opened, and their children.
   std::unordered_map<uint64_t, FchNode> records;
   std::unordered_set<uint64_t> wanted{0};
+  bool stopped = false;
   reader.forEachNode([&](uint64_t index, const FchNode& node, uint32_t) {
+    if (index % 65536 == 0 && cancelled && cancelled()) return !(stopped = true);
     if (!wanted.erase(index)) return true;
     records.emplace(index, node);
     if (node.count > tileFaces)
@@ -163,6 +167,7 @@ TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces) {
         if (!(node.child[c] & kFaceChild) && node.child[c] < nodeCount) wanted.insert(node.child[c]);
     return !wanted.empty();
   });
+  if (stopped) throw cancelledError();
   return Builder(std::move(records), nodeCount, tileFaces).build(0);
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "facetree/io.h"
@@ -34,7 +35,9 @@ struct TileTree {
 // One pass over the reader's nodes, keeping the records of nodes larger than tileFaces and of their
 // children. A file without nodes is one leaf tile; a gap that truncation left under a large node is
 // cut into leaf tiles of at most tileFaces faces in face order. Throws std::invalid_argument for a
-// file without triangles or tileFaces 0.
-TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces);
+// file without triangles or tileFaces 0, cancelledError() when `cancelled` (polled through the pass)
+// says so.
+TileTree chooseTiles(ClusterFileReader& reader, uint32_t tileFaces,
+                     const std::function<bool()>& cancelled = {});
 
 }  // namespace facetree::tiles

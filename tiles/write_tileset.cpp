@@ -349,8 +349,8 @@ TilesetReport writeTileset(const std::filesystem::path& file, const std::filesys
                                           ReaderOptions{options.memoryBytes, options.tmp});
   const uint64_t cap = reader->memoryBytes();
   const WorkPlan plan = planWork(cap, threads, options.tileFaces);
-  TileTree tree = chooseTiles(*reader, plan.tileFaces);
-  TileBorders borders(*reader, tree);
+  TileTree tree = chooseTiles(*reader, plan.tileFaces, options.cancelled);
+  TileBorders borders(*reader, tree, options.cancelled);
   const FileHeader header = reader->header();
   reader.reset();
   const std::filesystem::path target =

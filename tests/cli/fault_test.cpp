@@ -416,6 +416,17 @@ TEST_P(Signals, OutOfCoreBuildStopsWithNoOutputOrTemporaryFiles) {
   expectNothingLeft();
 }
 
+// tiles: the signal stops the workers between tiles; no tileset, and no temporary folder beside it.
+TEST_P(Signals, TilesStopWithNoOutput) {
+  const std::string file = (inputs_ / "grid3m.fch").string();
+  if (!fs::exists(file)) {
+    ASSERT_EQ(runChild({"build", bigMesh(), "-o", file}).exitCode, 0);
+  }
+  Child child({"tiles", file, "-o", out("big_tiles"), "--tile-faces", "4096", "--threads", "1"});
+  interruptAfter(child, 0.5);
+  expectNothingLeft();
+}
+
 // gen does not poll: the signal thread gives it the grace time, then removes its temporary
 // file and exits. If it completes within the grace time its output is complete and it exits 0
 // (the contract: exit 0 if and only if the outputs are complete).
