@@ -87,7 +87,7 @@ class JsonTree {
       externals.push_back(t);
       return;
     }
-    json += ",\"content\":{\"uri\":\"" + prefix + std::to_string(t) + ".glb\"}";
+    if (r.content) json += ",\"content\":{\"uri\":\"" + prefix + std::to_string(t) + ".glb\"}";
     const Tile& node = tree_.tiles[t];
     if (node.childCount) {
       json += ",\"children\":[";

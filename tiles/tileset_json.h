@@ -13,10 +13,12 @@
 namespace facetree::tiles {
 
 // What the tree's JSON says of a tile: its bounding volume (3D Tiles' `box`: centre, then three
-// half-axes) and geometric error; its content is tiles/ID.glb, ID its position in the tree.
+// half-axes) and geometric error; its content, when it has one, is tiles/ID.glb, ID its position in
+// the tree.
 struct TileRecord {
   std::array<double, 12> box{};
   double error = 0;
+  bool content = true;  // false: nothing to show (its children's triangles all cover no area)
 };
 
 // Writes `dir`/tileset.json and `dir`/tiles/ID.json for the subtrees moved out; no file holds more

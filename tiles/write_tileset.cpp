@@ -245,6 +245,10 @@ class Tiler {
 
   void emit(uint32_t t, const TileMesh& mesh) {
     records_[t].error = mesh.error;
+    // A tile whose children's triangles all cover no area has none left: a tile without content,
+    // which 3D Tiles allows (a glTF accessor may not be empty).
+    records_[t].content = !mesh.indices.empty();
+    if (!records_[t].content) return;
     const std::string bytes = glbBytes(mesh, origin_, glb_);
     OutputFile file(out_ / "tiles" / (std::to_string(t) + ".glb"));
     file.write(bytes);
