@@ -272,10 +272,11 @@ std::vector<CommandHelp> makeCommands() {
        "3D Tiles 1.1 with levels of detail for viewers (CesiumJS, 3DTilesRendererJS)",
        "Writes DIR/tileset.json and one glb per tile under DIR/tiles/. Leaf tiles are the highest nodes\n"
        "of at most N faces at full resolution; an inner tile is a node whose content is its children's\n"
-       "simplified to about N faces with its border locked, so levels meet without cracks and the mesh's\n"
-       "own boundaries keep their outline; its geometric error is the simplifier's, in\n"
-       "the model's units, above every child's. Bottom-up in one pass under --memory; the same bytes for\n"
-       "every thread count. An existing DIR is replaced only if it holds a tileset.json.",
+       "simplified to about N faces with the points it shares with other tiles and the file's own cracks\n"
+       "locked, so levels meet without cracks; its geometric error, in the model's units, is above every\n"
+       "child's and counts how far the mesh's own boundaries moved. Bottom-up in one pass under\n"
+       "--memory, which can make tiles smaller; the same bytes for every thread count. An existing DIR is\n"
+       "replaced only if it holds a tileset.json.",
        withReaderOptions(
            {{"output", "DIR", "-o", "the tileset's directory"},
             {"tile-faces", "N", "",

@@ -5,6 +5,10 @@
 #include "point_topology.h"
 
 #include <algorithm>
+#include <unordered_map>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_precision.hpp>
 
 namespace facetree::tiles {
 namespace {
@@ -13,11 +17,68 @@ TileBorders::Key keyOf(const glm::vec3& p) {
   return {p.x, p.y, p.z};
 }
 
+// A leaf number that stands for every leaf: a point shared with it is locked in every tile.
+constexpr uint32_t kEveryLeaf = ~0u;
+
+// Where the surface has a crack of its own: a boundary point within a thousandth of an open edge's
+// length of that edge, not one of its ends (a T-junction, or two pieces' borders that nearly meet,
+// as terrain assembled from tiles has them), and that edge's two ends. Each side of such a crack
+// would simplify its border on its own and open the crack by up to its error: they are locked at
+// every level. The points are binned in a uniform grid of cells about an edge long; an edge longer
+// than 64 cells is not searched.
+std::vector<TileBorders::Key> cracks(const std::vector<std::pair<TileBorders::Key, uint32_t>>& open,
+                                     const std::vector<std::array<TileBorders::Key, 2>>& edges) {
+  using Key = TileBorders::Key;
+  std::vector<Key> found;
+  if (edges.empty()) return found;
+  auto point = [](const Key& k) { return glm::dvec3(k[0], k[1], k[2]); };
+  std::vector<double> lengths;
+  lengths.reserve(edges.size());
+  for (const auto& [a, b] : edges) lengths.push_back(glm::length(point(b) - point(a)));
+  std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
+  const double cell = std::max(lengths[lengths.size() / 2], 1e-30);
+  auto cellOf = [&](const glm::dvec3& p) { return glm::i64vec3(glm::floor(p / cell)); };
+  auto hash = [](const glm::i64vec3& c) {
+    return std::hash<int64_t>()((c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791));
+  };
+  std::unordered_multimap<size_t, Key> grid;
+  for (const auto& [k, leaf] : open) grid.emplace(hash(cellOf(point(k))), k);
+  for (const auto& [ka, kb] : edges) {
+    const glm::dvec3 a = point(ka), b = point(kb), ab = b - a;
+    const double length2 = glm::dot(ab, ab);
+    if (length2 == 0) continue;
+    const glm::i64vec3 from = cellOf(glm::min(a, b)), to = cellOf(glm::max(a, b));
+    if ((to.x - from.x + 1) * (to.y - from.y + 1) * (to.z - from.z + 1) > 64) continue;
+    bool crack = false;
+    for (int64_t x = from.x; x <= to.x; ++x)
+      for (int64_t y = from.y; y <= to.y; ++y)
+        for (int64_t z = from.z; z <= to.z; ++z) {
+          const glm::i64vec3 c(x, y, z);
+          const auto [first, last] = grid.equal_range(hash(c));
+          for (auto it = first; it != last; ++it) {
+            const Key& k = it->second;
+            if (k == ka || k == kb || cellOf(point(k)) != c) continue;
+            const glm::dvec3 q = point(k) - a;
+            const double s = std::clamp(glm::dot(q, ab) / length2, 0.0, 1.0);
+            const glm::dvec3 off = q - s * ab;
+            if (glm::dot(off, off) > 1e-6 * length2) continue;
+            found.push_back(k);
+            crack = true;
+          }
+        }
+    if (crack) found.push_back(ka), found.push_back(kb);
+  }
+  std::sort(found.begin(), found.end());
+  found.erase(std::unique(found.begin(), found.end()), found.end());
+  return found;
+}
+
 }  // namespace
 
 TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
                          const std::function<bool()>& cancelled) {
   std::vector<std::pair<Key, uint32_t>> open;  // (a point on an open edge, leaf)
+  std::vector<std::array<Key, 2>> edges;       // every leaf's open edges
   uint32_t leaf = 0;
   for (const uint32_t t : tree.postorder()) {
     const Tile& tile = tree.tiles[t];
@@ -35,18 +96,23 @@ TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
       if (c[0] != c[1] && c[1] != c[2] && c[0] != c[2]) triangles.insert(triangles.end(), c, c + 3);
     }
     std::vector<uint8_t> onBorder(firstOf.size(), 0);
-    for (const auto& [a, b] : openHalfEdges(triangles, firstOf.size())) onBorder[a] = onBorder[b] = 1;
+    for (const auto& [a, b] : openHalfEdges(triangles, firstOf.size())) {
+      onBorder[a] = onBorder[b] = 1;
+      edges.push_back({keyOf(mesh.vertices[firstOf[a]]), keyOf(mesh.vertices[firstOf[b]])});
+    }
     for (uint32_t p = 0; p < firstOf.size(); ++p)
       if (onBorder[p]) open.emplace_back(keyOf(mesh.vertices[firstOf[p]]), leaf);
     ++leaf;
   }
+  for (const Key& p : cracks(open, edges)) open.emplace_back(p, kEveryLeaf);
   std::sort(open.begin(), open.end());
   for (size_t i = 0; i < open.size();) {
     size_t j = i + 1;
     while (j < open.size() && open[j].first == open[i].first) ++j;
-    if (open[j - 1].second != open[i].second) {
+    const bool always = open[j - 1].second == kEveryLeaf;
+    if (always || open[j - 1].second != open[i].second) {
       points_.push_back(open[i].first);
-      leaves_.emplace_back(open[i].second, open[j - 1].second);
+      leaves_.emplace_back(always ? 0u : open[i].second, open[j - 1].second);
     }
     i = j;
   }

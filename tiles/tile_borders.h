@@ -1,8 +1,9 @@
-// Where tiles meet: the points that faces of two leaf tiles share. An inner tile locks the shared
-// points it shares with a leaf outside it, and only those, so that it meets its neighbours along
-// the full-resolution border at every level, while the mesh's own boundaries (holes, coastlines,
-// the edges of loose parts) simplify like the rest of its surface. Points, not vertex ids: files
-// that store a vertex twice (stepped terrain, parts exported one by one) meet where positions do.
+// Where tiles meet: the points that faces of two leaf tiles share. An inner tile locks the points
+// it shares with a leaf outside it, and the file's own cracks (pieces whose borders meet without
+// sharing points) everywhere, so that it meets its neighbours along the full-resolution border at
+// every level, while the mesh's own boundaries (holes, coastlines, the edges of loose parts)
+// simplify like the rest of its surface. Points, not vertex ids: files that store a vertex twice
+// (stepped terrain, parts exported one by one) meet where positions do.
 #pragma once
 
 #include <array>
@@ -21,7 +22,7 @@ class TileBorders {
  public:
   // One pass over the leaves' triangles: each leaf's open edges (used by one of its triangles,
   // triangles with two corners on one point left out), whose points are where it can meet another
-  // leaf; a point on open edges of two or more leaves is shared.
+  // leaf; a point on open edges of two or more leaves is shared, and one on a crack with every leaf.
   // `cancelled` is polled a leaf at a time (cancelledError()).
   TileBorders(ClusterFileReader& reader, const TileTree& tree, const std::function<bool()>& cancelled = {});
   // Whether point `p` is shared with a leaf outside leaves [firstLeaf, firstLeaf + count).

@@ -53,8 +53,9 @@ struct TilesetReport {
 // options.memoryBytes. Leaf tiles are the highest nodes of at most tileFaces faces (neighbouring
 // small ones grouped), with geometric error 0; an inner tile is a node whose children tiles are
 // found by opening its largest descendants up to 8, its content its children's welded and
-// simplified (meshoptimizer) with its border locked, so tiles of any two levels meet without
-// cracks and the mesh's own boundaries keep their outline; its geometric error is the
+// simplified (meshoptimizer) with the points it shares with other tiles and the file's own cracks
+// locked, so tiles of any two levels meet without cracks, the mesh's own boundaries simplifying with
+// their movement counted in the error; its geometric error is the
 // simplifier's measured error in the model's units added to its children's largest, so strictly greater. The
 // directory appears complete or not at all (a temporary one beside it is renamed); an existing `dir` is
 // replaced only if it holds a tileset.json.

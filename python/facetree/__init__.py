@@ -102,8 +102,8 @@ def tiles(path: Path, dir: Path, *, tile_faces: int = 65536, memory: Union[int, 
     tile under dir/tiles/, as `facetree tiles` does, with the same bytes.
 
     Leaf tiles are the highest nodes of at most tile_faces faces, at full resolution; an inner tile's
-    content is its children's simplified with its border locked (so levels meet without cracks),
-    its geometric error the simplifier's in the model's units, above its children's. One pass
+    content is its children's simplified with the points it shares with other tiles locked (so
+    levels meet without cracks), its geometric error in the model's units, above its children's. One pass
     bottom-up under memory (bytes or "64M"; default the cap the file was built under); the same bytes
     for every thread count. An existing dir is replaced only if it holds a tileset.json. Returns the
     report (tiles, leaf_tiles, levels, triangles, bytes, leaf_bytes, seconds, ...); Ctrl-C stops it

@@ -12,8 +12,8 @@
 //   - every glb passes gltf-validator, and check_tileset.py passes (geometric errors, boxes, URIs).
 // The full-resolution render is the same tileset with error target 0 (every leaf). Prints one JSON
 // object of what it measured; exits 1 naming every failure.
-// Meshes: dragon_vrip and a `facetree gen assembly` mesh; fg_hawaii when named last.
-//   NODE_PATH=NODE_MODULES node browser_test.cjs FACETREE SHARED_DATA OUT_DIR [fg_hawaii]
+// Meshes: dragon_vrip, fg_hawaii and a `facetree gen assembly` mesh.
+//   NODE_PATH=NODE_MODULES node browser_test.cjs FACETREE SHARED_DATA OUT_DIR
 const { chromium } = require('playwright-core');
 const validator = require('gltf-validator');
 const { spawn, execFileSync } = require('child_process');
@@ -195,10 +195,7 @@ async function testMesh(browser, name, mesh, triangles) {
   const results = {};
   try {
     results.dragon_vrip = await testMesh(browser, 'dragon_vrip', path.join(data, 'dragon_vrip.ply.zst'), 871414);
-    // fg_hawaii is left out until its views are free of single background pixels where levels mix
-    // (2 to 11 a view; docs/benchmarks.md): `node browser_test.cjs ... fg_hawaii` runs it.
-    if (process.argv.includes('fg_hawaii'))
-      results.fg_hawaii = await testMesh(browser, 'fg_hawaii', path.join(data, 'fg_hawaii.ply.zst'), 3192083);
+    results.fg_hawaii = await testMesh(browser, 'fg_hawaii', path.join(data, 'fg_hawaii.ply.zst'), 3192083);
     results.assembly = await testMesh(browser, 'assembly', assembly, 295704);
   } catch (e) {
     failures.push(`unexpected: ${e.stack}`);

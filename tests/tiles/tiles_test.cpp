@@ -183,6 +183,43 @@ TEST(TileContent, EveryLevelKeepsTheEdgesItSharesAndErrorsGrowStrictly) {
   }
 }
 
+// Two pieces that meet without sharing vertices (one's border has twice the other's points, as
+// terrain tiles meet): the points of that crack are locked at every level, even in the root, so
+// that neither side's border moves off the other's.
+TEST(TileBorders, ACracksPointsAreLockedAtEveryLevel) {
+  ScratchDirectory scratch;
+  test::TestMesh mesh;
+  const int n = 40;
+  auto add = [&](float x0, int columns, float dx, int rows, float dy) {
+    const uint32_t base = static_cast<uint32_t>(mesh.positions.size());
+    for (int j = 0; j <= rows; ++j)
+      for (int i = 0; i <= columns; ++i)
+        mesh.positions.emplace_back(x0 + i * dx, j * dy, 0.002f * (x0 + i * dx) * (j * dy));
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < columns; ++i) {
+        const uint32_t a = base + j * (columns + 1) + i, b = a + 1, c = a + columns + 2, d = a + columns + 1;
+        mesh.indices.insert(mesh.indices.end(), {a, b, c, a, c, d});
+      }
+  };
+  add(-float(n), n, 1.0f, n, 1.0f);  // x in [-n, 0], a point every 1 along x = 0
+  add(0.0f, n, 1.0f, 2 * n, 0.5f);   // x in [0, n], a point every 0.5 along x = 0
+  const auto fch = writeFile(mesh, scratch.path / "cracked.fch");
+  ClusterFileReader reader(fch);
+  const TileTree tree = chooseTiles(reader, 512);
+  const TileBorders borders(reader, tree);
+  const Tile& root = tree.tiles[0];
+  ASSERT_GT(root.leafCount, 4u);
+  int seam = 0;
+  for (const glm::vec3& p : mesh.positions)
+    if (p.x == 0.0f && p.y > 0.0f && p.y < float(n)) {
+      EXPECT_TRUE(borders.lockedIn(p, root.firstLeaf, root.leafCount)) << p.y;
+      ++seam;
+    }
+  EXPECT_EQ(seam, (n - 1) + (2 * n - 1));  // both pieces' points inside the seam
+  // A point of the mesh's own boundary, far from the crack, is not locked in the root.
+  EXPECT_FALSE(borders.lockedIn(glm::vec3(-float(n), 20.0f, 0.0f), root.firstLeaf, root.leafCount));
+}
+
 // Coincident vertices of different parts (touching boxes each storing the faces they share) do not
 // hold the simplifier back: two grids on top of each other simplify as far as one.
 TEST(TileContent, CoincidentPartsSimplifyByTheirOwnTopology) {
