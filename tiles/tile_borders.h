@@ -28,7 +28,6 @@ class TileBorders {
   // Whether point `p` is shared with a leaf outside leaves [firstLeaf, firstLeaf + count).
   bool lockedIn(const glm::vec3& p, uint32_t firstLeaf, uint32_t leafCount) const;
   uint64_t bytes() const { return points_.capacity() * sizeof(Key) + leaves_.capacity() * 8; }
-  size_t sharedPoints() const { return points_.size(); }
 
   using Key = std::array<float, 3>;
 

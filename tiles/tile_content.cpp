@@ -7,8 +7,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
-#include <tuple>
 
 #include <glm/geometric.hpp>
 

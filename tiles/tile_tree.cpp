@@ -129,14 +129,15 @@ class Builder {
 
 }  // namespace
 
-std::vector<uint32_t> TileTree::postorder() const {
-  std::vector<uint32_t> order, stack{0};
-  std::vector<uint32_t> next(tiles.size(), 0);  // children already pushed
+std::vector<uint32_t> TileTree::postorder(uint32_t root) const {
+  std::vector<uint32_t> order;
   if (tiles.empty()) return order;
+  std::vector<std::pair<uint32_t, uint32_t>> stack{{root, 0}};  // (tile, children already pushed)
   while (!stack.empty()) {
-    const uint32_t t = stack.back();
-    if (next[t] < tiles[t].childCount) {
-      stack.push_back(children[tiles[t].firstChild + next[t]++]);
+    const auto [t, pushed] = stack.back();
+    if (pushed < tiles[t].childCount) {
+      ++stack.back().second;
+      stack.emplace_back(children[tiles[t].firstChild + pushed], 0);
     } else {
       order.push_back(t);
       stack.pop_back();

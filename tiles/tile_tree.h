@@ -27,9 +27,10 @@ struct Tile {
 };
 
 struct TileTree {
-  std::vector<Tile> tiles;                  // in preorder: tiles[0] the root, a tile before its children
-  std::vector<uint32_t> children;           // tile indices, each tile's in face order
-  std::vector<uint32_t> postorder() const;  // every child before its parent, in face order
+  std::vector<Tile> tiles;         // in preorder: tiles[0] the root, a tile before its children
+  std::vector<uint32_t> children;  // tile indices, each tile's in face order
+  // The subtree at `root`, every child before its parent, in face order.
+  std::vector<uint32_t> postorder(uint32_t root = 0) const;
 };
 
 // One pass over the reader's nodes, keeping the records of nodes larger than tileFaces and of their

@@ -126,7 +126,8 @@ class Tiler {
   void run(unsigned threads) {
     const std::vector<uint32_t> tasks = planTasks(tree_, threads);
     std::vector<uint8_t> inTask(tree_.tiles.size(), 0);
-    for (const uint32_t t : tasks) markSubtree(t, inTask);
+    for (const uint32_t task : tasks)
+      for (const uint32_t t : tree_.postorder(task)) inTask[t] = 1;
     const unsigned workers = static_cast<unsigned>(std::min<size_t>(threads, tasks.size()));
     std::vector<std::optional<TileMesh>> taskRoots(tasks.size());
     std::atomic<size_t> next{0};
@@ -177,28 +178,10 @@ class Tiler {
   const TileTree& tree() const { return tree_; }
 
  private:
-  void markSubtree(uint32_t t, std::vector<uint8_t>& inTask) const {
-    inTask[t] = 1;
-    for (uint32_t k = 0; k < tree_.tiles[t].childCount; ++k)
-      markSubtree(tree_.children[tree_.tiles[t].firstChild + k], inTask);
-  }
-
   // The tiles of the subtree at `root`, children first; returns the root's content.
   TileMesh subtree(ClusterFileReader& reader, uint32_t root) {
-    std::vector<uint32_t> order;  // postorder of the subtree
-    std::vector<std::pair<uint32_t, uint32_t>> stack{{root, 0}};
-    while (!stack.empty()) {
-      auto& [t, k] = stack.back();
-      if (k < tree_.tiles[t].childCount) {
-        const uint32_t child = tree_.children[tree_.tiles[t].firstChild + k++];
-        stack.emplace_back(child, 0);
-      } else {
-        order.push_back(t);
-        stack.pop_back();
-      }
-    }
     std::unordered_map<uint32_t, TileMesh> waiting;  // contents whose parent is still to come
-    for (const uint32_t t : order) {
+    for (const uint32_t t : tree_.postorder(root)) {
       if (options_.cancelled && options_.cancelled()) throw cancelledError();
       const Tile& tile = tree_.tiles[t];
       TileMesh mesh;
