@@ -211,11 +211,14 @@ int runFinish(const std::vector<std::string>& argv, SignalGuard& signals) {
 
 int runStage(const std::vector<std::string>& argv, SignalGuard& signals) {
   constexpr const char* kSteps =
-      "plan, read, count, weld, grid, bin, cells, upper, geometry, boxes, nodes, layout, place, finish";
+      "plan, read, count, weld, grid, bin, cells, upper, geometry, boxes, nodes, layout, place, finish, "
+      "tiles-plan, tiles, tiles-finish";
   if (argv.empty()) throw UsageError(std::string("stage needs one of ") + kSteps);
   const std::vector<std::string> rest(argv.begin() + 1, argv.end());
   if (argv[0] == "plan") return runPlan(rest, signals);
   if (argv[0] == "finish") return runFinish(rest, signals);
+  if (argv[0] == "tiles-plan" || argv[0] == "tiles" || argv[0] == "tiles-finish")
+    return runTilesStage(argv[0], rest, signals);
   for (const char* step : {"read", "count", "weld", "grid", "bin", "cells", "upper", "geometry", "boxes",
                            "nodes", "layout", "place"})
     if (argv[0] == step) return runTask(argv[0], rest, signals);

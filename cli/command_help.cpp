@@ -146,6 +146,38 @@ void addStageCommands(std::vector<CommandHelp>& table) {
                    "Every place task must be done. Prints the report `facetree build` prints.",
                    {{"work", "DIR", "", "the work directory of `stage plan`"},
                     {"json", "", "", "print the report as one JSON object"}}});
+  // The tiles as tasks: `stage tiles-plan` takes the options of `tiles` but the threads.
+  std::vector<OptionHelp> tileOptions = {
+      {"work", "DIR", "", "the work directory the tasks share (created; the caller removes it)"},
+      {"tasks", "N", "",
+       "subtrees to make as tasks (default one per 2^21 faces, at least 4); the tiles do not depend on it"}};
+  for (const CommandHelp& c : table)
+    if (std::string_view(c.name) == "tiles")
+      for (const OptionHelp& o : c.options)
+        if (std::string_view(o.name) != "threads") tileOptions.push_back(o);
+  table.push_back(
+      {"stage tiles-plan", "FILE.fch --work DIR -o TILES [options]",
+       "plan the tiles of a cluster file as tasks over a work directory: their first task",
+       "`facetree tiles` as tasks of an engine (Dask, a Slurm job array) over a work directory that every\n"
+       "task sees: the plan chooses the tiles, finds where they meet and cuts the tree into subtrees;\n"
+       "`stage tiles --task I` makes a subtree's tiles (any order, anywhere, each under --memory);\n"
+       "`stage tiles-finish` makes the tiles above them and puts TILES in place. TILES is the bytes\n"
+       "`facetree tiles` writes with the same options. A plan of the same tiles (file, its size and time,\n"
+       "options) already in DIR stands, with the tasks it has done; another one replaces it.",
+       tileOptions});
+  rangeTaskCommand(
+      "stage tiles", "make the tiles of one subtree of a planned tileset",
+      "Reads the plan from DIR; holds the plan's --memory. A task done for this plan is skipped.");
+  table.back().options[0].text = "the work directory of `stage tiles-plan`";
+  table.back().options[2].text =
+      "N tasks run at once on this machine, this one among them (default 1; at most the plan's "
+      "range_tasks_at_once): they share the cap (the same tiles)";
+  table.push_back({"stage tiles-finish",
+                   "--work DIR [--json]",
+                   "make the tiles above the subtrees and put the planned tileset in place",
+                   "Every tiles task must be done. Prints the report `facetree tiles` prints.",
+                   {{"work", "DIR", "", "the work directory of `stage tiles-plan`"},
+                    {"json", "", "", "print the report as one JSON object"}}});
 }
 
 std::vector<CommandHelp> makeCommands() {
@@ -388,11 +420,9 @@ std::string overviewUsage() {
 std::string stageUsage() {
   std::string out =
       "usage: facetree stage "
-      "plan|read|count|weld|grid|bin|cells|upper|geometry|boxes|nodes|layout|place|finish "
-      "[OPTIONS]\n\nA build "
-      "run as "
-      "tasks over a "
-      "work directory:\n";
+      "plan|read|count|weld|grid|bin|cells|upper|geometry|boxes|nodes|layout|place|finish|"
+      "tiles-plan|tiles|tiles-finish [OPTIONS]\n\nA build, or the tiles of a cluster file, run as tasks "
+      "over a work directory:\n";
   for (const CommandHelp& c : commands())
     if (std::string_view(c.name).rfind("stage ", 0) == 0)
       out += "  " + std::string(c.name) + " " + c.synopsis + "\n      " + c.about + "\n";

@@ -23,6 +23,8 @@ int runExport(const std::vector<std::string>& args, SignalGuard& signals);
 int runCut(const std::vector<std::string>& args, SignalGuard& signals);
 // `tiles FILE.fch -o DIR`: 3D Tiles 1.1 with levels of detail.
 int runTiles(const std::vector<std::string>& args, SignalGuard& signals);
+// `stage tiles-plan | tiles | tiles-finish`: the tiles as tasks over a work directory.
+int runTilesStage(const std::string& step, const std::vector<std::string>& args, SignalGuard& signals);
 // `stage plan | cells | finish`: the out-of-core build as tasks over a work directory.
 int runStage(const std::vector<std::string>& args, SignalGuard& signals);
 

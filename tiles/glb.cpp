@@ -85,21 +85,32 @@ std::string glbBytes(const TileMesh& mesh, const glm::dvec3& centre, const GlbOp
     hi = i ? glm::max(hi, local[i]) : local[i];
   }
   const uint32_t vertices = static_cast<uint32_t>(local.size());
-  const size_t indexCount = mesh.indices.size();
+  // Draco's edgebreaker leaves out a triangle with two corners on one vertex, and cannot encode a
+  // mesh of nothing else: the accessor counts the triangles it keeps, and a tile of only such
+  // triangles goes uncompressed.
+  std::vector<uint32_t> kept;
+  if (options.draco) {
+    kept.reserve(mesh.indices.size());
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+      const uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
+      if (a != b && b != c && a != c) kept.insert(kept.end(), {a, b, c});
+    }
+  }
+  const bool draco = !kept.empty();
+  const size_t indexCount = draco ? kept.size() : mesh.indices.size();
   const bool shortIndices = vertices <= 65535;
   std::string bin;
   std::string accessors, views, primitive;
   const std::string minMax = "\"min\":[" + glbNumber(lo.x) + "," + glbNumber(lo.y) + "," + glbNumber(lo.z) +
                              "],\"max\":[" + glbNumber(hi.x) + "," + glbNumber(hi.y) + "," + glbNumber(hi.z) +
                              "]";
-  if (options.draco) {
+  if (draco) {
     // The grid in the tile's own coordinates: the model's cube moved by the tile's centre, in y up.
     const glm::dvec3 gridMax = options.gridMin + glm::dvec3(options.gridSize);
     const glm::dvec3 a = yUp(options.gridMin - centre), b = yUp(gridMax - centre);
     const glm::vec3 origin(glm::min(a, b));
     uint32_t points = 0;
-    bin = dracoBytes(local, mesh.indices, origin, static_cast<float>(options.gridSize), options.positionBits,
-                     points);
+    bin = dracoBytes(local, kept, origin, static_cast<float>(options.gridSize), options.positionBits, points);
     accessors = "{\"componentType\":" + std::to_string(kFloat) + ",\"count\":" + std::to_string(points) +
                 ",\"type\":\"VEC3\"," + minMax +
                 "},{\"componentType\":" + std::to_string(points <= 65535 ? kUnsignedShort : kUnsignedInt) +
@@ -131,7 +142,7 @@ std::string glbBytes(const TileMesh& mesh, const glm::dvec3& centre, const GlbOp
   bin.resize((bin.size() + 3) & ~size_t{3}, '\0');
   const glm::dvec3 t = yUp(centre);
   std::string json = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facetree\"},";
-  if (options.draco)
+  if (draco)
     json +=
         "\"extensionsUsed\":[\"KHR_draco_mesh_compression\"],\"extensionsRequired\":[\"KHR_draco_mesh_"
         "compression\"],";

@@ -112,7 +112,7 @@ TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
     const bool always = open[j - 1].second == kEveryLeaf;
     if (always || open[j - 1].second != open[i].second) {
       points_.push_back(open[i].first);
-      leaves_.emplace_back(always ? 0u : open[i].second, open[j - 1].second);
+      leaves_.push_back({always ? 0u : open[i].second, open[j - 1].second});
     }
     i = j;
   }
@@ -124,6 +124,21 @@ bool TileBorders::lockedIn(const glm::vec3& p, uint32_t firstLeaf, uint32_t leaf
   if (it == points_.end() || *it != key) return false;
   const auto& [lo, hi] = leaves_[static_cast<size_t>(it - points_.begin())];
   return lo < firstLeaf || hi >= firstLeaf + leafCount;
+}
+
+void TileBorders::put(ManifestWriter& out) const {
+  out.putVector(points_);
+  out.putVector(leaves_);
+}
+
+TileBorders TileBorders::take(ManifestReader& in) {
+  TileBorders borders;
+  borders.points_ = in.takeVector<Key>();
+  borders.leaves_ = in.takeVector<std::array<uint32_t, 2>>();
+  if (borders.points_.size() != borders.leaves_.size() ||
+      !std::is_sorted(borders.points_.begin(), borders.points_.end()))
+    in.fail("shared points out of order");
+  return borders;
 }
 
 }  // namespace facetree::tiles

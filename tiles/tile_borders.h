@@ -14,6 +14,7 @@
 #include <glm/vec3.hpp>
 
 #include "facetree/io.h"
+#include "facetree/storage.h"
 #include "tile_tree.h"
 
 namespace facetree::tiles {
@@ -28,12 +29,16 @@ class TileBorders {
   // Whether point `p` is shared with a leaf outside leaves [firstLeaf, firstLeaf + count).
   bool lockedIn(const glm::vec3& p, uint32_t firstLeaf, uint32_t leafCount) const;
   uint64_t bytes() const { return points_.capacity() * sizeof(Key) + leaves_.capacity() * 8; }
+  // As a tileset's plan hands them to its tasks (facetree/storage.h manifests).
+  TileBorders() = default;
+  void put(ManifestWriter& out) const;
+  static TileBorders take(ManifestReader& in);
 
   using Key = std::array<float, 3>;
 
  private:
-  std::vector<Key> points_;                            // shared points, ascending
-  std::vector<std::pair<uint32_t, uint32_t>> leaves_;  // the first and last leaf sharing each
+  std::vector<Key> points_;                      // shared points, ascending
+  std::vector<std::array<uint32_t, 2>> leaves_;  // the first and last leaf sharing each
 };
 
 }  // namespace facetree::tiles

@@ -1,11 +1,8 @@
 // The manifests of the stages run as tasks (docs/out_of_core.md): what a task hands on, as bytes
 // under a name in its work directory. Tasks in processes of their own (Slurm, Dask, the stage
 // commands) hand them on as files that appear under their names only once complete; the tasks of
-// one process hand them on in its memory (a ManifestShelf), with no file between. Internal to grid/.
-//
-// A manifest is a magic, its kind, the fields little-endian as this machine lays them out (the
-// tasks of one job run the same build), and an XXH64 of everything before it, wherever it is kept:
-// a reader checks it alike.
+// one process hand them on in its memory (a ManifestShelf), with no file between; a reader checks
+// either alike (the manifest's format: facetree/storage.h). Internal to grid/.
 #pragma once
 
 #include <cstdint>
@@ -20,95 +17,9 @@
 #include <type_traits>
 #include <vector>
 
+#include "facetree/storage.h"
+
 namespace facetree {
-
-class ManifestWriter {
- public:
-  template <class T>
-  void put(const T& value) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    append({reinterpret_cast<const char*>(&value), sizeof value});
-  }
-  void putBytes(std::string_view bytes) {
-    put(uint64_t{bytes.size()});
-    append(bytes);
-  }
-  template <class T>
-  void putVector(const std::vector<T>& values) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    putBytes({reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T)});
-  }
-  // One field, as ManifestReader::field reads it back: a record's list of fields, written once,
-  // serves both (a string goes as its bytes).
-  template <class T>
-  void field(const T& value) {
-    if constexpr (std::is_same_v<T, std::string>)
-      putBytes(value);
-    else
-      put(value);
-  }
-  // Writes `path` (as PATH.partial, synced, renamed): Error (Output) naming it when it cannot.
-  void commit(const std::filesystem::path& path, std::string_view kind) const;
-  // The manifest's bytes as commit writes them, and their size.
-  std::string sealed(std::string_view kind) const;
-  uint64_t sealedBytes(std::string_view kind) const;
-
- private:
-  // The fields in chunks: a large one (a write plan's table, megabytes) is a chunk of its own,
-  // so that the manifest never holds its bytes twice while it grows, nor when it is written.
-  void append(std::string_view bytes);
-  std::vector<std::string> chunks_;
-  uint64_t bytes_ = 0;
-};
-
-class ManifestReader {
- public:
-  // Reads and checks `path`; Error (Input) "PATH: REASON" when it is missing, cut short, of
-  // another kind or changed since it was written.
-  ManifestReader(const std::filesystem::path& path, std::string_view kind);
-  // Checks the manifest `path` kept in memory (`bytes`, as sealed), as the file's.
-  ManifestReader(const std::filesystem::path& path, std::shared_ptr<const std::string> bytes,
-                 std::string_view kind);
-  template <class T>
-  T take() {
-    static_assert(std::is_trivially_copyable_v<T>);
-    T value;
-    std::memcpy(&value, need(sizeof value), sizeof value);
-    return value;
-  }
-  std::string takeBytes() { return std::string(takeView()); }
-  // The bytes of a field in place, valid while the reader lives.
-  std::string_view takeView() {
-    const auto n = take<uint64_t>();
-    return std::string_view(need(n), n);
-  }
-  template <class T>
-  std::vector<T> takeVector() {
-    const auto n = take<uint64_t>();
-    if (n % sizeof(T) != 0) fail("a field of part of a record");
-    std::vector<T> values(n / sizeof(T));
-    const char* from = need(n);
-    if (n > 0) std::memcpy(values.data(), from, n);  // an empty vector's data() may be null
-    return values;
-  }
-  template <class T>
-  void field(T& value) {
-    if constexpr (std::is_same_v<T, std::string>)
-      value = takeBytes();
-    else
-      value = take<T>();
-  }
-  // Every field taken: the manifest ends here.
-  void finish();
-
- private:
-  void check(std::string_view kind);
-  const char* need(uint64_t bytes);
-  [[noreturn]] void fail(const std::string& why) const;
-  std::filesystem::path path_;
-  std::shared_ptr<const std::string> bytes_;
-  size_t at_ = 0, end_ = 0;  // the fields: [at_, end_), the checksum past them
-};
 
 // A run's manifests kept in this process's memory, by the paths they would have as files, up to a
 // budget of bytes: one that does not fit goes to its file (a count task's bins of a shuffled mesh

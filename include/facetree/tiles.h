@@ -46,6 +46,7 @@ struct TilesetReport {
   uint32_t tileFaces = 0;                     // TileOptions::tileFaces, or fewer where the cap needs it
   unsigned workers = 0;                       // threads that made tiles: as many as the cap holds
   double seconds = 0;
+  std::filesystem::path dir;  // where the tileset is
 };
 
 // Writes `dir`/tileset.json (3D Tiles 1.1, refine REPLACE), external tilesets and one glb per tile
@@ -61,6 +62,33 @@ struct TilesetReport {
 // replaced only if it holds a tileset.json.
 TilesetReport writeTileset(const std::filesystem::path& file, const std::filesystem::path& dir,
                            const TileOptions& options = {});
+// The tiles as tasks over a work directory that every task sees, for an engine that runs them in
+// processes of their own (`facetree stage tiles-plan`, `stage tiles --task I`, `stage
+// tiles-finish`; facetree.distributed.tiles; scripts/slurm-build --tiles). The plan chooses the tiles,
+// finds where they meet and cuts the tree into subtrees; a task makes one subtree's tiles (any
+// order, any process); the finish makes the tiles above the subtrees and places `dir`. The bytes are
+// writeTileset's with the same options: writeTileset is the same tasks on the threads of one
+// process. Each task runs under options.memoryBytes.
+struct TilesPlanReport {
+  uint32_t tasks = 0;        // runTilesTask's tasks: 0 ... tasks - 1
+  uint32_t tileFaces = 0;    // as writeTileset's report
+  uint64_t triangles = 0;    // the file's
+  bool planned = true;       // false: `work` held the same plan already, and keeps the tasks done
+  unsigned tasksAtOnce = 1;  // how many tasks one machine's cap holds at once (runTilesTask's alongside)
+};
+// `tasks` 0: one per 2^21 of the file's faces, 4 at least. options.threads is not used (a task is
+// one thread); options.cancelled is polled while planning.
+TilesPlanReport planTiles(const std::filesystem::path& file, const std::filesystem::path& dir,
+                          const std::filesystem::path& work, const TileOptions& options, uint32_t tasks = 0);
+// Makes task `task`'s tiles; false when they were made already for this plan. `alongside` tasks
+// run at once on this machine, this one among them, sharing the cap (at most tasksAtOnce). Throws
+// std::invalid_argument for a task the plan does not have.
+bool runTilesTask(const std::filesystem::path& work, uint32_t task,
+                  const std::function<bool()>& cancelled = {}, unsigned alongside = 1);
+// The tiles above the tasks' and the JSON files; places `dir`. Its report's peakHeldBytes is the
+// largest task's.
+TilesetReport finishTiles(const std::filesystem::path& work);
+
 // The temporary directory writeTileset fills beside `dir` (unique per process), for a caller that
 // must remove it without unwinding (a command line exiting on a signal).
 std::filesystem::path temporaryTilesetPath(const std::filesystem::path& dir);

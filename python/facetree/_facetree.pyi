@@ -134,6 +134,18 @@ def load(path: _Path) -> Hierarchy: ...
 def _tiles(
     path: str, dir: str, tile_faces: int, memory: int, tmp: str, threads: int, draco: bool
 ) -> dict[str, Any]: ...
+def _tiles_stage(
+    step: str,
+    path: str,
+    dir: str,
+    work: str,
+    task: int,
+    tile_faces: int,
+    memory: int,
+    tmp: str,
+    draco: bool,
+    tasks: int,
+) -> dict[str, Any]: ...
 
 class Reader:
     def __len__(self) -> int: ...

@@ -1,10 +1,12 @@
-"""Builds past one machine: the out-of-core build's stages as tasks of a dask.distributed client.
+"""Builds and tiles past one machine: the out-of-core build's stages, and the tiles of a cluster
+file, as tasks of a dask.distributed client.
 
 build() plans the build in a work directory, runs the steps the plan lists (a binary PLY or STL is
 read, counted and binned in ranges, an STL's corners welded by tasks, then its cells are built; any
 other mesh is read and binned by the plan) as tasks on the client's workers, and finishes it; the file is the bytes
 facetree.build_file writes with the same options and cap. Every worker must see the work directory (on a cluster, a shared file
-system). A task that fails is retried (a worker lost takes its task with it, and a cells task
+system). tiles() runs `facetree tiles` likewise: the plan, a task per subtree, the finish; the
+tileset is the bytes facetree.tiles writes with the same options. A task that fails is retried (a worker lost takes its task with it, and a cells task
 already done is skipped); an error of the input reaches the caller as the facetree exception the
 reader raised. dask.distributed comes from Debian (python3-distributed); facetree imports without it.
 """
@@ -25,7 +27,7 @@ if TYPE_CHECKING:
 
 Path = Union[str, "os.PathLike[str]"]
 
-__all__ = ["build"]
+__all__ = ["build", "tiles"]
 
 
 def _run_stage(step: str, task: int, arguments: dict) -> Any:
@@ -33,6 +35,28 @@ def _run_stage(step: str, task: int, arguments: dict) -> Any:
     from facetree import _facetree
 
     return _facetree._stage(step, task=task, **arguments)
+
+
+def _run_tiles_stage(step: str, task: int, arguments: dict) -> Any:
+    """One task of the tiles in a worker process: the plan, a subtree's tiles, or the finish."""
+    from facetree import _facetree
+
+    return _facetree._tiles_stage(step, task=task, **arguments)
+
+
+def _local_client(distributed: Any) -> tuple:
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    return cluster, distributed.Client(cluster)
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError as error:  # pragma: no cover - depends on the machine
+        raise ImportError(
+            "facetree.distributed needs dask.distributed (Debian: python3-distributed)") from error
+    return distributed
 
 
 def build(
@@ -75,12 +99,7 @@ def build(
     Returns the report of facetree.build_file, with "cells_tasks" and "tasks" (each step's count). Raises the facetree error of a
     task that failed (InputError for bad input, as the command line would name it).
     """
-    try:
-        import distributed
-    except ImportError as error:  # pragma: no cover - depends on the machine
-        raise ImportError(
-            "facetree.distributed needs dask.distributed (Debian: python3-distributed)") from error
-
+    distributed = _import_distributed()
     made = work_dir is None
     work = tempfile.mkdtemp(prefix="facetree-work-", dir=tmp) if made else os.fspath(work_dir)
     os.makedirs(work, exist_ok=True)
@@ -94,9 +113,7 @@ def build(
     own = client is None
     cluster = None
     if own:
-        cluster = distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-        client = distributed.Client(cluster)
+        cluster, client = _local_client(distributed)
 
     def report(stage: str, fraction: Optional[float]) -> None:
         if progress is not None and progress(stage, fraction) is False:
@@ -140,6 +157,86 @@ def build(
         partial = arguments["output"] + ".partial"
         if os.path.exists(partial):
             os.remove(partial)
+        raise
+    finally:
+        if own:
+            client.close()
+            cluster.close()
+        if not keep_work:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def tiles(
+    path: Path,
+    dir: Path,
+    client: Any = None,
+    *,
+    work_dir: Optional[Path] = None,
+    tile_faces: int = 65536,
+    memory: Union[int, str, None] = None,
+    tmp: Optional[Path] = None,
+    draco: bool = False,
+    tasks: int = 0,
+    retries: int = 2,
+    keep_work: bool = False,
+    progress: Optional[Callable[[str, Optional[float]], Optional[bool]]] = None,
+) -> dict:
+    """Writes a cluster file as 3D Tiles 1.1, as facetree.tiles does, as tasks of a
+    dask.distributed client: the plan (the tiles, where they meet, the subtrees), one task per
+    subtree in any order on any worker, then the tiles above them; dir is the bytes facetree.tiles
+    writes with the same options.
+
+    path, dir: paths every worker sees. client: a distributed.Client; None starts a LocalCluster of
+    2 worker processes for the call. work_dir: the directory the tasks share (default: a new one
+    under `tmp`), removed at the end unless keep_work (then a rerun with the same work_dir keeps the
+    plan and the tasks done). memory: the cap of every task (default: the cap the file was built
+    under). tasks: how many subtrees (default one per 2^21 faces, at least 4); the tiles do not
+    depend on it. retries: how many times a failed task is run again. progress: called as
+    progress(step, fraction) with "plan", "tiles" or "finish"; returning False cancels (Cancelled).
+
+    Returns facetree.tiles' report, with "tasks". Raises the facetree error of a task that failed.
+    """
+    distributed = _import_distributed()
+    made = work_dir is None
+    work = tempfile.mkdtemp(prefix="facetree-tiles-", dir=tmp) if made else os.fspath(work_dir)
+    os.makedirs(work, exist_ok=True)
+    arguments = dict(
+        path=os.path.abspath(os.fspath(path)), dir=os.path.abspath(os.fspath(dir)),
+        work=os.path.abspath(work), tile_faces=tile_faces, memory=parse_size(memory),
+        tmp=os.fspath(tmp) if tmp is not None else "", draco=draco, tasks=tasks)
+    own = client is None
+    cluster = None
+    if own:
+        cluster, client = _local_client(distributed)
+
+    def report(stage: str, fraction: Optional[float]) -> None:
+        if progress is not None and progress(stage, fraction) is False:
+            raise Cancelled("cancelled")
+
+    futures: list = []
+    try:
+        report("plan", None)
+        plan = client.submit(_run_tiles_stage, "plan", 0, arguments, pure=False,
+                             retries=retries).result()
+        count = plan["tasks"]
+        futures = [client.submit(_run_tiles_stage, "tiles", task, arguments, pure=False,
+                                 retries=retries,
+                                 key=f"facetree-tiles-{task}-{os.path.basename(work)}")
+                   for task in range(count)]
+        done = 0
+        for future in distributed.as_completed(futures):
+            future.result()  # the task's error, if it failed every retry
+            done += 1
+            report("tiles", done / count)
+        futures = []
+        report("finish", None)
+        result = client.submit(_run_tiles_stage, "finish", 0, arguments, pure=False,
+                               retries=retries).result()
+        result["tasks"] = count
+        return result
+    except BaseException:
+        if futures:
+            client.cancel(futures)
         raise
     finally:
         if own:

@@ -227,6 +227,35 @@ ClusterJob jobOf(const Settings& s, const std::string& input, const std::string&
   return job;
 }
 
+// The options of facetree.tiles and of its tasks.
+TileOptions tileOptions(uint32_t tileFaces, uint64_t memory, const std::filesystem::path& tmp, bool draco) {
+  if (tileFaces < 16) throw ArgumentError("tile_faces must be at least 16");
+  TileOptions options;
+  options.tileFaces = tileFaces;
+  options.memoryBytes = memory;
+  options.tmp = tmp;
+  options.draco = draco;
+  return options;
+}
+
+py::dict tilesetDict(const TilesetReport& r) {
+  py::dict out;
+  out["tiles"] = r.tiles;
+  out["leaf_tiles"] = r.leafTiles;
+  out["levels"] = r.levels;
+  out["triangles"] = r.triangles;
+  out["leaf_triangles"] = r.leafTriangles;
+  out["bytes"] = r.bytes;
+  out["leaf_bytes"] = r.leafBytes;
+  out["json_files"] = r.jsonFiles;
+  out["root_geometric_error"] = r.rootGeometricError;
+  out["peak_held_bytes"] = r.peakHeldBytes;
+  out["tile_faces"] = r.tileFaces;
+  out["workers"] = r.workers;
+  out["seconds"] = r.seconds;
+  return out;
+}
+
 }  // namespace
 
 void registerJob(py::module_& m) {
@@ -380,34 +409,51 @@ file, the place and the reason for a bad file.)");
       "_tiles",
       [](const std::filesystem::path& path, const std::filesystem::path& dir, uint32_t tileFaces,
          uint64_t memory, const std::filesystem::path& tmp, unsigned threads, bool draco) {
-        TileOptions options;
-        options.tileFaces = tileFaces;
-        options.memoryBytes = memory;
-        options.tmp = tmp;
+        TileOptions options = tileOptions(tileFaces, memory, tmp, draco);
         options.threads = threads;
-        options.draco = draco;
         Interrupts interrupts;
         options.cancelled = [&interrupts] { return interrupts.cancelled(); };
-        if (tileFaces < 16) throw ArgumentError("tile_faces must be at least 16");
-        const TilesetReport r = runReleased(interrupts, [&] { return writeTileset(path, dir, options); });
-        py::dict out;
-        out["tiles"] = r.tiles;
-        out["leaf_tiles"] = r.leafTiles;
-        out["levels"] = r.levels;
-        out["triangles"] = r.triangles;
-        out["leaf_triangles"] = r.leafTriangles;
-        out["bytes"] = r.bytes;
-        out["leaf_bytes"] = r.leafBytes;
-        out["json_files"] = r.jsonFiles;
-        out["root_geometric_error"] = r.rootGeometricError;
-        out["peak_held_bytes"] = r.peakHeldBytes;
-        out["tile_faces"] = r.tileFaces;
-        out["workers"] = r.workers;
-        out["seconds"] = r.seconds;
-        return out;
+        return tilesetDict(runReleased(interrupts, [&] { return writeTileset(path, dir, options); }));
       },
       py::arg("path"), py::arg("dir"), py::arg("tile_faces"), py::arg("memory"), py::arg("tmp"),
       py::arg("threads"), py::arg("draco"));
+
+  m.def(
+      "_tiles_stage",
+      [](const std::string& step, const std::filesystem::path& path, const std::filesystem::path& dir,
+         const std::filesystem::path& work, uint32_t task, uint32_t tileFaces, uint64_t memory,
+         const std::filesystem::path& tmp, bool draco, uint32_t tasks) -> py::object {
+        Interrupts interrupts;
+        const auto cancelled = [&interrupts] { return interrupts.cancelled(); };
+        if (step == "plan") {
+          TileOptions options = tileOptions(tileFaces, memory, tmp, draco);
+          options.cancelled = cancelled;
+          const TilesPlanReport r =
+              runReleased(interrupts, [&] { return planTiles(path, dir, work, options, tasks); });
+          py::dict out;
+          out["tasks"] = r.tasks;
+          out["tile_faces"] = r.tileFaces;
+          out["triangles"] = r.triangles;
+          out["planned"] = r.planned;
+          return out;
+        }
+        if (step == "finish") return tilesetDict(runReleased(interrupts, [&] { return finishTiles(work); }));
+        if (step != "tiles") throw py::value_error("_tiles_stage: no step '" + step + "'");
+        bool ran = false;
+        try {
+          ran = runReleased(interrupts, [&] { return runTilesTask(work, task, cancelled); });
+        } catch (const std::invalid_argument& e) {
+          throw py::value_error(std::string("_tiles_stage: ") + e.what());
+        }
+        py::dict out;
+        out["task"] = task;
+        out["ran"] = ran;
+        out["peak_rss_bytes"] = peakResidentBytes();
+        return out;
+      },
+      py::arg("step"), py::arg("path"), py::arg("dir"), py::arg("work"), py::arg("task"),
+      py::arg("tile_faces"), py::arg("memory"), py::arg("tmp"), py::arg("draco"), py::arg("tasks"),
+      "One task of the tiles as tasks (facetree.distributed.tiles): plan, tiles (a subtree) or finish.");
 
   m.def(
       "load",

@@ -313,7 +313,11 @@ TEST(Stage, UsageAndMissingWorkAreClearErrors) {
   EXPECT_EQ(
       unknown.output,
       "facetree: unknown stage 'merge' (plan, read, count, weld, grid, bin, cells, upper, geometry, boxes, "
-      "nodes, layout, place, finish) (see facetree --help)\n");
+      "nodes, layout, place, finish, tiles-plan, tiles, tiles-finish) (see facetree --help)\n");
+  const ChildResult notTiles = runChild({"stage", "tiles", "--work", dir.path.string(), "--task", "0"});
+  EXPECT_EQ(notTiles.exitCode, 3);
+  EXPECT_EQ(notTiles.output, "facetree: " + (dir.path / "tiles-plan.manifest").string() +
+                                 ": missing (not the work directory of a `facetree stage tiles-plan`)\n");
 }
 
 }  // namespace

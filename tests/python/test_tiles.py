@@ -89,3 +89,52 @@ def test_bad_input_fails_with_one_message_and_leaves_nothing(cli, horse_file, tm
         facetree.tiles(tmp_path / "missing.fch", tmp_path / "out")
     with pytest.raises(ValueError):
         facetree.tiles(horse_file, tmp_path / "out", tile_faces=4)
+
+
+def test_as_tasks_of_the_stage_commands_and_dask_the_same_bytes(cli, horse_file, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    import facetree.distributed as fd
+
+    facetree.tiles(horse_file, tmp_path / "one", tile_faces=2048, draco=True)
+    whole = files_of(tmp_path / "one")
+    # The stage commands, tasks in reverse order, one run twice (done already), one with another
+    # task alongside it.
+    work = tmp_path / "work"
+    plan = json.loads(run_cli(cli, "stage", "tiles-plan", horse_file, "--work", work, "-o", tmp_path / "staged",
+                              "--tile-faces", "2048", "--draco", "--tasks", "5", "--json").stdout)
+    assert plan["tasks"] >= 5 and plan["next"] == f"tiles:{plan['tasks']} tiles-finish:1" and plan["planned"]
+    for task in reversed(range(plan["tasks"])):
+        run_cli(cli, "stage", "tiles", "--work", work, "--task", task, *(["--alongside", "2"] if task == 1 else []))
+    again = run_cli(cli, "stage", "tiles", "--work", work, "--task", "0")
+    assert again.stdout.strip() == "tiles task 0: done already"
+    early = run_cli(cli, "stage", "tiles", "--work", work, "--task", plan["tasks"], check=False)
+    assert early.returncode == 2 and f"of a plan of {plan['tasks']} tasks" in early.stderr
+    replanned = json.loads(run_cli(cli, "stage", "tiles-plan", horse_file, "--work", work, "-o", tmp_path / "staged",
+                                   "--tile-faces", "2048", "--draco", "--tasks", "5", "--json").stdout)
+    assert not replanned["planned"], "the same plan is kept with its tasks done"
+    report = json.loads(run_cli(cli, "stage", "tiles-finish", "--work", work, "--json").stdout)
+    assert files_of(tmp_path / "staged") == whole
+    assert report["tiles"] == len([name for name in whole if name.endswith(".glb")])
+    # A finish without every task: the missing one named.
+    work2 = tmp_path / "work2"
+    run_cli(cli, "stage", "tiles-plan", horse_file, "--work", work2, "-o", tmp_path / "half", "--tile-faces", "2048")
+    run_cli(cli, "stage", "tiles", "--work", work2, "--task", "0")
+    half = run_cli(cli, "stage", "tiles-finish", "--work", work2, check=False)
+    assert half.returncode == 3 and "tiles-1.manifest: missing (tiles task 1 not done for this plan)" in half.stderr
+    assert not (tmp_path / "half").exists()
+    # Dask with 2 worker processes, and progress that reports every task.
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = distributed.Client(cluster)
+    steps = []
+    try:
+        dask = fd.tiles(horse_file, tmp_path / "dask", client, tile_faces=2048, draco=True, tasks=6,
+                        progress=lambda step, fraction: steps.append(step))
+        with pytest.raises(facetree.InputError, match="missing.fch"):
+            fd.tiles(tmp_path / "missing.fch", tmp_path / "nothing", client, retries=0, tmp=tmp_path)
+    finally:
+        client.close()
+        cluster.close()
+    assert files_of(tmp_path / "dask") == whole
+    assert steps.count("tiles") == dask["tasks"] >= 6 and steps[0] == "plan" and steps[-1] == "finish"
+    assert not (tmp_path / "nothing").exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("facetree-tiles-")], "work left behind"

@@ -4,7 +4,8 @@
 # build`, through job arrays and in one job; each job asks for --threads CPUs and for --memory
 # plus a quarter; a rerun after success, after a deleted layout manifest, after a killed cells task
 # and after a cancelled one gives the same bytes; a bad input fails the build with the reader's
-# message and exit status, and leaves no output.
+# message and exit status, and leaves no output. The tiles of the file (--tiles) in a job array are
+# the bytes of `facetree tiles`.
 #   slurm_cluster_test.sh FACETREE SOURCE_DIR
 set -euo pipefail
 facetree="$1" source="$2"
@@ -137,6 +138,24 @@ FACETREE="$facetree" "$build" "$dir/terrain.ply" "$dir/cancelled.fch" "$dir/work
 cmp "$dir/whole.fch" "$dir/cancelled.fch" || fail "resumed after a cancelled task: not the same bytes"
 [ ! -e "$dir/work-cancelled" ] || fail "resumed after a cancelled task: WORK left after success"
 
+# The file's tiles as tasks (--tiles): the subtrees in a job array, two at once in a job sharing
+# the cap; the bytes of `facetree tiles`. A file that is not a cluster file fails the plan.
+"$facetree" tiles "$dir/whole.fch" -o "$dir/tiles-one" --tile-faces 4096 --memory 64M >/dev/null
+FACETREE="$facetree" FACETREE_SLURM_JOB_FACES=50000 "$build" --tiles "$dir/whole.fch" "$dir/tiles-slurm" \
+  "$dir/work-tiles" --wait --keep-work --tile-faces 4096 --memory 64M --tasks 6 >"$dir/tiles.out"
+diff -r "$dir/tiles-one" "$dir/tiles-slurm" >/dev/null || fail "tiles: not the bytes of facetree tiles"
+[ -e "$dir/work-tiles/logs/job-tiles-1.log" ] || fail "tiles: no job array of tiles tasks"
+grep -q "tiles-slurm: [0-9]* tiles ([0-9]* leaves)" "$dir/tiles.out" || fail "tiles: no report: $(cat "$dir/tiles.out")"
+grep -q "tiles task 0: done" "$dir/work-tiles/logs/tiles-0.log" || fail "tiles: task 0 not run"
+expect_no_jobs "after the tiles"
+status=0
+FACETREE="$facetree" "$build" --tiles "$dir/terrain.ply" "$dir/tiles-bad" "$dir/work-tiles-bad" --wait \
+  --memory 64M >"$dir/tiles-bad.out" 2>"$dir/tiles-bad.err" || status=$?
+[ "$status" = 3 ] || fail "tiles of a mesh: slurm-build exits $status, not 3: $(cat "$dir/tiles-bad.err")"
+grep -q "tiles-plan task 0 failed with status 3" "$dir/tiles-bad.err" || fail "tiles of a mesh: $(cat "$dir/tiles-bad.err")"
+[ ! -e "$dir/tiles-bad" ] || fail "tiles of a mesh: an output was written"
+expect_no_jobs "after the tiles of a mesh"
+
 # A bad input: the plan's error and exit status, no output.
 head -c 20000 "$dir/terrain.ply" >"$dir/short.ply"
 status=0
@@ -147,4 +166,4 @@ grep -q "plan task 0 failed with status 3" "$dir/short.err" || fail "bad input: 
 grep -q "short.ply: .*" "$dir/short.err" || fail "bad input: the reader's message missing: $(cat "$dir/short.err")"
 [ ! -e "$dir/short.fch" ] || fail "bad input: an output was written"
 expect_no_jobs "after a bad input"
-echo "slurm-build on a private Slurm: the bytes of facetree build in job arrays and in one job, the CPUs and memory asked for, reruns after success, a deleted layout, a killed and a cancelled cells task, and a bad input's error"
+echo "slurm-build on a private Slurm: the bytes of facetree build in job arrays and in one job, the tiles' bytes, the CPUs and memory asked for, reruns after success, a deleted layout, a killed and a cancelled cells task, and a bad input's error"

@@ -343,3 +343,66 @@ TEST(WriteTileset, BadOptionsAndOutputsFailWithoutLeavingAnything) {
 
 }  // namespace
 }  // namespace facetree
+
+namespace facetree {
+namespace {
+
+TEST(TilesAsTasks, TheBytesOfOneProcessAResumedPlanAndAChangedTaskNamed) {
+  ScratchDirectory scratch;
+  const auto fch = writeFile(test::icosphere(5), scratch.path / "sphere.fch");  // 20,480 faces
+  TileOptions options;
+  options.tileFaces = 1024;
+  options.threads = 2;
+  writeTileset(fch, scratch.path / "one", options);
+  const std::filesystem::path work = scratch.path / "work";
+  const TilesPlanReport plan = planTiles(fch, scratch.path / "tasks", work, options, 6);
+  ASSERT_GE(plan.tasks, 6u);
+  EXPECT_TRUE(plan.planned);
+  EXPECT_EQ(plan.tileFaces, 1024u);
+  for (uint32_t task = plan.tasks; task-- > 0;) EXPECT_TRUE(runTilesTask(work, task));
+  EXPECT_FALSE(runTilesTask(work, 0)) << "done already";
+  EXPECT_THROW(runTilesTask(work, plan.tasks), std::invalid_argument);
+  // The same plan again keeps its tasks; a task's manifest changed since it was written is named.
+  EXPECT_FALSE(planTiles(fch, scratch.path / "tasks", work, options, 6).planned);
+  const std::filesystem::path task2 = work / "tiles-2.manifest";
+  std::string bytes = filesUnder(work).at("tiles-2.manifest");
+  bytes[bytes.size() / 2] ^= 1;
+  std::ofstream(task2, std::ios::binary | std::ios::trunc) << bytes;
+  try {
+    finishTiles(work);
+    ADD_FAILURE() << "a changed task manifest";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), task2.string() + ": checksum mismatch (changed since it was written)");
+  }
+  std::filesystem::remove(task2);
+  EXPECT_TRUE(runTilesTask(work, 2));
+  const TilesetReport r = finishTiles(work);
+  EXPECT_EQ(r.dir, std::filesystem::absolute(scratch.path / "tasks"));
+  EXPECT_EQ(filesUnder(scratch.path / "one"), filesUnder(scratch.path / "tasks"));
+  EXPECT_FALSE(std::filesystem::exists(work / "tileset"));
+  // Other options plan afresh: the earlier plan's tasks go.
+  options.tileFaces = 2048;
+  EXPECT_TRUE(planTiles(fch, scratch.path / "tasks", work, options, 6).planned);
+  EXPECT_FALSE(std::filesystem::exists(work / "tiles-0.manifest"));
+}
+
+TEST(Glb, DracoLeavesOutTrianglesOnOneVertexAndATileOfOnlyThoseGoesUncompressed) {
+  TileMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+  mesh.vertexIds = {0, 1, 2, 3};
+  mesh.indices = {0, 1, 2, 1, 1, 3, 1, 3, 2};
+  GlbOptions options;
+  options.draco = true;
+  options.gridMin = glm::dvec3(-1);
+  options.gridSize = 4;
+  const std::string glb = glbBytes(mesh, glm::dvec3(0), options);
+  EXPECT_NE(glb.find("KHR_draco_mesh_compression"), std::string::npos);
+  EXPECT_NE(glb.find("\"count\":6,\"type\":\"SCALAR\""), std::string::npos) << "two triangles of three";
+  mesh.indices = {0, 0, 1, 2, 3, 3};
+  const std::string plain = glbBytes(mesh, glm::dvec3(0), options);
+  EXPECT_EQ(plain.find("KHR_draco_mesh_compression"), std::string::npos);
+  EXPECT_NE(plain.find("\"count\":6,\"type\":\"SCALAR\""), std::string::npos);
+}
+
+}  // namespace
+}  // namespace facetree
