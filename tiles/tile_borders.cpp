@@ -5,7 +5,8 @@
 #include "point_topology.h"
 
 #include <algorithm>
-#include <unordered_map>
+#include <functional>
+#include <utility>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/type_precision.hpp>
@@ -26,25 +27,32 @@ constexpr uint32_t kEveryLeaf = ~0u;
 // would simplify its border on its own and open the crack by up to its error: they are locked at
 // every level. The points are binned in a uniform grid of cells about an edge long; an edge longer
 // than 64 cells is not searched.
-std::vector<TileBorders::Key> cracks(const std::vector<std::pair<TileBorders::Key, uint32_t>>& open,
-                                     const std::vector<std::array<TileBorders::Key, 2>>& edges) {
+using OpenPoint = std::pair<TileBorders::Key, uint32_t>;  // a point on a leaf's open edge, the leaf
+using OpenEdge = std::array<uint32_t, 2>;                 // its ends, as indices of open points
+
+std::vector<TileBorders::Key> cracks(const std::vector<OpenPoint>& open, const std::vector<OpenEdge>& edges) {
   using Key = TileBorders::Key;
   std::vector<Key> found;
   if (edges.empty()) return found;
-  auto point = [](const Key& k) { return glm::dvec3(k[0], k[1], k[2]); };
-  std::vector<double> lengths;
+  auto point = [&](uint32_t i) { return glm::dvec3(open[i].first[0], open[i].first[1], open[i].first[2]); };
+  std::vector<float> lengths;
   lengths.reserve(edges.size());
-  for (const auto& [a, b] : edges) lengths.push_back(glm::length(point(b) - point(a)));
+  for (const auto& [a, b] : edges) lengths.push_back(static_cast<float>(glm::length(point(b) - point(a))));
   std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
-  const double cell = std::max(lengths[lengths.size() / 2], 1e-30);
+  const double cell = std::max(double(lengths[lengths.size() / 2]), 1e-30);
+  std::vector<float>().swap(lengths);
   auto cellOf = [&](const glm::dvec3& p) { return glm::i64vec3(glm::floor(p / cell)); };
   auto hash = [](const glm::i64vec3& c) {
-    return std::hash<int64_t>()((c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791));
+    return static_cast<uint32_t>(
+        std::hash<int64_t>()((c.x * 73856093) ^ (c.y * 19349663) ^ (c.z * 83492791)));
   };
-  std::unordered_multimap<size_t, Key> grid;
-  for (const auto& [k, leaf] : open) grid.emplace(hash(cellOf(point(k))), k);
-  for (const auto& [ka, kb] : edges) {
-    const glm::dvec3 a = point(ka), b = point(kb), ab = b - a;
+  // The points by their cell's hash, sorted: 8 bytes a point.
+  std::vector<std::pair<uint32_t, uint32_t>> grid(open.size());
+  for (uint32_t i = 0; i < open.size(); ++i) grid[i] = {hash(cellOf(point(i))), i};
+  std::sort(grid.begin(), grid.end());
+  for (const auto& [ia, ib] : edges) {
+    const Key &ka = open[ia].first, &kb = open[ib].first;
+    const glm::dvec3 a = point(ia), b = point(ib), ab = b - a;
     const double length2 = glm::dot(ab, ab);
     if (length2 == 0) continue;
     const glm::i64vec3 from = cellOf(glm::min(a, b)), to = cellOf(glm::max(a, b));
@@ -54,11 +62,12 @@ std::vector<TileBorders::Key> cracks(const std::vector<std::pair<TileBorders::Ke
       for (int64_t y = from.y; y <= to.y; ++y)
         for (int64_t z = from.z; z <= to.z; ++z) {
           const glm::i64vec3 c(x, y, z);
-          const auto [first, last] = grid.equal_range(hash(c));
-          for (auto it = first; it != last; ++it) {
-            const Key& k = it->second;
-            if (k == ka || k == kb || cellOf(point(k)) != c) continue;
-            const glm::dvec3 q = point(k) - a;
+          const uint32_t h = hash(c);
+          for (auto it = std::lower_bound(grid.begin(), grid.end(), std::pair<uint32_t, uint32_t>{h, 0});
+               it != grid.end() && it->first == h; ++it) {
+            const Key& k = open[it->second].first;
+            if (k == ka || k == kb || cellOf(point(it->second)) != c) continue;
+            const glm::dvec3 q = point(it->second) - a;
             const double s = std::clamp(glm::dot(q, ab) / length2, 0.0, 1.0);
             const glm::dvec3 off = q - s * ab;
             if (glm::dot(off, off) > 1e-6 * length2) continue;
@@ -77,8 +86,8 @@ std::vector<TileBorders::Key> cracks(const std::vector<std::pair<TileBorders::Ke
 
 TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
                          const std::function<bool()>& cancelled) {
-  std::vector<std::pair<Key, uint32_t>> open;  // (a point on an open edge, leaf)
-  std::vector<std::array<Key, 2>> edges;       // every leaf's open edges
+  std::vector<OpenPoint> open;
+  std::vector<OpenEdge> edges;  // every leaf's open edges
   uint32_t leaf = 0;
   for (const uint32_t t : tree.postorder()) {
     const Tile& tile = tree.tiles[t];
@@ -95,16 +104,21 @@ TileBorders::TileBorders(ClusterFileReader& reader, const TileTree& tree,
       const uint32_t c[3] = {point[mesh.indices[i]], point[mesh.indices[i + 1]], point[mesh.indices[i + 2]]};
       if (c[0] != c[1] && c[1] != c[2] && c[0] != c[2]) triangles.insert(triangles.end(), c, c + 3);
     }
-    std::vector<uint8_t> onBorder(firstOf.size(), 0);
-    for (const auto& [a, b] : openHalfEdges(triangles, firstOf.size())) {
-      onBorder[a] = onBorder[b] = 1;
-      edges.push_back({keyOf(mesh.vertices[firstOf[a]]), keyOf(mesh.vertices[firstOf[b]])});
-    }
+    const auto halfEdges = openHalfEdges(triangles, firstOf.size());
+    constexpr uint32_t kInside = ~0u;
+    std::vector<uint32_t> openIndex(firstOf.size(), kInside);
+    for (const auto& [a, b] : halfEdges) openIndex[a] = openIndex[b] = 0;
     for (uint32_t p = 0; p < firstOf.size(); ++p)
-      if (onBorder[p]) open.emplace_back(keyOf(mesh.vertices[firstOf[p]]), leaf);
+      if (openIndex[p] != kInside) {
+        openIndex[p] = static_cast<uint32_t>(open.size());
+        open.emplace_back(keyOf(mesh.vertices[firstOf[p]]), leaf);
+      }
+    for (const auto& [a, b] : halfEdges) edges.push_back({openIndex[a], openIndex[b]});
     ++leaf;
   }
-  for (const Key& p : cracks(open, edges)) open.emplace_back(p, kEveryLeaf);
+  std::vector<Key> cracked = cracks(open, edges);
+  std::vector<OpenEdge>().swap(edges);
+  for (const Key& p : cracked) open.emplace_back(p, kEveryLeaf);
   std::sort(open.begin(), open.end());
   for (size_t i = 0; i < open.size();) {
     size_t j = i + 1;
