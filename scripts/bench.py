@@ -58,6 +58,11 @@ Sections (Willmott 2000, ch. 5, tables and figures named):
              in the full run, 1M rays on the 56M-face dragon's file through the lazy reader under
              --memory 256M, sent 65,536 at a time (rays a second, the process's peak RSS against
              the cap)
+  tiles      `facetree tiles` on dragon_vrip (quick and full) and the 14M- and 56M-face dragons (full,
+             under 64M and 256M): the tiling and the build that wrote the file alternating, with and
+             without Draco; sizes against the leaves', peak RSS against the cap; the same tiles as the
+             stage commands' tasks one after another (their seconds, the largest task's peak, the same
+             bytes); the targets as checks
   speed      with --baseline-facetree BIN (an earlier build, e.g. the previous commit's): dragon_vrip
              in core (quick and full) and the 14M-face dragon at --memory 64M (full), built by both
              binaries alternately in one run, medians of whole processes' wall and CPU; the ratio
@@ -1333,6 +1338,32 @@ TILES_CASES_FULL = [("dragon_vrip", 0, None, None, 3), ("14M-face dragon", 2, "2
 TILES_CASES_QUICK = [("dragon_vrip", 0, None, None, 3)]
 
 
+def files_under(directory):
+    return {str(p.relative_to(directory)): p.read_bytes() for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def tiles_as_tasks(args, fch, tiles, out, tiles_options):
+    """The tiles of `fch` as the stage commands run them, one after another: each step's seconds,
+    the largest peak RSS of a task, and whether the tileset is the bytes of `facetree tiles`."""
+    run([args.facetree, "tiles", fch, "-o", tiles, *tiles_options])
+    staged, work = out / "tiles_staged", out / "tiles_work"
+    shutil.rmtree(work, ignore_errors=True)
+    stdout, plan_wall, _, plan_rss = run_measured([args.facetree, "stage", "tiles-plan", fch, "--work", work, "-o",
+                                                   staged, "--json", *tiles_options])
+    tasks = json.loads(stdout)["tasks"]
+    task_wall, peak = 0.0, plan_rss
+    for task in range(tasks):
+        _, wall, _, rss = run_measured([args.facetree, "stage", "tiles", "--work", work, "--task", str(task)])
+        task_wall, peak = task_wall + wall, max(peak, rss)
+    _, finish_wall, _, finish_rss = run_measured([args.facetree, "stage", "tiles-finish", "--work", work])
+    same = files_under(tiles) == files_under(staged)
+    shutil.rmtree(staged, ignore_errors=True)
+    shutil.rmtree(work, ignore_errors=True)
+    return {"tasks": tasks, "plan_seconds": plan_wall, "tasks_seconds": task_wall, "finish_seconds": finish_wall,
+            "seconds": plan_wall + task_wall + finish_wall, "peak_rss_bytes": max(peak, finish_rss),
+            "same_bytes": same}
+
+
 def bench_tiles(args, out):
     rows = []
     for name, levels, build_cap, tiles_cap, repeat in TILES_CASES_QUICK if args.quick else TILES_CASES_FULL:
@@ -1355,7 +1386,8 @@ def bench_tiles(args, out):
                 reports[kind] = json.loads(stdout)
         if levels:
             mesh.unlink()
-        row = {"case": name, "runs": repeat, "build_cap": build_cap, "tiles_cap": tiles_cap}
+        staged = tiles_as_tasks(args, fch, tiles, out, tiles_options)
+        row = {"case": name, "runs": repeat, "build_cap": build_cap, "tiles_cap": tiles_cap, "stages": staged}
         for kind, runs in samples.items():
             row[kind] = {k: median(r[k] for r in runs) for k in ("seconds", "cpu_seconds", "peak_rss_bytes")}
         for kind, report in reports.items():
@@ -1370,6 +1402,8 @@ def bench_tiles(args, out):
             "size_within_1.6x_leaves": row["tiles"]["size_ratio"] <= TILES_SIZE_BOUND,
             "draco_size_within_1.6x_leaves": row["draco"]["size_ratio"] <= TILES_SIZE_BOUND,
             "peak_within_cap": cap is None or max(row["tiles"]["peak_rss_bytes"], row["draco"]["peak_rss_bytes"]) <= cap,
+            "stages_same_bytes": staged["same_bytes"],
+            "stages_peak_within_cap": cap is None or staged["peak_rss_bytes"] <= cap,
         }
         rows.append(row)
         shutil.rmtree(tiles, ignore_errors=True)
@@ -1377,7 +1411,8 @@ def bench_tiles(args, out):
         print(f"tiles     {name:18s} build {row['build']['seconds']:7.2f} s, tiles {row['tiles']['seconds']:6.2f} s "
               f"(x{row['time_ratio']:.2f}), Draco {row['draco']['seconds']:6.2f} s; {row['tiles']['tiles']} tiles, "
               f"{row['tiles']['size_ratio']:.2f}x / {row['draco']['size_ratio']:.2f}x the leaves; peak "
-              f"{row['tiles']['peak_rss_bytes'] / 2**20:.0f} MiB" + "".join(
+              f"{row['tiles']['peak_rss_bytes'] / 2**20:.0f} MiB; as {staged['tasks']} tasks "
+              f"{staged['seconds']:.2f} s, peak {staged['peak_rss_bytes'] / 2**20:.0f} MiB" + "".join(
                   f"  missed: {k}" for k, ok in row["checks"].items() if not ok), flush=True)
     return {"time_bound": TILES_TIME_BOUND, "size_bound": TILES_SIZE_BOUND, "rows": rows}
 

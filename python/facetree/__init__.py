@@ -110,6 +110,9 @@ def tiles(path: Path, dir: Path, *, tile_faces: int = 65536, memory: Union[int, 
     and leaves nothing behind.
 
         facetree.tiles("scan.fch", "scan_tiles", tile_faces=16384, memory="256M")
+
+    Past one machine, facetree.distributed.tiles runs the same work as tasks of a Dask client, with
+    the same bytes.
     """
     return _facetree._tiles(os.fspath(path), os.fspath(dir), tile_faces, parse_size(memory),
                             os.fspath(tmp) if tmp is not None else "", threads, draco)
