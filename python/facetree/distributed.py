@@ -59,6 +59,35 @@ def _import_distributed() -> Any:
     return distributed
 
 
+def _open(distributed: Any, client: Any, work_dir: Optional[Path], tmp: Optional[Path],
+          prefix: str) -> tuple:
+    """The work directory (a new one under `tmp` when none is given) and the client (a
+    LocalCluster of 2 worker processes when none is given): (client, cluster or None, work)."""
+    work = tempfile.mkdtemp(prefix=prefix, dir=tmp) if work_dir is None else os.fspath(work_dir)
+    os.makedirs(work, exist_ok=True)
+    cluster = None
+    if client is None:
+        cluster, client = _local_client(distributed)
+    return client, cluster, work
+
+
+def _close(client: Any, cluster: Any, work: str, keep_work: bool) -> None:
+    """Closes the client _open started, and removes the work directory unless keep_work."""
+    if cluster is not None:
+        client.close()
+        cluster.close()
+    if not keep_work:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _reporter(progress: Optional[Callable[[str, Optional[float]], Optional[bool]]]) -> Callable:
+    """report(step, fraction): calls progress, and raises Cancelled when it returns False."""
+    def report(stage: str, fraction: Optional[float]) -> None:
+        if progress is not None and progress(stage, fraction) is False:
+            raise Cancelled("cancelled")
+    return report
+
+
 def build(
     input: Path,
     output: Path,
@@ -100,9 +129,7 @@ def build(
     task that failed (InputError for bad input, as the command line would name it).
     """
     distributed = _import_distributed()
-    made = work_dir is None
-    work = tempfile.mkdtemp(prefix="facetree-work-", dir=tmp) if made else os.fspath(work_dir)
-    os.makedirs(work, exist_ok=True)
+    client, cluster, work = _open(distributed, client, work_dir, tmp, "facetree-work-")
     arguments = dict(
         input=os.path.abspath(os.fspath(input)), output=os.path.abspath(os.fspath(output)),
         work=os.path.abspath(work), memory=parse_size(memory),
@@ -110,14 +137,7 @@ def build(
         zstd_level=zstd_level, cell_faces=cell_faces, cell_tasks=cell_tasks, read_tasks=read_tasks,
         node_tasks=node_tasks, **options)
 
-    own = client is None
-    cluster = None
-    if own:
-        cluster, client = _local_client(distributed)
-
-    def report(stage: str, fraction: Optional[float]) -> None:
-        if progress is not None and progress(stage, fraction) is False:
-            raise Cancelled("cancelled")
+    report = _reporter(progress)
 
     futures: list = []
     try:
@@ -159,11 +179,7 @@ def build(
             os.remove(partial)
         raise
     finally:
-        if own:
-            client.close()
-            cluster.close()
-        if not keep_work:
-            shutil.rmtree(work, ignore_errors=True)
+        _close(client, cluster, work, keep_work)
 
 
 def tiles(
@@ -197,21 +213,12 @@ def tiles(
     Returns facetree.tiles' report, with "tasks". Raises the facetree error of a task that failed.
     """
     distributed = _import_distributed()
-    made = work_dir is None
-    work = tempfile.mkdtemp(prefix="facetree-tiles-", dir=tmp) if made else os.fspath(work_dir)
-    os.makedirs(work, exist_ok=True)
+    client, cluster, work = _open(distributed, client, work_dir, tmp, "facetree-tiles-")
     arguments = dict(
         path=os.path.abspath(os.fspath(path)), dir=os.path.abspath(os.fspath(dir)),
         work=os.path.abspath(work), tile_faces=tile_faces, memory=parse_size(memory),
         tmp=os.fspath(tmp) if tmp is not None else "", draco=draco, tasks=tasks)
-    own = client is None
-    cluster = None
-    if own:
-        cluster, client = _local_client(distributed)
-
-    def report(stage: str, fraction: Optional[float]) -> None:
-        if progress is not None and progress(stage, fraction) is False:
-            raise Cancelled("cancelled")
+    report = _reporter(progress)
 
     futures: list = []
     try:
@@ -239,8 +246,4 @@ def tiles(
             client.cancel(futures)
         raise
     finally:
-        if own:
-            client.close()
-            cluster.close()
-        if not keep_work:
-            shutil.rmtree(work, ignore_errors=True)
+        _close(client, cluster, work, keep_work)
