@@ -35,6 +35,7 @@ namespace facetree::query {
 struct RayNode {
   uint32_t firstPacket = 0;
   uint32_t firstRange = 0;
+  uint32_t firstFace = 0;  // its first range's first face, to prefetch its corners (0 without ranges)
   uint8_t childCount = 0;
   uint8_t rangeCount = 0;
   uint8_t page = 0;
@@ -45,6 +46,7 @@ struct alignas(64) RayPacket {
   BoxPacket boxes;
   RayNode child[4];
 };
+static_assert(sizeof(RayPacket) == 256);
 
 struct FaceRange {
   uint32_t first, count;
@@ -68,12 +70,22 @@ struct RaySpans {
   void cornersOf(uint64_t p, glm::vec3 (&out)[3]) const {
     for (int c = 0; c < 3; ++c) out[c] = corners[p - cornerFirst][c];
   }
-  // Asks the cache for the packets of the node at `position`'s members, ahead of its visit.
+  // Asks the cache for what the visit of the node at `position` reads first: its members' packets,
+  // its face ranges and its first range's corners (a leaf's triangles: up to kRayLeafFaces).
   void prefetchMembers(uint32_t position) const {
     const RayNode& n = node(position);
-    if (n.childCount > 0 && !n.page) {
+    if (n.page) return;
+    if (n.childCount > 0) {
       const char* p = reinterpret_cast<const char*>(&packets[n.firstPacket]);
       for (size_t line = 0; line < sizeof(RayPacket); line += 64) __builtin_prefetch(p + line);
+    }
+    if (n.rangeCount > 0) {
+      __builtin_prefetch(&ranges[n.firstRange]);
+      if (holds(n.firstFace)) {
+        const char* c = reinterpret_cast<const char*>(&corners[n.firstFace - cornerFirst]);
+        for (size_t line = 0; line < kRayLeafFaces * sizeof(Corners); line += 64)
+          __builtin_prefetch(c + line);
+      }
     }
   }
 };
@@ -130,6 +142,7 @@ void layOut(View& view, const NodeRef& root, const NodeBox& rootBox, PageOf&& pa
     self.childCount = static_cast<uint8_t>(count);
     self.firstRange = firstRange;
     self.rangeCount = static_cast<uint8_t>(ranges.size() - firstRange);
+    self.firstFace = self.rangeCount > 0 ? ranges[firstRange].first : 0;
     for (unsigned k = count; k-- > 0;)  // the first member's subtree next
       stack.push_back({members[k], 4 * (firstPacket + k / 4) + k % 4});
   }
