@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "args.h"
+#include "command_help.h"
 #include "commands.h"
 #include "facetree/grid.h"
 #include "facetree/io.h"
