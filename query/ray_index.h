@@ -3,11 +3,12 @@
 // far apart in it, and a traversal pays a cache miss for each child's box. Here a node's members
 // (ray_members.h: its children widened to up to eight nodes, subtrees of a few faces as leaves) sit
 // side by side in packets of four: their boxes lane by lane (ray_tests.h: the rotation expanded
-// once, four boxes met at once) and each member's record, where its own packets and face ranges
-// are, so that a node visited costs the miss of its members' packets and nothing more. Packets are
-// in depth-first order; face ranges (a leaf's faces, face children and children cut off by
-// truncation, runs of them joined) in an array of their own, and each triangle's corners in face
-// order (36 bytes a triangle: one miss for a triangle tested, not two). Members lie in increasing
+// once, four or eight boxes met at once) and each member's record, where its own packets and face
+// ranges are, so that a node visited costs the miss of its members' packets and nothing more.
+// Packets are in depth-first order; face ranges (a leaf's faces, face children and children cut off
+// by truncation, runs of them joined) in an array of their own, a single short one (a leaf's) in its
+// record as well, and each triangle's corners in face order (36 bytes a triangle: one miss for a
+// triangle tested, not two). Members lie in increasing
 // node index, so that ordering them by position orders them as the file does.
 //
 // The file in memory is one layout. A reader's is a layout of the nodes above its pages, whose
@@ -39,6 +40,9 @@ struct RayNode {
   uint8_t childCount = 0;
   uint8_t rangeCount = 0;
   uint8_t page = 0;
+  // A single range's face count where it is below 256 (a leaf's always is), else 0: the range is
+  // then (firstFace, singleCount), and the visit reads no range record.
+  uint8_t singleCount = 0;
 };
 
 // Four members: their boxes and their records.
@@ -80,7 +84,7 @@ struct RaySpans {
       for (size_t line = 0; line < sizeof(RayPacket); line += 64) __builtin_prefetch(p + line);
     }
     if (n.rangeCount > 0) {
-      __builtin_prefetch(&ranges[n.firstRange]);
+      if (n.singleCount == 0) __builtin_prefetch(&ranges[n.firstRange]);
       if (holds(n.firstFace)) {
         const char* c = reinterpret_cast<const char*>(&corners[n.firstFace - cornerFirst]);
         for (size_t line = 0; line < kRayLeafFaces * sizeof(Corners); line += 64)
@@ -143,6 +147,9 @@ void layOut(View& view, const NodeRef& root, const NodeBox& rootBox, PageOf&& pa
     self.firstRange = firstRange;
     self.rangeCount = static_cast<uint8_t>(ranges.size() - firstRange);
     self.firstFace = self.rangeCount > 0 ? ranges[firstRange].first : 0;
+    self.singleCount = self.rangeCount == 1 && ranges[firstRange].count < 256
+                           ? static_cast<uint8_t>(ranges[firstRange].count)
+                           : 0;
     for (unsigned k = count; k-- > 0;)  // the first member's subtree next
       stack.push_back({members[k], 4 * (firstPacket + k / 4) + k % 4});
   }

@@ -5,9 +5,10 @@
 // layout for rays (ray_index.h) that widens every file's nodes to up to eight members and ends at
 // subtrees of a few faces (ray_members.h), as bounding volume hierarchies for rays do (Embree's
 // BVH4 and BVH8: four or eight boxes met in one step, a short stack, the near child first). At a
-// node, its face ranges are tested first; then its members' boxes, four at a time, and the members
-// met are visited near first, in order of their entry t (ties to the lower node index), and
-// skipped once a hit lies before that entry. A hit at the same t as the best goes to the triangle
+// node, its face ranges are tested first; then its members' boxes, eight in one step where the CPU
+// has AVX2 (four at a time where it does not), and the members met are visited near first, in
+// order of their entry t (ties to the lower node index), and skipped once a hit lies before that
+// entry. A hit at the same t as the best goes to the triangle
 // first in the face order, as the brute force decides it. The file in memory and a reader's pages
 // are walked by the same code over the same layout.
 #include <algorithm>
@@ -30,7 +31,6 @@ namespace {
 
 using query::BoxRay;
 using query::NodeRef;
-using query::rayBoxEntry;
 using query::rayTriangle;
 using query::Stack;
 using query::TriangleHit;
@@ -98,10 +98,11 @@ struct LayoutCorners {
 // Layouts: layout(at) gives layout `at` (0: the one the root is in; 1 + id: a reader's subtree page
 // id), corners(p, out) a triangle's corners where the layout holds none (a reader's triangles
 // above its pages). Stack entries are (entry t, {position, layout}); positions order siblings as
-// their node indices do.
-template <class Layouts>
-ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, QueryStats& stats,
-                            Stack& stack) {
+// their node indices do. kLanes: the boxes met in one step, 4 or 8 (the same entries to the bit);
+// inlined into each caller, so that it is compiled for the caller's instruction set.
+template <unsigned kLanes, class Layouts>
+[[gnu::always_inline]] inline ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any,
+                                                          QueryStats& stats, Stack& stack) {
   ClosestSoFar best;
   if (!ray.valid) return best;
   if (layouts.empty()) {  // no nodes: every triangle
@@ -128,21 +129,34 @@ ClosestSoFar traverseLayout(Layouts& layouts, const RayState& ray, bool any, Que
     }
     LayoutCorners<Layouts> corners{*spans, layouts};
     const uint64_t before = best.face;
-    for (uint32_t r = node->firstRange; r < node->firstRange + node->rangeCount; ++r)
-      if (testRange(corners, ray, spans->range(r).first, spans->range(r).count, best, any, stats))
-        return best;
+    if (node->singleCount > 0) {
+      if (testRange(corners, ray, node->firstFace, node->singleCount, best, any, stats)) return best;
+    } else {
+      for (uint32_t r = node->firstRange; r < node->firstRange + node->rangeCount; ++r)
+        if (testRange(corners, ray, spans->range(r).first, spans->range(r).count, best, any, stats))
+          return best;
+    }
     if (best.face != before && !spans->originals.empty() && spans->holds(best.face))
       best.original = spans->originals[best.face - spans->cornerFirst];
     unsigned near = 0;
     stats.boxTests += node->childCount;
-    for (unsigned k = 0; k < node->childCount; k += 4) {
-      const uint32_t packet = node->firstPacket + k / 4;
-      const query::Float4 t = query::rayBoxEntry4(ray.box, spans->boxes(packet));
-      for (unsigned lane = 0; lane < 4 && k + lane < node->childCount; ++lane)
+    const auto meet = [&](const auto& t, uint32_t first) {  // lanes from the member at `first`
+      constexpr unsigned lanes = sizeof(t) / sizeof(float);
+      for (unsigned lane = 0; lane < lanes && first + lane < node->childCount; ++lane)
         if (t[lane] != std::numeric_limits<float>::infinity()) {
-          children[near++] = {t[lane], NodeRef{4 * packet + lane, in, 0}};
-          spans->prefetchMembers(4 * packet + lane);
+          const uint32_t position = 4 * node->firstPacket + first + lane;
+          children[near++] = {t[lane], NodeRef{position, in, 0}};
+          spans->prefetchMembers(position);
         }
+    };
+    static_assert(query::kRayWidth == 8);
+    if (kLanes == 8 && node->childCount > 4) {  // a constant false where kLanes is 4
+      float t[8];
+      query::rayBoxEntry8(ray.box, spans->boxes(node->firstPacket), spans->boxes(node->firstPacket + 1), t);
+      meet(t, 0);
+    } else {
+      for (unsigned k = 0; k < node->childCount; k += 4)
+        meet(query::rayBoxEntry4(ray.box, spans->boxes(node->firstPacket + k / 4)), k);
     }
     query::pushNearFirst(children, near, stack,
                          [&](float entry) { return static_cast<double>(entry) <= best.t; });
@@ -231,17 +245,49 @@ std::vector<uint8_t> anyHits(Source& source, std::span<const Ray> rays, const Qu
       [](auto&, const ClosestSoFar& best) { return uint8_t{best.face != kNoHit}; }, order);
 }
 
-// A file in memory is walked through its layout for rays, a reader's through its pages' layouts.
-auto indexWalk(const query::RayIndex& index) {
-  return [&index](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    MemoryLayouts layouts{index.spans()};
-    return traverseLayout(layouts, ray, any, s, stack);
-  };
+// The walks, compiled twice: for the x86-64 every such CPU has, four boxes a step, and for
+// x86-64-v3 (AVX2, GCC builds), eight, chosen by the CPU the rays run on.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define FACETREE_X86_64_V3 gnu::target("arch=x86-64-v3")
+bool eightLanes(const QueryOptions& options) {
+  return options.wideLanes && __builtin_cpu_supports("x86-64-v3");
 }
-auto readerWalk() {
-  return [](query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
-    return traverseLayout(view, ray, any, s, stack);
-  };
+#else
+#define FACETREE_X86_64_V3
+bool eightLanes(const QueryOptions&) {
+  return false;
+}
+#endif
+
+[[gnu::flatten]] ClosestSoFar walkMemory4(const query::RaySpans& spans, const RayState& ray, bool any,
+                                          QueryStats& stats, Stack& stack) {
+  MemoryLayouts layouts{spans};
+  return traverseLayout<4>(layouts, ray, any, stats, stack);
+}
+[[gnu::flatten, FACETREE_X86_64_V3]] ClosestSoFar walkMemory8(const query::RaySpans& spans,
+                                                              const RayState& ray, bool any,
+                                                              QueryStats& stats, Stack& stack) {
+  MemoryLayouts layouts{spans};
+  return traverseLayout<8>(layouts, ray, any, stats, stack);
+}
+ClosestSoFar walkReader4(query::ReaderSource::View& view, const RayState& ray, bool any, QueryStats& stats,
+                         Stack& stack) {
+  return traverseLayout<4>(view, ray, any, stats, stack);
+}
+[[FACETREE_X86_64_V3]] ClosestSoFar walkReader8(query::ReaderSource::View& view, const RayState& ray,
+                                                bool any, QueryStats& stats, Stack& stack) {
+  return traverseLayout<8>(view, ray, any, stats, stack);
+}
+#undef FACETREE_X86_64_V3
+
+// A file in memory is walked through its layout for rays, a reader's through its pages' layouts.
+auto indexWalk(const query::RayIndex& index, const QueryOptions& options) {
+  const auto walk = eightLanes(options) ? walkMemory8 : walkMemory4;
+  return [&index, walk](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s,
+                        Stack& stack) { return walk(index.spans(), ray, any, s, stack); };
+}
+auto readerWalk(const QueryOptions& options) {
+  return eightLanes(options) ? walkReader8 : walkReader4;
 }
 
 }  // namespace
@@ -275,13 +321,13 @@ RayLayout::~RayLayout() = default;
 std::vector<RayHit> intersect(const RayLayout& layout, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
   query::FileSource source(layout.file());
-  return closestHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout)));
+  return closestHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout), options));
 }
 
 std::vector<uint8_t> occluded(const RayLayout& layout, std::span<const Ray> rays, const QueryOptions& options,
                               QueryStats* stats) {
   query::FileSource source(layout.file());
-  return anyHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout)));
+  return anyHits(source, rays, options, stats, indexWalk(RayLayoutAccess::index(layout), options));
 }
 
 std::vector<RayHit> intersect(const ClusterFile& file, std::span<const Ray> rays, const QueryOptions& options,
@@ -299,7 +345,7 @@ std::vector<RayHit> intersect(ReaderQueryIndex& index, std::span<const Ray> rays
   if (const RayLayout* layout = query::ReaderSource::layout(index))
     return intersect(*layout, rays, options, stats);
   query::ReaderSource source(index);
-  return closestHits(source, rays, options, stats, readerWalk(), coherentOrder(rays, source.center()));
+  return closestHits(source, rays, options, stats, readerWalk(options), coherentOrder(rays, source.center()));
 }
 
 std::vector<uint8_t> occluded(ReaderQueryIndex& index, std::span<const Ray> rays, const QueryOptions& options,
@@ -307,7 +353,7 @@ std::vector<uint8_t> occluded(ReaderQueryIndex& index, std::span<const Ray> rays
   if (const RayLayout* layout = query::ReaderSource::layout(index))
     return occluded(*layout, rays, options, stats);
   query::ReaderSource source(index);
-  return anyHits(source, rays, options, stats, readerWalk(), coherentOrder(rays, source.center()));
+  return anyHits(source, rays, options, stats, readerWalk(options), coherentOrder(rays, source.center()));
 }
 
 std::vector<RayHit> intersect(ClusterFileReader& reader, std::span<const Ray> rays,

@@ -49,6 +49,9 @@ struct QueryStats {
 
 struct QueryOptions {
   unsigned threads = 0;  // 0: the hardware's, at most 8
+  // Rays meet a node's eight boxes in one step where the CPU has AVX2 (x86-64-v3), four at a time
+  // where it does not or this is false: the same hits and counts either way.
+  bool wideLanes = true;
 };
 
 namespace query {
@@ -58,7 +61,7 @@ class ReaderSource;
 
 // A file in memory laid out for rays: each node's members (its children widened to up to eight
 // nodes, subtrees of at most eight faces tested as runs of faces) with their oriented boxes side by
-// side, four at a time, and where their own members are (O(nodes): ~50 ms for dragon_vrip's 871k
+// side, in packets of four, and where their own members are (O(nodes): ~50 ms for dragon_vrip's 871k
 // nodes at b = 4). The rays over a ClusterFile lay it out each batch; hold one to cast many
 // batches. The file must outlive it and not change.
 class RayLayout {

@@ -240,6 +240,33 @@ TEST(RayQueries, TheSameResultsAndCountsForOneTwoAndThreeThreads) {
   }
 }
 
+// Eight boxes a step (where the CPU has AVX2) and four: the same entries to the bit, so the same
+// boxes, triangles and hits, in memory and through a reader's pages.
+TEST(RayQueries, EightBoxesAStepAndFourMeetTheSameBoxesAndTriangles) {
+  const IndexedMesh mesh = test::loadShared("horse_97k.ply.zst");
+  for (const uint32_t branching : {2u, 8u}) {
+    SCOPED_TRACE("b = " + std::to_string(branching));
+    const ClusterFile file = test::fileOf(mesh.view(), branching, BoxPrecision::Exact);
+    const std::vector<Ray> rays = raysAround(file, 3000, 37);
+    QueryStats eight, four;
+    size_t met = 0;
+    ASSERT_NO_FATAL_FAILURE(expectSameTraversal(intersect(file, rays, {2, true}, &eight), eight,
+                                                intersect(file, rays, {2, false}, &four), four, &met));
+    EXPECT_GT(met, rays.size() / 4);
+    EXPECT_EQ(occluded(file, rays, {2, true}), occluded(file, rays, {2, false}));
+    test::TemporaryFiles files;
+    const auto path = files.add("lanes.fch");
+    writeClusterFile(path, file);
+    ClusterFileReader reader(path, ReaderOptions{2 << 20, {}});
+    ReaderQueryIndex index(reader);
+    ASSERT_GT(index.temporaryBytes(), 0u);  // pages, not the file read whole
+    QueryStats pagesEight, pagesFour;
+    ASSERT_NO_FATAL_FAILURE(expectSameTraversal(intersect(index, rays, {2, true}, &pagesEight), pagesEight,
+                                                intersect(index, rays, {2, false}, &pagesFour), pagesFour));
+    EXPECT_EQ(pagesEight.boxTests, eight.boxTests);
+  }
+}
+
 TEST(RayQueries, DegenerateRaysMissAndEmptyBatchesAreEmpty) {
   const test::TestMesh sphere = test::icosphere(3);
   const MeshView view{sphere.positions, sphere.indices};
