@@ -1103,7 +1103,22 @@ QUERY_EMBREE_TARGET = 2.5
 QUERY_READER_OVER_MEMORY = 1.2
 QUERY_SAME_TRIANGLE = 0.9999
 QUERY_T_RELATIVE = 1e-5
+QUERY_ROUNDS = 2  # turns of the reader, Python and the file in memory alone
 QUERY_DRAGON56 = (3, "256M")  # gen subdivide dragon_vrip --levels 3, read under this cap
+
+
+# A measurement's best over rounds: the least of each time ("..._seconds", or Python's pair of them)
+# and the most of each rate ("..._per_second"); other values as the first round has them.
+def best_round(runs):
+    first = runs[0]
+    if isinstance(first, dict):
+        return {k: best_round([r[k] for r in runs]) if isinstance(v, (dict, list)) else
+                (min(r[k] for r in runs) if k.endswith("_seconds") else
+                 max(r[k] for r in runs) if k.endswith("per_second") else v)
+                for k, v in first.items()}
+    if isinstance(first, list):  # Python's (closest, any) seconds
+        return [min(r[i] for r in runs) for i in range(len(first))]
+    return first
 
 
 def query_bench_binary(args):
@@ -1118,8 +1133,9 @@ def query_run(args, fch, *options):
     return json.loads(stdout)
 
 
-# The saved rays through facetree.open(FILE) (the default cap), intersect and occluded, best of three
-# calls after one that builds the reader's query index: (closest, any) seconds per kind of ray.
+# The saved rays through facetree.open(FILE) (the default cap), intersect and occluded, the median of
+# three calls after one that builds the reader's query index (query_bench's estimate too): (closest,
+# any) seconds per kind of ray.
 PYTHON_QUERIES = r"""
 import sys, time, numpy as np, facetree
 path, prefix, threads = sys.argv[1], sys.argv[2], int(sys.argv[3])
@@ -1131,12 +1147,12 @@ for kind in ("camera", "random"):
     f.intersect(o[:1024], d[:1024], threads=threads)
     times = []
     for call in (f.intersect, f.occluded):
-        best = float("inf")
+        runs = []
         for _ in range(3):
             start = time.perf_counter()
             call(o, d, threads=threads)
-            best = min(best, time.perf_counter() - start)
-        times.append(best)
+            runs.append(time.perf_counter() - start)
+        times.append(sorted(runs)[1])
     out[kind] = times
 boxes = np.fromfile(prefix + ".boxes", dtype=np.float32).reshape(-1, 10)
 x, y, z, w = (boxes[:, 6 + k].astype(np.float64) for k in range(4))
@@ -1149,12 +1165,12 @@ for name, call in (("boxes", lambda: f.overlap_oriented(boxes[:, :3], boxes[:, 3
                                                         threads=threads)),
                    ("aligned", lambda: f.overlap(lo, hi, threads=threads)),
                    ("nearest", lambda: f.nearest(points, threads=threads))):
-    best = float("inf")
+    runs = []
     for _ in range(3):
         start = time.perf_counter()
         call()
-        best = min(best, time.perf_counter() - start)
-    out[name] = len(points) / best if name == "nearest" else len(boxes) / best
+        runs.append(time.perf_counter() - start)
+    out[name + "_per_second"] = (len(points) if name == "nearest" else len(boxes)) / sorted(runs)[1]
 print(__import__("json").dumps(out))
 """
 
@@ -1207,14 +1223,17 @@ def bench_queries(args, meshes, out):
             # 16,384 boxes and points: Python's calls against the file in memory's, at least 0.1 s each
             r = query_run(args, dragon, "--embree", "--rays", 1 << 20, "--queries", 1 << 14, "--threads", threads,
                           "--repeat", args.repeat, "--save-rays", tmp / "rays")
-            # The same rays through the lazy reader (its default cap) and through Python's open().
-            reader_run = query_run(args, dragon, "--only", "rays", "--threads", threads,
-                                   "--reader-memory", cap_bytes("4G"), "--load-rays", tmp / "rays")
-            py = query_python(args, dragon, tmp / "rays", threads)
-            # The file in memory alone, without Embree in its process (which slows it by 5-15%): the
-            # baseline of the reader and Python, each timed in a process of its own.
-            alone = query_run(args, dragon, "--rays", 1 << 20, "--queries", 1 << 14, "--threads", threads,
-                              "--repeat", args.repeat)
+            # The same rays through the lazy reader (its default cap) and through Python's open(), and
+            # the file in memory alone, without Embree in its process (which slows it by 5-15%): the
+            # baseline of the reader and Python, each timed in a process of its own. The three take
+            # turns, QUERY_ROUNDS times, and each keeps its best round: a burst of the machine's
+            # noise falls on one round of one of them, not on the ratio.
+            rounds = [(query_run(args, dragon, "--only", "rays", "--threads", threads,
+                                 "--reader-memory", cap_bytes("4G"), "--load-rays", tmp / "rays"),
+                       query_python(args, dragon, tmp / "rays", threads),
+                       query_run(args, dragon, "--rays", 1 << 20, "--queries", 1 << 14, "--threads", threads,
+                                 "--repeat", args.repeat)) for _ in range(QUERY_ROUNDS)]
+            reader_run, py, alone = (best_round([round[i] for round in rounds]) for i in range(3))
             for k in ("camera", "random"):
                 r[k]["reader_closest_seconds"] = reader_run[k]["closest_seconds"]
                 r[k]["reader_any_seconds"] = reader_run[k]["any_seconds"]
@@ -1223,13 +1242,14 @@ def bench_queries(args, meshes, out):
                     r[k][f"{path}_closest_ratio"] = r[k][f"{path}_closest_seconds"] / r[k]["embree_closest_seconds"]
                     r[k][f"{path}_any_ratio"] = r[k][f"{path}_any_seconds"] / r[k]["embree_any_seconds"]
             for k in ("boxes", "nearest"):  # Python's rate over the file in memory's, the same queries
-                r[k]["python_queries_per_second"] = py[k]
-                r[k]["python_over_memory_time"] = r[k]["queries_per_second"] / py[k]
+                r[k]["python_queries_per_second"] = py[f"{k}_per_second"]
+                r[k]["python_over_memory_time"] = r[k]["queries_per_second"] / py[f"{k}_per_second"]
             r["alone"] = {k: alone[k] for k in ("camera", "random", "boxes", "aligned", "nearest")}
             r["over_memory_alone"] = {  # each path's time over the file in memory's alone, the same queries
                 **{f"{path}_{hit}_{k}": r[k][f"{path}_{hit}_seconds"] / alone[k][f"{hit}_seconds"]
                    for path in ("reader", "python") for hit in ("closest", "any") for k in ("camera", "random")},
-                **{f"python_{k}": alone[k]["queries_per_second"] / py[k] for k in ("boxes", "aligned", "nearest")}}
+                **{f"python_{k}": alone[k]["queries_per_second"] / py[f"{k}_per_second"]
+                   for k in ("boxes", "aligned", "nearest")}}
             speed.append(r)
     # Rays through the lazy reader on the 56M-face dragon's file (full run).
     reader = None

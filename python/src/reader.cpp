@@ -139,11 +139,12 @@ py::tuple overlapTuple(PyReader& r, const std::vector<QueryBox>& boxes, unsigned
     py::gil_scoped_release release;
     found = overlap(r.queries(), boxes, {threads});
   }
-  std::vector<int64_t> offsets(found.size() + 1, 0), faces;
-  for (size_t i = 0; i < found.size(); ++i) {
-    faces.insert(faces.end(), found[i].begin(), found[i].end());
-    offsets[i + 1] = static_cast<int64_t>(faces.size());
-  }
+  std::vector<int64_t> offsets(found.size() + 1, 0);
+  for (size_t i = 0; i < found.size(); ++i)
+    offsets[i + 1] = offsets[i] + static_cast<int64_t>(found[i].size());
+  std::vector<int64_t> faces(static_cast<size_t>(offsets.back()));
+  for (size_t i = 0; i < found.size(); ++i)
+    std::copy(found[i].begin(), found[i].end(), faces.begin() + offsets[i]);
   const auto n = static_cast<py::ssize_t>(offsets.size()), m = static_cast<py::ssize_t>(faces.size());
   return py::make_tuple(arrayOwning(std::move(offsets), {n}), arrayOwning(std::move(faces), {m}));
 }
