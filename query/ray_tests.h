@@ -83,6 +83,8 @@ static_assert(sizeof(BoxPacket) == 192);
 template <class F, class I>
 [[gnu::always_inline]] inline void rayBoxEntryLanes(const BoxRay& ray, const F (&a0)[3], const F (&a1)[3],
                                                     const F (&center)[3], const F (&half)[3], F& entry) {
+  // |x| as x without its sign bit, written out where it is met: a helper returning eight lanes
+  // would change the calling convention of code built without AVX.
   const I magnitude = I{} + 0x7fffffff;
   const F infinity = F{} + std::numeric_limits<float>::infinity();
   const F axis[3][3] = {
@@ -96,7 +98,7 @@ template <class F, class I>
     d[i] = axis[i][0] * ray.direction.x + axis[i][1] * ray.direction.y + axis[i][2] * ray.direction.z;
   }
   const F reach =
-      (F)(((I)offset[0] & magnitude)) + (F)((I)offset[1] & magnitude) + (F)((I)offset[2] & magnitude);
+      (F)((I)offset[0] & magnitude) + (F)((I)offset[1] & magnitude) + (F)((I)offset[2] & magnitude);
   F near = F{} + ray.tMin, far = F{} + ray.tMax;
   I miss = I{};
   for (int a = 0; a < 3; ++a) {
