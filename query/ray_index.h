@@ -7,8 +7,8 @@
 // ranges are, so that a node visited costs the miss of its members' packets and nothing more.
 // Packets are in depth-first order; face ranges (a leaf's faces, face children and children cut off
 // by truncation, runs of them joined) in an array of their own, a leaf's also in its record, and
-// each triangle's corners in face order (36 bytes a triangle: one miss a triangle tested). Members lie in increasing
-// node index, so that ordering them by position orders them as the file does.
+// each triangle's corners in face order (36 bytes a triangle: one miss a triangle tested). Members
+// lie in increasing node index, so that ordering them by position orders them as the file does.
 //
 // The file in memory is one layout. A reader's is a layout of the nodes above its pages, whose
 // members at the pages' roots point to a layout of each page (query_source.h), built as the page

@@ -8,9 +8,9 @@
 // node, its face ranges are tested first; then its members' boxes, eight in one step where the CPU
 // has AVX2 (four at a time where it does not), and the members met are visited near first, in
 // order of their entry t (ties to the lower node index), and skipped once a hit lies before that
-// entry. A hit at the same t as the best goes to the triangle
-// first in the face order, as the brute force decides it. The file in memory and a reader's pages
-// are walked by the same code over the same layout.
+// entry. A hit at the same t as the best goes to the triangle first in the face order, as the
+// brute force decides it. The file in memory and a reader's pages are walked by the same code over
+// the same layout.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -282,9 +282,10 @@ ClosestSoFar walkReader4(query::ReaderSource::View& view, const RayState& ray, b
 
 // A file in memory is walked through its layout for rays, a reader's through its pages' layouts.
 auto indexWalk(const query::RayIndex& index, const QueryOptions& options) {
-  const auto walk = eightLanes(options) ? walkMemory8 : walkMemory4;
-  return [&index, walk](query::FileSource::View&, const RayState& ray, bool any, QueryStats& s,
-                        Stack& stack) { return walk(index.spans(), ray, any, s, stack); };
+  return [spans = index.spans(), walk = eightLanes(options) ? walkMemory8 : walkMemory4](
+             query::FileSource::View&, const RayState& ray, bool any, QueryStats& s, Stack& stack) {
+    return walk(spans, ray, any, s, stack);
+  };
 }
 auto readerWalk(const QueryOptions& options) {
   return eightLanes(options) ? walkReader8 : walkReader4;
