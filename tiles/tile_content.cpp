@@ -47,6 +47,11 @@ double boundaryDeviation(const std::vector<glm::vec3>& positions, const std::vec
   return worst;
 }
 
+// Detail an inner tile may drop beyond its first quarter, as a fraction of its extent: at a
+// viewer's default error target of 16 pixels, an error this small shows only once the tile spans
+// 65,536 pixels, larger than any screen.
+constexpr double kFinestDetail = 1.0 / 4096;
+
 }  // namespace
 
 TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count) {
@@ -122,6 +127,24 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
   kept.resize(meshopt_simplify(kept.data(), source.data(), source.size(), &moved[0].x, moved.size(),
                                sizeof(glm::vec3), target, 1.0f, 0, &relative));
   const double scale = meshopt_simplifyScale(&positions[0].x, positions.size(), sizeof(glm::vec3));
+  // The deviation from the children's surface: the simplifier's, or the mesh's own boundary's.
+  double deviation = std::max(double(relative) * scale, boundaryDeviation(positions, source, kept));
+  // A surface tessellated finer than it bends (subdivided meshes, CAD's regular grids) is still
+  // all but exact at a quarter, and a level that keeps such detail costs bytes that no view shows
+  // (Draco predicts the leaves' regular grids almost for free, a simplified tile's positions not):
+  // it simplifies on from the quarter, down to an eighth of the input, while the two passes
+  // together stray less than kFinestDetail.
+  if (relative < kFinestDetail) {
+    std::vector<uint32_t> further(kept.size());
+    float more = 0;
+    further.resize(meshopt_simplify(further.data(), kept.data(), kept.size(), &moved[0].x, moved.size(),
+                                    sizeof(glm::vec3), 3 * (source.size() / 24),
+                                    float(kFinestDetail - relative), 0, &more));
+    const double after =
+        std::max((double(relative) + more) * scale, boundaryDeviation(positions, source, further));
+    if (further.size() < kept.size() && after <= std::max(deviation, kFinestDetail * scale))
+      kept.swap(further), deviation = after;
+  }
   // Vertices in order of first use.
   TileMesh mesh;
   std::vector<uint32_t> remap(positions.size(), ~0u);
@@ -134,10 +157,9 @@ TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t target
     }
     mesh.indices.push_back(remap[v]);
   }
-  // The deviation from the children's surface, which deviates from the full resolution by the
-  // children's error; strictly above every child's, which a viewer needs to refine at all (a tiny
-  // margin of the tile's extent where nothing deviates).
-  const double deviation = std::max(double(relative) * scale, boundaryDeviation(positions, source, kept));
+  // The children deviate from the full resolution by their error; the tile's is strictly above
+  // every child's, which a viewer needs to refine at all (a tiny margin of the tile's extent where
+  // nothing deviates).
   mesh.error = std::max(childError + std::max(deviation, scale * 1e-6), std::nextafter(childError, HUGE_VAL));
   return mesh;
 }

@@ -28,8 +28,9 @@ struct TileMesh {
 TileMesh leafContent(ClusterFileReader& reader, uint64_t first, uint64_t count);
 
 // The children's contents welded by position and simplified (meshopt_simplify) towards
-// `targetFaces` faces, a quarter of theirs when that is fewer, the vertices `locked` names kept in
-// place; its vertices in order of first use.
+// `targetFaces` faces, a quarter of theirs when that is fewer, on towards an eighth while it
+// strays less than 1/4096 of its extent, the vertices `locked` names kept in place; its vertices
+// in order of first use.
 // The error is the simplifier's, in the model's units, added to the children's largest, and never
 // equal to it.
 TileMesh innerContent(std::span<const TileMesh* const> children, uint64_t targetFaces,

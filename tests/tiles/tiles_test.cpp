@@ -238,6 +238,38 @@ TEST(TileContent, CoincidentPartsSimplifyByTheirOwnTopology) {
   EXPECT_LE(pair.indices.size() / 3, 2000u);
 }
 
+// A surface tessellated finer than it bends simplifies past a quarter, down to an eighth, at no
+// error that shows; one whose quarter already strays keeps its quarter; below a quarter the
+// error stays under 1/4096 of the extent.
+TEST(TileContent, FineTessellationSimplifiesPastAQuarterWithinTheFinestDetail) {
+  const auto none = [](const glm::vec3&) { return false; };
+  struct Case {
+    test::TestMesh mesh;
+    bool fine;
+  };
+  for (const Case& c : {Case{test::grid(60), true}, Case{test::icosphere(2), false}}) {
+    TileMesh child;
+    child.positions = c.mesh.positions;
+    child.indices = c.mesh.indices;
+    for (size_t v = 0; v < child.positions.size(); ++v) child.vertexIds.push_back(v);
+    const std::vector<const TileMesh*> children{&child};
+    const TileMesh out = innerContent(children, 1u << 20, none);
+    const size_t faces = c.mesh.indices.size() / 3, kept = out.indices.size() / 3;
+    glm::vec3 lo = c.mesh.positions[0], hi = lo;
+    for (const glm::vec3& p : c.mesh.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const double extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+    EXPECT_LE(kept, faces / 4);
+    if (c.fine)
+      EXPECT_LE(kept, faces / 8) << "a flat grid loses nothing by simplifying";
+    else
+      EXPECT_GT(kept, faces / 8) << "a coarse sphere's quarter strays already";
+    if (kept < faces / 4)
+      EXPECT_LE(out.error, extent / 4096);
+    else
+      EXPECT_GT(out.error, extent / 4096);
+  }
+}
+
 TEST(Glb, HoldsThePositionsRelativeToTheCentreYUpAndPadsItsChunks) {
   TileMesh mesh;
   mesh.positions = {{1, 2, 3}, {4, 5, 6}, {7, 8, 10}};
