@@ -12,6 +12,13 @@
 namespace facetree::tiles {
 namespace {
 
+// A tile's children are its largest descendants of at most tileFaces times the largest power of
+// kLevelGrowth below its own faces: every level opens its nodes by about the same factor, and a
+// tree whose faces are no power of it has its narrow tile at the root, not just above the leaves
+// (where opening the largest first left two-leaf tiles under full ones). Opening nodes down to a
+// size leaves between one and two kLevelGrowth of them: kTileChildren.
+constexpr uint64_t kLevelGrowth = kTileChildren / 2;
+
 // Leaves in preorder are in face order; a tile's are a run of them.
 void numberLeaves(TileTree& tree) {
   uint32_t leaves = 0;
@@ -66,14 +73,18 @@ class Builder {
     return items;
   }
 
-  // Tile `index` is a large node: opens its largest descendants up to kTileChildren children,
-  // groups neighbouring small ones into leaf tiles, and lays out the children in face order.
+  // Tile `index` is a large node: opens its largest descendants over its children's size, up to
+  // kTileChildren children, groups neighbouring small ones into leaf tiles, and lays out the
+  // children in face order.
   void open(uint32_t index) {
     std::vector<Item> frontier = childrenOf(tree_.tiles[index].node);
+    uint64_t limit = tileFaces_;
+    while (limit * kLevelGrowth < tree_.tiles[index].count) limit *= kLevelGrowth;
     for (;;) {
       size_t largest = frontier.size();
       for (size_t i = 0; i < frontier.size(); ++i)
-        if (large(frontier[i]) && (largest == frontier.size() || frontier[i].count > frontier[largest].count))
+        if (large(frontier[i]) && frontier[i].count > limit &&
+            (largest == frontier.size() || frontier[i].count > frontier[largest].count))
           largest = i;
       if (largest == frontier.size()) break;
       std::vector<Item> opened = childrenOf(frontier[largest].node);

@@ -1,8 +1,9 @@
 // The tiles of a cluster file: which nodes become tiles, and which tiles are whose children.
 // Leaf tiles are the highest nodes of at most tileFaces faces, neighbouring small ones grouped;
-// an inner tile is a larger node whose children tiles come from opening its largest descendants
-// until it has up to kTileChildren of them, as the recast to b children opens the largest node
-// first (Willmott 2000, sec. 5.5.1).
+// an inner tile is a larger node whose children tiles come from opening its largest descendants,
+// as the recast to b children opens the largest node first (Willmott 2000, sec. 5.5.1), down to
+// its level's size (tileFaces times the largest power of five below its own faces) and up to
+// kTileChildren of them.
 #pragma once
 
 #include <cstdint>
@@ -13,7 +14,7 @@
 
 namespace facetree::tiles {
 
-inline constexpr uint32_t kTileChildren = 8;
+inline constexpr uint32_t kTileChildren = 10;
 
 struct Tile {
   uint64_t first = 0, count = 0;  // the face positions it covers

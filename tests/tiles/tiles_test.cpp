@@ -82,7 +82,7 @@ TEST(TileTree, TilesPartitionTheFacesAndLeavesHoldAtMostATile) {
     ASSERT_GT(tree.tiles.size(), 20u);
     EXPECT_EQ(tree.tiles[0].first, 0u);
     EXPECT_EQ(tree.tiles[0].count, mesh.indices.size() / 3);
-    uint64_t leafFaces = 0, next = 0;
+    uint64_t leafFaces = 0, next = 0, bottomTiles = 0, bottomChildren = 0, twoLeafTiles = 0;
     for (const uint32_t t : tree.postorder()) {
       const Tile& tile = tree.tiles[t];
       if (!tile.childCount) {
@@ -104,9 +104,19 @@ TEST(TileTree, TilesPartitionTheFacesAndLeavesHoldAtMostATile) {
       EXPECT_EQ(first, tile.first + tile.count);
       if (keep == 0) {
         EXPECT_LE(tile.childCount, kTileChildren);
+        bool aboveLeaves = true;
+        for (uint32_t k = 0; k < tile.childCount; ++k)
+          aboveLeaves = aboveLeaves && !tree.tiles[tree.children[tile.firstChild + k]].childCount;
+        if (aboveLeaves)
+          ++bottomTiles, bottomChildren += tile.childCount, twoLeafTiles += tile.childCount == 2;
       }
     }
     EXPECT_EQ(leafFaces, mesh.indices.size() / 3);
+    if (keep == 0) {
+      // The level above the leaves opens its nodes as far as the others do.
+      EXPECT_GE(bottomChildren, 4 * bottomTiles) << bottomTiles << " tiles above the leaves";
+      EXPECT_LE(4 * twoLeafTiles, bottomTiles) << "two-leaf tiles";
+    }
   }
 }
 
