@@ -12,11 +12,9 @@
 namespace facetree::tiles {
 namespace {
 
-// A tile's children are its largest descendants of at most tileFaces times the largest power of
-// kLevelGrowth below its own faces: every level opens its nodes by about the same factor, and a
-// tree whose faces are no power of it has its narrow tile at the root, not just above the leaves
-// (where opening the largest first left two-leaf tiles under full ones). Opening nodes down to a
-// size leaves between one and two kLevelGrowth of them: kTileChildren.
+// Each level opens its nodes by about the same factor, so a tree whose faces are no power of it
+// has its narrow tile at the root rather than two-leaf tiles just above the leaves; a binary node
+// opened down to a size leaves about kLevelGrowth children, room is left for twice that.
 constexpr uint64_t kLevelGrowth = kTileChildren / 2;
 
 // Leaves in preorder are in face order; a tile's are a run of them.
@@ -73,9 +71,9 @@ class Builder {
     return items;
   }
 
-  // Tile `index` is a large node: opens its largest descendants over its children's size, up to
-  // kTileChildren children, groups neighbouring small ones into leaf tiles, and lays out the
-  // children in face order.
+  // Tile `index` is a large node: opens its largest descendants over its level's size (limit, at
+  // least tileFaces), up to kTileChildren children, groups neighbouring small ones into leaf tiles,
+  // and lays out the children in face order.
   void open(uint32_t index) {
     std::vector<Item> frontier = childrenOf(tree_.tiles[index].node);
     uint64_t limit = tileFaces_;
@@ -83,7 +81,7 @@ class Builder {
     for (;;) {
       size_t largest = frontier.size();
       for (size_t i = 0; i < frontier.size(); ++i)
-        if (large(frontier[i]) && frontier[i].count > limit &&
+        if (frontier[i].node != kNoNode && frontier[i].count > limit &&
             (largest == frontier.size() || frontier[i].count > frontier[largest].count))
           largest = i;
       if (largest == frontier.size()) break;

@@ -78,23 +78,19 @@ async function view(page, url, query) {
   return { stats, bits, covered, span: covered ? Math.max(maxX - minX + 1, maxY - minY + 1) : 0 };
 }
 
-// Pixels the full render covers that the tiled one leaves as background, more than `reach` pixels
-// from any background pixel of the full render (its outline); and pixels that differ at all.
-function compare(full, tiled, reach = 2) {
+// Pixels the full render covers that the tiled one leaves as background, more than 2 pixels from
+// any background pixel of the full render (its outline), and how deep the deepest lies; and pixels
+// that differ at all.
+function compare(full, tiled) {
   let holes = 0, differ = 0, deepest = 0;
   for (let y = 0; y < H; y++)
     for (let x = 0; x < W; x++) {
       const i = y * W + x;
       if (full.bits[i] !== tiled.bits[i]) differ++;
       if (!full.bits[i] || tiled.bits[i]) continue;
-      let nearOutline = false;
-      for (let dy = -reach; dy <= reach && !nearOutline; dy++)
-        for (let dx = -reach; dx <= reach && !nearOutline; dx++) {
-          const xx = x + dx, yy = y + dy;
-          nearOutline = xx < 0 || yy < 0 || xx >= W || yy >= H || !full.bits[yy * W + xx];
-        }
-      if (!nearOutline) holes++;
-      deepest = Math.max(deepest, depth(full, x, y));
+      const d = depth(full, x, y);
+      if (d > 2) holes++;
+      deepest = Math.max(deepest, d);
     }
   return { holes, differ, deepest };
 }
