@@ -203,7 +203,7 @@ NodeCode quantizeRecord(const FchNode& node, uint64_t index, unsigned bits, BoxP
 NodeBox quantizeCompactBox(const NodeBox& box, const NodeBox& parent, uint64_t index, NodeCode& code) {
   const CompactGrid grid = compactGrid(parent, box.orientation);
   const glm::dvec3 c(box.center);
-  double lo[3], hi[3];
+  double lo[3] = {}, hi[3] = {};
   for (int a = 0; a < 3; ++a) {
     const double ca = glm::dot(c, grid.axis[a]);
     const double slack = 0x1p-40 * (std::abs(ca) + box.halfExtent[a]);
