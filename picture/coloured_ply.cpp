@@ -28,6 +28,17 @@ std::string plyHeader(uint64_t vertices, uint64_t faces, bool clusterIds) {
          "property uchar blue\n" +
          (clusterIds ? "property uint cluster\n" : "") + "end_header\n";
 }
+
+// A face record: three corners, the cluster's colour and, with `clusterIds`, the cluster.
+void putFace(unsigned char* record, const int32_t (&index)[3], uint32_t cluster, bool clusterIds) {
+  record[0] = 3;
+  std::memcpy(record + 1, index, sizeof index);
+  const glm::u8vec3 colour = clusterColour(cluster);
+  record[13] = colour.r;
+  record[14] = colour.g;
+  record[15] = colour.b;
+  if (clusterIds) std::memcpy(record + 16, &cluster, 4);
+}
 }  // namespace
 
 void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> faceCluster,
@@ -39,31 +50,16 @@ void writeClusterColouredPly(const MeshView& mesh, std::span<const uint32_t> fac
   const size_t triangles = mesh.triangleCount();
   OutputFile out(path);
   out.write(plyHeader(mesh.positions.size(), triangles, false));
-
+  out.write(mesh.positions.data(), mesh.positions.size() * kVertexBytes);
   std::vector<unsigned char> batch;
-  batch.reserve(kRecordBatch * kFaceBytes);
-  for (size_t first = 0; first < mesh.positions.size(); first += kRecordBatch) {
-    const size_t count = std::min(kRecordBatch, mesh.positions.size() - first);
-    batch.resize(count * kVertexBytes);
-    for (size_t i = 0; i < count; ++i)
-      std::memcpy(&batch[i * kVertexBytes], &mesh.positions[first + i], kVertexBytes);
-    out.write(batch.data(), batch.size());
-  }
   for (size_t first = 0; first < triangles; first += kRecordBatch) {
     const size_t count = std::min(kRecordBatch, triangles - first);
     batch.resize(count * kFaceBytes);
-    for (size_t i = 0; i < count; ++i) {
-      const size_t t = first + i;
-      unsigned char* record = &batch[i * kFaceBytes];
-      record[0] = 3;
+    for (size_t t = first; t < first + count; ++t) {
       const int32_t index[3] = {static_cast<int32_t>(mesh.indices[3 * t]),
                                 static_cast<int32_t>(mesh.indices[3 * t + 1]),
                                 static_cast<int32_t>(mesh.indices[3 * t + 2])};
-      std::memcpy(record + 1, index, sizeof index);
-      const glm::u8vec3 colour = clusterColour(faceCluster[t]);
-      record[13] = colour.r;
-      record[14] = colour.g;
-      record[15] = colour.b;
+      putFace(&batch[(t - first) * kFaceBytes], index, faceCluster[t], false);
     }
     out.write(batch.data(), batch.size());
   }
@@ -88,17 +84,10 @@ void writeClusterColouredPly(ClusterFileReader& reader, std::span<const CutClust
       [&](const FaceRangeMesh& piece, std::span<const uint32_t> clusterOf) {
         batch.resize(clusterOf.size() * faceBytes);
         for (size_t t = 0; t < clusterOf.size(); ++t) {
-          unsigned char* record = &batch[t * faceBytes];
-          record[0] = 3;
           int32_t index[3];
           for (int c = 0; c < 3; ++c)
             index[c] = static_cast<int32_t>(piece.vertexIds[piece.indices[3 * t + c]]);
-          std::memcpy(record + 1, index, sizeof index);
-          const glm::u8vec3 colour = clusterColour(clusterOf[t]);
-          record[13] = colour.r;
-          record[14] = colour.g;
-          record[15] = colour.b;
-          if (clusterIds) std::memcpy(record + 16, &clusterOf[t], 4);
+          putFace(&batch[t * faceBytes], index, clusterOf[t], clusterIds);
         }
         out.write(batch.data(), batch.size());
       },

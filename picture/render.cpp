@@ -117,7 +117,7 @@ std::vector<unsigned char> resolve(const SampleBuffer& buffer, int width, int he
   return pixels;
 }
 
-std::vector<unsigned char> encodePng(const std::vector<unsigned char>& pixels, int width, int height,
+std::vector<unsigned char> encodePng(std::span<const uint8_t> pixels, int width, int height,
                                      const std::filesystem::path& path) {
   std::vector<unsigned char> png;
   const auto append = [](void* context, void* data, int size) {
@@ -135,8 +135,7 @@ void writePng(const std::filesystem::path& path, std::span<const uint8_t> rgb, i
   if (width <= 0 || height <= 0 || rgb.size() != size_t{3} * width * height)
     throw std::invalid_argument("writePng: " + std::to_string(rgb.size()) + " bytes for " +
                                 std::to_string(width) + "x" + std::to_string(height) + " pixels");
-  const std::vector<unsigned char> png =
-      encodePng(std::vector<unsigned char>(rgb.begin(), rgb.end()), width, height, path);
+  const std::vector<unsigned char> png = encodePng(rgb, width, height, path);
   OutputFile out(path);
   out.write(png.data(), png.size());
   out.commit();
@@ -152,11 +151,7 @@ void renderClustersPng(const MeshView& mesh, std::span<const uint32_t> faceClust
       toSampleSpace(mesh.positions, mesh.indices, basis, sampleWidth, sampleHeight);
   SampleBuffer buffer(sampleWidth, sampleHeight);
   rasterize(mesh, faceCluster, points, buffer);
-  const std::vector<unsigned char> png =
-      encodePng(resolve(buffer, options.width, options.height), options.width, options.height, path);
-  OutputFile out(path);
-  out.write(png.data(), png.size());
-  out.commit();
+  writePng(path, resolve(buffer, options.width, options.height), options.width, options.height);
 }
 
 void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cut,
@@ -180,11 +175,7 @@ void renderClustersPng(ClusterFileReader& reader, std::span<const CutCluster> cu
         rasterize(MeshView{piece.vertices, piece.indices}, clusterOf, points, buffer);
       },
       FaceFields::Geometry);
-  const std::vector<unsigned char> png =
-      encodePng(resolve(buffer, options.width, options.height), options.width, options.height, path);
-  OutputFile out(path);
-  out.write(png.data(), png.size());
-  out.commit();
+  writePng(path, resolve(buffer, options.width, options.height), options.width, options.height);
 }
 
 }  // namespace facetree

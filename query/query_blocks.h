@@ -5,12 +5,12 @@
 
 #include <algorithm>
 #include <atomic>
-#include <exception>
 #include <thread>
 #include <utility>
 #include <vector>
 
 #include "facetree/query.h"
+#include "facetree/storage.h"
 #include "node_pages.h"
 
 namespace facetree::query {
@@ -35,28 +35,16 @@ void forEachBlock(Source& source, size_t count, const QueryOptions& options, Que
   const unsigned threads = threadCount(options, blocks);
   std::atomic<size_t> next{0};
   std::vector<QueryStats> perThread(threads);
-  std::vector<std::exception_ptr> failed(threads);  // a reader's error, thrown to the caller
-  const auto work = [&](unsigned thread) {
-    try {
-      typename Source::View view(source);
-      Stack stack;
-      stack.reserve(64 * kMaxBranching);
-      // Counted on this thread's stack, not in perThread, whose entries share a cache line.
-      QueryStats counted;
-      for (size_t b; (b = next.fetch_add(1)) < blocks;)
-        body(view, b * kQueriesPerBlock, std::min(count, (b + 1) * kQueriesPerBlock), counted, stack);
-      perThread[thread] = counted;
-    } catch (...) {
-      failed[thread] = std::current_exception();
-      next = blocks;  // the others stop at their next block
-    }
-  };
-  std::vector<std::jthread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  pool.clear();
-  for (const std::exception_ptr& e : failed)
-    if (e) std::rethrow_exception(e);
+  runWorkers(threads, [&](unsigned thread, const std::atomic<bool>& failed) {
+    typename Source::View view(source);
+    Stack stack;
+    stack.reserve(64 * kMaxBranching);
+    // Counted on this thread's stack, not in perThread, whose entries share a cache line.
+    QueryStats counted;
+    for (size_t b; !failed && (b = next.fetch_add(1)) < blocks;)
+      body(view, b * kQueriesPerBlock, std::min(count, (b + 1) * kQueriesPerBlock), counted, stack);
+    perThread[thread] = counted;
+  });
   if (stats)
     for (const QueryStats& s : perThread)
       stats->boxTests += s.boxTests, stats->triangleTests += s.triangleTests;

@@ -4,10 +4,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cstring>
-#include <exception>
 #include <map>
 #include <memory>
 #include <thread>
+
+#include "facetree/storage.h"
 
 namespace facetree::query {
 
@@ -91,26 +92,14 @@ RayPages::RayPages(NodePages& pages) : pages_(pages) {
       [&](const NodeRef& ref) { return pages.inTop(ref) ? kNoPage : pages.pageOf(ref); }, top_, topRanges_);
   const std::span<const uint32_t> ids = pages.subtreePages();
   std::atomic<size_t> next{0};
-  std::vector<std::exception_ptr> failed(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-  const auto work = [&](unsigned thread) {
-    try {
-      std::vector<std::byte> blob;
-      for (size_t k; (k = next.fetch_add(1)) < ids.size();) {
-        layOutPage(pages, ids[k], blob);
-        pages.writeDerived(ids[k], blob);
-      }
-    } catch (...) {
-      failed[thread] = std::current_exception();
-      next = ids.size();
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    for (unsigned t = 1; t < failed.size(); ++t) pool.emplace_back(work, t);
-    work(0);
-  }
-  for (const std::exception_ptr& e : failed)
-    if (e) std::rethrow_exception(e);
+  runWorkers(std::clamp(std::thread::hardware_concurrency(), 1u, 8u),
+             [&](unsigned, const std::atomic<bool>& failed) {
+               std::vector<std::byte> blob;
+               for (size_t k; !failed && (k = next.fetch_add(1)) < ids.size();) {
+                 layOutPage(pages, ids[k], blob);
+                 pages.writeDerived(ids[k], blob);
+               }
+             });
 }
 
 RaySpans RayPages::spans(const MappedBytes& page) {

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -159,29 +158,14 @@ TilesetReport writeTileset(const std::filesystem::path& file, const std::filesys
   HeldBytes held;
   std::atomic<uint64_t> readerPeak{0};
   std::atomic<size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex errorMutex;
-  auto work = [&] {
-    try {
-      ClusterFileReader reader(
-          plan.file,
-          ReaderOptions{std::max<uint64_t>(plan.options.memoryBytes / (8 * workers), 1), plan.options.tmp});
-      for (size_t i; !failed && (i = next++) < plan.tasks.size();)
-        subtrees[i] = makeSubtree(plan, reader, plan.tasks[i], out.path(), held, options.cancelled);
-      readerPeak += reader.peakHeldBytes();
-    } catch (...) {
-      std::lock_guard lock(errorMutex);
-      if (!error) error = std::current_exception();
-      failed = true;
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work);
-    work();
-  }
-  if (error) std::rethrow_exception(error);
+  runWorkers(workers, [&](unsigned, const std::atomic<bool>& failed) {
+    ClusterFileReader reader(
+        plan.file,
+        ReaderOptions{std::max<uint64_t>(plan.options.memoryBytes / (8 * workers), 1), plan.options.tmp});
+    for (size_t i; !failed && (i = next++) < plan.tasks.size();)
+      subtrees[i] = makeSubtree(plan, reader, plan.tasks[i], out.path(), held, options.cancelled);
+    readerPeak += reader.peakHeldBytes();
+  });
   TilesetReport report = makeTop(plan, subtrees, out.path());
   report.peakHeldBytes = held.peak + readerPeak + plan.borders.bytes();
   report.tileFaces = plan.options.tileFaces;

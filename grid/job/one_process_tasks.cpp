@@ -9,8 +9,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <exception>
-#include <thread>
 
 namespace facetree {
 
@@ -37,25 +35,9 @@ bool PhaseHooks::report(size_t slot, uint64_t done) {
 void runTasks(uint32_t count, unsigned workers, const std::function<void(uint32_t, unsigned)>& task) {
   workers = std::clamp<unsigned>(workers, 1, std::max(1u, count));
   std::atomic<uint32_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex errorMutex;
-  const auto work = [&] {
-    for (uint32_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
-      try {
-        task(i, 2 * workers);
-      } catch (...) {
-        const std::lock_guard lock(errorMutex);
-        if (!error) error = std::current_exception();
-        failed = true;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
+  runWorkers(workers, [&](unsigned, const std::atomic<bool>& failed) {
+    for (uint32_t i; !failed && (i = next.fetch_add(1)) < count;) task(i, 2 * workers);
+  });
 }
 
 WorkFiles::~WorkFiles() {

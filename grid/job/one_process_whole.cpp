@@ -4,23 +4,11 @@
 #include "job/work_directory.h"
 #include "stages/stages.h"
 
-#include <sys/resource.h>
-
 #include <chrono>
 #include <functional>
 #include <string_view>
 
 namespace facetree {
-namespace {
-
-// Peak resident set so far (getrusage), for the per-stage figures of the report.
-uint64_t peakRss() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return uint64_t(usage.ru_maxrss) * 1024;
-}
-
-}  // namespace
 
 void timeStage(JobReport& report, const char* name, double& seconds, const std::function<void()>& run) {
   const auto start = std::chrono::steady_clock::now();
@@ -28,9 +16,9 @@ void timeStage(JobReport& report, const char* name, double& seconds, const std::
   seconds += secondsSince(start);
   // One entry per stage: a stage timed in two parts keeps its later peak.
   if (!report.peakRssAfter.empty() && std::string_view(report.peakRssAfter.back().first) == name)
-    report.peakRssAfter.back().second = peakRss();
+    report.peakRssAfter.back().second = peakResidentBytes();
   else
-    report.peakRssAfter.push_back({name, peakRss()});
+    report.peakRssAfter.push_back({name, peakResidentBytes()});
 }
 
 // The cells stage frees its memory in the worker threads' malloc arenas, which the main thread's

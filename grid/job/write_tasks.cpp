@@ -83,7 +83,21 @@ struct LoadedWrite {
   WritePlan plan;
 };
 
-// Each table goes into the manifest's bytes as it leaves the plan: the two never hold it twice.
+// The tables of the geometry tasks and of the node tasks, listed once for the manifests that store
+// them (each table leaving the plan as it goes in) and those that read them back. The node tables
+// take the leaves' order last, after the geometry's.
+template <class Manifest>
+void geometryTables(Manifest& m, WritePlan& p) {
+  m.field(p.leafOrder);
+  m.tables(p.geometry, p.leafFirstGeometry, p.leafGeometryCount, p.leafVertices, p.leafFaces, p.upperParent,
+           p.leafUpperParent);
+}
+template <class Manifest>
+void nodeTables(Manifest& m, WritePlan& p) {
+  m.tables(p.orderBlocks, p.orderFirst, p.runPosition, p.runFirst, p.leafOrder, p.leafFirstBlock,
+           p.leafBlockCount, p.upperNodes, p.upperPosition, p.upperParentBox, p.upperParentPosition);
+}
+
 void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t cellsTasks,
                    uint32_t nodeTasks, WritePlan&& p) {
   // Node tasks on frame boundaries: nodeTasks of them, or one per kFramesPerNodeTask frames.
@@ -114,29 +128,12 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
   vertexBounds.back() = vertices;
   // The tables first, the head (the step's done marker) last: the steps of one task and the
   // layout read the head alone, the node and geometry tasks their own tables.
-  ManifestWriter geometryTables;
-  geometryTables.putVector(p.leafOrder);
-  geometryTables.putVector(std::exchange(p.geometry, {}));
-  geometryTables.putVector(std::exchange(p.leafFirstGeometry, {}));
-  geometryTables.putVector(std::exchange(p.leafGeometryCount, {}));
-  geometryTables.putVector(std::exchange(p.leafVertices, {}));
-  geometryTables.putVector(std::exchange(p.leafFaces, {}));
-  geometryTables.putVector(std::exchange(p.upperParent, {}));
-  geometryTables.putVector(std::exchange(p.leafUpperParent, {}));
-  work.commit(geometryTables, geometryTablesPath(work), kGeometryTablesKind);
-  ManifestWriter nodeTables;
-  nodeTables.putVector(std::exchange(p.orderBlocks, {}));
-  nodeTables.putVector(std::exchange(p.orderFirst, {}));
-  nodeTables.putVector(std::exchange(p.runPosition, {}));
-  nodeTables.putVector(std::exchange(p.runFirst, {}));
-  nodeTables.putVector(std::exchange(p.leafOrder, {}));
-  nodeTables.putVector(std::exchange(p.leafFirstBlock, {}));
-  nodeTables.putVector(std::exchange(p.leafBlockCount, {}));
-  nodeTables.putVector(std::exchange(p.upperNodes, {}));
-  nodeTables.putVector(std::exchange(p.upperPosition, {}));
-  nodeTables.putVector(std::exchange(p.upperParentBox, {}));
-  nodeTables.putVector(std::exchange(p.upperParentPosition, {}));
-  work.commit(nodeTables, nodeTablesPath(work), kNodeTablesKind);
+  ManifestWriter geometryManifest;
+  geometryTables(geometryManifest, p);
+  work.commit(geometryManifest, geometryTablesPath(work), kGeometryTablesKind);
+  ManifestWriter nodeManifest;
+  nodeTables(nodeManifest, p);
+  work.commit(nodeManifest, nodeTablesPath(work), kNodeTablesKind);
   ManifestWriter out;
   upperReportFields(out, report);
   out.put(cellsTasks);
@@ -153,10 +150,7 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
   head.compactNodes = p.compactNodes;
   head.boxesInTasks = p.boxesInTasks;
   out.put(head);
-  out.putVector(std::exchange(p.upperOrientation, {}));
-  out.putVector(std::exchange(p.upperOrigin, {}));
-  out.putVector(std::exchange(p.upperHasOrigin, {}));
-  out.putVector(std::exchange(p.upperWorldAxes, {}));
+  out.tables(p.upperOrientation, p.upperOrigin, p.upperHasOrigin, p.upperWorldAxes);
   work.commit(out, writePlanPath(work), kWriteKind);
 }
 
@@ -180,10 +174,7 @@ LoadedWrite loadWriteHead(const WorkDirectory& work) {
   p.records = head.records;
   p.compactNodes = head.compactNodes;
   p.boxesInTasks = head.boxesInTasks;
-  p.upperOrientation = in.takeVector<glm::quat>();
-  p.upperOrigin = in.takeVector<glm::vec3>();
-  p.upperHasOrigin = in.takeVector<uint8_t>();
-  p.upperWorldAxes = in.takeVector<uint32_t>();
+  in.tables(p.upperOrientation, p.upperOrigin, p.upperHasOrigin, p.upperWorldAxes);
   in.finish();
   const auto ascendingNodes = [&](const std::vector<uint32_t>& v) {
     for (size_t k = 0; k < v.size(); ++k)
@@ -202,17 +193,7 @@ LoadedWrite decodeNodesPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
   ManifestReader in = work.read(nodeTablesPath(work), kNodeTablesKind);
-  p.orderBlocks = in.takeVector<SpillBlock>();
-  p.orderFirst = in.takeVector<uint64_t>();
-  p.runPosition = in.takeVector<uint32_t>();
-  p.runFirst = in.takeVector<uint32_t>();
-  p.leafOrder = in.takeVector<uint32_t>();
-  p.leafFirstBlock = in.takeVector<uint32_t>();
-  p.leafBlockCount = in.takeVector<uint32_t>();
-  p.upperNodes = in.takeVector<FchNode>();
-  p.upperPosition = in.takeVector<uint32_t>();
-  p.upperParentBox = in.takeVector<NodeBox>();
-  p.upperParentPosition = in.takeVector<uint32_t>();
+  nodeTables(in, p);
   in.finish();
   if (p.orderBlocks.size() != p.orderFirst.size() || p.runPosition.size() != p.runFirst.size() ||
       p.leafFirstBlock.size() != p.leafBlockCount.size() || p.upperNodes.size() != p.upperPosition.size() ||
@@ -226,14 +207,7 @@ LoadedWrite decodeGeometryPlan(const WorkDirectory& work) {
   LoadedWrite w = loadWriteHead(work);
   WritePlan& p = w.plan;
   ManifestReader in = work.read(geometryTablesPath(work), kGeometryTablesKind);
-  p.leafOrder = in.takeVector<uint32_t>();
-  p.geometry = in.takeVector<SpillBlock>();
-  p.leafFirstGeometry = in.takeVector<uint32_t>();
-  p.leafGeometryCount = in.takeVector<uint32_t>();
-  p.leafVertices = in.takeVector<uint32_t>();
-  p.leafFaces = in.takeVector<uint32_t>();
-  p.upperParent = in.takeVector<uint32_t>();
-  p.leafUpperParent = in.takeVector<uint32_t>();
+  geometryTables(in, p);
   in.finish();
   const size_t leaves = p.leafFirstGeometry.size();
   if (p.leafGeometryCount.size() != leaves || p.leafVertices.size() != leaves ||

@@ -3,8 +3,8 @@
 // the temporary directory of a run and its byte accounting (TempSpace); append-only files of
 // independently zstd-compressed blocks (SpillFile, SpillCodec); many record streams in one such
 // file (BucketSpill); the external merge sort of fixed-size records (ExternalSorter; Knuth, TAOCP
-// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead), and consumed
-// on one behind their writer (WriteBehind).
+// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead), consumed on
+// one behind their writer (WriteBehind), and taken by a team of workers (runWorkers).
 #pragma once
 
 #include <algorithm>
@@ -925,6 +925,31 @@ class WriteBehind {
   std::thread thread_;  // last: starts once the rest exists
 };
 
+// Runs work(worker, failed) on `workers` threads, the calling one as worker 0, and rethrows the
+// first exception any of them throws once all have returned. `failed` turns true at that
+// exception, for the others to stop taking items at their next one.
+template <class Work>
+void runWorkers(unsigned workers, Work&& work) {
+  std::atomic<bool> failed{false};
+  std::exception_ptr first;
+  std::mutex mutex;
+  const auto run = [&](unsigned worker) {
+    try {
+      work(worker, std::as_const(failed));
+    } catch (...) {
+      const std::lock_guard lock(mutex);
+      if (!first) first = std::current_exception();
+      failed = true;
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(run, w);
+    run(0);
+  }
+  if (first) std::rethrow_exception(first);
+}
+
 // Manifests: what a task of a run hands on to the tasks after it, as bytes under a name. A manifest
 // is a magic, its kind, the fields little-endian as this machine lays them out (the tasks of one job
 // run the same build), and an XXH64 of everything before it; a file appears under its name only
@@ -946,13 +971,23 @@ class ManifestWriter {
     putBytes({reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T)});
   }
   // One field, as ManifestReader::field reads it back: a record's list of fields, written once,
-  // serves both (a string goes as its bytes).
+  // serves both (a string goes as its bytes, a vector as its elements).
   template <class T>
   void field(const T& value) {
     if constexpr (std::is_same_v<T, std::string>)
       putBytes(value);
     else
       put(value);
+  }
+  template <class T>
+  void field(const std::vector<T>& values) {
+    putVector(values);
+  }
+  // Vectors as field writes them, each freed once in: their owner never holds one beside the
+  // manifest.
+  template <class... T>
+  void tables(std::vector<T>&... values) {
+    (putVector(std::exchange(values, {})), ...);
   }
   // Writes `path` (as PATH.partial, synced, renamed): Error (Output) naming it when it cannot.
   void commit(const std::filesystem::path& path, std::string_view kind) const;
@@ -1004,6 +1039,14 @@ class ManifestReader {
       value = takeBytes();
     else
       value = take<T>();
+  }
+  template <class T>
+  void field(std::vector<T>& values) {
+    values = takeVector<T>();
+  }
+  template <class... T>
+  void tables(std::vector<T>&... values) {
+    (field(values), ...);
   }
   // Every field taken: the manifest ends here.
   void finish();

@@ -6,10 +6,8 @@
 // corners' box (ExternalSorter). One pass serves the file in memory and the file read
 // under a cap (read/cluster_source.h): the same figures to the last bit.
 #include <algorithm>
-#include <exception>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
 #include "cut/cut_fit_sums.h"
 #include "facetree/storage.h"
@@ -95,9 +93,8 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
         const auto corner = [&](size_t t, int k) -> const glm::vec3& {
           return piece.vertices[piece.indices[3 * t + k]];
         };
-        std::exception_ptr failed;
-        std::thread morton([&] {
-          try {
+        runWorkers(2, [&](unsigned worker, const std::atomic<bool>&) {
+          if (worker == 1) {
             for (size_t t = 0; t < triangles; ++t) {
               MortonFace m{mortonCode(centroid(piece, t), lo, hi), {}, {}};
               for (int a = 0; a < 3; ++a) {
@@ -106,11 +103,8 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
               }
               sorted.push(m);
             }
-          } catch (...) {
-            failed = std::current_exception();
+            return;
           }
-        });
-        try {
           for (size_t t = 0; t < triangles; ++t) {
             const uint64_t p = piece.first + t;
             for (size_t i = 0; i < cuts.size(); ++i) {
@@ -121,12 +115,7 @@ std::vector<CutFit> fitsOfCuts(fch::ClusterSource& reader, const std::vector<std
               if (p + 1 == c.first + c.count) sums[i].close(boxOf(c)), ++at[i];
             }
           }
-        } catch (...) {
-          morton.join();
-          throw;
-        }
-        morton.join();
-        if (failed) std::rethrow_exception(failed);
+        });
       },
       FaceFields::Geometry);
   for (fch::CutFitSum& sum : sums) fits.push_back(sum.finish());

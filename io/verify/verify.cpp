@@ -14,6 +14,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
+#include "facetree/storage.h"
 #include "format/node_code.h"
 #include "read/cluster_source.h"
 #include "verify/verify_node.h"
@@ -102,24 +103,6 @@ struct NodeGeometry {
   float area;
   glm::vec3 sumNormal;
 };
-
-// A version 1 file whole, through the reader.
-ClusterFile wholeFile(ClusterFileReader& reader) {
-  ClusterFile file;
-  file.header = reader.header();
-  reader.forEachNode([&](uint64_t, const FchNode& node, uint32_t) {
-    file.nodes.push_back(node);
-    return true;
-  });
-  reader.forEachVertexFrame([&](uint64_t, std::span<const glm::vec3> vertices) {
-    file.vertices.insert(file.vertices.end(), vertices.begin(), vertices.end());
-  });
-  FaceRangeMesh all = reader.faces(0, reader.header().triangleCount);
-  file.indices.reserve(all.indices.size());
-  for (const uint32_t v : all.indices) file.indices.push_back(static_cast<uint32_t>(all.vertexIds[v]));
-  file.originalFace = std::move(all.originalFace);
-  return file;
-}
 
 // The checks over `reader`. `nodes`: the file's own records where it holds them in memory, whose
 // face ranges and parents are then checked as stored; a file read lazily derives each child's
@@ -304,10 +287,7 @@ VerifyResult verify(fch::ClusterSource& reader, const VerifyOptions& options,
             enclosing.push_back({uint64_t{start.node.first} + start.node.count, start.node.box});
           }
         }
-        std::vector<std::thread> helpers;
-        for (unsigned k = 1; k < workers; ++k) helpers.emplace_back(sweep, k, std::cref(piece));
-        sweep(0, piece);
-        for (std::thread& helper : helpers) helper.join();
+        runWorkers(workers, [&](unsigned k, const std::atomic<bool>&) { sweep(k, piece); });
       },
       FaceFields::All);  // verify reads every frame, the original ids' too
   for (Worker& w : team) close(w, faces);
@@ -335,7 +315,7 @@ VerifyResult verifyClusterFile(const ClusterFile& file, const VerifyOptions& opt
 }
 
 VerifyResult verifyClusterFile(ClusterFileReader& reader, const VerifyOptions& options) {
-  if (reader.header().version == 1) return verifyClusterFile(wholeFile(reader), options);
+  if (reader.header().version == 1) return verifyClusterFile(readClusterFile(reader), options);
   fch::ReaderSource source(reader);
   return verify(source, options, nullptr);
 }

@@ -15,6 +15,21 @@ namespace facetree {
 
 namespace {
 
+using TriangleQueue = std::deque<fch::TriangleKey>;
+
+VerifyResult countMismatch(uint64_t meshTriangles, uint64_t faces) {
+  return {false,
+          "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces), 0};
+}
+
+// Window `w` of `side`, sorted, onto the end of `queue` (`taken`: scratch).
+void takeWindow(fch::WindowBuckets<fch::TriangleKey>& side, uint64_t w, std::vector<fch::TriangleKey>& taken,
+                TriangleQueue& queue) {
+  side.take(w, taken);
+  std::sort(taken.begin(), taken.end());
+  queue.insert(queue.end(), taken.begin(), taken.end());
+}
+
 // The file's triangles keyed and bucketed by original id.
 void bucketFileTriangles(fch::ClusterSource& reader, fch::WindowBuckets<fch::TriangleKey>& out) {
   reader.forEachFacePiece([&](const fch::FacePiece& piece) {
@@ -42,23 +57,14 @@ VerifyResult compareInWindows(fch::ClusterSource& reader, const MeshTriangleSour
       ++meshTriangles;
     }
   });
-  if (meshTriangles != faces)
-    return {false,
-            "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
-            0};
+  if (meshTriangles != faces) return countMismatch(meshTriangles, faces);
   bucketFileTriangles(reader, fromFile);
 
-  std::deque<fch::TriangleKey> fileQueue, meshQueue;
+  TriangleQueue fileQueue, meshQueue;
   std::vector<fch::TriangleKey> taken;
-  const auto load = [&](fch::WindowBuckets<fch::TriangleKey>& side, uint64_t w,
-                        std::deque<fch::TriangleKey>& queue) {
-    side.take(w, taken);
-    std::sort(taken.begin(), taken.end());
-    queue.insert(queue.end(), taken.begin(), taken.end());
-  };
   for (uint64_t w = 0; w < fromFile.windows(); ++w) {
-    load(fromFile, w, fileQueue);
-    load(fromMesh, w, meshQueue);
+    takeWindow(fromFile, w, taken, fileQueue);
+    takeWindow(fromMesh, w, taken, meshQueue);
     for (; !fileQueue.empty() && !meshQueue.empty(); fileQueue.pop_front(), meshQueue.pop_front())
       if (!fileQueue.front().sameKey(meshQueue.front()))
         return {false, fch::triangleMismatch(fileQueue.front(), meshQueue.front()), 0};
@@ -76,7 +82,7 @@ VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& m
   const uint64_t window = std::max<uint64_t>(budget / sizeof(fch::TriangleKey), 16);
   fch::WindowBuckets<fch::TriangleKey> fromFile(budget, faces, window, reader.temporaryDirectory());
   bucketFileTriangles(reader, fromFile);
-  std::deque<fch::TriangleKey> fileQueue;
+  TriangleQueue fileQueue;
   std::vector<fch::TriangleKey> taken;
   std::optional<std::string> mismatch;
   uint64_t meshTriangles = 0, lastId = 0, nextWindow = 0;
@@ -91,11 +97,8 @@ VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& m
       }
       lastId = t.id;
       if (mismatch) continue;
-      while (fileQueue.empty() && nextWindow < fromFile.windows()) {
-        fromFile.take(nextWindow++, taken);
-        std::sort(taken.begin(), taken.end());
-        fileQueue.insert(fileQueue.end(), taken.begin(), taken.end());
-      }
+      while (fileQueue.empty() && nextWindow < fromFile.windows())
+        takeWindow(fromFile, nextWindow++, taken, fileQueue);
       if (fileQueue.empty()) continue;  // more triangles than the file: the count says so
       const fch::TriangleKey key(t.id, t.position, t.corner[0], t.corner[1], t.corner[2]);
       if (!fileQueue.front().sameKey(key)) mismatch = fch::triangleMismatch(fileQueue.front(), key);
@@ -103,10 +106,7 @@ VerifyResult againstMesh(fch::ClusterSource& reader, const MeshTriangleSource& m
     }
   });
   if (!inOrder) return compareInWindows(reader, mesh);
-  if (meshTriangles != faces)
-    return {false,
-            "mesh: " + std::to_string(meshTriangles) + " triangles, the file has " + std::to_string(faces),
-            0};
+  if (meshTriangles != faces) return countMismatch(meshTriangles, faces);
   if (mismatch) return {false, *mismatch, 0};
   return {true, "", reader.nodeCount()};
 }
@@ -121,11 +121,7 @@ VerifyResult verifyAgainstMesh(ClusterFileReader& reader, const MeshTriangleSour
 VerifyResult verifyAgainstMesh(const ClusterFile& file, const MeshView& mesh,
                                std::span<const uint64_t> meshOriginalFace) {
   const size_t faces = file.indices.size() / 3;
-  if (mesh.triangleCount() != faces)
-    return {
-        false,
-        "mesh: " + std::to_string(mesh.triangleCount()) + " triangles, the file has " + std::to_string(faces),
-        0};
+  if (mesh.triangleCount() != faces) return countMismatch(mesh.triangleCount(), faces);
   if (!meshOriginalFace.empty() && meshOriginalFace.size() != faces)
     return {false, "mesh: original ids do not match its triangles", 0};
   for (const uint32_t v : mesh.indices)

@@ -182,52 +182,39 @@ void CellsStage::run() {
   std::mutex mutex;      // the next cell, and the tasks' outputs made and taken
   std::mutex doneMutex;  // one task committed and handed on at a time, outside `mutex`
   std::atomic<uint64_t> facesDone{0};
-  std::atomic<bool> stop{false};
-  std::exception_ptr failure;
-  const auto worker = [&](bool reportProgress) {
+  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, cells));
+  runWorkers(threads, [&](unsigned worker, const std::atomic<bool>& stop) {
     SpillCodec codec;
     std::vector<FaceRecord> records;
-    try {
-      while (!stop) {
-        uint32_t at, i;
-        CellsOutput* out;
-        {
-          const std::lock_guard lock(mutex);
-          if (next == cells) break;
-          at = next++;
-          i = taskOf[at];
-          if (!tasks_[i].out) startTask(i);
-          out = tasks_[i].out.get();
-        }
-        buildCell(order[at], *out, codec, records);
-        facesDone += records.size();
-        // A task's files are committed outside the cells' lock: the other workers go on taking
-        // cells meanwhile.
-        std::unique_ptr<CellsOutput> ended;
-        {
-          const std::lock_guard lock(mutex);
-          if (--tasks_[i].left == 0) ended = std::move(tasks_[i].out);
-        }
-        if (ended) {
-          const std::lock_guard lock(doneMutex);
-          endTask(i, std::move(ended));
-        }
-        // Progress (and cancellation) from the calling thread only: the callback need not be
-        // thread-safe. The other workers notice `stop`.
-        if (reportProgress) context_.checkCancel("cells", facesDone, extent_.triangles);
+    while (!stop) {
+      uint32_t at, i;
+      CellsOutput* out;
+      {
+        const std::lock_guard lock(mutex);
+        if (next == cells) break;
+        at = next++;
+        i = taskOf[at];
+        if (!tasks_[i].out) startTask(i);
+        out = tasks_[i].out.get();
       }
-    } catch (...) {
-      const std::lock_guard lock(mutex);
-      if (!failure) failure = std::current_exception();
-      stop = true;
+      buildCell(order[at], *out, codec, records);
+      facesDone += records.size();
+      // A task's files are committed outside the cells' lock: the other workers go on taking
+      // cells meanwhile.
+      std::unique_ptr<CellsOutput> ended;
+      {
+        const std::lock_guard lock(mutex);
+        if (--tasks_[i].left == 0) ended = std::move(tasks_[i].out);
+      }
+      if (ended) {
+        const std::lock_guard lock(doneMutex);
+        endTask(i, std::move(ended));
+      }
+      // Progress (and cancellation) from the calling thread only: the callback need not be
+      // thread-safe. The other workers notice `stop`.
+      if (worker == 0) context_.checkCancel("cells", facesDone, extent_.triangles);
     }
-  };
-  const unsigned threads = std::clamp(plan_.cellWorkers, 1u, std::max(1u, cells));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker, false);
-  worker(true);
-  for (std::thread& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
+  });
 }
 
 void CellsStage::loadFaces(uint32_t cell, SpillCodec& codec, std::vector<FaceRecord>& records) {
