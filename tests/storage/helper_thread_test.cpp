@@ -1,9 +1,13 @@
 // ReadAhead and WriteBehind (facetree/storage.h): items in order, through a ring of slots reused
-// in turn, and a helper's failure handed to the caller after what came before it.
+// in turn, and a helper's failure handed to the caller after what came before it. runWorkers: every
+// worker once on a thread of its own, and the first failure after all have returned.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <mutex>
+#include <set>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "facetree/storage.h"
@@ -127,6 +131,36 @@ TEST(WriteBehind, DestructionConsumesWhatWasSubmitted) {
     }
   }
   EXPECT_EQ(seen, (std::vector<int>{0, 1}));
+}
+
+TEST(RunWorkers, EveryWorkerRunsOnceOnAThreadOfItsOwnTheCallersFirst) {
+  std::mutex mutex;
+  std::vector<int> ran(4, 0);
+  std::set<std::thread::id> threads;
+  std::thread::id first;
+  runWorkers(4, [&](unsigned worker, const std::atomic<bool>& failed) {
+    EXPECT_FALSE(failed);
+    const std::lock_guard lock(mutex);
+    ++ran[worker];
+    threads.insert(std::this_thread::get_id());
+    if (worker == 0) first = std::this_thread::get_id();
+  });
+  EXPECT_EQ(ran, (std::vector<int>{1, 1, 1, 1}));
+  EXPECT_EQ(threads.size(), 4u);
+  EXPECT_EQ(first, std::this_thread::get_id());
+}
+
+TEST(RunWorkers, TheFirstFailureStopsTheOthersAndComesBackOnceAllHaveReturned) {
+  std::atomic<int> returned{0};
+  const auto run = [&] {
+    runWorkers(3, [&](unsigned worker, const std::atomic<bool>& failed) {
+      if (worker == 1) throw std::runtime_error("worker 1");
+      while (!failed) std::this_thread::yield();  // returns only once the failure is raised
+      ++returned;
+    });
+  };
+  EXPECT_THROW(run(), std::runtime_error);
+  EXPECT_EQ(returned, 2);
 }
 
 }  // namespace
