@@ -43,6 +43,20 @@ struct SymMat3 {
     return m[0] * v.x * v.x + m[3] * v.y * v.y + m[5] * v.z * v.z +
            2.0 * (m[1] * v.x * v.y + m[2] * v.x * v.z + m[4] * v.y * v.z);
   }
+  // The covariance about the mean of points of total `weight` (> 0), this their second moment and
+  // `first` their first.
+  SymMat3 central(const glm::dvec3& first, double weight) const {
+    const double inv = 1.0 / weight;
+    const glm::dvec3 mean = first * inv;
+    SymMat3 c;
+    c.m[0] = m[0] * inv - mean.x * mean.x;
+    c.m[1] = m[1] * inv - mean.x * mean.y;
+    c.m[2] = m[2] * inv - mean.x * mean.z;
+    c.m[3] = m[3] * inv - mean.y * mean.y;
+    c.m[4] = m[4] * inv - mean.y * mean.z;
+    c.m[5] = m[5] * inv - mean.z * mean.z;
+    return c;
+  }
 };
 
 struct ClusterStats {
@@ -110,19 +124,7 @@ struct ClusterStats {
   double projectedArea() const { return glm::length(sumNormal); }
 
   // Area-weighted covariance of the surface about its centroid (zero for zero area).
-  SymMat3 covariance() const {
-    SymMat3 c;
-    if (!(area > 0)) return c;
-    const double inv = 1.0 / area;
-    const glm::dvec3 mean = firstMoment * inv;
-    c.m[0] = secondMoment.m[0] * inv - mean.x * mean.x;
-    c.m[1] = secondMoment.m[1] * inv - mean.x * mean.y;
-    c.m[2] = secondMoment.m[2] * inv - mean.x * mean.z;
-    c.m[3] = secondMoment.m[3] * inv - mean.y * mean.y;
-    c.m[4] = secondMoment.m[4] * inv - mean.y * mean.z;
-    c.m[5] = secondMoment.m[5] * inv - mean.z * mean.z;
-    return c;
-  }
+  SymMat3 covariance() const { return area > 0 ? secondMoment.central(firstMoment, area) : SymMat3{}; }
 };
 
 }  // namespace facetree

@@ -117,15 +117,7 @@ double garlandCost(const ClusterStats& m, const ClusterStats& a, const ClusterSt
   // the smallest variance of the corner covariance.
   double eFit = 0;
   if (xm.cornerCount > 0) {
-    const double inv = 1.0 / xm.cornerCount;
-    const glm::dvec3 mean = xm.cornerFirst * inv;
-    SymMat3 c;
-    c.m[0] = xm.cornerSecond.m[0] * inv - mean.x * mean.x;
-    c.m[1] = xm.cornerSecond.m[1] * inv - mean.x * mean.y;
-    c.m[2] = xm.cornerSecond.m[2] * inv - mean.x * mean.z;
-    c.m[3] = xm.cornerSecond.m[3] * inv - mean.y * mean.y;
-    c.m[4] = xm.cornerSecond.m[4] * inv - mean.y * mean.z;
-    c.m[5] = xm.cornerSecond.m[5] * inv - mean.z * mean.z;
+    const SymMat3 c = xm.cornerSecond.central(xm.cornerFirst, xm.cornerCount);
     eFit = varianceAlong(c, solveNormal(c, counters));
   }
 

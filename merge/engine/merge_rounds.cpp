@@ -872,18 +872,24 @@ class RoundsEngine {
   }
 };
 
+// The engine of the metric's cost, made from `args` and run.
+template <class... Args>
+MergeResult runEngine(Metric metric, Args&&... args) {
+  switch (metric) {
+    case Metric::Garland:
+      return RoundsEngine<GarlandCost>(std::forward<Args>(args)...).run();
+    case Metric::Constant:
+      return RoundsEngine<ConstantCost>(std::forward<Args>(args)...).run();
+    case Metric::Willmott:
+    default:
+      return RoundsEngine<WillmottCost>(std::forward<Args>(args)...).run();
+  }
+}
+
 }  // namespace
 
 MergeResult runMerge(const FaceGeometry& geometry, DualEdgeBlocks edges, const BuildOptions& options) {
-  switch (options.metric) {
-    case Metric::Garland:
-      return RoundsEngine<GarlandCost>(geometry, std::move(edges), options).run();
-    case Metric::Constant:
-      return RoundsEngine<ConstantCost>(geometry, std::move(edges), options).run();
-    case Metric::Willmott:
-    default:
-      return RoundsEngine<WillmottCost>(geometry, std::move(edges), options).run();
-  }
+  return runEngine(options.metric, geometry, std::move(edges), options);
 }
 
 namespace {
@@ -932,21 +938,8 @@ ClusterMergeResult roundsMergeClusters(std::span<const SurfaceStats> leaves,
                                        std::span<const ClusterEdge> edges, double diagonalSquared,
                                        const BuildOptions& options, std::span<const GarlandQuadrics> garland,
                                        float leavesCost) {
-  switch (options.metric) {
-    case Metric::Garland:
-      return clusterResult(
-          RoundsEngine<GarlandCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
-          leaves);
-    case Metric::Constant:
-      return clusterResult(
-          RoundsEngine<ConstantCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
-          leaves);
-    case Metric::Willmott:
-    default:
-      return clusterResult(
-          RoundsEngine<WillmottCost>(leaves, edges, diagonalSquared, options, garland, leavesCost).run(),
-          leaves);
-  }
+  return clusterResult(
+      runEngine(options.metric, leaves, edges, diagonalSquared, options, garland, leavesCost), leaves);
 }
 
 }  // namespace facetree
