@@ -15,20 +15,21 @@
 #include "facetree/error.h"
 
 namespace facetree::tiles {
-namespace {
 
-constexpr uint32_t kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125;
-
-std::string glbNumber(double v) {
+std::string jsonNumber(double v) {
   char text[32];
   std::snprintf(text, sizeof text, "%.17g", v);
   return text;
 }
-std::string glbNumber(float v) {
+std::string jsonNumber(float v) {
   char text[32];
   std::snprintf(text, sizeof text, "%.9g", double(v));
   return text;
 }
+
+namespace {
+
+constexpr uint32_t kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125;
 
 void append32(std::string& out, uint32_t v) {
   char bytes[4];
@@ -101,9 +102,9 @@ std::string glbBytes(const TileMesh& mesh, const glm::dvec3& centre, const GlbOp
   const bool shortIndices = vertices <= 65535;
   std::string bin;
   std::string accessors, views, primitive;
-  const std::string minMax = "\"min\":[" + glbNumber(lo.x) + "," + glbNumber(lo.y) + "," + glbNumber(lo.z) +
-                             "],\"max\":[" + glbNumber(hi.x) + "," + glbNumber(hi.y) + "," + glbNumber(hi.z) +
-                             "]";
+  const std::string minMax = "\"min\":[" + jsonNumber(lo.x) + "," + jsonNumber(lo.y) + "," +
+                             jsonNumber(lo.z) + "],\"max\":[" + jsonNumber(hi.x) + "," + jsonNumber(hi.y) +
+                             "," + jsonNumber(hi.z) + "]";
   if (draco) {
     // The grid in the tile's own coordinates: the model's cube moved by the tile's centre, in y up.
     const glm::dvec3 gridMax = options.gridMin + glm::dvec3(options.gridSize);
@@ -147,8 +148,8 @@ std::string glbBytes(const TileMesh& mesh, const glm::dvec3& centre, const GlbOp
         "\"extensionsUsed\":[\"KHR_draco_mesh_compression\"],\"extensionsRequired\":[\"KHR_draco_mesh_"
         "compression\"],";
   json +=
-      "\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0,\"translation\":[" + glbNumber(t.x) +
-      "," + glbNumber(t.y) + "," + glbNumber(t.z) + "]}],\"meshes\":[{\"primitives\":[{" + primitive +
+      "\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0,\"translation\":[" + jsonNumber(t.x) +
+      "," + jsonNumber(t.y) + "," + jsonNumber(t.z) + "]}],\"meshes\":[{\"primitives\":[{" + primitive +
       "\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":0,\"mode\":4}]}],"
       "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.8,0.8,0.8,1],\"metallicFactor\":0,"
       "\"roughnessFactor\":1},\"doubleSided\":true}],\"accessors\":[" +

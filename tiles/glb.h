@@ -20,6 +20,10 @@ struct GlbOptions {
   double gridSize = 1;
 };
 
+// A JSON number that reads back as `v` (17 digits for a double, 9 for a float).
+std::string jsonNumber(double v);
+std::string jsonNumber(float v);
+
 // The glb file's bytes, the same for the same mesh and options.
 std::string glbBytes(const TileMesh& mesh, const glm::dvec3& centre, const GlbOptions& options);
 

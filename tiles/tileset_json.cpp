@@ -3,19 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <vector>
 
 #include "facetree/io.h"
+#include "glb.h"
 
 namespace facetree::tiles {
 namespace {
-
-std::string jsonNumber(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.17g", v);
-  return text;
-}
 
 class JsonTree {
  public:

@@ -12,6 +12,7 @@
 
 #include "facetree/error.h"
 #include "facetree/io.h"
+#include "format/fch_format.h"
 
 namespace facetree {
 namespace {
@@ -34,12 +35,7 @@ uint32_t crc32(const std::string& bytes) {
   return c ^ 0xFFFFFFFFu;
 }
 
-template <class T>
-void put(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  out.append(bytes, sizeof(T));
-}
+using fch::put;
 
 // A .npy of `rows` x `columns` (columns 1: a vector) of dtype `descr`, its data from fill(out).
 template <class T, class Fill>

@@ -33,12 +33,6 @@ static_assert(std::endian::native == std::endian::little,
               "the cluster file code assumes a little-endian host");
 
 template <class T>
-void put(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  out.append(bytes, sizeof(T));
-}
-template <class T>
 T get(const uint8_t* p) {
   T value;
   std::memcpy(&value, p, sizeof(T));

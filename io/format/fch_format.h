@@ -9,11 +9,19 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "facetree/io.h"
 
 namespace facetree::fch {
+
+// Appends the bytes of `value` to `out`: the host is little-endian, as the file (fch_format.cpp).
+template <class T>
+void put(std::string& out, const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
 
 inline constexpr uint8_t kMagic[8] = {0x89, 'F', 'C', 'H', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint32_t kHeaderBytes = 192;

@@ -24,12 +24,6 @@ namespace {
 constexpr char kPieceMagic[8] = {'F', 'C', 'H', 'P', 'I', 'E', 'C', 'E'};
 constexpr size_t kTail = 2 * sizeof(uint64_t) + sizeof kPieceMagic;  // size, XXH64, magic
 
-template <class T>
-void put(std::string& out, const T& value) {
-  static_assert(std::is_trivially_copyable_v<T>);
-  out.append(reinterpret_cast<const char*>(&value), sizeof value);
-}
-
 }  // namespace
 
 FchLayout startLayout(const StreamFileInfo& info, const WriteOptions& options) {
