@@ -81,7 +81,7 @@ class Builder {
     for (;;) {
       size_t largest = frontier.size();
       for (size_t i = 0; i < frontier.size(); ++i)
-        if (frontier[i].node != kNoNode && frontier[i].count > limit &&
+        if (large(frontier[i]) && frontier[i].count > limit &&
             (largest == frontier.size() || frontier[i].count > frontier[largest].count))
           largest = i;
       if (largest == frontier.size()) break;

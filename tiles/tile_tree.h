@@ -2,8 +2,8 @@
 // Leaf tiles are the highest nodes of at most tileFaces faces, neighbouring small ones grouped;
 // an inner tile is a larger node whose children tiles come from opening its largest descendants,
 // as the recast to b children opens the largest node first (Willmott 2000, sec. 5.5.1), down to
-// its level's size (tileFaces times the largest power of five below its own faces) and up to
-// kTileChildren of them.
+// its level's size (tileFaces times the largest power of kTileChildren / 2 below its own faces)
+// and up to kTileChildren of them.
 #pragma once
 
 #include <cstdint>

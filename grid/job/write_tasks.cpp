@@ -84,8 +84,8 @@ struct LoadedWrite {
 };
 
 // The tables of the geometry tasks and of the node tasks, listed once for the manifests that store
-// them (each table leaving the plan as it goes in) and those that read them back. The node tables
-// take the leaves' order last, after the geometry's.
+// them (each table leaving the plan as it goes in) and those that read them back. Both hold the
+// leaves' order: the geometry's copy it, the node tables' take it, so the geometry's are stored first.
 template <class Manifest>
 void geometryTables(Manifest& m, WritePlan& p) {
   m.field(p.leafOrder);
