@@ -17,12 +17,14 @@ class BucketSpill::Writer {
     size_t size = 0;
     SpillBlock* target = nullptr;
   };
-  WriteBehind<Block, kSpares> behind;
+  WriteBehind<Block> behind;
 
   Writer(SpillFile& file, int level)
-      : behind([&file, codec = SpillCodec(level)](Block& b) mutable {
-          *b.target = file.append({b.bytes.get(), b.size}, codec);
-        }) {}
+      : behind(
+            [&file, codec = SpillCodec(level)](Block& b, unsigned) mutable {
+              *b.target = file.append({b.bytes.get(), b.size}, codec);
+            },
+            kSpares) {}
 };
 
 BucketSpill::BucketSpill(TempSpace& space, std::string_view stem, size_t buckets, size_t recordBytes,

@@ -155,7 +155,7 @@ class UpperBoxes {
   }
   void start(bool helper) {
     if (helper) {
-      helper_.emplace([this](Batch& b) { accumulate(b); });
+      helper_.emplace([this](Batch& b, unsigned) { accumulate(b); });
       filling_ = &helper_->slot();
     }
   }

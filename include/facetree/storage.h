@@ -853,17 +853,22 @@ class ReadAhead {
   std::thread thread_;  // last: starts once the rest exists
 };
 
-// The mirror of ReadAhead: items made in turn by the caller and consumed in turn on a helper
-// thread, up to `Slots` behind, so that a pass's writes overlap its own work. The caller fills
-// slot() and hands it on with submit(); settle() waits until every item submitted is consumed.
-// `consume(item)` runs on the helper; its first exception reaches the caller at the next slot()
-// or settle(), and the items after it are skipped.
-template <class Item, size_t Slots = 2>
+// The mirror of ReadAhead: items made in turn by the caller and consumed on `workers` helper
+// threads, up to `slots` items behind, so that a pass's writes (or a file's compression) overlap
+// its own work. The caller fills slot() and hands it on with submit(); the helpers begin the items
+// in turn (with one helper they also end in turn). A caller that takes the items back takes them
+// in turn with take(), each valid until its slot is filled again, and fills no slot it has not
+// taken; settle() waits until every item submitted is consumed. `consume(item, worker)` runs on
+// helper `worker`; its first exception reaches the caller at the next slot(), take() or settle(),
+// and the items begun after it are skipped.
+template <class Item>
 class WriteBehind {
  public:
   template <class Consume>
-  explicit WriteBehind(Consume consume) {
-    thread_ = std::thread([this, consume = std::move(consume)]() mutable { run(consume); });
+  explicit WriteBehind(Consume consume, size_t slots = 2, unsigned workers = 1)
+      : slots_(slots), busy_(slots, false) {
+    const auto shared = std::make_shared<Consume>(std::move(consume));  // one, called by every helper
+    for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w, shared] { run(*shared, w); });
   }
   ~WriteBehind() {
     {
@@ -871,23 +876,23 @@ class WriteBehind {
       stop_ = true;
     }
     changed_.notify_all();
-    thread_.join();
+    for (std::thread& t : threads_) t.join();
   }
   WriteBehind(const WriteBehind&) = delete;
   WriteBehind& operator=(const WriteBehind&) = delete;
 
-  // The caller's slot to fill next: waits until the helper is done with the item `Slots` before.
-  Item& slot() {
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return made_ - done_ < Slots || failure_; });
-    if (failure_) std::rethrow_exception(failure_);
-    return slots_[made_ % Slots];
-  }
+  // The caller's slot to fill next: waits until the helpers are done with the item `slots` before.
+  Item& slot() { return wait(made_); }
   void submit() {
-    std::lock_guard lock(mutex_);
-    ++made_;
+    {
+      std::lock_guard lock(mutex_);
+      busy_[made_++ % slots_.size()] = true;
+    }
     changed_.notify_all();
   }
+  Item& take() { return wait(taken_++); }
+  bool full() const { return made_ - taken_ == slots_.size(); }  // of items not taken back
+  bool empty() const { return made_ == taken_; }
   void settle() {
     std::unique_lock lock(mutex_);
     changed_.wait(lock, [&] { return done_ == made_ || failure_; });
@@ -895,34 +900,43 @@ class WriteBehind {
   }
 
  private:
+  Item& wait(uint64_t item) {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return !busy_[item % slots_.size()] || failure_; });
+    if (failure_) std::rethrow_exception(failure_);
+    return slots_[item % slots_.size()];
+  }
   template <class Consume>
-  void run(Consume& consume) {
+  void run(Consume& consume, unsigned worker) {
     std::unique_lock lock(mutex_);
     for (;;) {
-      changed_.wait(lock, [&] { return made_ > done_ || stop_; });
-      if (made_ == done_) return;
+      changed_.wait(lock, [&] { return made_ > begun_ || stop_; });
+      if (made_ == begun_) return;
+      const uint64_t item = begun_++;
       const bool skip = failure_ != nullptr;
       lock.unlock();
       std::exception_ptr failure;
       try {
-        if (!skip) consume(slots_[done_ % Slots]);
+        if (!skip) consume(slots_[item % slots_.size()], worker);
       } catch (...) {
         failure = std::current_exception();
       }
       lock.lock();
       if (failure && !failure_) failure_ = failure;
+      busy_[item % slots_.size()] = false;
       ++done_;
       changed_.notify_all();
     }
   }
 
-  std::array<Item, Slots> slots_{};  // a ring: item i in slots_[i % Slots]
+  std::vector<Item> slots_;  // a ring: item i in slots_[i % size]
+  std::vector<bool> busy_;   // submitted and not yet consumed
   std::mutex mutex_;
   std::condition_variable changed_;
-  uint64_t made_ = 0, done_ = 0;  // items submitted, consumed
+  uint64_t made_ = 0, begun_ = 0, done_ = 0, taken_ = 0;  // items submitted, begun, consumed, taken back
   bool stop_ = false;
   std::exception_ptr failure_;
-  std::thread thread_;  // last: starts once the rest exists
+  std::vector<std::thread> threads_;  // last: start once the rest exists
 };
 
 // Runs work(worker, failed) on `workers` threads, the calling one as worker 0, and rethrows the

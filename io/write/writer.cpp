@@ -119,109 +119,21 @@ void quantizeExact(std::span<const FchNode> nodes, uint64_t first, const std::st
   }
 }
 
-// Compresses frames on worker threads, each with its own compressor and scratch, while the caller
-// goes on (frames with a maker: the workers make their payloads too). At most kSlotsPerWorker
-// frames per worker are queued or in flight; the caller takes them back in submission order (oldest) and
-// writes each where it goes, so frames land in order, compressed exactly as inline (each frame is
-// independent): the same bytes for any number of workers. A job's buffers stay with its slot of the ring, so
-// their capacity serves the frames after it.
-class CompressorPool {
- public:
-  struct Job {
-    FchSection section{};
-    uint64_t first = 0;
-    uint32_t count = 0;
-    std::string raw;
-    std::vector<fch::NodeCode> codes;  // handed to `make`
-    FrameMaker make;                   // empty: `raw` is the payload
-    Bounds bounds;
-    std::string compressed;
-    FchFrame frame{};
-    bool done = false;
-    std::exception_ptr failure;
-  };
-
-  CompressorPool(int level, BoxPrecision boxes, unsigned workers)
-      : jobs_(kSlotsPerWorker * workers), scratch_(workers) {
-    for (unsigned w = 0; w < workers; ++w)
-      compressors_.push_back(std::make_unique<fch::FrameCompressor>(level, boxes));
-    for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w] { run(w); });
-  }
-  ~CompressorPool() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    wake_.notify_all();
-    for (std::thread& t : threads_) t.join();
-  }
-  CompressorPool(const CompressorPool&) = delete;
-  CompressorPool& operator=(const CompressorPool&) = delete;
-
-  bool full() const { return submitted_ - taken_ == jobs_.size(); }
-  bool empty() const { return submitted_ == taken_; }
-
-  // Queues a frame whose payload is `raw`, or is made by `make` from `codes`; call only when not full().
-  void submit(FchSection section, uint64_t first, uint32_t count, std::string&& raw,
-              std::span<const fch::NodeCode> codes = {}, FrameMaker make = {}) {
-    {
-      std::lock_guard lock(mutex_);
-      Job& job = jobs_[submitted_ % jobs_.size()];
-      job.section = section;
-      job.first = first;
-      job.count = count;
-      if (!make) job.raw = std::move(raw);
-      job.codes.assign(codes.begin(), codes.end());
-      job.make = std::move(make);
-      job.bounds = Bounds{};
-      job.done = false;
-      job.failure = nullptr;
-      ++submitted_;
-    }
-    wake_.notify_one();
-  }
-  // The oldest frame not yet taken, once compressed (its compressor's exception rethrown); call
-  // only when not empty(). It stays valid until the next submit.
-  const Job& takeOldest() {
-    std::unique_lock lock(mutex_);
-    Job& job = jobs_[taken_ % jobs_.size()];
-    done_.wait(lock, [&] { return job.done; });
-    ++taken_;
-    if (job.failure) std::rethrow_exception(std::exchange(job.failure, nullptr));
-    return job;
-  }
-
- private:
-  void run(unsigned worker) {
-    std::unique_lock lock(mutex_);
-    for (;;) {
-      wake_.wait(lock, [this] { return started_ < submitted_ || stop_; });
-      if (started_ == submitted_) return;  // stopping, nothing queued
-      Job& job = jobs_[started_++ % jobs_.size()];
-      lock.unlock();
-      std::exception_ptr failure;
-      try {
-        if (job.make) job.make(job.codes, scratch_[worker], job.raw, job.bounds);
-        job.frame =
-            compressors_[worker]->compress(job.section, job.first, job.count, job.raw, job.compressed);
-      } catch (...) {
-        failure = std::current_exception();
-      }
-      lock.lock();
-      job.failure = failure;
-      job.done = true;
-      done_.notify_all();
-    }
-  }
-
-  std::vector<Job> jobs_;              // a ring: frame number i in jobs_[i % size]
-  std::vector<FrameScratch> scratch_;  // per worker
-  std::vector<std::unique_ptr<fch::FrameCompressor>> compressors_;
-  std::mutex mutex_;
-  std::condition_variable wake_, done_;
-  uint64_t submitted_ = 0, started_ = 0, taken_ = 0;
-  bool stop_ = false;
-  std::vector<std::thread> threads_;  // last: start once the rest exists
+// A frame compressed on a worker (WriteOptions::threads > 1) with the worker's own compressor and
+// scratch (a frame with a maker: the worker makes its payload too). The caller takes the frames back
+// in turn and writes each where it goes, so frames land in order, compressed exactly as inline (each
+// frame is independent): the same bytes for any number of workers. A frame's buffers stay with its
+// slot of the ring, so their capacity serves the frames after it.
+struct FrameJob {
+  FchSection section{};
+  uint64_t first = 0;
+  uint32_t count = 0;
+  std::string raw;
+  std::vector<fch::NodeCode> codes;  // handed to `make`
+  FrameMaker make;                   // empty: `raw` is the payload
+  Bounds bounds;
+  std::string compressed;
+  FchFrame frame{};
 };
 
 }  // namespace
@@ -246,9 +158,11 @@ struct ClusterFileWriter::State {
   uint64_t nodeLimit = 0;   // node child references below this (originalNodeCount: cut-off children)
   uint64_t frontBytes = 0;  // header + index
   fch::FrameCompressor compressor;
+  std::vector<std::unique_ptr<fch::FrameCompressor>> workerCompressors;  // the pool's, one a worker
+  std::vector<FrameScratch> workerScratch;
   // WriteOptions::threads > 1: compresses instead of `compressor`. Frame makers on its workers read
   // only the members above it, which outlive it.
-  std::optional<CompressorPool> pool;
+  std::optional<WriteBehind<FrameJob>> pool;
   std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
   bool stream = false;               // isStreamOutput: the header cannot be written last
   std::optional<PieceRange> piece;   // WriteOptions::piece: every frame spilled, a piece file written
@@ -290,6 +204,9 @@ struct ClusterFileWriter::State {
   // A frame whose payload `make` makes (on a worker when there are workers) from `given`.
   void makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
                  std::span<const fch::NodeCode> given = {});
+  // The pool's next frame, once a slot is free; its payload `raw`, or made by `make`.
+  void submit(FchSection s, uint64_t first, uint32_t count, std::string* raw, FrameMaker make = {},
+              std::span<const fch::NodeCode> given = {});
   // Places a compressed frame: in the output (file-output nodes) or its section's spill.
   void placeFrame(FchSection s, FchFrame frame, std::string_view bytes, const Bounds& bounds);
   // Places the pool's oldest frame (waiting for it), or every frame still in the pool.
@@ -335,8 +252,17 @@ ClusterFileWriter::State::State(const std::filesystem::path& out, const StreamFi
     : name(out.string()),
       writerName("ClusterFileWriter " + name),
       compressor(options.zstdLevel, info.header.boxes) {
-  if (const unsigned workers = compressorThreads(options))
-    pool.emplace(options.zstdLevel, info.header.boxes, workers);
+  if (const unsigned workers = compressorThreads(options)) {
+    for (unsigned w = 0; w < workers; ++w)
+      workerCompressors.push_back(
+          std::make_unique<fch::FrameCompressor>(options.zstdLevel, info.header.boxes));
+    workerScratch.resize(workers);
+    const auto compress = [this](FrameJob& job, unsigned w) {
+      if (job.make) job.make(job.codes, workerScratch[w], job.raw, job.bounds);
+      job.frame = workerCompressors[w]->compress(job.section, job.first, job.count, job.raw, job.compressed);
+    };
+    pool.emplace(compress, kSlotsPerWorker * workers, workers);
+  }
   if (options.nodesPerFrame < 1 || options.nodesPerFrame > kMaxNodesPerFrame)
     reject("nodesPerFrame " + str(options.nodesPerFrame) + " out of range 1 ... " + str(kMaxNodesPerFrame));
   if (options.geometryPerFrame < 1 || options.geometryPerFrame > kMaxGeometryPerFrame)
@@ -423,11 +349,7 @@ void ClusterFileWriter::State::checkNode(const FchNode& node, uint64_t index) co
 }
 
 void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t count, std::string&& raw) {
-  if (pool) {
-    if (pool->full()) placeOldest();
-    pool->submit(s, first, count, std::move(raw));
-    return;
-  }
+  if (pool) return submit(s, first, count, &raw);
   const FchFrame frame =
       compressor.compress(s, first, count, raw, compressed);  // before `compressed` is read
   placeFrame(s, frame, compressed, Bounds{});
@@ -435,19 +357,27 @@ void ClusterFileWriter::State::writeFrame(FchSection s, uint64_t first, uint32_t
 
 void ClusterFileWriter::State::makeFrame(FchSection s, uint64_t first, uint32_t count, FrameMaker make,
                                          std::span<const fch::NodeCode> given) {
-  if (pool) {
-    if (pool->full()) placeOldest();
-    pool->submit(s, first, count, {}, given, std::move(make));
-    return;
-  }
+  if (pool) return submit(s, first, count, nullptr, std::move(make), given);
   Bounds bounds;
   make(given, scratch, raw, bounds);
   const FchFrame frame = compressor.compress(s, first, count, raw, compressed);
   placeFrame(s, frame, compressed, bounds);
 }
 
+void ClusterFileWriter::State::submit(FchSection s, uint64_t first, uint32_t count, std::string* raw,
+                                      FrameMaker make, std::span<const fch::NodeCode> given) {
+  if (pool->full()) placeOldest();
+  FrameJob& job = pool->slot();
+  job.section = s, job.first = first, job.count = count;
+  if (raw) job.raw = std::move(*raw);
+  job.codes.assign(given.begin(), given.end());
+  job.make = std::move(make);
+  job.bounds = Bounds{};
+  pool->submit();
+}
+
 void ClusterFileWriter::State::placeOldest() {
-  const CompressorPool::Job& done = pool->takeOldest();
+  const FrameJob& done = pool->take();
   placeFrame(done.section, done.frame, done.compressed, done.bounds);
 }
 

@@ -1,9 +1,11 @@
 // ReadAhead and WriteBehind (facetree/storage.h): items in order, through a ring of slots reused
-// in turn, and a helper's failure handed to the caller after what came before it. runWorkers: every
-// worker once on a thread of its own, and the first failure after all have returned.
+// in turn (several helpers at once, their items taken back in turn), and a helper's failure handed
+// to the caller after what came before it. runWorkers: every worker once on a thread of its own, and
+// the first failure after all have returned.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -79,7 +81,7 @@ TEST(WriteBehind, ItemsAreConsumedInOrderThroughReusedSlots) {
   std::vector<int> seen;
   std::vector<const Numbered*> slotsSeen;
   {
-    WriteBehind<Numbered, 2> behind([&](Numbered& item) {
+    WriteBehind<Numbered> behind([&](Numbered& item, unsigned) {
       ASSERT_EQ(item.payload, std::vector<int>(static_cast<size_t>(item.value % 5), item.value));
       seen.push_back(item.value);
       slotsSeen.push_back(&item);
@@ -100,7 +102,7 @@ TEST(WriteBehind, ItemsAreConsumedInOrderThroughReusedSlots) {
 
 TEST(WriteBehind, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
   std::vector<int> consumed;
-  WriteBehind<Numbered> behind([&](Numbered& item) {
+  WriteBehind<Numbered> behind([&](Numbered& item, unsigned) {
     consumed.push_back(item.value);
     if (item.value == 3) throw std::runtime_error("disk full writing block 3");
     if (item.value > 3) throw std::logic_error("a later failure");
@@ -124,13 +126,48 @@ TEST(WriteBehind, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
 TEST(WriteBehind, DestructionConsumesWhatWasSubmitted) {
   std::vector<int> seen;
   {
-    WriteBehind<Numbered> behind([&](Numbered& item) { seen.push_back(item.value); });
+    WriteBehind<Numbered> behind([&](Numbered& item, unsigned) { seen.push_back(item.value); });
     for (int i = 0; i < 2; ++i) {
       behind.slot().value = i;
       behind.submit();
     }
   }
   EXPECT_EQ(seen, (std::vector<int>{0, 1}));
+}
+
+TEST(WriteBehind, SeveralHelpersConsumeAtOnceAndTheCallerTakesTheItemsBackInTurn) {
+  constexpr unsigned kWorkers = 3;
+  constexpr size_t kSlots = 6;
+  std::atomic<int> inFlight{0}, most{0};
+  std::vector<int> byWorker(kWorkers, 0);
+  WriteBehind<Numbered> behind(
+      [&](Numbered& item, unsigned worker) {
+        const int now = ++inFlight;
+        for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
+        }
+        std::this_thread::sleep_for(std::chrono::microseconds((item.value * 7919) % 300));
+        item.payload.assign(1, item.value * 2);
+        ++byWorker.at(worker);  // each worker its own counter
+        --inFlight;
+      },
+      kSlots, kWorkers);
+  std::vector<int> taken;
+  int next = 0;
+  for (int i = 0; i < 300; ++i) {
+    if (behind.full()) {
+      const Numbered& done = behind.take();
+      ASSERT_EQ(done.payload, std::vector<int>(1, 2 * done.value));
+      taken.push_back(done.value);
+    }
+    behind.slot().value = next++;
+    behind.submit();
+  }
+  while (!behind.empty()) taken.push_back(behind.take().value);
+  ASSERT_EQ(taken.size(), 300u);
+  for (int i = 0; i < 300; ++i) ASSERT_EQ(taken[i], i);
+  EXPECT_LE(most.load(), static_cast<int>(kWorkers));
+  EXPECT_GT(most.load(), 1);  // helpers at once
+  EXPECT_EQ(byWorker[0] + byWorker[1] + byWorker[2], 300);
 }
 
 TEST(RunWorkers, EveryWorkerRunsOnceOnAThreadOfItsOwnTheCallersFirst) {
