@@ -875,7 +875,7 @@ class WriteBehind {
       std::lock_guard lock(mutex_);
       stop_ = true;
     }
-    changed_.notify_all();
+    queued_.notify_all();
     for (std::thread& t : threads_) t.join();
   }
   WriteBehind(const WriteBehind&) = delete;
@@ -888,21 +888,21 @@ class WriteBehind {
       std::lock_guard lock(mutex_);
       busy_[made_++ % slots_.size()] = true;
     }
-    changed_.notify_all();
+    queued_.notify_one();
   }
   Item& take() { return wait(taken_++); }
   bool full() const { return made_ - taken_ == slots_.size(); }  // of items not taken back
   bool empty() const { return made_ == taken_; }
   void settle() {
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return done_ == made_ || failure_; });
+    consumed_.wait(lock, [&] { return done_ == made_ || failure_; });
     if (failure_) std::rethrow_exception(failure_);
   }
 
  private:
   Item& wait(uint64_t item) {
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return !busy_[item % slots_.size()] || failure_; });
+    consumed_.wait(lock, [&] { return !busy_[item % slots_.size()] || failure_; });
     if (failure_) std::rethrow_exception(failure_);
     return slots_[item % slots_.size()];
   }
@@ -910,7 +910,7 @@ class WriteBehind {
   void run(Consume& consume, unsigned worker) {
     std::unique_lock lock(mutex_);
     for (;;) {
-      changed_.wait(lock, [&] { return made_ > begun_ || stop_; });
+      queued_.wait(lock, [&] { return made_ > begun_ || stop_; });
       if (made_ == begun_) return;
       const uint64_t item = begun_++;
       const bool skip = failure_ != nullptr;
@@ -925,14 +925,14 @@ class WriteBehind {
       if (failure && !failure_) failure_ = failure;
       busy_[item % slots_.size()] = false;
       ++done_;
-      changed_.notify_all();
+      consumed_.notify_one();  // only the caller waits on it
     }
   }
 
   std::vector<Item> slots_;  // a ring: item i in slots_[i % size]
   std::vector<bool> busy_;   // submitted and not yet consumed
   std::mutex mutex_;
-  std::condition_variable changed_;
+  std::condition_variable queued_, consumed_;  // the helpers wait on the one, the caller on the other
   uint64_t made_ = 0, begun_ = 0, done_ = 0, taken_ = 0;  // items submitted, begun, consumed, taken back
   bool stop_ = false;
   std::exception_ptr failure_;
