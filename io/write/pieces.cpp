@@ -115,20 +115,9 @@ class PieceFile {
   PieceFile& operator=(const PieceFile&) = delete;
 
   const fch::PieceTrailer& trailer() const { return trailer_; }
-  void readAt(uint64_t offset, char* out, size_t size) const { read(offset, out, size); }
-  void copy(uint64_t offset, uint64_t bytes, OutputFile& out, std::vector<char>& buffer) const {
-    for (uint64_t done = 0; done < bytes;) {
-      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), bytes - done));
-      read(offset + done, buffer.data(), want);
-      out.write(buffer.data(), want);
-      done += want;
-    }
-  }
   [[noreturn]] void fail(const std::string& why) const {
     throw Error(ErrorCategory::Input, path_.string() + ": " + why);
   }
-
- private:
   void read(uint64_t offset, char* out, size_t size) const {
     for (size_t done = 0; done < size;) {
       const ssize_t got = ::pread(fd_, out + done, size - done, static_cast<off_t>(offset + done));
@@ -137,6 +126,8 @@ class PieceFile {
       done += static_cast<size_t>(got);
     }
   }
+
+ private:
   std::filesystem::path path_;
   int fd_ = -1;
   uint64_t dataBytes_ = 0;
@@ -247,7 +238,7 @@ void placePieces(const std::filesystem::path& partial, std::span<const std::file
     if (c.piece != open) piece = std::make_unique<PieceFile>(paths[c.piece]), open = c.piece;
     for (uint64_t done = 0; done < c.bytes;) {
       const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), c.bytes - done));
-      piece->readAt(c.from + done, buffer.data(), want);
+      piece->read(c.from + done, buffer.data(), want);
       for (size_t put = 0; put < want;) {
         const ssize_t n =
             ::pwrite(fd, buffer.data() + put, want - put, static_cast<off_t>(c.to + done + put));
