@@ -1,43 +1,23 @@
 // Welding by position and open half-edges (point_topology.h).
 #include "point_topology.h"
 
-#include <bit>
-#include <cstring>
+#include <numeric>
+
+#include "facetree/stream.h"
 
 namespace facetree::tiles {
-namespace {
-
-uint32_t bitsOf(float v) {
-  return v == 0.0f ? 0u : std::bit_cast<uint32_t>(v);
-}
-
-uint64_t hashOf(const glm::vec3& p) {
-  uint64_t h = bitsOf(p.x) * 0x9E3779B97F4A7C15ull;
-  h ^= (h >> 29) + bitsOf(p.y) * 0xC2B2AE3D27D4EB4Full;
-  h ^= (h >> 31) + bitsOf(p.z) * 0x165667B19E3779F9ull;
-  return h ^ (h >> 32);
-}
-
-}  // namespace
 
 std::vector<uint32_t> weldPoints(std::span<const glm::vec3> points, std::vector<uint32_t>& firstOf) {
-  firstOf.clear();
-  size_t capacity = 16;
-  while (capacity < 2 * points.size()) capacity *= 2;
-  std::vector<uint32_t> table(capacity, ~0u);  // point number + 1 ... as index into firstOf
   std::vector<uint32_t> welded(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    for (size_t slot = hashOf(points[i]) & (capacity - 1);; slot = (slot + 1) & (capacity - 1)) {
-      if (table[slot] == ~0u) {
-        table[slot] = static_cast<uint32_t>(firstOf.size());
-        welded[i] = table[slot];
-        firstOf.push_back(static_cast<uint32_t>(i));
-        break;
-      }
-      if (points[firstOf[table[slot]]] == points[i]) {
-        welded[i] = table[slot];
-        break;
-      }
+  std::iota(welded.begin(), welded.end(), 0u);
+  weldPositions(points, welded);  // each point's first occurrence
+  firstOf.clear();
+  for (size_t i = 0; i < points.size(); ++i) {  // a first occurrence is numbered before its others
+    if (welded[i] != i) {
+      welded[i] = welded[welded[i]];
+    } else {
+      welded[i] = static_cast<uint32_t>(firstOf.size());
+      firstOf.push_back(static_cast<uint32_t>(i));
     }
   }
   return welded;

@@ -1,5 +1,5 @@
 // The topology the tiles need of a triangle soup, in time linear in its size: its vertices welded
-// by position (a flat hash of the coordinates), and its open half-edges (those whose opposite no
+// by position (weldPositions, the readers' weld), and its open half-edges (those whose opposite no
 // triangle has), by each vertex's outgoing half-edges.
 #pragma once
 

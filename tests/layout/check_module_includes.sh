@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The modules' dependencies run one way: cli on grid, picture and generate (and what they expose),
 # grid on io, merge, storage and stream, picture on query, query on io, merge and storage, generate
-# on io and merge, tiles on io, io on merge and storage, merge, storage and stream on nothing. The compiler
-# already refuses another module's internal header (a module sees only include/ and its own folder);
-# this checks which public headers each module includes, and that no source reaches outside its
-# folder by a relative path.
+# on io and merge, tiles on io and stream, io on merge and storage, merge, storage and stream on
+# nothing. The compiler already refuses another module's internal header (a module sees only
+# include/ and its own folder); this checks which public headers each module includes, and that no
+# source reaches outside its folder by a relative path.
 # The Python package depends on the library only, never on the command line.
 #   check_module_includes.sh SOURCE_DIR
 set -euo pipefail
@@ -18,7 +18,7 @@ declare -A allowed=(
   [query]="error merge storage io query"
   [picture]="error merge storage io query picture"
   [generate]="error merge io generate"
-  [tiles]="error merge storage io tiles"
+  [tiles]="error stream merge storage io tiles"
   [cli]="error stream merge storage io grid query picture generate tiles"
   [python/src]="error stream merge storage io grid query picture generate tiles"
 )
