@@ -10,7 +10,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <vector>
 
 #include "facetree/io.h"
 #include "facetree/query.h"

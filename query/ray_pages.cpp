@@ -5,7 +5,6 @@
 #include <atomic>
 #include <cstring>
 #include <map>
-#include <memory>
 #include <thread>
 
 #include "facetree/storage.h"

@@ -10,7 +10,6 @@
 // so that no triangle a box holds is ever hidden by it (a box met for nothing costs a little time).
 #pragma once
 
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>

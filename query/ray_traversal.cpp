@@ -12,10 +12,7 @@
 // brute force decides it. The file in memory and a reader's pages are walked by the same code over
 // the same layout.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <exception>
-#include <thread>
 
 #include "facetree/error.h"
 #include "facetree/merge.h"

@@ -5,11 +5,8 @@
 // block the chunk touches is read once: a coherent file reads the few blocks near its faces, a
 // shuffled one reads its vertex records once per chunk, never once per corner (the sort join of
 // external-memory algorithms, Vitter 2001, sec. 7, within one chunk's memory).
-#include <fcntl.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <vector>
 
@@ -19,7 +16,6 @@
 #include "ply_scalar.h"
 #include "positioned_file.h"
 #include "read_error.h"
-#include "readers.h"
 #include "vertex_store.h"
 
 namespace facetree {

@@ -12,7 +12,6 @@
 #include <bit>
 #include <cstring>
 #include <string_view>
-#include <type_traits>
 #include <vector>
 
 #include "ply_header.h"

@@ -6,7 +6,6 @@
 // the number of distinct positions, the triangles themselves are streamed. Out-of-core builds
 // stop the welding (stopWelding) and weld with bounded memory themselves.
 #include <algorithm>
-#include <cstring>
 #include <string>
 #include <utility>
 

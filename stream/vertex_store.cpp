@@ -2,7 +2,6 @@
 #include "vertex_store.h"
 
 #include <bit>
-#include <cmath>
 
 #include "position_welder.h"
 

@@ -6,10 +6,8 @@
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
-#include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <stdexcept>
 #include <vector>
 
 #include "facetree/error.h"

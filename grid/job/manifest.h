@@ -6,7 +6,6 @@
 #pragma once
 
 #include <cstdint>
-#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -14,8 +13,6 @@
 #include <mutex>
 #include <string>
 #include <string_view>
-#include <type_traits>
-#include <vector>
 
 #include "facetree/storage.h"
 

@@ -3,8 +3,6 @@
 // reads its range again rather than spilling it. The tasks of a step depend only on the steps
 // before, and the binned segments in range order are what the single process's one pass makes.
 #include <algorithm>
-#include <cmath>
-#include <cstring>
 #include <limits>
 #include <optional>
 

@@ -2,7 +2,6 @@
 // its seconds and its process's peak RSS in the work directory (times/STEP-I), and the finish sums
 // them by step into the report's times and peaks, so that it gives what the build took, not what
 // the finish alone took.
-#include <cstdio>
 #include <fstream>
 #include <string>
 

@@ -6,12 +6,8 @@
 // 2000, sec. 5.5.3: the cheapest merges last).
 #include <algorithm>
 #include <cmath>
-#include <condition_variable>
 #include <cstring>
-#include <exception>
-#include <mutex>
 #include <optional>
-#include <thread>
 #include <utility>
 
 #include "facetree/io.h"

@@ -5,7 +5,6 @@
 // so a range is a contiguous run of the file's frames and any cut of the ranges gives the same
 // bytes (docs/FORMAT.md: frames are self-contained).
 #include <algorithm>
-#include <stdexcept>
 #include <string>
 
 #include "facetree/io.h"

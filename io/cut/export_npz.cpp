@@ -4,11 +4,8 @@
 // the writer holds one array beside the cut.
 #include <array>
 #include <bit>
-#include <cmath>
-#include <cstring>
 #include <limits>
 #include <string>
-#include <vector>
 
 #include "facetree/error.h"
 #include "facetree/io.h"

@@ -8,8 +8,6 @@
 // kind of machine: the trailer is host-order bytes, as the build's own manifests are.
 #pragma once
 
-#include <cstdint>
-#include <filesystem>
 #include <string>
 #include <vector>
 

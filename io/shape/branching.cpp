@@ -2,8 +2,6 @@
 // and the statistics of a cluster file's tree.
 #include "facetree/io.h"
 
-#include <algorithm>
-#include <cmath>
 #include <stdexcept>
 
 #include "shape/file_shape.h"

@@ -6,7 +6,6 @@
 // windows of faces until then) and checked at their last. The file in memory and the file read
 // under a cap run the same passes (read/cluster_source.h): the same verdicts, to the last bit.
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <thread>
 

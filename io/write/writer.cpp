@@ -6,12 +6,8 @@
 // the spills in section order and overwrites the placeholder, whose size is known from the
 // declared counts (every frame but a section's last is full). Standard output cannot seek, so
 // there the node frames are spilled too and everything goes out in finish().
-#include <fcntl.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <cstring>
 #include <limits>
 #include <optional>
 #include <stdexcept>

@@ -3,7 +3,6 @@
 #include "boxes/frame.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 
 #include <glm/geometric.hpp>

@@ -1,15 +1,12 @@
 // Input validation and the mesh-wide origin of the merge.
 #include "cost/face_geometry.h"
 
-#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
 #include <glm/geometric.hpp>
-
-#include "base/morton.h"
 
 namespace facetree {
 

@@ -2,7 +2,6 @@
 // quadrics of a mesh (cost/cost.h GarlandStats) and eFit of eq. 84 from the statistics
 // (surfaceFitError, cost/cost.cpp willmottFitError).
 #include <algorithm>
-#include <limits>
 
 #include <glm/common.hpp>
 

@@ -10,7 +10,6 @@
 // allocated per merge.
 #pragma once
 
-#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <optional>

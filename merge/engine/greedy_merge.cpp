@@ -6,7 +6,6 @@
 // the pieces that share no edge engine/greedy_pieces.cpp (ClusterMerger, engine/cluster_merger.h).
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 #include <utility>
 
 #include "engine/cluster_merger.h"

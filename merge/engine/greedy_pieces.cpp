@@ -8,7 +8,6 @@
 #include <queue>
 #include <tuple>
 
-#include "base/morton.h"
 #include "engine/cluster_merger.h"
 
 namespace facetree {

@@ -6,14 +6,8 @@
 // not depend on --threads.
 #include <algorithm>
 #include <atomic>
-#include <cmath>
 #include <cstring>
-#include <exception>
-#include <limits>
 #include <mutex>
-#include <numeric>
-#include <optional>
-#include <thread>
 #include <utility>
 
 #include "stages/cells/cross_cell_pairs.h"
