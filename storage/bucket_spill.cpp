@@ -17,7 +17,7 @@ class BucketSpill::Writer {
     size_t size = 0;
     SpillBlock* target = nullptr;
   };
-  WriteBehind<Block> behind;
+  HelperRing<Block> behind;
 
   Writer(SpillFile& file, int level)
       : behind(

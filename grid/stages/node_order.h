@@ -37,7 +37,7 @@ using OrderSorter = ExternalSorter<NodeRef, ByFileOrder>;
 // The sorted order is kept in blocks of this many entries (64 KiB) for the node pass.
 inline constexpr size_t kOrderBlock = (size_t{64} << 10) / sizeof(NodeRef);
 
-// The node pass's input, read ahead on a helper thread (ReadAhead): the sorted order's entries in
+// The node pass's input, read ahead on a helper thread (HelperRing): the sorted order's entries in
 // batches, with the batch's leaf runs read and decompressed, one batch being made while the pass
 // takes the one before. The spill's reads and zstd then overlap the pass's placing and the writer
 // (perf: reading was half of the pass's thread on the 14M-face dragon at 64 MiB). Order blocks are
@@ -49,39 +49,42 @@ struct NodeRunBatch {
 // Batches close at this many nodes: a few hundred KiB of records each, so that the reader and the
 // pass meet a few thousand times for millions of nodes, not once a run.
 inline constexpr size_t kBatchNodes = 2048;
-inline void readNodeRuns(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs,
-                         ReadAhead<NodeRunBatch>& ahead) {
-  SpillCodec codec;
-  std::vector<std::byte> raw;
-  std::vector<NodeRef> refs;
-  NodeRunBatch* batch = nullptr;
-  size_t batched = 0;  // run nodes in the batch
-  for (const SpillBlock& block : orderBlocks) {
-    order.read(block, raw, codec);
-    order.discard(block);
-    refs.resize(raw.size() / sizeof(NodeRef));
-    std::memcpy(static_cast<void*>(refs.data()), raw.data(), raw.size());
-    for (const NodeRef& ref : refs) {
-      if (!batch) {
-        batch = &ahead.slot();
-        batch->refs.clear();
-        batch->records.clear();
+class NodeRunReader {
+ public:
+  NodeRunReader(SpillFile& order, std::span<const SpillBlock> orderBlocks, const SpillFile& runs)
+      : order_(order), blocks_(orderBlocks), runs_(runs) {}
+  // The next batch into `batch`; empty past the order's end.
+  void next(NodeRunBatch& batch) {
+    batch.refs.clear();
+    batch.records.clear();
+    for (size_t batched = 0; batched < kBatchNodes;) {  // run nodes in the batch
+      if (at_ == refs_.size()) {
+        if (block_ == blocks_.size()) return;
+        order_.read(blocks_[block_], raw_, codec_);
+        order_.discard(blocks_[block_++]);
+        refs_.resize(raw_.size() / sizeof(NodeRef));
+        std::memcpy(static_cast<void*>(refs_.data()), raw_.data(), raw_.size());
+        at_ = 0;
+        continue;
       }
-      batch->refs.push_back(ref);
+      const NodeRef& ref = batch.refs.emplace_back(refs_[at_++]);
       if (ref.kind == 1) {
-        runs.read(ref.spill(), raw, codec);
-        const auto* bytes = reinterpret_cast<const char*>(raw.data());
-        batch->records.insert(batch->records.end(), bytes, bytes + raw.size());
+        runs_.read(ref.spill(), raw_, codec_);
+        const auto* bytes = reinterpret_cast<const char*>(raw_.data());
+        batch.records.insert(batch.records.end(), bytes, bytes + raw_.size());
         batched += ref.count;
-      }
-      if (batched >= kBatchNodes) {
-        ahead.publish();
-        batch = nullptr;
-        batched = 0;
       }
     }
   }
-  if (batch) ahead.publish();
-}
+
+ private:
+  SpillFile& order_;
+  std::span<const SpillBlock> blocks_;
+  const SpillFile& runs_;
+  SpillCodec codec_;
+  std::vector<std::byte> raw_;
+  std::vector<NodeRef> refs_;  // the order block being read, from refs_[at_]
+  size_t block_ = 0, at_ = 0;
+};
 
 }  // namespace facetree

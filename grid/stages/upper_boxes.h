@@ -175,11 +175,11 @@ class UpperBoxes {
   std::vector<uint32_t> partNodes_;        // those with an accumulator of the part, in order
   std::vector<BoxAccumulator> partBoxes_;  // and those accumulators
   bool finished_ = false;
-  TriangleRun run_;                           // scratch of accumulate()
-  std::vector<BoxAccumulator*> targets_;      // a run's ancestors
-  Batch inline_;                              // the one batch without a helper
-  Batch* filling_ = &inline_;                 // the batch this thread fills
-  std::optional<WriteBehind<Batch>> helper_;  // last: stops before the rest goes
+  TriangleRun run_;                          // scratch of accumulate()
+  std::vector<BoxAccumulator*> targets_;     // a run's ancestors
+  Batch inline_;                             // the one batch without a helper
+  Batch* filling_ = &inline_;                // the batch this thread fills
+  std::optional<HelperRing<Batch>> helper_;  // last: stops before the rest goes
 };
 
 }  // namespace facetree

@@ -169,11 +169,14 @@ void writeNodeRange(const WritePlan& p, SpillFile& order, SpillFile& runs, uint6
   uint64_t position = blocks.empty() ? end : p.orderFirst[size_t(from)];
   // Upper nodes in batches between the leaves' runs, of at most a frame.
   std::vector<FchNode> upper;
-  ReadAhead<NodeRunBatch> reader(
-      [&](ReadAhead<NodeRunBatch>& ahead) { readNodeRuns(order, blocks, runs, ahead); });
-  while (NodeRunBatch* batch = reader.next()) {
-    const char* records = batch->records.data();
-    for (const NodeRef& ref : batch->refs) {
+  NodeRunReader runReader(order, blocks, runs);
+  HelperRing<NodeRunBatch> reader([&](NodeRunBatch& batch, unsigned) { runReader.next(batch); });
+  reader.slot(), reader.submit(), reader.slot(), reader.submit();  // two batches asked for
+  for (;;) {
+    const NodeRunBatch& batch = reader.take();
+    if (batch.refs.empty()) break;
+    const char* records = batch.records.data();
+    for (const NodeRef& ref : batch.refs) {
       if (position >= end) break;
       if (ref.kind == 0) {
         if (position >= first) upper.push_back(upperNode(ref.leafRank));
@@ -204,6 +207,7 @@ void writeNodeRange(const WritePlan& p, SpillFile& order, SpillFile& runs, uint6
     }
     progress(position - std::min(position, first));
     if (position >= end) break;
+    reader.slot(), reader.submit();
   }
   writer.addNodes(upper);
 }

@@ -3,12 +3,11 @@
 // the temporary directory of a run and its byte accounting (TempSpace); append-only files of
 // independently zstd-compressed blocks (SpillFile, SpillCodec); many record streams in one such
 // file (BucketSpill); the external merge sort of fixed-size records (ExternalSorter; Knuth, TAOCP
-// vol. 3, sec. 5.4); items made on a helper thread ahead of their reader (ReadAhead), consumed on
-// one behind their writer (WriteBehind), and taken by a team of workers (runWorkers).
+// vol. 3, sec. 5.4); items made on helper threads ahead of their reader or consumed behind their
+// writer (HelperRing), and taken by a team of workers (runWorkers).
 #pragma once
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <concepts>
 #include <condition_variable>
@@ -779,98 +778,25 @@ class ExternalSorter {
   size_t mergePasses_ = 0;
 };
 
-// Items made in turn on a helper thread, up to `Slots` ahead of the thread that takes them in
-// turn: a pass's reads and decompression overlap its own work. `produce(ahead)` runs on the
-// helper: it fills ahead.slot() and hands it on with ahead.publish(), as many times as it has
-// items; its exception reaches the consumer after the items published before it.
-template <class Item, size_t Slots = 2>
-class ReadAhead {
- public:
-  template <class Produce>
-  explicit ReadAhead(Produce produce) {
-    thread_ = std::thread([this, produce]() mutable { run(produce); });
-  }
-  ~ReadAhead() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    thread_.join();
-  }
-  ReadAhead(const ReadAhead&) = delete;
-  ReadAhead& operator=(const ReadAhead&) = delete;
-
-  // The consumer's next item, valid until the next call; null at the end.
-  Item* next() {
-    std::unique_lock lock(mutex_);
-    if (taken_ > 0) ++released_, changed_.notify_all();  // the item taken before is free again
-    changed_.wait(lock, [&] { return made_ > taken_ || finished_; });
-    if (made_ == taken_) {
-      if (failure_) std::rethrow_exception(failure_);
-      return nullptr;
-    }
-    return &slots_[taken_++ % Slots];
-  }
-  // The producer's slot to fill next: waits until the consumer has given it back.
-  Item& slot() {
-    std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return made_ - released_ < Slots || stop_; });
-    if (stop_) throw Stopped{};
-    return slots_[made_ % Slots];
-  }
-  void publish() {
-    std::lock_guard lock(mutex_);
-    ++made_;
-    changed_.notify_all();
-  }
-  // Every slot, for the bytes they hold: the helper may be filling one, so only what it publishes
-  // atomically in an item may be read from another thread.
-  const std::array<Item, Slots>& slots() const { return slots_; }
-
- private:
-  struct Stopped {};
-  template <class Produce>
-  void run(Produce& produce) {
-    try {
-      produce(*this);
-    } catch (const Stopped&) {
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      failure_ = std::current_exception();
-    }
-    std::lock_guard lock(mutex_);
-    finished_ = true;
-    changed_.notify_all();
-  }
-
-  std::array<Item, Slots> slots_{};  // a ring: item i in slots_[i % Slots]
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  uint64_t made_ = 0, taken_ = 0, released_ = 0;  // items published, handed out, handed back
-  bool stop_ = false, finished_ = false;
-  std::exception_ptr failure_;
-  std::thread thread_;  // last: starts once the rest exists
-};
-
-// The mirror of ReadAhead: items made in turn by the caller and consumed on `workers` helper
-// threads, up to `slots` items behind, so that a pass's writes (or a file's compression) overlap
-// its own work. The caller fills slot() and hands it on with submit(); the helpers begin the items
-// in turn (with one helper they also end in turn). A caller that takes the items back takes them
-// in turn with take(), each valid until its slot is filled again, and fills no slot it has not
-// taken; settle() waits until every item submitted is consumed. `consume(item, worker)` runs on
-// helper `worker`; its first exception reaches the caller at the next slot(), take() or settle(),
-// and the items begun after it are skipped.
+// A ring of `slots` items handed between the caller and `workers` helper threads, so that a pass's
+// reads, writes or compression overlap its own work. The caller fills slot() and hands it on with
+// submit(); the helpers begin the items in turn (with one helper they also end in turn), each with
+// `consume(item, worker)`. Written behind: the caller fills what the helpers consume. Read ahead:
+// the caller submits requests and the helpers make the items, which the caller takes back in turn
+// with take(), each valid until its slot is filled again; it fills no slot it has not taken.
+// settle() waits until every item submitted is consumed. The first exception of a helper reaches
+// the caller at the next slot() or settle(), or at the take() of the item it failed on (the items
+// before it are taken as made); the items begun after it are skipped.
 template <class Item>
-class WriteBehind {
+class HelperRing {
  public:
   template <class Consume>
-  explicit WriteBehind(Consume consume, size_t slots = 2, unsigned workers = 1)
-      : slots_(slots), busy_(slots, false) {
+  explicit HelperRing(Consume consume, size_t slots = 2, unsigned workers = 1)
+      : slots_(slots), state_(slots, kFree) {
     const auto shared = std::make_shared<Consume>(std::move(consume));  // one, called by every helper
     for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this, w, shared] { run(*shared, w); });
   }
-  ~WriteBehind() {
+  ~HelperRing() {
     {
       std::lock_guard lock(mutex_);
       stop_ = true;
@@ -878,19 +804,19 @@ class WriteBehind {
     queued_.notify_all();
     for (std::thread& t : threads_) t.join();
   }
-  WriteBehind(const WriteBehind&) = delete;
-  WriteBehind& operator=(const WriteBehind&) = delete;
+  HelperRing(const HelperRing&) = delete;
+  HelperRing& operator=(const HelperRing&) = delete;
 
   // The caller's slot to fill next: waits until the helpers are done with the item `slots` before.
-  Item& slot() { return wait(made_); }
+  Item& slot() { return wait(made_, true); }
   void submit() {
     {
       std::lock_guard lock(mutex_);
-      busy_[made_++ % slots_.size()] = true;
+      state_[made_++ % slots_.size()] = kBusy;
     }
     queued_.notify_one();
   }
-  Item& take() { return wait(taken_++); }
+  Item& take() { return wait(taken_++, false); }
   bool full() const { return made_ - taken_ == slots_.size(); }  // of items not taken back
   bool empty() const { return made_ == taken_; }
   void settle() {
@@ -898,12 +824,17 @@ class WriteBehind {
     consumed_.wait(lock, [&] { return done_ == made_ || failure_; });
     if (failure_) std::rethrow_exception(failure_);
   }
+  // Every slot, for the bytes they hold: a helper may be filling one, so only what it publishes
+  // atomically in an item may be read while items are in flight.
+  const std::vector<Item>& slots() const { return slots_; }
 
  private:
-  Item& wait(uint64_t item) {
+  enum : uint8_t { kFree, kBusy, kFailed };  // a slot's item: consumed, submitted, failed or skipped
+  Item& wait(uint64_t item, bool anyFailure) {
     std::unique_lock lock(mutex_);
-    consumed_.wait(lock, [&] { return !busy_[item % slots_.size()] || failure_; });
-    if (failure_) std::rethrow_exception(failure_);
+    uint8_t& state = state_[item % slots_.size()];
+    consumed_.wait(lock, [&] { return state != kBusy || (anyFailure && failure_); });
+    if (failure_ && (anyFailure || state == kFailed)) std::rethrow_exception(failure_);
     return slots_[item % slots_.size()];
   }
   template <class Consume>
@@ -923,14 +854,14 @@ class WriteBehind {
       }
       lock.lock();
       if (failure && !failure_) failure_ = failure;
-      busy_[item % slots_.size()] = false;
+      state_[item % slots_.size()] = skip || failure ? kFailed : kFree;
       ++done_;
       consumed_.notify_one();  // only the caller waits on it
     }
   }
 
-  std::vector<Item> slots_;  // a ring: item i in slots_[i % size]
-  std::vector<bool> busy_;   // submitted and not yet consumed
+  std::vector<Item> slots_;     // a ring: item i in slots_[i % size]
+  std::vector<uint8_t> state_;  // each slot's item's state
   std::mutex mutex_;
   std::condition_variable queued_, consumed_;  // the helpers wait on the one, the caller on the other
   uint64_t made_ = 0, begun_ = 0, done_ = 0, taken_ = 0;  // items submitted, begun, consumed, taken back

@@ -50,9 +50,10 @@ uint64_t defaultMemoryCap() {
 }
 
 // A node frame of a version 2 file read, checked, decompressed and split into codes: a helper
-// thread makes them one frame ahead of the decoder (ReadAhead), the two halves of a pass costing
+// thread makes them one frame ahead of the decoder (HelperRing), the two halves of a pass costing
 // about the same.
 struct FrameCodes {
+  size_t index = 0;  // the frame asked for, in the section
   std::string raw, compressed;
   std::vector<fch::NodeCode> codes;
   // The buffers' bytes as the helper last filled them: the decoder's thread reads this, never the
@@ -346,20 +347,21 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
   std::vector<uint32_t> depths;
   uint64_t visited = 0;
   const size_t frames = s.sections[0].size();
-  std::optional<ReadAhead<FrameCodes>> pipeline;
-  if (!s.version1() && frames > 1)
-    pipeline.emplace([&s, frames, structure = decoder.structure()](ReadAhead<FrameCodes>& ahead) {
-      for (size_t k = 0; k < frames; ++k) {
-        FrameCodes& frame = ahead.slot();
-        s.readCodes(k, structure, frame.raw, frame.compressed, frame.codes);
-        frame.countHeld();
-        ahead.publish();
-      }
+  std::optional<HelperRing<FrameCodes>> pipeline;
+  const auto ask = [&](size_t k) {
+    if (k < frames) pipeline->slot().index = k, pipeline->submit();
+  };
+  if (!s.version1() && frames > 1) {
+    pipeline.emplace([&s, structure = decoder.structure()](FrameCodes& frame, unsigned) {
+      s.readCodes(frame.index, structure, frame.raw, frame.compressed, frame.codes);
+      frame.countHeld();
     });
+    ask(0), ask(1);
+  }
   for (size_t k = 0; k < frames; ++k) {
     uint64_t pipelineBytes = 0;
     if (pipeline) {
-      s.decodeCodes(k, pipeline->next()->codes, decoder, nodes, &depths);
+      s.decodeCodes(k, pipeline->take().codes, decoder, nodes, &depths);
       for (const FrameCodes& frame : pipeline->slots()) pipelineBytes += frame.held;
     } else {
       s.decodeNodeFrame(k, &decoder, nodes, &depths);
@@ -385,6 +387,7 @@ uint64_t ClusterFileReader::forEachNode(const std::function<bool(uint64_t, const
       ++visited;
       if (!visit(index, nodes[j], depth)) return visited;
     }
+    if (pipeline) ask(k + 2);  // frame k + 1 is being made: its failure comes after frame k's visits
   }
   return visited;
 }

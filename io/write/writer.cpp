@@ -155,7 +155,7 @@ struct ClusterFileWriter::State {
   std::vector<FrameScratch> workerScratch;
   // WriteOptions::threads > 1: compresses instead of `compressor`. Frame makers on its workers read
   // only the members above it, which outlive it.
-  std::optional<WriteBehind<FrameJob>> pool;
+  std::optional<HelperRing<FrameJob>> pool;
   std::optional<OutputFile> output;  // file output: from the start; a stream: in finish()
   bool stream = false;               // isStreamOutput: the header cannot be written last
   std::optional<PieceRange> piece;   // WriteOptions::piece: every frame spilled, a piece file written

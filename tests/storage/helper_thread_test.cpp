@@ -1,9 +1,10 @@
-// ReadAhead and WriteBehind (facetree/storage.h): items in order, through a ring of slots reused
-// in turn (several helpers at once, their items taken back in turn), and a helper's failure handed
-// to the caller after what came before it. runWorkers: every worker once on a thread of its own, and
-// the first failure after all have returned.
+// HelperRing (facetree/storage.h), read ahead and written behind: items in order, through a ring of
+// slots reused in turn (several helpers at once, their items taken back in turn), and a helper's
+// failure handed to the caller after what came before it. runWorkers: every worker once on a thread of its
+// own, and the first failure after all have returned.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <mutex>
@@ -22,66 +23,66 @@ struct Numbered {
   std::vector<int> payload;  // reused slot to slot: its capacity stays with the slot
 };
 
-TEST(ReadAhead, ItemsArriveInOrderThroughReusedSlots) {
+// Read ahead: the caller asks for items (slot(), submit()) and the helper makes them, a generator
+// whose state lives in its closure; they are taken back in turn, `slots` asked for at once.
+TEST(HelperRing, ItemsReadAheadArriveInOrderThroughReusedSlots) {
   constexpr int kItems = 1000;
-  ReadAhead<Numbered, 3> ahead([](ReadAhead<Numbered, 3>& a) {
-    for (int i = 0; i < kItems; ++i) {
-      Numbered& item = a.slot();
-      item.value = i;
-      item.payload.assign(static_cast<size_t>(i % 7), i);
-      a.publish();
-    }
-  });
+  int next = 0;  // the helper's: its items are made in turn
+  HelperRing<Numbered> ahead(
+      [&](Numbered& item, unsigned) {
+        item.value = next < kItems ? next++ : -1;
+        item.payload.assign(static_cast<size_t>(std::max(item.value, 0) % 7), item.value);
+      },
+      3);
+  for (int k = 0; k < 3; ++k) ahead.slot(), ahead.submit();
   int expected = 0;
-  for (Numbered* item; (item = ahead.next()) != nullptr; ++expected) {
-    ASSERT_EQ(item->value, expected);
-    ASSERT_EQ(item->payload, std::vector<int>(static_cast<size_t>(expected % 7), expected));
+  for (;; ++expected) {
+    const Numbered& item = ahead.take();
+    if (item.value < 0) break;
+    ASSERT_EQ(item.value, expected);
+    ASSERT_EQ(item.payload, std::vector<int>(static_cast<size_t>(expected % 7), expected));
+    ahead.slot(), ahead.submit();
   }
   EXPECT_EQ(expected, kItems);
-  EXPECT_EQ(ahead.next(), nullptr);  // the end stays the end
 }
 
-TEST(ReadAhead, TheProducersFailureComesAfterTheItemsPublishedBeforeIt) {
-  ReadAhead<Numbered> ahead([](ReadAhead<Numbered>& a) {
-    for (int i = 0; i < 5; ++i) {
-      a.slot().value = i;
-      a.publish();
-    }
-    throw std::runtime_error("frame 5: bad checksum");
+TEST(HelperRing, AHelpersFailureComesAtTheItemItFailedOnAfterTheItemsMadeBeforeIt) {
+  HelperRing<Numbered> ahead([&, next = 0](Numbered& item, unsigned) mutable {
+    if (next == 5) throw std::runtime_error("frame 5: bad checksum");
+    item.value = next++;
   });
+  ahead.slot(), ahead.submit(), ahead.slot(), ahead.submit();
   for (int i = 0; i < 5; ++i) {
-    Numbered* item = ahead.next();
-    ASSERT_NE(item, nullptr);
-    EXPECT_EQ(item->value, i);
+    // Item i + 1 may have failed already: item i is still taken as made.
+    EXPECT_EQ(ahead.take().value, i);
+    if (i < 4) ahead.slot(), ahead.submit();  // items 2 to 5 asked for
   }
   try {
-    ahead.next();
+    ahead.take();
     FAIL() << "no failure";
   } catch (const std::runtime_error& e) {
     EXPECT_STREQ(e.what(), "frame 5: bad checksum");
   }
 }
 
-TEST(ReadAhead, AConsumerThatStopsEarlyReleasesAProducerWaitingForASlot) {
+TEST(HelperRing, ACallerThatStopsReadingEarlyDestroysTheRingWithItemsInFlight) {
   std::atomic<int> made{0};
   {
-    ReadAhead<Numbered> ahead([&](ReadAhead<Numbered>& a) {
-      for (int i = 0; i < 1000000; ++i) {
-        a.slot().value = i;
-        a.publish();
-        ++made;
-      }
+    HelperRing<Numbered> ahead([&](Numbered& item, unsigned) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      item.value = made++;
     });
-    ASSERT_NE(ahead.next(), nullptr);
-  }  // destroyed with the producer blocked in slot(): joins, does not hang
-  EXPECT_LT(made.load(), 1000000);
+    ahead.slot(), ahead.submit(), ahead.slot(), ahead.submit();
+    ASSERT_EQ(ahead.take().value, 0);
+  }  // destroyed with the second item asked for: makes it and joins, does not hang
+  EXPECT_EQ(made.load(), 2);
 }
 
-TEST(WriteBehind, ItemsAreConsumedInOrderThroughReusedSlots) {
+TEST(HelperRing, ItemsAreConsumedInOrderThroughReusedSlots) {
   std::vector<int> seen;
   std::vector<const Numbered*> slotsSeen;
   {
-    WriteBehind<Numbered> behind([&](Numbered& item, unsigned) {
+    HelperRing<Numbered> behind([&](Numbered& item, unsigned) {
       ASSERT_EQ(item.payload, std::vector<int>(static_cast<size_t>(item.value % 5), item.value));
       seen.push_back(item.value);
       slotsSeen.push_back(&item);
@@ -100,9 +101,9 @@ TEST(WriteBehind, ItemsAreConsumedInOrderThroughReusedSlots) {
   EXPECT_NE(slotsSeen[0], slotsSeen[1]);
 }
 
-TEST(WriteBehind, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
+TEST(HelperRing, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
   std::vector<int> consumed;
-  WriteBehind<Numbered> behind([&](Numbered& item, unsigned) {
+  HelperRing<Numbered> behind([&](Numbered& item, unsigned) {
     consumed.push_back(item.value);
     if (item.value == 3) throw std::runtime_error("disk full writing block 3");
     if (item.value > 3) throw std::logic_error("a later failure");
@@ -123,10 +124,10 @@ TEST(WriteBehind, TheFirstFailureReachesTheCallerAndTheItemsAfterItAreSkipped) {
   EXPECT_EQ(consumed, (std::vector<int>{0, 1, 2, 3}));
 }
 
-TEST(WriteBehind, DestructionConsumesWhatWasSubmitted) {
+TEST(HelperRing, DestructionConsumesWhatWasSubmitted) {
   std::vector<int> seen;
   {
-    WriteBehind<Numbered> behind([&](Numbered& item, unsigned) { seen.push_back(item.value); });
+    HelperRing<Numbered> behind([&](Numbered& item, unsigned) { seen.push_back(item.value); });
     for (int i = 0; i < 2; ++i) {
       behind.slot().value = i;
       behind.submit();
@@ -135,12 +136,12 @@ TEST(WriteBehind, DestructionConsumesWhatWasSubmitted) {
   EXPECT_EQ(seen, (std::vector<int>{0, 1}));
 }
 
-TEST(WriteBehind, SeveralHelpersConsumeAtOnceAndTheCallerTakesTheItemsBackInTurn) {
+TEST(HelperRing, SeveralHelpersConsumeAtOnceAndTheCallerTakesTheItemsBackInTurn) {
   constexpr unsigned kWorkers = 3;
   constexpr size_t kSlots = 6;
   std::atomic<int> inFlight{0}, most{0};
   std::vector<int> byWorker(kWorkers, 0);
-  WriteBehind<Numbered> behind(
+  HelperRing<Numbered> behind(
       [&](Numbered& item, unsigned worker) {
         const int now = ++inFlight;
         for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
