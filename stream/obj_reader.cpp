@@ -26,13 +26,8 @@ class ObjReader final : public ReaderBase {
   size_t produce(Triangle* out, size_t capacity) override {
     size_t count = 0;
     while (count < capacity) {
-      if (pendingNext_ < pending_.size()) {
-        for (; count < capacity && pendingNext_ < pending_.size(); ++count, pendingNext_ += 3) {
-          out[count].vertex[0] = pending_[pendingNext_];
-          out[count].vertex[1] = pending_[pendingNext_ + 1];
-          out[count].vertex[2] = pending_[pendingNext_ + 2];
-          out[count].face = pendingFace_;
-        }
+      if (!pending_.empty()) {
+        count += pending_.emit(out + count, capacity - count);
         continue;
       }
       std::string_view statement;
@@ -125,20 +120,14 @@ class ObjReader final : public ReaderBase {
       polygon_.push_back(resolveIndex(token));
     if (polygon_.size() < 3)
       fail("face " + std::to_string(stats_.faces) + " has " + std::to_string(polygon_.size()) + " vertices");
-    pending_.clear();
-    pendingNext_ = 0;
-    pendingFace_ = stats_.faces++;
-    for (size_t k = 2; k < polygon_.size(); ++k)
-      pending_.insert(pending_.end(), {polygon_[0], polygon_[k - 1], polygon_[k]});
+    pending_.fan(stats_.faces++, polygon_);
   }
 
   std::unique_ptr<InputBuffer> input_;
   uint64_t line_ = 0;
   std::string joined_;
   std::vector<uint32_t> polygon_;
-  std::vector<uint32_t> pending_;
-  size_t pendingNext_ = 0;
-  uint64_t pendingFace_ = 0;
+  PendingFace pending_;
 };
 
 }  // namespace

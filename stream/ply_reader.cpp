@@ -61,8 +61,8 @@ class PlyReader final : public ReaderBase {
   size_t produce(Triangle* out, size_t capacity) override {
     size_t count = 0;
     while (count < capacity) {
-      if (pendingNext_ < pending_.size()) {
-        count += emitPending(out + count, capacity - count);
+      if (!pending_.empty()) {
+        count += pending_.emit(out + count, capacity - count);
         continue;
       }
       if (verticesLoaded_ && bufferedNext_ < buffered_.size()) {
@@ -564,41 +564,21 @@ class PlyReader final : public ReaderBase {
 
   // Turns the indices of the record just read into triangles in pending_.
   void finishRecord(const PlyElement& element) {
-    pending_.clear();
-    pendingNext_ = 0;
-    pendingFace_ = nextFace_++;
     ++stats_.faces;
     ++record_;
-    if (element.role == PlyRole::Face) {
-      for (size_t k = 2; k < polygon_.size(); ++k)
-        pending_.insert(pending_.end(), {polygon_[0], polygon_[k - 1], polygon_[k]});
-      return;
-    }
+    if (element.role == PlyRole::Face) return pending_.fan(nextFace_++, polygon_);
+    pending_.start(nextFace_++);
     // Triangle strip with -1 restarts; every other triangle is flipped to keep the winding.
+    std::vector<uint32_t>& c = pending_.corners;
     size_t runStart = 0;
     for (size_t k = 0; k < polygon_.size(); ++k) {
       if (polygon_[k] == kNoVertex) {
         runStart = k + 1;
-        continue;
-      }
-      if (k < runStart + 2) continue;
-      if ((k - runStart) % 2 == 0) {
-        pending_.insert(pending_.end(), {polygon_[k - 2], polygon_[k - 1], polygon_[k]});
-      } else {
-        pending_.insert(pending_.end(), {polygon_[k - 1], polygon_[k - 2], polygon_[k]});
+      } else if (k >= runStart + 2) {
+        const bool flip = (k - runStart) % 2 != 0;
+        c.insert(c.end(), {polygon_[flip ? k - 1 : k - 2], polygon_[flip ? k - 2 : k - 1], polygon_[k]});
       }
     }
-  }
-
-  size_t emitPending(Triangle* out, size_t capacity) {
-    size_t count = 0;
-    for (; count < capacity && pendingNext_ < pending_.size(); ++count, pendingNext_ += 3) {
-      out[count].vertex[0] = pending_[pendingNext_];
-      out[count].vertex[1] = pending_[pendingNext_ + 1];
-      out[count].vertex[2] = pending_[pendingNext_ + 2];
-      out[count].face = pendingFace_;
-    }
-    return count;
   }
 
   size_t emitBuffered(Triangle* out, size_t capacity) {
@@ -623,9 +603,8 @@ class PlyReader final : public ReaderBase {
       const size_t count = readFaces(element, chunk.data(), chunk.size());
       for (size_t i = 0; i < count; ++i)
         buffered_.push_back({{chunk[i].vertex[0], chunk[i].vertex[1], chunk[i].vertex[2]}, chunk[i].face});
-      for (; pendingNext_ < pending_.size(); pendingNext_ += 3)
-        buffered_.push_back(
-            {{pending_[pendingNext_], pending_[pendingNext_ + 1], pending_[pendingNext_ + 2]}, pendingFace_});
+      for (const std::vector<uint32_t>& c = pending_.corners; !pending_.empty(); pending_.next += 3)
+        buffered_.push_back({{c[pending_.next], c[pending_.next + 1], c[pending_.next + 2]}, pending_.face});
     }
   }
 
@@ -641,9 +620,7 @@ class PlyReader final : public ReaderBase {
   bool verticesLoaded_ = false;
   bool endChecked_ = false;
   std::vector<uint32_t> polygon_;
-  std::vector<uint32_t> pending_;  // index triples of the current record not yet handed on
-  size_t pendingNext_ = 0;
-  uint64_t pendingFace_ = 0;
+  PendingFace pending_;  // the current record's triangles not yet handed on
   std::vector<BufferedTriangle> buffered_;
   size_t bufferedNext_ = 0;
 };

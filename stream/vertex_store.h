@@ -67,6 +67,32 @@ class VertexStore final : public VertexSource {
 
 bool isFinite(const glm::vec3& position);
 
+// A face's triangles not handed on yet (a polygon's fan, a strip's runs): index triples of face
+// `face`, handed on from `next` as the caller's batch has room.
+struct PendingFace {
+  std::vector<uint32_t> corners;
+  size_t next = 0;
+  uint64_t face = 0;
+
+  bool empty() const { return next == corners.size(); }
+  void start(uint64_t f) { corners.clear(), next = 0, face = f; }
+  // Face `f` as the fan of `polygon` from its first corner.
+  void fan(uint64_t f, std::span<const uint32_t> polygon) {
+    start(f);
+    for (size_t k = 2; k < polygon.size(); ++k)
+      corners.insert(corners.end(), {polygon[0], polygon[k - 1], polygon[k]});
+  }
+  // As many as fit in out[0, capacity); returns how many.
+  size_t emit(Triangle* out, size_t capacity) {
+    size_t count = 0;
+    for (; count < capacity && next < corners.size(); ++count, next += 3) {
+      for (int k = 0; k < 3; ++k) out[count].vertex[k] = corners[next + k];
+      out[count].face = face;
+    }
+    return count;
+  }
+};
+
 // Base of all readers: read() asks produce() for triangles carrying vertex indices and face
 // ids only, then fills in positions, drops triangles touching a non-finite vertex and counts.
 class ReaderBase : public TriangleReader {

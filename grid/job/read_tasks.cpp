@@ -192,10 +192,6 @@ void loadGridManifest(const WorkDirectory& work, PlanState& s, bool bins, bool o
   }
 }
 
-}  // namespace
-
-namespace {
-
 // The input when `job` reads it in ranges: a binary PLY or STL that the single process's read would
 // take out of core (runJob): positions over their budget, or the in-core estimate over the cap. An
 // STL's vertices are its distinct positions, unknown until welded: when its triangles alone do not

@@ -143,9 +143,6 @@ ClusterFile makeClusterFile(const MeshView& mesh, std::span<const uint64_t> orig
 BranchingStats branchingStats(const ClusterFile& file);
 // The same statistics of the file `hierarchy` makes under `options`, without making it.
 BranchingStats branchingStats(const Hierarchy& hierarchy, const FileOptions& options);
-// Eq. 86: the height, in nodes with the faces included, of a balanced b-ary tree over `faces`
-// faces: ceil(log_b faces) + 1.
-uint32_t balancedHeight(uint64_t faces, uint32_t branching);
 
 // The cluster file's default zstd level, tuned for its byte planes (FrameCompressor).
 inline constexpr int kDefaultZstdLevel = 3;

@@ -182,6 +182,10 @@ struct BuildStats {
   double secondsInit = 0, secondsMerge = 0, secondsCost = 0, secondsEigen = 0, secondsBoxes = 0;
 };
 
+// Eq. 86: the height, in nodes with the faces included, of a balanced b-ary tree over `faces`
+// faces: ceil(log_b faces) + 1.
+uint32_t balancedHeight(uint64_t faces, uint32_t branching);
+
 // A binary face cluster hierarchy: nodes, their boxes and the face order.
 struct Hierarchy {
   // By decreasing effective cost (max of a node's cost and its children's), nodes[0] the root:

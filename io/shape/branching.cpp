@@ -121,12 +121,6 @@ RecastTree recastHierarchy(const Hierarchy& hierarchy, unsigned branching, Recas
   return tree;
 }
 
-uint32_t balancedHeight(uint64_t faces, uint32_t branching) {
-  uint32_t height = 1;
-  for (double reach = 1; reach < double(faces); reach *= branching) ++height;  // eq. 86
-  return height;
-}
-
 BranchingStats branchingStats(const ClusterFile& file) {
   FileShape shape(file.header.branching, file.indices.size() / 3, file.nodes.size());
   for (size_t j = 0; j < file.nodes.size(); ++j) shape.add(j, file.nodes[j]);

@@ -4,7 +4,6 @@
 //
 // A mesh of one triangle has no internal node: nodes is empty and faceOrder = {0}.
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <thread>
 #include <utility>
@@ -21,11 +20,6 @@
 namespace facetree {
 
 namespace {
-
-// ceil(log2 n) + 1: the height of a balanced binary tree over n faces, faces included.
-uint32_t balancedHeight(uint32_t n) {
-  return n <= 1 ? 1 : static_cast<uint32_t>(std::bit_width(n - 1)) + 1;
-}
 
 // The records in output order: by decreasing effective cost, the maximum of the node's own
 // cost and its children's effective costs, ties by decreasing creation index (a later round
@@ -133,6 +127,12 @@ void throwIfCancelled(const BuildOptions& options) {
 
 }  // namespace
 
+uint32_t balancedHeight(uint64_t faces, uint32_t branching) {
+  uint32_t height = 1;
+  for (double reach = 1; reach < double(faces); reach *= branching) ++height;  // eq. 86
+  return height;
+}
+
 namespace {
 
 // The build with the dual graph's edges from `makeEdges(geometry)`.
@@ -151,7 +151,7 @@ Hierarchy build(const MeshView& mesh, const BuildOptions& options, const MakeEdg
     MergeResult merged = runMerge(geometry, std::move(edges), options);
     start = std::chrono::steady_clock::now();
     stats.height = layOut(std::move(merged.records), hierarchy, geometry);
-    stats.balancedHeight = balancedHeight(geometry.faceCount());
+    stats.balancedHeight = balancedHeight(geometry.faceCount(), 2);
     stats.averageDegree = merged.edgeMerges ? merged.degreeSum / static_cast<double>(merged.edgeMerges) : 0.0;
     stats.maxDegree = merged.maxDegree;
     stats.eigenSolves = merged.counters.eigenSolves;

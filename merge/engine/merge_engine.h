@@ -43,9 +43,8 @@ struct MergeResult {
   double degreeSum = 0;         // dual-edge degree of each merged cluster, summed over edge merges
   uint32_t maxDegree = 0;
   CostCounters counters;
-  double secondsCost = 0;         // initial costs and heap construction
-  double secondsMerge = 0;        // the greedy loop with its re-costing, and the component joins
-  size_t peakStructureBytes = 0;  // dual graph + heap + live cluster slots at their largest
+  double secondsCost = 0;   // initial costs and heap construction
+  double secondsMerge = 0;  // the greedy loop with its re-costing, and the component joins
 };
 
 // BuildOptions::threads resolved: 0 is the hardware's, and never more than 8.
