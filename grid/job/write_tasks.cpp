@@ -62,17 +62,6 @@ void upperReportFields(Manifest& m, Report& r) {
   for (auto* v : {&r.secondsCells, &r.secondsMerge, &r.secondsWrite}) m.field(*v);
 }
 
-// The write plan's scalars, as the head of its manifest keeps them.
-struct WriteHead {
-  FileHeader header;
-  uint64_t maxOriginalFace;
-  int zstdLevel;
-  uint32_t nodesPerFrame, geometryPerFrame;
-  BoxPrecision records;
-  bool compactNodes, boxesInTasks;
-};
-static_assert(std::is_trivially_copyable_v<WriteHead>);
-
 struct LoadedWrite {
   JobReport report;
   uint32_t cellsTasks = 0;
@@ -81,6 +70,23 @@ struct LoadedWrite {
   std::vector<uint64_t> triangleBounds, vertexBounds;
   WritePlan plan;
 };
+
+// The write plan's head, listed once for the manifest that stores it and the one that reads it:
+// the report, the tasks' bounds, the file's header and options, and the upper boxes' frames.
+template <class Manifest>
+void headFields(Manifest& m, LoadedWrite& w) {
+  upperReportFields(m, w.report);
+  m.field(w.cellsTasks);
+  for (auto* v : {&w.bounds, &w.triangleBounds, &w.vertexBounds}) m.field(*v);
+  WritePlan& p = w.plan;
+  m.field(p.info.header);
+  m.field(p.info.maxOriginalFace);
+  m.field(p.options.zstdLevel);
+  for (auto* v : {&p.options.nodesPerFrame, &p.options.geometryPerFrame}) m.field(*v);
+  m.field(p.records);
+  for (auto* v : {&p.compactNodes, &p.boxesInTasks}) m.field(*v);
+  m.tables(p.upperOrientation, p.upperOrigin, p.upperHasOrigin, p.upperWorldAxes);
+}
 
 // The tables of the geometry tasks and of the node tasks, listed once for the manifests that store
 // them (each table leaving the plan as it goes in) and those that read them back. Both hold the
@@ -134,22 +140,10 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
   nodeTables(nodeManifest, p);
   work.commit(nodeManifest, nodeTablesPath(work), kNodeTablesKind);
   ManifestWriter out;
-  upperReportFields(out, report);
-  out.put(cellsTasks);
-  out.putVector(bounds);
-  out.putVector(triangleBounds);
-  out.putVector(vertexBounds);
-  WriteHead head{};  // zeroed, padding too: the manifest's bytes are the plan's alone
-  head.header = p.info.header;
-  head.maxOriginalFace = p.info.maxOriginalFace;
-  head.zstdLevel = p.options.zstdLevel;
-  head.nodesPerFrame = p.options.nodesPerFrame;
-  head.geometryPerFrame = p.options.geometryPerFrame;
-  head.records = p.records;
-  head.compactNodes = p.compactNodes;
-  head.boxesInTasks = p.boxesInTasks;
-  out.put(head);
-  out.tables(p.upperOrientation, p.upperOrigin, p.upperHasOrigin, p.upperWorldAxes);
+  LoadedWrite head{
+      report,      cellsTasks, std::move(bounds), std::move(triangleBounds), std::move(vertexBounds),
+      std::move(p)};
+  headFields(out, head);
   work.commit(out, writePlanPath(work), kWriteKind);
 }
 
@@ -158,23 +152,9 @@ void saveWritePlan(const WorkDirectory& work, const JobReport& report, uint32_t 
 LoadedWrite loadWriteHead(const WorkDirectory& work) {
   ManifestReader in = work.read(writePlanPath(work), kWriteKind);
   LoadedWrite w;
-  upperReportFields(in, w.report);
-  w.cellsTasks = in.take<uint32_t>();
-  w.bounds = in.takeVector<uint64_t>();
-  w.triangleBounds = in.takeVector<uint64_t>();
-  w.vertexBounds = in.takeVector<uint64_t>();
-  WritePlan& p = w.plan;
-  const auto head = in.take<WriteHead>();
-  p.info.header = head.header;
-  p.info.maxOriginalFace = head.maxOriginalFace;
-  p.options.zstdLevel = head.zstdLevel;
-  p.options.nodesPerFrame = head.nodesPerFrame;
-  p.options.geometryPerFrame = head.geometryPerFrame;
-  p.records = head.records;
-  p.compactNodes = head.compactNodes;
-  p.boxesInTasks = head.boxesInTasks;
-  in.tables(p.upperOrientation, p.upperOrigin, p.upperHasOrigin, p.upperWorldAxes);
+  headFields(in, w);
   in.finish();
+  const WritePlan& p = w.plan;
   const auto ascendingNodes = [&](const std::vector<uint32_t>& v) {
     for (size_t k = 0; k < v.size(); ++k)
       if (v[k] >= p.upperOrientation.size() || (k > 0 && v[k] <= v[k - 1])) return false;
