@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <type_traits>
 #include <unordered_map>
 
 #include <glm/gtc/quaternion.hpp>
@@ -158,38 +159,28 @@ TilesetReport makeTop(const TilePlan& plan, std::vector<SubtreeTiles>& subtrees,
   return r;
 }
 
+namespace {
+
+// A subtree's tiles as its manifest keeps them, listed once for the writer and the reader.
+template <class Manifest, class Tiles>
+void subtreeFields(Manifest& m, Tiles& tiles) {
+  m.field(tiles.ids);
+  if constexpr (std::is_same_v<Manifest, ManifestReader>) tiles.records.resize(tiles.ids.size());
+  for (auto& r : tiles.records) m.field(r.box), m.field(r.error), m.field(r.content);
+  for (auto* v : {&tiles.glbBytes, &tiles.triangles}) m.field(*v);
+  m.field(tiles.root.positions), m.field(tiles.root.vertexIds), m.field(tiles.root.indices);
+  m.field(tiles.root.error), m.field(tiles.peakHeldBytes);
+}
+
+}  // namespace
+
 void putSubtree(ManifestWriter& out, const SubtreeTiles& tiles) {
-  out.putVector(tiles.ids);
-  for (const TileRecord& r : tiles.records) {
-    out.put(r.box);
-    out.put(r.error);
-    out.put(uint8_t{r.content});
-  }
-  out.putVector(tiles.glbBytes);
-  out.putVector(tiles.triangles);
-  out.putVector(tiles.root.positions);
-  out.putVector(tiles.root.vertexIds);
-  out.putVector(tiles.root.indices);
-  out.put(tiles.root.error);
-  out.put(tiles.peakHeldBytes);
+  subtreeFields(out, tiles);
 }
 
 SubtreeTiles takeSubtree(ManifestReader& in) {
   SubtreeTiles tiles;
-  tiles.ids = in.takeVector<uint32_t>();
-  for (size_t i = 0; i < tiles.ids.size(); ++i) {
-    TileRecord& r = tiles.records.emplace_back();
-    r.box = in.take<std::array<double, 12>>();
-    r.error = in.take<double>();
-    r.content = in.take<uint8_t>() != 0;
-  }
-  tiles.glbBytes = in.takeVector<uint64_t>();
-  tiles.triangles = in.takeVector<uint64_t>();
-  tiles.root.positions = in.takeVector<glm::vec3>();
-  tiles.root.vertexIds = in.takeVector<uint64_t>();
-  tiles.root.indices = in.takeVector<uint32_t>();
-  tiles.root.error = in.take<double>();
-  tiles.peakHeldBytes = in.take<uint64_t>();
+  subtreeFields(in, tiles);
   in.finish();
   if (tiles.glbBytes.size() != tiles.ids.size() || tiles.triangles.size() != tiles.ids.size())
     in.fail("its tiles' sizes do not match its tiles");

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <type_traits>
 
 #include "facetree/error.h"
 
@@ -102,44 +103,42 @@ std::string planFingerprint(const std::filesystem::path& file, const TileOptions
   return out + options.tmp.string();
 }
 
+namespace {
+
+// A plan as its manifest keeps it, listed once for the writer and the reader; paths as strings.
+template <class Manifest, class Plan>
+void planFields(Manifest& m, Plan& plan) {
+  constexpr bool kReading = std::is_same_v<Manifest, ManifestReader>;
+  const auto path = [&](auto& p) {
+    if constexpr (kReading)
+      p = m.takeBytes();
+    else
+      m.putBytes(p.string());
+  };
+  auto& o = plan.options;
+  path(plan.file), path(o.tmp);
+  m.field(o.tileFaces), m.field(o.memoryBytes), m.field(o.draco), m.field(o.dracoPositionBits);
+  m.field(o.tilesPerJson), m.field(plan.workers);
+  m.field(plan.tree.tiles), m.field(plan.tree.children);
+  if constexpr (kReading)
+    plan.borders = TileBorders::take(m);
+  else
+    plan.borders.put(m);
+  m.field(plan.tasks);
+  m.field(plan.glb.gridMin), m.field(plan.glb.gridSize), m.field(plan.origin), m.field(plan.step);
+}
+
+}  // namespace
+
 void putPlan(ManifestWriter& out, const TilePlan& plan) {
-  out.putBytes(plan.file.string());
-  const TileOptions& o = plan.options;
-  for (const uint64_t v : {uint64_t{o.tileFaces}, o.memoryBytes, uint64_t{o.draco},
-                           uint64_t(o.dracoPositionBits), uint64_t{o.tilesPerJson}, uint64_t{plan.workers}})
-    out.put(v);
-  out.putBytes(o.tmp.string());
-  out.putVector(plan.tree.tiles);
-  out.putVector(plan.tree.children);
-  plan.borders.put(out);
-  out.putVector(plan.tasks);
-  out.put(plan.glb.gridMin);
-  out.put(plan.glb.gridSize);
-  out.put(plan.origin);
-  out.put(plan.step);
+  planFields(out, plan);
 }
 
 TilePlan takePlan(ManifestReader& in) {
   TilePlan plan;
-  plan.file = in.takeBytes();
-  TileOptions& o = plan.options;
-  o.tileFaces = static_cast<uint32_t>(in.take<uint64_t>());
-  o.memoryBytes = in.take<uint64_t>();
-  o.draco = in.take<uint64_t>() != 0;
-  o.dracoPositionBits = static_cast<int>(in.take<uint64_t>());
-  o.tilesPerJson = static_cast<uint32_t>(in.take<uint64_t>());
-  plan.workers = static_cast<unsigned>(in.take<uint64_t>());
-  o.tmp = in.takeBytes();
-  plan.tree.tiles = in.takeVector<Tile>();
-  plan.tree.children = in.takeVector<uint32_t>();
-  plan.borders = TileBorders::take(in);
-  plan.tasks = in.takeVector<uint32_t>();
-  plan.glb.draco = o.draco;
-  plan.glb.positionBits = o.dracoPositionBits;
-  plan.glb.gridMin = in.take<glm::dvec3>();
-  plan.glb.gridSize = in.take<double>();
-  plan.origin = in.take<glm::dvec3>();
-  plan.step = in.take<double>();
+  planFields(in, plan);
+  plan.glb.draco = plan.options.draco;
+  plan.glb.positionBits = plan.options.dracoPositionBits;
   in.finish();
   const size_t n = plan.tree.tiles.size();
   const bool inRange =
