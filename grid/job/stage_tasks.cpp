@@ -203,20 +203,22 @@ std::vector<StageStep> stepsAfterPlan(const PlanState& state) {
 
 namespace {
 
+// A cell's records as its task's manifest lists them, for the writer and the reader.
+template <class Manifest, class Result>
+void cellFields(Manifest& m, Result& r) {
+  m.field(r.leafCount);
+  for (auto* block : {&r.leaves, &r.stats, &r.garland, &r.corners, &r.blocks, &r.geometry, &r.border})
+    m.field(*block);
+  m.field(r.pairs), m.field(r.components);
+}
+
 // A cells task's manifest, which marks it done: its cells' records.
 void commitCellsTask(const WorkDirectory& work, uint32_t task, uint32_t first, uint32_t end,
                      const CellsOutput& out) {
   ManifestWriter manifest;
   manifest.put(first);
   manifest.put(end);
-  for (uint32_t c = first; c < end; ++c) {
-    const CellResult& r = out.records.cells[c];
-    manifest.put(r.leafCount);
-    for (const SpillBlock& block : {r.leaves, r.stats, r.garland, r.corners, r.blocks, r.geometry, r.border})
-      manifest.put(block);
-    manifest.putVector(r.pairs);
-    manifest.put(r.components);
-  }
+  for (uint32_t c = first; c < end; ++c) cellFields(manifest, out.records.cells[c]);
   work.commit(manifest, taskManifestPath(work, kCellsStep, task), taskKind(kCellsStep));
 }
 
@@ -395,15 +397,7 @@ CellsOutput loadCellTasks(TempSpace& temp, const WorkDirectory& work, const Plan
     const auto first = in.take<uint32_t>(), end = in.take<uint32_t>();
     if (first != state.bounds[t] || end != state.bounds[t + 1])
       throw Error(ErrorCategory::Input, path.string() + ": cells of another plan");
-    for (uint32_t c = first; c < end; ++c) {
-      CellResult& r = results[c];
-      r.leafCount = in.take<uint32_t>();
-      for (SpillBlock* block :
-           {&r.leaves, &r.stats, &r.garland, &r.corners, &r.blocks, &r.geometry, &r.border})
-        *block = in.take<SpillBlock>();
-      r.pairs = in.takeVector<SpillBlock>();
-      r.components = in.take<uint64_t>();
-    }
+    for (uint32_t c = first; c < end; ++c) cellFields(in, results[c]);
     in.finish();
   }
   return openCellTasks(temp, work.path(), tasks, std::move(results));

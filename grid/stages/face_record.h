@@ -40,12 +40,6 @@ inline bool makeFaceRecord(const uint32_t vertex[3], uint64_t face, const glm::v
   return true;
 }
 
-// The records of one spill block (its raw bytes) into `records`.
-inline void decodeRecords(std::span<const std::byte> bytes, std::vector<FaceRecord>& records) {
-  records.resize(bytes.size() / sizeof(FaceRecord));
-  std::memcpy(records.data(), bytes.data(), records.size() * sizeof(FaceRecord));
-}
-
 // Calls f(low, high, sides, lowCorner, highCorner) once per distinct non-degenerate edge.
 template <class F>
 inline void forEachEdge(const FaceRecord& r, F&& f) {

@@ -76,8 +76,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
     for (uint32_t c = 0; c < cells; ++c) {
       for (const SpillBlock& block : records.cells[c].pairs) {
         records.pairs->read(block, raw, codec);
-        pairs.resize(raw.size() / sizeof(CrossPair));
-        std::memcpy(pairs.data(), raw.data(), pairs.size() * sizeof(CrossPair));
+        decodeRecords(raw, pairs);
         for (const CrossPair& p : pairs) {
           const bool leaf0 = p.ref[0] & CrossPair::kLeafRef, leaf1 = p.ref[1] & CrossPair::kLeafRef;
           const uint32_t a = leafBase[p.cell[0]] + (p.ref[0] & ~CrossPair::kLeafRef);
@@ -112,8 +111,7 @@ LeafGraph resolveLeafGraph(const StageContext& context, CellRecords&& records) {
           const SpillBlock& block = records.cells[p.cell].border;
           if (block.rawBytes > 0) {
             records.border->read(block, raw, codec);
-            border.resize(raw.size() / sizeof(BorderFace));
-            std::memcpy(border.data(), raw.data(), border.size() * sizeof(BorderFace));
+            decodeRecords(raw, border);
           }
           loaded = p.cell;
         }

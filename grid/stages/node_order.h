@@ -4,7 +4,6 @@
 #pragma once
 
 #include <cstdint>
-#include <cstring>
 #include <span>
 #include <vector>
 
@@ -62,8 +61,7 @@ class NodeRunReader {
         if (block_ == blocks_.size()) return;
         order_.read(blocks_[block_], raw_, codec_);
         order_.discard(blocks_[block_++]);
-        refs_.resize(raw_.size() / sizeof(NodeRef));
-        std::memcpy(static_cast<void*>(refs_.data()), raw_.data(), raw_.size());
+        decodeRecords(raw_, refs_);
         at_ = 0;
         continue;
       }

@@ -8,7 +8,6 @@
 // are sorted back by triangle; Vitter 2001, "External memory algorithms", sec. 7).
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -151,8 +150,7 @@ void ArrivalReader::resolveSpilledPositions() {
       uint64_t seq = 0, windowMisses = 0;
       std::vector<TriangleRef> refs;
       refs_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-        refs.resize(bytes.size() / sizeof(TriangleRef));
-        std::memcpy(refs.data(), bytes.data(), bytes.size());
+        decodeRecords(bytes, refs);
         for (const TriangleRef& r : refs) {
           if (!byVertex) {
             const glm::vec3 corner[3] = {cache(r.vertex[0]), cache(r.vertex[1]), cache(r.vertex[2])};
@@ -195,8 +193,7 @@ void ArrivalReader::resolveSpilledPositions() {
       uint64_t seq = 0;
       std::vector<TriangleRef> refs;
       refs_->forEachBlock(0, codec_, [&](std::span<const std::byte> bytes) {
-        refs.resize(bytes.size() / sizeof(TriangleRef));
-        std::memcpy(refs.data(), bytes.data(), bytes.size());
+        decodeRecords(bytes, refs);
         for (const TriangleRef& r : refs) {
           if (seq++ < joinFrom) continue;
           for (int k = 0; k < 3; ++k)

@@ -3,7 +3,6 @@
 #include "stages/vertex_positions.h"
 
 #include <algorithm>
-#include <cstring>
 #include <utility>
 
 namespace facetree {
@@ -47,8 +46,7 @@ void VertexPositions::finish() {
 void VertexPositions::readBlock(size_t b, std::vector<glm::vec3>& out, SpillCodec& codec) const {
   std::vector<std::byte> raw;
   spill_->read(blocks_[b], raw, codec);
-  out.resize(raw.size() / sizeof(glm::vec3));
-  std::memcpy(out.data(), raw.data(), out.size() * sizeof(glm::vec3));
+  decodeRecords(raw, out);
 }
 
 BlockCache::BlockCache(const VertexPositions& positions, uint64_t memoryBudget)

@@ -225,8 +225,7 @@ std::unique_ptr<OrderSorter> WriteStage::nodeOrder(const WritePlan& plan, const 
     const SpillBlock& block = graph_.cellRuns[c];
     if (block.rawBytes == 0) continue;
     graph_.runTables->read(block, raw, codec_);
-    runs.resize(raw.size() / sizeof(NodeBlock));
-    std::memcpy(static_cast<void*>(runs.data()), raw.data(), raw.size());
+    decodeRecords(raw, runs);
     for (uint32_t leafId = graph_.cellLeafBase[c]; leafId < graph_.cellLeafBase[c + 1]; ++leafId) {
       const LeafCluster& l = graph_.leaves[leafId];
       const uint32_t local = l.firstBlock - graph_.leaves[graph_.cellLeafBase[c]].firstBlock;

@@ -188,6 +188,14 @@ struct SpillBlock {
   uint32_t rawBytes = 0;
 };
 
+// The records of a block as read (its raw bytes, whole records) into `records`, replacing them.
+template <class T>
+void decodeRecords(std::span<const std::byte> bytes, std::vector<T>& records) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  records.resize(bytes.size() / sizeof(T));
+  std::memcpy(static_cast<void*>(records.data()), bytes.data(), records.size() * sizeof(T));
+}
+
 // An append-only temporary file of independently zstd-compressed blocks, read back by handle in any order.
 // append() and read() may be called from several threads at once (append serialises the write with a mutex,
 // read uses pread). The file is deleted and its bytes released from the TempSpace by the destructor.
