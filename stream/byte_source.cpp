@@ -116,34 +116,34 @@ uint64_t InputBuffer::skip(uint64_t count) {
   return skipped;
 }
 
-bool InputBuffer::readLine(std::string_view& line, size_t maxLength, bool& tooLong) {
-  tooLong = false;
+bool InputBuffer::readLine(std::string_view& line, uint64_t& number, const std::string& name,
+                           std::string_view what) {
+  const auto tooLong = [&] {
+    throwReadError(name, Place::line(number + 1),
+                   std::string(what) + " longer than " + std::to_string(kMaxLineBytes) + " bytes");
+  };
   size_t scanned = 0;
   for (;;) {
     const char* start = data();
     const auto* newline = static_cast<const char*>(std::memchr(start + scanned, '\n', available() - scanned));
     if (newline != nullptr) {
       size_t length = static_cast<size_t>(newline - start);
-      if (length > maxLength) {
-        tooLong = true;
-        return true;
-      }
+      if (length > kMaxLineBytes) tooLong();
       consume(length + 1);
       if (length > 0 && start[length - 1] == '\r') --length;
       line = std::string_view(start, length);
+      ++number;
       return true;
     }
     scanned = available();
-    if (scanned > maxLength) {
-      tooLong = true;
-      return true;
-    }
-    // Ask for one byte more than we have; the buffer grows at most to maxLength + 2.
+    if (scanned > kMaxLineBytes) tooLong();
+    // Ask for one byte more than we have; the buffer grows at most to kMaxLineBytes + 2.
     if (fill(scanned + 1) == scanned) {
       if (scanned == 0) return false;
       line = std::string_view(data(), scanned);
       consume(scanned);
       if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      ++number;
       return true;
     }
   }

@@ -11,6 +11,9 @@
 
 namespace facetree::stream_detail {
 
+// Longest accepted text line (OBJ, ASCII STL/PLY, PLY header).
+inline constexpr size_t kMaxLineBytes = size_t{1} << 20;
+
 // A forward-only stream of bytes. read() returns 0 only at the end; failures throw Error (Input).
 class ByteSource {
  public:
@@ -68,10 +71,11 @@ class InputBuffer {
   // True when nothing is buffered and the source is exhausted.
   bool atEnd() { return fill(1) == 0; }
 
-  // The next line without its terminator ("\n" or "\r\n"; a lone "\r" is kept). Returns
-  // false at the end of the stream. The view lives until the next call on this buffer.
-  // A line longer than `maxLength` bytes yields `tooLong` = true and is not consumed.
-  bool readLine(std::string_view& line, size_t maxLength, bool& tooLong);
+  // The next line without its terminator ("\n" or "\r\n"; a lone "\r" is kept), counted in
+  // `number`. Returns false at the end of the stream. The view lives until the next call on this
+  // buffer. A line longer than kMaxLineBytes is an error of `name` there: "WHAT longer than N bytes".
+  bool readLine(std::string_view& line, uint64_t& number, const std::string& name,
+                std::string_view what = "line");
 
   const ByteSource& source() const { return *source_; }
   std::optional<uint64_t> size() const { return source_->size(); }

@@ -49,13 +49,7 @@ class ObjReader final : public ReaderBase {
     throwReadError(info_.name, Place::line(line_), reason);
   }
 
-  bool nextLine(std::string_view& text) {
-    bool tooLong = false;
-    if (!input_->readLine(text, kMaxLineBytes, tooLong)) return false;
-    ++line_;
-    if (tooLong) fail("line longer than " + std::to_string(kMaxLineBytes) + " bytes");
-    return true;
-  }
+  bool nextLine(std::string_view& text) { return input_->readLine(text, line_, info_.name); }
 
   // One logical line: physical lines ending in '\' are joined (the view then points into
   // joined_). Errors name the last physical line.

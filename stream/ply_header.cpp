@@ -68,13 +68,7 @@ class HeaderParser {
     throwReadError(name_, Place::line(line), reason);
   }
 
-  bool nextLine() {
-    bool tooLong = false;
-    if (!input_.readLine(text_, kMaxLineBytes, tooLong)) return false;
-    ++line_;
-    if (tooLong) fail(line_, "header line longer than " + std::to_string(kMaxLineBytes) + " bytes");
-    return true;
-  }
+  bool nextLine() { return input_.readLine(text_, line_, name_, "header line"); }
 
   void expectEnd(Tokens& tokens) const {
     const std::string_view extra = tokens.next();

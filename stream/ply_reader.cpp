@@ -201,13 +201,7 @@ class PlyReader final : public ReaderBase {
 
   // ---------------------------------------------------------------- ascii helpers
 
-  bool nextLine(std::string_view& text) {
-    bool tooLong = false;
-    if (!input_->readLine(text, kMaxLineBytes, tooLong)) return false;
-    ++line_;
-    if (tooLong) fail(Place::line(line_), "line longer than " + std::to_string(kMaxLineBytes) + " bytes");
-    return true;
-  }
+  bool nextLine(std::string_view& text) { return input_->readLine(text, line_, info_.name); }
 
   // The next non-blank line of `element`'s current record.
   Tokens nextRecordLine(const PlyElement& element) {

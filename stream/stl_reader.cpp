@@ -172,11 +172,8 @@ class AsciiStlReader final : public StlReaderBase {
     for (;;) {
       const std::string_view token = tokens_.next();
       if (!token.empty()) return token;
-      bool tooLong = false;
       std::string_view text;
-      if (!input_->readLine(text, kMaxLineBytes, tooLong)) return {};
-      ++line_;
-      if (tooLong) fail("line longer than " + std::to_string(kMaxLineBytes) + " bytes");
+      if (!input_->readLine(text, line_, info_.name)) return {};
       tokens_ = Tokens(text);
     }
   }

@@ -19,8 +19,6 @@ namespace facetree::stream_detail {
 inline constexpr uint64_t kMaxVertices = uint64_t{kNoVertex};
 // Never reserve more than this many elements from a count that the input size cannot back.
 inline constexpr uint64_t kMaxUntrustedReserve = uint64_t{1} << 20;
-// Longest accepted text line (OBJ, ASCII STL/PLY, PLY header).
-inline constexpr size_t kMaxLineBytes = size_t{1} << 20;
 
 // Vertex positions held in memory, or (ReadOptions::vertexSink) handed on in batches and not
 // kept: then position() and data() must not be used.
