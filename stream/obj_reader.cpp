@@ -23,18 +23,11 @@ class ObjReader final : public ReaderBase {
   }
 
  protected:
-  size_t produce(Triangle* out, size_t capacity) override {
-    size_t count = 0;
-    while (count < capacity) {
-      if (!pending_.empty()) {
-        count += pending_.emit(out + count, capacity - count);
-        continue;
-      }
-      std::string_view statement;
-      if (!nextStatement(statement)) break;
-      parseStatement(statement);
-    }
-    return count;
+  // Every face goes through pending_.
+  size_t produce(Triangle*, size_t) override {
+    std::string_view statement;
+    while (pending_.empty() && nextStatement(statement)) parseStatement(statement);
+    return 0;
   }
 
   void finishReading() override {
@@ -121,7 +114,6 @@ class ObjReader final : public ReaderBase {
   uint64_t line_ = 0;
   std::string joined_;
   std::vector<uint32_t> polygon_;
-  PendingFace pending_;
 };
 
 }  // namespace

@@ -60,11 +60,7 @@ class PlyReader final : public ReaderBase {
  protected:
   size_t produce(Triangle* out, size_t capacity) override {
     size_t count = 0;
-    while (count < capacity) {
-      if (!pending_.empty()) {
-        count += pending_.emit(out + count, capacity - count);
-        continue;
-      }
+    while (count < capacity && pending_.empty()) {
       if (verticesLoaded_ && bufferedNext_ < buffered_.size()) {
         count += emitBuffered(out + count, capacity - count);
         continue;
@@ -614,7 +610,6 @@ class PlyReader final : public ReaderBase {
   bool verticesLoaded_ = false;
   bool endChecked_ = false;
   std::vector<uint32_t> polygon_;
-  PendingFace pending_;  // the current record's triangles not yet handed on
   std::vector<BufferedTriangle> buffered_;
   size_t bufferedNext_ = 0;
 };

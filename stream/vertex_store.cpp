@@ -33,8 +33,9 @@ size_t ReaderBase::read(std::span<Triangle> out) {
   size_t count = 0;
   try {
     while (count < out.size() && !ended_) {
-      const size_t produced = produce(out.data() + count, out.size() - count);
-      if (produced == 0) {
+      size_t produced = pending_.emit(out.data() + count, out.size() - count);
+      if (produced == 0) produced = produce(out.data() + count, out.size() - count);
+      if (produced == 0 && pending_.empty()) {
         ended_ = true;
         finishReading();
         break;

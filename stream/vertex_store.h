@@ -105,7 +105,8 @@ class ReaderBase : public TriangleReader {
 
  protected:
   // Writes up to `capacity` triangles (vertex indices and face ids; positions are filled in
-  // later); returns 0 only at the end of the mesh. May throw Error (Input).
+  // later), or stops at a face it left in pending_; returns 0 with none pending only at the end
+  // of the mesh. May throw Error (Input).
   virtual size_t produce(Triangle* out, size_t capacity) = 0;
   // Called once after produce() returned 0 (e.g. to reject a mesh without faces).
   virtual void finishReading() {}
@@ -124,6 +125,7 @@ class ReaderBase : public TriangleReader {
   MeshInfo info_;
   ReadStats stats_;
   VertexStore vertices_;
+  PendingFace pending_;  // handed on by read() before produce() is asked for more
   // Triangles carry their own positions, vertex indices are kNoVertex (TriangleReader::stopWelding).
   bool soup_ = false;
 

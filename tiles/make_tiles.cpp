@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <type_traits>
 #include <unordered_map>
 
 #include <glm/gtc/quaternion.hpp>
@@ -157,25 +156,6 @@ TilesetReport makeTop(const TilePlan& plan, std::vector<SubtreeTiles>& subtrees,
   r.rootGeometricError = records[0].error;
   r.jsonFiles = writeTilesetJson(tree, records, out, plan.options.tilesPerJson);
   return r;
-}
-
-namespace {
-
-// A subtree's tiles as its manifest keeps them, listed once for the writer and the reader.
-template <class Manifest, class Tiles>
-void subtreeFields(Manifest& m, Tiles& tiles) {
-  m.field(tiles.ids);
-  if constexpr (std::is_same_v<Manifest, ManifestReader>) tiles.records.resize(tiles.ids.size());
-  for (auto& r : tiles.records) m.field(r.box), m.field(r.error), m.field(r.content);
-  for (auto* v : {&tiles.glbBytes, &tiles.triangles}) m.field(*v);
-  m.field(tiles.root.positions), m.field(tiles.root.vertexIds), m.field(tiles.root.indices);
-  m.field(tiles.root.error), m.field(tiles.peakHeldBytes);
-}
-
-}  // namespace
-
-void putSubtree(ManifestWriter& out, const SubtreeTiles& tiles) {
-  subtreeFields(out, tiles);
 }
 
 SubtreeTiles takeSubtree(ManifestReader& in) {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <type_traits>
 #include <vector>
 
 #include "facetree/storage.h"
@@ -46,8 +47,17 @@ SubtreeTiles makeSubtree(const TilePlan& plan, ClusterFileReader& reader, uint32
 TilesetReport makeTop(const TilePlan& plan, std::vector<SubtreeTiles>& subtrees,
                       const std::filesystem::path& out);
 
-// A subtree's tiles as fields of a manifest.
-void putSubtree(ManifestWriter& out, const SubtreeTiles& tiles);
-SubtreeTiles takeSubtree(ManifestReader& in);
+// A subtree's tiles as its manifest keeps them, listed once for the writer and the reader.
+template <class Manifest, class Tiles>
+void subtreeFields(Manifest& m, Tiles& tiles) {
+  m.field(tiles.ids);
+  if constexpr (std::is_same_v<Manifest, ManifestReader>) tiles.records.resize(tiles.ids.size());
+  for (auto& r : tiles.records) m.field(r.box), m.field(r.error), m.field(r.content);
+  for (auto* v : {&tiles.glbBytes, &tiles.triangles}) m.field(*v);
+  m.field(tiles.root.positions), m.field(tiles.root.vertexIds), m.field(tiles.root.indices);
+  m.field(tiles.root.error), m.field(tiles.peakHeldBytes);
+}
+
+SubtreeTiles takeSubtree(ManifestReader& in);  // the fields, checked
 
 }  // namespace facetree::tiles

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <stdexcept>
-#include <type_traits>
 
 #include "facetree/error.h"
 
@@ -101,37 +100,6 @@ std::string planFingerprint(const std::filesystem::path& file, const TileOptions
         uint64_t(options.dracoPositionBits), uint64_t{options.tilesPerJson}, uint64_t{tasks}})
     out += std::to_string(v) + ' ';
   return out + options.tmp.string();
-}
-
-namespace {
-
-// A plan as its manifest keeps it, listed once for the writer and the reader; paths as strings.
-template <class Manifest, class Plan>
-void planFields(Manifest& m, Plan& plan) {
-  constexpr bool kReading = std::is_same_v<Manifest, ManifestReader>;
-  const auto path = [&](auto& p) {
-    if constexpr (kReading)
-      p = m.takeBytes();
-    else
-      m.putBytes(p.string());
-  };
-  auto& o = plan.options;
-  path(plan.file), path(o.tmp);
-  m.field(o.tileFaces), m.field(o.memoryBytes), m.field(o.draco), m.field(o.dracoPositionBits);
-  m.field(o.tilesPerJson), m.field(plan.workers);
-  m.field(plan.tree.tiles), m.field(plan.tree.children);
-  if constexpr (kReading)
-    plan.borders = TileBorders::take(m);
-  else
-    plan.borders.put(m);
-  m.field(plan.tasks);
-  m.field(plan.glb.gridMin), m.field(plan.glb.gridSize), m.field(plan.origin), m.field(plan.step);
-}
-
-}  // namespace
-
-void putPlan(ManifestWriter& out, const TilePlan& plan) {
-  planFields(out, plan);
 }
 
 TilePlan takePlan(ManifestReader& in) {

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <type_traits>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -39,9 +40,30 @@ struct TilePlan {
 TilePlan planTileset(const std::filesystem::path& file, const TileOptions& options, unsigned threads,
                      uint32_t tasks);
 
-// The plan as fields of a manifest.
-void putPlan(ManifestWriter& out, const TilePlan& plan);
-TilePlan takePlan(ManifestReader& in);
+// A plan as its manifest keeps it, listed once for the writer and the reader; paths as strings.
+template <class Manifest, class Plan>
+void planFields(Manifest& m, Plan& plan) {
+  constexpr bool kReading = std::is_same_v<Manifest, ManifestReader>;
+  const auto path = [&](auto& p) {
+    if constexpr (kReading)
+      p = m.takeBytes();
+    else
+      m.putBytes(p.string());
+  };
+  auto& o = plan.options;
+  path(plan.file), path(o.tmp);
+  m.field(o.tileFaces), m.field(o.memoryBytes), m.field(o.draco), m.field(o.dracoPositionBits);
+  m.field(o.tilesPerJson), m.field(plan.workers);
+  m.field(plan.tree.tiles), m.field(plan.tree.children);
+  if constexpr (kReading)
+    plan.borders = TileBorders::take(m);
+  else
+    plan.borders.put(m);
+  m.field(plan.tasks);
+  m.field(plan.glb.gridMin), m.field(plan.glb.gridSize), m.field(plan.origin), m.field(plan.step);
+}
+
+TilePlan takePlan(ManifestReader& in);  // the fields, checked
 // What a plan depends on: the file's name, size and time of change, and the options. A work
 // directory whose plan has the same is not planned again (its tasks done are kept).
 std::string planFingerprint(const std::filesystem::path& file, const TileOptions& options, uint32_t tasks);

@@ -217,7 +217,7 @@ TilesPlanReport planTiles(const std::filesystem::path& file, const std::filesyst
   ManifestWriter out;
   out.putBytes(fingerprint);
   out.putBytes(absoluteTarget(dir).string());
-  putPlan(out, plan);
+  planFields(out, plan);
   out.commit(planPath(work), kPlanKind);
   report.tasks = static_cast<uint32_t>(plan.tasks.size());
   report.tileFaces = plan.options.tileFaces;
@@ -245,7 +245,7 @@ bool runTilesTask(const std::filesystem::path& work, uint32_t task, const std::f
   tiles.peakHeldBytes = held.peak + reader.peakHeldBytes() + plan.borders.bytes();
   ManifestWriter out;
   out.putBytes(planned.fingerprint);
-  putSubtree(out, tiles);
+  subtreeFields(out, tiles);
   out.commit(taskPath(work, task), kTaskKind);
   return true;
 }
