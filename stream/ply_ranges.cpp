@@ -5,7 +5,6 @@
 // block the chunk touches is read once: a coherent file reads the few blocks near its faces, a
 // shuffled one reads its vertex records once per chunk, never once per corner (the sort join of
 // external-memory algorithms, Vitter 2001, sec. 7, within one chunk's memory).
-
 #include <algorithm>
 #include <cmath>
 #include <vector>

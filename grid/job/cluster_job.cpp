@@ -1,6 +1,5 @@
 // runClusterJob: reads the input, in memory while the in-core build's estimated peak fits the
 // cap, and hands over to the out-of-core build (with what was read so far) as soon as it does not.
-
 #include <chrono>
 #include <cmath>
 

@@ -6,7 +6,6 @@
 // the spills in section order and overwrites the placeholder, whose size is known from the
 // declared counts (every frame but a section's last is full). Standard output cannot seek, so
 // there the node frames are spilled too and everything goes out in finish().
-
 #include <algorithm>
 #include <limits>
 #include <optional>
